@@ -1,0 +1,32 @@
+"""FLISS gateware (Amaranth 0.5).
+
+One block per module:
+
+* :mod:`.lfsr`: Galois LFSR with a run-time or fixed length;
+* :mod:`.delay`: the pseudorandom delay source (``off``, ``mseq``, ``masked``);
+* :mod:`.scheduler`: the pulse scheduler (``interval`` and ``grid`` modes);
+* :mod:`.laser`: laser trigger and TDC start;
+* :mod:`.core`: the delay core, the three blocks above wired together.
+"""
+
+#: Default system clock of the design, in Hz (Table 1 of the paper).
+DEFAULT_CLOCK_HZ = 80_000_000
+
+#: Default nominal pulse repetition frequency, in Hz (Table 1 of the paper).
+DEFAULT_PRF_HZ = 1_000_000
+
+
+def period_cycles(clock_hz, prf_hz):
+    """Nominal laser period ``T`` in clock cycles: ``round(clock_hz / prf_hz)``.
+
+    Raises :exc:`ValueError` for a non-positive clock or PRF, or for a PRF above the clock.
+    """
+    if not clock_hz > 0:
+        raise ValueError(f"Clock frequency must be positive, not {clock_hz!r}")
+    if not prf_hz > 0:
+        raise ValueError(f"Pulse repetition frequency must be positive, not {prf_hz!r}")
+    period = round(clock_hz / prf_hz)
+    if period < 2:
+        raise ValueError(f"Pulse repetition frequency {prf_hz} Hz is too high for a "
+                         f"{clock_hz} Hz clock: the period must be at least 2 cycles")
+    return period

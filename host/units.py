@@ -1,0 +1,50 @@
+"""Quantities with units on the command line: ``80MHz``, ``1e6``, ``75ns``, ``10ms``."""
+
+import re
+
+
+__all__ = ["parse_frequency", "parse_time", "format_frequency", "format_time"]
+
+
+_NUMBER = r"([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)"
+
+_FREQUENCY = {"": 1, "hz": 1, "khz": 1e3, "mhz": 1e6, "ghz": 1e9}
+_TIME = {"s": 1, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "ns": 1e-9, "ps": 1e-12}
+
+
+def _parse(text, units, what, example):
+    match = re.fullmatch(_NUMBER + r"\s*([a-zµ]*)", str(text).strip(), flags=re.IGNORECASE)
+    if match is None or match.group(2).lower() not in units:
+        raise ValueError(f"cannot read {text!r} as a {what} (for example {example})")
+    value = float(match.group(1)) * units[match.group(2).lower()]
+    if not value > 0:
+        raise ValueError(f"{what} must be positive, not {text!r}")
+    return value
+
+
+def parse_frequency(text):
+    """Frequency in Hz from ``"80MHz"``, ``"1 kHz"``, ``"2.5e6"`` (plain numbers are Hz)."""
+    value = _parse(text, _FREQUENCY, "frequency", "80MHz, 1kHz or 1e6")
+    return int(value) if value == int(value) else value
+
+
+def parse_time(text):
+    """Time in seconds from ``"10ms"``, ``"75ns"``, ``"1.5s"``; the unit is required."""
+    return _parse(text, _TIME, "time", "10ms or 75ns")
+
+
+def format_frequency(hz):
+    """``963.9 kHz`` style: four significant figures and an SI prefix."""
+    hz = float(hz)
+    for factor, prefix in ((1e9, "G"), (1e6, "M"), (1e3, "k"), (1, ""), (1e-3, "m")):
+        if abs(hz) >= factor:
+            return f"{hz / factor:.4g} {prefix}Hz"
+    return f"{hz:.4g} Hz"
+
+
+def format_time(seconds):
+    """``12.5 ns`` style: four significant figures and an SI prefix."""
+    for factor, prefix in ((1, ""), (1e-3, "m"), (1e-6, "µ"), (1e-9, "n")):
+        if abs(seconds) >= factor:
+            return f"{seconds / factor:.4g} {prefix}s"
+    return f"{seconds / 1e-12:.4g} ps"
