@@ -1,0 +1,91 @@
+"""The model commands of ``fliss``: output worked out by hand or taken from the paper, and one
+clear line for every user mistake."""
+
+import subprocess
+import sys
+
+import pytest
+
+from fliss.host.cli import main
+
+
+def run(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_sequence_mseq_l3_by_hand(capsys):
+    # x^3 + x + 1, Galois right shift (taps 0b101), from state 1:
+    # 1 -> 5 -> 7 -> 6 -> 3 -> 4 -> 2 -> 1, so R = state - 1.
+    code, out, err = run(capsys, "sequence", "--mode", "mseq", "--length", "3", "--seed", "1",
+                         "--count", "8")
+    assert code == 0 and err == ""
+    assert out.split() == ["0", "4", "6", "5", "2", "3", "1", "0"]
+
+
+def test_sequence_times(capsys):
+    # Interval mode at T = 80: first pulse 1 + R[0] after the first frame, then T + R apart,
+    # plus one cycle from fire to the laser edge.
+    code, out, _ = run(capsys, "sequence", "--length", "3", "--count", "4", "--times")
+    assert code == 0
+    delays = [0, 4, 6, 5]
+    times, t = [], 0
+    for k, r in enumerate(delays):
+        t = 1 + r if k == 0 else t + 80 + r
+        times.append(t + 1)
+    assert [int(v) for v in out.split()] == times
+
+
+def test_sequence_off_and_masked_range(capsys):
+    code, out, _ = run(capsys, "sequence", "--mode", "off", "--count", "3")
+    assert out.split() == ["0", "0", "0"]
+    code, out, _ = run(capsys, "sequence", "--mode", "masked", "--mask-width", "2",
+                       "--seed", "0xabcdef", "--count", "400")
+    values = {int(v) for v in out.split()}
+    assert values == {0, 1, 2, 3}
+
+
+def test_prf_table_reproduces_table_2(capsys):
+    code, out, _ = run(capsys, "prf-table")
+    assert code == 0
+    rows = {line.split()[1]: line for line in out.splitlines() if line.startswith("mseq")}
+    for length, paper in [(3, "963.9 kHz"), (4, "919.5 kHz"), (5, "842.1 kHz"),
+                          (6, "720.7 kHz"), (8, "386.5 kHz")]:
+        assert rows[f"L={length}"].count(paper) == 2  # closed form and measured
+    assert "2.436 kHz" in rows["L=16"] and "37.25 mHz" in rows["L=32"]
+
+
+def test_prf_table_other_clock(capsys):
+    # 79.5 MHz (iCE40 PLL): T = round(79.5) = 80 cycles, PRF_eff = 79.5 MHz / (80 + 31) for L=6.
+    code, out, _ = run(capsys, "prf-table", "--clock", "79.5MHz", "--lengths", "6")
+    assert code == 0
+    assert f"{79.5e6 / 111 / 1e3:.4g} kHz" in out
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["sequence", "--length", "40"], "LFSR length must be an integer from 2 to 32, not 40"),
+    (["sequence", "--seed", "0"], "Seed must be an integer from 1 to 63"),
+    (["sequence", "--mode", "masked", "--mask-width", "0"],
+     "Mask width must be an integer from 1 to 16, not 0"),
+    (["sequence", "--prf", "1 MHzz"], "cannot read '1 MHzz' as a frequency"),
+    (["sequence", "--count", "-1"], "--count must not be negative, not -1"),
+    (["sequence", "--grid", "--length", "8", "--times"], "Grid mode needs the largest delay"),
+    (["prf-table", "--clock=-80MHz"], "frequency must be positive"),
+    (["prf-table", "--lengths", "1"], "LFSR length must be an integer from 2 to 32, not 1"),
+])
+def test_user_errors_are_one_line(capsys, argv, message):
+    code, out, err = run(capsys, *argv)
+    assert code == 1 and out == ""
+    assert err.startswith("fliss: error: ") and message in err
+    assert err.count("\n") == 1
+
+
+def test_module_entry_point():
+    result = subprocess.run([sys.executable, "-m", "fliss", "sequence", "--count", "2"],
+                            capture_output=True, text=True, timeout=60)
+    # Default mseq, L = 6 (x^6 + x + 1, taps 0x21), seed 1: states 1, 33.
+    assert result.returncode == 0 and result.stdout.split() == ["0", "32"]
+    result = subprocess.run([sys.executable, "-m", "fliss", "sequence", "--seed", "0"],
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == 1 and "Traceback" not in result.stderr
