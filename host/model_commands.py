@@ -50,6 +50,9 @@ def register(subparsers, formatter):
                         metavar="L", help="register lengths of the mseq source")
     parser.add_argument("--mask-widths", type=int, nargs="*", default=[], metavar="W",
                         help="mask widths of the masked source")
+    parser.add_argument("--grid", action="store_true",
+                        help="grid scheduler mode: pulse k at k*T + delay (needs the largest "
+                             "delay to fit in the period)")
     parser.set_defaults(run=run_prf_table)
 
     parser = subparsers.add_parser(
@@ -77,7 +80,7 @@ def register(subparsers, formatter):
     parser.set_defaults(run=run_sequence)
 
 
-def prf_rows(clock_hz, period, lengths=(), mask_widths=()):
+def prf_rows(clock_hz, period, lengths=(), mask_widths=(), *, grid=False):
     """Rows of the PRF table: (source, setting, max delay, mean delay, PRF closed form,
     PRF measured or None)."""
     rows = []
@@ -86,13 +89,15 @@ def prf_rows(clock_hz, period, lengths=(), mask_widths=()):
     for mode, setting in sources:
         max_delay = delay_model.max_delay(mode, **setting)
         mean_delay = delay_model.mean_delay(mode, **setting)
-        closed = scheduler_model.effective_prf(clock_hz, period, mean_delay)
+        if grid:
+            scheduler_model.check_schedule(period, 1, grid=True, max_delay=max_delay)
+        closed = scheduler_model.effective_prf(clock_hz, period, mean_delay, grid=grid)
         pulses = delay_model.sequence_period(mode, **setting)
         measured = None
         if pulses <= MEASURE_LIMIT:
             delays = delay_model.delays(mode, pulses + 1, **setting)
             measured = scheduler_model.measured_prf(
-                clock_hz, scheduler_model.fire_cycles(delays, period))
+                clock_hz, scheduler_model.fire_cycles(delays, period, grid=grid))
         rows.append((mode, setting, max_delay, mean_delay, closed, measured))
     return rows
 
@@ -100,11 +105,11 @@ def prf_rows(clock_hz, period, lengths=(), mask_widths=()):
 def run_prf_table(args):
     clock_hz, period = _period(args)
     try:
-        rows = prf_rows(clock_hz, period, args.lengths, args.mask_widths)
+        rows = prf_rows(clock_hz, period, args.lengths, args.mask_widths, grid=args.grid)
     except ValueError as error:
         raise UserError(str(error)) from None
     print(f"clock {format_frequency(clock_hz)}, nominal PRF {format_frequency(clock_hz / period)}"
-          f" (T = {period} cycles)")
+          f" (T = {period} cycles), {'grid' if args.grid else 'interval'} mode")
     print(f"{'source':<8} {'setting':<8} {'max delay':>12} {'mean delay':>14} "
           f"{'PRF_eff (eq. 4)':>16} {'measured':>12}")
     for mode, setting, max_delay, mean_delay, closed, measured in rows:

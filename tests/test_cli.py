@@ -63,7 +63,18 @@ def test_prf_table_other_clock(capsys):
     assert f"{79.5e6 / 111 / 1e3:.4g} kHz" in out
 
 
+def test_prf_table_grid_mode_keeps_nominal_prf(capsys):
+    code, out, _ = run(capsys, "prf-table", "--grid", "--lengths", "3", "6",
+                       "--mask-widths", "4")
+    assert code == 0
+    rows = [line for line in out.splitlines() if line.startswith(("mseq", "masked"))]
+    assert len(rows) == 3
+    assert [row.count("1 MHz") for row in rows] == [2, 2, 1]  # masked: no whole-period measure
+
+
 @pytest.mark.parametrize("argv, message", [
+    (["prf-table", "--grid", "--lengths", "7"],
+     "Grid mode needs the largest delay plus the pulse width (126 + 1 cycles)"),
     (["sequence", "--length", "40"], "LFSR length must be an integer from 2 to 32, not 40"),
     (["sequence", "--seed", "0"], "Seed must be an integer from 1 to 63"),
     (["sequence", "--mode", "masked", "--mask-width", "0"],
