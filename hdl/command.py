@@ -1,0 +1,365 @@
+"""Command processor: verified packets in, replies out, the register file in between."""
+
+from amaranth.hdl import *
+from amaranth.lib import data, stream, wiring
+from amaranth.lib.wiring import In, Out
+
+from .. import __version__
+from . import DEFAULT_CLOCK_HZ
+from .delay import DelayMode
+from .framing import PacketBeat
+from .protocol import (PROTOCOL_VERSION, PacketType, NakCode, MAX_PAYLOAD, COUNTER_BITS)
+from .registers import REGISTERS, settings_layout, defaults
+
+
+__all__ = ["Identity", "STATUS_FIELDS", "status_layout", "READ_MAX", "CONSISTENCY",
+           "CommandProcessor"]
+
+
+class Identity(data.Struct):
+    """Payload of an IDENTITY packet (little-endian)."""
+    protocol:       8
+    gateware_major: 8
+    gateware_minor: 8
+    registers:      8
+    clock_hz:       32
+    baud:           32
+
+
+#: Counters of a STATUS packet, in payload order, each a little-endian u32.
+STATUS_FIELDS = (
+    "running",              # 1 while acquiring
+    "pulses",               # victim laser pulses since the start
+    "frames",               # histograms completed
+    "events",               # events accepted from the TDC
+    "dropped_stopped",      # events while stopped
+    "dropped_gate",         # events outside the gate
+    "dropped_overflow",     # coarse TDC: photon beyond the timestamp range
+    "dropped_overrun",      # events faster than the interface can take
+    "dropped_fifo",         # raw mode: events dropped at the full FIFO
+    "dropped_histogram",    # histogram mode: events while no frame was filling
+    "histogram_overflow",   # histogram mode: events beyond the last bin
+    "uart_framing_errors",  # bytes with a bad stop bit
+    "uart_overruns",        # bytes lost because the receiver was full
+    "bad_crc",              # frames dropped: bad CRC
+    "truncated",            # frames dropped: truncated
+    "oversize",             # frames dropped: oversize
+    "bad_length",           # frames dropped: header length wrong
+    "commands",             # commands received
+    "refused",              # commands refused with a NAK
+)
+
+
+def status_layout():
+    return data.StructLayout({name: COUNTER_BITS for name in STATUS_FIELDS})
+
+
+#: Most registers in one READ (the REGISTERS reply carries the address and one u32 each).
+READ_MAX = (MAX_PAYLOAD - 2) // 4
+
+#: ``detail`` of a NAK ``OUT_OF_RANGE`` refused for inconsistent settings rather than for one
+#: register out of its range (whose address is the detail then).
+CONSISTENCY = 0xffff
+
+
+def _version(text):
+    parts = [int(part) if part.isdigit() else 0 for part in text.split(".")[:2]] + [0, 0]
+    return parts[0] & 0xff, parts[1] & 0xff
+
+
+class CommandProcessor(wiring.Component):
+    """Command processor and register file.
+
+    Takes verified packets (from :class:`~fliss.hdl.framing.FrameDecoder`) and answers each
+    command with one packet: ``ACK``, ``NAK`` with a :class:`~fliss.hdl.protocol.NakCode`, or the
+    data asked for. A ``WRITE`` carries an address and one u32 per register; every value is
+    range-checked, the settings it would make are checked together
+    (:func:`fliss.hdl.registers.problems`), and then either all are applied at once or none.
+    Link errors reported by the frame decoder are answered with a ``NAK`` (sequence number 0).
+
+    Outgoing packets carry sequence number 0: the transmit side numbers them.
+
+    Parameters
+    ----------
+    clock_hz : int
+        Clock frequency, for the register reset values and the identity.
+    baud : int
+        Baud rate, for the identity.
+
+    Members
+    -------
+    packets : In(stream.Signature(PacketBeat))
+        Verified packets.
+    replies : Out(stream.Signature(PacketBeat))
+        Replies.
+    link_error : In(1)
+        Strobe: the frame decoder dropped a frame.
+    link_error_code : In(NakCode)
+        Why, with ``link_error``.
+    settings : Out(settings_layout())
+        The registers.
+    update : Out(1)
+        Strobe: settings changed while running.
+    running : Out(1)
+        Acquisition started.
+    status : In(status_layout())
+        Counters for STATUS packets; ``running``, ``commands`` and ``refused`` are filled in here.
+    commands, refused : Out(32)
+        Commands received, and refused with a NAK.
+    """
+
+    def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, baud=115_200):
+        self.clock_hz = int(clock_hz)
+        self.baud = int(baud)
+        super().__init__({
+            "packets":         In(stream.Signature(PacketBeat)),
+            "replies":         Out(stream.Signature(PacketBeat)),
+            "link_error":      In(1),
+            "link_error_code": In(NakCode, init=NakCode.BAD_CRC),
+            "settings":        Out(settings_layout(), init=defaults(self.clock_hz)),
+            "update":          Out(1),
+            "running":         Out(1),
+            "status":          In(status_layout()),
+            "commands":        Out(COUNTER_BITS),
+            "refused":         Out(COUNTER_BITS),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+
+        layout = settings_layout()
+        candidate = Signal(layout, init=defaults(self.clock_hz))
+
+        # Command being received
+        cmd_type = Signal(8)
+        cmd_seq = Signal(8)
+        cmd_length = Signal(16)
+        index = Signal(16)
+        address = Signal(16)
+        count = Signal(8)
+        word = Signal(32)
+        error = Signal(NakCode, init=NakCode.BAD_ADDRESS)
+        error_detail = Signal(16)
+        has_error = Signal()
+
+        # Reply being sent
+        reply_type = Signal(8)
+        reply_length = Signal(16)
+        nak = Signal(data.StructLayout({"seq": 8, "code": NakCode, "detail": 16}),
+                     init={"code": NakCode.BAD_CRC})
+        snapshot = Signal(status_layout())
+        link_pending = Signal()
+        link_code = Signal(NakCode, init=NakCode.BAD_CRC)
+
+        with m.If(self.link_error):
+            m.d.sync += link_pending.eq(1), link_code.eq(self.link_error_code)
+
+        # Register values as u32 words, in address order
+        words = Array(Signal(32, name=f"reg_{r.name}") for r in REGISTERS)
+        for register, value in zip(REGISTERS, words):
+            m.d.comb += value.eq(self.settings[register.name])
+
+        # Range check of the value completing in this cycle, and its write to the candidate
+        value = Signal(32)
+        write_address = Signal(16)
+        in_range = Signal()
+        known = Signal()
+        with m.Switch(write_address):
+            for register in REGISTERS:
+                with m.Case(register.address):
+                    m.d.comb += [
+                        known.eq(1),
+                        in_range.eq((value >= register.minimum) & (value <= register.maximum)),
+                    ]
+
+        # Consistency of the candidate settings (registered: it is only needed a cycle later)
+        consistent = Signal()
+        c = candidate
+
+        def max_delay(mode, length, mask_width):
+            return Mux(mode == DelayMode.MSEQ, (Const(1, 34) << length) - 2,
+                       Mux(mode == DelayMode.MASKED, (Const(1, 17) << mask_width) - 1, 0))
+
+        m.d.sync += consistent.eq(
+            (c.pulse_width < c.period) &
+            (~c.grid | (max_delay(c.delay_mode, c.length, c.mask_width) + c.pulse_width <
+                        c.period)) &
+            ((c.delay_mode != DelayMode.MSEQ) | ((c.seed >> c.length) == 0)) &
+            (c.aggressor_width < c.aggressor_period) &
+            ((c.aggressor_delay_mode != DelayMode.MSEQ) |
+             ((c.aggressor_seed >> c.aggressor_length) == 0)) &
+            (c.gate_start <= c.gate_end))
+
+        def refuse(code, detail=0):
+            return [
+                nak.seq.eq(cmd_seq), nak.code.eq(code), nak.detail.eq(detail),
+                reply_type.eq(PacketType.NAK), reply_length.eq(4),
+                self.refused.eq(self.refused + 1),
+            ]
+
+        def reply(type, length):
+            return [reply_type.eq(type), reply_length.eq(length)]
+
+        with m.FSM():
+            with m.State("IDLE"):
+                m.d.comb += self.packets.ready.eq(1)
+                with m.If(self.packets.valid & self.packets.p.first):
+                    header = self.packets.p.header
+                    m.d.sync += [
+                        cmd_type.eq(header.type), cmd_seq.eq(header.seq),
+                        cmd_length.eq(header.length), index.eq(0), has_error.eq(0),
+                        candidate.eq(self.settings),
+                        self.commands.eq(self.commands + 1),
+                    ]
+                    with m.If(self.packets.p.last):
+                        m.next = "DISPATCH"
+                    with m.Else():
+                        m.next = "PAYLOAD"
+                with m.Elif(link_pending):
+                    m.d.sync += [
+                        link_pending.eq(0),
+                        nak.seq.eq(0), nak.code.eq(link_code), nak.detail.eq(0),
+                        reply_type.eq(PacketType.NAK), reply_length.eq(4),
+                    ]
+                    m.next = "HEADER"
+
+            with m.State("PAYLOAD"):
+                m.d.comb += self.packets.ready.eq(1)
+                byte = self.packets.p.data
+                m.d.comb += [
+                    value.eq(Cat(word[8:], byte)),
+                    write_address.eq(address + ((index - 2) >> 2)),
+                ]
+                with m.If(self.packets.valid):
+                    m.d.sync += [index.eq(index + 1), word.eq(Cat(word[8:], byte))]
+                    with m.If(index == 0):
+                        m.d.sync += address[:8].eq(byte)
+                    with m.If(index == 1):
+                        m.d.sync += address[8:].eq(byte)
+                    with m.If(index == 2):
+                        m.d.sync += count.eq(byte)
+                    # A WRITE value is complete: check it and put it in the candidate.
+                    with m.If((cmd_type == PacketType.WRITE) & (index >= 5) &
+                              ((index - 2)[:2] == 3) & ~has_error):
+                        with m.If(~known):
+                            m.d.sync += [has_error.eq(1), error.eq(NakCode.BAD_ADDRESS),
+                                         error_detail.eq(write_address)]
+                        with m.Elif(~in_range):
+                            m.d.sync += [has_error.eq(1), error.eq(NakCode.OUT_OF_RANGE),
+                                         error_detail.eq(write_address)]
+                        with m.Switch(write_address):
+                            for register in REGISTERS:
+                                with m.Case(register.address):
+                                    m.d.sync += candidate[register.name].eq(value)
+                    with m.If(self.packets.p.last):
+                        m.next = "DISPATCH"
+
+            with m.State("DISPATCH"):
+                m.next = "HEADER"
+                with m.Switch(cmd_type):
+                    with m.Case(PacketType.PING):
+                        with m.If(cmd_length == 0):
+                            m.d.sync += reply(PacketType.ACK, 1)
+                        with m.Else():
+                            m.d.sync += refuse(NakCode.BAD_PAYLOAD)
+                    with m.Case(PacketType.IDENTIFY):
+                        with m.If(cmd_length == 0):
+                            m.d.sync += reply(PacketType.IDENTITY,
+                                              data.Layout.cast(Identity).size // 8)
+                        with m.Else():
+                            m.d.sync += refuse(NakCode.BAD_PAYLOAD)
+                    with m.Case(PacketType.READ):
+                        with m.If(cmd_length != 3):
+                            m.d.sync += refuse(NakCode.BAD_PAYLOAD)
+                        with m.Elif((count == 0) | (count > READ_MAX) |
+                                    (address + count > len(REGISTERS))):
+                            m.d.sync += refuse(NakCode.BAD_ADDRESS, address)
+                        with m.Else():
+                            m.d.sync += reply(PacketType.REGISTERS, 2 + 4 * count)
+                    with m.Case(PacketType.WRITE):
+                        with m.If((cmd_length < 6) | (cmd_length[:2] != 2)):
+                            m.d.sync += refuse(NakCode.BAD_PAYLOAD)
+                        with m.Elif(has_error):
+                            m.d.sync += refuse(error, error_detail)
+                        with m.Else():
+                            m.next = "COMMIT"
+                    with m.Case(PacketType.START, PacketType.STOP):
+                        with m.If(cmd_length == 0):
+                            m.d.sync += [
+                                reply(PacketType.ACK, 1),
+                                self.running.eq(cmd_type == PacketType.START),
+                            ]
+                        with m.Else():
+                            m.d.sync += refuse(NakCode.BAD_PAYLOAD)
+                    with m.Case(PacketType.GET_STATUS):
+                        with m.If(cmd_length == 0):
+                            m.d.sync += [
+                                reply(PacketType.STATUS, len(STATUS_FIELDS) * 4),
+                                snapshot.eq(self.status),
+                                snapshot.running.eq(self.running),
+                                snapshot.commands.eq(self.commands),
+                                snapshot.refused.eq(self.refused),
+                            ]
+                        with m.Else():
+                            m.d.sync += refuse(NakCode.BAD_PAYLOAD)
+                    with m.Default():
+                        m.d.sync += refuse(NakCode.UNKNOWN_TYPE, cmd_type)
+
+            with m.State("COMMIT"):
+                # `consistent` now reflects the complete candidate.
+                m.next = "HEADER"
+                with m.If(consistent):
+                    m.d.sync += [self.settings.eq(candidate), reply(PacketType.ACK, 1)]
+                    m.d.comb += self.update.eq(self.running)
+                with m.Else():
+                    m.d.sync += refuse(NakCode.OUT_OF_RANGE, CONSISTENCY)
+
+            with m.State("HEADER"):
+                m.d.comb += [
+                    self.replies.valid.eq(1),
+                    self.replies.p.first.eq(1),
+                    self.replies.p.last.eq(reply_length == 0),
+                ]
+                with m.If(self.replies.ready):
+                    m.d.sync += index.eq(0)
+                    m.next = "DATA"
+
+            with m.State("DATA"):
+                m.d.comb += [
+                    self.replies.valid.eq(1),
+                    self.replies.p.last.eq(index == reply_length - 1),
+                ]
+                with m.If(self.replies.ready):
+                    m.d.sync += index.eq(index + 1)
+                    with m.If(index == reply_length - 1):
+                        m.next = "IDLE"
+
+        # Reply header and payload bytes
+        major, minor = _version(__version__)
+        identity = Const({"protocol": PROTOCOL_VERSION, "gateware_major": major,
+                          "gateware_minor": minor, "registers": len(REGISTERS),
+                          "clock_hz": self.clock_hz, "baud": self.baud}, Identity)
+        reg_offset = (index - 2)[:16]
+        m.d.comb += [
+            self.replies.p.header.type.eq(reply_type),
+            self.replies.p.header.length.eq(reply_length),
+        ]
+        with m.Switch(reply_type):
+            with m.Case(PacketType.ACK):
+                m.d.comb += self.replies.p.data.eq(cmd_seq)
+            with m.Case(PacketType.NAK):
+                m.d.comb += self.replies.p.data.eq(nak.as_value().word_select(index[:2], 8))
+            with m.Case(PacketType.IDENTITY):
+                m.d.comb += self.replies.p.data.eq(
+                    identity.as_value().word_select(index[:4], 8))
+            with m.Case(PacketType.STATUS):
+                m.d.comb += self.replies.p.data.eq(
+                    snapshot.as_value().word_select(index[:7], 8))
+            with m.Case(PacketType.REGISTERS):
+                with m.If(index < 2):
+                    m.d.comb += self.replies.p.data.eq(address.word_select(index[0], 8))
+                with m.Else():
+                    m.d.comb += self.replies.p.data.eq(
+                        words[address + (reg_offset >> 2)].word_select(reg_offset[:2], 8))
+
+        return m

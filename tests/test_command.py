@@ -1,0 +1,191 @@
+"""Command processor in Amaranth's simulator against its model, packet by packet."""
+
+import random
+import struct
+
+import pytest
+from amaranth.sim import Simulator
+
+from fliss.hdl.command import CommandProcessor, STATUS_FIELDS
+from fliss.hdl.protocol import PacketType, NakCode
+from fliss.hdl.registers import REGISTERS, BY_NAME, defaults, problems
+from fliss.sim.command import CommandModel
+
+
+CLOCK_HZ, BAUD = 80_000_000, 3_000_000
+
+
+def run_commands(packets, *, link_errors=(), status=None):
+    """Send ``(type, seq, payload)`` packets; return the replies ``(type, payload)`` and the
+    settings after each command."""
+    dut = CommandProcessor(clock_hz=CLOCK_HZ, baud=BAUD)
+    replies, settings, updates = [], [], []
+
+    async def sender(ctx):
+        for number, (type, seq, payload) in enumerate(packets):
+            if number in dict(link_errors):
+                ctx.set(dut.link_error, 1)
+                ctx.set(dut.link_error_code, dict(link_errors)[number])
+                await ctx.tick()
+                ctx.set(dut.link_error, 0)
+            beats = [(True, None)] + [(False, byte) for byte in payload]
+            for index, (first, byte) in enumerate(beats):
+                ctx.set(dut.packets.valid, 1)
+                ctx.set(dut.packets.p, {
+                    "header": {"type": type, "seq": seq, "length": len(payload)},
+                    "data": byte or 0, "first": first, "last": index == len(beats) - 1})
+                await ctx.tick().until(dut.packets.ready)
+            ctx.set(dut.packets.valid, 0)
+            errors_so_far = len([n for n, _ in link_errors if n <= number])
+            while len(replies) < number + 1 + errors_so_far:
+                await ctx.tick()
+
+    async def receiver(ctx):
+        if status:
+            ctx.set(dut.status, status)
+        rng = random.Random(3)
+        current = None
+        while True:
+            ready = rng.random() < 0.8
+            ctx.set(dut.replies.ready, ready)
+            if ctx.get(dut.update):
+                updates.append(len(replies))
+            if ready and ctx.get(dut.replies.valid):
+                beat = ctx.get(dut.replies.p)
+                if beat.first:
+                    current = [beat.header.type, beat.header.length, bytearray()]
+                else:
+                    current[2].append(beat.data)
+                if beat.last:
+                    assert len(current[2]) == current[1]
+                    replies.append((current[0], bytes(current[2])))
+                    settings.append({r.name: ctx.get(dut.settings[r.name]) for r in REGISTERS})
+            await ctx.tick()
+
+    sim = Simulator(dut)
+    sim.add_clock(1 / CLOCK_HZ)
+    sim.add_testbench(sender)
+    sim.add_testbench(receiver, background=True)
+    sim.run()
+    return replies, settings, updates
+
+
+def _write(address, *values):
+    return struct.pack(f"<H{len(values)}I", address, *values)
+
+
+def random_packets(rng, count):
+    packets = []
+    for seq in range(count):
+        kind = rng.random()
+        seq &= 0xff
+        if kind < 0.45:
+            register = rng.choice(REGISTERS)
+            values = []
+            for _ in range(rng.choice([1, 1, 1, 2, 3])):
+                r = rng.random()
+                if r < 0.6:
+                    values.append(rng.randint(register.minimum, min(register.maximum, 200)))
+                elif r < 0.8:
+                    values.append(rng.choice([0, min(register.maximum + 1, (1 << 32) - 1),
+                                              register.minimum,
+                                              register.maximum, (1 << 32) - 1]))
+                else:
+                    values.append(rng.getrandbits(32))
+            address = register.address if rng.random() < 0.95 else rng.choice([0x40, 0xffff])
+            packets.append((PacketType.WRITE.value, seq, _write(address, *values)))
+        elif kind < 0.6:
+            address = rng.randrange(0, len(REGISTERS) + 2)
+            packets.append((PacketType.READ.value, seq,
+                            struct.pack("<HB", address, rng.randrange(0, 8))))
+        elif kind < 0.7:
+            packets.append((rng.choice([PacketType.START.value, PacketType.STOP.value]), seq, b""))
+        elif kind < 0.8:
+            packets.append((rng.choice([PacketType.PING.value, PacketType.IDENTIFY.value,
+                                        PacketType.GET_STATUS.value]), seq,
+                            b"" if rng.random() < 0.8 else b"\x01"))
+        elif kind < 0.9:
+            # Wrong lengths for READ and WRITE
+            packets.append((rng.choice([PacketType.READ.value, PacketType.WRITE.value]), seq,
+                            bytes(rng.getrandbits(8) for _ in range(rng.choice([0, 1, 2, 4, 7])))))
+        else:
+            packets.append((rng.choice([0x00, 0x7f, PacketType.ACK.value, PacketType.EVENTS.value,
+                                        0x42]), seq, b""))
+    return packets
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_against_model(seed):
+    rng = random.Random(seed)
+    packets = random_packets(rng, 120)
+    status = {name: rng.getrandbits(32) for name in STATUS_FIELDS}
+    replies, settings, _ = run_commands(packets, status=status)
+    model = CommandModel(CLOCK_HZ, BAUD)
+    assert len(replies) == len(packets)
+    kinds = set()
+    for number, ((type, seq, payload), (got_type, got_payload), got_settings) in enumerate(
+            zip(packets, replies, settings)):
+        want_type, want_payload = model.command(type, seq, payload, status=status)
+        assert (got_type, got_payload) == (want_type.value, want_payload), (number, type, payload)
+        assert got_settings == model.settings, number
+        kinds.add((want_type, want_payload[1] if want_type == PacketType.NAK else None))
+    # The run covered acceptance and each refusal.
+    for code in (NakCode.BAD_PAYLOAD, NakCode.BAD_ADDRESS, NakCode.OUT_OF_RANGE,
+                 NakCode.UNKNOWN_TYPE):
+        assert (PacketType.NAK, code.value) in kinds, code
+    assert (PacketType.ACK, None) in kinds and (PacketType.REGISTERS, None) in kinds
+
+
+def test_consistency_checks_match_python():
+    # Writes that are each in range but leave inconsistent settings are refused whole.
+    d = defaults(CLOCK_HZ)
+    cases = [
+        _write(BY_NAME["pulse_width"].address, 80),                       # width = period
+        _write(BY_NAME["period"].address, 1, 1),                          # period out of range
+        _write(BY_NAME["delay_mode"].address, 1, 3, 6, 9),                # seed 9 >= 2**3
+        _write(BY_NAME["delay_mode"].address, 1, 3, 6, 7),                # fine
+        _write(BY_NAME["grid"].address, 1),                               # 6 + 1 < 80: fine
+        _write(BY_NAME["length"].address, 7, 6, 127),                     # grid: 126 + 1 >= 80
+        _write(BY_NAME["gate_start"].address, 100, 99),                   # start after end
+        _write(BY_NAME["aggressor_period"].address, 5, 6, 5),             # width 5 = period 5
+    ]
+    packets = [(PacketType.WRITE.value, n, p) for n, p in enumerate(cases)]
+    replies, settings, _ = run_commands(packets)
+    accepted = [type == PacketType.ACK.value for type, _ in replies]
+    assert accepted == [False, False, False, True, True, False, False, False]
+    # Independently: the Python consistency rules say the same of the accepted ones.
+    assert problems(settings[-1]) == []
+    assert settings[-1]["length"] == 3 and settings[-1]["seed"] == 7 and settings[-1]["grid"] == 1
+
+
+def test_update_strobe_only_while_running():
+    packets = [
+        (PacketType.WRITE.value, 0, _write(BY_NAME["period"].address, 100)),
+        (PacketType.START.value, 1, b""),
+        (PacketType.WRITE.value, 2, _write(BY_NAME["period"].address, 120)),
+        (PacketType.WRITE.value, 3, _write(BY_NAME["period"].address, 0)),   # refused
+        (PacketType.STOP.value, 4, b""),
+        (PacketType.WRITE.value, 5, _write(BY_NAME["period"].address, 90)),
+    ]
+    replies, settings, updates = run_commands(packets)
+    assert [t for t, _ in replies] == [PacketType.ACK.value] * 3 + [PacketType.NAK.value] + \
+        [PacketType.ACK.value] * 2
+    assert updates == [2]   # only the accepted write while running
+    assert [s["period"] for s in settings] == [100, 100, 120, 120, 120, 90]
+
+
+def test_link_errors_are_answered():
+    packets = [(PacketType.PING.value, 7, b""), (PacketType.PING.value, 8, b"")]
+    replies, _, _ = run_commands(packets, link_errors=[(1, NakCode.BAD_CRC)])
+    assert replies[0] == (PacketType.ACK.value, bytes([7]))
+    # The NAK of the dropped frame goes out once the processor is free: before or after the
+    # reply to a packet that arrived at the same time.
+    assert sorted(replies[1:]) == sorted([
+        (PacketType.NAK.value, struct.pack("<BBH", 0, NakCode.BAD_CRC.value, 0)),
+        (PacketType.ACK.value, bytes([8]))])
+
+
+def test_identity():
+    replies, _, _ = run_commands([(PacketType.IDENTIFY.value, 1, b"")])
+    protocol, major, minor, registers, clock_hz, baud = struct.unpack("<BBBBII", replies[0][1])
+    assert (registers, clock_hz, baud) == (len(REGISTERS), CLOCK_HZ, BAUD)
