@@ -20,6 +20,7 @@ __all__ = ["UserError", "main"]
 COMMAND_MODULES = [
     "model_commands",
     "demo",
+    "reproduce",
 ]
 
 
