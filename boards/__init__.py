@@ -1,1 +1,388 @@
+"""FLISS on real boards: iCEBreaker (iCE40UP5K) and ULX3S (ECP5-85F).
 
+* :mod:`.icebreaker`, :mod:`.ulx3s`: platforms on top of amaranth-boards, each with a PLL from the
+  board oscillator to the design clock and the FLISS pin map on the PMOD (or GPIO) headers;
+* :mod:`.build`: ``python -m fliss.boards.build BOARD``, bitstreams with the YoWASP tools, Fmax
+  and utilisation from nextpnr, a non-zero exit when timing fails.
+
+This module holds what both boards share and needs no board package: the pin names, the board
+top level :class:`BoardTop` that puts any design on any of the boards, and :class:`DelayCoreDemo`,
+the design the boards carry until the full top level exists.
+
+The board modules need the ``boards`` extra (``pip install -e '.[boards]'``).
+"""
+
+import importlib
+
+from amaranth.hdl import *
+from amaranth.lib import data, io, wiring
+from amaranth.lib.cdc import FFSynchronizer, ResetSynchronizer
+from amaranth.lib.wiring import In, Out
+
+from ..hdl import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, period_cycles
+from ..hdl.core import DelayCore
+from ..hdl.delay import DelayMode, MAX_MASK_WIDTH
+from ..hdl.lfsr import MAX_LENGTH
+from ..hdl.scheduler import PERIOD_WIDTH, PULSE_WIDTH_WIDTH
+
+
+__all__ = ["BOARDS", "FLISS_PINS", "BOARD_PINS", "PIN_ALIASES", "platform_class", "BoardTop",
+           "PllClocking", "DemoSettings", "DelayCoreDemo"]
+
+
+#: Supported boards: name on the command line -> ``module:class`` of its platform.
+BOARDS = {
+    "icebreaker": "icebreaker:FlissICEBreakerPlatform",
+    "ulx3s":      "ulx3s:FlissULX3SPlatform",
+}
+
+#: FLISS signals on the board headers: name -> (width, direction seen from the FPGA).
+#: A design port with one of these names is wired to the pins of the same name.
+FLISS_PINS = {
+    "laser":     (1,  "o"),   # laser trigger of the victim
+    "tdc_start": (1,  "o"),   # TDC start strobe, with the (delayed) laser pulse
+    "aggressor": (1,  "o"),   # trigger of the aggressor's illuminator
+    "timestamp": (13, "i"),   # sensor: TDC code, 50 ps LSB
+    "address":   (6,  "i"),   # sensor: pixel address
+    "valid":     (1,  "i"),   # sensor: event strobe
+    "collision": (1,  "i"),   # sensor: collision flag
+    "photon":    (1,  "i"),   # coarse photon-hit input (photodiode / SPAD comparator)
+}
+
+#: On-board signals: design port name -> (resource name, subsignal or None, width or None,
+#: direction seen from the FPGA). ``led`` takes as many LEDs as the port is wide.
+BOARD_PINS = {
+    "uart_rx": ("uart",   "rx", 1,    "i"),   # from the on-board FTDI to the FPGA
+    "uart_tx": ("uart",   "tx", 1,    "o"),   # from the FPGA to the on-board FTDI
+    "button":  ("button", None, 1,    "i"),   # user button, high when pressed
+    "led":     ("led",    None, None, "o"),   # on-board LEDs, lit when high
+}
+
+
+#: Other names a design may give a pin: alias -> name in :data:`FLISS_PINS`. Any name may also
+#: carry a ``pin_`` prefix (``pin_timestamp``).
+PIN_ALIASES = {
+    "hit": "photon",
+}
+
+
+def _pin_name(port_name):
+    # Design port name -> name in FLISS_PINS or BOARD_PINS (or the name itself if it is neither).
+    name = port_name[len("pin_"):] if port_name.startswith("pin_") else port_name
+    name = PIN_ALIASES.get(name, name)
+    return name if name in FLISS_PINS or name in BOARD_PINS else port_name
+
+
+def platform_class(board):
+    """The platform class of ``board`` (a key of :data:`BOARDS`), imported on demand."""
+    try:
+        spec = BOARDS[board]
+    except KeyError:
+        raise ValueError(f"Unknown board {board!r}; choose one of {', '.join(BOARDS)}") from None
+    module_name, class_name = spec.split(":")
+    module = importlib.import_module(f"{__name__}.{module_name}")
+    return getattr(module, class_name)
+
+
+class BoardTop(Elaboratable):
+    """Board top level: clock, reset and pins around a design.
+
+    The platform (a ``Fliss*Platform`` of this package) makes the ``sync`` domain from its PLL
+    and reports the real frequency as ``platform.clock_hz``. The design is made by
+    ``design(clock_hz)``, and must be a :class:`wiring.Component` whose ports are all plain
+    signals. Each port is wired by name:
+
+    * a name of :data:`FLISS_PINS` to the FLISS pins of the board;
+    * a name of :data:`BOARD_PINS` to the on-board UART, button or LEDs;
+    * the same with a ``pin_`` prefix, or an alias of :data:`PIN_ALIASES` (``hit``).
+
+    Every input goes through a plain :class:`io.Buffer`: synchronising it is the design's job.
+    Unwired inputs stay at their reset value; unwired outputs are left open. Both are listed in
+    :attr:`unwired` after elaboration. A port whose width differs from its pins is an error.
+
+    Parameters
+    ----------
+    design : callable
+        ``design(clock_hz) -> wiring.Component``; :class:`DelayCoreDemo` by default.
+    """
+
+    def __init__(self, design=None):
+        if design is None:
+            design = DelayCoreDemo
+        if not callable(design):
+            raise TypeError(f"Design must be a callable that takes the clock frequency and "
+                            f"returns a wiring.Component, not {design!r}")
+        self._design = design
+        self.unwired = []
+
+    def elaborate(self, platform):
+        m = Module()
+
+        # Clock and reset: the domain is defined here, above the design, and driven by the
+        # platform's PLL
+        m.domains.sync = ClockDomain("sync")
+        m.submodules.clocking = platform.clocking()
+
+        # Design
+        design = self._design(platform.clock_hz)
+        if not isinstance(design, wiring.Component):
+            raise TypeError(f"Design factory must return a wiring.Component, not {design!r}")
+        m.submodules.design = design
+
+        # Pins
+        self.unwired = []
+        ports = {}     # (resource, number) -> requested port
+        buffers = {}   # pins -> their buffer
+
+        def request(name, number):
+            if (name, number) not in ports:
+                ports[name, number] = platform.request(name, number, dir="-")
+            return ports[name, number]
+
+        for port_name, member in design.signature.members.items():
+            if not member.is_port:
+                raise TypeError(f"Port {port_name!r} of the design is an interface; the board "
+                                f"top level wires plain signals only")
+            port = getattr(design, port_name)
+            name = _pin_name(port_name)
+            width = len(port)
+            direction = "i" if member.flow == In else "o"
+
+            if name in FLISS_PINS:
+                pins_width, pins_dir = FLISS_PINS[name]
+                resource = platform.fliss_resource(name)
+                key = (resource,)
+                pins = [request(resource, 0)]
+            elif name in BOARD_PINS:
+                resource, subsignal, pins_width, pins_dir = BOARD_PINS[name]
+                if pins_width is None:
+                    pins_width = width
+                    numbers = range(width)
+                else:
+                    numbers = [0]
+                pins = [request(resource, n) for n in numbers]
+                if subsignal is not None:
+                    pins = [getattr(pin, subsignal) for pin in pins]
+                key = (resource, subsignal, *numbers)
+            else:
+                self.unwired.append(port_name)
+                continue
+
+            if width != pins_width:
+                raise ValueError(f"Port {port_name!r} of the design is {width} bits wide, but "
+                                 f"its pins are {pins_width} bits wide")
+            if direction != pins_dir:
+                raise ValueError(f"Port {port_name!r} of the design is an "
+                                 f"{'input' if direction == 'i' else 'output'}, but its pins "
+                                 f"are {'inputs' if pins_dir == 'i' else 'outputs'}")
+
+            if key in buffers:
+                # Pins shared by two inputs (see `shared_pins` of the platform)
+                assert direction == "i"
+                buffer = buffers[key]
+            else:
+                pin_io = pins[0] if len(pins) == 1 else _cat_ports(pins)
+                buffer = io.Buffer(direction, pin_io)
+                m.submodules[f"{name}_buffer"] = buffers[key] = buffer
+            if direction == "i":
+                m.d.comb += port.eq(buffer.i)
+            else:
+                m.d.comb += buffer.o.eq(port)
+
+        return m
+
+
+def _cat_ports(ports):
+    # Concatenate one-bit ports (for example one per LED) into one port, LSB first.
+    result = ports[0]
+    for port in ports[1:]:
+        result = result + port
+    return result
+
+
+class DemoSettings(data.Struct):
+    """Settings of the delay core in :class:`DelayCoreDemo`, LSB first."""
+    mode:        DelayMode
+    length:      range(2, MAX_LENGTH + 1)
+    mask_width:  range(1, MAX_MASK_WIDTH + 1)
+    seed:        MAX_LENGTH
+    period:      PERIOD_WIDTH
+    grid:        1
+    pulse_width: PULSE_WIDTH_WIDTH
+
+
+class DelayCoreDemo(wiring.Component):
+    """The delay core alone, with its settings written over the UART.
+
+    A stand-in for the full FLISS top level on the boards. The core runs from reset with default
+    settings (an m-sequence of length 5 at 1 MHz, 50 ns pulses); the button starts and stops it.
+
+    Settings are a register, so that the synthesiser keeps all of the core, written over the
+    UART (8N1, ``baud`` baud). A byte with bit 7 clear shifts its 7 low bits into the settings
+    register from the bottom (send the most significant 7-bit group first; the register is
+    :class:`DemoSettings`, 94 bits, 14 bytes). A byte with bit 7 set is a command: bit 0 sets
+    ``enable``, bit 1 makes a running core take the new settings from its next frame
+    (``update``). A stopped core takes them when it starts.
+
+    Members
+    -------
+    button : In(1)
+        Start and stop, high when pressed.
+    uart_rx : In(1)
+        Settings; asynchronous, synchronised here.
+    uart_tx : Out(1)
+        Idle high.
+    laser, tdc_start : Out(1)
+        Laser trigger and TDC start.
+    aggressor : Out(1)
+        Low (the aggressor emitter comes with the full top level).
+    led : Out(2)
+        ``running`` and ``laser`` stretched to be visible.
+    """
+
+    button:    In(1)
+    uart_rx:   In(1, init=1)
+    uart_tx:   Out(1, init=1)
+    laser:     Out(1)
+    tdc_start: Out(1)
+    aggressor: Out(1)
+    led:       Out(2)
+
+    def __init__(self, clock_hz=DEFAULT_CLOCK_HZ, *, baud=115_200):
+        period_cycles(clock_hz, DEFAULT_PRF_HZ)  # validates the clock
+        if not isinstance(baud, int) or not 0 < baud <= clock_hz // 4:
+            raise ValueError(f"Baud rate must be an integer from 1 to a quarter of the clock, "
+                             f"not {baud!r}")
+        self.clock_hz = clock_hz
+        self.baud = baud
+        super().__init__()
+
+    def defaults(self):
+        """Initial settings, as a :class:`DemoSettings` initializer."""
+        return {
+            "mode":        DelayMode.MSEQ,
+            "length":      5,
+            "mask_width":  5,
+            "seed":        1,
+            "period":      period_cycles(self.clock_hz, DEFAULT_PRF_HZ),
+            "grid":        0,
+            "pulse_width": max(1, round(50e-9 * self.clock_hz)),
+        }
+
+    def elaborate(self, platform):
+        m = Module()
+
+        m.submodules.core = core = DelayCore(clock_hz=self.clock_hz)
+        m.d.comb += [
+            self.laser.eq(core.laser),
+            self.tdc_start.eq(core.tdc_start),
+            self.uart_tx.eq(1),
+        ]
+
+        # Settings register
+        settings = Signal(DemoSettings, init=self.defaults())
+        enable = Signal(init=1)
+        update = Signal()
+        m.d.sync += update.eq(0)
+        m.d.comb += [
+            core.enable.eq(enable),
+            core.update.eq(update),
+            core.mode.eq(settings.mode),
+            core.length.eq(settings.length),
+            core.mask_width.eq(settings.mask_width),
+            core.seed.eq(settings.seed),
+            core.period.eq(settings.period),
+            core.grid.eq(settings.grid),
+            core.pulse_width.eq(settings.pulse_width),
+        ]
+
+        # Button: start and stop on each press, ignoring bounces for 2**20 cycles (13 ms)
+        button = Signal()
+        button_last = Signal()
+        holdoff = Signal(20)
+        m.submodules.button_sync = FFSynchronizer(self.button, button)
+        m.d.sync += button_last.eq(button)
+        with m.If(holdoff != 0):
+            m.d.sync += holdoff.eq(holdoff + 1)
+        with m.Elif(button & ~button_last):
+            m.d.sync += enable.eq(~enable), holdoff.eq(1)
+
+        # UART receiver: 8N1, samples in the middle of each bit
+        rx = Signal(init=1)
+        m.submodules.rx_sync = FFSynchronizer(self.uart_rx, rx, init=1)
+        bit_cycles = round(self.clock_hz / self.baud)
+        timer = Signal(range(bit_cycles * 3 // 2 + 1))
+        bits = Signal(range(9))
+        shreg = Signal(8)
+        with m.FSM():
+            with m.State("IDLE"):
+                with m.If(~rx):
+                    m.d.sync += timer.eq(bit_cycles * 3 // 2 - 1), bits.eq(0)
+                    m.next = "DATA"
+            with m.State("DATA"):
+                with m.If(timer != 0):
+                    m.d.sync += timer.eq(timer - 1)
+                with m.Elif(bits == 8):
+                    # Stop bit: a byte with a framing error is dropped
+                    with m.If(rx):
+                        with m.If(shreg[7]):
+                            m.d.sync += enable.eq(shreg[0]), update.eq(shreg[1])
+                        with m.Else():
+                            m.d.sync += settings.as_value().eq(
+                                Cat(shreg[:7], settings.as_value()))
+                    m.next = "IDLE"
+                with m.Else():
+                    m.d.sync += [
+                        shreg.eq(Cat(shreg[1:], rx)),
+                        bits.eq(bits + 1),
+                        timer.eq(bit_cycles - 1),
+                    ]
+
+        # LEDs: running, and laser pulses stretched to 2**22 cycles (50 ms)
+        stretch = Signal(22)
+        with m.If(core.laser):
+            m.d.sync += stretch.eq(1)
+        with m.Elif(stretch != 0):
+            m.d.sync += stretch.eq(stretch + 1)
+        m.d.comb += self.led.eq(Cat(core.running, stretch != 0))
+
+        return m
+
+
+class PllClocking(Elaboratable):
+    """Shared tail of the board clocking: drives the ``sync`` domain (defined by
+    :class:`BoardTop`) from the PLL output, and holds its reset until the PLL locks.
+
+    Board platforms subclass it and fill in :meth:`pll`, which returns ``(clock, lock)``.
+    Reset is held for ``hold_cycles`` after lock is seen (iCE40 block RAMs read as zero for a few
+    microseconds after configuration).
+    """
+
+    hold_cycles = 1024
+
+    def pll(self, m, platform):  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def elaborate(self, platform):
+        m = Module()
+
+        clock, lock = self.pll(m, platform)
+
+        m.d.comb += ClockSignal("sync").eq(clock)
+        # No net constraint here: nextpnr derives the PLL output's frequency from the divider
+        # settings and the oscillator pin's constraint, and `fliss.boards.build` checks that the
+        # derived constraint is the real clock.
+
+        # Reset: asserted until lock, then held for `hold_cycles`
+        m.domains.por = cd_por = ClockDomain("por", reset_less=False, local=True)
+        m.d.comb += cd_por.clk.eq(clock)
+        m.submodules.por_sync = ResetSynchronizer(~lock, domain="por")
+        hold = Signal(range(self.hold_cycles + 1))
+        ready = Signal()
+        with m.If(hold == self.hold_cycles):
+            m.d.por += ready.eq(1)
+        with m.Else():
+            m.d.por += hold.eq(hold + 1)
+        m.submodules.sync_reset = ResetSynchronizer(~ready, domain="sync")
+
+        return m

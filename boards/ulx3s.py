@@ -1,0 +1,211 @@
+"""FLISS on the ULX3S with the ECP5-85F (LFE5U-85F-6BG381C), on top of amaranth-boards.
+
+Clock: the 25 MHz oscillator through an ``EHXPLLL``; 80 MHz exactly. Pins: the GPIO header,
+GP0-GP12 and GN0-GN12 (see ``docs/boards.md``); UART on the FT231X.
+"""
+
+from amaranth.build import Attrs, Pins, Resource
+from amaranth.hdl import *
+from amaranth.lib import io
+
+try:
+    from amaranth_boards.ulx3s import ULX3S_85F_Platform
+except ImportError as error:  # pragma: no cover - depends on the installed extras
+    raise ImportError("The ULX3S platform needs amaranth-boards: "
+                      "pip install -e '.[boards]'") from error
+
+from ..hdl import DEFAULT_CLOCK_HZ
+from . import FLISS_PINS, PllClocking
+
+
+__all__ = ["Ecp5PllConfig", "ecp5_pll", "FlissULX3SPlatform"]
+
+
+class Ecp5PllConfig:
+    """Divider settings of an ECP5 ``EHXPLLL`` with feedback from ``CLKOP``.
+
+    ``f_out = f_in * clkfb_div / clki_div``; the VCO runs at ``f_out * clkop_div``.
+    """
+
+    def __init__(self, f_in_hz, clki_div, clkfb_div, clkop_div):
+        self.f_in_hz = f_in_hz
+        self.clki_div = clki_div
+        self.clkfb_div = clkfb_div
+        self.clkop_div = clkop_div
+
+    @property
+    def f_pfd_hz(self):
+        """Phase detector frequency, in Hz."""
+        return self.f_in_hz / self.clki_div
+
+    @property
+    def f_out_hz(self):
+        """Output frequency, in Hz."""
+        return self.f_pfd_hz * self.clkfb_div
+
+    @property
+    def f_vco_hz(self):
+        """VCO frequency, in Hz."""
+        return self.f_out_hz * self.clkop_div
+
+    def __repr__(self):
+        return (f"Ecp5PllConfig(f_in_hz={self.f_in_hz}, clki_div={self.clki_div}, "
+                f"clkfb_div={self.clkfb_div}, clkop_div={self.clkop_div})"
+                f"  # {self.f_out_hz / 1e6:.4f} MHz")
+
+
+def ecp5_pll(f_in_hz, f_out_hz):
+    """Closest :class:`Ecp5PllConfig` to ``f_out_hz``; among equals, the VCO nearest 600 MHz.
+
+    Limits (ECP5 datasheet): input 8 to 400 MHz, phase detector 3.125 to 400 MHz, VCO 400 to
+    800 MHz, output 3.125 to 400 MHz, ``clki_div`` 1 to 128, ``clkfb_div`` 1 to 80,
+    ``clkop_div`` 1 to 128.
+    """
+    if not 3.125e6 <= f_out_hz <= 400e6:
+        raise ValueError(f"The ECP5 PLL makes 3.125 to 400 MHz, not {f_out_hz / 1e6} MHz")
+    best = None
+    for clki_div in range(1, 129):
+        if not 3.125e6 <= f_in_hz / clki_div <= 400e6:
+            continue
+        for clkfb_div in range(1, 81):
+            f_out = f_in_hz / clki_div * clkfb_div
+            if not 3.125e6 <= f_out <= 400e6:
+                continue
+            for clkop_div in range(1, 129):
+                config = Ecp5PllConfig(f_in_hz, clki_div, clkfb_div, clkop_div)
+                if not 400e6 <= config.f_vco_hz <= 800e6:
+                    continue
+                key = (abs(f_out - f_out_hz), abs(config.f_vco_hz - 600e6))
+                if best is None or key < best[0]:
+                    best = key, config
+    if best is None:
+        raise ValueError(f"The ECP5 PLL cannot make {f_out_hz / 1e6} MHz from "
+                         f"{f_in_hz / 1e6} MHz")
+    return best[1]
+
+
+class _ECP5Clocking(PllClocking):
+    def pll(self, m, platform):
+        config = platform.pll_config
+        clk25 = platform.request(platform.default_clk, dir="-")
+        m.submodules.clk25_buffer = clk25_buffer = io.Buffer("i", clk25)
+        clock = Signal()
+        lock = Signal()
+        m.submodules.pll = Instance("EHXPLLL",
+            p_PLLRST_ENA="DISABLED",
+            p_INTFB_WAKE="DISABLED",
+            p_STDBY_ENABLE="DISABLED",
+            p_DPHASE_SOURCE="DISABLED",
+            p_OUTDIVIDER_MUXA="DIVA",
+            p_OUTDIVIDER_MUXB="DIVB",
+            p_OUTDIVIDER_MUXC="DIVC",
+            p_OUTDIVIDER_MUXD="DIVD",
+            p_CLKI_DIV=config.clki_div,
+            p_CLKFB_DIV=config.clkfb_div,
+            p_CLKOP_ENABLE="ENABLED",
+            p_CLKOP_DIV=config.clkop_div,
+            p_CLKOP_CPHASE=(config.clkop_div - 1) // 2,   # 0 degrees
+            p_CLKOP_FPHASE=0,
+            p_FEEDBK_PATH="CLKOP",
+            # Loop filter settings that Lattice's tools write for every configuration
+            a_ICP_CURRENT="12",
+            a_LPF_RESISTOR="8",
+            a_MFG_ENABLE_FILTEROPAMP="1",
+            a_MFG_GMCREF_SEL="2",
+            a_FREQUENCY_PIN_CLKI=f"{config.f_in_hz / 1e6:g}",
+            a_FREQUENCY_PIN_CLKOP=f"{config.f_out_hz / 1e6:g}",
+            i_CLKI=clk25_buffer.i,
+            i_CLKFB=clock,
+            i_RST=Const(0),
+            i_STDBY=Const(0),
+            # Dynamic phase shift unused: its strobes act on falling edges, so hold them high
+            i_PHASESEL0=Const(0),
+            i_PHASESEL1=Const(0),
+            i_PHASEDIR=Const(1),
+            i_PHASESTEP=Const(1),
+            i_PHASELOADREG=Const(1),
+            i_PLLWAKESYNC=Const(0),
+            i_ENCLKOP=Const(0),
+            o_CLKOP=clock,
+            o_LOCK=lock,
+        )
+        return clock, lock
+
+
+# GPIO header pins by their silkscreen names: GPn is connector pin "n+", GNn is "n-".
+_PINS = {
+    "laser":     "0+",
+    "tdc_start": "0-",
+    "aggressor": "1+",
+    "photon":    "1-",
+    "valid":     "2+",
+    "collision": "2-",
+    "timestamp": "3+ 3- 4+ 4- 5+ 5- 6+ 6- 7+ 7- 8+ 8- 9+",
+    "address":   "9- 10+ 10- 11+ 11- 12+",
+}
+
+
+def _resources():
+    # One resource per FLISS signal, named `fliss_<name>`, LSB first. Inputs have pull-downs, so
+    # that an unconnected sensor bus reads as idle.
+    resources = []
+    for name, pins in _PINS.items():
+        width, direction = FLISS_PINS[name]
+        ios = Pins(pins, dir=direction, conn=("gpio", 0))
+        assert len(ios.names) == width, name
+        if direction == "i":
+            attrs = Attrs(IO_TYPE="LVCMOS33", PULLMODE="DOWN")
+        else:
+            attrs = Attrs(IO_TYPE="LVCMOS33", DRIVE="8", SLEWRATE="FAST")
+        resources.append(Resource(f"fliss_{name}", 0, ios, attrs))
+    return resources
+
+
+class FlissULX3SPlatform(ULX3S_85F_Platform):
+    """ULX3S (ECP5-85F) with the FLISS pins and a PLL to the design clock.
+
+    Parameters
+    ----------
+    clock_hz : int
+        Wanted design clock; the PLL gets as close as it can, see :attr:`clock_hz`.
+
+    Attributes
+    ----------
+    clock_hz : float
+        The real design clock, in Hz (80 MHz exactly when 80 MHz is asked).
+    pll_config : Ecp5PllConfig
+    """
+
+    board = "ulx3s"
+    pins = _PINS
+    shared_pins = {}
+
+    def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, **kwargs):
+        super().__init__(**kwargs)
+        self.pll_config = ecp5_pll(self.default_clk_frequency, clock_hz)
+        self.clock_hz = self.pll_config.f_out_hz
+        self.add_resources(_resources())
+
+    @property
+    def required_tools(self):
+        # openFPGALoader programs the board; building does not need it.
+        return [tool for tool in super().required_tools if tool != "openFPGALoader"]
+
+    def fliss_resource(self, name):
+        """Resource name of the FLISS pin ``name``."""
+        return f"fliss_{self.shared_pins.get(name, name)}"
+
+    def clocking(self):
+        """Elaboratable that makes the ``sync`` domain at :attr:`clock_hz`."""
+        return _ECP5Clocking()
+
+    def programmers(self, bitstream):
+        """Commands that program ``bitstream`` (the ``.bit``) into the FPGA's SRAM, most
+        preferred first: ``[(tool, argv), ...]``."""
+        return [
+            ("openFPGALoader", ["openFPGALoader", "-b", "ulx3s", bitstream]),
+            ("fujprog",        ["fujprog", bitstream]),
+        ]
+
+    #: Bitstream file extension of this board.
+    bitstream_ext = "bit"

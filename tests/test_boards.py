@@ -1,0 +1,249 @@
+"""Board support: PLL settings, pin maps, the stand-in design, and (slow) real bitstream builds.
+
+The builds run only with ``FLISS_BUILD_BOARDS=1``: they need the ``boards`` extra and take about a
+minute per board (several more the first time, while YoWASP compiles the tools).
+"""
+
+import gc
+import os
+import warnings
+from contextlib import contextmanager
+
+import pytest
+from amaranth.hdl import *
+from amaranth.hdl import UnusedElaboratable
+from amaranth.lib import wiring
+from amaranth.lib.wiring import In, Out
+from amaranth.sim import Simulator
+
+from fliss.boards import BOARDS, FLISS_PINS, BoardTop, DelayCoreDemo, DemoSettings, platform_class
+from fliss.hdl.delay import DelayMode
+
+
+BUILD_BOARDS = os.environ.get("FLISS_BUILD_BOARDS") == "1"
+needs_build = pytest.mark.skipif(
+    not BUILD_BOARDS,
+    reason="board builds take minutes: set FLISS_BUILD_BOARDS=1 to run them")
+
+#: Fmax the issue asks for, in MHz, beyond timing met at the real clock.
+FMAX_GOAL_MHZ = {"ulx3s": 100.0}
+
+
+@contextmanager
+def _unused_elaboratables():
+    # Objects left unused by a construction error warn when they are collected: collect them here.
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnusedElaboratable)
+        yield
+        gc.collect()
+
+
+def _boards_extra():
+    pytest.importorskip("amaranth_boards", reason="needs the boards extra: "
+                                                  "pip install -e '.[boards]'")
+
+
+# PLL settings
+
+def test_ice40_pll_80mhz():
+    _boards_extra()
+    from fliss.boards.icebreaker import ice40_pll
+    config = ice40_pll(12e6, 80e6)
+    assert config.f_out_hz == 79.5e6
+    assert (config.divr, config.divf, config.divq, config.filter_range) == (0, 52, 3, 1)
+    assert 533e6 <= config.f_vco_hz <= 1066e6
+
+
+def test_ice40_pll_out_of_range():
+    _boards_extra()
+    from fliss.boards.icebreaker import ice40_pll
+    with pytest.raises(ValueError, match=r"^The iCE40 PLL makes 16 to 275 MHz, not 300.0 MHz$"):
+        ice40_pll(12e6, 300e6)
+
+
+def test_ecp5_pll_80mhz():
+    _boards_extra()
+    from fliss.boards.ulx3s import ecp5_pll
+    config = ecp5_pll(25e6, 80e6)
+    assert config.f_out_hz == 80e6
+    assert 400e6 <= config.f_vco_hz <= 800e6
+    assert config.f_pfd_hz >= 3.125e6
+
+
+@pytest.mark.parametrize("board, clock_hz", [("icebreaker", 79.5e6), ("ulx3s", 80e6)])
+def test_platform_clock(board, clock_hz):
+    _boards_extra()
+    assert platform_class(board)(clock_hz=80e6).clock_hz == clock_hz
+
+
+def test_unknown_board():
+    with pytest.raises(ValueError, match=r"^Unknown board 'de0'; choose one of icebreaker, ulx3s$"):
+        platform_class("de0")
+
+
+# Pin maps and the board top level
+
+class _AllPins(wiring.Component):
+    # Every FLISS pin and every on-board pin, to check the pin maps.
+    def __init__(self, clock_hz):
+        members = {name: (In if direction == "i" else Out)(width)
+                   for name, (width, direction) in FLISS_PINS.items()}
+        members.update(uart_rx=In(1), uart_tx=Out(1), button=In(1), led=Out(2))
+        super().__init__(members)
+
+    def elaborate(self, platform):
+        m = Module()
+        m.d.sync += self.laser.eq(self.timestamp.xor() ^ self.address.xor() ^ self.valid ^
+                                  self.collision ^ self.photon ^ self.uart_rx ^ self.button)
+        return m
+
+
+@pytest.mark.parametrize("board", sorted(BOARDS))
+def test_pin_map(board, tmp_path):
+    _boards_extra()
+    platform = platform_class(board)()
+    top = BoardTop(_AllPins)
+    platform.prepare(top, name="pins").extract(str(tmp_path))
+    constraints = (tmp_path / ("pins.pcf" if board == "icebreaker" else "pins.lpf")).read_text()
+    if board == "icebreaker":
+        sites = [line.split()[2] for line in constraints.splitlines()
+                 if line.startswith("set_io")]
+    else:
+        sites = [line.split('"')[3] for line in constraints.splitlines()
+                 if line.startswith("LOCATE COMP")]
+    assert len(sites) == len(set(sites)), "a pin is used twice"
+    shared = platform.shared_pins
+    expected = sum(width for name, (width, _) in FLISS_PINS.items() if name not in shared)
+    expected += 1 + 2 + 1 + 2  # clock, UART, button, LEDs
+    assert len(sites) == expected
+    assert top.unwired == []
+
+
+class _PrefixedPins(wiring.Component):
+    pin_laser: Out(1)
+    pin_hit:   In(1)
+    status:    Out(1)
+
+    def __init__(self, clock_hz):
+        super().__init__()
+
+    def elaborate(self, platform):
+        m = Module()
+        m.d.sync += self.pin_laser.eq(self.pin_hit)
+        return m
+
+
+def test_pin_aliases(tmp_path):
+    _boards_extra()
+    platform = platform_class("ulx3s")()
+    top = BoardTop(_PrefixedPins)
+    platform.prepare(top, name="aliases").extract(str(tmp_path))
+    constraints = (tmp_path / "aliases.lpf").read_text()
+    assert 'LOCATE COMP "fliss_laser_0__io" SITE "B11";' in constraints
+    assert 'LOCATE COMP "fliss_photon_0__io" SITE "A11";' in constraints
+    assert top.unwired == ["status"]
+
+
+class _WideLaser(wiring.Component):
+    laser: Out(2)
+
+    def __init__(self, clock_hz):
+        super().__init__()
+
+    def elaborate(self, platform):
+        return Module()
+
+
+def test_board_top_width_mismatch():
+    _boards_extra()
+    platform = platform_class("ulx3s")()
+    with _unused_elaboratables():
+        with pytest.raises(ValueError, match=r"^Port 'laser' of the design is 2 bits wide, but "
+                                             r"its pins are 1 bits wide$"):
+            platform.prepare(BoardTop(_WideLaser), name="wide")
+
+
+def test_board_top_rejects_non_component():
+    _boards_extra()
+    platform = platform_class("ulx3s")()
+    with _unused_elaboratables():
+        with pytest.raises(TypeError, match=r"^Design factory must return a wiring.Component"):
+            platform.prepare(BoardTop(lambda clock_hz: Module()), name="bad")
+
+
+# The stand-in design: settings written over the UART change the laser period
+
+def test_demo_uart_settings():
+    clock_hz, baud = 8_000_000, 1_000_000
+    dut = DelayCoreDemo(clock_hz, baud=baud)
+    bit_cycles = clock_hz // baud
+    settings = DemoSettings.const({**dut.defaults(), "mode": DelayMode.OFF, "period": 13,
+                                   "pulse_width": 2}).as_value().value
+    chunks = [(settings >> (7 * i)) & 0x7f for i in reversed(range(14))]
+    edges = []
+
+    async def send(ctx, byte):
+        for bit in [0] + [(byte >> i) & 1 for i in range(8)] + [1]:
+            ctx.set(dut.uart_rx, bit)
+            await ctx.tick().repeat(bit_cycles)
+
+    async def uart(ctx):
+        await ctx.tick().repeat(10)
+        for chunk in chunks:
+            await send(ctx, chunk)
+        await send(ctx, 0x80 | 0b11)  # enable, update
+
+    async def monitor(ctx):
+        last = 0
+        cycle = 0
+        async for clk_edge, rst, laser in ctx.tick().sample(dut.laser):
+            if laser and not last:
+                edges.append(cycle)
+            last = laser
+            cycle += 1
+
+    sim = Simulator(dut)
+    sim.add_clock(1 / clock_hz)
+    sim.add_testbench(uart)
+    sim.add_process(monitor)
+    sim.run_until(200 * bit_cycles * 10 / clock_hz)
+    gaps = [b - a for a, b in zip(edges, edges[1:])]
+    assert len(gaps) > 20
+    # Default m-sequence delays at first (gaps of at least 8 cycles), then a fixed 13 cycles
+    assert gaps[:3] != [13, 13, 13]
+    assert gaps[-10:] == [13] * 10
+
+
+def test_demo_bad_baud():
+    with _unused_elaboratables():
+        with pytest.raises(ValueError, match=r"^Baud rate must be an integer from 1 to a quarter "
+                                             r"of the clock, not 5000000$"):
+            DelayCoreDemo(8_000_000, baud=5_000_000)
+
+
+# Real builds
+
+@needs_build
+@pytest.mark.parametrize("board", sorted(BOARDS))
+def test_build_meets_timing(board, tmp_path):
+    from fliss.boards.build import build_board
+    result = build_board(board, build_dir=tmp_path / board)
+    print(result.summary())
+    assert result.bitstream.exists()
+    assert result.design_clock is not None, "no Fmax in the nextpnr report"
+    assert result.fmax_mhz[result.design_clock] > 0
+    assert result.constrained, (
+        f"nextpnr checked {result.constraint_mhz[result.design_clock]} MHz, "
+        f"not the real clock of {result.clock_hz / 1e6} MHz")
+    labels = {"LUT", "FF", "BRAM", "DSP"} | ({"SPRAM", "LC"} if board == "icebreaker" else set())
+    assert labels <= set(result.utilisation)
+    assert 0 < result.utilisation["LUT"][0] <= result.utilisation["LUT"][1]
+    assert 0 < result.utilisation["FF"][0] <= result.utilisation["FF"][1]
+    assert result.timing_met, (
+        f"Fmax {result.fmax_mhz[result.design_clock]:.2f} MHz below "
+        f"{result.clock_hz / 1e6} MHz\n{result.summary()}")
+    goal = FMAX_GOAL_MHZ.get(board)
+    if goal is not None:
+        assert result.fmax_mhz[result.design_clock] >= goal, (
+            f"Fmax {result.fmax_mhz[result.design_clock]:.2f} MHz below the goal of {goal} MHz"
+            f"\n{result.summary()}")
