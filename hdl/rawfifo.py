@@ -1,0 +1,98 @@
+"""Raw-event FIFO between the event stream and the link, with drop counting."""
+
+from amaranth.hdl import *
+from amaranth.lib import data, fifo, stream, wiring
+from amaranth.lib.wiring import In, Out
+
+from .event import Event
+from .tdc import COUNTER_WIDTH, count_event
+
+
+__all__ = ["DEPTH", "COUNTER_WIDTH", "EVENT_WIDTH", "RawFifo"]
+
+
+#: Default FIFO depth, in events.
+DEPTH = 512
+#: Width of one event in the FIFO, in bits.
+EVENT_WIDTH = data.Layout.cast(Event).size
+
+
+class RawFifo(wiring.Component):
+    """Event FIFO that never holds back its source.
+
+    ``events`` is always ready. An event that arrives while the FIFO holds ``depth`` events is
+    dropped and counted in ``dropped``; every other one is counted in ``accepted`` and comes out
+    on ``output``, in order. The FIFO is an :class:`amaranth.lib.fifo.SyncFIFOBuffered` (block
+    RAM, registered output): an event written into an empty FIFO is on ``output`` two cycles
+    later.
+
+    Parameters
+    ----------
+    depth : int
+        Capacity in events, at least 3 (with 2, the queue behind the output register would
+        refuse an event while the register is still empty).
+    counter_width : int
+        Width of ``accepted`` and ``dropped``, from 1 to 64 bits; they saturate.
+
+    Members
+    -------
+    events : In(stream.Signature(Event))
+        Events; ``ready`` is always high.
+    output : Out(stream.Signature(Event))
+        Events to the link.
+    clear : In(1)
+        Reset ``accepted`` and ``dropped``.
+    level : Out(range(depth + 1))
+        Events in the FIFO.
+    accepted : Out(counter_width)
+        Events written into the FIFO.
+    dropped : Out(counter_width)
+        Events dropped because the FIFO was full.
+    """
+
+    def __init__(self, *, depth=DEPTH, counter_width=COUNTER_WIDTH):
+        if not isinstance(depth, int) or depth < 3:
+            raise ValueError(f"FIFO depth must be an integer of at least 3, not {depth!r}")
+        if not isinstance(counter_width, int) or not 1 <= counter_width <= 64:
+            raise ValueError(f"Counter width must be an integer from 1 to 64 bits, "
+                             f"not {counter_width!r}")
+        self.depth = depth
+        self.counter_width = counter_width
+        super().__init__({
+            "events":   In(stream.Signature(Event)),
+            "output":   Out(stream.Signature(Event)),
+            "clear":    In(1),
+            "level":    Out(range(depth + 1)),
+            "accepted": Out(counter_width),
+            "dropped":  Out(counter_width),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+
+        m.submodules.fifo = queue = fifo.SyncFIFOBuffered(width=EVENT_WIDTH, depth=self.depth)
+
+        # Write side: never stalls
+        write = Signal()
+        drop = Signal()
+        m.d.comb += [
+            self.events.ready.eq(1),
+            queue.w_data.eq(self.events.payload),
+            queue.w_en.eq(self.events.valid),
+            write.eq(self.events.valid & queue.w_rdy),
+            drop.eq(self.events.valid & ~queue.w_rdy),
+        ]
+
+        # Counters
+        count_event(m, self.accepted, write, self.clear)
+        count_event(m, self.dropped, drop, self.clear)
+
+        # Read side
+        m.d.comb += [
+            self.output.valid.eq(queue.r_rdy),
+            self.output.payload.eq(queue.r_data),
+            queue.r_en.eq(self.output.ready),
+            self.level.eq(queue.level),
+        ]
+
+        return m

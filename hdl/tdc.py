@@ -1,0 +1,340 @@
+"""Photon event capture: the sensor's TDC interface and a built-in coarse TDC.
+
+Both blocks deliver :class:`~fliss.hdl.event.Event` records on the same kind of stream, through
+the same :class:`EventFilter`, so the rest of the design does not care where events come from.
+"""
+
+from amaranth.hdl import *
+from amaranth.lib import cdc, stream, wiring
+from amaranth.lib.wiring import In, Out
+
+from .event import Event, TIMESTAMP_BITS, ADDRESS_BITS, PULSE_BITS
+
+
+__all__ = ["SYNC_STAGES", "COUNTER_WIDTH", "CAPTURE_LATENCY", "OUTPUT_LATENCY", "MAX_TIMESTAMP",
+           "count_event", "EventFilter", "TdcInterface", "CoarseTdc"]
+
+
+#: Flip-flops of the input synchronisers.
+SYNC_STAGES = 2
+#: Width of the event counters of the acquisition blocks (saturating): TDC, histogram, raw FIFO.
+COUNTER_WIDTH = 32
+#: Cycles from the first cycle a strobe (or hit) pin is high to the cycle the edge is detected,
+#: in which the bus, ``enable`` and ``pulse_index`` are sampled.
+CAPTURE_LATENCY = SYNC_STAGES
+#: Cycles from the first cycle a strobe (or hit) pin is high to ``events.valid``.
+OUTPUT_LATENCY = CAPTURE_LATENCY + 2
+#: Largest timestamp code.
+MAX_TIMESTAMP = (1 << TIMESTAMP_BITS) - 1
+
+
+def count_event(m, counter, condition, clear):
+    """Saturating event counter: ``counter`` counts the cycles with ``condition``, up to all
+    ones, and returns to zero on ``clear``."""
+    with m.If(clear):
+        m.d.sync += counter.eq(0)
+    with m.Elif(condition & (counter != (1 << len(counter)) - 1)):
+        m.d.sync += counter.eq(counter + 1)
+
+
+class EventFilter(wiring.Component):
+    """Event gate and output register, with drop counters.
+
+    An event presented with ``capture`` is, in this order of precedence, dropped and counted in
+
+    * ``dropped_stopped`` if ``enable`` is low (acquisition stopped);
+    * ``dropped_overflow`` if ``overflow`` is high (timestamp beyond 13 bits);
+    * ``dropped_gate`` if its timestamp is outside ``gate_start … gate_end`` (inclusive);
+    * ``dropped_overrun`` if the previous event still waits on ``events``;
+
+    and otherwise counted in ``accepted`` and put on ``events`` in the next cycle. All counters
+    saturate at ``2**32 - 1`` and are reset by ``clear``.
+
+    Members
+    -------
+    capture : In(1)
+        An event is on ``event`` in this cycle.
+    event : In(Event)
+        The event.
+    overflow : In(1)
+        The event's timestamp overflowed.
+    enable : In(1)
+        Acquisition is running.
+    gate_start, gate_end : In(13)
+        Gate in timestamp codes, inclusive; by default ``0 … 8191`` (all codes).
+    clear : In(1)
+        Reset the counters.
+    events : Out(stream.Signature(Event))
+        Accepted events.
+    accepted, dropped_stopped, dropped_overflow, dropped_gate, dropped_overrun : Out(32)
+        Event counters.
+    """
+
+    capture:          In(1)
+    event:            In(Event)
+    overflow:         In(1)
+    enable:           In(1)
+    gate_start:       In(TIMESTAMP_BITS)
+    gate_end:         In(TIMESTAMP_BITS, init=MAX_TIMESTAMP)
+    clear:            In(1)
+    events:           Out(stream.Signature(Event))
+    accepted:         Out(COUNTER_WIDTH)
+    dropped_stopped:  Out(COUNTER_WIDTH)
+    dropped_overflow: Out(COUNTER_WIDTH)
+    dropped_gate:     Out(COUNTER_WIDTH)
+    dropped_overrun:  Out(COUNTER_WIDTH)
+
+    def elaborate(self, platform):
+        m = Module()
+
+        # Classification
+        timestamp = self.event.timestamp
+        stopped = Signal()
+        overflow = Signal()
+        outside = Signal()
+        overrun = Signal()
+        accept = Signal()
+        m.d.comb += [
+            stopped.eq(self.capture & ~self.enable),
+            overflow.eq(self.capture & self.enable & self.overflow),
+            outside.eq(self.capture & self.enable & ~self.overflow &
+                       ((timestamp < self.gate_start) | (timestamp > self.gate_end))),
+        ]
+        in_gate = self.capture & self.enable & ~self.overflow & ~outside
+        m.d.comb += [
+            overrun.eq(in_gate & self.events.valid & ~self.events.ready),
+            accept.eq(in_gate & ~(self.events.valid & ~self.events.ready)),
+        ]
+
+        # Counters
+        count_event(m, self.accepted, accept, self.clear)
+        count_event(m, self.dropped_stopped, stopped, self.clear)
+        count_event(m, self.dropped_overflow, overflow, self.clear)
+        count_event(m, self.dropped_gate, outside, self.clear)
+        count_event(m, self.dropped_overrun, overrun, self.clear)
+
+        # Output register
+        with m.If(self.events.ready):
+            m.d.sync += self.events.valid.eq(0)
+        with m.If(accept):
+            m.d.sync += [
+                self.events.valid.eq(1),
+                self.events.payload.eq(self.event),
+            ]
+
+        return m
+
+
+def _filter_ports(component, event_filter):
+    """Connections from a capture block's setting ports to its filter."""
+    return [
+        event_filter.gate_start.eq(component.gate_start),
+        event_filter.gate_end.eq(component.gate_end),
+        event_filter.clear.eq(component.clear),
+        component.accepted.eq(event_filter.accepted),
+        component.dropped_stopped.eq(event_filter.dropped_stopped),
+        component.dropped_overflow.eq(event_filter.dropped_overflow),
+        component.dropped_gate.eq(event_filter.dropped_gate),
+        component.dropped_overrun.eq(event_filter.dropped_overrun),
+    ]
+
+
+class TdcInterface(wiring.Component):
+    """Timestamp interface of the sensor's on-chip TDC (Figure 6 of the paper).
+
+    Each rising edge of the sensor's ``pin_valid`` strobe is one photon event: timestamp, pixel
+    address and collision flag on the ``pin_*`` bus. The strobe comes from another clock domain;
+    it goes through a :data:`SYNC_STAGES`-flip-flop synchroniser, and the bus is sampled in the
+    cycle in which the synchronised strobe's rising edge is seen, when it has been stable for at
+    least one clock cycle. If the strobe first reads high in cycle ``c``, the bus, ``enable`` and
+    ``pulse_index`` are sampled in cycle ``c +`` :data:`CAPTURE_LATENCY`, and the event is on
+    ``events`` from cycle ``c +`` :data:`OUTPUT_LATENCY`. Events then go through an
+    :class:`EventFilter` (acquisition stopped, gate, overrun).
+
+    Sensor timing requirements: the bus settles before the strobe rises and holds until at least
+    ``SYNC_STAGES + 1`` clock periods after it; the strobe stays high for at least 2 clock periods
+    and low for at least 2 clock periods, so at most one event every 4 cycles (20 M events/s at
+    80 MHz).
+
+    The event's ``pulse`` field is ``pulse_index - 1`` (modulo ``2**32``): with the pulse
+    scheduler's ``pulse_index`` (pulses fired so far), the index of the last pulse fired, i.e. the
+    laser cycle the photon belongs to; all ones before the first pulse.
+
+    Members
+    -------
+    pin_valid : In(1)
+        Sensor's event strobe, asynchronous.
+    pin_timestamp : In(13)
+        Sensor's timestamp bus.
+    pin_address : In(6)
+        Sensor's pixel address bus.
+    pin_collision : In(1)
+        Sensor's collision flag.
+    enable : In(1)
+        Acquisition is running; events outside are dropped and counted.
+    pulse_index : In(32)
+        Pulses fired so far (:class:`~fliss.hdl.scheduler.PulseScheduler` ``pulse_index``).
+    gate_start, gate_end : In(13)
+        Gate in timestamp codes, inclusive; by default all codes.
+    clear : In(1)
+        Reset the counters.
+    events : Out(stream.Signature(Event))
+        Accepted events.
+    accepted, dropped_stopped, dropped_overflow, dropped_gate, dropped_overrun : Out(32)
+        Event counters (:class:`EventFilter`); ``dropped_overflow`` stays zero here.
+    """
+
+    pin_valid:        In(1)
+    pin_timestamp:    In(TIMESTAMP_BITS)
+    pin_address:      In(ADDRESS_BITS)
+    pin_collision:    In(1)
+    enable:           In(1)
+    pulse_index:      In(PULSE_BITS)
+    gate_start:       In(TIMESTAMP_BITS)
+    gate_end:         In(TIMESTAMP_BITS, init=MAX_TIMESTAMP)
+    clear:            In(1)
+    events:           Out(stream.Signature(Event))
+    accepted:         Out(COUNTER_WIDTH)
+    dropped_stopped:  Out(COUNTER_WIDTH)
+    dropped_overflow: Out(COUNTER_WIDTH)
+    dropped_gate:     Out(COUNTER_WIDTH)
+    dropped_overrun:  Out(COUNTER_WIDTH)
+
+    def elaborate(self, platform):
+        m = Module()
+
+        # Strobe synchroniser and edge detector
+        strobe = Signal()
+        strobe_last = Signal()
+        m.submodules.strobe_sync = cdc.FFSynchronizer(self.pin_valid, strobe, stages=SYNC_STAGES)
+        m.d.sync += strobe_last.eq(strobe)
+        rise = Signal()
+        m.d.comb += rise.eq(strobe & ~strobe_last)
+
+        # Capture: the bus has been stable since the strobe rose
+        m.submodules.filter = event_filter = EventFilter()
+        capture = Signal()
+        event = Signal(Event)
+        enabled = Signal()
+        m.d.sync += capture.eq(rise)
+        with m.If(rise):
+            m.d.sync += [
+                event.timestamp.eq(self.pin_timestamp),
+                event.address.eq(self.pin_address),
+                event.collision.eq(self.pin_collision),
+                event.pulse.eq(self.pulse_index - 1),
+                enabled.eq(self.enable),
+            ]
+
+        # Filter
+        m.d.comb += [
+            event_filter.capture.eq(capture),
+            event_filter.event.eq(event),
+            event_filter.overflow.eq(0),
+            event_filter.enable.eq(enabled),
+            *_filter_ports(self, event_filter),
+        ]
+        wiring.connect(m, wiring.flipped(self.events), event_filter.events)
+
+        return m
+
+
+class CoarseTdc(wiring.Component):
+    """Coarse TDC: photon hits timestamped in clock cycles from the TDC start.
+
+    For boards without the sensor chip: a photodiode or SPAD module drives ``pin_hit``. Its
+    rising edges go through a :data:`SYNC_STAGES`-flip-flop synchroniser; ``tdc_start`` and
+    ``pulse_index`` are delayed by the same number of cycles, so a hit whose pin first reads high
+    in cycle ``c`` gets the timestamp ``c - s``, where ``s`` is the cycle of the last
+    ``tdc_start`` strobe at or before ``c``, and ``pulse`` = ``pulse_index - 1`` as it was in
+    cycle ``c`` (see :class:`TdcInterface`). Hits with ``c - s`` above 8191, or before the first
+    start, are dropped and counted in ``dropped_overflow``. The event is on ``events`` from cycle
+    ``c +`` :data:`OUTPUT_LATENCY`; ``enable`` is sampled in cycle ``c +``
+    :data:`CAPTURE_LATENCY`. The hit pin must stay high and low for at least 2 clock periods.
+
+    Members
+    -------
+    pin_hit : In(1)
+        Photon hit, asynchronous, active high.
+    tdc_start : In(1)
+        TDC start strobe (:class:`~fliss.hdl.laser.LaserTrigger` ``tdc_start``).
+    pulse_index : In(32)
+        Pulses fired so far (:class:`~fliss.hdl.scheduler.PulseScheduler` ``pulse_index``).
+    address : In(6)
+        Pixel address given to the events.
+    enable, gate_start, gate_end, clear, events, accepted, dropped_stopped, dropped_overflow, dropped_gate, dropped_overrun
+        As in :class:`TdcInterface`.
+    """
+
+    pin_hit:          In(1)
+    tdc_start:        In(1)
+    pulse_index:      In(PULSE_BITS)
+    address:          In(ADDRESS_BITS)
+    enable:           In(1)
+    gate_start:       In(TIMESTAMP_BITS)
+    gate_end:         In(TIMESTAMP_BITS, init=MAX_TIMESTAMP)
+    clear:            In(1)
+    events:           Out(stream.Signature(Event))
+    accepted:         Out(COUNTER_WIDTH)
+    dropped_stopped:  Out(COUNTER_WIDTH)
+    dropped_overflow: Out(COUNTER_WIDTH)
+    dropped_gate:     Out(COUNTER_WIDTH)
+    dropped_overrun:  Out(COUNTER_WIDTH)
+
+    def elaborate(self, platform):
+        m = Module()
+
+        # Hit synchroniser and edge detector
+        hit = Signal()
+        hit_last = Signal()
+        m.submodules.hit_sync = cdc.FFSynchronizer(self.pin_hit, hit, stages=SYNC_STAGES)
+        m.d.sync += hit_last.eq(hit)
+        rise = Signal()
+        m.d.comb += rise.eq(hit & ~hit_last)
+
+        # TDC start and pulse index, delayed as much as the hit
+        start = self.tdc_start
+        pulse = self.pulse_index
+        for stage in range(SYNC_STAGES):
+            start_next = Signal(name=f"start_{stage + 1}")
+            pulse_next = Signal(PULSE_BITS, name=f"pulse_{stage + 1}")
+            m.d.sync += start_next.eq(start), pulse_next.eq(pulse)
+            start, pulse = start_next, pulse_next
+
+        # Time since the (delayed) start; MAX_TIMESTAMP + 1 means overflowed or never started
+        elapsed = Signal(range(MAX_TIMESTAMP + 2), init=MAX_TIMESTAMP + 1)
+        now = Signal(range(MAX_TIMESTAMP + 2))
+        m.d.comb += now.eq(Mux(start, 0, elapsed))
+        with m.If(now != MAX_TIMESTAMP + 1):
+            m.d.sync += elapsed.eq(now + 1)
+        with m.Else():
+            m.d.sync += elapsed.eq(now)
+
+        # Capture
+        m.submodules.filter = event_filter = EventFilter()
+        capture = Signal()
+        event = Signal(Event)
+        overflow = Signal()
+        enabled = Signal()
+        m.d.sync += capture.eq(rise)
+        with m.If(rise):
+            m.d.sync += [
+                event.timestamp.eq(now),
+                event.address.eq(self.address),
+                event.collision.eq(0),
+                event.pulse.eq(pulse - 1),
+                overflow.eq(now == MAX_TIMESTAMP + 1),
+                enabled.eq(self.enable),
+            ]
+
+        # Filter
+        m.d.comb += [
+            event_filter.capture.eq(capture),
+            event_filter.event.eq(event),
+            event_filter.overflow.eq(overflow),
+            event_filter.enable.eq(enabled),
+            *_filter_ports(self, event_filter),
+        ]
+        wiring.connect(m, wiring.flipped(self.events), event_filter.events)
+
+        return m

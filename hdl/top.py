@@ -1,0 +1,214 @@
+from amaranth.hdl import *
+from amaranth.lib import wiring
+from amaranth.lib.wiring import In, Out
+
+from . import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, period_cycles
+from .aggressor import Aggressor
+from .arbiter import PacketArbiter
+from .command import CommandProcessor
+from .core import DelayCore
+from .event import TIMESTAMP_BITS, ADDRESS_BITS
+from .framing import FrameDecoder, FrameEncoder
+from .histogram import Histogram
+from .packetizer import EventPacketizer, HistogramPacketizer
+from .rawfifo import RawFifo
+from .registers import AcquisitionMode, TdcSource
+from .tdc import TdcInterface, CoarseTdc
+from .uart import UartRx, UartTx, bit_cycles
+
+
+__all__ = ["DEFAULT_BAUD", "FlissTop"]
+
+
+#: Default UART baud rate: what an FT2232H bridge (iCEBreaker, many ULX3S) carries reliably.
+DEFAULT_BAUD = 3_000_000
+
+
+class FlissTop(wiring.Component):
+    """FLISS top level: the whole instrument behind a UART.
+
+    A host drives it with the packets of :mod:`fliss.hdl.protocol` over ``uart_rx`` and
+    ``uart_tx``: it reads and writes the registers of :mod:`fliss.hdl.registers`, starts and
+    stops acquisition, and receives histograms or raw events and status.
+
+    Parameters
+    ----------
+    clock_hz : int
+        Clock frequency in Hz.
+    baud : int
+        UART baud rate; refused at construction if the clock cannot make it within 2 %.
+    raw_depth : int
+        Depth of the raw event FIFO, in events.
+
+    Members
+    -------
+    uart_rx : In(1)
+    uart_tx : Out(1)
+        Serial link to the host, 8N1.
+    laser : Out(1)
+    tdc_start : Out(1)
+        Victim laser trigger and TDC start (same cycle).
+    aggressor_laser : Out(1)
+        Aggressor laser trigger.
+    sensor_valid : In(1)
+    sensor_timestamp : In(13)
+    sensor_address : In(6)
+    sensor_collision : In(1)
+        The sensor's TDC output bus, captured on ``sensor_valid``.
+    photon_hit : In(1)
+        Photon detector pulse for the built-in coarse TDC.
+    running : Out(1)
+        Acquisition running (for an LED).
+    """
+
+    uart_rx:          In(1, init=1)
+    uart_tx:          Out(1, init=1)
+    laser:            Out(1)
+    tdc_start:        Out(1)
+    aggressor_laser:  Out(1)
+    sensor_valid:     In(1)
+    sensor_timestamp: In(TIMESTAMP_BITS)
+    sensor_address:   In(ADDRESS_BITS)
+    sensor_collision: In(1)
+    photon_hit:       In(1)
+    running:          Out(1)
+
+    def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, baud=DEFAULT_BAUD, raw_depth=512):
+        self.clock_hz = clock_hz
+        self.baud = baud
+        self.raw_depth = raw_depth
+        # Validate the parameters now rather than at elaboration.
+        period_cycles(clock_hz, DEFAULT_PRF_HZ)
+        bit_cycles(clock_hz, baud)
+        super().__init__()
+
+    def elaborate(self, platform):
+        m = Module()
+
+        # Link: bytes to verified packets to commands, and back
+        m.submodules.uart_rx = uart_rx = UartRx(clock_hz=self.clock_hz, baud=self.baud)
+        m.submodules.uart_tx = uart_tx = UartTx(clock_hz=self.clock_hz, baud=self.baud)
+        m.submodules.decoder = decoder = FrameDecoder()
+        m.submodules.encoder = encoder = FrameEncoder()
+        m.submodules.command = command = CommandProcessor(clock_hz=self.clock_hz, baud=self.baud)
+        m.submodules.arbiter = arbiter = PacketArbiter(3)
+        m.d.comb += [
+            uart_rx.rx.eq(self.uart_rx),
+            self.uart_tx.eq(uart_tx.tx),
+            command.link_error.eq(decoder.drop),
+            command.link_error_code.eq(decoder.drop_reason),
+        ]
+        wiring.connect(m, uart_rx.o, decoder.i)
+        wiring.connect(m, decoder.o, command.packets)
+        wiring.connect(m, command.replies, arbiter.i[0])
+        wiring.connect(m, arbiter.o, encoder.i)
+        wiring.connect(m, encoder.o, uart_tx.i)
+
+        settings = command.settings
+        running = command.running
+        m.d.comb += self.running.eq(running)
+
+        # Victim: delay source, scheduler, laser trigger and TDC start
+        m.submodules.core = core = DelayCore(clock_hz=self.clock_hz)
+        m.d.comb += [
+            core.enable.eq(running),
+            core.update.eq(command.update),
+            core.mode.eq(settings.delay_mode),
+            core.length.eq(settings.length),
+            core.mask_width.eq(settings.mask_width),
+            core.seed.eq(settings.seed),
+            core.period.eq(settings.period),
+            core.grid.eq(settings.grid),
+            core.pulse_width.eq(settings.pulse_width),
+            self.laser.eq(core.laser),
+            self.tdc_start.eq(core.tdc_start),
+        ]
+
+        # Aggressor
+        m.submodules.aggressor = aggressor = Aggressor()
+        m.d.comb += [
+            aggressor.enable.eq(running & settings.aggressor),
+            aggressor.update.eq(command.update),
+            aggressor.offset.eq(settings.aggressor_offset),
+            aggressor.period.eq(settings.aggressor_period),
+            aggressor.pulse_width.eq(settings.aggressor_width),
+            aggressor.mode.eq(settings.aggressor_delay_mode),
+            aggressor.length.eq(settings.aggressor_length),
+            aggressor.mask_width.eq(settings.aggressor_mask_width),
+            aggressor.seed.eq(settings.aggressor_seed),
+            self.aggressor_laser.eq(aggressor.laser),
+        ]
+
+        # Events: the sensor bus or the built-in coarse TDC, tagged with the laser cycle index
+        m.submodules.sensor = sensor = TdcInterface()
+        m.submodules.coarse = coarse = CoarseTdc()
+        coarse_selected = settings.tdc_source == TdcSource.COARSE
+        for tdc, selected in ((sensor, ~coarse_selected), (coarse, coarse_selected)):
+            m.d.comb += [
+                tdc.enable.eq(running & selected),
+                tdc.pulse_index.eq(core.pulse_index),
+                tdc.gate_start.eq(settings.gate_start),
+                tdc.gate_end.eq(settings.gate_end),
+            ]
+        m.d.comb += [
+            sensor.pin_valid.eq(self.sensor_valid),
+            sensor.pin_timestamp.eq(self.sensor_timestamp),
+            sensor.pin_address.eq(self.sensor_address),
+            sensor.pin_collision.eq(self.sensor_collision),
+            coarse.pin_hit.eq(self.photon_hit),
+            coarse.tdc_start.eq(core.tdc_start),
+        ]
+        events = Mux(coarse_selected, coarse.events.payload, sensor.events.payload)
+        events_valid = Mux(coarse_selected, coarse.events.valid, sensor.events.valid)
+        m.d.comb += [sensor.events.ready.eq(1), coarse.events.ready.eq(1)]
+
+        # Histogram mode
+        raw_mode = settings.acquisition == AcquisitionMode.RAW
+        m.submodules.histogram = histogram = Histogram()
+        m.submodules.histogram_packets = histogram_packets = HistogramPacketizer()
+        m.d.comb += [
+            histogram.enable.eq(running & ~raw_mode),
+            histogram.integration.eq(settings.integration),
+            histogram.shift.eq(settings.bin_shift),
+            histogram.events.valid.eq(events_valid & ~raw_mode),
+            histogram.events.payload.eq(events),
+            histogram_packets.shift.eq(histogram.readout_shift),
+        ]
+        wiring.connect(m, histogram.readout, histogram_packets.readout)
+        wiring.connect(m, histogram_packets.packets, arbiter.i[1])
+
+        # Raw mode
+        m.submodules.raw_fifo = raw_fifo = RawFifo(depth=self.raw_depth)
+        m.submodules.event_packets = event_packets = EventPacketizer()
+        m.d.comb += [
+            raw_fifo.events.valid.eq(events_valid & raw_mode),
+            raw_fifo.events.payload.eq(events),
+            event_packets.level.eq(raw_fifo.level),
+            event_packets.flush.eq(~running),
+        ]
+        wiring.connect(m, raw_fifo.output, event_packets.events)
+        wiring.connect(m, event_packets.packets, arbiter.i[2])
+
+        # Status counters
+        status = command.status
+        selected = lambda name: Mux(coarse_selected, getattr(coarse, name), getattr(sensor, name))
+        m.d.comb += [
+            status.pulses.eq(core.pulse_index),
+            status.frames.eq(histogram.frames),
+            status.events.eq(selected("accepted")),
+            status.dropped_stopped.eq(selected("dropped_stopped")),
+            status.dropped_gate.eq(selected("dropped_gate")),
+            status.dropped_overflow.eq(selected("dropped_overflow")),
+            status.dropped_overrun.eq(selected("dropped_overrun")),
+            status.dropped_fifo.eq(raw_fifo.dropped),
+            status.dropped_histogram.eq(histogram.dropped),
+            status.histogram_overflow.eq(histogram.overflow),
+            status.uart_framing_errors.eq(uart_rx.framing_errors),
+            status.uart_overruns.eq(uart_rx.overruns),
+            status.bad_crc.eq(decoder.bad_crc),
+            status.truncated.eq(decoder.truncated),
+            status.oversize.eq(decoder.oversize),
+            status.bad_length.eq(decoder.bad_length),
+        ]
+
+        return m

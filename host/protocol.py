@@ -1,0 +1,337 @@
+"""Host codec of the FLISS link protocol (see ``docs/protocol.md``).
+
+Everything about the format comes from :mod:`fliss.hdl.protocol`; this module only implements it:
+
+* :func:`crc16`, :func:`cobs_encode`, :func:`cobs_decode`;
+* :func:`encode_packet` / :func:`encode_frame`: a packet as packet bytes / as a wire frame;
+  :class:`PacketEncoder` numbers the packets a host sends;
+* :class:`FrameDecoder`: a streaming decoder fed with bytes as they arrive, which yields packets
+  and reports every damaged frame, sequence gap and resynchronisation, and counts them;
+* :func:`pack_events` / :func:`unpack_events`: the payload of an EVENTS packet.
+
+The gateware (:mod:`fliss.hdl.framing`) is tested against this codec bit for bit.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..hdl.protocol import (DELIMITER, COBS_MAX_RUN, CRC_WIDTH, CRC_POLY, CRC_INIT, CRC_BYTES,
+                            PacketType, Header, HEADER_BYTES, MAX_PAYLOAD, MAX_PACKET, MAX_ENCODED, NakCode,
+                            EVENT_BYTES)
+from ..sim import event as _event
+
+
+__all__ = ["CobsError", "crc16", "cobs_encode", "cobs_decode", "Packet", "encode_packet",
+           "encode_frame", "decode_packet", "LinkError", "SequenceGap", "Resync", "LinkCounters",
+           "FrameDecoder", "PacketEncoder", "pack_events", "unpack_events"]
+
+
+# CRC
+
+def _crc_table():
+    top = 1 << (CRC_WIDTH - 1)
+    mask = (1 << CRC_WIDTH) - 1
+    table = []
+    for byte in range(256):
+        crc = byte << (CRC_WIDTH - 8)
+        for _ in range(8):
+            crc = ((crc << 1) ^ CRC_POLY) & mask if crc & top else (crc << 1) & mask
+        table.append(crc)
+    return table
+
+
+_CRC_TABLE = _crc_table()
+
+
+def crc16(data, crc=CRC_INIT):
+    """CRC-16/IBM-3740 of ``data`` (bytes-like), continuing from ``crc``."""
+    for byte in bytes(data):
+        crc = ((crc << 8) & 0xffff) ^ _CRC_TABLE[(crc >> 8) ^ byte]
+    return crc
+
+
+# COBS
+
+class CobsError(ValueError):
+    """COBS-encoded bytes that no packet encodes to."""
+
+
+def cobs_encode(data):
+    """COBS encoding of ``data`` (Cheshire and Baker): no zero byte in the result.
+
+    A block is a code byte ``n`` and ``n - 1`` non-zero bytes. It stands for those bytes and a
+    zero when ``n < 0xff``; a ``0xff`` block holds :data:`COBS_MAX_RUN` bytes and no zero. The
+    data is encoded with a zero appended, which the decoder drops again; when the data ends
+    with a full ``0xff`` block, that zero needs no block of its own. Output length:
+    ``len(data) + 1 + (len(data) - 1) // 254`` (1 for empty data).
+    """
+    out = bytearray()
+    run = bytearray()
+    full = False    # the last byte closed a full block
+    for byte in bytes(data):
+        full = False
+        if byte == 0:
+            out.append(len(run) + 1)
+            out += run
+            run.clear()
+        else:
+            run.append(byte)
+            if len(run) == COBS_MAX_RUN:
+                out.append(COBS_MAX_RUN + 1)
+                out += run
+                run.clear()
+                full = True
+    if not full:
+        out.append(len(run) + 1)
+        out += run
+    return bytes(out)
+
+
+def cobs_decode(data):
+    """Inverse of :func:`cobs_encode`; raises :exc:`CobsError` on a zero byte or a cut block."""
+    data = bytes(data)
+    out = bytearray()
+    index = 0
+    while index < len(data):
+        code = data[index]
+        if code == 0:
+            raise CobsError(f"zero byte at offset {index}")
+        block = data[index + 1:index + code]
+        if len(block) != code - 1:
+            raise CobsError(f"block at offset {index} is cut short")
+        if 0 in block:
+            raise CobsError(f"zero byte in block at offset {index}")
+        out += block
+        index += code
+        if code != COBS_MAX_RUN + 1 and index < len(data):
+            out.append(0)
+    if not data:
+        raise CobsError("empty")
+    return bytes(out)
+
+
+# Packets
+
+@dataclass(frozen=True)
+class Packet:
+    """One packet: ``type`` (a :class:`PacketType`, or an int for unknown types), ``seq``,
+    ``payload``."""
+    type: object
+    seq: int
+    payload: bytes = b""
+
+
+def _header_bytes(type, seq, length):
+    type = type.value if isinstance(type, PacketType) else int(type)
+    value = Header.const({"type": type, "seq": seq, "length": length}).as_bits()
+    return value.to_bytes(HEADER_BYTES, "little")
+
+
+def encode_packet(type, seq, payload=b""):
+    """Packet bytes (header, payload, CRC), before COBS encoding."""
+    payload = bytes(payload)
+    if len(payload) > MAX_PAYLOAD:
+        raise ValueError(f"Payload of {len(payload)} bytes is longer than the maximum of "
+                         f"{MAX_PAYLOAD} bytes")
+    if not 0 <= seq < 256:
+        raise ValueError(f"Sequence number must be from 0 to 255, not {seq!r}")
+    body = _header_bytes(type, seq, len(payload)) + payload
+    return body + crc16(body).to_bytes(CRC_BYTES, "big")
+
+
+def encode_frame(type, seq, payload=b""):
+    """A packet as it goes on the wire: COBS-encoded packet bytes, then the delimiter."""
+    return cobs_encode(encode_packet(type, seq, payload)) + bytes([DELIMITER])
+
+
+def _packet_type(value):
+    try:
+        return PacketType(value)
+    except ValueError:
+        return value
+
+
+def decode_packet(packet):
+    """Check packet bytes (after COBS decoding); returns ``(Packet, None)`` or ``(None, code)``.
+
+    The checks, in order: too long (``OVERSIZE``), shorter than header and CRC (``TRUNCATED``),
+    CRC (``BAD_CRC``), header length against payload length (``BAD_LENGTH``).
+    """
+    if len(packet) > MAX_PACKET:
+        return None, NakCode.OVERSIZE
+    if len(packet) < HEADER_BYTES + CRC_BYTES:
+        return None, NakCode.TRUNCATED
+    if crc16(packet) != 0:
+        return None, NakCode.BAD_CRC
+    header = Header.from_bits(int.from_bytes(packet[:HEADER_BYTES], "little"))
+    payload = packet[HEADER_BYTES:-CRC_BYTES]
+    if header.length != len(payload):
+        return None, NakCode.BAD_LENGTH
+    return Packet(_packet_type(int(header.type)), int(header.seq), bytes(payload)), None
+
+
+# Streaming decoder
+
+@dataclass(frozen=True)
+class LinkError:
+    """A frame dropped: ``code`` (a link :class:`NakCode`) and the ``frame`` bytes as received
+    (COBS-encoded, without the delimiter)."""
+    code: NakCode
+    frame: bytes
+
+
+@dataclass(frozen=True)
+class SequenceGap:
+    """Packets missing before ``packet``: ``expected`` sequence number, ``received`` one,
+    ``missing`` packets (modulo 256)."""
+    expected: int
+    received: int
+    missing: int
+
+
+@dataclass(frozen=True)
+class Resync:
+    """Bytes skipped before the first delimiter seen (the decoder started mid-frame)."""
+    skipped: int
+
+
+@dataclass
+class LinkCounters:
+    """What a :class:`FrameDecoder` has seen. ``errors`` maps each link :class:`NakCode` to the
+    number of frames dropped for it."""
+    bytes: int = 0
+    packets: int = 0
+    payload_bytes: int = 0
+    errors: dict = field(default_factory=lambda: {code: 0 for code in (
+        NakCode.BAD_CRC, NakCode.TRUNCATED, NakCode.OVERSIZE, NakCode.BAD_LENGTH)})
+    sequence_gaps: int = 0
+    missing_packets: int = 0
+    resyncs: int = 0
+    skipped_bytes: int = 0
+
+    @property
+    def dropped_frames(self):
+        return sum(self.errors.values())
+
+
+class FrameDecoder:
+    """Streaming frame decoder.
+
+    Feed it bytes as they arrive with :meth:`feed`; it returns, in order, every :class:`Packet`
+    decoded and a :class:`LinkError`, :class:`SequenceGap` or :class:`Resync` for everything
+    that went wrong. :attr:`counters` (:class:`LinkCounters`) adds everything up.
+
+    A lone delimiter (an empty frame) is ignored: a sender may put delimiters between frames to
+    flush a receiver. The checks and their order are those of the gateware decoder: more than
+    :data:`MAX_ENCODED` bytes (``OVERSIZE``; the excess is not even kept, so random input cannot
+    make the decoder grow), a COBS block cut by the delimiter (``TRUNCATED``), then
+    :func:`decode_packet`.
+
+    Parameters
+    ----------
+    synced : bool
+        ``False`` (default) when the decoder may start in the middle of a frame, as when a host
+        opens a port to a running device: bytes up to the first delimiter are skipped and
+        reported as a :class:`Resync`. ``True`` when the first byte starts a frame.
+    """
+
+    _KEEP = MAX_ENCODED
+
+    def __init__(self, *, synced=False):
+        self.counters = LinkCounters()
+        self._synced = bool(synced)
+        self._frame = bytearray()
+        self._length = 0
+        self._expected_seq = None
+
+    def feed(self, data):
+        """Decode ``data`` (bytes-like); returns the list of packets and reports found."""
+        out = []
+        data = bytes(data)
+        self.counters.bytes += len(data)
+        start = 0
+        while start < len(data):
+            end = data.find(DELIMITER, start)
+            chunk = data[start:] if end < 0 else data[start:end]
+            self._length += len(chunk)
+            room = self._KEEP + 1 - len(self._frame)
+            if room > 0:
+                self._frame += chunk[:room]
+            if end < 0:
+                break
+            self._end_frame(out)
+            start = end + 1
+        return out
+
+    def _end_frame(self, out):
+        frame, length = bytes(self._frame), self._length
+        self._frame.clear()
+        self._length = 0
+        if not self._synced:
+            self._synced = True
+            if length:
+                self.counters.resyncs += 1
+                self.counters.skipped_bytes += length
+                out.append(Resync(length))
+            return
+        if length == 0:
+            return
+        if length > self._KEEP:
+            self._drop(out, NakCode.OVERSIZE, frame)
+            return
+        try:
+            packet_bytes = cobs_decode(frame)
+        except CobsError:
+            self._drop(out, NakCode.TRUNCATED, frame)
+            return
+        packet, code = decode_packet(packet_bytes)
+        if packet is None:
+            self._drop(out, code, frame)
+            return
+        if self._expected_seq is not None and packet.seq != self._expected_seq:
+            missing = (packet.seq - self._expected_seq) % 256
+            self.counters.sequence_gaps += 1
+            self.counters.missing_packets += missing
+            out.append(SequenceGap(self._expected_seq, packet.seq, missing))
+        self._expected_seq = (packet.seq + 1) % 256
+        self.counters.packets += 1
+        self.counters.payload_bytes += len(packet.payload)
+        out.append(packet)
+
+    def _drop(self, out, code, frame):
+        self.counters.errors[code] += 1
+        out.append(LinkError(code, frame))
+
+
+class PacketEncoder:
+    """Numbers the packets a host sends: ``seq`` 0, 1, 2, … modulo 256."""
+
+    def __init__(self, seq=0):
+        self.seq = seq
+
+    def frame(self, type, payload=b""):
+        """The next frame of ``type`` with ``payload``, as wire bytes."""
+        frame = encode_frame(type, self.seq, payload)
+        self.seq = (self.seq + 1) % 256
+        return frame
+
+
+
+# Event batches
+
+def pack_events(events):
+    """Payload of an EVENTS packet from an ``EVENT_DTYPE`` array."""
+    words = _event.pack(events)
+    return b"".join(int(word).to_bytes(EVENT_BYTES, "little") for word in words)
+
+
+def unpack_events(payload):
+    """``EVENT_DTYPE`` array from the payload of an EVENTS packet."""
+    payload = bytes(payload)
+    if len(payload) % EVENT_BYTES:
+        raise ValueError(f"Event payload of {len(payload)} bytes is not a whole number of "
+                         f"{EVENT_BYTES}-byte events")
+    words = np.array([int.from_bytes(payload[i:i + EVENT_BYTES], "little")
+                      for i in range(0, len(payload), EVENT_BYTES)], dtype=np.uint64)
+    return _event.unpack(words)

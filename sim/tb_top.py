@@ -1,0 +1,330 @@
+"""cocotb testbench of :class:`fliss.hdl.top.FlissTop`, driven only through its pins.
+
+A :class:`TopTB` owns the clock, a UART driver and monitor speaking the protocol with the host
+codec (:mod:`fliss.host.protocol`), and a sensor model that answers the laser's TDC starts with
+photon events on the timestamp bus, in closed loop. The expected replies come from the command
+processor's model (:mod:`fliss.sim.command`); histograms and raw events from the events the
+sensor model produced.
+
+The baud rate is given to the design and to this testbench by ``FLISS_TB_BAUD``.
+"""
+
+import os
+import random
+import struct
+
+import cocotb
+import numpy as np
+from cocotb.clock import Clock
+from cocotb.simtime import get_sim_time
+from cocotb.triggers import ClockCycles, ReadOnly, RisingEdge, Timer, with_timeout
+
+from ..hdl import DEFAULT_CLOCK_HZ
+from ..hdl.command import STATUS_FIELDS
+from ..hdl.packetizer import HistogramChunk, CHUNK_BINS
+from ..hdl.protocol import PacketType, NakCode, MAX_ENCODED
+from ..hdl.registers import BY_NAME, REGISTERS, AcquisitionMode
+from ..host import protocol as codec
+from .command import CommandModel
+from .event import EVENT_DTYPE
+from .uart_bfm import UartSink, UartSource
+
+
+BAUD = int(os.environ.get("FLISS_TB_BAUD", 12_000_000))
+FUZZ_FRAMES = int(os.environ.get("FLISS_TB_FUZZ_FRAMES", 10_000))
+CLOCK_PERIOD_PS = round(1e12 / DEFAULT_CLOCK_HZ)
+
+
+class TopTB:
+    def __init__(self, dut):
+        self.dut = dut
+        self.encoder = codec.PacketEncoder()
+        self.decoder = codec.FrameDecoder(synced=True)
+        self.model = CommandModel(DEFAULT_CLOCK_HZ, BAUD)
+        self.packets = []
+        self.link_reports = []
+        self.sensor_events = []
+        self._consumed = 0
+
+    async def start(self):
+        dut = self.dut
+        Clock(dut.clk, CLOCK_PERIOD_PS, unit="ps").start()
+        for name in ("sensor_valid", "sensor_timestamp", "sensor_address", "sensor_collision",
+                     "photon_hit"):
+            getattr(dut, name).value = 0
+        self.source = UartSource(dut.uart_rx, BAUD)
+        dut.rst.value = 1
+        await ClockCycles(dut.clk, 4)
+        dut.rst.value = 0
+        await ClockCycles(dut.clk, 4)
+        self.sink = UartSink(dut.uart_tx, BAUD)
+        self.pulses = 0   # TDC starts since reset: each test starts acquisition once
+        cocotb.start_soon(self._count_pulses())
+
+    async def _count_pulses(self):
+        while True:
+            await RisingEdge(self.dut.tdc_start)
+            self.pulses += 1
+
+    def _drain(self):
+        data = bytes(self.sink.received[self._consumed:])
+        self._consumed = len(self.sink.received)
+        for item in self.decoder.feed(data):
+            if isinstance(item, codec.Packet):
+                self.packets.append(item)
+            else:
+                self.link_reports.append(item)
+
+    async def next_packet(self, *, timeout_us=2000, types=None):
+        """The next packet from the board (of one of ``types``, skipping data packets)."""
+        deadline = get_sim_time("us") + timeout_us
+        while True:
+            self._drain()
+            while self.packets:
+                packet = self.packets.pop(0)
+                if types is None or packet.type in types:
+                    return packet
+                self.data_packets.append(packet)
+            if get_sim_time("us") > deadline:
+                raise AssertionError("the board did not answer")
+            self.sink.event.clear()
+            try:
+                await with_timeout(self.sink.event.wait(), 50, "us")
+            except Exception:
+                pass
+
+    data_packets = []
+
+    async def command(self, type, payload=b"", *, check=True):
+        """Send a command; return the reply, checked against the model when ``check``."""
+        seq = self.encoder.seq
+        await self.source.send(self.encoder.frame(type, payload))
+        reply = await self.next_packet(types={PacketType.ACK, PacketType.NAK, PacketType.IDENTITY,
+                                              PacketType.REGISTERS, PacketType.STATUS})
+        if check:
+            want_type, want_payload = self.model.command(
+                type.value if isinstance(type, PacketType) else type, seq, payload,
+                status=self.status_hint(reply))
+            assert (reply.type, reply.payload) == (want_type, want_payload), \
+                (type, payload, reply, want_type, want_payload)
+        return reply
+
+    def status_hint(self, reply):
+        # Counters the model cannot know come from the board's own reply.
+        if reply.type != PacketType.STATUS:
+            return None
+        values = struct.unpack(f"<{len(STATUS_FIELDS)}I", reply.payload)
+        return dict(zip(STATUS_FIELDS, values))
+
+    async def write(self, **values):
+        for name, value in values.items():
+            reply = await self.command(PacketType.WRITE,
+                                       struct.pack("<HI", BY_NAME[name].address, value))
+            assert reply.type == PacketType.ACK, (name, value, reply)
+
+    async def status(self):
+        reply = await self.command(PacketType.GET_STATUS)
+        return self.status_hint(reply)
+
+    # Sensor model: after each TDC start, maybe one photon event on the bus.
+
+    def start_sensor(self, rng, probability, *, max_code=8191):
+        self._sensor = cocotb.start_soon(self._sensor_loop(rng, probability, max_code))
+
+    def stop_sensor(self):
+        self._sensor.cancel()
+
+    async def _sensor_loop(self, rng, probability, max_code):
+        dut = self.dut
+        while True:
+            await RisingEdge(dut.tdc_start)
+            await ReadOnly()
+            pulse = self.pulses - 1
+            await RisingEdge(dut.clk)
+            if rng.random() >= probability:
+                continue
+            code = rng.randrange(0, max_code + 1)
+            address = rng.randrange(0, 60)
+            collision = int(rng.random() < 0.1)
+            # The sensor's conversion ends after its 409.6 ns range: present the event then.
+            await ClockCycles(dut.clk, 34)
+            dut.sensor_timestamp.value = code
+            dut.sensor_address.value = address
+            dut.sensor_collision.value = collision
+            await ClockCycles(dut.clk, 1)
+            dut.sensor_valid.value = 1
+            await ClockCycles(dut.clk, 2)
+            dut.sensor_valid.value = 0
+            await ClockCycles(dut.clk, 4)
+            self.sensor_events.append((code, address, collision, pulse))
+
+
+@cocotb.test()
+async def test_identify_and_registers(dut):
+    """Identity, then every register written and read back, with refusals, against the model."""
+    tb = TopTB(dut)
+    await tb.start()
+    reply = await tb.command(PacketType.PING)
+    assert reply.type == PacketType.ACK
+    await tb.command(PacketType.IDENTIFY)
+    await tb.command(PacketType.READ, struct.pack("<HB", 0, len(REGISTERS)))
+    rng = random.Random(1)
+    for register in REGISTERS:
+        for value in (register.minimum, register.maximum, register.maximum + 1,
+                      rng.randint(register.minimum, register.maximum)):
+            if value < (1 << 32):
+                await tb.command(PacketType.WRITE, struct.pack("<HI", register.address, value))
+    await tb.command(PacketType.READ, struct.pack("<HB", 0, len(REGISTERS)))
+    await tb.command(PacketType.GET_STATUS)
+    assert not tb.link_reports
+
+
+@cocotb.test()
+async def test_fuzz(dut):
+    """Random and mutated frames: each gets a NAK with its reason or its proper reply, every
+    error is counted, the link resynchronises and no refused setting is applied."""
+    tb = TopTB(dut)
+    await tb.start()
+    rng = random.Random(0xF022)
+    valid = [
+        (PacketType.PING, b""), (PacketType.IDENTIFY, b""), (PacketType.GET_STATUS, b""),
+        (PacketType.READ, struct.pack("<HB", 2, 4)),
+        (PacketType.WRITE, struct.pack("<HI", BY_NAME["length"].address, 40)),
+        (PacketType.WRITE, struct.pack("<HI", BY_NAME["mask_width"].address, 17)),
+        (PacketType.WRITE, struct.pack("<HI", BY_NAME["period"].address, 1)),
+        (PacketType.WRITE, struct.pack("<HI", BY_NAME["seed"].address, 0)),
+        (PacketType.WRITE, struct.pack("<HI", BY_NAME["pulse_width"].address, 80)),
+        (PacketType.WRITE, struct.pack("<HI", BY_NAME["length"].address, 5)),
+        (0x42, b""),
+    ]
+    expected_errors = dict.fromkeys([NakCode.BAD_CRC, NakCode.TRUNCATED, NakCode.OVERSIZE,
+                                     NakCode.BAD_LENGTH], 0)
+    answered = 0
+    for number in range(FUZZ_FRAMES):
+        type, payload = rng.choice(valid)
+        frame = codec.encode_frame(type, tb.encoder.seq, payload)
+        kind = rng.random()
+        if kind < 0.3:
+            tb.encoder.seq = (tb.encoder.seq + 1) % 256
+            want = tb.model.command(type.value if isinstance(type, PacketType) else type,
+                                    (tb.encoder.seq - 1) % 256, payload)
+            await tb.source.send(frame)
+            reply = await tb.next_packet(types={PacketType.ACK, PacketType.NAK,
+                                                PacketType.IDENTITY, PacketType.REGISTERS,
+                                                PacketType.STATUS})
+            if reply.type != PacketType.STATUS:
+                assert (reply.type, reply.payload) == want, (number, type, payload, reply, want)
+            answered += 1
+            continue
+        # Damage the frame: flip bits, cut it short, or replace it with noise; keep the
+        # delimiter at the end so that each damaged frame is one frame.
+        body = bytearray(frame[:-1])
+        if kind < 0.6:
+            for _ in range(rng.randint(1, 3)):
+                position = rng.randrange(len(body))
+                body[position] ^= 1 << rng.randrange(8)
+        elif kind < 0.8:
+            body = body[:rng.randrange(1, len(body))]
+        elif kind < 0.95:
+            body = bytearray(rng.getrandbits(8) for _ in range(rng.randint(1, 40)))
+        else:
+            body = bytearray(rng.randrange(1, 256) for _ in range(MAX_ENCODED + 1 +
+                                                                     rng.randrange(10)))
+        body = bytearray(byte if byte else 0x55 for byte in body)   # no delimiter inside
+        wire = bytes(body) + b"\x00"
+        check = codec.FrameDecoder(synced=True).feed(wire)
+        await tb.source.send(wire)
+        if check and isinstance(check[0], codec.LinkError):
+            expected_errors[check[0].code] += 1
+            reply = await tb.next_packet(types={PacketType.NAK})
+            assert reply.payload == struct.pack("<BBH", 0, check[0].code.value, 0), \
+                (number, check, reply)
+        elif check:
+            # A mutation that still decodes: a valid command (not counted as an error).
+            packet = check[0]
+            reply = await tb.next_packet(types={PacketType.ACK, PacketType.NAK,
+                                                PacketType.IDENTITY, PacketType.REGISTERS,
+                                                PacketType.STATUS})
+            want = tb.model.command(packet.type.value if isinstance(packet.type, PacketType)
+                                    else packet.type, packet.seq, packet.payload)
+            if reply.type != PacketType.STATUS:
+                assert (reply.type, reply.payload) == want, (number, packet, reply, want)
+        answered += 1
+    status = await tb.status()
+    for code, name in ((NakCode.BAD_CRC, "bad_crc"), (NakCode.TRUNCATED, "truncated"),
+                       (NakCode.OVERSIZE, "oversize"), (NakCode.BAD_LENGTH, "bad_length")):
+        assert status[name] == expected_errors[code], (name, status[name], expected_errors)
+    assert sum(expected_errors.values()) > FUZZ_FRAMES // 2
+    # The settings are those the model accepted, nothing else.
+    reply = await tb.command(PacketType.READ, struct.pack("<HB", 0, len(REGISTERS)))
+    assert not [r for r in tb.link_reports if not isinstance(r, codec.SequenceGap)]
+    dut._log.info("%d frames, errors %s", FUZZ_FRAMES,
+                  {code.name: count for code, count in expected_errors.items()})
+
+
+async def _acquire(tb, **settings):
+    await tb.write(**settings)
+    await tb.command(PacketType.START)
+
+
+@cocotb.test()
+async def test_raw_events_closed_loop(dut):
+    """Raw mode: every event the sensor model put on the bus comes back, bit for bit, with the
+    index of the laser cycle it followed."""
+    tb = TopTB(dut)
+    await tb.start()
+    await _acquire(tb, acquisition=AcquisitionMode.RAW.value, delay_mode=2, mask_width=5,
+                   seed=0xBEEF)
+    tb.start_sensor(random.Random(5), 0.3)
+    await Timer(400, unit="us")
+    tb.stop_sensor()
+    await ClockCycles(tb.dut.clk, 200)
+    await tb.command(PacketType.STOP)
+    await Timer(300, unit="us")
+    tb._drain()
+    events = [codec.unpack_events(p.payload) for p in tb.data_packets + tb.packets
+              if p.type == PacketType.EVENTS]
+    got = np.concatenate(events) if events else np.zeros(0, EVENT_DTYPE)
+    dut._log.info("status %s, packets %s", await tb.status(),
+                  [(p.type, p.seq, len(p.payload)) for p in tb.data_packets + tb.packets][:20])
+    want = np.array(tb.sensor_events, dtype=[("timestamp", "u2"), ("address", "u1"),
+                                             ("collision", "u1"), ("pulse", "u4")])
+    assert len(want) > 50
+    assert len(got) == len(want), (len(got), len(want))
+    for name in ("timestamp", "address", "collision", "pulse"):
+        assert np.array_equal(got[name], want[name]), (name, got[name][:8], want[name][:8])
+    status = await tb.status()
+    assert status["events"] == len(want) and status["dropped_fifo"] == 0
+
+
+@cocotb.test()
+async def test_histogram_closed_loop(dut):
+    """Histogram mode: the first frame equals the histogram of the events the sensor model
+    produced during it."""
+    tb = TopTB(dut)
+    await tb.start()
+    shift = 6   # 128 bins: one chunk per frame
+    integration = 40_000
+    await _acquire(tb, delay_mode=1, length=5, seed=3, bin_shift=shift,
+                   integration=integration)
+    tb.start_sensor(random.Random(9), 0.6)
+    # Stop the photons well before the first frame ends.
+    await ClockCycles(tb.dut.clk, integration - 3000)
+    tb.stop_sensor()
+    await ClockCycles(tb.dut.clk, 4000)
+    await tb.command(PacketType.STOP)
+    chunks = []
+    deadline = get_sim_time("us") + 2000
+    while not chunks and get_sim_time("us") < deadline:
+        tb._drain()
+        chunks = [p for p in tb.data_packets + tb.packets if p.type == PacketType.HISTOGRAM]
+        await Timer(20, unit="us")
+    assert chunks, "no histogram"
+    first = chunks[0].payload
+    header_bytes = len(HistogramChunk.const({}).as_bits().to_bytes(8, "little"))
+    frame, first_bin, chunk_shift, last = struct.unpack_from("<IHBB", first)
+    counts = np.frombuffer(first[8:], dtype="<u2")
+    want = np.bincount(np.array([e[0] for e in tb.sensor_events]) >> shift, minlength=128)
+    assert (frame, first_bin, chunk_shift, last) == (0, 0, shift, 1)
+    assert len(tb.sensor_events) > 100
+    assert np.array_equal(counts, want)

@@ -1,0 +1,30 @@
+"""cocotb tests of the whole top level through its pins, on Icarus and Verilator."""
+
+from pathlib import Path
+
+import pytest
+
+from fliss.hdl.top import FlissTop
+from fliss.sim.cocotb_runner import run_cocotb, write_verilog
+
+
+BUILD = Path(__file__).resolve().parent.parent / "build" / "cocotb" / "fliss_top"
+BAUD = 12_000_000
+#: Fuzz frames per simulator. Icarus calls into Python slowly, so it gets fewer.
+FUZZ_FRAMES = {"icarus": 10_000, "verilator": 10_000}
+
+
+@pytest.fixture(scope="module")
+def top_verilog():
+    return write_verilog(FlissTop(baud=BAUD), "fliss_top", BUILD / "fliss_top.v")
+
+
+def test_top(simulator, top_verilog, cocotb_counts):
+    passed, failed, skipped = run_cocotb(
+        simulator, verilog_path=top_verilog, toplevel="fliss_top",
+        test_module="fliss.sim.tb_top", build_dir=BUILD,
+        extra_env={"FLISS_TB_BAUD": str(BAUD),
+                   "FLISS_TB_FUZZ_FRAMES": str(FUZZ_FRAMES[simulator])})
+    cocotb_counts(simulator, passed, failed, skipped)
+    assert failed == 0
+    assert passed == 4

@@ -1,0 +1,311 @@
+"""Histogram engine: gateware against the model, one event per clock, bank swaps, readout."""
+
+import gc
+import warnings
+
+import numpy as np
+import pytest
+from amaranth.hdl import UnusedElaboratable
+from amaranth.sim import Simulator
+
+from fliss.hdl import DEFAULT_CLOCK_HZ
+from fliss.hdl.histogram import Histogram, BIN_BITS, COUNT_WIDTH
+from fliss.sim import histogram as model
+
+
+
+def construction_error(factory):
+    """The message of the ValueError that ``factory()`` raises (None if none); the half-built
+    component is collected here, so it does not warn as unused elsewhere."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnusedElaboratable)
+        try:
+            factory()
+        except ValueError as error:
+            message = str(error)
+        else:
+            message = None
+        gc.collect()
+    return message
+
+def hazard_stimulus(rng, cycles, *, bins, shift, gaps=True):
+    """Timestamps with long runs of one bin, A,A,B,A patterns, random bins; optional gaps.
+
+    Returns per-cycle ``valid`` (bool) and ``timestamp`` arrays.
+    """
+    timestamps = []
+    while len(timestamps) < cycles:
+        kind = rng.integers(6)
+        a, b = rng.integers(bins, size=2) << shift
+        jitter = lambda n: rng.integers(1 << shift, size=n) if shift else 0
+        if kind == 0:    # long run of one bin, timestamps anywhere inside it
+            n = int(rng.integers(50, 400))
+            timestamps.extend(a + jitter(n) * np.ones(n, dtype=np.int64))
+        elif kind == 1:  # A,A,B,A,B,B,...: same bin one and two cycles apart
+            n = int(rng.integers(20, 200))
+            timestamps.extend(np.where(rng.integers(2, size=n) == 1, a, b) + jitter(n))
+        elif kind == 2:  # strictly alternating A,B
+            n = int(rng.integers(20, 200))
+            timestamps.extend(np.where(np.arange(n) % 2 == 0, a, b) + jitter(n))
+        elif kind == 3:  # A,A,B,A with a third bin
+            c = rng.integers(bins) << shift
+            pattern = np.array([a, a, b, a, c, a, b, b])
+            timestamps.extend(np.tile(pattern, int(rng.integers(5, 40))))
+        else:            # random over all codes
+            n = int(rng.integers(50, 300))
+            timestamps.extend(rng.integers(1 << 13, size=n))
+    timestamps = np.asarray(timestamps[:cycles], dtype=np.int64)
+    valid = np.ones(cycles, dtype=bool)
+    if gaps:
+        # a few idle stretches and isolated idle cycles
+        valid &= rng.random(cycles) > 0.02
+        for start in rng.integers(cycles, size=5):
+            valid[start:start + int(rng.integers(1, 30))] = False
+    return valid, timestamps
+
+
+def run_histogram(dut, valid, timestamps, *, integration, shift, ready=None, settle=None,
+                  probe=None):
+    """Drive ``valid``/``timestamps`` from cycle 0, with ``enable`` high from cycle 0 to the
+    cycle after the last event; collect the read out frames.
+
+    Returns frames (list of (counts, shift)) and the final counters.
+    """
+    cycles = len(valid)
+    frames = []
+    result = {}
+    readout_bins = model.bins_read(shift, dut.bin_bits)
+    if settle is None:
+        settle = 4 * model.readout_cycles(shift, dut.bin_bits) + 100
+
+    async def stimulus(ctx):
+        ctx.set(dut.integration, integration)
+        ctx.set(dut.shift, shift)
+        ctx.set(dut.enable, 1)
+        for cycle in range(cycles):
+            ctx.set(dut.events.valid, int(valid[cycle]))
+            ctx.set(dut.events.payload.timestamp, int(timestamps[cycle]))
+            await ctx.tick()
+        ctx.set(dut.events.valid, 0)
+        ctx.set(dut.enable, 0)
+        idle = 0
+        for _ in range(settle):                 # until every frame is read out
+            _, _, pending = await ctx.tick().sample(dut.pending)
+            idle = 0 if pending else idle + 1
+            if idle == 10:
+                break
+        result.update(dropped=ctx.get(dut.dropped), overflow=ctx.get(dut.overflow),
+                      frames=ctx.get(dut.frames), pending=ctx.get(dut.pending))
+
+    async def consumer(ctx):
+        counts = []
+        cycle = 0
+        while True:
+            if ready is not None:
+                ctx.set(dut.readout.ready, int(ready(cycle)))
+            else:
+                ctx.set(dut.readout.ready, 1)
+            _, _, got, rdy, index, count, last, bank_shift = await ctx.tick().sample(
+                dut.readout.valid, dut.readout.ready, dut.readout.payload.index,
+                dut.readout.payload.count, dut.readout.payload.last, dut.readout_shift)
+            cycle += 1
+            if got and rdy:
+                assert index == len(counts)
+                counts.append(count)
+                assert last == (index == readout_bins - 1)
+                if last:
+                    frames.append((np.array(counts), bank_shift))
+                    counts = []
+
+    sim = Simulator(dut)
+    sim.add_clock(1 / DEFAULT_CLOCK_HZ)
+    sim.add_testbench(stimulus)
+    sim.add_testbench(consumer, background=True)
+    if probe is not None:
+        sim.add_testbench(probe, background=True)
+    sim.run()
+    return frames, result
+
+
+def check_against_model(frames, result, valid, timestamps, *, integration, shift, bin_bits):
+    cycles = np.flatnonzero(valid)
+    expected, overflow, dropped = model.frames(
+        cycles, timestamps[valid], integration=integration, enable=0, disable=len(valid),
+        shift=shift, bin_bits=bin_bits)
+    assert len(frames) == len(expected) >= 3
+    for k, ((counts, frame_shift), want) in enumerate(zip(frames, expected)):
+        assert frame_shift == shift
+        mismatch = np.flatnonzero(counts != want)
+        assert mismatch.size == 0, \
+            f"frame {k}: bins {mismatch[:8]} read {counts[mismatch[:8]]}, want {want[mismatch[:8]]}"
+    assert result["overflow"] == overflow
+    assert result["dropped"] == dropped
+    assert result["frames"] == len(expected)
+    assert result["pending"] == 0
+    # Every event is counted exactly once: in a bin, in overflow or in dropped.
+    assert sum(int(f.sum()) for f, _ in frames) + overflow + dropped == int(valid.sum())
+
+
+def test_one_event_per_clock_matches_model():
+    # 8192 bins in RAM, shift 5: 256 bins read out per frame, 768 cycles of readout per frame.
+    rng = np.random.default_rng(2019)
+    cycles, integration, shift = 8_000, 1_600, 5
+    valid, timestamps = hazard_stimulus(rng, cycles, bins=256, shift=shift, gaps=False)
+    dut = Histogram()
+    frames, result = run_histogram(dut, valid, timestamps, integration=integration, shift=shift)
+    check_against_model(frames, result, valid, timestamps, integration=integration,
+                        shift=shift, bin_bits=BIN_BITS)
+    # the stimulus really hit the hazards: same bin one and two cycles apart
+    bins = timestamps >> shift
+    assert np.count_nonzero(bins[1:] == bins[:-1]) > 1000
+    assert np.count_nonzero((bins[2:] == bins[:-2]) & (bins[1:-1] != bins[2:])) > 500
+
+
+def test_gaps_overflow_and_slow_reader():
+    # 256 bins in RAM and no shift: timestamps from 256 up overflow and are counted. The reader
+    # takes one bin in three cycles on average and still keeps up with the frames.
+    rng = np.random.default_rng(7)
+    cycles, integration, shift, bin_bits = 5_400, 1_800, 0, 8
+    valid, timestamps = hazard_stimulus(rng, cycles, bins=256, shift=shift, gaps=True)
+    timestamps[rng.random(cycles) < 0.1] = rng.integers(256, 8192)
+    ready_pattern = rng.random(100_000) < 0.5
+    dut = Histogram(bin_bits=bin_bits)
+    frames, result = run_histogram(dut, valid, timestamps, integration=integration, shift=shift,
+                                   ready=lambda cycle: ready_pattern[cycle])
+    check_against_model(frames, result, valid, timestamps, integration=integration,
+                        shift=shift, bin_bits=bin_bits)
+    assert result["overflow"] > 100
+
+
+def test_disable_on_frame_boundary():
+    # enable falls exactly where a frame starts: that frame is read out empty, in the model too
+    rng = np.random.default_rng(5)
+    cycles, integration, shift = 1 + 3 * 1_100, 1_100, 5
+    valid, timestamps = hazard_stimulus(rng, cycles, bins=256, shift=shift, gaps=False)
+    dut = Histogram()
+    frames, result = run_histogram(dut, valid, timestamps, integration=integration, shift=shift)
+    check_against_model(frames, result, valid, timestamps, integration=integration,
+                        shift=shift, bin_bits=BIN_BITS)
+    assert len(frames) == 4 and frames[3][0].sum() == 0 and frames[2][0].sum() == integration
+
+
+def test_counts_saturate():
+    # Bins preloaded near 2**16 - 1 (as after a long acquisition), then hit back to back:
+    # counts stop at 65535, through the RAM path and through both forwarding paths.
+    count_max = (1 << COUNT_WIDTH) - 1
+    dut = Histogram(bin_bits=4)
+    shift = 9
+    preload = np.zeros(16, dtype=np.int64)
+    preload[[3, 5, 7, 9]] = count_max - 2, count_max, count_max - 1, count_max - 4
+    bins = [3, 3, 3, 3, 3, 5, 7, 9, 7, 9, 7, 9, 7, 9, 1, 9, 9, 9, 9]
+    stream = np.array(bins + [None] * 3 + [5, 9, None, None, 9, 3], dtype=object)
+    frames = []
+
+    async def stimulus(ctx):
+        for index, value in enumerate(preload):
+            ctx.set(dut.banks[0].data[index], int(value))
+        ctx.set(dut.integration, 1000)
+        ctx.set(dut.shift, shift)
+        ctx.set(dut.enable, 1)
+        await ctx.tick()
+        for value in stream:
+            ctx.set(dut.events.valid, value is not None)
+            ctx.set(dut.events.payload.timestamp, ((value or 0) << shift) + 17)
+            await ctx.tick()
+        ctx.set(dut.events.valid, 0)
+        ctx.set(dut.enable, 0)
+        ctx.set(dut.readout.ready, 1)
+        counts = []
+        for _ in range(100):
+            _, _, got, count, last = await ctx.tick().sample(
+                dut.readout.valid, dut.readout.payload.count, dut.readout.payload.last)
+            if got:
+                counts.append(count)
+                if last:
+                    break
+        frames.append(counts)
+
+    sim = Simulator(dut)
+    sim.add_clock(1 / DEFAULT_CLOCK_HZ)
+    sim.add_testbench(stimulus)
+    sim.run()
+    hits = np.bincount([v for v in stream if v is not None], minlength=16)
+    want = np.minimum(preload + hits, count_max)
+    assert frames[0] == list(want)
+    assert want[3] == want[5] == want[7] == want[9] == count_max
+    # the model saturates the same way (with a 16-bit count, from zero)
+    counts, _ = model.histogram(np.full(70_000, 3 << shift), shift=shift, bin_bits=4)
+    assert counts[3] == count_max and counts.sum() == count_max
+
+
+def test_busy_reader_drops_are_counted():
+    # The reader stalls for a long time: the engine waits for the bank with `filling` low,
+    # drops and counts the events that arrive meanwhile, and every frame holds exactly the
+    # events of its own fill window.
+    rng = np.random.default_rng(3)
+    cycles, integration, shift = 4_000, 700, 5
+    valid, timestamps = hazard_stimulus(rng, cycles, bins=256, shift=shift, gaps=False)
+    dut = Histogram()
+    filling = np.zeros(cycles + 5000, dtype=bool)
+
+    async def probe(ctx):
+        cycle = 0
+        while True:
+            _, _, f = await ctx.tick().sample(dut.filling)
+            filling[cycle] = f
+            cycle += 1
+
+    stall = lambda cycle: not (500 <= cycle < 1_100 or 2_000 <= cycle < 2_500)
+    frames, result = run_histogram(dut, valid, timestamps, integration=integration, shift=shift,
+                                   ready=stall, probe=probe)
+    # Fill windows from the observed `filling`: a frame ends after `integration` filling
+    # cycles (back to back frames) or where `filling` falls.
+    window = np.flatnonzero(filling[:cycles])
+    assert window[0] == 1
+    breaks = np.flatnonzero(np.diff(window) != 1) + 1
+    runs = np.split(window, breaks)
+    windows = [chunk for run in runs for chunk in np.split(run, np.arange(integration, len(run),
+                                                                          integration))]
+    assert len(runs) >= 3            # the engine had to wait at least twice
+    assert len(frames) == len(windows)
+    for (counts, _), w in zip(frames, windows):
+        inside = valid[w]
+        want, _ = model.histogram(timestamps[w][inside], shift=shift)
+        np.testing.assert_array_equal(counts, want)
+    counted = sum(int(f.sum()) for f, _ in frames)
+    expected_drops = int(np.count_nonzero(valid & ~filling[:cycles]))
+    assert result["dropped"] == expected_drops > 1000
+    assert counted + result["dropped"] == int(valid.sum())
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"bin_bits": 0}, "Bin index width must be an integer from 1 to 13 bits, not 0"),
+    ({"bin_bits": 14}, "Bin index width must be an integer from 1 to 13 bits, not 14"),
+    ({"count_width": 15}, "Count width must be an integer from 16 to 32 bits, not 15"),
+    ({"count_width": "16"}, "Count width must be an integer from 16 to 32 bits, not '16'"),
+])
+def test_bad_parameters(kwargs, message):
+    assert construction_error(lambda: Histogram(**kwargs)) == message
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"shift": 14}, "Bin shift must be an integer from 0 to 13, not 14"),
+    ({"integration": 0}, "Integration time must be from 1 to 4294967295 clock cycles, not 0"),
+])
+def test_bad_settings(kwargs, message):
+    with pytest.raises(ValueError) as info:
+        model.check_settings(**kwargs)
+    assert str(info.value) == message
+
+
+def test_model_by_hand():
+    counts, overflow = model.histogram([0, 1, 2, 3, 31, 32, 8191], shift=5, bin_bits=2)
+    assert list(counts) == [5, 1, 0, 0] and overflow == 1
+    assert model.bins_read(0) == 8192 and model.bins_read(5) == 256
+    assert model.bins_read(0, bin_bits=8) == 256 and model.bins_read(13) == 1
+    hists, overflow, dropped = model.frames([0, 1, 2, 3, 4, 5, 9], [1, 1, 2, 2, 2, 7, 7],
+                                            integration=3, enable=0, disable=9, bin_bits=3)
+    # frames start at cycles 1, 4, 7; the events of cycles 0 and 9 are outside every frame
+    assert [list(h) for h in hists] == [[0, 1, 2, 0, 0, 0, 0, 0], [0, 0, 1, 0, 0, 0, 0, 1],
+                                        [0] * 8]
+    assert overflow == 0 and dropped == 2
