@@ -3,7 +3,7 @@
 import re
 
 
-__all__ = ["parse_frequency", "parse_time", "format_frequency", "format_time"]
+__all__ = ["parse_frequency", "parse_time", "parse_baud", "format_frequency", "format_time"]
 
 
 _NUMBER = r"([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)"
@@ -31,6 +31,17 @@ def parse_frequency(text):
 def parse_time(text):
     """Time in seconds from ``"10ms"``, ``"75ns"``, ``"1.5s"``; the unit is required."""
     return _parse(text, _TIME, "time", "10ms or 75ns")
+
+
+_BAUD = {"": 1, "k": 1e3, "m": 1e6, "kbaud": 1e3, "mbaud": 1e6, "baud": 1, "bd": 1}
+
+
+def parse_baud(text):
+    """Baud rate from ``"3M"``, ``"12Mbaud"``, ``"115200"``."""
+    value = _parse(text, _BAUD, "baud rate", "115200, 3M or 12Mbaud")
+    if value != int(value):
+        raise ValueError(f"baud rate must be a whole number, not {text!r}")
+    return int(value)
 
 
 def format_frequency(hz):

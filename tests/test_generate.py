@@ -1,0 +1,38 @@
+"""`fliss generate`: the Verilog has exactly the ports that docs/ports.md lists."""
+
+import re
+from pathlib import Path
+
+from fliss.host.cli import main
+
+
+DOCS = Path(__file__).resolve().parent.parent / "docs" / "ports.md"
+
+
+def documented_ports():
+    ports = {}
+    for line in DOCS.read_text().splitlines():
+        match = re.match(r"\| `(\w+)` \| (in|out) \| (\d+) \|", line)
+        if match:
+            ports[match.group(1)] = ("input" if match.group(2) == "in" else "output",
+                                     int(match.group(3)))
+    return ports
+
+
+def test_generated_ports_match_the_documentation(tmp_path, capsys):
+    assert main(["generate", "-o", str(tmp_path)]) == 0
+    path = Path(capsys.readouterr().out.strip())
+    text = path.read_text()
+    top = text[text.index("module fliss_top("):]
+    top = top[:top.index("endmodule")]
+    ports = {}
+    for direction, width, name in re.findall(r"^\s*(input|output)\s+(?:\[(\d+):0\]\s+)?(\w+);",
+                                             top, flags=re.MULTILINE):
+        ports[name] = (direction, int(width) + 1 if width else 1)
+    assert ports == documented_ports()
+
+
+def test_generate_refuses_a_bad_baud(tmp_path, capsys):
+    assert main(["generate", "-o", str(tmp_path), "--baud", "21M"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("fliss: error: Baud rate 21000000 cannot be met within 2%")
