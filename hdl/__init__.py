@@ -6,7 +6,21 @@ One block per module:
 * :mod:`.delay`: the pseudorandom delay source (``off``, ``mseq``, ``masked``);
 * :mod:`.scheduler`: the pulse scheduler (``interval`` and ``grid`` modes);
 * :mod:`.laser`: laser trigger and TDC start;
-* :mod:`.core`: the delay core, the three blocks above wired together.
+* :mod:`.core`: the delay core, the three blocks above wired together;
+* :mod:`.aggressor`: a second, independent trigger for an aggressor illuminator;
+* :mod:`.tdc`: the sensor's timestamp interface and a built-in coarse TDC;
+* :mod:`.histogram`: the two-bank block-RAM histogram engine;
+* :mod:`.rawfifo`: the raw event FIFO that counts what it drops;
+* :mod:`.uart`: UART transmitter and receiver;
+* :mod:`.framing`: CRC-16 and COBS frame encoder and decoder;
+* :mod:`.command`: command processor and register file;
+* :mod:`.packetizer`: EVENTS and HISTOGRAM packets;
+* :mod:`.arbiter`: merges packet streams onto the link;
+* :mod:`.top`: :class:`~.top.FlissTop`, everything behind a UART.
+
+Definitions shared by gateware, models and host: :mod:`.event` (the photon event layout),
+:mod:`.protocol` (packets), :mod:`.registers` (the register map). :mod:`.verilog` writes Verilog
+that every simulator reads the same way.
 """
 
 #: Default system clock of the design, in Hz (Table 1 of the paper).
