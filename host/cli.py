@@ -21,6 +21,12 @@ COMMAND_MODULES = [
     "model_commands",
     "demo",
     "reproduce",
+    "ports",
+    "config",
+    "capture",
+    "plot_commands",
+    "generate",
+    "board",
 ]
 
 

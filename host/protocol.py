@@ -14,11 +14,15 @@ The gateware (:mod:`fliss.hdl.framing`) is tested against this codec bit for bit
 
 from dataclasses import dataclass, field
 
+import binascii
+import struct
+
 import numpy as np
+from amaranth.lib import data
 
 from ..hdl.protocol import (DELIMITER, COBS_MAX_RUN, CRC_WIDTH, CRC_POLY, CRC_INIT, CRC_BYTES,
-                            PacketType, Header, HEADER_BYTES, MAX_PAYLOAD, MAX_PACKET, MAX_ENCODED, NakCode,
-                            EVENT_BYTES)
+                            PacketType, Header, HEADER_BYTES, MAX_PAYLOAD, MAX_PACKET,
+                            MAX_ENCODED, NakCode, EVENT_BYTES)
 from ..sim import event as _event
 
 
@@ -44,11 +48,26 @@ def _crc_table():
 _CRC_TABLE = _crc_table()
 
 
-def crc16(data, crc=CRC_INIT):
-    """CRC-16/IBM-3740 of ``data`` (bytes-like), continuing from ``crc``."""
+def _crc16_table_driven(data, crc=CRC_INIT):
+    # The definition, one table lookup per byte; tests hold binascii to it.
     for byte in bytes(data):
         crc = ((crc << 8) & 0xffff) ^ _CRC_TABLE[(crc >> 8) ^ byte]
     return crc
+
+
+def crc16(data, crc=CRC_INIT):
+    """CRC-16/IBM-3740 of ``data`` (bytes-like), continuing from ``crc``.
+
+    :func:`binascii.crc_hqx` computes this CRC (polynomial 0x1021, MSB first, no final XOR) in
+    C; it is used when the protocol's CRC is that one.
+    """
+    if _CRC_IS_HQX:
+        return binascii.crc_hqx(data, crc)
+    return _crc16_table_driven(data, crc)
+
+
+_CRC_IS_HQX = (CRC_WIDTH, CRC_POLY) == (16, 0x1021) and \
+    binascii.crc_hqx(b"123456789", CRC_INIT) == _crc16_table_driven(b"123456789")
 
 
 # COBS
@@ -128,6 +147,20 @@ def _header_bytes(type, seq, length):
     return value.to_bytes(HEADER_BYTES, "little")
 
 
+def _struct_for(layout):
+    # A little-endian struct.Struct for a layout of whole, contiguous bytes.
+    codes, offset = "<", 0
+    for _, field in data.Layout.cast(layout):
+        assert field.offset == offset, "fields must be contiguous"
+        codes += {8: "B", 16: "H", 32: "I"}[field.width]
+        offset += field.width
+    return struct.Struct(codes)
+
+
+#: The header as ``(type, seq, length)``, derived from :class:`~fliss.hdl.protocol.Header`.
+_HEADER = _struct_for(Header)
+
+
 def encode_packet(type, seq, payload=b""):
     """Packet bytes (header, payload, CRC), before COBS encoding."""
     payload = bytes(payload)
@@ -164,11 +197,11 @@ def decode_packet(packet):
         return None, NakCode.TRUNCATED
     if crc16(packet) != 0:
         return None, NakCode.BAD_CRC
-    header = Header.from_bits(int.from_bytes(packet[:HEADER_BYTES], "little"))
+    type, seq, length = _HEADER.unpack_from(packet)
     payload = packet[HEADER_BYTES:-CRC_BYTES]
-    if header.length != len(payload):
+    if length != len(payload):
         return None, NakCode.BAD_LENGTH
-    return Packet(_packet_type(int(header.type)), int(header.seq), bytes(payload)), None
+    return Packet(_packet_type(type), seq, bytes(payload)), None
 
 
 # Streaming decoder

@@ -1,0 +1,625 @@
+"""Serial client of a FLISS board: commands, registers, and the data stream.
+
+:class:`Board` opens a port with :func:`serial.serial_for_url`, so a device path
+(``/dev/ttyUSB1``), a pty of a virtual board (``/dev/pts/7``), ``loop://`` and
+``socket://host:port`` all work the same. Every byte received goes through one
+:class:`fliss.host.protocol.FrameDecoder`, which checks CRC and sequence numbers and counts what
+is lost or damaged; replies go to the command that waits for them, data packets to a
+:class:`StreamAssembler`, which turns HISTOGRAM chunks into whole histograms and EVENTS packets
+into event arrays.
+
+Commands are sent with a sequence number and re-sent with the *same* one when no reply comes in
+time (``timeout_s``, ``retries``). A reply is matched by what it answers: an ACK or NAK by the
+sequence number in its payload, IDENTITY, REGISTERS and STATUS by their type (and address).
+Everything that goes wrong for a reason outside the program raises
+:class:`~fliss.host.cli.UserError` with one line that says what and what to do.
+"""
+
+import argparse
+import errno
+import logging
+import os
+import struct
+import time
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+import serial
+from amaranth.lib import data
+
+from ..hdl.command import Identity, STATUS_FIELDS, READ_MAX, CONSISTENCY
+from ..hdl.event import Event, TIMESTAMP_BITS
+from ..hdl.histogram import MAX_SHIFT
+from ..hdl.packetizer import HistogramChunk
+from ..hdl.protocol import (PROTOCOL_VERSION, PacketType, NakCode, EVENT_BYTES, DELIMITER)
+from ..hdl.registers import REGISTERS, BY_NAME, BY_ADDRESS, problems
+from ..hdl.top import DEFAULT_BAUD as _TOP_DEFAULT_BAUD
+from ..sim.event import EVENT_DTYPE
+from .cli import UserError
+from .protocol import FrameDecoder, Packet, PacketEncoder
+
+
+__all__ = ["DEFAULT_BAUD", "BoardError", "BoardLost", "IdentityInfo", "HistogramFrame",
+           "EventBatch", "StreamCounters", "StreamAssembler", "unpack_event_payload", "Board",
+           "open_port", "add_port_arguments", "connect"]
+
+
+_logger = logging.getLogger(__name__)
+
+#: Default baud rate: the gateware's default.
+DEFAULT_BAUD = _TOP_DEFAULT_BAUD
+
+_CHUNK = struct.Struct("<IHBB")      # HistogramChunk: frame, first_bin, shift, last
+assert _CHUNK.size == data.Layout.cast(HistogramChunk).size // 8
+_IDENTITY = struct.Struct("<BBBBII")   # Identity: protocol, major, minor, registers, clock, baud
+assert _IDENTITY.size == data.Layout.cast(Identity).size // 8
+_NAK = struct.Struct("<BBH")
+_LINK_CODES = (NakCode.BAD_CRC, NakCode.TRUNCATED, NakCode.OVERSIZE, NakCode.BAD_LENGTH,
+               NakCode.UART_FRAMING)
+
+
+class BoardError(UserError):
+    """The board refused a command (NAK) or answered nonsense."""
+
+
+class BoardLost(UserError):
+    """The connection to the board went away, or the board stopped sending."""
+
+
+@dataclass(frozen=True)
+class IdentityInfo:
+    """What the IDENTITY packet says."""
+    protocol: int
+    gateware_version: str
+    registers: int
+    clock_hz: int
+    baud: int
+
+    def as_dict(self):
+        return {"protocol": self.protocol, "gateware_version": self.gateware_version,
+                "registers": self.registers, "clock_hz": self.clock_hz, "baud": self.baud}
+
+
+@dataclass
+class HistogramFrame:
+    """One histogram as read out by the board.
+
+    ``counts`` has ``2**13 >> shift`` bins; bins of chunks that never arrived are 0 and
+    ``complete`` is False. ``time_s`` is the host's receive time (``time.time()``) of its last
+    chunk.
+    """
+    frame: int
+    shift: int
+    counts: np.ndarray
+    complete: bool
+    missing_bins: int
+    time_s: float
+
+
+@dataclass
+class EventBatch:
+    """The events of one EVENTS packet (``EVENT_DTYPE``) and the host's receive time."""
+    events: np.ndarray
+    time_s: float
+
+
+@dataclass
+class StreamCounters:
+    """What the stream assembler has seen (the link's own counters are the decoder's)."""
+    histogram_chunks: int = 0
+    frames: int = 0
+    incomplete_frames: int = 0
+    lost_frames: int = 0
+    missing_bins: int = 0
+    event_packets: int = 0
+    events: int = 0
+    malformed: int = 0
+    unexpected: int = 0
+
+    def as_dict(self):
+        return dict(self.__dict__)
+
+
+#: (name, offset, mask) of each Event field, read once from the layout.
+_EVENT_FIELDS = [(name, np.uint64(field.offset), np.uint64((1 << field.width) - 1))
+                 for name, field in data.Layout.cast(Event)]
+
+
+def unpack_event_payload(payload):
+    """``EVENT_DTYPE`` array from an EVENTS payload (vectorised; the same result as
+    :func:`fliss.host.protocol.unpack_events`)."""
+    if len(payload) % EVENT_BYTES:
+        raise ValueError(f"Event payload of {len(payload)} bytes is not a whole number of "
+                         f"{EVENT_BYTES}-byte events")
+    raw = np.frombuffer(payload, dtype=np.uint8).reshape(-1, EVENT_BYTES)
+    padded = np.zeros((len(raw), 8), dtype=np.uint8)
+    padded[:, :EVENT_BYTES] = raw
+    words = padded.view("<u8")[:, 0]
+    events = np.empty(len(words), dtype=EVENT_DTYPE)
+    for name, offset, mask in _EVENT_FIELDS:
+        events[name] = (words >> offset) & mask
+    return events
+
+
+class StreamAssembler:
+    """Whole histograms from HISTOGRAM chunks, event arrays from EVENTS packets.
+
+    Feed it data packets in order of arrival with :meth:`add`; it returns what is complete.
+    A frame is finished by its ``last`` chunk or by the first chunk of another frame; a frame
+    that misses chunks is still returned, with ``complete`` False, and a jump in frame numbers
+    counts the frames lost in between. Nothing malformed is accepted: a chunk that does not fit
+    its frame is counted in ``malformed`` and dropped.
+    """
+
+    def __init__(self):
+        self.counters = StreamCounters()
+        self._frame = None
+        self._shift = None
+        self._counts = None
+        self._filled = None
+        self._next_frame = None
+
+    def add(self, packet, time_s=None):
+        time_s = time.time() if time_s is None else time_s
+        if packet.type == PacketType.HISTOGRAM:
+            return self._chunk(packet.payload, time_s)
+        if packet.type == PacketType.EVENTS:
+            try:
+                events = unpack_event_payload(packet.payload)
+            except ValueError:
+                self.counters.malformed += 1
+                return []
+            self.counters.event_packets += 1
+            self.counters.events += len(events)
+            return [EventBatch(events, time_s)]
+        self.counters.unexpected += 1
+        return []
+
+    def _chunk(self, payload, time_s):
+        out = []
+        if len(payload) < _CHUNK.size or (len(payload) - _CHUNK.size) % 2:
+            self.counters.malformed += 1
+            return out
+        frame, first, shift, last = _CHUNK.unpack_from(payload)
+        counts = np.frombuffer(payload, dtype="<u2", offset=_CHUNK.size)
+        bins = (1 << TIMESTAMP_BITS) >> shift if shift <= MAX_SHIFT else 0
+        if shift > MAX_SHIFT or first + len(counts) > bins or last > 1:
+            self.counters.malformed += 1
+            return out
+        self.counters.histogram_chunks += 1
+        if self._frame is not None and (frame != self._frame or shift != self._shift):
+            out.append(self._finish(time_s))
+        if self._frame is None:
+            if self._next_frame is not None and frame != self._next_frame:
+                self.counters.lost_frames += (frame - self._next_frame) % (1 << 32)
+            self._frame, self._shift = frame, shift
+            self._counts = np.zeros(bins, dtype=np.uint32)
+            self._filled = np.zeros(bins, dtype=bool)
+        self._counts[first:first + len(counts)] = counts
+        self._filled[first:first + len(counts)] = True
+        if last:
+            out.append(self._finish(time_s))
+        return out
+
+    def _finish(self, time_s):
+        missing = int(np.count_nonzero(~self._filled))
+        result = HistogramFrame(self._frame, self._shift, self._counts, missing == 0, missing,
+                                time_s)
+        self.counters.frames += 1
+        if missing:
+            self.counters.incomplete_frames += 1
+            self.counters.missing_bins += missing
+        self._next_frame = (self._frame + 1) % (1 << 32)
+        self._frame = self._counts = self._filled = None
+        return result
+
+    def flush(self, time_s=None):
+        """Finish the frame in progress (at the end of a stream); returns it in a list."""
+        if self._frame is None:
+            return []
+        return [self._finish(time.time() if time_s is None else time_s)]
+
+
+def open_port(port, baud=DEFAULT_BAUD):
+    """``serial_for_url(port)`` with one-line errors for what users get wrong."""
+    try:
+        return serial.serial_for_url(port, baudrate=baud, timeout=0.05, write_timeout=2.0)
+    except serial.SerialException as error:
+        code = getattr(error, "errno", None)
+        text = str(error)
+        if code == errno.ENOENT or "No such file" in text:
+            raise UserError(f"no serial port {port!r} (see `fliss ports`)") from None
+        if code == errno.EACCES or "Permission denied" in text:
+            raise UserError(f"permission denied opening {port!r} (on Linux, add yourself to "
+                            f"the dialout group and log in again)") from None
+        if code == errno.EBUSY or "busy" in text.lower():
+            raise UserError(f"serial port {port!r} is busy (is another program using it?)") \
+                from None
+        raise UserError(f"cannot open serial port {port!r}: {text}") from None
+    except ValueError as error:
+        raise UserError(f"cannot open serial port {port!r}: {error}") from None
+
+
+class Board:
+    """A FLISS board on a serial port.
+
+    Parameters
+    ----------
+    port : str
+        Device path, pty path or pyserial URL (``loop://``, ``socket://host:port``).
+    baud : int
+        Baud rate of the port (ignored by ptys and sockets).
+    timeout_s : float
+        How long to wait for each reply.
+    retries : int
+        How often to re-send a command that got no reply.
+    serial_port : serial.SerialBase or None
+        An open port to use instead of opening ``port``.
+    """
+
+    def __init__(self, port, *, baud=DEFAULT_BAUD, timeout_s=0.5, retries=3, serial_port=None):
+        self.port_name = port
+        self.timeout_s = float(timeout_s)
+        self.retries = int(retries)
+        self.serial = open_port(port, baud) if serial_port is None else serial_port
+        self.decoder = FrameDecoder(synced=False)
+        self.encoder = PacketEncoder()
+        self.assembler = StreamAssembler()
+        self.identity = None
+        self.retransmissions = 0
+        self.link_naks = 0
+        self.stale_replies = 0
+        self._replies = deque()
+        self._data = deque()
+        self._last_rx = time.monotonic()
+        self._baseline = {}
+        try:
+            try:
+                self.serial.reset_input_buffer()
+            except (serial.SerialException, OSError) as error:
+                self._lost(error)
+            self._sync()
+        except BaseException:
+            self.close()
+            raise
+
+    def _sync(self):
+        """Get the decoder in step with the board's frames.
+
+        A lone delimiter flushes any half-received frame out of the board's decoder, and a PING
+        makes the board send a frame whose delimiter synchronises ours (the first frame is
+        skipped as a resynchronisation: the decoder cannot know where it began). A board that
+        does not answer is found out by the next command.
+        """
+        self._send(bytes([DELIMITER]) + self.encoder.frame(PacketType.PING))
+        deadline = time.monotonic() + self.timeout_s
+        while time.monotonic() < deadline:
+            self.poll(0.02)
+            if self.decoder.counters.resyncs or self.decoder.counters.packets:
+                break
+        self._replies.clear()
+        self.reset_counters()
+
+    def reset_counters(self):
+        """Count link and stream events from now on (the decoder keeps its totals)."""
+        self._baseline = self._raw_link_counters()
+        self.assembler.counters = StreamCounters()
+
+    # Context manager
+
+    def close(self):
+        try:
+            self.serial.close()
+        except Exception:   # closing a port that is already gone
+            pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    # Receiving
+
+    def _lost(self, error):
+        raise BoardLost(f"lost the connection to the board on {self.port_name} "
+                        f"({str(error) or type(error).__name__})") from None
+
+    def poll(self, wait_s=0.05):
+        """Read what has arrived (waiting up to ``wait_s`` for the first byte) and decode it.
+        Returns the number of bytes read."""
+        try:
+            waiting = self.serial.in_waiting
+            if not waiting:
+                self.serial.timeout = wait_s
+            data = self.serial.read(max(waiting, 1))
+            if data and self.serial.in_waiting:
+                data += self.serial.read(self.serial.in_waiting)
+        except (serial.SerialException, OSError) as error:
+            self._lost(error)
+        if data:
+            self._last_rx = time.monotonic()
+            now = time.time()
+            for item in self.decoder.feed(data):
+                if isinstance(item, Packet):
+                    if item.type in (PacketType.HISTOGRAM, PacketType.EVENTS):
+                        self._data.extend(self.assembler.add(item, now))
+                    else:
+                        self._replies.append(item)
+        return len(data)
+
+    @property
+    def idle_s(self):
+        """Seconds since the last byte arrived."""
+        return time.monotonic() - self._last_rx
+
+    @property
+    def link(self):
+        """The decoder's :class:`~fliss.host.protocol.LinkCounters`."""
+        return self.decoder.counters
+
+    def link_counters(self):
+        """Link counters since :meth:`reset_counters` as a flat dict, with the client's own
+        retry counters."""
+        raw = self._raw_link_counters()
+        return {name: value - self._baseline.get(name, 0) for name, value in raw.items()}
+
+    def _raw_link_counters(self):
+        c = self.decoder.counters
+        out = {"bytes": c.bytes, "packets": c.packets, "payload_bytes": c.payload_bytes,
+               "sequence_gaps": c.sequence_gaps, "missing_packets": c.missing_packets,
+               "resyncs": c.resyncs, "skipped_bytes": c.skipped_bytes,
+               "dropped_frames": c.dropped_frames}
+        for code, count in c.errors.items():
+            out[code.name.lower()] = count
+        out.update(retransmissions=self.retransmissions, link_naks=self.link_naks,
+                   stale_replies=self.stale_replies)
+        return out
+
+    def take_data(self):
+        """Histograms and event batches received so far, in order."""
+        items = list(self._data)
+        self._data.clear()
+        return items
+
+    # Commands
+
+    def _send(self, frame):
+        try:
+            self.serial.write(frame)
+            self.serial.flush()
+        except (serial.SerialException, OSError) as error:
+            self._lost(error)
+
+    def command(self, type, payload=b"", *, expect, what=None):
+        """Send a command and return the reply that ``expect(packet)`` accepts.
+
+        ``expect`` gets each reply (not ACK/NAK for this command: those are handled here) and
+        returns True for the one wanted. ACK with this command's sequence number returns that
+        ACK. NAK with its sequence number raises :exc:`BoardError`; a NAK for a link error
+        means the command arrived damaged, and it is re-sent at once.
+        """
+        what = what or type.name
+        seq = self.encoder.seq
+        frame = self.encoder.frame(type, payload)
+        attempts = self.retries + 1
+        for attempt in range(attempts):
+            if attempt:
+                self.retransmissions += 1
+                _logger.info("no valid reply to %s (seq %d), re-sending (attempt %d of %d)",
+                             what, seq, attempt + 1, attempts)
+            self._send(frame)
+            deadline = time.monotonic() + self.timeout_s
+            resend = False
+            while not resend:
+                while self._replies:
+                    reply = self._replies.popleft()
+                    if reply.type == PacketType.NAK and len(reply.payload) == _NAK.size:
+                        nak_seq, code, detail = _NAK.unpack(reply.payload)
+                        if code in {c.value for c in _LINK_CODES}:
+                            self.link_naks += 1
+                            resend = True
+                            continue
+                        if nak_seq == seq:
+                            raise BoardError(_nak_message(what, code, detail))
+                        self.stale_replies += 1
+                        continue
+                    if reply.type == PacketType.ACK and len(reply.payload) == 1 \
+                            and reply.payload[0] == seq:
+                        return reply
+                    if expect(reply):
+                        return reply
+                    self.stale_replies += 1
+                if resend:
+                    break
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    break
+                self.poll(min(remaining, 0.05))
+        raise BoardLost(f"the board on {self.port_name} does not answer ({what}: no reply in "
+                        f"{attempts} attempts of {self.timeout_s:g} s); is it connected and "
+                        f"powered, and is the baud rate right?")
+
+    def ping(self):
+        self.command(PacketType.PING, expect=lambda reply: False)
+
+    def identify(self, *, check=True):
+        """Read the identity; with ``check``, refuse a board with another protocol version."""
+        reply = self.command(PacketType.IDENTIFY, expect=lambda r: r.type == PacketType.IDENTITY)
+        if len(reply.payload) != _IDENTITY.size:
+            raise BoardError(f"the board sent an identity of {len(reply.payload)} bytes, not "
+                             f"{_IDENTITY.size}: is it a FLISS board?")
+        protocol, major, minor, registers, clock_hz, baud = _IDENTITY.unpack(reply.payload)
+        self.identity = IdentityInfo(protocol, f"{major}.{minor}", registers, clock_hz, baud)
+        if check and protocol != PROTOCOL_VERSION:
+            raise BoardError(f"the board speaks protocol version {protocol}, this fliss speaks "
+                             f"version {PROTOCOL_VERSION}: update the "
+                             f"{'gateware' if protocol < PROTOCOL_VERSION else 'host tool'}")
+        if check and registers != len(REGISTERS):
+            raise BoardError(f"the board has {registers} registers, this fliss knows "
+                             f"{len(REGISTERS)}: gateware and host tool do not match")
+        return self.identity
+
+    @property
+    def clock_hz(self):
+        if self.identity is None:
+            self.identify()
+        return self.identity.clock_hz
+
+    def read_registers(self, names=None):
+        """Register values by name (all of them by default), read in as few READs as possible."""
+        names = [register.name for register in REGISTERS] if names is None else list(names)
+        for name in names:
+            if name not in BY_NAME:
+                raise UserError(f"no register named {name!r}")
+        addresses = sorted(BY_NAME[name].address for name in names)
+        values = {}
+        while addresses:
+            first = addresses[0]
+            count = min(addresses[-1] - first + 1, READ_MAX)
+            payload = struct.pack("<HB", first, count)
+
+            def expect(reply, first=first, count=count):
+                return reply.type == PacketType.REGISTERS and \
+                    len(reply.payload) == 2 + 4 * count and \
+                    struct.unpack_from("<H", reply.payload)[0] == first
+
+            reply = self.command(PacketType.READ, payload, expect=expect, what="READ")
+            words = struct.unpack_from(f"<{count}I", reply.payload, 2)
+            for offset, word in enumerate(words):
+                values[BY_ADDRESS[first + offset].name] = word
+            addresses = [a for a in addresses if a >= first + count]
+        return {name: values[name] for name in names}
+
+    def check_settings(self, current, changes):
+        """The settings ``current`` with ``changes`` applied, if every value is in range and
+        the whole is consistent (:func:`fliss.hdl.registers.problems`); else :exc:`UserError`."""
+        candidate = dict(current)
+        for name, value in changes.items():
+            if name not in BY_NAME:
+                raise UserError(f"no register named {name!r}")
+            try:
+                BY_NAME[name].check(value)
+            except ValueError as error:
+                raise UserError(str(error)) from None
+            candidate[name] = value
+        found = problems(candidate)
+        if found:
+            raise UserError("; ".join(found))
+        return candidate
+
+    def write_registers(self, changes, *, current=None):
+        """Write registers by name, after checking range and consistency on the host.
+
+        All registers from the lowest to the highest address changed go in one WRITE, which
+        the board applies all at once or not at all. Returns the new settings.
+        """
+        if not changes:
+            return dict(current) if current is not None else self.read_registers()
+        if current is None:
+            current = self.read_registers()
+        candidate = self.check_settings(current, changes)
+        addresses = [BY_NAME[name].address for name in changes]
+        first, last = min(addresses), max(addresses)
+        values = [candidate[BY_ADDRESS[a].name] for a in range(first, last + 1)]
+        payload = struct.pack(f"<H{len(values)}I", first, *values)
+        self.command(PacketType.WRITE, payload, expect=lambda reply: False, what="WRITE")
+        return candidate
+
+    def start(self):
+        self.command(PacketType.START, expect=lambda reply: False)
+
+    def stop(self):
+        self.command(PacketType.STOP, expect=lambda reply: False)
+
+    def status(self):
+        """Board counters, a dict in :data:`~fliss.hdl.command.STATUS_FIELDS` order."""
+        size = 4 * len(STATUS_FIELDS)
+        reply = self.command(PacketType.GET_STATUS,
+                             expect=lambda r: r.type == PacketType.STATUS and
+                             len(r.payload) == size, what="GET_STATUS")
+        return dict(zip(STATUS_FIELDS, struct.unpack(f"<{len(STATUS_FIELDS)}I", reply.payload)))
+
+    # Streaming
+
+    def stream(self, *, idle_timeout_s=2.0, poll_s=0.05):
+        """Yield :class:`HistogramFrame` and :class:`EventBatch` items as they arrive, forever;
+        between items it yields ``None`` about every ``poll_s`` so a caller can update a
+        progress display or stop. Raises :exc:`BoardLost` when no byte arrives for
+        ``idle_timeout_s`` or the port goes away."""
+        self._last_rx = time.monotonic()
+        while True:
+            if self._data:
+                yield self._data.popleft()
+                continue
+            self.poll(poll_s)
+            if self._data:
+                continue
+            if self.idle_s > idle_timeout_s:
+                raise BoardLost(f"the board on {self.port_name} stopped sending (nothing for "
+                                f"{idle_timeout_s:g} s during an acquisition)")
+            yield None
+
+    def drain(self, quiet_s=0.3, limit_s=10.0):
+        """Read until nothing has arrived for ``quiet_s`` (at most ``limit_s``), then finish the
+        histogram in progress; returns everything received."""
+        end = time.monotonic() + limit_s
+        self._last_rx = time.monotonic()
+        while time.monotonic() < end and self.idle_s < quiet_s:
+            self.poll(min(quiet_s, 0.05))
+        self._data.extend(self.assembler.flush())
+        return self.take_data()
+
+
+def _nak_message(what, code, detail):
+    try:
+        name = NakCode(code).name
+    except ValueError:
+        name = f"code {code:#04x}"
+    if code == NakCode.OUT_OF_RANGE.value:
+        if detail == CONSISTENCY:
+            reason = "the settings would be inconsistent"
+        else:
+            register = BY_ADDRESS.get(detail)
+            reason = f"{register.name if register else detail} out of range"
+        return f"the board refused {what}: {reason} ({name})"
+    if code == NakCode.BAD_ADDRESS.value:
+        register = BY_ADDRESS.get(detail)
+        return f"the board refused {what}: no register at address {detail:#06x}" + \
+            (f" ({register.name})" if register else "")
+    return f"the board refused {what} ({name}, detail {detail})"
+
+
+def add_port_arguments(parser):
+    """``--port``, ``--baud``, ``--timeout``, ``--retries``: how to reach a board."""
+    port = os.environ.get("FLISS_PORT")
+    parser.add_argument("--port", required=port is None,
+                        default=port if port is not None else argparse.SUPPRESS,
+                        metavar="PORT",
+                        help="serial port: device (/dev/ttyUSB1, COM3), pty of a virtual board "
+                             "(/dev/pts/N) or pyserial URL (socket://host:port); see "
+                             "`fliss ports`; the environment variable FLISS_PORT sets a "
+                             "default")
+    parser.add_argument("--baud", type=int, default=DEFAULT_BAUD,
+                        help="baud rate of the port (ignored by ptys and sockets)")
+    parser.add_argument("--timeout", type=float, default=0.5, metavar="S",
+                        help="seconds to wait for each reply")
+    parser.add_argument("--retries", type=int, default=3,
+                        help="times a command is re-sent when no reply comes")
+
+
+def connect(args):
+    """A :class:`Board` from the arguments of :func:`add_port_arguments`, identified (so a
+    board of another protocol version is refused at once)."""
+    if args.timeout <= 0:
+        raise UserError(f"--timeout must be positive, not {args.timeout:g}")
+    if args.retries < 0:
+        raise UserError(f"--retries must not be negative, not {args.retries}")
+    board = Board(args.port, baud=args.baud, timeout_s=args.timeout, retries=args.retries)
+    try:
+        board.identify()
+    except BaseException:
+        board.close()
+        raise
+    return board

@@ -1,0 +1,512 @@
+"""A FLISS board in Python, behind a pseudo-terminal: for host tests and for demos without a
+simulator.
+
+:class:`ModelBoard` speaks the real protocol bytes (:mod:`fliss.hdl.protocol`) over a pty: it
+decodes commands with the host codec, answers them with :class:`fliss.sim.command.CommandModel`
+(the reply semantics of the gateware command processor) and, while acquiring, sends HISTOGRAM
+chunks or EVENTS batches made from the photon scene simulator (:mod:`fliss.sim.scene`) with the
+configured delay settings, paced by the wall clock.
+
+It is a behavioural model of the whole board, not a cycle-accurate one: frame ``k`` of an
+acquisition holds the laser cycles whose TDC start falls in clock cycles ``[k I, (k + 1) I)``
+(``I`` = ``integration``), exactly as :func:`fliss.sim.scene.acquire` cuts a run, so a test can
+predict every histogram from the scene and the seeds.
+
+Faults can be injected: ``kill_after`` closes the pty after that many data packets (a board
+unplugged mid-capture), ``hang_after`` stops sending without closing, and ``corrupt_every``
+damages one byte of every n-th frame sent (never a delimiter, never into a delimiter), keeping
+the list of what it damaged in :attr:`ModelBoard.corrupted`.
+
+Run ``python -m fliss.sim.model_board`` to get a board on a pty for ``fliss`` commands.
+"""
+
+import argparse
+import errno
+import fcntl
+import os
+import select
+import struct
+import termios
+import threading
+import time
+import tty
+from contextlib import contextmanager
+
+import numpy as np
+from amaranth.lib import data
+
+from ..hdl import DEFAULT_CLOCK_HZ
+from ..hdl.command import STATUS_FIELDS
+from ..hdl.event import TIMESTAMP_BITS
+from ..hdl.histogram import COUNT_WIDTH
+from ..hdl.packetizer import CHUNK_BINS, HistogramChunk
+from ..hdl.protocol import PacketType, NakCode, MAX_EVENTS_PER_PACKET, EVENT_BYTES
+from ..hdl.registers import AcquisitionMode, TdcSource
+from ..hdl.top import DEFAULT_BAUD as _TOP_DEFAULT_BAUD
+from ..host.protocol import FrameDecoder, LinkError, Packet, encode_frame, pack_events
+from . import scheduler as _scheduler
+from .command import CommandModel
+from .delay import DelayMode
+from .scene import Aggressor, Scene, Simulation
+
+
+__all__ = ["DEFAULT_BAUD", "BACKLOG_BYTES", "ModelBoard", "scene_for", "model_board", "main"]
+
+
+#: Baud rate reported in the identity (a pty carries any rate): the gateware's default.
+DEFAULT_BAUD = _TOP_DEFAULT_BAUD
+
+#: While more bytes than this wait to go out, the model simulates no further: a host slower
+#: than the model slows the model's time down rather than piling up data (the gateware would
+#: drop histograms or events instead, and count them).
+BACKLOG_BYTES = 32 * 1024
+
+_CHUNK = struct.Struct("<IHBB")      # HistogramChunk: frame, first_bin, shift, last
+assert _CHUNK.size == data.Layout.cast(HistogramChunk).size // 8
+
+_LINK_COUNTERS = {NakCode.BAD_CRC: "bad_crc", NakCode.TRUNCATED: "truncated",
+                  NakCode.OVERSIZE: "oversize", NakCode.BAD_LENGTH: "bad_length"}
+
+
+def scene_for(settings, template=None, *, aggressor_detections_per_pulse=0.05, clock_hz=None):
+    """The scene a board with register ``settings`` (by name) sees: ``template`` (a
+    :class:`Scene`, for the physics) with the victim and aggressor taken from the registers."""
+    template = Scene() if template is None else template
+    clock_hz = template.clock_hz if clock_hz is None else clock_hz
+    s = settings
+    victim = _scheduler.Settings(mode=DelayMode(s["delay_mode"]), length=s["length"],
+                                 mask_width=s["mask_width"], seed=s["seed"], period=s["period"],
+                                 grid=bool(s["grid"]), pulse_width=s["pulse_width"])
+    aggressors = ()
+    if s["aggressor"]:
+        mode = DelayMode(s["aggressor_delay_mode"])
+        aggressors = (Aggressor(
+            period_cycles=s["aggressor_period"], offset_s=s["aggressor_offset"] / clock_hz,
+            detections_per_pulse=aggressor_detections_per_pulse, mode=mode,
+            length=s["aggressor_length"], mask_width=s["aggressor_mask_width"],
+            seed=s["aggressor_seed"]),)
+    return template.replace(victim=victim, aggressors=aggressors, clock_hz=clock_hz)
+
+
+class ModelBoard:
+    """A board on a pseudo-terminal, served by a thread.
+
+    Parameters
+    ----------
+    clock_hz : int
+        Clock frequency reported in the identity and used for all times.
+    baud : int
+        Baud rate reported in the identity.
+    scene : Scene or None
+        Physics of the scene (distance, photon rates, background…); victim and aggressor come
+        from the registers at each START.
+    photon_seed : int
+        Seed of the photon statistics; the ``n``-th acquisition (START) since the board was
+        made uses :meth:`seed_for` ``(n)``.
+    time_scale : float
+        Simulated seconds per wall-clock second.
+    kill_after, hang_after : int or None
+        Close the pty (or stop sending) once this many data packets have been sent.
+    corrupt_every : int or None
+        Damage one byte in every n-th frame sent (data and replies).
+    corrupt_seed : int
+        Seed of the corruption's choices.
+    corrupt_types : set of PacketType or None
+        Damage only frames of these types (all by default); ``corrupt_every`` counts them.
+    corrupt_commands_every : int or None
+        Damage one non-delimiter byte in every n-th read from the host (commands).
+    protocol_version : int or None
+        Report this protocol version instead of the real one.
+    line_limited : bool
+        In raw mode, send no more events per block of ``integration`` cycles than the line
+        carries at ``baud`` in full EVENTS frames; drop the rest at the raw FIFO and count them
+        in ``dropped_fifo``, as the gateware does. (A pty itself carries anything.)
+    """
+
+    def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, baud=DEFAULT_BAUD, scene=None,
+                 aggressor_detections_per_pulse=0.05, photon_seed=0, time_scale=1.0,
+                 kill_after=None, hang_after=None, corrupt_every=None, corrupt_seed=1,
+                 corrupt_types=None, corrupt_commands_every=None, protocol_version=None,
+                 line_limited=False):
+        self.clock_hz = int(clock_hz)
+        self.baud = int(baud)
+        self.template = Scene(clock_hz=self.clock_hz) if scene is None else scene
+        self.aggressor_detections_per_pulse = aggressor_detections_per_pulse
+        self.photon_seed = photon_seed
+        self.time_scale = float(time_scale)
+        self.kill_after = kill_after
+        self.hang_after = hang_after
+        self.corrupt_every = corrupt_every
+        self._corrupt_rng = np.random.default_rng(corrupt_seed)
+        self.protocol_version = protocol_version
+        self.corrupt_types = None if corrupt_types is None else frozenset(corrupt_types)
+        self.corrupt_commands_every = corrupt_commands_every
+        self.line_limited = line_limited
+        #: Reads from the host in which a byte was damaged.
+        self.corrupted_commands = 0
+        self._reads = 0
+        self.model = CommandModel(self.clock_hz, self.baud)
+        self.status = dict.fromkeys(STATUS_FIELDS, 0)
+        #: Frames damaged on the way out: ``(PacketType, seq)``.
+        self.corrupted = []
+        #: Every data packet sent: ``(PacketType, seq, payload)`` (before any corruption).
+        self.sent = []
+        #: Acquisitions started so far (each START while stopped).
+        self.starts = 0
+        self.killed = False
+        self.hung = False
+        self._frames_sent = 0
+        self._seq = 0
+        self._frame = 0          # histogram number since reset
+        self._out = bytearray()
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread = None
+        self._master = self._slave = None
+        self.path = None
+
+    # Life cycle
+
+    def open(self):
+        """Create the pty and start serving it; returns the path of its terminal."""
+        self._master, self._slave = os.openpty()
+        tty.setraw(self._slave)
+        flags = fcntl.fcntl(self._master, fcntl.F_GETFL)
+        fcntl.fcntl(self._master, fcntl.F_SETFL, flags | os.O_NONBLOCK)
+        self.path = os.ttyname(self._slave)
+        self._thread = threading.Thread(target=self._serve, name="fliss-model-board", daemon=True)
+        self._thread.start()
+        return self.path
+
+    def close(self):
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5)
+        for fd in (self._master, self._slave):
+            if fd is not None:
+                try:
+                    os.close(fd)
+                except OSError:
+                    pass
+        self._master = self._slave = None
+
+    def __enter__(self):
+        self.open()
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def seed_for(self, acquisition):
+        """Seed of the photon statistics of acquisition ``acquisition`` (0 for the first START)."""
+        return np.random.SeedSequence([self.photon_seed, acquisition])
+
+    @property
+    def running(self):
+        return self.model.running
+
+    @property
+    def next_frame(self):
+        """Number the next histogram will carry (frames count from 0 since the board was
+        made)."""
+        return self._frame
+
+    # Serving
+
+    def _serve(self):
+        decoder = FrameDecoder(synced=False)
+        while not self._stop.is_set():
+            timeout = 0.005 if self.model.running or self._out else 0.05
+            try:
+                readable, _, _ = select.select([self._master], [], [], timeout)
+            except (OSError, ValueError):
+                return
+            if readable:
+                try:
+                    data = os.read(self._master, 4096)
+                except OSError as error:
+                    if error.errno in (errno.EIO, errno.EAGAIN):
+                        time.sleep(0.01)
+                        data = b""
+                    else:
+                        return
+                data = self._damage_commands(data)
+                with self._lock:
+                    for item in decoder.feed(data):
+                        self._receive(item)
+            with self._lock:
+                if self.model.running and len(self._out) < BACKLOG_BYTES:
+                    self._advance(time.monotonic())
+                self._flush()
+            if self.killed:
+                return
+
+    def _damage_commands(self, data):
+        if not self.corrupt_commands_every or not data.strip(b"\0"):
+            return data
+        self._reads += 1
+        if self._reads % self.corrupt_commands_every:
+            return data
+        data = bytearray(data)
+        positions = [i for i, byte in enumerate(data) if byte]
+        position = positions[int(self._corrupt_rng.integers(0, len(positions)))]
+        data[position] = 0xff if data[position] != 0xff else 0x7f
+        self.corrupted_commands += 1
+        return bytes(data)
+
+    def _receive(self, item):
+        if isinstance(item, LinkError):
+            self.status[_LINK_COUNTERS[item.code]] += 1
+            self._send(*self.model.link_error(item.code))
+            return
+        if not isinstance(item, Packet):
+            return
+        type_value = item.type.value if isinstance(item.type, PacketType) else item.type
+        was_running = self.model.running
+        if type_value == PacketType.STOP.value and was_running and not item.payload:
+            # The frame in progress ends now; its data follow the ACK, as from the gateware.
+            reply = self.model.command(type_value, item.seq, item.payload, self.status)
+            self._send(*reply)
+            self._advance(time.monotonic(), final=True)
+            return
+        reply = self.model.command(type_value, item.seq, item.payload, self.status)
+        if type_value == PacketType.IDENTIFY.value and self.protocol_version is not None \
+                and reply[0] == PacketType.IDENTITY:
+            reply = (reply[0], bytes([self.protocol_version]) + reply[1][1:])
+        self._send(*reply)
+        if type_value == PacketType.START.value and self.model.running and not was_running:
+            self._begin(time.monotonic())
+
+    # Acquisition
+
+    def _begin(self, now):
+        settings = self.model.settings
+        self.settings = dict(settings)
+        scene = scene_for(settings, self.template,
+                          aggressor_detections_per_pulse=self.aggressor_detections_per_pulse,
+                          clock_hz=self.clock_hz)
+        self.simulation = Simulation(scene, seed=self.seed_for(self.starts))
+        self.starts += 1
+        self._t0 = now
+        self._done_cycles = 0           # clock cycles simulated
+        self._frame_counts = None
+        self._pending_events = []
+        self._raw = settings["acquisition"] == AcquisitionMode.RAW.value
+
+    def _cycles_at(self, now):
+        return int((now - self._t0) * self.time_scale * self.clock_hz)
+
+    def _advance(self, now, final=False):
+        """Simulate up to the present (up to a stop with ``final``) and send what is due.
+
+        Time is simulated in blocks of ``integration`` clock cycles (the random draws depend
+        only on the settings and the seed, not on the wall clock): one histogram per block, or
+        the block's events. At a stop the block in progress is simulated up to the stop and
+        sent too, as the gateware reads out a shortened frame.
+        """
+        integration = self.settings["integration"]
+        target = self._cycles_at(now)
+        block_end = (self._done_cycles // integration + 1) * integration
+        if final:
+            # A model slower than real time stops where it has got to, within a block.
+            self._block(min(max(target, self._done_cycles), block_end))
+            if self._raw:
+                self._send_events(flush=True)
+            return
+        # One block at a time, so that commands are served while the model catches up.
+        if block_end <= target:
+            self._block(block_end)
+            if self._raw:
+                self._send_events(flush=False)
+
+    def _block(self, end):
+        events = self._events(self._simulate(end))
+        self._done_cycles = end
+        if not self._raw:
+            self._accumulate(events)
+            self._send_histogram()
+
+    def _simulate(self, end):
+        simulation = self.simulation
+        pieces = []
+        while simulation.next_start_cycle is not None and simulation.next_start_cycle < end:
+            chunk = simulation.step(until_cycle=end)
+            self.status["pulses"] += chunk.cycles
+            pieces.append(chunk.events)
+        if not pieces:
+            return None
+        return np.concatenate(pieces)
+
+    def _events(self, events):
+        """Apply the TDC source and gate to simulated events and count them."""
+        if events is None or len(events) == 0:
+            return events
+        s = self.settings
+        events = events.copy()
+        if s["tdc_source"] == TdcSource.COARSE.value:
+            lsb_per_cycle = int(round(self.simulation.scene.lsb_per_cycle))
+            events["timestamp"] //= lsb_per_cycle
+        stamps = events["timestamp"]
+        inside = (stamps >= s["gate_start"]) & (stamps <= s["gate_end"])
+        self.status["dropped_gate"] += int(np.count_nonzero(~inside))
+        events = events[inside]
+        self.status["events"] += len(events)
+        if self._raw:
+            if self.line_limited:
+                allowed = self._line_events(len(events))
+                self.status["dropped_fifo"] += len(events) - allowed
+                events = events[:allowed]
+            self._pending_events.append(events)
+        return events
+
+    def _line_events(self, count):
+        """Events the line carries in one block, in full EVENTS frames (8N1 characters)."""
+        frame_bytes = len(encode_frame(PacketType.EVENTS, 0,
+                                       bytes(MAX_EVENTS_PER_PACKET * EVENT_BYTES)))
+        seconds = self.settings["integration"] / self.clock_hz
+        budget = int(seconds * self.baud / 10 / frame_bytes * MAX_EVENTS_PER_PACKET)
+        return min(count, budget)
+
+    def _accumulate(self, events):
+        shift = self.settings["bin_shift"]
+        bins = (1 << TIMESTAMP_BITS) >> shift
+        if self._frame_counts is None:
+            self._frame_counts = np.zeros(bins, dtype=np.int64)
+        if events is not None and len(events):
+            self._frame_counts += np.bincount(events["timestamp"].astype(np.int64) >> shift,
+                                              minlength=bins)[:bins]
+
+    def _send_histogram(self):
+        shift = self.settings["bin_shift"]
+        bins = (1 << TIMESTAMP_BITS) >> shift
+        counts = self._frame_counts if self._frame_counts is not None else \
+            np.zeros(bins, dtype=np.int64)
+        counts = np.minimum(counts, (1 << COUNT_WIDTH) - 1).astype("<u2")
+        step = min(CHUNK_BINS, bins)
+        for first in range(0, bins, step):
+            last = int(first + step >= bins)
+            payload = _CHUNK.pack(self._frame & 0xffffffff, first, shift, last) + \
+                counts[first:first + step].tobytes()
+            self._send(PacketType.HISTOGRAM, payload, data=True)
+        self._frame += 1
+        self.status["frames"] += 1
+        self._frame_counts = None
+
+    def _send_events(self, flush):
+        if not self._pending_events:
+            return
+        events = np.concatenate(self._pending_events)
+        whole = len(events) - len(events) % MAX_EVENTS_PER_PACKET
+        cut = len(events) if flush else whole
+        for start in range(0, cut, MAX_EVENTS_PER_PACKET):
+            batch = events[start:min(start + MAX_EVENTS_PER_PACKET, cut)]
+            self._send(PacketType.EVENTS, pack_events(batch), data=True)
+        rest = events[cut:]
+        self._pending_events = [rest] if len(rest) else []
+
+    # Output
+
+    def _send(self, type, payload, data=False):
+        if self.killed or self.hung:
+            return
+        seq = self._seq
+        self._seq = (self._seq + 1) % 256
+        frame = bytearray(encode_frame(type, seq, payload))
+        eligible = self.corrupt_types is None or type in self.corrupt_types
+        self._frames_sent += eligible
+        if eligible and self.corrupt_every and self._frames_sent % self.corrupt_every == 0:
+            position = int(self._corrupt_rng.integers(0, len(frame) - 1))
+            value = frame[position]
+            while True:
+                new = int(self._corrupt_rng.integers(1, 256))
+                if new != value:
+                    break
+            frame[position] = new
+            self.corrupted.append((type, seq))
+        if data:
+            self.sent.append((type, seq, bytes(payload)))
+        self._out += frame
+        if data:
+            if self.kill_after is not None and len(self.sent) >= self.kill_after:
+                self._flush(block=True)
+                self._wait_drained()
+                self.killed = True
+                self.model.running = False
+                os.close(self._master)
+                self._master = None
+            elif self.hang_after is not None and len(self.sent) >= self.hang_after:
+                self._flush(block=True)
+                self.hung = True
+
+    def _wait_drained(self, limit_s=2.0):
+        """Wait until the host has read what was sent (a pty drops it when the board goes)."""
+        end = time.monotonic() + limit_s
+        empty_since = None
+        while time.monotonic() < end:
+            waiting = struct.unpack("i", fcntl.ioctl(self._slave, termios.FIONREAD,
+                                                     b"\0\0\0\0"))[0]
+            if waiting:
+                empty_since = None
+            elif empty_since is None:
+                empty_since = time.monotonic()
+            elif time.monotonic() - empty_since > 0.1:
+                # Empty for a while: also nothing left in the pty's own buffer.
+                return
+            time.sleep(0.005)
+
+    def _flush(self, block=False):
+        while self._out and self._master is not None:
+            try:
+                written = os.write(self._master, self._out)
+            except BlockingIOError:
+                if not block:
+                    return
+                time.sleep(0.001)
+                continue
+            except OSError:
+                self._out.clear()
+                return
+            del self._out[:written]
+
+
+@contextmanager
+def model_board(**options):
+    """A :class:`ModelBoard` on a pty for the duration of a ``with`` block; yields the board
+    (its :attr:`~ModelBoard.path` is the pty to open)."""
+    board = ModelBoard(**options)
+    board.open()
+    try:
+        yield board
+    finally:
+        board.close()
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(
+        prog="python -m fliss.sim.model_board",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        description="Serve a Python model of a FLISS board on a pseudo-terminal and print its "
+                    "path; stop with Ctrl-C.")
+    parser.add_argument("--distance-m", type=float, default=4.0, help="target distance")
+    parser.add_argument("--signal", type=float, default=0.05,
+                        help="victim detections per pulse")
+    parser.add_argument("--aggressor-signal", type=float, default=0.05,
+                        help="aggressor detections per pulse")
+    parser.add_argument("--background-hz", type=float, default=1e5, help="background rate")
+    parser.add_argument("--seed", type=int, default=0, help="photon statistics seed")
+    args = parser.parse_args(argv)
+    scene = Scene(distance_m=args.distance_m, detections_per_pulse=args.signal,
+                  background_hz=args.background_hz)
+    with model_board(scene=scene, aggressor_detections_per_pulse=args.aggressor_signal,
+                     photon_seed=args.seed) as board:
+        print(board.path, flush=True)
+        try:
+            while True:
+                time.sleep(1)
+        except KeyboardInterrupt:
+            pass
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
