@@ -1,0 +1,174 @@
+"""cocotb fuzz of the link (:class:`fliss.sim.link_top.LinkTop`) at one byte per cycle.
+
+Random and mutated frames go in one after the other, each as soon as the previous one is
+answered, at one byte per cycle. Each must come back as its proper reply (the command processor's model says which) or as a NAK with
+the reason the host codec finds; every link error is counted in STATUS; and at the end the
+registers hold exactly what the model accepted: no refused setting was applied.
+``FLISS_TB_FUZZ_FRAMES`` frames (10 000 by default).
+"""
+
+import os
+import random
+import struct
+
+import cocotb
+from cocotb.clock import Clock
+from cocotb.triggers import ClockCycles, FallingEdge, First, RisingEdge, Timer
+
+from ..hdl import DEFAULT_CLOCK_HZ
+from ..hdl.command import STATUS_FIELDS
+from ..hdl.protocol import PacketType, NakCode, MAX_ENCODED
+from ..hdl.registers import REGISTERS
+from ..host import protocol as codec
+from .command import CommandModel
+
+
+FRAMES = int(os.environ.get("FLISS_TB_FUZZ_FRAMES", 10_000))
+CLOCK_PERIOD_PS = round(1e12 / DEFAULT_CLOCK_HZ)
+BAUD = 3_000_000   # LinkTop's default: only the identity reports it
+
+LINK_COUNTERS = ((NakCode.BAD_CRC, "bad_crc"), (NakCode.TRUNCATED, "truncated"),
+                 (NakCode.OVERSIZE, "oversize"), (NakCode.BAD_LENGTH, "bad_length"))
+
+
+def fuzz_frames(rng, count):
+    """``count`` frames on the wire: valid commands, bit flips, cuts, noise, oversize, and
+    sound CRCs over a wrong length."""
+    encoder = codec.PacketEncoder()
+    commands = [
+        (PacketType.PING, b""), (PacketType.IDENTIFY, b""), (PacketType.GET_STATUS, b""),
+        (PacketType.START, b""), (PacketType.STOP, b""),
+        (PacketType.READ, struct.pack("<HB", 0, 5)), (PacketType.READ, struct.pack("<HB", 30, 1)),
+        (0x42, b""), (PacketType.EVENTS, b""),
+    ]
+    for register in REGISTERS:
+        for value in (register.minimum, register.maximum, register.maximum + 1, 0):
+            if value < (1 << 32):
+                commands.append((PacketType.WRITE, struct.pack("<HI", register.address, value)))
+    for _ in range(count):
+        type, payload = rng.choice(commands)
+        seq = encoder.seq
+        frame = encoder.frame(type, payload)
+        kind = rng.random()
+        if kind < 0.35:
+            yield frame
+        elif kind < 0.4:
+            length = (len(payload) + rng.choice([-1, 1, 2, 200])) & 0xffff
+            body = codec._header_bytes(type, seq, length) + payload
+            body += codec.crc16(body).to_bytes(2, "big")
+            yield codec.cobs_encode(body) + b"\x00"
+        else:
+            body = bytearray(frame[:-1])
+            if kind < 0.6:
+                for _ in range(rng.randint(1, 3)):
+                    body[rng.randrange(len(body))] ^= 1 << rng.randrange(8)
+            elif kind < 0.8:
+                body = body[:rng.randrange(1, len(body))]
+            elif kind < 0.95:
+                body = bytearray(rng.getrandbits(8) for _ in range(rng.randint(1, 40)))
+            else:
+                body = bytearray(rng.randrange(1, 256)
+                                 for _ in range(MAX_ENCODED + 1 + rng.randrange(10)))
+            yield bytes(b if b else 0x55 for b in body) + b"\x00"
+
+
+class Link:
+    """Host end of the link: sends a frame and collects what comes back."""
+
+    def __init__(self, dut):
+        self.dut = dut
+        self.decoder = codec.FrameDecoder(synced=True)
+        self.cycles = 0
+
+    async def exchange(self, wire, *, limit_cycles=2000):
+        """Send ``wire`` as fast as ``rx`` takes it, then collect ``tx`` until one packet or
+        report is decoded; returns it (or None after ``limit_cycles`` quiet cycles).
+
+        Works at falling edges, where inputs set are sampled at the next rising edge; while
+        ``tx`` is idle it waits for its ``valid`` to rise instead of polling every cycle.
+        """
+        dut = self.dut
+        items = []
+        position = 0
+        while position < len(wire):
+            dut.rx__valid.value = 1
+            dut.rx__payload.value = wire[position]
+            took = int(dut.rx__ready.value)
+            items += self._take_byte()
+            await FallingEdge(dut.clk)
+            self.cycles += 1
+            position += took
+        dut.rx__valid.value = 0
+        while not items:
+            if not int(dut.tx__valid.value):
+                timeout = Timer(limit_cycles * CLOCK_PERIOD_PS, unit="ps")
+                if await First(RisingEdge(dut.tx__valid), timeout) is timeout:
+                    return None
+                await FallingEdge(dut.clk)
+            items += self._take_byte()
+            await FallingEdge(dut.clk)
+            self.cycles += 1
+        assert len(items) == 1, items
+        return items[0]
+
+    def _take_byte(self):
+        if not int(self.dut.tx__valid.value):
+            return []
+        return [item for item in self.decoder.feed(bytes([int(self.dut.tx__payload.value)]))
+                if not isinstance(item, codec.SequenceGap)]
+
+
+@cocotb.test()
+async def test_fuzz(dut):
+    """Random and mutated frames, each answered and counted; no refused setting applied."""
+    Clock(dut.clk, CLOCK_PERIOD_PS, unit="ps").start()
+    dut.rst.value = 1
+    dut.rx__valid.value = 0
+    dut.tx__ready.value = 1
+    await ClockCycles(dut.clk, 3)
+    dut.rst.value = 0
+    await FallingEdge(dut.clk)
+
+    # One frame at a time, as a host waits for each reply: every frame must be answered.
+    link = Link(dut)
+    frames = list(fuzz_frames(random.Random(0x11F0), FRAMES))
+    read_back = codec.encode_frame(PacketType.READ, 0, struct.pack("<HB", 0, len(REGISTERS)))
+    items = []
+    for frame in frames + [read_back]:
+        items.append(await link.exchange(frame))
+    cycles = link.cycles
+
+    # What a correct device answers, frame by frame, from the host codec and the command model.
+    model = CommandModel(DEFAULT_CLOCK_HZ, BAUD)
+    errors = dict.fromkeys(code for code, _ in LINK_COUNTERS)
+    errors = {code: 0 for code in errors}
+    accepted = 0
+    for number, (frame, reply) in enumerate(zip(frames, items)):
+        assert isinstance(reply, codec.Packet), (number, reply)
+        expected = codec.FrameDecoder(synced=True).feed(frame)[0]
+        if isinstance(expected, codec.LinkError):
+            errors[expected.code] += 1
+            assert (reply.type, reply.payload) == (
+                PacketType.NAK, struct.pack("<BBH", 0, expected.code.value, 0)), \
+                (number, frame.hex(), expected, reply)
+            continue
+        type = expected.type.value if isinstance(expected.type, PacketType) else expected.type
+        want = model.command(type, expected.seq, expected.payload)
+        if reply.type == PacketType.STATUS:
+            got = dict(zip(STATUS_FIELDS,
+                           struct.unpack(f"<{len(STATUS_FIELDS)}I", reply.payload)))
+            assert {name: got[name] for _, name in LINK_COUNTERS} == \
+                {name: errors[code] for code, name in LINK_COUNTERS}, number
+            assert (got["commands"], got["refused"], got["running"]) == \
+                (model.commands, model.refused, int(model.running)), number
+        else:
+            assert (reply.type, reply.payload) == (want[0], want[1]), \
+                (number, expected, reply, want)
+        accepted += want[0] == PacketType.ACK
+
+    # Nothing refused was applied: the registers are the model's.
+    values = struct.unpack(f"<H{len(REGISTERS)}I", items[-1].payload)[1:]
+    assert dict(zip((r.name for r in REGISTERS), values)) == model.settings
+    assert accepted > FRAMES // 20 and all(count > FRAMES // 200 for count in errors.values())
+    dut._log.info("%d frames in %d cycles: %d commands accepted, link errors %s", FRAMES,
+                  cycles, accepted, {code.name: count for code, count in errors.items()})

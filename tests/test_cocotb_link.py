@@ -1,0 +1,21 @@
+"""Random and mutated frames through the link, on Icarus and Verilator."""
+
+from pathlib import Path
+
+from fliss.sim.cocotb_runner import run_cocotb, write_verilog
+from fliss.sim.link_top import LinkTop
+
+
+BUILD = Path(__file__).resolve().parent.parent / "build" / "cocotb" / "link_top"
+#: Frames per simulator: Icarus calls into Python far more slowly than Verilator.
+FRAMES = {"icarus": 10_000, "verilator": 10_000}
+
+
+def test_link_fuzz(simulator, cocotb_counts):
+    verilog = write_verilog(LinkTop(), "link_top", BUILD / "link_top.v")
+    passed, failed, skipped = run_cocotb(
+        simulator, verilog_path=verilog, toplevel="link_top", test_module="fliss.sim.tb_link",
+        build_dir=BUILD, extra_env={"FLISS_TB_FUZZ_FRAMES": str(FRAMES[simulator])})
+    cocotb_counts(simulator, passed, failed, skipped)
+    assert failed == 0
+    assert passed == 1
