@@ -50,7 +50,12 @@ def write_verilog(component, name, path):
     """Write ``component`` as Verilog module ``name`` to ``path``; return the path."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(verilog.convert(component, name))
+    # Write then rename, so that parallel test workers never read a half-written file.
+    text = verilog.convert(component, name)
+    if not path.exists() or path.read_text() != text:
+        temporary = path.with_name(f".{path.name}.{os.getpid()}")
+        temporary.write_text(text)
+        os.replace(temporary, path)
     return path
 
 

@@ -7,6 +7,10 @@ from fliss.sim.cocotb_runner import SIMULATORS, prepare_path, simulator_availabl
 
 _COCOTB_COUNTS = {}
 
+#: Test files whose tests run for minutes; they start first so that parallel workers finish
+#: together.
+_SLOW_FILES = ("test_cocotb_link.py", "test_cocotb_top.py", "test_cocotb_delay_core.py")
+
 
 def pytest_configure(config):
     prepare_path()
@@ -24,14 +28,28 @@ def simulator(request):
     return name
 
 
+def pytest_collection_modifyitems(items):
+    items.sort(key=lambda item: item.path.name not in _SLOW_FILES)
+
+
 @pytest.fixture
-def cocotb_counts():
-    """Record cocotb test counts per simulator for the summary at the end of the run."""
+def cocotb_counts(record_property):
+    """Record cocotb test counts per simulator for the summary at the end of the run (the
+    report carries them back from parallel workers)."""
     def record(simulator, passed, failed, skipped):
-        counts = _COCOTB_COUNTS.setdefault(simulator, [0, 0, 0])
-        for index, value in enumerate((passed, failed, skipped)):
-            counts[index] += value
+        record_property("cocotb", (simulator, passed, failed, skipped))
     return record
+
+
+def pytest_runtest_logreport(report):
+    if report.when != "call":
+        return
+    for name, value in report.user_properties:
+        if name == "cocotb":
+            simulator, *values = value
+            counts = _COCOTB_COUNTS.setdefault(simulator, [0, 0, 0])
+            for index, count in enumerate(values):
+                counts[index] += count
 
 
 def pytest_terminal_summary(terminalreporter):
