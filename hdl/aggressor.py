@@ -30,8 +30,9 @@ class Aggressor(wiring.Component):
     core enabled in the same cycle, the same period and no delays on either side, each aggressor
     pulse is exactly ``offset`` cycles after the matching victim pulse. ``enable`` falling stops
     the aggressor at once (a pulse already firing completes); the offset counts again from the
-    next rise. ``offset`` is read while waiting; the other settings behave as in
-    :class:`~fliss.hdl.core.DelayCore`.
+    next rise. ``offset`` is sampled while ``enable`` is low; the other settings behave as in
+    :class:`~fliss.hdl.core.DelayCore`. (If ``enable`` is already high in the first cycle after
+    reset, the aggressor starts one cycle late; a register file never does that.)
 
     Parameters
     ----------
@@ -99,14 +100,19 @@ class Aggressor(wiring.Component):
         m.submodules.scheduler = scheduler = PulseScheduler()
         m.submodules.trigger = trigger = LaserTrigger()
 
-        # Start offset: cycles since enable rose, up to `offset`
-        elapsed = Signal(OFFSET_WIDTH)
+        # Start offset: a countdown loaded with `offset` while stopped. `arrived` is registered,
+        # so no comparator sits in front of the scheduler. `primed` marks the cycles after the
+        # first one: the countdown is loaded at least once before it is used.
+        primed = Signal()
+        countdown = Signal(OFFSET_WIDTH)
+        arrived = Signal()
         started = Signal()
-        m.d.comb += started.eq(self.enable & (elapsed >= self.offset))
-        with m.If(~self.enable):
-            m.d.sync += elapsed.eq(0)
-        with m.Elif(~started):
-            m.d.sync += elapsed.eq(elapsed + 1)
+        m.d.sync += primed.eq(1)
+        with m.If(~self.enable | ~primed):
+            m.d.sync += countdown.eq(self.offset), arrived.eq(self.offset == 0)
+        with m.Elif(~arrived):
+            m.d.sync += countdown.eq(countdown - 1), arrived.eq(countdown == 1)
+        m.d.comb += started.eq(self.enable & primed & arrived)
 
         # Delays
         if self.delay_source:

@@ -21,8 +21,8 @@ from .event import Event
 __all__ = [
     "PROTOCOL_VERSION", "DELIMITER", "COBS_MAX_RUN",
     "CRC_WIDTH", "CRC_POLY", "CRC_INIT", "CRC_CHECK", "CRC_BYTES",
-    "PacketType", "Header", "HEADER_BYTES", "MAX_PAYLOAD", "MAX_PACKET", "MAX_ENCODED", "MAX_FRAME",
-    "NakCode", "Ack", "Nak", "COUNTER_BITS", "EVENT_BYTES", "MAX_EVENTS_PER_PACKET",
+    "PacketType", "Header", "HEADER_BYTES", "MAX_PAYLOAD", "MAX_PACKET", "MAX_ENCODED",
+    "MAX_FRAME", "NakCode", "Ack", "Nak", "COUNTER_BITS", "EVENT_BYTES", "MAX_EVENTS_PER_PACKET",
     "DIRECTION_BIT",
 ]
 
@@ -139,7 +139,7 @@ class NakCode(enum.Enum, shape=8):
     BAD_PAYLOAD  = 0x11
     #: No such register, or a read-only register written.
     BAD_ADDRESS  = 0x12
-    #: Value out of range (L above 32, Wm above 16, a period shorter than the pulse, a zero seed…).
+    #: Value out of range (L above 32, Wm above 16, a period not above the pulse, a zero seed…).
     OUT_OF_RANGE = 0x13
     #: Not possible in the current state (for example a setting that cannot change while running).
     BUSY         = 0x14

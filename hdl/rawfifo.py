@@ -22,9 +22,10 @@ class RawFifo(wiring.Component):
 
     ``events`` is always ready. An event that arrives while the FIFO holds ``depth`` events is
     dropped and counted in ``dropped``; every other one is counted in ``accepted`` and comes out
-    on ``output``, in order. The FIFO is an :class:`amaranth.lib.fifo.SyncFIFOBuffered` (block
-    RAM, registered output): an event written into an empty FIFO is on ``output`` two cycles
-    later.
+    on ``output``, in order. Events go through an input register, then into an
+    :class:`amaranth.lib.fifo.SyncFIFOBuffered` (block RAM, registered output): an event that
+    arrives in cycle ``t`` is written (or dropped) in cycle ``t + 1`` and, if the FIFO was empty,
+    is on ``output`` from cycle ``t + 3``.
 
     Parameters
     ----------
@@ -43,7 +44,7 @@ class RawFifo(wiring.Component):
     clear : In(1)
         Reset ``accepted`` and ``dropped``.
     level : Out(range(depth + 1))
-        Events in the FIFO.
+        Events in the FIFO (not counting the input register).
     accepted : Out(counter_width)
         Events written into the FIFO.
     dropped : Out(counter_width)
@@ -72,15 +73,20 @@ class RawFifo(wiring.Component):
 
         m.submodules.fifo = queue = fifo.SyncFIFOBuffered(width=EVENT_WIDTH, depth=self.depth)
 
+        # Input register: nothing combinational between the source and the FIFO's write logic
+        valid = Signal()
+        payload = Signal(EVENT_WIDTH)
+        m.d.comb += self.events.ready.eq(1)
+        m.d.sync += valid.eq(self.events.valid), payload.eq(self.events.payload)
+
         # Write side: never stalls
         write = Signal()
         drop = Signal()
         m.d.comb += [
-            self.events.ready.eq(1),
-            queue.w_data.eq(self.events.payload),
-            queue.w_en.eq(self.events.valid),
-            write.eq(self.events.valid & queue.w_rdy),
-            drop.eq(self.events.valid & ~queue.w_rdy),
+            queue.w_data.eq(payload),
+            queue.w_en.eq(valid),
+            write.eq(valid & queue.w_rdy),
+            drop.eq(valid & ~queue.w_rdy),
         ]
 
         # Counters

@@ -11,7 +11,8 @@ from amaranth.lib.wiring import In, Out
 from .event import Event, TIMESTAMP_BITS, ADDRESS_BITS, PULSE_BITS
 
 
-__all__ = ["SYNC_STAGES", "COUNTER_WIDTH", "CAPTURE_LATENCY", "OUTPUT_LATENCY", "MAX_TIMESTAMP",
+__all__ = ["SYNC_STAGES", "COUNTER_WIDTH", "CAPTURE_LATENCY", "FILTER_LATENCY", "OUTPUT_LATENCY",
+           "MAX_TIMESTAMP",
            "count_event", "EventFilter", "TdcInterface", "CoarseTdc"]
 
 
@@ -22,19 +23,25 @@ COUNTER_WIDTH = 32
 #: Cycles from the first cycle a strobe (or hit) pin is high to the cycle the edge is detected,
 #: in which the bus, ``enable`` and ``pulse_index`` are sampled.
 CAPTURE_LATENCY = SYNC_STAGES
+#: Cycles from the :class:`EventFilter` ``capture`` strobe to ``events.valid``.
+FILTER_LATENCY = 2
 #: Cycles from the first cycle a strobe (or hit) pin is high to ``events.valid``.
-OUTPUT_LATENCY = CAPTURE_LATENCY + 2
+OUTPUT_LATENCY = CAPTURE_LATENCY + 1 + FILTER_LATENCY
 #: Largest timestamp code.
 MAX_TIMESTAMP = (1 << TIMESTAMP_BITS) - 1
 
 
 def count_event(m, counter, condition, clear):
     """Saturating event counter: ``counter`` counts the cycles with ``condition``, up to all
-    ones, and returns to zero on ``clear``."""
+    ones. ``clear`` restarts it from the event of its own cycle (0 or 1), so no event goes
+    uncounted. A register remembers that it is full, so no wide comparator sits in its enable
+    path."""
+    top = (1 << len(counter)) - 1
+    full = Signal(name=f"{counter.name}_full")
     with m.If(clear):
-        m.d.sync += counter.eq(0)
-    with m.Elif(condition & (counter != (1 << len(counter)) - 1)):
-        m.d.sync += counter.eq(counter + 1)
+        m.d.sync += counter.eq(condition), full.eq(condition & (top == 1))
+    with m.Elif(condition & ~full):
+        m.d.sync += counter.eq(counter + 1), full.eq(counter == top - 1)
 
 
 class EventFilter(wiring.Component):
@@ -47,8 +54,11 @@ class EventFilter(wiring.Component):
     * ``dropped_gate`` if its timestamp is outside ``gate_start … gate_end`` (inclusive);
     * ``dropped_overrun`` if the previous event still waits on ``events``;
 
-    and otherwise counted in ``accepted`` and put on ``events`` in the next cycle. All counters
-    saturate at ``2**32 - 1`` and are reset by ``clear``.
+    and otherwise counted in ``accepted`` and put on ``events``. The classification takes two
+    pipeline stages (:data:`FILTER_LATENCY`): an event presented in cycle ``f`` is compared with
+    the gate in cycle ``f``, meets the output register (overrun check) in cycle ``f + 1`` and is
+    on ``events`` from cycle ``f + 2``. All counters saturate at ``2**32 - 1``; ``clear``
+    restarts them (an event counted in the ``clear`` cycle counts as the first).
 
     Members
     -------
@@ -87,39 +97,43 @@ class EventFilter(wiring.Component):
     def elaborate(self, platform):
         m = Module()
 
-        # Classification
+        # Stage 1: classification, registered
         timestamp = self.event.timestamp
+        captured = Signal()
+        event = Signal(Event)
         stopped = Signal()
         overflow = Signal()
         outside = Signal()
+        m.d.sync += [
+            captured.eq(self.capture),
+            event.eq(self.event),
+            stopped.eq(~self.enable),
+            overflow.eq(self.overflow),
+            outside.eq((timestamp < self.gate_start) | (timestamp > self.gate_end)),
+        ]
+
+        # Stage 2: output register, counters
+        in_gate = Signal()
         overrun = Signal()
         accept = Signal()
+        busy = self.events.valid & ~self.events.ready
         m.d.comb += [
-            stopped.eq(self.capture & ~self.enable),
-            overflow.eq(self.capture & self.enable & self.overflow),
-            outside.eq(self.capture & self.enable & ~self.overflow &
-                       ((timestamp < self.gate_start) | (timestamp > self.gate_end))),
+            in_gate.eq(captured & ~stopped & ~overflow & ~outside),
+            overrun.eq(in_gate & busy),
+            accept.eq(in_gate & ~busy),
         ]
-        in_gate = self.capture & self.enable & ~self.overflow & ~outside
-        m.d.comb += [
-            overrun.eq(in_gate & self.events.valid & ~self.events.ready),
-            accept.eq(in_gate & ~(self.events.valid & ~self.events.ready)),
-        ]
-
-        # Counters
         count_event(m, self.accepted, accept, self.clear)
-        count_event(m, self.dropped_stopped, stopped, self.clear)
-        count_event(m, self.dropped_overflow, overflow, self.clear)
-        count_event(m, self.dropped_gate, outside, self.clear)
+        count_event(m, self.dropped_stopped, captured & stopped, self.clear)
+        count_event(m, self.dropped_overflow, captured & ~stopped & overflow, self.clear)
+        count_event(m, self.dropped_gate, captured & ~stopped & ~overflow & outside, self.clear)
         count_event(m, self.dropped_overrun, overrun, self.clear)
 
-        # Output register
         with m.If(self.events.ready):
             m.d.sync += self.events.valid.eq(0)
         with m.If(accept):
             m.d.sync += [
                 self.events.valid.eq(1),
-                self.events.payload.eq(self.event),
+                self.events.payload.eq(event),
             ]
 
         return m
@@ -262,8 +276,10 @@ class CoarseTdc(wiring.Component):
         Pulses fired so far (:class:`~fliss.hdl.scheduler.PulseScheduler` ``pulse_index``).
     address : In(6)
         Pixel address given to the events.
-    enable, gate_start, gate_end, clear, events, accepted, dropped_stopped, dropped_overflow, dropped_gate, dropped_overrun
+    enable, gate_start, gate_end, clear, events
         As in :class:`TdcInterface`.
+    accepted, dropped_stopped, dropped_overflow, dropped_gate, dropped_overrun : Out(32)
+        Event counters (:class:`EventFilter`).
     """
 
     pin_hit:          In(1)

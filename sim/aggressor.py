@@ -33,8 +33,8 @@ def simulate(settings, until, *, offset, enable=0, disable=None, updates=()):
     starts, in cycle ``enable + offset``; ``updates`` are ``update`` strobes after that.
     """
     if not isinstance(offset, (int, np.integer)) or not 0 <= offset < (1 << OFFSET_WIDTH):
-        raise ValueError(f"Aggressor offset must be from 0 to {(1 << OFFSET_WIDTH) - 1} clock "
-                         f"cycles, not {offset!r}")
+        raise ValueError(f"Aggressor offset must be from 0 to {(1 << OFFSET_WIDTH) - 1} "
+                         f"clock cycles, not {offset!r}")
     if disable is not None and disable <= enable + offset:
         return []
     return _scheduler.simulate(settings, until, updates=updates, enable=enable + offset,
@@ -42,7 +42,7 @@ def simulate(settings, until, *, offset, enable=0, disable=None, updates=()):
 
 
 def laser_waveform(pulses, cycles):
-    """``laser`` in cycles ``0 … cycles - 1``: high from ``fire + LATENCY`` for ``width`` cycles."""
+    """``laser`` in cycles ``0 … cycles - 1``: high ``width`` cycles from ``fire + LATENCY``."""
     laser = np.zeros(cycles, dtype=bool)
     for fire, _, width, _ in pulses:
         laser[fire + LATENCY:fire + LATENCY + max(width, 1)] = True

@@ -1,7 +1,8 @@
 """Bit-exact model of :class:`fliss.hdl.rawfifo.RawFifo`.
 
-The FIFO is :class:`amaranth.lib.fifo.SyncFIFOBuffered`: a block-RAM queue of ``depth - 1``
-entries followed by an output register. Per cycle, the model applies the same rules: the queue
+An input register delays every event by one cycle; then comes
+:class:`amaranth.lib.fifo.SyncFIFOBuffered`: a block-RAM queue of ``depth - 1`` entries followed by
+an output register. Per cycle, the model applies the same rules: the queue
 takes a write unless it holds ``depth - 1`` entries; the output register loads the oldest queued
 entry whenever it is empty or being read; the entry loaded in a cycle is never the one written in
 that cycle.
@@ -65,7 +66,7 @@ def simulate(valid, ready, *, depth=DEPTH, counter_width=COUNTER_WIDTH):
             out = queue.popleft()
         elif r_en:
             out = None
-        if cycle < len(valid) and valid[cycle]:
+        if 1 <= cycle <= len(valid) and valid[cycle - 1]:  # the input register's output
             if w_rdy:
                 queue.append(number)
                 accepted += 1

@@ -8,7 +8,7 @@ Cycle numbers are those of the gateware's clock. Per-cycle inputs (``enable``, `
 import numpy as np
 
 from ..hdl.event import PULSE_BITS, ADDRESS_BITS
-from ..hdl.tdc import CAPTURE_LATENCY, OUTPUT_LATENCY, MAX_TIMESTAMP, COUNTER_WIDTH
+from ..hdl.tdc import CAPTURE_LATENCY, FILTER_LATENCY, MAX_TIMESTAMP, COUNTER_WIDTH
 from .event import EVENT_DTYPE
 
 
@@ -69,7 +69,7 @@ def filter_events(capture_cycles, events, *, enabled, overflow=None, gate_start=
     accepted, valid_cycles, transfer_cycles = [], [], []
     free_from = 0  # first cycle in which the output register is empty (or transfers)
     for cycle, event, enable, over in zip(capture_cycles, events, enabled, overflow):
-        cycle = int(cycle)
+        cycle = int(cycle) + FILTER_LATENCY - 1  # the cycle it meets the output register
         if not enable:
             counters["dropped_stopped"] += 1
         elif over:

@@ -96,7 +96,8 @@ def expand(runs):
 
 
 def receive(samples, clock_hz, baud):
-    """What :class:`UartRx` receives from the line ``samples`` (one per cycle, raw pin).
+    """What :class:`UartRx` receives from the line ``samples`` (one per cycle, raw pin), its
+    output being always ready.
 
     Returns ``(received, framing_errors)``: the list of ``(cycle, byte)`` in order, ``cycle``
     being the cycle in which the byte appears on the receiver's output, and the list of cycles
@@ -123,6 +124,10 @@ def receive(samples, clock_hz, baud):
                     if vote:
                         received.append((now + 1, shreg))
                         state = "IDLE"
+                        if not rx:      # the next start bit begins in this cycle
+                            state, cycle, edge, bit = "RECEIVE", 1, step // 2, 0
+                            prev2, prev1 = prev1, int(rx)
+                            continue
                     else:
                         errors.append(now + 1)
                         state = "BREAK"

@@ -137,7 +137,8 @@ def test_paper_bench_offset():
             ctx.set(dut.period, 80)
             ctx.set(dut.pulse_width, 2)
         ctx.set(aggressor.offset, offset)
-        ctx.set(victim.enable, 1)
+        await ctx.tick()
+        ctx.set(victim.enable, 1)           # in cycle 1, as a register file would
         ctx.set(aggressor.enable, 1)
         last = {"victim": 0, "aggressor": 0}
         for cycle in range(cycles):
@@ -153,7 +154,7 @@ def test_paper_bench_offset():
     sim.run()
     victim_rises = np.array(rises["victim"])
     aggressor_rises = np.array(rises["aggressor"])
-    # enable in cycle 0: first take in cycle 1, fire in 2, laser up in 3
+    # enable in cycle 1: first take in 2, fire in 3, laser up in 4 (loop cycle 3)
     np.testing.assert_array_equal(victim_rises, 3 + 80 * np.arange(13))
     np.testing.assert_array_equal(aggressor_rises, victim_rises + offset)
 

@@ -96,7 +96,7 @@ def test_fifo_matches_model(depth, counter_width):
     assert len(transfers) + len(dropped) == len(events)
     kept = np.setdiff1d(np.arange(len(events)), dropped)
     np.testing.assert_array_equal(want[:, 1], kept)
-    drop_cycles = np.flatnonzero(valid)[dropped]
+    drop_cycles = np.flatnonzero(valid)[dropped] + 1     # decided after the input register
     assert np.all(levels[drop_cycles] == depth)
     assert len(dropped) > 100
     if counter_width == 4:
@@ -108,14 +108,14 @@ def test_clear_counters():
 
     async def testbench(ctx):
         ctx.set(dut.events.valid, 1)
-        await ctx.tick().repeat(10)            # 4 fit, 6 dropped
-        assert (ctx.get(dut.accepted), ctx.get(dut.dropped)) == (4, 6)
+        await ctx.tick().repeat(10)            # 9 events past the input register: 4 fit
+        assert (ctx.get(dut.accepted), ctx.get(dut.dropped)) == (4, 5)
         ctx.set(dut.clear, 1)
-        await ctx.tick()
+        await ctx.tick()                       # the drop of the clear cycle still counts
         ctx.set(dut.clear, 0)
-        assert (ctx.get(dut.accepted), ctx.get(dut.dropped)) == (0, 0)
+        assert (ctx.get(dut.accepted), ctx.get(dut.dropped)) == (0, 1)
         await ctx.tick().repeat(3)
-        assert ctx.get(dut.dropped) == 3
+        assert ctx.get(dut.dropped) == 4
 
     sim = Simulator(dut)
     sim.add_clock(1 / DEFAULT_CLOCK_HZ)

@@ -1,4 +1,4 @@
-"""TDC interface and coarse TDC: gateware against the model, event by event and counter by counter."""
+"""TDC interface and coarse TDC: gateware against the model, event by event, counter by counter."""
 
 import numpy as np
 import pytest
@@ -24,7 +24,7 @@ def strobe_train(rng, count, start, *, max_gap=20):
 
 
 def pulse_counter(rng, cycles, *, mean_period=60):
-    """Per-cycle ``pulse_index`` (pulses fired so far) and the cycles where it steps (TDC starts)."""
+    """Per-cycle ``pulse_index`` (pulses fired so far) and the cycles where it steps."""
     starts = np.cumsum(rng.integers(mean_period // 2, 3 * mean_period // 2, size=cycles))
     starts = starts[starts < cycles] + 5
     index = np.zeros(cycles + 100, dtype=np.int64)
@@ -68,7 +68,7 @@ def run(dut, cycles, drive, ready):
 
 def test_tdc_interface_matches_model():
     rng = np.random.default_rng(6)
-    rises, highs, end = strobe_train(rng, 500, 10)
+    rises, highs, end = strobe_train(rng, 300, 10)
     cycles = end + 20
     timestamps = rng.integers(8192, size=len(rises))
     addresses = rng.integers(64, size=len(rises))
@@ -108,7 +108,7 @@ def test_tdc_interface_matches_model():
     assert counters == want_counters, want_counters
     assert all(want_counters[name] > 10 for name in
                ("dropped_stopped", "dropped_gate", "dropped_overrun"))
-    assert want_counters["accepted"] > 200
+    assert want_counters["accepted"] > 100
     np.testing.assert_array_equal(got, want)
     np.testing.assert_array_equal(got_cycles, want_cycles)
     # Latency as documented: valid from OUTPUT_LATENCY cycles after the strobe reads high.
@@ -121,13 +121,13 @@ def test_coarse_tdc_matches_model():
     rng = np.random.default_rng(11)
     # Hits and starts; then no start for 8300 cycles, so hits more than 8191 cycles after the
     # last start overflow; then hits and starts again.
-    hits_a, highs_a, end_a = strobe_train(rng, 200, 3, max_gap=12)
+    hits_a, highs_a, end_a = strobe_train(rng, 120, 3, max_gap=12)
     starts_a = 5 + np.cumsum(rng.integers(25, 75, size=200))
     starts_a = starts_a[starts_a < end_a]
     last = int(starts_a[-1])
     hits_b, highs_b, end_b = strobe_train(rng, 40, last + 8100, max_gap=3)
     starts_b = last + 8300 + np.cumsum(rng.integers(25, 75, size=400))
-    hits_c, highs_c, end = strobe_train(rng, 200, end_b, max_gap=12)
+    hits_c, highs_c, end = strobe_train(rng, 120, end_b, max_gap=12)
     starts_b = starts_b[starts_b < end]
     hits = np.concatenate([hits_a, hits_b, hits_c])
     highs = np.concatenate([highs_a, highs_b, highs_c])

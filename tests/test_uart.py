@@ -137,7 +137,7 @@ def drive_and_collect(dut, runs):
     return received
 
 
-@pytest.mark.parametrize("baud", BAUDS)
+@pytest.mark.parametrize("baud", BAUDS + [20_000_000])
 @pytest.mark.parametrize("mismatch", [-0.02, 0.0, +0.02])
 def test_rx_matches_model(baud, mismatch):
     data = prbs(byte_count(baud), seed=baud + 7)
@@ -148,6 +148,19 @@ def test_rx_matches_model(baud, mismatch):
     assert received == [byte for _, byte in expected]
     assert errors == []
     assert bytes(received) == data
+
+
+@pytest.mark.parametrize("mismatch", [-0.04, +0.035])
+@pytest.mark.parametrize("lead_bits", [0.0, 0.5])
+def test_rx_tolerance_12m(mismatch, lead_bits):
+    baud = 12_000_000
+    data = prbs(60, seed=5)
+    runs = model.line_runs(data, CLOCK, baud * (1 + mismatch), lead_bits=lead_bits)
+    dut = UartRx(clock_hz=CLOCK, baud=baud)
+    received = drive_and_collect(dut, runs)
+    expected, errors = model.receive(model.expand(runs), CLOCK, baud)
+    assert received == [byte for _, byte in expected]
+    assert bytes(received) == data and errors == []
 
 
 @pytest.mark.parametrize("baud", [1_000_000, 12_000_000])
