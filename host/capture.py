@@ -235,7 +235,7 @@ def capture(board, path, *, mode="histogram", integration_s=10e-3, acquisitions=
     if lost is None:
         try:
             board.stop()
-            for item in board.drain():
+            for item in board.settle():
                 store(item)
             status_end = board.status()
         except BoardLost as error:
@@ -279,9 +279,13 @@ def capture(board, path, *, mode="histogram", integration_s=10e-3, acquisitions=
               f"{link['missing_packets']} missing packets on the link (counted in the file)",
               file=sys.stderr)
     if board_dropped:
+        advice = ("the link is too slow for this event rate; use a higher baud rate or "
+                  "histogram mode") if mode == "raw" else \
+            ("events arrived while no histogram was filling, as the previous one was still "
+             "being sent; use a longer integration time, a larger bin shift or a higher baud "
+             "rate")
         print(f"fliss: warning: {board_dropped} events dropped on the board (counted in the "
-              f"file): the link is too slow for this event rate; use a higher baud rate or "
-              f"histogram mode", file=sys.stderr)
+              f"file): {advice}", file=sys.stderr)
     if lost is not None:
         raise UserError(f"{lost}; saved what was received ({what}) to {path}")
     if reason == "interrupted":

@@ -159,6 +159,9 @@ class StreamAssembler:
         self._counts = None
         self._filled = None
         self._next_frame = None
+        #: One more than the frame number of the last chunk that ended a frame: the board's
+        #: STATUS ``frames`` once every histogram it made has arrived.
+        self.frames_ended = None
 
     def add(self, packet, time_s=None):
         time_s = time.time() if time_s is None else time_s
@@ -198,6 +201,8 @@ class StreamAssembler:
             self._filled = np.zeros(bins, dtype=bool)
         self._counts[first:first + len(counts)] = counts
         self._filled[first:first + len(counts)] = True
+        if last:
+            self.frames_ended = (frame + 1) % (1 << 32)
         if last:
             out.append(self._finish(time_s))
         return out
@@ -560,6 +565,22 @@ class Board:
                 raise BoardLost(f"the board on {self.port_name} stopped sending (nothing for "
                                 f"{idle_timeout_s:g} s during an acquisition)")
             yield None
+
+    def settle(self, limit_s=120.0):
+        """After a STOP: read until every histogram the board completed has arrived (its STATUS
+        ``frames`` count), or until ``limit_s``; returns everything received. A board that
+        is slow to send its last histogram (a simulation, a slow link) is waited for rather
+        than left to spill into the next capture."""
+        end = time.monotonic() + limit_s
+        items = []
+        while True:
+            items += self.drain(quiet_s=0.3, limit_s=max(0.5, end - time.monotonic()))
+            frames = self.status()["frames"]
+            ended = self.assembler.frames_ended
+            if frames == 0 or ended == frames or time.monotonic() > end:
+                return items
+            if ended is None and not items:
+                return items   # nothing of this capture's histograms: not ours to wait for
 
     def drain(self, quiet_s=0.3, limit_s=10.0):
         """Read until nothing has arrived for ``quiet_s`` (at most ``limit_s``), then finish the

@@ -1,22 +1,50 @@
-"""``fliss demo``: what FLISS does, from the models and the gateware simulation."""
+"""``fliss demo``: FLISS at work on the virtual board, with no hardware.
+
+The real top-level gateware runs in a simulator behind a pseudo-terminal (``fliss board``); the
+scene simulator feeds its sensor pins with the echo of a target 4 m away and with the photons of
+an aggressor whose trigger is the gateware's own aggressor output, 75 ns after the victim. The
+demo then drives it with the ordinary commands (``config``, ``capture``, ``analyze``, ``plot``),
+first with FLISS off and then with the masked delay source (Wm = 6), and prints what changed.
+"""
+
+import shlex
+import time
+from pathlib import Path
 
 from amaranth.sim import Simulator
 
 from ..hdl import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, period_cycles
 from ..hdl.core import DelayCore
-from ..sim.delay import DelayMode
+from ..sim.delay import DelayMode, mean_delay
 from ..sim import scheduler as scheduler_model
+from .cli import UserError
 from .model_commands import prf_rows
 from .units import format_frequency
 
 
+#: Speed of light, m/s.
+C_M_S = 299_792_458.0
+
+
 def register(subparsers, formatter):
     parser = subparsers.add_parser(
-        "demo", formatter_class=formatter, help="show FLISS at work, no hardware needed",
-        description="Prints the effective PRF table (Table 2 of the paper) and a trace of the "
-                    "pulse scheduler running in the gateware simulator, checked against the "
-                    "reference model.")
-    parser.add_argument("--pulses", type=int, default=12, help="pulses to trace")
+        "demo", formatter_class=formatter, help="show FLISS at work on the virtual board",
+        description="Starts the virtual board (the real gateware in a simulator behind a pty), "
+                    "captures histograms with an aggressor running, first with FLISS off and "
+                    "then on (masked delays, Wm = 6), prints both peak tables and the "
+                    "suppression, and writes a PNG of the two histograms.")
+    parser.add_argument("--sim", choices=["verilator", "icarus"], default="verilator",
+                        help="simulator of the virtual board")
+    parser.add_argument("--out", default="build/demo", metavar="DIR", help="output folder")
+    parser.add_argument("--acquisitions", type=int, default=2,
+                        help="histograms per setting")
+    parser.add_argument("--integration", default="2ms", metavar="TIME",
+                        help="integration time per histogram (simulated time)")
+    parser.add_argument("--target-m", type=float, default=4.0, metavar="M",
+                        help="distance of the victim's target")
+    parser.add_argument("--trace", action="store_true",
+                        help="instead: print a pulse scheduler trace from the gateware, checked "
+                             "against the reference model (a few seconds, no simulator needed)")
     parser.set_defaults(run=run)
 
 
@@ -45,30 +73,92 @@ def trace_gateware(settings, cycles, clock_hz=DEFAULT_CLOCK_HZ):
     return pulses, edges
 
 
-def run(args):
-    clock_hz, period = DEFAULT_CLOCK_HZ, period_cycles(DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ)
-    print(f"FLISS at {format_frequency(clock_hz)}, nominal PRF {format_frequency(DEFAULT_PRF_HZ)}"
-          f" (T = {period} cycles)\n")
-    print("Effective PRF with complete m-sequences (paper, Table 2):")
-    for mode, setting, max_delay, _, closed, measured in prf_rows(
-            clock_hz, period, lengths=[3, 4, 5, 6, 8, 16, 32]):
-        shown = format_frequency(measured if measured is not None else closed)
-        print(f"  L = {setting['length']:>2}: delays 0..{max_delay:<10} PRF_eff = {shown}")
-
+def run_trace(pulses=12):
+    period = period_cycles(DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ)
     settings = scheduler_model.Settings(mode=DelayMode.MSEQ, length=4, seed=1, period=period,
                                         pulse_width=2).check()
-    cycles = (period + 15) * (args.pulses + 1)
-    pulses, edges = trace_gateware(settings, cycles, clock_hz)
+    cycles = (period + 15) * (pulses + 1)
+    fired, edges = trace_gateware(settings, cycles)
     expected = scheduler_model.simulate(settings, cycles - 1, enable=1)
-    print(f"\nGateware trace (mseq, L = 4, seed 1), {len(pulses)} pulses, each fired "
-          f"T + R cycles after the previous one:")
+    print(f"Gateware trace (mseq, L = 4, seed 1): each pulse T + R cycles after the previous")
     print(f"  {'pulse':>5} {'delay R':>8} {'laser/TDC start':>16} {'interval':>9}")
     previous = None
-    for (cycle, delay, _, index), edge in list(zip(pulses, edges))[:args.pulses]:
+    for (_, delay, _, index), edge in list(zip(fired, edges))[:pulses]:
         interval = "" if previous is None else f"{edge - previous}"
         print(f"  {index:>5} {delay:>8} {edge:>16} {interval:>9}")
         previous = edge
-    same = pulses == expected[:len(pulses)] and \
-        edges == [fire + scheduler_model.LATENCY for fire, *_ in pulses]
-    print(f"\nGateware and reference model agree bit for bit: {'yes' if same else 'NO'}")
+    same = fired == expected[:len(fired)] and \
+        edges == [fire + scheduler_model.LATENCY for fire, *_ in fired]
+    print(f"Gateware and reference model agree bit for bit: {'yes' if same else 'NO'}")
     return 0 if same else 1
+
+
+def _step(title, argv):
+    from .cli import main
+    print(f"\n== {title}\n$ fliss {' '.join(shlex.quote(a) for a in argv)}", flush=True)
+    code = main(argv)
+    if code:
+        raise UserError(f"the demo stopped: `fliss {argv[0]}` failed")
+
+
+def run(args):
+    if args.trace:
+        return run_trace()
+    if args.acquisitions < 1:
+        raise UserError(f"--acquisitions must be at least 1, not {args.acquisitions}")
+    from .board import start_virtual_board
+    from .fileformat import read_capture
+    from .plot_commands import analyze
+
+    clock_hz, prf_hz = DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ
+    period = period_cycles(clock_hz, prf_hz)
+    tof_s = 2 * args.target_m / C_M_S
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    # As on the paper's bench, the aggressor runs at the victim's effective PRF.
+    masked_period = round(period + mean_delay(DelayMode.MASKED, mask_width=6))
+    print(f"FLISS demo: victim at {format_frequency(prf_hz)} ({period} cycles of "
+          f"{format_frequency(clock_hz)}), target {args.target_m:g} m (ToF "
+          f"{tof_s * 1e9:.2f} ns), aggressor 75 ns after the victim at the victim's PRF.")
+    print("Effective PRF of the victim, complete m-sequences (paper, Table 2): " + ", ".join(
+        f"L={s['length']}: {format_frequency(closed)}"
+        for _, s, _, _, closed, _ in prf_rows(clock_hz, period, lengths=[3, 4, 5, 6, 8])))
+    started = time.monotonic()
+    print(f"\nStarting the virtual board: FlissTop in {args.sim}, the scene simulator on its "
+          f"sensor pins (the first run builds the simulation, about a minute)...", flush=True)
+    with start_virtual_board(args.sim, target_m=args.target_m, signal=0.2,
+                             aggressor_signal=0.2, seed=1) as port:
+        print(f"virtual board on {port}")
+        common = ["--port", port]
+        capture = ["--mode", "histogram", "--integration", args.integration,
+                   "--acquisitions", str(args.acquisitions)]
+        files = {}
+        for label, mode, aggressor_period in (
+                ("FLISS off", ["--mode", "off"], period),
+                ("FLISS on, masked delays, Wm = 6", ["--mode", "masked", "--mask-width", "6",
+                                                     "--seed", "0xACE1"], masked_period)):
+            _step(f"{label}: configure", ["config", *common, *mode, "--aggressor", "on",
+                                          "--aggressor-period-cycles", str(aggressor_period),
+                                          "--bin-shift", "3", "--integration", args.integration])
+            name = "fliss-off.h5" if "off" in label else "fliss-on.h5"
+            files[label] = out / name
+            _step(f"{label}: capture", ["capture", *common, *capture, "-o", str(files[label])])
+    paths = [str(path) for path in files.values()]
+    _step("Peaks and suppression", ["analyze", *paths, "--victim-tof", f"{tof_s * 1e9:.3f}ns"])
+    png = out / "demo.png"
+    _step("Histograms", ["plot", *paths, "-o", str(png)])
+
+    print("\n== Summary")
+    for label, path in files.items():
+        data = read_capture(path)
+        histogram = data.total_histogram()
+        _, peaks, result, _ = analyze(histogram, data.bin_s, victim_s=tof_s,
+                                      aggressor_on=True, shift=data.shift)
+        if result is None:
+            print(f"  {label:<32} no victim peak found")
+            continue
+        relation = ">=" if result.limited else "="
+        print(f"  {label:<32} victim peak {result.victim.height:7.1f} counts at "
+              f"{result.victim.position_s * 1e9:6.2f} ns, S {relation} {result.s_db:5.1f} dB")
+    print(f"  plot: {png}   ({time.monotonic() - started:.0f} s)")
+    return 0

@@ -78,6 +78,10 @@ def analyze(histogram, bin_s, *, victim_s=None, aggressors_s=(), tolerance_s=1.5
         note = "victim = tallest peak"
         if not aggressors_s:
             aggressors_s = [peak.position_s for peak in peaks[1:]]
+    if victim_s is not None and peaks and not aggressors_s:
+        # Every other peak is an aggressor's: S is against the highest of them (equation 10).
+        aggressors_s = [peak.position_s for peak in peaks
+                        if abs(peak.position_s - victim_s) > tolerance_s]
     if victim_s is not None and peaks:
         try:
             result = analysis.suppression(histogram, victim_s, aggressors_s, bin_s=bin_s,

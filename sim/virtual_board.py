@@ -1,0 +1,413 @@
+"""The virtual board: the top level's generated Verilog in a simulator, behind a pseudo-terminal.
+
+This is the cocotb test module that :mod:`fliss.host.board` runs in Icarus or Verilator. It
+
+* opens a pseudo-terminal, writes the path of its slave side to the file named by
+  ``FLISS_BOARD_PTY_FILE`` (written whole, then renamed, so the launcher never reads half of it),
+  and carries the bytes: pty to the ``uart_rx`` pin with :class:`~fliss.sim.uart_bfm.UartSource`,
+  the ``uart_tx`` pin to the pty with :class:`~fliss.sim.uart_bfm.UartSink`. The pty is read
+  without blocking every :data:`POLL_US` microseconds of simulated time; while the board is idle
+  (not acquiring, nothing to send either way) the loop also waits a little in real time, so an
+  idle board takes no CPU. It keeps its own descriptor of the slave side open, so host tools can
+  open and close the port as often as they like, as with a USB UART;
+* feeds the sensor pins in closed loop from a :class:`ClosedLoopSimulation` of the scene
+  (:mod:`fliss.sim.scene`): the victim's echo from a target ``FLISS_BOARD_TARGET_M`` metres away
+  relative to each ``tdc_start`` rising edge the gateware emits, the aggressor's photons after
+  each ``aggressor_laser`` rising edge (over the same path unless
+  ``FLISS_BOARD_AGGRESSOR_TOF_S`` says otherwise), background light and SPAD dead time. The
+  sensor keeps the last photon of each TDC window and presents it on the bus as the sensor of
+  the paper does, when its conversion range ends: bus first, then ``sensor_valid`` high for two
+  clock cycles, at most one event per window;
+* runs until the launcher (``FLISS_BOARD_PARENT_PID``) is gone, or until killed.
+
+Python work per laser cycle is one scene step and a few triggers, nothing per clock cycle.
+
+Timing of the sensor model
+--------------------------
+The gateware tags an event with the laser cycle in progress when the strobe is captured, so the
+event of cycle ``k`` must reach the bus before the TDC start of cycle ``k + 1``. The scene
+simulator only simulates a laser cycle once it knows the next TDC start (which bounds the
+window); so when a window's conversion range (``2**13`` codes, 33 clock cycles at 80 MHz) has
+passed without a new start, the model gives the simulator a *closing start* at that moment: a
+window that records nothing, whose only effect is the SPAD dead time that photons detected
+between windows carry into the next one. The event's strobe rises 35 cycles after the TDC start
+and is captured 2 cycles later. A start less than 33 cycles after the previous one cuts the
+window short, as in the scene model; with starts less than 38 cycles apart (PRFs above about
+2 MHz) an event arrives after the next start and raw events carry that cycle's index.
+
+The built-in coarse TDC (``tdc_source = 1``, pin ``photon_hit``) gets no photons: this model
+learns the photons of a window only once the window is over.
+"""
+
+import math
+import os
+import select
+import time
+import tty
+
+import cocotb
+import numpy as np
+from cocotb.clock import Clock
+from cocotb.simtime import get_sim_time
+from cocotb.triggers import ClockCycles, Event, RisingEdge, Timer
+
+from ..hdl import DEFAULT_CLOCK_HZ
+from ..hdl.event import TDC_LSB_S
+from . import scene as _scene
+from .uart_bfm import UartSink, UartSource
+
+
+__all__ = ["POLL_US", "ClosedLoopSimulation", "SensorModel", "PtyBridge", "virtual_board"]
+
+
+#: Simulated time between two polls of the pseudo-terminal, in microseconds (6 bytes at 12 M
+#: baud, far less than the pty's buffer; 400 clock cycles, so the poll costs nothing next to
+#: the simulation, and a command waits little for it).
+POLL_US = 5
+
+#: Idle polls before the loop starts waiting in real time as well.
+IDLE_POLLS = 100
+
+#: Real time waited per poll while idle, in seconds (an answer to a command is delayed by up to
+#: this much).
+IDLE_WAIT_S = 0.005
+
+#: Largest backlog of bytes for the host before the oldest are dropped (a host that does not
+#: read loses data, as with a real USB UART).
+MAX_BACKLOG = 1 << 22
+
+CLOCK_PERIOD_PS = round(1e12 / DEFAULT_CLOCK_HZ)
+
+
+def _env(name, default, convert=float):
+    value = os.environ.get(name)
+    return default if value in (None, "") else convert(value)
+
+
+class ClosedLoopSimulation(_scene.Simulation):
+    """A :class:`~fliss.sim.scene.Simulation` whose victim and aggressors follow triggers fed
+    from outside.
+
+    ``feed_victim(cycle)`` gives a real TDC start (the victim laser fires then);
+    ``feed_closing(cycle)`` a start that only closes the previous window (no laser pulse); and
+    ``feed_aggressor(index, cycles)`` the rising edges of aggressor ``index``'s trigger. Each
+    aggressor of the scene is then a pulse ``offset_s + tof`` after each edge fed; its own
+    period and delay settings are not used.
+
+    Limitation: this relies on the scene module's internal pulse trains (``_Pulses`` over a
+    ``_Buffer`` fed from outside); ``Simulation(external_starts=True)`` exposes only the
+    victim's starts.
+    """
+
+    def __init__(self, scene, *, seed=None):
+        super().__init__(scene, seed=seed, chunk_cycles=64, external_starts=True)
+        lsb = self._lsb
+        # The victim's echo only after real starts, not after closing ones.
+        self._victim_starts = _scene._Buffer(None)
+        _, mean, sigma = self._pulsed[0]
+        self._pulsed[0] = (_scene._Pulses(self._victim_starts, scale=lsb,
+                                          shift=scene.tof_s / TDC_LSB_S, guess=64),
+                           mean, sigma)
+        self._aggressor_edges = []
+        for index, aggressor in enumerate(scene.aggressors):
+            tof = scene.tof_s if aggressor.tof_s is None else aggressor.tof_s
+            edges = _scene._Buffer(None)
+            _, mean, sigma = self._pulsed[1 + index]
+            self._pulsed[1 + index] = (_scene._Pulses(edges, scale=lsb,
+                                                      shift=(aggressor.offset_s + tof) / TDC_LSB_S,
+                                                      guess=64),
+                                       mean, sigma)
+            self._aggressor_edges.append(edges)
+
+    def feed_victim(self, cycle):
+        self.feed([cycle])
+        self._victim_starts.feed(np.array([cycle], dtype=np.int64))
+
+    def feed_closing(self, cycle):
+        self.feed([cycle])
+
+    def feed_aggressor(self, index, cycles):
+        self._aggressor_edges[index].feed(np.asarray(cycles, dtype=np.int64))
+
+    def step(self, *args, **kwargs):
+        chunk = super().step(*args, **kwargs)
+        # The base class keeps its starts for the victim's train, which no longer reads them.
+        self._starts.trim(self.pulse)
+        return chunk
+
+
+class SensorModel:
+    """Drives the sensor bus of ``dut`` from a :class:`ClosedLoopSimulation` in closed loop."""
+
+    def __init__(self, dut, scene, *, seed=None):
+        self.dut = dut
+        self.scene = scene
+        self.simulation = ClosedLoopSimulation(scene, seed=seed)
+        # Cycles after a TDC start when the sensor's conversion range is over.
+        self.window_cycles = math.ceil(_scene.TDC_CODES / scene.lsb_per_cycle)
+        self.starts = 0          # real TDC starts seen
+        self.events = 0          # events put on the bus
+        self.late = 0            # windows cut short by the next start
+        self.busy_drops = 0      # events dropped because the bus was still busy
+        self.python_s = 0.0      # real time spent in the scene simulator
+        self._open = None        # cycle of the last start whose window is not closed yet
+        self._closing = set()    # closing starts fed and not simulated yet
+        self._generation = 0
+        self._queue = []
+        self._wake = Event()
+        self._bus_free = 0       # cycle from which the bus may change again
+        for name in ("sensor_valid", "sensor_timestamp", "sensor_address", "sensor_collision",
+                     "photon_hit"):
+            getattr(dut, name).value = 0
+
+    def start(self):
+        cocotb.start_soon(self._starts())
+        cocotb.start_soon(self._presenter())
+        if self.scene.aggressors:
+            cocotb.start_soon(self._aggressor())
+
+    @staticmethod
+    def cycle():
+        return round(get_sim_time("ps") / CLOCK_PERIOD_PS)
+
+    async def _aggressor(self):
+        while True:
+            await RisingEdge(self.dut.aggressor_laser)
+            self.simulation.feed_aggressor(0, [self.cycle()])
+
+    async def _starts(self):
+        generation = 0
+        while True:
+            await RisingEdge(self.dut.tdc_start)
+            cycle = self.cycle()
+            self.starts += 1
+            generation += 1
+            cut = self._open is not None
+            self.simulation.feed_victim(cycle)
+            if cut:
+                # The previous window ends at this start: simulate it now.
+                self.late += 1
+                self._emit()
+            self._open = cycle
+            cocotb.start_soon(self._close(cycle, generation))
+            self._generation = generation
+
+    async def _close(self, cycle, generation):
+        # One cycle after the closing start, so that a real start in that cycle is seen first.
+        await Timer((self.window_cycles + 1) * CLOCK_PERIOD_PS, unit="ps")
+        if self._generation != generation or self._open != cycle:
+            return
+        self._closing.add(cycle + self.window_cycles)
+        self.simulation.feed_closing(cycle + self.window_cycles)
+        self._emit()
+
+    def _emit(self):
+        began = time.perf_counter()
+        try:
+            self._simulate()
+        finally:
+            self.python_s += time.perf_counter() - began
+
+    def _simulate(self):
+        chunk = self.simulation.step()
+        self._open = None
+        closing = self._closing
+        starts = [int(cycle) for cycle in chunk.start_cycles]
+        for event in chunk.events:
+            index = (int(event["pulse"]) - chunk.first_pulse) & 0xffffffff
+            # Events of closing windows are photons between TDC windows: nobody records them.
+            if starts[index] not in closing:
+                self._queue.append((int(event["timestamp"]), int(event["address"]),
+                                    int(event["collision"])))
+        closing.difference_update(starts)
+        if self._queue:
+            self._wake.set()
+
+    async def _presenter(self):
+        dut = self.dut
+        while True:
+            if not self._queue:
+                self._wake.clear()
+                await self._wake.wait()
+                continue
+            timestamp, address, collision = self._queue.pop(0)
+            if self._queue:
+                # At most one event per window: a backlog means the windows are too short.
+                self.busy_drops += len(self._queue)
+                self._queue.clear()
+            dut.sensor_timestamp.value = timestamp
+            dut.sensor_address.value = address
+            dut.sensor_collision.value = collision
+            await Timer(CLOCK_PERIOD_PS, unit="ps")
+            dut.sensor_valid.value = 1
+            await Timer(2 * CLOCK_PERIOD_PS, unit="ps")
+            dut.sensor_valid.value = 0
+            self.events += 1
+            # Hold the bus past the capture, and the strobe low for two cycles.
+            await Timer(3 * CLOCK_PERIOD_PS, unit="ps")
+
+
+class PtyBridge:
+    """A pseudo-terminal carrying the UART pins of ``dut``.
+
+    :meth:`poll` moves what the host wrote to the UART driver and what the UART monitor received
+    to the host, without blocking; it returns whether anything moved.
+    """
+
+    def __init__(self, dut, baud):
+        self.master, self.slave = os.openpty()
+        tty.setraw(self.slave)          # no echo, no line editing: bytes pass unchanged
+        os.set_blocking(self.master, False)
+        self.path = os.ttyname(self.slave)
+        self.source = UartSource(dut.uart_rx, baud)
+        self.sink = UartSink(dut.uart_tx, baud)
+        self._to_board = bytearray()
+        self._to_host = bytearray()
+        self._wake = Event()
+        self.bytes_to_board = 0
+        self.bytes_to_host = 0
+        self.dropped = 0
+
+    def start(self):
+        cocotb.start_soon(self._sender())
+
+    async def _sender(self):
+        while True:
+            if not self._to_board:
+                self._wake.clear()
+                await self._wake.wait()
+                continue
+            data = bytes(self._to_board)
+            self._to_board.clear()
+            await self.source.send(data)
+
+    def poll(self):
+        moved = False
+        while True:
+            try:
+                data = os.read(self.master, 1 << 16)
+            except (BlockingIOError, InterruptedError):
+                break
+            except OSError:             # EIO: no slave open (never, as we hold one)
+                break
+            if not data:
+                break
+            self._to_board += data
+            self.bytes_to_board += len(data)
+            moved = True
+        if self._to_board:
+            self._wake.set()
+        received = self.sink.received
+        if received:
+            self._to_host += received
+            self.bytes_to_host += len(received)
+            del received[:]
+            moved = True
+        if len(self._to_host) > MAX_BACKLOG:
+            excess = len(self._to_host) - MAX_BACKLOG
+            del self._to_host[:excess]
+            self.dropped += excess
+        if self._to_host:
+            try:
+                written = os.write(self.master, self._to_host)
+                del self._to_host[:written]
+            except (BlockingIOError, InterruptedError):
+                pass
+            except OSError:
+                self.dropped += len(self._to_host)
+                self._to_host.clear()
+        return moved or bool(self._to_board)
+
+    @property
+    def backlog(self):
+        return len(self._to_host)
+
+    def wait(self, seconds):
+        """Wait in real time until the host writes something, or ``seconds``."""
+        select.select([self.master], [], [], seconds)
+
+
+def _publish(path, text):
+    temporary = f"{path}.tmp"
+    with open(temporary, "w") as file:
+        file.write(text)
+    os.replace(temporary, path)
+
+
+def _parent_alive(pid):
+    if pid is None:
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _scene_from_environment():
+    target_m = _env("FLISS_BOARD_TARGET_M", 4.0)
+    aggressor_tof = os.environ.get("FLISS_BOARD_AGGRESSOR_TOF_S")
+    aggressor = _scene.Aggressor(
+        period_cycles=80, offset_s=0.0,
+        detections_per_pulse=_env("FLISS_BOARD_AGGRESSOR_SIGNAL", 0.05),
+        tof_s=None if aggressor_tof in (None, "") else float(aggressor_tof))
+    return _scene.Scene(
+        distance_m=target_m,
+        detections_per_pulse=_env("FLISS_BOARD_SIGNAL", 0.05),
+        background_hz=_env("FLISS_BOARD_AMBIENT_HZ", 1e5),
+        aggressors=(aggressor,))
+
+
+@cocotb.test()
+async def virtual_board(dut):
+    """Serve the board on a pseudo-terminal until the launcher goes away."""
+    baud = _env("FLISS_BOARD_BAUD", 12_000_000, int)
+    seed = _env("FLISS_BOARD_SEED", None, int)
+    parent = _env("FLISS_BOARD_PARENT_PID", None, int)
+    pty_file = os.environ.get("FLISS_BOARD_PTY_FILE")
+    stats_file = os.environ.get("FLISS_BOARD_STATS_FILE")
+
+    Clock(dut.clk, CLOCK_PERIOD_PS, unit="ps").start()
+    dut.uart_rx.value = 1
+    sensor = SensorModel(dut, _scene_from_environment(), seed=seed)
+    dut.rst.value = 1
+    await ClockCycles(dut.clk, 4)
+    dut.rst.value = 0
+    await ClockCycles(dut.clk, 4)
+    sensor.start()
+    bridge = PtyBridge(dut, baud)
+    bridge.start()
+    if pty_file:
+        _publish(pty_file, bridge.path + "\n")
+    dut._log.info("virtual board on %s at %d baud", bridge.path, baud)
+
+    idle = 0
+    wall_start = last_check = time.monotonic()
+    sim_start_ps = get_sim_time("ps")
+    while True:
+        await Timer(POLL_US, unit="us")
+        if bridge.poll() or bridge.backlog or int(dut.running.value):
+            idle = 0
+        else:
+            idle += 1
+            if idle > IDLE_POLLS:
+                bridge.wait(IDLE_WAIT_S)
+        now = time.monotonic()
+        if now - last_check >= 1.0:
+            last_check = now
+            if not _parent_alive(parent):
+                dut._log.info("launcher gone: stopping")
+                break
+            if stats_file:
+                cycles = round((get_sim_time("ps") - sim_start_ps) / CLOCK_PERIOD_PS)
+                _publish(stats_file, (
+                    f'{{"wall_s": {now - wall_start:.3f}, "cycles": {cycles}, '
+                    f'"bytes_to_board": {bridge.bytes_to_board}, '
+                    f'"bytes_to_host": {bridge.bytes_to_host}, "dropped": {bridge.dropped}, '
+                    f'"tdc_starts": {sensor.starts}, "events": {sensor.events}, '
+                    f'"late_windows": {sensor.late}, "busy_drops": {sensor.busy_drops}, '
+                    f'"scene_s": {sensor.python_s:.3f}}}\n'))
+    os.close(bridge.master)
+    os.close(bridge.slave)
