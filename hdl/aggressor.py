@@ -4,10 +4,10 @@ from amaranth.hdl import *
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
-from .delay import DelayMode, DelaySource, DELAY_WIDTH, MAX_MASK_WIDTH
-from .laser import LaserTrigger
+from .core import DelayCore
+from .delay import DelayMode, DELAY_WIDTH, MAX_MASK_WIDTH
 from .lfsr import MAX_LENGTH
-from .scheduler import PulseScheduler, PERIOD_WIDTH, PULSE_WIDTH_WIDTH
+from .scheduler import PERIOD_WIDTH, PULSE_WIDTH_WIDTH
 
 
 __all__ = ["OFFSET_WIDTH", "PAPER_OFFSET_S", "Aggressor"]
@@ -23,8 +23,9 @@ PAPER_OFFSET_S = 75e-9
 class Aggressor(wiring.Component):
     """Aggressor emitter.
 
-    A second illuminator trigger driven by the same FPGA, as on the paper's bench: its own
-    :class:`PulseScheduler`, :class:`LaserTrigger` and, optionally, :class:`DelaySource`. It
+    A second illuminator trigger driven by the same FPGA, as on the paper's bench: a
+    :class:`~fliss.hdl.core.DelayCore` of its own, whose delay source is used only with
+    ``delay_source`` (otherwise it stays ``OFF``). It
     starts ``offset`` cycles after ``enable`` rises: if ``enable`` rises in cycle ``e``, the
     aggressor's scheduler sees its enable rise in cycle ``e + offset``. With the victim's delay
     core enabled in the same cycle, the same period and no delays on either side, each aggressor
@@ -97,8 +98,7 @@ class Aggressor(wiring.Component):
     def elaborate(self, platform):
         m = Module()
 
-        m.submodules.scheduler = scheduler = PulseScheduler()
-        m.submodules.trigger = trigger = LaserTrigger()
+        m.submodules.core = core = DelayCore()
 
         # Start offset: a countdown loaded with `offset` while stopped. `arrived` is registered,
         # so no comparator sits in front of the scheduler. `primed` marks the cycles after the
@@ -114,39 +114,28 @@ class Aggressor(wiring.Component):
             m.d.sync += countdown.eq(countdown - 1), arrived.eq(countdown == 1)
         m.d.comb += started.eq(self.enable & primed & arrived)
 
-        # Delays
+        # Delay source, scheduler and trigger: a delay core of its own
         if self.delay_source:
-            m.submodules.source = source = DelaySource()
-            wiring.connect(m, source.delays, scheduler.delays)
             m.d.comb += [
-                source.mode.eq(self.mode),
-                source.length.eq(self.length),
-                source.mask_width.eq(self.mask_width),
-                source.seed.eq(self.seed),
-                source.load.eq(scheduler.reload),
+                core.mode.eq(self.mode),
+                core.length.eq(self.length),
+                core.mask_width.eq(self.mask_width),
+                core.seed.eq(self.seed),
             ]
         else:
-            m.d.comb += [
-                scheduler.delays.valid.eq(1),
-                scheduler.delays.payload.eq(0),
-            ]
-
-        # Scheduler and trigger
+            m.d.comb += core.mode.eq(DelayMode.OFF)
         m.d.comb += [
-            scheduler.enable.eq(started),
-            scheduler.update.eq(self.update),
-            scheduler.period.eq(self.period),
-            scheduler.grid.eq(self.grid),
-            scheduler.pulse_width.eq(self.pulse_width),
+            core.enable.eq(started),
+            core.update.eq(self.update),
+            core.period.eq(self.period),
+            core.grid.eq(self.grid),
+            core.pulse_width.eq(self.pulse_width),
 
-            trigger.fire.eq(scheduler.fire),
-            trigger.width.eq(scheduler.fire_width),
-
-            self.laser.eq(trigger.laser),
-            self.running.eq(scheduler.running),
-            self.fire.eq(scheduler.fire),
-            self.fire_delay.eq(scheduler.fire_delay),
-            self.pulse_index.eq(scheduler.pulse_index),
+            self.laser.eq(core.laser),
+            self.running.eq(core.running),
+            self.fire.eq(core.fire),
+            self.fire_delay.eq(core.fire_delay),
+            self.pulse_index.eq(core.pulse_index),
         ]
 
         return m
