@@ -68,9 +68,9 @@ POLL_US = 5
 #: Idle polls before the loop starts waiting in real time as well.
 IDLE_POLLS = 100
 
-#: Real time waited per poll while idle, in seconds (an answer to a command is delayed by up to
-#: this much).
-IDLE_WAIT_S = 0.005
+#: Real time waited per poll while idle, in seconds, unless the host writes first: an idle
+#: board simulates 5 µs, then sleeps (some 5 % of a core instead of all of it).
+IDLE_WAIT_S = 0.1
 
 #: Largest backlog of bytes for the host before the oldest are dropped (a host that does not
 #: read loses data, as with a real USB UART).
@@ -152,10 +152,8 @@ class SensorModel:
         self.python_s = 0.0      # real time spent in the scene simulator
         self._open = None        # cycle of the last start whose window is not closed yet
         self._closing = set()    # closing starts fed and not simulated yet
-        self._generation = 0
         self._queue = []
         self._wake = Event()
-        self._bus_free = 0       # cycle from which the bus may change again
         for name in ("sensor_valid", "sensor_timestamp", "sensor_address", "sensor_collision",
                      "photon_hit"):
             getattr(dut, name).value = 0
@@ -173,30 +171,39 @@ class SensorModel:
     async def _aggressor(self):
         while True:
             await RisingEdge(self.dut.aggressor_laser)
-            self.simulation.feed_aggressor(0, [self.cycle()])
+            self.on_aggressor(self.cycle())
+
+    def on_aggressor(self, cycle):
+        """A rising edge of the aggressor's trigger in clock cycle ``cycle``."""
+        self.simulation.feed_aggressor(0, [cycle])
 
     async def _starts(self):
-        generation = 0
         while True:
             await RisingEdge(self.dut.tdc_start)
             cycle = self.cycle()
-            self.starts += 1
-            generation += 1
-            cut = self._open is not None
-            self.simulation.feed_victim(cycle)
-            if cut:
-                # The previous window ends at this start: simulate it now.
-                self.late += 1
-                self._emit()
-            self._open = cycle
-            cocotb.start_soon(self._close(cycle, generation))
-            self._generation = generation
+            self.on_start(cycle)
+            cocotb.start_soon(self._close(cycle))
 
-    async def _close(self, cycle, generation):
-        # One cycle after the closing start, so that a real start in that cycle is seen first.
+    async def _close(self, cycle):
+        # One cycle after the window's end, so that a real start in that cycle is seen first.
         await Timer((self.window_cycles + 1) * CLOCK_PERIOD_PS, unit="ps")
-        if self._generation != generation or self._open != cycle:
-            return
+        self.on_window_end(cycle)
+
+    def on_start(self, cycle):
+        """A TDC start (victim laser pulse) in clock cycle ``cycle``."""
+        self.starts += 1
+        cut = self._open is not None
+        self.simulation.feed_victim(cycle)
+        if cut:
+            # The previous window ends at this start: simulate it now.
+            self.late += 1
+            self._emit()
+        self._open = cycle
+
+    def on_window_end(self, cycle):
+        """The conversion range of the window started in ``cycle`` is over (a cycle ago)."""
+        if self._open != cycle:
+            return                      # a later start has cut this window already
         self._closing.add(cycle + self.window_cycles)
         self.simulation.feed_closing(cycle + self.window_cycles)
         self._emit()
