@@ -30,3 +30,22 @@ verilog: $(STAMP)
 
 clean:
 	rm -rf build sim_build .pytest_cache
+
+# Bitstreams with the YoWASP toolchain from PyPI: make bitstream BOARD=icebreaker|ulx3s
+BOARD ?= icebreaker
+BOARDS_STAMP := $(VENV)/.boards-stamp
+
+.PHONY: bitstream program test-boards
+
+$(BOARDS_STAMP): pyproject.toml $(STAMP)
+	$(PY) -m pip install --quiet -e ".[test,boards]"
+	@touch $@
+
+bitstream: $(BOARDS_STAMP)
+	$(PY) -m fliss.boards.build $(BOARD)
+
+program: $(BOARDS_STAMP)
+	$(PY) -m fliss.boards.build program $(BOARD)
+
+test-boards: $(BOARDS_STAMP)
+	FLISS_BUILD_BOARDS=1 $(PY) -m pytest tests/test_boards.py $(PYTEST_ARGS)
