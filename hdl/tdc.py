@@ -44,6 +44,18 @@ def count_event(m, counter, condition, clear):
         m.d.sync += counter.eq(counter + 1), full.eq(counter == top - 1)
 
 
+def _synchronised_rise(m, pin, name):
+    """A one-cycle strobe for each rising edge of the asynchronous ``pin``, after a
+    :data:`SYNC_STAGES`-flip-flop synchroniser (submodule ``{name}_sync``)."""
+    level = Signal(name=name)
+    level_last = Signal(name=f"{name}_last")
+    m.submodules[f"{name}_sync"] = cdc.FFSynchronizer(pin, level, stages=SYNC_STAGES)
+    m.d.sync += level_last.eq(level)
+    rise = Signal(name=f"{name}_rise")
+    m.d.comb += rise.eq(level & ~level_last)
+    return rise
+
+
 class EventFilter(wiring.Component):
     """Event gate and output register, with drop counters.
 
@@ -218,12 +230,7 @@ class TdcInterface(wiring.Component):
         m = Module()
 
         # Strobe synchroniser and edge detector
-        strobe = Signal()
-        strobe_last = Signal()
-        m.submodules.strobe_sync = cdc.FFSynchronizer(self.pin_valid, strobe, stages=SYNC_STAGES)
-        m.d.sync += strobe_last.eq(strobe)
-        rise = Signal()
-        m.d.comb += rise.eq(strobe & ~strobe_last)
+        rise = _synchronised_rise(m, self.pin_valid, "strobe")
 
         # Capture: the bus has been stable since the strobe rose
         m.submodules.filter = event_filter = EventFilter()
@@ -301,12 +308,7 @@ class CoarseTdc(wiring.Component):
         m = Module()
 
         # Hit synchroniser and edge detector
-        hit = Signal()
-        hit_last = Signal()
-        m.submodules.hit_sync = cdc.FFSynchronizer(self.pin_hit, hit, stages=SYNC_STAGES)
-        m.d.sync += hit_last.eq(hit)
-        rise = Signal()
-        m.d.comb += rise.eq(hit & ~hit_last)
+        rise = _synchronised_rise(m, self.pin_hit, "hit")
 
         # TDC start and pulse index, delayed as much as the hit
         start = self.tdc_start
