@@ -134,7 +134,7 @@ def simulate(settings, until, *, updates=(), enable=0, disable=None):
             restart = True
             next_update += 1
         if restart:
-            sequence = iter(current.delays(_chunk(current)))
+            sequence = iter(current.delays(_SEQUENCE_CHUNK))
             restart = False
         try:
             delay = int(next(sequence))
@@ -147,6 +147,5 @@ def simulate(settings, until, *, updates=(), enable=0, disable=None):
     return pulses
 
 
-def _chunk(settings):
-    # Enough delays for any run that `simulate` is asked for.
-    return 1 << 16
+#: Delays generated per (re)start: more pulses than any run `simulate` is asked for.
+_SEQUENCE_CHUNK = 1 << 16
