@@ -62,7 +62,14 @@ BOARD_PINS = {
 #: Other names a design may give a pin: alias -> name in :data:`FLISS_PINS`. Any name may also
 #: carry a ``pin_`` prefix (``pin_timestamp``).
 PIN_ALIASES = {
-    "hit": "photon",
+    "hit":              "photon",
+    "photon_hit":       "photon",
+    "aggressor_laser":  "aggressor",
+    "sensor_timestamp": "timestamp",
+    "sensor_address":   "address",
+    "sensor_valid":     "valid",
+    "sensor_collision": "collision",
+    "running":          "led",
 }
 
 
@@ -198,6 +205,13 @@ def _cat_ports(ports):
     for port in ports[1:]:
         result = result + port
     return result
+
+
+def fliss_top(clock_hz):
+    """The FLISS top level (:class:`fliss.hdl.top.FlissTop`) at ``clock_hz``, for
+    :class:`BoardTop`."""
+    from ..hdl.top import FlissTop
+    return FlissTop(clock_hz=clock_hz)
 
 
 class DemoSettings(data.Struct):

@@ -2,6 +2,7 @@ from amaranth.hdl import *
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
+from .buffer import StreamBuffer
 from .framing import PacketBeat
 
 
@@ -13,7 +14,8 @@ class PacketArbiter(wiring.Component):
 
     At a packet boundary the lowest-numbered input with a packet waiting wins, so replies to
     commands (input 0) never queue behind a histogram. Each packet leaves with the next sequence
-    number (modulo 256) in its header.
+    number (modulo 256) in its header. The output is registered (a :class:`StreamBuffer`), so no
+    combinational path runs from the inputs to the consumer.
 
     Parameters
     ----------
@@ -40,6 +42,10 @@ class PacketArbiter(wiring.Component):
     def elaborate(self, platform):
         m = Module()
 
+        m.submodules.buffer = buffer = StreamBuffer(PacketBeat)
+        wiring.connect(m, buffer.o, wiring.flipped(self.o))
+        merged = buffer.i
+
         seq = Signal(8)
         busy = Signal()
         grant = Signal(range(self.count))
@@ -54,15 +60,15 @@ class PacketArbiter(wiring.Component):
         for index, port in enumerate(self.i):
             with m.If(current == index):
                 m.d.comb += [
-                    self.o.valid.eq(port.valid),
-                    self.o.payload.eq(port.payload),
-                    port.ready.eq(self.o.ready),
+                    merged.valid.eq(port.valid),
+                    merged.payload.eq(port.payload),
+                    port.ready.eq(merged.ready),
                 ]
-        m.d.comb += self.o.p.header.seq.eq(seq)
+        m.d.comb += merged.p.header.seq.eq(seq)
 
-        with m.If(self.o.valid & self.o.ready):
-            m.d.sync += busy.eq(~self.o.p.last), grant.eq(current)
-            with m.If(self.o.p.last):
+        with m.If(merged.valid & merged.ready):
+            m.d.sync += busy.eq(~merged.p.last), grant.eq(current)
+            with m.If(merged.p.last):
                 m.d.sync += seq.eq(seq + 1)
 
         return m

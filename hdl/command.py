@@ -145,6 +145,8 @@ class CommandProcessor(wiring.Component):
         # Reply being sent
         reply_type = Signal(8)
         reply_length = Signal(16)
+        reply_final = Signal(16)        # index of the last payload byte
+        read_pointer = Signal(16)       # READ: address of the register being sent
         nak = Signal(data.StructLayout({"seq": 8, "code": NakCode, "detail": 16}),
                      init={"code": NakCode.BAD_CRC})
         snapshot = Signal(status_layout())
@@ -159,20 +161,39 @@ class CommandProcessor(wiring.Component):
         for register, value in zip(REGISTERS, words):
             m.d.comb += value.eq(self.settings[register.name])
 
-        # Range check of the value completing in this cycle, and its write to the candidate
+        # Range check of a WRITE value, one cycle after it completes (`check`): its register's
+        # bounds come out of two constant tables, so one pair of comparators serves them all.
+        check = Signal()
         value = Signal(32)
-        write_address = Signal(16)
-        in_range = Signal()
+        value_address = Signal(16)      # address of the value being received
         known = Signal()
-        with m.Switch(write_address):
+        minimum = Signal(32)
+        maximum = Signal(32)
+        with m.Switch(value_address):
             for register in REGISTERS:
                 with m.Case(register.address):
                     m.d.comb += [
                         known.eq(1),
-                        in_range.eq((value >= register.minimum) & (value <= register.maximum)),
+                        minimum.eq(register.minimum),
+                        maximum.eq(register.maximum),
                     ]
+        m.d.sync += check.eq(0)
+        with m.If(check):
+            with m.If(~has_error):
+                with m.If(~known):
+                    m.d.sync += [has_error.eq(1), error.eq(NakCode.BAD_ADDRESS),
+                                 error_detail.eq(value_address)]
+                with m.Elif((value < minimum) | (value > maximum)):
+                    m.d.sync += [has_error.eq(1), error.eq(NakCode.OUT_OF_RANGE),
+                                 error_detail.eq(value_address)]
+            with m.Switch(value_address):
+                for register in REGISTERS:
+                    with m.Case(register.address):
+                        m.d.sync += candidate[register.name].eq(value)
+            m.d.sync += value_address.eq(value_address + 1)
 
-        # Consistency of the candidate settings (registered: it is only needed a cycle later)
+        # Consistency of the candidate settings, in two registered steps (the largest delays
+        # first); it is needed two cycles after the candidate is complete.
         consistent = Signal()
         c = candidate
 
@@ -180,25 +201,29 @@ class CommandProcessor(wiring.Component):
             return Mux(mode == DelayMode.MSEQ, (Const(1, 34) << length) - 2,
                        Mux(mode == DelayMode.MASKED, (Const(1, 17) << mask_width) - 1, 0))
 
-        m.d.sync += consistent.eq(
-            (c.pulse_width < c.period) &
-            (~c.grid | (max_delay(c.delay_mode, c.length, c.mask_width) + c.pulse_width <
-                        c.period)) &
-            ((c.delay_mode != DelayMode.MSEQ) | ((c.seed >> c.length) == 0)) &
-            (c.aggressor_width < c.aggressor_period) &
-            ((c.aggressor_delay_mode != DelayMode.MSEQ) |
-             ((c.aggressor_seed >> c.aggressor_length) == 0)) &
-            (c.gate_start <= c.gate_end))
+        victim_max_delay = Signal(34)
+        simple = Signal()
+        m.d.sync += [
+            victim_max_delay.eq(max_delay(c.delay_mode, c.length, c.mask_width)),
+            simple.eq(
+                (c.pulse_width < c.period) &
+                ((c.delay_mode != DelayMode.MSEQ) | ((c.seed >> c.length) == 0)) &
+                (c.aggressor_width < c.aggressor_period) &
+                ((c.aggressor_delay_mode != DelayMode.MSEQ) |
+                 ((c.aggressor_seed >> c.aggressor_length) == 0)) &
+                (c.gate_start <= c.gate_end)),
+            consistent.eq(simple & (~c.grid | (victim_max_delay + c.pulse_width < c.period))),
+        ]
+
+        def reply(type, length):
+            return [reply_type.eq(type), reply_length.eq(length), reply_final.eq(length - 1)]
 
         def refuse(code, detail=0):
             return [
                 nak.seq.eq(cmd_seq), nak.code.eq(code), nak.detail.eq(detail),
-                reply_type.eq(PacketType.NAK), reply_length.eq(4),
+                *reply(PacketType.NAK, 4),
                 self.refused.eq(self.refused + 1),
             ]
-
-        def reply(type, length):
-            return [reply_type.eq(type), reply_length.eq(length)]
 
         with m.FSM():
             with m.State("IDLE"):
@@ -219,40 +244,34 @@ class CommandProcessor(wiring.Component):
                     m.d.sync += [
                         link_pending.eq(0),
                         nak.seq.eq(0), nak.code.eq(link_code), nak.detail.eq(0),
-                        reply_type.eq(PacketType.NAK), reply_length.eq(4),
+                        *reply(PacketType.NAK, 4),
                     ]
                     m.next = "HEADER"
 
             with m.State("PAYLOAD"):
                 m.d.comb += self.packets.ready.eq(1)
                 byte = self.packets.p.data
-                m.d.comb += [
-                    value.eq(Cat(word[8:], byte)),
-                    write_address.eq(address + ((index - 2) >> 2)),
-                ]
                 with m.If(self.packets.valid):
                     m.d.sync += [index.eq(index + 1), word.eq(Cat(word[8:], byte))]
                     with m.If(index == 0):
                         m.d.sync += address[:8].eq(byte)
                     with m.If(index == 1):
-                        m.d.sync += address[8:].eq(byte)
+                        m.d.sync += [
+                            address[8:].eq(byte),
+                            value_address.eq(Cat(address[:8], byte)),
+                        ]
                     with m.If(index == 2):
                         m.d.sync += count.eq(byte)
-                    # A WRITE value is complete: check it and put it in the candidate.
+                    # A WRITE value is complete: check it and put it in the candidate next.
                     with m.If((cmd_type == PacketType.WRITE) & (index >= 5) &
-                              ((index - 2)[:2] == 3) & ~has_error):
-                        with m.If(~known):
-                            m.d.sync += [has_error.eq(1), error.eq(NakCode.BAD_ADDRESS),
-                                         error_detail.eq(write_address)]
-                        with m.Elif(~in_range):
-                            m.d.sync += [has_error.eq(1), error.eq(NakCode.OUT_OF_RANGE),
-                                         error_detail.eq(write_address)]
-                        with m.Switch(write_address):
-                            for register in REGISTERS:
-                                with m.Case(register.address):
-                                    m.d.sync += candidate[register.name].eq(value)
+                              (index[:2] == 1)):
+                        m.d.sync += [check.eq(1), value.eq(Cat(word[8:], byte))]
                     with m.If(self.packets.p.last):
-                        m.next = "DISPATCH"
+                        m.next = "CHECK"
+
+            with m.State("CHECK"):
+                # The check of the last value completes.
+                m.next = "DISPATCH"
 
             with m.State("DISPATCH"):
                 m.next = "HEADER"
@@ -282,7 +301,7 @@ class CommandProcessor(wiring.Component):
                         with m.Elif(has_error):
                             m.d.sync += refuse(error, error_detail)
                         with m.Else():
-                            m.next = "COMMIT"
+                            m.next = "CONSISTENCY"
                     with m.Case(PacketType.START, PacketType.STOP):
                         with m.If(cmd_length == 0):
                             m.d.sync += [
@@ -305,6 +324,9 @@ class CommandProcessor(wiring.Component):
                     with m.Default():
                         m.d.sync += refuse(NakCode.UNKNOWN_TYPE, cmd_type)
 
+            with m.State("CONSISTENCY"):
+                m.next = "COMMIT"
+
             with m.State("COMMIT"):
                 # `consistent` now reflects the complete candidate.
                 m.next = "HEADER"
@@ -321,17 +343,19 @@ class CommandProcessor(wiring.Component):
                     self.replies.p.last.eq(reply_length == 0),
                 ]
                 with m.If(self.replies.ready):
-                    m.d.sync += index.eq(0)
+                    m.d.sync += index.eq(0), read_pointer.eq(address)
                     m.next = "DATA"
 
             with m.State("DATA"):
                 m.d.comb += [
                     self.replies.valid.eq(1),
-                    self.replies.p.last.eq(index == reply_length - 1),
+                    self.replies.p.last.eq(index == reply_final),
                 ]
                 with m.If(self.replies.ready):
                     m.d.sync += index.eq(index + 1)
-                    with m.If(index == reply_length - 1):
+                    with m.If((index >= 5) & (index[:2] == 1)):
+                        m.d.sync += read_pointer.eq(read_pointer + 1)
+                    with m.If(index == reply_final):
                         m.next = "IDLE"
 
         # Reply header and payload bytes
@@ -339,7 +363,7 @@ class CommandProcessor(wiring.Component):
         identity = Const({"protocol": PROTOCOL_VERSION, "gateware_major": major,
                           "gateware_minor": minor, "registers": len(REGISTERS),
                           "clock_hz": self.clock_hz, "baud": self.baud}, Identity)
-        reg_offset = (index - 2)[:16]
+        reg_byte = (index[:2] - 2)[:2]
         m.d.comb += [
             self.replies.p.header.type.eq(reply_type),
             self.replies.p.header.length.eq(reply_length),
@@ -360,6 +384,6 @@ class CommandProcessor(wiring.Component):
                     m.d.comb += self.replies.p.data.eq(address.word_select(index[0], 8))
                 with m.Else():
                     m.d.comb += self.replies.p.data.eq(
-                        words[address + (reg_offset >> 2)].word_select(reg_offset[:2], 8))
+                        words[read_pointer].word_select(reg_byte, 8))
 
         return m

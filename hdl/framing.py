@@ -438,7 +438,11 @@ class FrameDecoder(wiring.Component):
         with m.Else():
             m.d.comb += good.eq(1)
 
-        m.d.sync += self.drop.eq(0)
+        # At the delimiter: the verdict is registered (`accept`, or `drop` with its reason), and
+        # the counters and the output follow from those registers in the next cycle.
+        accept = Signal()
+        sent_header = Signal(Header)    # the header of the accepted packet
+        m.d.sync += [self.drop.eq(0), accept.eq(0)]
         with m.If(take & delimiter):
             m.d.comb += crc.clear.eq(1)
             m.d.sync += [
@@ -449,19 +453,22 @@ class FrameDecoder(wiring.Component):
             ]
             with m.If(raw_count != 0):
                 with m.If(good):
-                    m.d.sync += self.packets.eq(self.packets + 1)
+                    m.d.sync += [accept.eq(1), sent_header.eq(header)]
                 with m.Else():
                     m.d.sync += [
                         self.drop.eq(1),
                         self.drop_reason.eq(reason),
                     ]
-                    with m.Switch(reason):
-                        for code, counter in ((NakCode.OVERSIZE, self.oversize),
-                                              (NakCode.TRUNCATED, self.truncated),
-                                              (NakCode.BAD_CRC, self.bad_crc),
-                                              (NakCode.BAD_LENGTH, self.bad_length)):
-                            with m.Case(code):
-                                m.d.sync += counter.eq(counter + 1)
+        with m.If(accept):
+            m.d.sync += self.packets.eq(self.packets + 1)
+        with m.If(self.drop):
+            with m.Switch(self.drop_reason):
+                for code, counter in ((NakCode.OVERSIZE, self.oversize),
+                                      (NakCode.TRUNCATED, self.truncated),
+                                      (NakCode.BAD_CRC, self.bad_crc),
+                                      (NakCode.BAD_LENGTH, self.bad_length)):
+                    with m.Case(code):
+                        m.d.sync += counter.eq(counter + 1)
 
         # Output: a header beat, then the payload from the buffer; every output is a register.
         # `beat` counts beats sent. The buffer is read a beat ahead: `buf_rd.data` holds the
@@ -470,7 +477,7 @@ class FrameDecoder(wiring.Component):
         beat = Signal(range(MAX_PAYLOAD + 1))
         advance = Signal()
         m.d.comb += [
-            start.eq(take & delimiter & (raw_count != 0) & good),
+            start.eq(accept),
             advance.eq(self.o.valid & self.o.ready),
             self.o.valid.eq(sending),
             buf_rd.addr.eq(Mux(start, 0, Mux(advance, beat + 1, beat))),
@@ -488,10 +495,10 @@ class FrameDecoder(wiring.Component):
             m.d.sync += [
                 sending.eq(1),
                 beat.eq(0),
-                self.o.payload.header.eq(header),
+                self.o.payload.header.eq(sent_header),
                 self.o.payload.data.eq(0),
                 self.o.payload.first.eq(1),
-                self.o.payload.last.eq(header.length == 0),
+                self.o.payload.last.eq(sent_header.length == 0),
             ]
 
         return m
