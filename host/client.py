@@ -4,13 +4,16 @@
 (``/dev/ttyUSB1``), a pty of a virtual board (``/dev/pts/7``), ``loop://`` and
 ``socket://host:port`` all work the same. Every byte received goes through one
 :class:`fliss.host.protocol.FrameDecoder`, which checks CRC and sequence numbers and counts what
-is lost or damaged; replies go to the command that waits for them, data packets to a
+is lost or damaged (a :class:`fliss.host.bulk.BulkDecoder`, which decodes large reads with numpy
+and gives the same results); replies go to the command that waits for them, data packets to a
 :class:`StreamAssembler`, which turns HISTOGRAM chunks into whole histograms and EVENTS packets
 into event arrays.
 
 Commands are sent with a sequence number and re-sent with the *same* one when no reply comes in
-time (``timeout_s``, ``retries``). A reply is matched by what it answers: an ACK or NAK by the
-sequence number in its payload, IDENTITY, REGISTERS and STATUS by their type (and address).
+time (``timeout_s``, ``retries``; by default :data:`DEFAULT_TIMEOUT_S`, or :data:`PTY_TIMEOUT_S`
+on a pseudo-terminal, such as a virtual board's). A reply is matched by what it answers: an ACK
+or NAK by the sequence number in its payload, IDENTITY, REGISTERS and STATUS by their type (and
+address).
 Everything that goes wrong for a reason outside the program raises
 :class:`~fliss.host.cli.UserError` with one line that says what and what to do.
 """
@@ -19,6 +22,7 @@ import argparse
 import errno
 import logging
 import os
+import stat
 import struct
 import time
 from collections import deque
@@ -37,10 +41,12 @@ from ..hdl.registers import REGISTERS, BY_NAME, BY_ADDRESS, problems
 from ..hdl.top import DEFAULT_BAUD as _TOP_DEFAULT_BAUD
 from ..sim.event import EVENT_DTYPE
 from .cli import UserError
-from .protocol import FrameDecoder, Packet, PacketEncoder
+from .bulk import BulkDecoder
+from .protocol import Packet, PacketEncoder
 
 
-__all__ = ["DEFAULT_BAUD", "BoardError", "BoardLost", "IdentityInfo", "HistogramFrame",
+__all__ = ["DEFAULT_BAUD", "DEFAULT_TIMEOUT_S", "PTY_TIMEOUT_S", "is_pty", "default_timeout",
+           "BoardError", "BoardLost", "IdentityInfo", "HistogramFrame",
            "EventBatch", "StreamCounters", "StreamAssembler", "unpack_event_payload", "Board",
            "open_port", "add_port_arguments", "connect"]
 
@@ -49,6 +55,39 @@ _logger = logging.getLogger(__name__)
 
 #: Default baud rate: the gateware's default.
 DEFAULT_BAUD = _TOP_DEFAULT_BAUD
+
+#: Seconds to wait for each reply from a board on a serial device or a URL.
+DEFAULT_TIMEOUT_S = 0.5
+
+#: Seconds to wait for each reply on a pseudo-terminal. Behind a pty there is a program, most
+#: often the virtual board (a simulation, far slower than the gateware); its replies queue
+#: behind the histograms it is sending, and a short timeout makes the host re-send commands the
+#: board has not even read yet.
+PTY_TIMEOUT_S = 5.0
+
+# Character devices of Unix98 pty terminals on Linux (devices.txt: majors 136 to 143).
+_PTY_MAJORS = range(136, 144)
+
+
+def is_pty(port):
+    """True when ``port`` is the terminal side of a pseudo-terminal (``/dev/pts/N``, or a link to
+    one such as ``build/virtual-board/tty``; ``/dev/ttysN`` on macOS)."""
+    if "://" in port:
+        return False
+    path = os.path.realpath(port)
+    if path.startswith("/dev/pts/") or (path.startswith("/dev/ttys") and path[9:].isdigit()):
+        return True
+    try:
+        mode = os.stat(path)
+    except OSError:
+        return False
+    return stat.S_ISCHR(mode.st_mode) and os.major(mode.st_rdev) in _PTY_MAJORS
+
+
+def default_timeout(port):
+    """The reply timeout for ``port`` when none is given: :data:`PTY_TIMEOUT_S` for a
+    pseudo-terminal, else :data:`DEFAULT_TIMEOUT_S`."""
+    return PTY_TIMEOUT_S if is_pty(port) else DEFAULT_TIMEOUT_S
 
 _CHUNK = struct.Struct("<IHBB")      # HistogramChunk: frame, first_bin, shift, last
 assert _CHUNK.size == data.Layout.cast(HistogramChunk).size // 8
@@ -173,11 +212,16 @@ class StreamAssembler:
             except ValueError:
                 self.counters.malformed += 1
                 return []
-            self.counters.event_packets += 1
-            self.counters.events += len(events)
-            return [EventBatch(events, time_s)]
+            return self.add_events(events, time_s)
         self.counters.unexpected += 1
         return []
+
+    def add_events(self, events, time_s=None):
+        """The events of one EVENTS packet, already unpacked (``EVENT_DTYPE``), as by
+        :meth:`fliss.host.bulk.BulkDecoder.feed_events`."""
+        self.counters.event_packets += 1
+        self.counters.events += len(events)
+        return [EventBatch(events, time.time() if time_s is None else time_s)]
 
     def _chunk(self, payload, time_s):
         out = []
@@ -255,20 +299,20 @@ class Board:
         Device path, pty path or pyserial URL (``loop://``, ``socket://host:port``).
     baud : int
         Baud rate of the port (ignored by ptys and sockets).
-    timeout_s : float
-        How long to wait for each reply.
+    timeout_s : float or None
+        How long to wait for each reply; ``None``: :func:`default_timeout` of ``port``.
     retries : int
         How often to re-send a command that got no reply.
     serial_port : serial.SerialBase or None
         An open port to use instead of opening ``port``.
     """
 
-    def __init__(self, port, *, baud=DEFAULT_BAUD, timeout_s=0.5, retries=3, serial_port=None):
+    def __init__(self, port, *, baud=DEFAULT_BAUD, timeout_s=None, retries=3, serial_port=None):
         self.port_name = port
-        self.timeout_s = float(timeout_s)
+        self.timeout_s = float(default_timeout(port) if timeout_s is None else timeout_s)
         self.retries = int(retries)
         self.serial = open_port(port, baud) if serial_port is None else serial_port
-        self.decoder = FrameDecoder(synced=False)
+        self.decoder = BulkDecoder(synced=False)
         self.encoder = PacketEncoder()
         self.assembler = StreamAssembler()
         self.identity = None
@@ -333,7 +377,10 @@ class Board:
 
     def poll(self, wait_s=0.05):
         """Read what has arrived (waiting up to ``wait_s`` for the first byte) and decode it.
-        Returns the number of bytes read."""
+        Returns the number of bytes read.
+
+        The event batches of one read are queued after its other data (in a read of
+        :data:`~fliss.host.bulk.BULK_MIN_BYTES` or more, which is decoded in bulk)."""
         try:
             waiting = self.serial.in_waiting
             if not waiting:
@@ -346,12 +393,15 @@ class Board:
         if data:
             self._last_rx = time.monotonic()
             now = time.time()
-            for item in self.decoder.feed(data):
+            decoded = self.decoder.feed_events(data)
+            for item in decoded.items:
                 if isinstance(item, Packet):
                     if item.type in (PacketType.HISTOGRAM, PacketType.EVENTS):
                         self._data.extend(self.assembler.add(item, now))
                     else:
                         self._replies.append(item)
+            for events in decoded.batches():
+                self._data.extend(self.assembler.add_events(events, now))
         return len(data)
 
     @property
@@ -624,16 +674,27 @@ def add_port_arguments(parser):
                              "default")
     parser.add_argument("--baud", type=int, default=DEFAULT_BAUD,
                         help="baud rate of the port (ignored by ptys and sockets)")
-    parser.add_argument("--timeout", type=float, default=0.5, metavar="S",
-                        help="seconds to wait for each reply")
+    parser.add_argument("--timeout", type=_timeout, default="auto", metavar="S",
+                        help=f"seconds to wait for each reply; auto: {DEFAULT_TIMEOUT_S:g} s, or "
+                             f"{PTY_TIMEOUT_S:g} s on a pty (a virtual board: a simulation, "
+                             f"slow to answer while it sends histograms)")
     parser.add_argument("--retries", type=int, default=3,
                         help="times a command is re-sent when no reply comes")
+
+
+def _timeout(text):
+    if text == "auto":
+        return None
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number of seconds or auto: {text!r}") from None
 
 
 def connect(args):
     """A :class:`Board` from the arguments of :func:`add_port_arguments`, identified (so a
     board of another protocol version is refused at once)."""
-    if args.timeout <= 0:
+    if args.timeout is not None and args.timeout <= 0:
         raise UserError(f"--timeout must be positive, not {args.timeout:g}")
     if args.retries < 0:
         raise UserError(f"--retries must not be negative, not {args.retries}")

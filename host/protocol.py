@@ -4,10 +4,13 @@ Everything about the format comes from :mod:`fliss.hdl.protocol`; this module on
 
 * :func:`crc16`, :func:`cobs_encode`, :func:`cobs_decode`;
 * :func:`encode_packet` / :func:`encode_frame`: a packet as packet bytes / as a wire frame;
-  :class:`PacketEncoder` numbers the packets a host sends;
+  :class:`PacketEncoder` numbers the packets a host sends; :func:`decode_frame` checks one
+  frame;
 * :class:`FrameDecoder`: a streaming decoder fed with bytes as they arrive, which yields packets
   and reports every damaged frame, sequence gap and resynchronisation, and counts them;
 * :func:`pack_events` / :func:`unpack_events`: the payload of an EVENTS packet.
+
+:mod:`fliss.host.bulk` decodes large reads and recordings with numpy, with the same results.
 
 The gateware (:mod:`fliss.hdl.framing`) is tested against this codec bit for bit.
 """
@@ -27,8 +30,8 @@ from ..sim import event as _event
 
 
 __all__ = ["CobsError", "crc16", "cobs_encode", "cobs_decode", "Packet", "encode_packet",
-           "encode_frame", "decode_packet", "LinkError", "SequenceGap", "Resync", "LinkCounters",
-           "FrameDecoder", "PacketEncoder", "pack_events", "unpack_events"]
+           "encode_frame", "decode_packet", "decode_frame", "LinkError", "SequenceGap", "Resync",
+           "LinkCounters", "FrameDecoder", "PacketEncoder", "pack_events", "unpack_events"]
 
 
 # CRC
@@ -204,6 +207,22 @@ def decode_packet(packet):
     return Packet(_packet_type(type), seq, bytes(payload)), None
 
 
+def decode_frame(frame):
+    """Check and decode one frame as received (COBS-encoded, without its delimiter); returns
+    ``(Packet, None)`` or ``(None, code)``.
+
+    The checks, in order: more than :data:`MAX_ENCODED` bytes (``OVERSIZE``), a COBS block cut
+    by the delimiter (``TRUNCATED``), then those of :func:`decode_packet`.
+    """
+    if len(frame) > MAX_ENCODED:
+        return None, NakCode.OVERSIZE
+    try:
+        packet_bytes = cobs_decode(frame)
+    except CobsError:
+        return None, NakCode.TRUNCATED
+    return decode_packet(packet_bytes)
+
+
 # Streaming decoder
 
 @dataclass(frozen=True)
@@ -310,15 +329,7 @@ class FrameDecoder:
             return
         if length == 0:
             return
-        if length > self._KEEP:
-            self._drop(out, NakCode.OVERSIZE, frame)
-            return
-        try:
-            packet_bytes = cobs_decode(frame)
-        except CobsError:
-            self._drop(out, NakCode.TRUNCATED, frame)
-            return
-        packet, code = decode_packet(packet_bytes)
+        packet, code = decode_frame(frame)
         if packet is None:
             self._drop(out, code, frame)
             return
