@@ -2,6 +2,10 @@
 
 The model assumes the readout keeps up, as the gateware needs for acquisitions without dead
 time: each frame is read out before the next one ends, so frames are back to back.
+
+It models both RAM kinds (``Histogram(ram="dual")`` and ``ram="single"``), with, for single-port
+banks, events at least two cycles apart (closer ones are dropped and counted in
+``dropped_busy``) and ``enable`` rising no earlier than ``Histogram.init_cycles``.
 """
 
 import numpy as np

@@ -1,15 +1,17 @@
-"""Histogram engine: gateware against the model, one event per clock, bank swaps, readout."""
+"""Histogram engine: gateware against the model, one event per clock (dual-port banks) or every
+other clock (single-port banks), bank swaps, readout."""
 
 import gc
 import warnings
 
 import numpy as np
 import pytest
-from amaranth.hdl import UnusedElaboratable
+from amaranth.hdl import Fragment, Instance, UnusedElaboratable
 from amaranth.sim import Simulator
 
 from fliss.hdl import DEFAULT_CLOCK_HZ
 from fliss.hdl.histogram import Histogram, BIN_BITS, COUNT_WIDTH
+from fliss.hdl.spram import SinglePortRam
 from fliss.sim import histogram as model
 
 
@@ -65,9 +67,13 @@ def hazard_stimulus(rng, cycles, *, bins, shift, gaps=True):
 
 
 def run_histogram(dut, valid, timestamps, *, integration, shift, ready=None, settle=None,
-                  probe=None):
+                  probe=None, garbage=None, wait_init=True):
     """Drive ``valid``/``timestamps`` from cycle 0, with ``enable`` high from cycle 0 to the
-    cycle after the last event; collect the read out frames.
+    cycle after the last event; collect the read out frames. Cycle 0 is the first cycle a frame
+    can start in (``dut.init_cycles`` after reset: before it, ``enable`` is low and no event
+    arrives). ``garbage``: a random generator to fill both banks with at reset (the
+    single-port engine must clear them, like SPRAM at power-up). ``wait_init=False``: cycle 0 is
+    the first after reset, whatever ``dut.init_cycles``.
 
     Returns frames (list of (counts, shift)) and the final counters.
     """
@@ -79,6 +85,13 @@ def run_histogram(dut, valid, timestamps, *, integration, shift, ready=None, set
         settle = 4 * model.readout_cycles(shift, dut.bin_bits) + 100
 
     async def stimulus(ctx):
+        if garbage is not None:
+            for bank in dut.banks:
+                for index, value in enumerate(garbage.integers(1 << dut.count_width,
+                                                               size=bank.data.depth)):
+                    ctx.set(bank.data[index], int(value))
+        if dut.init_cycles and wait_init:
+            await ctx.tick().repeat(dut.init_cycles)
         ctx.set(dut.integration, integration)
         ctx.set(dut.shift, shift)
         ctx.set(dut.enable, 1)
@@ -95,7 +108,8 @@ def run_histogram(dut, valid, timestamps, *, integration, shift, ready=None, set
             if idle == 10:
                 break
         result.update(dropped=ctx.get(dut.dropped), overflow=ctx.get(dut.overflow),
-                      frames=ctx.get(dut.frames), pending=ctx.get(dut.pending))
+                      frames=ctx.get(dut.frames), pending=ctx.get(dut.pending),
+                      dropped_busy=ctx.get(dut.dropped_busy))
 
     async def consumer(ctx):
         counts = []
@@ -140,10 +154,35 @@ def check_against_model(frames, result, valid, timestamps, *, integration, shift
             f"frame {k}: bins {mismatch[:8]} read {counts[mismatch[:8]]}, want {want[mismatch[:8]]}"
     assert result["overflow"] == overflow
     assert result["dropped"] == dropped
+    assert result["dropped_busy"] == 0
     assert result["frames"] == len(expected)
     assert result["pending"] == 0
     # Every event is counted exactly once: in a bin, in overflow or in dropped.
     assert sum(int(f.sum()) for f, _ in frames) + overflow + dropped == int(valid.sum())
+
+
+def spaced(rng, valid, timestamps, *, length=None):
+    """The events of ``valid``/``timestamps`` in order, at least two cycles apart: mostly two,
+    else three to six (the most the single-port engine takes). ``length``: cut or pad to that
+    many cycles."""
+    ts = timestamps[valid]
+    gaps = np.where(rng.random(len(ts)) < 0.7, 2, rng.integers(3, 7, size=len(ts)))
+    cycles = np.cumsum(gaps) - gaps[0]
+    if length is None:
+        length = int(cycles[-1]) + 1
+    keep = cycles < length
+    out_valid = np.zeros(length, dtype=bool)
+    out_timestamps = np.zeros(length, dtype=np.int64)
+    out_valid[cycles[keep]] = True
+    out_timestamps[cycles[keep]] = ts[keep]
+    return out_valid, out_timestamps
+
+
+def hits(valid, timestamps, shift, apart):
+    """Events whose bin is that of the event before, which arrived ``apart`` cycles earlier."""
+    cycles = np.flatnonzero(valid)
+    bins = timestamps[valid] >> shift
+    return int(np.count_nonzero((np.diff(cycles) == apart) & (bins[1:] == bins[:-1])))
 
 
 def test_one_event_per_clock_matches_model():
@@ -161,47 +200,85 @@ def test_one_event_per_clock_matches_model():
     assert np.count_nonzero((bins[2:] == bins[:-2]) & (bins[1:-1] != bins[2:])) > 500
 
 
-def test_gaps_overflow_and_slow_reader():
+def test_single_port_every_other_clock_matches_model():
+    # Single-port banks, 8192 bins, shift 5, events two to six cycles apart (mostly two): same
+    # bin back to back (forwarded or from the RAM, depending on the read slots), A,B,A, runs.
+    rng = np.random.default_rng(2020)
+    integration, shift = 1_500, 5
+    valid, timestamps = hazard_stimulus(rng, 3_000, bins=256, shift=shift, gaps=False)
+    valid, timestamps = spaced(rng, valid, timestamps)
+    dut = Histogram(ram="single")
+    assert dut.latency == 8 and dut.readout_cycles_per_bin == model.READOUT_CYCLES_PER_BIN
+    assert dut.init_cycles == 8192 and dut.min_event_spacing == 2
+    frames, result = run_histogram(dut, valid, timestamps, integration=integration, shift=shift)
+    check_against_model(frames, result, valid, timestamps, integration=integration,
+                        shift=shift, bin_bits=BIN_BITS)
+    assert hits(valid, timestamps, shift, 2) > 500
+    assert hits(valid, timestamps, shift, 3) > 50
+    events = timestamps[valid] >> shift
+    assert np.count_nonzero((events[2:] == events[:-2]) & (events[1:-1] != events[2:])) > 200
+
+
+@pytest.mark.parametrize("ram", ["dual", "single"])
+def test_gaps_overflow_and_slow_reader(ram):
     # 128 bins in RAM and no shift: timestamps from 128 up overflow and are counted. The reader
-    # is ready in half of the cycles and still keeps up with the frames.
+    # is ready in half of the cycles and still keeps up with the frames. The banks start with
+    # garbage: the single-port engine clears them after reset.
     rng = np.random.default_rng(7)
     cycles, integration, shift, bin_bits = 4_000, 1_300, 0, 7
     valid, timestamps = hazard_stimulus(rng, cycles, bins=128, shift=shift, gaps=True)
     timestamps[rng.random(cycles) < 0.1] = rng.integers(128, 8192)
+    if ram == "single":
+        valid, timestamps = spaced(rng, valid, timestamps)
     ready_pattern = rng.random(100_000) < 0.5
-    dut = Histogram(bin_bits=bin_bits)
+    dut = Histogram(bin_bits=bin_bits, ram=ram)
     frames, result = run_histogram(dut, valid, timestamps, integration=integration, shift=shift,
-                                   ready=lambda cycle: ready_pattern[cycle])
+                                   ready=lambda cycle: ready_pattern[cycle],
+                                   garbage=rng if ram == "single" else None)
     check_against_model(frames, result, valid, timestamps, integration=integration,
                         shift=shift, bin_bits=bin_bits)
     assert result["overflow"] > 100
 
 
-def test_disable_on_frame_boundary():
+@pytest.mark.parametrize("ram", ["dual", "single"])
+def test_disable_on_frame_boundary(ram):
     # enable falls exactly where a frame starts: that frame is read out empty, in the model too
     rng = np.random.default_rng(5)
     cycles, integration, shift = 1 + 3 * 600, 600, 6
     valid, timestamps = hazard_stimulus(rng, cycles, bins=128, shift=shift, gaps=False)
-    dut = Histogram()
+    if ram == "single":
+        valid, timestamps = spaced(rng, valid, timestamps, length=cycles)
+    dut = Histogram(ram=ram)
     frames, result = run_histogram(dut, valid, timestamps, integration=integration, shift=shift)
     check_against_model(frames, result, valid, timestamps, integration=integration,
                         shift=shift, bin_bits=BIN_BITS)
-    assert len(frames) == 4 and frames[3][0].sum() == 0 and frames[2][0].sum() == integration
+    assert len(frames) == 4 and frames[3][0].sum() == 0
+    assert frames[2][0].sum() == np.count_nonzero(valid[1 + 2 * integration:]) > 150
 
 
-def test_counts_saturate():
+@pytest.mark.parametrize("ram", ["dual", "single"])
+def test_counts_saturate(ram):
     # Bins preloaded near 2**16 - 1 (as after a long acquisition), then hit back to back:
-    # counts stop at 65535, through the RAM path and through both forwarding paths.
+    # counts stop at 65535, through the RAM path and through the forwarding paths.
     count_max = (1 << COUNT_WIDTH) - 1
-    dut = Histogram(bin_bits=4)
+    dut = Histogram(bin_bits=4, ram=ram)
     shift = 9
     preload = np.zeros(16, dtype=np.int64)
     preload[[3, 5, 7, 9]] = count_max - 2, count_max, count_max - 1, count_max - 4
     bins = [3, 3, 3, 3, 3, 5, 7, 9, 7, 9, 7, 9, 7, 9, 1, 9, 9, 9, 9]
-    stream = np.array(bins + [None] * 3 + [5, 9, None, None, 9, 3], dtype=object)
+    stream = bins + [None] * 3 + [5, 9, None, None, 9, 3]
+    if ram == "single":
+        # two cycles apart, sometimes three: forwarded, or read after the write
+        spread = []
+        for k, value in enumerate(stream):
+            spread += [value] + [None] * (1 + (k % 5 == 4))
+        stream = spread
+    stream = np.array(stream, dtype=object)
     frames = []
 
     async def stimulus(ctx):
+        if dut.init_cycles:
+            await ctx.tick().repeat(dut.init_cycles)
         for index, value in enumerate(preload):
             ctx.set(dut.banks[0].data[index], int(value))
         ctx.set(dut.integration, 1000)
@@ -238,17 +315,22 @@ def test_counts_saturate():
     assert counts[3] == count_max and counts.sum() == count_max
 
 
-def test_busy_reader_drops_are_counted():
+@pytest.mark.parametrize("ram", ["dual", "single"])
+def test_busy_reader_drops_are_counted(ram):
     # The reader stalls for a long time: the engine waits for the bank with `filling` low,
     # drops and counts the events that arrive meanwhile, and every frame holds exactly the
     # events of its own fill window.
     rng = np.random.default_rng(3)
     cycles, integration, shift = 3_000, 600, 6
     valid, timestamps = hazard_stimulus(rng, cycles, bins=128, shift=shift, gaps=False)
-    dut = Histogram()
+    if ram == "single":
+        valid, timestamps = spaced(rng, valid, timestamps, length=cycles)
+    dut = Histogram(ram=ram)
     filling = np.zeros(cycles + 5000, dtype=bool)
 
     async def probe(ctx):
+        if dut.init_cycles:
+            await ctx.tick().repeat(dut.init_cycles)   # cycle 0 of the stimulus
         cycle = 0
         while True:
             _, _, f = await ctx.tick().sample(dut.filling)
@@ -256,8 +338,9 @@ def test_busy_reader_drops_are_counted():
             cycle += 1
 
     stall = lambda cycle: not (700 <= cycle < 1_000 or 1_500 <= cycle < 1_800)
+    stall_at = lambda cycle: stall(cycle - dut.init_cycles)
     frames, result = run_histogram(dut, valid, timestamps, integration=integration, shift=shift,
-                                   ready=stall, probe=probe)
+                                   ready=stall_at, probe=probe)
     # Fill windows from the observed `filling`: a frame ends after `integration` filling
     # cycles (back to back frames) or where `filling` falls.
     window = np.flatnonzero(filling[:cycles])
@@ -274,8 +357,132 @@ def test_busy_reader_drops_are_counted():
         np.testing.assert_array_equal(counts, want)
     counted = sum(int(f.sum()) for f, _ in frames)
     expected_drops = int(np.count_nonzero(valid & ~filling[:cycles]))
-    assert result["dropped"] == expected_drops > 300
+    assert result["dropped"] == expected_drops > (300 if ram == "dual" else 150)
+    assert result["dropped_busy"] == 0
     assert counted + result["dropped"] == int(valid.sum())
+
+
+def test_single_port_events_too_close_are_counted():
+    # Events one cycle apart (too close for single-port banks) among events two or more apart:
+    # the engine takes an event unless it took one in the cycle before; the others are counted
+    # in `dropped_busy` and `dropped`. The frames hold exactly the events taken.
+    rng = np.random.default_rng(11)
+    cycles, integration, shift, bin_bits = 3_000, 700, 0, 7
+    _, timestamps = hazard_stimulus(rng, cycles, bins=128, shift=shift, gaps=False)
+    valid = rng.random(cycles) < 0.6            # many events one cycle apart, runs of them too
+    valid[rng.integers(cycles, size=20)] = False
+    dut = Histogram(bin_bits=bin_bits, ram="single")
+    frames, result = run_histogram(dut, valid, timestamps, integration=integration, shift=shift,
+                                   garbage=rng)
+    # Independently: frames fill from cycle 1 to cycle `cycles - 1` (enable falls at `cycles`)
+    taken = np.zeros(cycles, dtype=bool)
+    for cycle in np.flatnonzero(valid):
+        taken[cycle] = 1 <= cycle and not (cycle >= 1 and taken[cycle - 1])
+    busy = valid & ~taken & (np.arange(cycles) >= 1)
+    expected, overflow, _ = model.frames(np.flatnonzero(taken), timestamps[taken],
+                                         integration=integration, enable=0, disable=cycles,
+                                         shift=shift, bin_bits=bin_bits)
+    assert len(frames) == len(expected) >= 4
+    for (counts, _), want in zip(frames, expected):
+        np.testing.assert_array_equal(counts, want)
+    assert result["overflow"] == overflow > 100
+    assert result["dropped_busy"] == int(busy.sum()) > 300
+    assert result["dropped"] == int(busy.sum()) + int(valid[0])
+    assert sum(int(f.sum()) for f, _ in frames) + result["overflow"] + result["dropped"] == \
+        int(valid.sum())
+    assert hits(taken, timestamps, shift, 2) > 100
+
+
+def test_single_port_clears_banks_after_reset():
+    # `enable` high from reset: the first frame starts once the banks are cleared, as if
+    # `enable` rose in cycle `init_cycles`; events before are dropped; no garbage is read out.
+    rng = np.random.default_rng(13)
+    integration, shift, bin_bits = 600, 0, 7
+    dut = Histogram(bin_bits=bin_bits, ram="single")
+    start = dut.init_cycles
+    assert start == 128
+    valid, timestamps = hazard_stimulus(rng, 1_200, bins=128, shift=shift, gaps=False)
+    valid, timestamps = spaced(rng, valid, timestamps, length=start + 3 * integration)
+    valid[start - 6:start + 6] = np.arange(12) % 2 == 0    # around the first frame start
+    filling = []
+
+    async def probe(ctx):
+        while True:
+            _, _, f = await ctx.tick().sample(dut.filling)
+            filling.append(f)
+
+    frames, result = run_histogram(dut, valid, timestamps, integration=integration, shift=shift,
+                                   garbage=rng, wait_init=False, probe=probe)
+    assert filling.index(1) == start + 1
+    expected, overflow, dropped = model.frames(
+        np.flatnonzero(valid), timestamps[valid], integration=integration, enable=start,
+        disable=len(valid), shift=shift, bin_bits=bin_bits)
+    assert len(frames) == len(expected) == 3
+    for (counts, _), want in zip(frames, expected):
+        np.testing.assert_array_equal(counts, want)
+    assert result["dropped"] == dropped == int(valid[:start + 1].sum())
+    assert result["overflow"] == overflow
+    assert result["dropped_busy"] == 0
+
+
+def test_single_port_ram():
+    # SinglePortRam against a dictionary: a read shows the word in the next cycle, a write
+    # cycle reads nothing and the output holds, a read after a write sees the new word.
+    rng = np.random.default_rng(17)
+    ram = SinglePortRam(depth=64, width=16)
+    ops = [(int(rng.integers(64)), bool(rng.random() < 0.5), int(rng.integers(1 << 16)))
+           for _ in range(2_000)]
+    ops += [(5, True, 1234), (5, False, 0), (5, True, 4321), (6, False, 0), (5, False, 0)]
+
+    async def testbench(ctx):
+        contents = {}
+        out = 0
+        for address, write, data in ops:
+            ctx.set(ram.addr, address)
+            ctx.set(ram.write_en, write)
+            ctx.set(ram.write_data, data)
+            await ctx.tick()
+            if write:
+                contents[address] = data
+            else:
+                out = contents.get(address, 0)
+            assert ctx.get(ram.read_data) == out
+        assert out == 4321
+
+    sim = Simulator(ram)
+    sim.add_clock(1 / DEFAULT_CLOCK_HZ)
+    sim.add_testbench(testbench)
+    sim.run()
+
+
+def test_single_port_ram_spram_on_ice40_up():
+    # On an iCE40 UltraPlus platform the RAM is an SB_SPRAM256KA; other shapes are refused.
+    icebreaker = pytest.importorskip("amaranth_boards.icebreaker")
+    platform = icebreaker.ICEBreakerPlatform()
+    fragment = Fragment.get(SinglePortRam(depth=8192, width=16), platform)
+    cells = [sub for sub, _, _ in fragment.subfragments if isinstance(sub, Instance)]
+    assert [cell.type for cell in cells] == ["SB_SPRAM256KA"]
+    assert cells[0].ports["POWEROFF"][0].value == 1
+    for depth, width in ((16385, 16), (8192, 8), (8192, 32)):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UnusedElaboratable)
+            with pytest.raises(ValueError) as info:
+                Fragment.get(SinglePortRam(depth=depth, width=width), platform)
+        assert str(info.value) == (f"SB_SPRAM256KA on iCE40UP5K holds up to 16384 words of 16 "
+                                   f"bits, not {depth} words of {width} bits")
+    # elsewhere (no platform) a generic memory
+    fragment = Fragment.get(SinglePortRam(depth=8192, width=16), None)
+    assert not any(isinstance(sub, Instance) for sub, _, _ in fragment.subfragments)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnusedElaboratable)
+        histogram = Fragment.get(Histogram(ram="single"), platform)
+    def instances(fragment):
+        for sub, _, _ in fragment.subfragments:
+            if isinstance(sub, Instance):
+                yield sub.type
+            else:
+                yield from instances(sub)
+    assert list(instances(histogram)) == ["SB_SPRAM256KA"] * 2
 
 
 @pytest.mark.parametrize("kwargs, message", [
@@ -283,6 +490,14 @@ def test_busy_reader_drops_are_counted():
     ({"bin_bits": 14}, "Bin index width must be an integer from 1 to 13 bits, not 14"),
     ({"count_width": 15}, "Count width must be an integer from 16 to 32 bits, not 15"),
     ({"count_width": "16"}, "Count width must be an integer from 16 to 32 bits, not '16'"),
+    ({"ram": "triple"}, "RAM kind must be one of 'dual', 'single', not 'triple'"),
+    ({"ram": None}, "RAM kind must be one of 'dual', 'single', not None"),
+    ({"ram": "single", "count_width": 17},
+     "Count width must be 16 bits with single-port RAM, not 17"),
+    ({"ram": "single", "count_width": 32},
+     "Count width must be 16 bits with single-port RAM, not 32"),
+    ({"ram": "single", "bin_bits": 14},
+     "Bin index width must be an integer from 1 to 13 bits, not 14"),
 ])
 def test_bad_parameters(kwargs, message):
     assert construction_error(lambda: Histogram(**kwargs)) == message
@@ -309,3 +524,35 @@ def test_model_by_hand():
     assert [list(h) for h in hists] == [[0, 1, 2, 0, 0, 0, 0, 0], [0, 0, 1, 0, 0, 0, 0, 1],
                                         [0] * 8]
     assert overflow == 0 and dropped == 2
+
+
+@pytest.mark.parametrize("ram", ["dual", "single"])
+def test_shortest_frame_without_dead_time(ram):
+    # With a reader that is always ready, frames follow each other without dead time if
+    # `integration` is at least 4 n + latency + 3 cycles (n bins read out), and not with one
+    # cycle less: `latency` and `readout_cycles_per_bin` are what the gateware does.
+    dut = Histogram(bin_bits=4, ram=ram)
+    shortest = dut.readout_cycles_per_bin * 16 + dut.latency + 3
+    lows = {}
+
+    async def testbench(ctx):
+        ctx.set(dut.readout.ready, 1)
+        if dut.init_cycles:
+            await ctx.tick().repeat(dut.init_cycles)
+        for integration in (shortest, shortest - 1):
+            ctx.set(dut.integration, integration)
+            ctx.set(dut.enable, 1)
+            await ctx.tick().repeat(2)
+            filling = []
+            for _ in range(6 * integration):
+                _, _, f = await ctx.tick().sample(dut.filling)
+                filling.append(f)
+            lows[integration] = filling.count(0)
+            ctx.set(dut.enable, 0)
+            await ctx.tick().repeat(4 * integration)
+
+    sim = Simulator(dut)
+    sim.add_clock(1 / DEFAULT_CLOCK_HZ)
+    sim.add_testbench(testbench)
+    sim.run()
+    assert lows[shortest] == 0 and lows[shortest - 1] > 0
