@@ -99,7 +99,8 @@ class CommandProcessor(wiring.Component):
     settings : Out(settings_layout())
         The registers.
     update : Out(1)
-        Strobe: settings changed while running.
+        Strobe: settings changed while running; in the cycle after ``settings`` changed (a
+        register, for timing).
     running : Out(1)
         Acquisition started.
     status : In(status_layout())
@@ -133,10 +134,14 @@ class CommandProcessor(wiring.Component):
         # Command being received
         cmd_type = Signal(8)
         cmd_seq = Signal(8)
-        cmd_length = Signal(16)
+        # Payload length checks of the command, registered with its header
+        no_payload = Signal()           # length 0
+        read_payload = Signal()         # length 3: address and count
+        write_payload = Signal()        # length 2 + 4 n, n >= 1: address and n values
         index = Signal(16)
         address = Signal(16)
         count = Signal(8)
+        read_bad = Signal()             # READ: the registers asked for do not exist
         word = Signal(32)
         error = Signal(NakCode, init=NakCode.BAD_ADDRESS)
         error_detail = Signal(16)
@@ -215,14 +220,23 @@ class CommandProcessor(wiring.Component):
             consistent.eq(simple & (~c.grid | (victim_max_delay + c.pulse_width < c.period))),
         ]
 
-        def reply(type, length):
-            return [reply_type.eq(type), reply_length.eq(length), reply_final.eq(length - 1)]
+        def reply(type, length, final=None):
+            # `final`: the index of the last payload byte, `length - 1`, given without an adder
+            # when `length` is not a constant
+            return [reply_type.eq(type), reply_length.eq(length),
+                    reply_final.eq(length - 1 if final is None else final)]
+
+        m.d.sync += self.update.eq(0)
+        refusing = Signal()     # a NAK was decided in the previous cycle: count it now
+        m.d.sync += refusing.eq(0)
+        with m.If(refusing):
+            m.d.sync += self.refused.eq(self.refused + 1)
 
         def refuse(code, detail=0):
             return [
                 nak.seq.eq(cmd_seq), nak.code.eq(code), nak.detail.eq(detail),
                 *reply(PacketType.NAK, 4),
-                self.refused.eq(self.refused + 1),
+                refusing.eq(1),
             ]
 
         with m.FSM():
@@ -232,7 +246,10 @@ class CommandProcessor(wiring.Component):
                     header = self.packets.p.header
                     m.d.sync += [
                         cmd_type.eq(header.type), cmd_seq.eq(header.seq),
-                        cmd_length.eq(header.length), index.eq(0), has_error.eq(0),
+                        no_payload.eq(header.length == 0),
+                        read_payload.eq(header.length == 3),
+                        write_payload.eq((header.length >= 6) & (header.length[:2] == 2)),
+                        index.eq(0), has_error.eq(0),
                         candidate.eq(self.settings),
                         self.commands.eq(self.commands + 1),
                     ]
@@ -270,40 +287,42 @@ class CommandProcessor(wiring.Component):
                         m.next = "CHECK"
 
             with m.State("CHECK"):
-                # The check of the last value completes.
+                # The check of the last WRITE value completes; the range of a READ is checked.
+                m.d.sync += read_bad.eq((count == 0) | (count > READ_MAX) |
+                                        (address + count > len(REGISTERS)))
                 m.next = "DISPATCH"
 
             with m.State("DISPATCH"):
                 m.next = "HEADER"
                 with m.Switch(cmd_type):
                     with m.Case(PacketType.PING):
-                        with m.If(cmd_length == 0):
+                        with m.If(no_payload):
                             m.d.sync += reply(PacketType.ACK, 1)
                         with m.Else():
                             m.d.sync += refuse(NakCode.BAD_PAYLOAD)
                     with m.Case(PacketType.IDENTIFY):
-                        with m.If(cmd_length == 0):
+                        with m.If(no_payload):
                             m.d.sync += reply(PacketType.IDENTITY,
                                               data.Layout.cast(Identity).size // 8)
                         with m.Else():
                             m.d.sync += refuse(NakCode.BAD_PAYLOAD)
                     with m.Case(PacketType.READ):
-                        with m.If(cmd_length != 3):
+                        with m.If(~read_payload):
                             m.d.sync += refuse(NakCode.BAD_PAYLOAD)
-                        with m.Elif((count == 0) | (count > READ_MAX) |
-                                    (address + count > len(REGISTERS))):
+                        with m.Elif(read_bad):
                             m.d.sync += refuse(NakCode.BAD_ADDRESS, address)
                         with m.Else():
-                            m.d.sync += reply(PacketType.REGISTERS, 2 + 4 * count)
+                            m.d.sync += reply(PacketType.REGISTERS, Cat(C(2, 2), count),
+                                              final=Cat(C(1, 2), count))
                     with m.Case(PacketType.WRITE):
-                        with m.If((cmd_length < 6) | (cmd_length[:2] != 2)):
+                        with m.If(~write_payload):
                             m.d.sync += refuse(NakCode.BAD_PAYLOAD)
                         with m.Elif(has_error):
                             m.d.sync += refuse(error, error_detail)
                         with m.Else():
                             m.next = "CONSISTENCY"
                     with m.Case(PacketType.START, PacketType.STOP):
-                        with m.If(cmd_length == 0):
+                        with m.If(no_payload):
                             m.d.sync += [
                                 reply(PacketType.ACK, 1),
                                 self.running.eq(cmd_type == PacketType.START),
@@ -311,7 +330,7 @@ class CommandProcessor(wiring.Component):
                         with m.Else():
                             m.d.sync += refuse(NakCode.BAD_PAYLOAD)
                     with m.Case(PacketType.GET_STATUS):
-                        with m.If(cmd_length == 0):
+                        with m.If(no_payload):
                             m.d.sync += [
                                 reply(PacketType.STATUS, len(STATUS_FIELDS) * 4),
                                 snapshot.eq(self.status),
@@ -332,7 +351,7 @@ class CommandProcessor(wiring.Component):
                 m.next = "HEADER"
                 with m.If(consistent):
                     m.d.sync += [self.settings.eq(candidate), reply(PacketType.ACK, 1)]
-                    m.d.comb += self.update.eq(self.running)
+                    m.d.sync += self.update.eq(self.running)
                 with m.Else():
                     m.d.sync += refuse(NakCode.OUT_OF_RANGE, CONSISTENCY)
 

@@ -116,21 +116,27 @@ class Lfsr(wiring.Component):
         state = Signal(MAX_LENGTH, init=1)
         m.d.comb += self.state.eq(state)
 
-        # Taps and mask of the register length: constants, or a table indexed by the length that
-        # was latched on the last load (the incoming length in the cycle of the load itself).
+        # Taps of the register length latched on the last load, and the mask of the incoming
+        # length for the seed: constants, or two tables. Neither depends on `load` itself, which
+        # only selects between the seed and the stepped state (for timing).
         if self._length is None:
             length = Signal.like(self.length, init=MAX_LENGTH)
             with m.If(self.load):
                 m.d.sync += length.eq(self.length)
-            length_now = Mux(self.load, self.length, length)
             taps = Signal(MAX_LENGTH)
             mask = Signal(MAX_LENGTH)
-            with m.Switch(length_now):
+            with m.Switch(length):
                 for l, poly in POLYNOMIALS.items():
                     with m.Case(l):
-                        m.d.comb += taps.eq(poly >> 1), mask.eq((1 << l) - 1)
+                        m.d.comb += taps.eq(poly >> 1)
                 with m.Default():
-                    m.d.comb += taps.eq(POLYNOMIALS[MAX_LENGTH] >> 1), mask.eq(-1)
+                    m.d.comb += taps.eq(POLYNOMIALS[MAX_LENGTH] >> 1)
+            with m.Switch(self.length):
+                for l in POLYNOMIALS:
+                    with m.Case(l):
+                        m.d.comb += mask.eq((1 << l) - 1)
+                with m.Default():
+                    m.d.comb += mask.eq(-1)
         else:
             taps = Const(POLYNOMIALS[self._length] >> 1, MAX_LENGTH)
             mask = Const((1 << self._length) - 1, MAX_LENGTH)
