@@ -6,6 +6,7 @@ from amaranth.lib.wiring import In, Out
 
 from .. import __version__
 from . import DEFAULT_CLOCK_HZ
+from .buffer import StreamBuffer
 from .delay import DelayMode
 from .framing import PacketBeat
 from .protocol import (PROTOCOL_VERSION, PacketType, NakCode, MAX_PAYLOAD, COUNTER_BITS)
@@ -127,6 +128,11 @@ class CommandProcessor(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
+
+        # Replies leave through a register slice: the byte multiplexers below end there.
+        m.submodules.reply_buffer = reply_buffer = StreamBuffer(PacketBeat)
+        wiring.connect(m, reply_buffer.o, wiring.flipped(self.replies))
+        replies = reply_buffer.i
 
         layout = settings_layout()
         candidate = Signal(layout, init=defaults(self.clock_hz))
@@ -357,20 +363,20 @@ class CommandProcessor(wiring.Component):
 
             with m.State("HEADER"):
                 m.d.comb += [
-                    self.replies.valid.eq(1),
-                    self.replies.p.first.eq(1),
-                    self.replies.p.last.eq(reply_length == 0),
+                    replies.valid.eq(1),
+                    replies.p.first.eq(1),
+                    replies.p.last.eq(reply_length == 0),
                 ]
-                with m.If(self.replies.ready):
+                with m.If(replies.ready):
                     m.d.sync += index.eq(0), read_pointer.eq(address)
                     m.next = "DATA"
 
             with m.State("DATA"):
                 m.d.comb += [
-                    self.replies.valid.eq(1),
-                    self.replies.p.last.eq(index == reply_final),
+                    replies.valid.eq(1),
+                    replies.p.last.eq(index == reply_final),
                 ]
-                with m.If(self.replies.ready):
+                with m.If(replies.ready):
                     m.d.sync += index.eq(index + 1)
                     with m.If((index >= 5) & (index[:2] == 1)):
                         m.d.sync += read_pointer.eq(read_pointer + 1)
@@ -384,25 +390,25 @@ class CommandProcessor(wiring.Component):
                           "clock_hz": self.clock_hz, "baud": self.baud}, Identity)
         reg_byte = (index[:2] - 2)[:2]
         m.d.comb += [
-            self.replies.p.header.type.eq(reply_type),
-            self.replies.p.header.length.eq(reply_length),
+            replies.p.header.type.eq(reply_type),
+            replies.p.header.length.eq(reply_length),
         ]
         with m.Switch(reply_type):
             with m.Case(PacketType.ACK):
-                m.d.comb += self.replies.p.data.eq(cmd_seq)
+                m.d.comb += replies.p.data.eq(cmd_seq)
             with m.Case(PacketType.NAK):
-                m.d.comb += self.replies.p.data.eq(nak.as_value().word_select(index[:2], 8))
+                m.d.comb += replies.p.data.eq(nak.as_value().word_select(index[:2], 8))
             with m.Case(PacketType.IDENTITY):
-                m.d.comb += self.replies.p.data.eq(
+                m.d.comb += replies.p.data.eq(
                     identity.as_value().word_select(index[:4], 8))
             with m.Case(PacketType.STATUS):
-                m.d.comb += self.replies.p.data.eq(
+                m.d.comb += replies.p.data.eq(
                     snapshot.as_value().word_select(index[:7], 8))
             with m.Case(PacketType.REGISTERS):
                 with m.If(index < 2):
-                    m.d.comb += self.replies.p.data.eq(address.word_select(index[0], 8))
+                    m.d.comb += replies.p.data.eq(address.word_select(index[0], 8))
                 with m.Else():
-                    m.d.comb += self.replies.p.data.eq(
+                    m.d.comb += replies.p.data.eq(
                         words[read_pointer].word_select(reg_byte, 8))
 
         return m
