@@ -209,9 +209,15 @@ def _cat_ports(ports):
 
 def fliss_top(clock_hz):
     """The FLISS top level (:class:`fliss.hdl.top.FlissTop`) at ``clock_hz``, for
-    :class:`BoardTop`."""
+    :class:`BoardTop`: histogram banks in block RAM."""
     from ..hdl.top import FlissTop
     return FlissTop(clock_hz=clock_hz)
+
+
+def fliss_top_spram(clock_hz):
+    """:func:`fliss_top` with the histogram banks in single-port RAM (the iCE40UP5K's SPRAM)."""
+    from ..hdl.top import FlissTop
+    return FlissTop(clock_hz=clock_hz, histogram_ram="single")
 
 
 class DemoSettings(data.Struct):

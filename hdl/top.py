@@ -9,7 +9,7 @@ from .command import CommandProcessor
 from .core import DelayCore
 from .event import TIMESTAMP_BITS, ADDRESS_BITS
 from .framing import FrameDecoder, FrameEncoder
-from .histogram import Histogram
+from .histogram import Histogram, RAM_KINDS
 from .packetizer import EventPacketizer, HistogramPacketizer
 from .rawfifo import RawFifo
 from .registers import AcquisitionMode, TdcSource
@@ -39,6 +39,9 @@ class FlissTop(wiring.Component):
         UART baud rate; refused at construction if the clock cannot make it within 2 %.
     raw_depth : int
         Depth of the raw event FIFO, in events.
+    histogram_ram : str
+        Storage of the histogram banks (:class:`~fliss.hdl.histogram.Histogram` ``ram``):
+        ``"dual"`` (block RAM) or ``"single"`` (single-port RAM: the SPRAM of an iCE40UP5K).
 
     Members
     -------
@@ -73,11 +76,16 @@ class FlissTop(wiring.Component):
     photon_hit:       In(1)
     running:          Out(1)
 
-    def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, baud=DEFAULT_BAUD, raw_depth=512):
+    def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, baud=DEFAULT_BAUD, raw_depth=512,
+                 histogram_ram="dual"):
         self.clock_hz = clock_hz
         self.baud = baud
         self.raw_depth = raw_depth
+        self.histogram_ram = histogram_ram
         # Validate the parameters now rather than at elaboration.
+        if histogram_ram not in RAM_KINDS:
+            raise ValueError(f"Histogram RAM must be one of {', '.join(map(repr, RAM_KINDS))}, "
+                             f"not {histogram_ram!r}")
         period_cycles(clock_hz, DEFAULT_PRF_HZ)
         bit_cycles(clock_hz, baud)
         super().__init__()
@@ -164,7 +172,7 @@ class FlissTop(wiring.Component):
 
         # Histogram mode
         raw_mode = settings.acquisition == AcquisitionMode.RAW
-        m.submodules.histogram = histogram = Histogram()
+        m.submodules.histogram = histogram = Histogram(ram=self.histogram_ram)
         m.submodules.histogram_packets = histogram_packets = HistogramPacketizer()
         m.d.comb += [
             histogram.enable.eq(running & ~raw_mode),

@@ -144,6 +144,22 @@ def test_pin_aliases(tmp_path):
     assert top.unwired == ["status"]
 
 
+@pytest.mark.parametrize("board,factory,spram", [("ulx3s", "fliss_top", 0),
+                                                  ("icebreaker", "fliss_top_spram", 2)])
+def test_fliss_top_on_the_board(board, factory, spram, tmp_path):
+    # The whole instrument: every port reaches a pin (through the aliases), and on the
+    # iCEBreaker the histogram banks are the two SPRAMs.
+    _boards_extra()
+    import fliss.boards
+    platform = platform_class(board)()
+    top = BoardTop(getattr(fliss.boards, factory))
+    plan = platform.prepare(top, name="top")
+    assert top.unwired == []
+    plan.extract(str(tmp_path))
+    rtlil = (tmp_path / "top.il").read_text()
+    assert rtlil.count("cell \\SB_SPRAM256KA ") == spram
+
+
 class _WideLaser(wiring.Component):
     laser: Out(2)
 
