@@ -158,6 +158,8 @@ class CommandProcessor(wiring.Component):
         reply_length = Signal(16)
         reply_final = Signal(16)        # index of the last payload byte
         read_pointer = Signal(16)       # READ: address of the register being sent
+        read_word = Signal(32)          # READ: its bytes not yet sent, LSB first
+        next_word = Signal(32)          # READ: the register after it
         nak = Signal(data.StructLayout({"seq": 8, "code": NakCode, "detail": 16}),
                      init={"code": NakCode.BAD_CRC})
         snapshot = Signal(status_layout())
@@ -376,10 +378,21 @@ class CommandProcessor(wiring.Component):
                     replies.valid.eq(1),
                     replies.p.last.eq(index == reply_final),
                 ]
+                # READ: the registers leave through `read_word`, loaded from registers (the
+                # first while the address goes out, each next one from `next_word`), so no
+                # wide multiplexer sits in front of the reply.
+                m.d.sync += next_word.eq(words[read_pointer + 1])
+                with m.If(index < 2):
+                    m.d.sync += read_word.eq(words[read_pointer])
                 with m.If(replies.ready):
                     m.d.sync += index.eq(index + 1)
                     with m.If((index >= 5) & (index[:2] == 1)):
-                        m.d.sync += read_pointer.eq(read_pointer + 1)
+                        m.d.sync += [
+                            read_pointer.eq(read_pointer + 1),
+                            read_word.eq(next_word),
+                        ]
+                    with m.Elif(index >= 2):
+                        m.d.sync += read_word.eq(read_word >> 8)
                     with m.If(index == reply_final):
                         m.next = "IDLE"
 
@@ -388,7 +401,6 @@ class CommandProcessor(wiring.Component):
         identity = Const({"protocol": PROTOCOL_VERSION, "gateware_major": major,
                           "gateware_minor": minor, "registers": len(REGISTERS),
                           "clock_hz": self.clock_hz, "baud": self.baud}, Identity)
-        reg_byte = (index[:2] - 2)[:2]
         m.d.comb += [
             replies.p.header.type.eq(reply_type),
             replies.p.header.length.eq(reply_length),
@@ -408,7 +420,6 @@ class CommandProcessor(wiring.Component):
                 with m.If(index < 2):
                     m.d.comb += replies.p.data.eq(address.word_select(index[0], 8))
                 with m.Else():
-                    m.d.comb += replies.p.data.eq(
-                        words[read_pointer].word_select(reg_byte, 8))
+                    m.d.comb += replies.p.data.eq(read_word[:8])
 
         return m

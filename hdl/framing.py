@@ -322,7 +322,8 @@ class FrameDecoder(wiring.Component):
     (header and two more); only then does ``i.ready`` fall until the packet has gone. From a
     UART at 12 Mbaud and 80 MHz (a byte every 67 cycles) that leaves over 400 cycles to read out
     a packet of at most 265 beats, so a consumer that takes a beat per cycle never stalls the
-    input. Every signal of ``o`` comes straight from a flip-flop.
+    input. The input also waits for one cycle after each delimiter, while the frame is judged.
+    Every signal of ``o`` comes straight from a flip-flop.
 
     Members
     -------
@@ -369,8 +370,10 @@ class FrameDecoder(wiring.Component):
         header = Signal(Header)
         delay = Signal(8 * CRC_BYTES)               # the last CRC_BYTES decoded bytes
 
-        # Input: stall only when a payload byte would overwrite the packet being sent
-        m.d.comb += self.i.ready.eq(~sending | (dec_count < min_packet))
+        # Input: stall when a payload byte would overwrite the packet being sent, and for the
+        # cycle after each delimiter, while the frame is judged
+        ending = Signal()
+        m.d.comb += self.i.ready.eq((~sending | (dec_count < min_packet)) & ~ending)
         take = Signal()
         delimiter = Signal()
         m.d.comb += [
@@ -418,32 +421,49 @@ class FrameDecoder(wiring.Component):
                 with m.If((dec_count >= min_packet) & (dec_count < MAX_PACKET)):
                     m.d.comb += buf_wr.en.eq(1)
 
-        # Checks, at the delimiter
-        length_ok = Signal()
-        m.d.comb += length_ok.eq(header.length == dec_count - min_packet)
+        # Checks, in two steps for timing: at the delimiter each check is registered; in the next
+        # cycle (`ending`, when the input waits) the verdict is drawn from them and registered
+        # (`accept`, or `drop` with its reason), and the frame state is cleared. The counters
+        # and the output follow from the verdict's registers.
+        nonempty = Signal()
+        raw_oversize = Signal()
+        cut_block = Signal()
+        oversize = Signal()
+        short = Signal()
+        crc_bad = Signal()
+        length_bad = Signal()
+        m.d.sync += ending.eq(take & delimiter)
+        with m.If(take & delimiter):
+            m.d.sync += [
+                nonempty.eq(raw_count != 0),
+                raw_oversize.eq(raw_count > MAX_ENCODED),
+                cut_block.eq(code_left != 0),
+                oversize.eq(dec_count > MAX_PACKET),
+                short.eq(dec_count < min_packet),
+                crc_bad.eq(crc.crc != 0),
+                length_bad.eq(header.length != dec_count - min_packet),
+            ]
         good = Signal()
         reason = Signal(NakCode, init=NakCode.BAD_CRC)
-        with m.If(raw_count > MAX_ENCODED):
+        with m.If(raw_oversize):
             m.d.comb += reason.eq(NakCode.OVERSIZE)
-        with m.Elif(code_left != 0):
+        with m.Elif(cut_block):
             m.d.comb += reason.eq(NakCode.TRUNCATED)
-        with m.Elif(dec_count > MAX_PACKET):
+        with m.Elif(oversize):
             m.d.comb += reason.eq(NakCode.OVERSIZE)
-        with m.Elif(dec_count < min_packet):
+        with m.Elif(short):
             m.d.comb += reason.eq(NakCode.TRUNCATED)
-        with m.Elif(crc.crc != 0):
+        with m.Elif(crc_bad):
             m.d.comb += reason.eq(NakCode.BAD_CRC)
-        with m.Elif(~length_ok):
+        with m.Elif(length_bad):
             m.d.comb += reason.eq(NakCode.BAD_LENGTH)
         with m.Else():
             m.d.comb += good.eq(1)
 
-        # At the delimiter: the verdict is registered (`accept`, or `drop` with its reason), and
-        # the counters and the output follow from those registers in the next cycle.
         accept = Signal()
         sent_header = Signal(Header)    # the header of the accepted packet
         m.d.sync += [self.drop.eq(0), accept.eq(0)]
-        with m.If(take & delimiter):
+        with m.If(ending):
             m.d.comb += crc.clear.eq(1)
             m.d.sync += [
                 raw_count.eq(0),
@@ -451,7 +471,7 @@ class FrameDecoder(wiring.Component):
                 code_left.eq(0),
                 block_ff.eq(0),
             ]
-            with m.If(raw_count != 0):
+            with m.If(nonempty):
                 with m.If(good):
                     m.d.sync += [accept.eq(1), sent_header.eq(header)]
                 with m.Else():
