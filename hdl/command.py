@@ -157,7 +157,10 @@ class CommandProcessor(wiring.Component):
         reply_type = Signal(8)
         reply_length = Signal(16)
         reply_final = Signal(16)        # index of the last payload byte
-        read_pointer = Signal(16)       # READ: address of the register being sent
+        # READ: address of the register being sent, and of the next one (a READ reaches no
+        # further than the last register, so they are narrow)
+        read_pointer = Signal(range(len(REGISTERS) + 1))
+        next_pointer = Signal(range(len(REGISTERS) + 2))
         read_word = Signal(32)          # READ: its bytes not yet sent, LSB first
         next_word = Signal(32)          # READ: the register after it
         nak = Signal(data.StructLayout({"seq": 8, "code": NakCode, "detail": 16}),
@@ -370,7 +373,11 @@ class CommandProcessor(wiring.Component):
                     replies.p.last.eq(reply_length == 0),
                 ]
                 with m.If(replies.ready):
-                    m.d.sync += index.eq(0), read_pointer.eq(address)
+                    m.d.sync += [
+                        index.eq(0),
+                        read_pointer.eq(address),
+                        next_pointer.eq(address + 1),
+                    ]
                     m.next = "DATA"
 
             with m.State("DATA"):
@@ -381,14 +388,15 @@ class CommandProcessor(wiring.Component):
                 # READ: the registers leave through `read_word`, loaded from registers (the
                 # first while the address goes out, each next one from `next_word`), so no
                 # wide multiplexer sits in front of the reply.
-                m.d.sync += next_word.eq(words[read_pointer + 1])
+                m.d.sync += next_word.eq(words[next_pointer])
                 with m.If(index < 2):
                     m.d.sync += read_word.eq(words[read_pointer])
                 with m.If(replies.ready):
                     m.d.sync += index.eq(index + 1)
                     with m.If((index >= 5) & (index[:2] == 1)):
                         m.d.sync += [
-                            read_pointer.eq(read_pointer + 1),
+                            read_pointer.eq(next_pointer),
+                            next_pointer.eq(next_pointer + 1),
                             read_word.eq(next_word),
                         ]
                     with m.Elif(index >= 2):
