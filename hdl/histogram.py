@@ -29,7 +29,7 @@ MAX_SHIFT = TIMESTAMP_BITS
 INTEGRATION_WIDTH = 32
 #: Cycles from an event's transfer on ``events`` to the block RAM write of its bin
 #: (``ram="dual"``).
-LATENCY = 6
+LATENCY = 7
 #: Most cycles from an event's transfer on ``events`` to the RAM write of its bin, with
 #: ``ram="single"``.
 SINGLE_LATENCY = 8
@@ -63,10 +63,11 @@ class Histogram(wiring.Component):
     RAM). ``events`` is always ready: the engine takes one event in every clock cycle, also when
     consecutive events hit the same bin. Each event goes through a pipeline of :data:`LATENCY`
     stages, each with little logic, for timing on small FPGAs: range check and coarse shift, fine
-    shift to the bin index, block RAM read, registered RAM word, saturating increment, block RAM
-    write (every RAM input comes from a register). A read misses the writes of the three events
-    ahead of it, so their bins are compared with its own when it is issued; on a match the event
-    takes the newest of their counts (forwarding) instead of the stale RAM word.
+    shift to the bin index, block RAM read, RAM word registered as it leaves the block RAM,
+    forwarding, saturating increment, block RAM write (every RAM input comes from a register).
+    A read misses the writes of the four events ahead of it, so their bins are compared with its
+    own; on a match the event takes the newest of their counts (forwarding) instead of the stale
+    RAM word.
 
     Single-port banks (``ram="single"``)
     ~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~
@@ -474,39 +475,57 @@ class Histogram(wiring.Component):
             bank_r.eq(bank2),
         ]
 
-        # A read misses the writes of the three events ahead of it (they are written in its own
-        # cycle or later). Compare their bins with its own now, register the outcome.
+        # A read misses the writes of the four events ahead of it (they are written in its own
+        # cycle or later). Their bins are compared with its own in stage D, the outcome
+        # registered for stage Q.
         valid_d, bin_d, bank_d = Signal(), Signal(self.bin_bits), Signal()
+        valid_q, bin_q, bank_q = Signal(), Signal(self.bin_bits), Signal()
         valid_e, bin_e, bank_e = Signal(), Signal(self.bin_bits), Signal()
         valid_w, bin_w, bank_w = Signal(), Signal(self.bin_bits), Signal()
-        hit1_d = Signal()   # the event one ahead has the same bin
-        hit2_d = Signal()   # ... two ahead
-        hit3_d = Signal()   # ... three ahead
+        valid_x, bin_x, bank_x = Signal(), Signal(self.bin_bits), Signal()  # written last cycle
+        hit1_q = Signal()   # the event one ahead has the same bin
+        hit2_q = Signal()   # ... two ahead
+        hit3_q = Signal()   # ... three ahead
+        hit4_q = Signal()   # ... four ahead
         def same(valid, bin, bank):
-            return valid_r & valid & (bin_r == bin) & (bank_r == bank)
+            return valid_d & valid & (bin_d == bin) & (bank_d == bank)
         m.d.sync += [
             valid_d.eq(valid_r),
             bin_d.eq(bin_r),
             bank_d.eq(bank_r),
-            hit1_d.eq(same(valid_d, bin_d, bank_d)),
-            hit2_d.eq(same(valid_e, bin_e, bank_e)),
-            hit3_d.eq(same(valid_w, bin_w, bank_w)),
+            valid_q.eq(valid_d),
+            bin_q.eq(bin_d),
+            bank_q.eq(bank_d),
+            hit1_q.eq(same(valid_q, bin_q, bank_q)),
+            hit2_q.eq(same(valid_e, bin_e, bank_e)),
+            hit3_q.eq(same(valid_w, bin_w, bank_w)),
+            hit4_q.eq(same(valid_x, bin_x, bank_x)),
+            valid_x.eq(valid_w),
+            bin_x.eq(bin_w),
+            bank_x.eq(bank_w),
         ]
 
-        # Stage D: RAM data out. `written` holds the count of the event two ahead, `written_before`
-        # that of the event three ahead: on a match they replace the stale RAM word.
+        # Stage D: RAM data out, registered as it is (the block RAM's slow output drives nothing
+        # else of the pipeline).
+        # Stage Q: the registered RAM word. `written` holds the count of the event two ahead,
+        # `written_before` that of the event three ahead, `written_before2` four ahead: on a
+        # match they replace the stale RAM word.
+        stored = [Signal(self.count_width, name=f"stored{k}") for k in range(2)]
+        m.d.sync += [stored[k].eq(banks[k][0].data) for k in range(2)]
         written = Signal(self.count_width)
         written_before = Signal(self.count_width)
-        stored = Signal(self.count_width)
+        written_before2 = Signal(self.count_width)
         base_e = Signal(self.count_width)
         hit1_e = Signal()
-        m.d.comb += stored.eq(Mux(bank_d, banks[1][0].data, banks[0][0].data))
         m.d.sync += [
-            valid_e.eq(valid_d),
-            bin_e.eq(bin_d),
-            bank_e.eq(bank_d),
-            base_e.eq(Mux(hit2_d, written, Mux(hit3_d, written_before, stored))),
-            hit1_e.eq(hit1_d),
+            valid_e.eq(valid_q),
+            bin_e.eq(bin_q),
+            bank_e.eq(bank_q),
+            base_e.eq(Mux(hit2_q, written,
+                          Mux(hit3_q, written_before,
+                              Mux(hit4_q, written_before2,
+                                  Mux(bank_q, stored[1], stored[0]))))),
+            hit1_e.eq(hit1_q),
         ]
 
         # Stage E: increment, saturating. `written` now holds the count of the event one ahead.
@@ -518,6 +537,7 @@ class Histogram(wiring.Component):
         m.d.sync += [
             written.eq(new),
             written_before.eq(written),
+            written_before2.eq(written_before),
             valid_w.eq(valid_e),
             bin_w.eq(bin_e),
             bank_w.eq(bank_e),
