@@ -5,6 +5,7 @@ from amaranth.lib.wiring import In, Out
 from . import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, period_cycles
 from .aggressor import Aggressor
 from .arbiter import PacketArbiter
+from .buffer import StreamBuffer
 from .command import CommandProcessor
 from .core import DelayCore
 from .event import TIMESTAMP_BITS, ADDRESS_BITS
@@ -110,7 +111,10 @@ class FlissTop(wiring.Component):
         wiring.connect(m, decoder.o, command.packets)
         wiring.connect(m, command.replies, arbiter.i[0])
         wiring.connect(m, arbiter.o, encoder.i)
-        wiring.connect(m, encoder.o, uart_tx.i)
+        # A register slice between the encoder's run buffer and the transmitter, for timing
+        m.submodules.tx_buffer = tx_buffer = StreamBuffer(8)
+        wiring.connect(m, encoder.o, tx_buffer.i)
+        wiring.connect(m, tx_buffer.o, uart_tx.i)
 
         settings = command.settings
         running = command.running
