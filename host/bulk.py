@@ -38,8 +38,8 @@ from amaranth.lib import data
 from ..hdl.protocol import (DELIMITER, COBS_MAX_RUN, CRC_WIDTH, CRC_INIT, CRC_BYTES, PacketType,
                             Header, HEADER_BYTES, MAX_PACKET, MAX_ENCODED, NakCode, EVENT_BYTES)
 from ..sim import event as _event
-from .protocol import (_CRC_TABLE, FrameDecoder, LinkError, Packet, SequenceGap, decode_frame,
-                       _packet_type)
+from .protocol import (CRC_TABLE, FrameDecoder, LinkError, Packet, SequenceGap, decode_frame,
+                       packet_type)
 
 
 __all__ = ["BULK_MIN_BYTES", "BULK_MIN_GROUP", "Decoded", "BulkDecoder", "decode_stream"]
@@ -60,7 +60,7 @@ assert EVENT_BYTES <= 8, "events are unpacked from 64-bit words"
 
 _CRC_MASK = (1 << CRC_WIDTH) - 1
 _CRC_TOP = CRC_WIDTH - 8
-_BYTE_TABLE = np.array(_CRC_TABLE, dtype=np.uint16)
+_BYTE_TABLE = np.array(CRC_TABLE, dtype=np.uint16)
 _word_table = None
 
 
@@ -306,7 +306,7 @@ class _Frames:
                 start = int(row[index]) * width + 1 + HEADER_BYTES
                 value = int(type[index])
                 if value not in types:
-                    types[value] = _packet_type(value)
+                    types[value] = packet_type(value)
                 packet = Packet(types[value], int(seq[index]),
                                 blobs[number][start:start + int(size[index])])
             out.append(packet)

@@ -29,8 +29,8 @@ from ..hdl.protocol import (DELIMITER, COBS_MAX_RUN, CRC_WIDTH, CRC_POLY, CRC_IN
 from ..sim import event as _event
 
 
-__all__ = ["CobsError", "crc16", "cobs_encode", "cobs_decode", "Packet", "encode_packet",
-           "encode_frame", "decode_packet", "decode_frame", "LinkError", "SequenceGap", "Resync",
+__all__ = ["CRC_TABLE", "packet_type", "CobsError", "crc16", "cobs_encode", "cobs_decode",
+           "Packet", "encode_packet", "encode_frame", "decode_packet", "decode_frame", "LinkError", "SequenceGap", "Resync",
            "LinkCounters", "FrameDecoder", "PacketEncoder", "pack_events", "unpack_events"]
 
 
@@ -48,13 +48,14 @@ def _crc_table():
     return table
 
 
-_CRC_TABLE = _crc_table()
+#: CRC of each byte value (the byte-at-a-time table of :data:`CRC_POLY`), for table-driven CRCs.
+CRC_TABLE = tuple(_crc_table())
 
 
 def _crc16_table_driven(data, crc=CRC_INIT):
     # The definition, one table lookup per byte; tests hold binascii to it.
     for byte in bytes(data):
-        crc = ((crc << 8) & 0xffff) ^ _CRC_TABLE[(crc >> 8) ^ byte]
+        crc = ((crc << 8) & 0xffff) ^ CRC_TABLE[(crc >> 8) ^ byte]
     return crc
 
 
@@ -181,7 +182,8 @@ def encode_frame(type, seq, payload=b""):
     return cobs_encode(encode_packet(type, seq, payload)) + bytes([DELIMITER])
 
 
-def _packet_type(value):
+def packet_type(value):
+    """``value`` as a :class:`PacketType`, or the number itself for an unknown type."""
     try:
         return PacketType(value)
     except ValueError:
@@ -204,7 +206,7 @@ def decode_packet(packet):
     payload = packet[HEADER_BYTES:-CRC_BYTES]
     if length != len(payload):
         return None, NakCode.BAD_LENGTH
-    return Packet(_packet_type(type), seq, bytes(payload)), None
+    return Packet(packet_type(type), seq, bytes(payload)), None
 
 
 def decode_frame(frame):
