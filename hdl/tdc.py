@@ -13,7 +13,7 @@ from .event import Event, TIMESTAMP_BITS, ADDRESS_BITS, PULSE_BITS
 
 __all__ = ["SYNC_STAGES", "COUNTER_WIDTH", "CAPTURE_LATENCY", "FILTER_LATENCY", "OUTPUT_LATENCY",
            "MAX_TIMESTAMP",
-           "count_event", "EventFilter", "TdcInterface", "CoarseTdc"]
+           "count_event", "EventFilter", "CaptureSignature", "TdcInterface", "CoarseTdc"]
 
 
 #: Flip-flops of the input synchronisers.
@@ -165,6 +165,59 @@ def _filter_ports(component, event_filter):
     ]
 
 
+#: Raw captures of a capture block built with ``filtered=False``, for an :class:`EventFilter`
+#: outside it (one filter can then serve several blocks): ``valid`` strobes for one cycle with
+#: the event, whether its timestamp overflowed, and whether acquisition was enabled.
+CaptureSignature = wiring.Signature({
+    "valid":    Out(1),
+    "event":    Out(Event),
+    "overflow": Out(1),
+    "enabled":  Out(1),
+})
+
+
+def _capture_members(filtered, members):
+    """The ports of a capture block: ``members`` and either those of its :class:`EventFilter`
+    (``filtered``) or a ``captures`` port of :data:`CaptureSignature`."""
+    members = dict(members)
+    if filtered:
+        members.update({
+            "gate_start":       In(TIMESTAMP_BITS),
+            "gate_end":         In(TIMESTAMP_BITS, init=MAX_TIMESTAMP),
+            "clear":            In(1),
+            "events":           Out(stream.Signature(Event)),
+            "accepted":         Out(COUNTER_WIDTH),
+            "dropped_stopped":  Out(COUNTER_WIDTH),
+            "dropped_overflow": Out(COUNTER_WIDTH),
+            "dropped_gate":     Out(COUNTER_WIDTH),
+            "dropped_overrun":  Out(COUNTER_WIDTH),
+        })
+    else:
+        members["captures"] = Out(CaptureSignature)
+    return members
+
+
+def _filter_or_forward(m, component, capture, event, overflow, enabled):
+    """The filter of a capture block, or its raw captures on ``captures``."""
+    if component.filtered:
+        m.submodules.filter = event_filter = EventFilter()
+        m.d.comb += [
+            event_filter.capture.eq(capture),
+            event_filter.event.eq(event),
+            event_filter.overflow.eq(overflow),
+            event_filter.enable.eq(enabled),
+            *_filter_ports(component, event_filter),
+        ]
+        wiring.connect(m, wiring.flipped(component.events), event_filter.events)
+    else:
+        m.d.comb += [
+            component.captures.valid.eq(capture),
+            component.captures.event.eq(event),
+            component.captures.overflow.eq(overflow),
+            component.captures.enabled.eq(enabled),
+        ]
+
+
 class TdcInterface(wiring.Component):
     """Timestamp interface of the sensor's on-chip TDC (Figure 6 of the paper).
 
@@ -185,6 +238,12 @@ class TdcInterface(wiring.Component):
     The event's ``pulse`` field is ``pulse_index - 1`` (modulo ``2**32``): with the pulse
     scheduler's ``pulse_index`` (pulses fired so far), the index of the last pulse fired, i.e. the
     laser cycle the photon belongs to; all ones before the first pulse.
+
+    Parameters
+    ----------
+    filtered : bool
+        With its own :class:`EventFilter` (the default), or without: then the raw captures leave
+        on ``captures`` for a filter outside, and the filter's ports below are absent.
 
     Members
     -------
@@ -208,23 +267,21 @@ class TdcInterface(wiring.Component):
         Accepted events.
     accepted, dropped_stopped, dropped_overflow, dropped_gate, dropped_overrun : Out(32)
         Event counters (:class:`EventFilter`); ``dropped_overflow`` stays zero here.
+    captures : Out(CaptureSignature)
+        Only with ``filtered=False``: what would go into the filter, in the cycle it would
+        (``overflow`` is always low here).
     """
 
-    pin_valid:        In(1)
-    pin_timestamp:    In(TIMESTAMP_BITS)
-    pin_address:      In(ADDRESS_BITS)
-    pin_collision:    In(1)
-    enable:           In(1)
-    pulse_index:      In(PULSE_BITS)
-    gate_start:       In(TIMESTAMP_BITS)
-    gate_end:         In(TIMESTAMP_BITS, init=MAX_TIMESTAMP)
-    clear:            In(1)
-    events:           Out(stream.Signature(Event))
-    accepted:         Out(COUNTER_WIDTH)
-    dropped_stopped:  Out(COUNTER_WIDTH)
-    dropped_overflow: Out(COUNTER_WIDTH)
-    dropped_gate:     Out(COUNTER_WIDTH)
-    dropped_overrun:  Out(COUNTER_WIDTH)
+    def __init__(self, *, filtered=True):
+        self.filtered = bool(filtered)
+        super().__init__(_capture_members(self.filtered, {
+            "pin_valid":     In(1),
+            "pin_timestamp": In(TIMESTAMP_BITS),
+            "pin_address":   In(ADDRESS_BITS),
+            "pin_collision": In(1),
+            "enable":        In(1),
+            "pulse_index":   In(PULSE_BITS),
+        }))
 
     def elaborate(self, platform):
         m = Module()
@@ -233,7 +290,6 @@ class TdcInterface(wiring.Component):
         rise = _synchronised_rise(m, self.pin_valid, "strobe")
 
         # Capture: the bus has been stable since the strobe rose
-        m.submodules.filter = event_filter = EventFilter()
         capture = Signal()
         event = Signal(Event)
         enabled = Signal()
@@ -247,15 +303,7 @@ class TdcInterface(wiring.Component):
                 enabled.eq(self.enable),
             ]
 
-        # Filter
-        m.d.comb += [
-            event_filter.capture.eq(capture),
-            event_filter.event.eq(event),
-            event_filter.overflow.eq(0),
-            event_filter.enable.eq(enabled),
-            *_filter_ports(self, event_filter),
-        ]
-        wiring.connect(m, wiring.flipped(self.events), event_filter.events)
+        _filter_or_forward(m, self, capture, event, C(0), enabled)
 
         return m
 
@@ -273,6 +321,11 @@ class CoarseTdc(wiring.Component):
     ``c +`` :data:`OUTPUT_LATENCY`; ``enable`` is sampled in cycle ``c +``
     :data:`CAPTURE_LATENCY`. The hit pin must stay high and low for at least 2 clock periods.
 
+    Parameters
+    ----------
+    filtered : bool
+        As in :class:`TdcInterface`.
+
     Members
     -------
     pin_hit : In(1)
@@ -287,22 +340,19 @@ class CoarseTdc(wiring.Component):
         As in :class:`TdcInterface`.
     accepted, dropped_stopped, dropped_overflow, dropped_gate, dropped_overrun : Out(32)
         Event counters (:class:`EventFilter`).
+    captures : Out(CaptureSignature)
+        Only with ``filtered=False``, as in :class:`TdcInterface`.
     """
 
-    pin_hit:          In(1)
-    tdc_start:        In(1)
-    pulse_index:      In(PULSE_BITS)
-    address:          In(ADDRESS_BITS)
-    enable:           In(1)
-    gate_start:       In(TIMESTAMP_BITS)
-    gate_end:         In(TIMESTAMP_BITS, init=MAX_TIMESTAMP)
-    clear:            In(1)
-    events:           Out(stream.Signature(Event))
-    accepted:         Out(COUNTER_WIDTH)
-    dropped_stopped:  Out(COUNTER_WIDTH)
-    dropped_overflow: Out(COUNTER_WIDTH)
-    dropped_gate:     Out(COUNTER_WIDTH)
-    dropped_overrun:  Out(COUNTER_WIDTH)
+    def __init__(self, *, filtered=True):
+        self.filtered = bool(filtered)
+        super().__init__(_capture_members(self.filtered, {
+            "pin_hit":     In(1),
+            "tdc_start":   In(1),
+            "pulse_index": In(PULSE_BITS),
+            "address":     In(ADDRESS_BITS),
+            "enable":      In(1),
+        }))
 
     def elaborate(self, platform):
         m = Module()
@@ -329,7 +379,6 @@ class CoarseTdc(wiring.Component):
             m.d.sync += elapsed.eq(now)
 
         # Capture
-        m.submodules.filter = event_filter = EventFilter()
         capture = Signal()
         event = Signal(Event)
         overflow = Signal()
@@ -345,14 +394,6 @@ class CoarseTdc(wiring.Component):
                 enabled.eq(self.enable),
             ]
 
-        # Filter
-        m.d.comb += [
-            event_filter.capture.eq(capture),
-            event_filter.event.eq(event),
-            event_filter.overflow.eq(overflow),
-            event_filter.enable.eq(enabled),
-            *_filter_ports(self, event_filter),
-        ]
-        wiring.connect(m, wiring.flipped(self.events), event_filter.events)
+        _filter_or_forward(m, self, capture, event, overflow, enabled)
 
         return m

@@ -14,7 +14,7 @@ from .histogram import Histogram, RAM_KINDS
 from .packetizer import EventPacketizer, HistogramPacketizer
 from .rawfifo import RawFifo
 from .registers import AcquisitionMode, TdcSource
-from .tdc import TdcInterface, CoarseTdc
+from .tdc import EventFilter, TdcInterface, CoarseTdc
 from .uart import UartRx, UartTx, bit_cycles
 
 
@@ -151,16 +151,16 @@ class FlissTop(wiring.Component):
             self.aggressor_laser.eq(aggressor.laser),
         ]
 
-        # Events: the sensor bus or the built-in coarse TDC, tagged with the laser cycle index
-        m.submodules.sensor = sensor = TdcInterface()
-        m.submodules.coarse = coarse = CoarseTdc()
+        # Events: the sensor bus or the built-in coarse TDC, tagged with the laser cycle index;
+        # one event filter (gate, counters) serves the selected one.
+        m.submodules.sensor = sensor = TdcInterface(filtered=False)
+        m.submodules.coarse = coarse = CoarseTdc(filtered=False)
+        m.submodules.event_filter = event_filter = EventFilter()
         coarse_selected = settings.tdc_source == TdcSource.COARSE
-        for tdc, selected in ((sensor, ~coarse_selected), (coarse, coarse_selected)):
+        for tdc in (sensor, coarse):
             m.d.comb += [
-                tdc.enable.eq(running & selected),
+                tdc.enable.eq(running),
                 tdc.pulse_index.eq(core.pulse_index),
-                tdc.gate_start.eq(settings.gate_start),
-                tdc.gate_end.eq(settings.gate_end),
             ]
         m.d.comb += [
             sensor.pin_valid.eq(self.sensor_valid),
@@ -170,9 +170,20 @@ class FlissTop(wiring.Component):
             coarse.pin_hit.eq(self.photon_hit),
             coarse.tdc_start.eq(core.tdc_start),
         ]
-        events = Mux(coarse_selected, coarse.events.payload, sensor.events.payload)
-        events_valid = Mux(coarse_selected, coarse.events.valid, sensor.events.valid)
-        m.d.comb += [sensor.events.ready.eq(1), coarse.events.ready.eq(1)]
+        def pick(name):
+            return Mux(coarse_selected, getattr(coarse.captures, name),
+                       getattr(sensor.captures, name))
+        m.d.comb += [
+            event_filter.capture.eq(pick("valid")),
+            event_filter.event.eq(pick("event")),
+            event_filter.overflow.eq(pick("overflow")),
+            event_filter.enable.eq(pick("enabled")),
+            event_filter.gate_start.eq(settings.gate_start),
+            event_filter.gate_end.eq(settings.gate_end),
+            event_filter.events.ready.eq(1),
+        ]
+        events = event_filter.events.payload
+        events_valid = event_filter.events.valid
 
         # Histogram mode
         raw_mode = settings.acquisition == AcquisitionMode.RAW
@@ -203,15 +214,14 @@ class FlissTop(wiring.Component):
 
         # Status counters
         status = command.status
-        selected = lambda name: Mux(coarse_selected, getattr(coarse, name), getattr(sensor, name))
         m.d.comb += [
             status.pulses.eq(core.pulse_index),
             status.frames.eq(histogram.frames),
-            status.events.eq(selected("accepted")),
-            status.dropped_stopped.eq(selected("dropped_stopped")),
-            status.dropped_gate.eq(selected("dropped_gate")),
-            status.dropped_overflow.eq(selected("dropped_overflow")),
-            status.dropped_overrun.eq(selected("dropped_overrun")),
+            status.events.eq(event_filter.accepted),
+            status.dropped_stopped.eq(event_filter.dropped_stopped),
+            status.dropped_gate.eq(event_filter.dropped_gate),
+            status.dropped_overflow.eq(event_filter.dropped_overflow),
+            status.dropped_overrun.eq(event_filter.dropped_overrun),
             status.dropped_fifo.eq(raw_fifo.dropped),
             status.dropped_histogram.eq(histogram.dropped),
             status.histogram_overflow.eq(histogram.overflow),
