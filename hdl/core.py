@@ -81,6 +81,11 @@ class DelayCore(wiring.Component):
             source.mask_width.eq(self.mask_width),
             source.seed.eq(self.seed),
             source.load.eq(scheduler.reload),
+            scheduler.delay_kind.eq(source.kind),
+            scheduler.delay_zero.eq(source.zero),
+            scheduler.delay_zero_late.eq(source.zero_late),
+            scheduler.delay_wide.eq(source.wide),
+            scheduler.delay_narrow.eq(source.narrow),
 
             scheduler.enable.eq(self.enable),
             scheduler.update.eq(self.update),

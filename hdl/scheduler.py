@@ -5,7 +5,8 @@ from amaranth.lib.wiring import In, Out
 from .delay import DELAY_WIDTH
 
 
-__all__ = ["PERIOD_WIDTH", "PULSE_WIDTH_WIDTH", "PulseScheduler"]
+__all__ = ["PERIOD_WIDTH", "PULSE_WIDTH_WIDTH", "DELAY_ZERO", "DELAY_WIDE", "DELAY_NARROW",
+           "PulseScheduler"]
 
 
 #: Width of the period setting, in bits: down to 0.02 Hz at 80 MHz.
@@ -13,6 +14,9 @@ PERIOD_WIDTH = 32
 
 #: Width of the laser pulse width setting, in bits.
 PULSE_WIDTH_WIDTH = 16
+
+#: Kinds of delay (``delay_kind``): always zero; ``delay_wide = R + 1``; ``delay_narrow = R``.
+DELAY_ZERO, DELAY_WIDE, DELAY_NARROW = 0, 1, 2
 
 
 class PulseScheduler(wiring.Component):
@@ -63,6 +67,13 @@ class PulseScheduler(wiring.Component):
         Delay ``R`` of the pulse fired in this cycle.
     pulse_index : Out(32)
         Number of pulses fired since the start; the index of the pulse fired in this cycle.
+    delay_kind, delay_zero, delay_zero_late, delay_wide, delay_narrow : In
+        Hints from :class:`DelaySource` on the delay at ``delays.payload`` (its ports ``kind``,
+        ``zero``, ``zero_late``, ``wide``, ``narrow``), which time the pulse; ``payload`` itself
+        only gives ``fire_delay``.
+
+    Takes are at least two cycles apart (``period >= 2``): the take cycle is predicted a cycle
+    ahead, and the timers are split in 16-bit halves; a period below 2 is not supported.
     """
 
     enable:      In(1)
@@ -77,16 +88,24 @@ class PulseScheduler(wiring.Component):
     fire_width:  Out(PULSE_WIDTH_WIDTH)
     fire_delay:  Out(DELAY_WIDTH)
     pulse_index: Out(32)
+    delay_kind:   In(2)
+    delay_zero:   In(1)
+    delay_zero_late: In(1)
+    delay_wide:   In(DELAY_WIDTH)
+    delay_narrow: In(16)
 
     def elaborate(self, platform):
         m = Module()
 
-        # Settings: `pending` holds settings sampled on update, `active` those of the current frame
+        # Settings: `pending` holds settings sampled on update, `active` those of the current frame.
+        # The period is kept with the flags the frame timer needs when it loads it.
         pending         = Signal()
-        pending_last    = Signal(PERIOD_WIDTH)   # period - 1
+        pending_period  = Signal(PERIOD_WIDTH)
+        pending_flags   = Signal(4)
         pending_grid    = Signal()
         pending_width   = Signal(PULSE_WIDTH_WIDTH)
-        active_last     = Signal(PERIOD_WIDTH)
+        active_period   = Signal(PERIOD_WIDTH)
+        active_flags    = Signal(4)
         active_grid     = Signal()
         active_width    = Signal(PULSE_WIDTH_WIDTH)
 
@@ -95,63 +114,172 @@ class PulseScheduler(wiring.Component):
         with m.If(sample):
             m.d.sync += [
                 pending.eq(1),
-                pending_last.eq(self.period - 1),
+                pending_period.eq(self.period),
+                pending_flags.eq(_Timer.flags(self.period, target=2)),
                 pending_grid.eq(self.grid),
                 pending_width.eq(self.pulse_width),
             ]
         m.d.comb += self.reload.eq(sample)
 
-        frame_last = Mux(pending, pending_last, active_last)
-        frame_grid = Mux(pending, pending_grid, active_grid)
-        frame_width = Mux(pending, pending_width, active_width)
-
-        # Frame timer: cycles left in the current frame
-        remaining = Signal(PERIOD_WIDTH + 1)
+        # Take cycle of each frame, predicted a cycle early
         take = Signal()
-        m.d.comb += take.eq(self.running & (remaining == 0))
+        take_d = Signal()
+        m.d.comb += self.delays.ready.eq(take)
+        m.d.sync += take_d.eq(take)
 
-        # Pulse timer: cycles left until the pulse of the current frame fires
-        armed = Signal()
-        countdown = Signal(DELAY_WIDTH)
+        with m.If(take):
+            m.d.sync += [
+                active_period.eq(Mux(pending, pending_period, active_period)),
+                active_flags.eq(Mux(pending, pending_flags, active_flags)),
+                active_grid.eq(Mux(pending, pending_grid, active_grid)),
+                active_width.eq(Mux(pending, pending_width, active_width)),
+                self.fire_delay.eq(self.delays.payload),
+            ]
+            with m.If(~self.update):
+                m.d.sync += pending.eq(0)
+
+        # Pulse timers: the pulse fires `R` cycles after the cycle after the take cycle. `due` is
+        # high in that cycle. Delays come with hints from the source, for a fast start: the kind
+        # of delay, `R == 0`, and a value to count: `R + 1` (`WIDE`, up to 32 bits) or `R`
+        # (`NARROW`, up to 16 bits).
+        armed = Signal()    # the pulse of this frame has not fired yet
+        due = Signal()      # the pulse of this frame is due in this cycle, from the timers
+        pulse = Signal()    # the pulse of this frame fires in this cycle (unless stopped)
+        kind = Signal(2)    # `delay_kind` of this frame
+        narrow = Signal(16)
+        m.submodules.wide = wide = _Timer(DELAY_WIDTH, target=1)
+        m.d.comb += [
+            wide.load.eq(take),
+            wide.clear.eq(pulse),
+            wide.value.eq(self.delay_wide),
+            wide.value_flags.eq(_Timer.flags(self.delay_wide, target=1)),
+        ]
+        with m.If(take):
+            m.d.sync += [
+                kind.eq(self.delay_kind),
+                narrow.eq(self.delay_narrow),
+            ]
+        with m.Else():
+            m.d.sync += narrow.eq(narrow - 1)
+        counted = Mux(kind == DELAY_WIDE, wide.done_next, narrow == 1)
+        m.d.comb += pulse.eq(due | self.delay_zero_late)
+        m.d.sync += [
+            due.eq(Mux(take, self.delay_zero, armed & counted)),
+            armed.eq(Mux(take, ~self.delay_zero, armed & ~pulse)),
+        ]
+
+        # Frame timer: the next take cycle is `T` cycles after the take cycle (`grid`), or
+        # `T - 1` cycles after the pulse (`interval`). It is loaded with `T` in the cycle after
+        # the take cycle, or in the pulse's cycle, and counts `T - 1` cycles.
+        m.submodules.frame = frame = _Timer(PERIOD_WIDTH, target=2)
+        m.d.comb += [
+            frame.load.eq(Mux(active_grid, take_d, pulse)),
+            frame.clear.eq(take | ~self.running | ~self.enable),
+            frame.value.eq(active_period),
+            frame.value_flags.eq(active_flags),
+        ]
 
         with m.If(~self.running):
             with m.If(self.enable):
-                m.d.sync += self.running.eq(1), self.pulse_index.eq(0)
+                m.d.sync += [
+                    self.running.eq(1),
+                    take.eq(1),
+                ]
         with m.Elif(~self.enable):
             m.d.sync += [
                 self.running.eq(0),
-                remaining.eq(0),
+                take.eq(0),
                 armed.eq(0),
+                due.eq(0),
             ]
         with m.Else():
-            with m.If(take):
-                delay = self.delays.payload
-                m.d.comb += self.delays.ready.eq(1)
-                m.d.sync += [
-                    remaining.eq(frame_last + Mux(frame_grid, 0, delay)),
-                    countdown.eq(delay),
-                    armed.eq(1),
-                    self.fire_delay.eq(delay),
-                    active_last.eq(frame_last),
-                    active_grid.eq(frame_grid),
-                    active_width.eq(frame_width),
-                ]
-                with m.If(~self.update):
-                    m.d.sync += pending.eq(0)
-            with m.Else():
-                m.d.sync += remaining.eq(remaining - 1)
-                with m.If(armed):
-                    with m.If(countdown == 0):
-                        m.d.sync += armed.eq(0)
-                    with m.Else():
-                        m.d.sync += countdown.eq(countdown - 1)
+            m.d.sync += take.eq(frame.done_next)
 
         # Pulse
         m.d.comb += [
-            self.fire.eq(self.running & self.enable & armed & (countdown == 0)),
+            self.fire.eq(self.running & self.enable & pulse),
             self.fire_width.eq(active_width),
         ]
-        with m.If(self.fire):
-            m.d.sync += self.pulse_index.eq(self.pulse_index + 1)
+
+        # Pulse index: `next_index` is one ahead, its high half a cycle late (pulses are at least
+        # two cycles apart).
+        next_lo = Signal(16)
+        next_hi = Signal(16)
+        carry = Signal()
+        with m.If(~self.running & self.enable):
+            m.d.sync += [
+                self.pulse_index.eq(0),
+                next_lo.eq(1),
+                next_hi.eq(0),
+                carry.eq(0),
+            ]
+        with m.Else():
+            m.d.sync += [
+                next_hi.eq(next_hi + carry),
+                carry.eq(0),
+            ]
+            with m.If(self.fire):
+                m.d.sync += [
+                    self.pulse_index.eq(Cat(next_lo, next_hi)),
+                    Cat(next_lo, carry).eq(next_lo + 1),
+                ]
+
+        return m
+
+
+class _Timer(Elaboratable):
+    """Down counter in two 16-bit halves, for the scheduler's long timers.
+
+    Loaded with ``value`` in cycle ``t0``, it holds ``value - j + 1`` in cycle ``t0 + j``;
+    ``done_next`` is high in the cycle before it holds ``target``, from the load until ``clear``.
+    The high half borrows a cycle after the low half reaches zero, from a registered flag, and
+    every comparison is made a cycle ahead into a register, so that no path goes through more
+    than one 16-bit carry chain or one comparison. ``value_flags`` are :meth:`flags` of the
+    value, computed ahead by the user.
+    """
+
+    def __init__(self, width, *, target):
+        assert 0 <= target and target + 2 < (1 << 16)
+        self.target = target
+        self.load = Signal()
+        self.clear = Signal()
+        self.value = Signal(width)
+        self.value_flags = Signal(4)
+        self.done_next = Signal()
+
+    @staticmethod
+    def flags(value, *, target):
+        lo, hi = value[:16], value[16:]
+        return Cat(lo == 0, lo == target + 1, hi == 0, value == target)
+
+    def elaborate(self, platform):
+        m = Module()
+
+        lo = Signal(16)
+        hi = Signal(len(self.value) - 16)
+        lo_zero = Signal()      # lo == 0: the high half borrows in this cycle
+        lo_near = Signal()      # lo == target + 1 (and armed)
+        hi_zero = Signal()      # hi == 0
+        armed = Signal()
+
+        armed_next = self.load | (armed & ~self.clear)
+        m.d.sync += armed.eq(armed_next)
+        with m.If(self.load):
+            m.d.sync += [
+                lo.eq(self.value[:16]),
+                hi.eq(self.value[16:]),
+                lo_zero.eq(self.value_flags[0]),
+                lo_near.eq(self.value_flags[1]),
+                hi_zero.eq(self.value_flags[2]),
+            ]
+        with m.Else():
+            m.d.sync += [
+                lo.eq(lo - 1),
+                hi.eq(hi - lo_zero),
+                lo_zero.eq(lo == 1),
+                lo_near.eq(armed_next & (lo == self.target + 2)),
+                hi_zero.eq(Mux(lo_zero, hi == 1, hi_zero)),
+            ]
+        m.d.comb += self.done_next.eq(Mux(self.load, self.value_flags[3], hi_zero & lo_near))
 
         return m

@@ -133,3 +133,72 @@ def test_gateware_against_model():
     sim.add_testbench(testbench)
     sim.run()
     assert errors == []
+
+
+def test_scheduler_hints_against_model():
+    # The hints the scheduler reads at a transfer: `zero` (R == 0, low in the cycle after a load)
+    # and `zero_late` (R == 0 of a transfer made in the cycle after a load, a cycle later), with
+    # transfers at least two cycles apart as the scheduler makes them, reloads in between, and
+    # seeds that load as 1 (all-zero low bits).
+    from fliss.sim import lfsr
+    dut = DelaySource()
+    cases = [(DelayMode.MSEQ, 5, 1, 0x20), (DelayMode.MSEQ, 4, 1, 9), (DelayMode.MSEQ, 3, 1, 1),
+             (DelayMode.MASKED, 2, 3, 0), (DelayMode.MASKED, 2, 2, 0x1234),
+             (DelayMode.OFF, 2, 1, 5)]
+    errors, checked = [], [0, 0]
+
+    def expected(mode, length, width, seed, count):
+        if mode == DelayMode.MSEQ:
+            return (lfsr.states(length, seed, count).astype(np.int64) - 1).tolist()
+        if mode == DelayMode.MASKED:
+            states = lfsr.states(32, seed, count, steps=16)
+            return (states & np.uint64((1 << width) - 1)).astype(np.int64).tolist()
+        return [0] * count
+
+    async def testbench(ctx):
+        rng = np.random.default_rng(3)
+        for mode, length, width, seed in cases * 3:
+            ctx.set(dut.mode, mode)
+            ctx.set(dut.length, length)
+            ctx.set(dut.mask_width, width)
+            ctx.set(dut.seed, seed)
+            ctx.set(dut.load, 1)
+            await ctx.tick()
+            ctx.set(dut.load, 0)
+            delays = expected(mode, length, width, seed, 60)
+            index, fresh, late = 0, True, None
+            while index < 60:
+                ready = bool(rng.integers(0, 2)) and late is None or fresh and index == 0 and \
+                    bool(rng.integers(0, 2))
+                if ctx.get(dut.delays.payload) != delays[index]:
+                    errors.append(("payload", mode, seed, index))
+                if late is not None:
+                    checked[1] += 1
+                    if ctx.get(dut.zero_late) != (late == 0):
+                        errors.append(("zero_late", mode, seed, index))
+                    late = None
+                elif ready and not fresh:
+                    checked[0] += 1
+                    if ctx.get(dut.zero) != (delays[index] == 0):
+                        errors.append(("zero", mode, seed, index))
+                if ready:
+                    if fresh:
+                        late = delays[index]
+                    elif ctx.get(dut.zero_late):
+                        errors.append(("zero_late high", mode, seed, index))
+                ctx.set(dut.delays.ready, ready)
+                await ctx.tick()
+                ctx.set(dut.delays.ready, 0)
+                if ready:
+                    index += 1
+                    # transfers by the scheduler are at least two cycles apart
+                    if late is None:
+                        await ctx.tick()
+                fresh = False
+
+    sim = Simulator(dut)
+    sim.add_clock(1e-8)
+    sim.add_testbench(testbench)
+    sim.run()
+    assert errors == []
+    assert checked[0] > 200 and checked[1] > 3
