@@ -14,6 +14,7 @@ The board modules need the ``boards`` extra (``pip install -e '.[boards]'``).
 
 import importlib
 
+from amaranth.build import Resource
 from amaranth.hdl import *
 from amaranth.lib import data, io, wiring
 from amaranth.lib.cdc import FFSynchronizer, ResetSynchronizer
@@ -27,7 +28,7 @@ from ..hdl.scheduler import PERIOD_WIDTH, PULSE_WIDTH_WIDTH
 
 
 __all__ = ["BOARDS", "FLISS_PINS", "BOARD_PINS", "PIN_ALIASES", "platform_class", "BoardTop",
-           "PllClocking", "DemoSettings", "DelayCoreDemo"]
+           "PllClocking", "FlissPlatform", "DemoSettings", "DelayCoreDemo"]
 
 
 #: Supported boards: name on the command line -> ``module:class`` of its platform.
@@ -406,3 +407,54 @@ class PllClocking(Elaboratable):
         m.submodules.sync_reset = ResetSynchronizer(~ready, domain="sync")
 
         return m
+
+
+class FlissPlatform:
+    """What the FLISS board platforms add to their amaranth-boards platform (put it first among
+    the bases): a PLL to the design clock and one resource per FLISS pin.
+
+    A board fills in:
+
+    * :attr:`pins`: FLISS pin name -> pins on the board's headers, LSB first;
+    * :attr:`shared_pins`: design ports that share the pins of another one, name -> name of the
+      resource;
+    * :meth:`pll_search` (a static method): ``(f_in_hz, f_out_hz)`` -> a PLL configuration with
+      ``f_out_hz``, the real frequency;
+    * :meth:`fliss_io`: ``(pins, direction)`` -> ``(Pins, Attrs)`` of one FLISS signal;
+    * :attr:`clocking_class`: its :class:`PllClocking`.
+
+    Parameters
+    ----------
+    clock_hz : int
+        Wanted design clock; the PLL gets as close as it can, see :attr:`clock_hz`.
+
+    Attributes
+    ----------
+    clock_hz : float
+        The real design clock, in Hz.
+    pll_config
+        The PLL configuration that makes it.
+    """
+
+    pins = {}
+    shared_pins = {}
+
+    def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, **kwargs):
+        super().__init__(**kwargs)
+        self.pll_config = self.pll_search(self.default_clk_frequency, clock_hz)
+        self.clock_hz = self.pll_config.f_out_hz
+        resources = []
+        for name, pins in self.pins.items():
+            width, direction = FLISS_PINS[name]
+            ios, attrs = self.fliss_io(pins, direction)
+            assert len(ios.names) == width, name
+            resources.append(Resource(f"fliss_{name}", 0, ios, attrs))
+        self.add_resources(resources)
+
+    def fliss_resource(self, name):
+        """Resource name of the FLISS pin ``name``."""
+        return f"fliss_{self.shared_pins.get(name, name)}"
+
+    def clocking(self):
+        """Elaboratable that makes the ``sync`` domain at :attr:`clock_hz`."""
+        return self.clocking_class()

@@ -4,7 +4,7 @@ Clock: the 12 MHz oscillator through the iCE40 PLL; 80 MHz asked gives 79.5 MHz,
 PLL makes. Pins: the three PMOD connectors (see ``docs/boards.md``); UART on the FT2232H.
 """
 
-from amaranth.build import Attrs, Pins, Resource
+from amaranth.build import Attrs, Pins
 from amaranth.hdl import *
 
 try:
@@ -13,8 +13,7 @@ except ImportError as error:  # pragma: no cover - depends on the installed extr
     raise ImportError("The iCEBreaker platform needs amaranth-boards: "
                       "pip install -e '.[boards]'") from error
 
-from ..hdl import DEFAULT_CLOCK_HZ
-from . import FLISS_PINS, PllClocking
+from . import FlissPlatform, PllClocking
 
 
 __all__ = ["Ice40PllConfig", "ice40_pll", "FlissICEBreakerPlatform"]
@@ -125,49 +124,19 @@ _PINS = {
 SHARED_PINS = {"collision": "photon"}
 
 
-def _resources():
-    # One resource per FLISS signal, named `fliss_<name>`, LSB first.
-    resources = []
-    for name, pins in _PINS.items():
-        width, direction = FLISS_PINS[name]
-        ios = Pins(pins, dir=direction)
-        assert len(ios.names) == width, name
-        resources.append(Resource(f"fliss_{name}", 0, ios, Attrs(IO_STANDARD="SB_LVCMOS")))
-    return resources
-
-
-class FlissICEBreakerPlatform(ICEBreakerPlatform):
-    """iCEBreaker with the FLISS pins and a PLL to the design clock.
-
-    Parameters
-    ----------
-    clock_hz : int
-        Wanted design clock; the PLL gets as close as it can, see :attr:`clock_hz`.
-
-    Attributes
-    ----------
-    clock_hz : float
-        The real design clock, in Hz (79.5 MHz when 80 MHz is asked).
-    pll_config : Ice40PllConfig
-    """
+class FlissICEBreakerPlatform(FlissPlatform, ICEBreakerPlatform):
+    """iCEBreaker with the FLISS pins and a PLL to the design clock (:class:`FlissPlatform`):
+    79.5 MHz when 80 MHz is asked."""
 
     board = "icebreaker"
     pins = _PINS
     shared_pins = SHARED_PINS
+    pll_search = staticmethod(ice40_pll)
+    clocking_class = _ICE40Clocking
 
-    def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, **kwargs):
-        super().__init__(**kwargs)
-        self.pll_config = ice40_pll(self.default_clk_frequency, clock_hz)
-        self.clock_hz = self.pll_config.f_out_hz
-        self.add_resources(_resources())
-
-    def fliss_resource(self, name):
-        """Resource name of the FLISS pin ``name``."""
-        return f"fliss_{self.shared_pins.get(name, name)}"
-
-    def clocking(self):
-        """Elaboratable that makes the ``sync`` domain at :attr:`clock_hz`."""
-        return _ICE40Clocking()
+    @staticmethod
+    def fliss_io(pins, direction):
+        return Pins(pins, dir=direction), Attrs(IO_STANDARD="SB_LVCMOS")
 
     def programmers(self, bitstream):
         """Commands that program ``bitstream`` (the ``.bin``) into the FPGA, most preferred

@@ -4,7 +4,7 @@ Clock: the 25 MHz oscillator through an ``EHXPLLL``; 80 MHz exactly. Pins: the G
 GP0-GP12 and GN0-GN12 (see ``docs/boards.md``); UART on the FT231X.
 """
 
-from amaranth.build import Attrs, Pins, Resource
+from amaranth.build import Attrs, Pins
 from amaranth.hdl import *
 from amaranth.lib import io
 
@@ -14,8 +14,7 @@ except ImportError as error:  # pragma: no cover - depends on the installed extr
     raise ImportError("The ULX3S platform needs amaranth-boards: "
                       "pip install -e '.[boards]'") from error
 
-from ..hdl import DEFAULT_CLOCK_HZ
-from . import FLISS_PINS, PllClocking
+from . import FlissPlatform, PllClocking
 
 
 __all__ = ["Ecp5PllConfig", "ecp5_pll", "FlissULX3SPlatform"]
@@ -145,59 +144,28 @@ _PINS = {
 }
 
 
-def _resources():
-    # One resource per FLISS signal, named `fliss_<name>`, LSB first. Inputs have pull-downs, so
-    # that an unconnected sensor bus reads as idle.
-    resources = []
-    for name, pins in _PINS.items():
-        width, direction = FLISS_PINS[name]
-        ios = Pins(pins, dir=direction, conn=("gpio", 0))
-        assert len(ios.names) == width, name
+class FlissULX3SPlatform(FlissPlatform, ULX3S_85F_Platform):
+    """ULX3S (ECP5-85F) with the FLISS pins and a PLL to the design clock
+    (:class:`FlissPlatform`): 80 MHz exactly when 80 MHz is asked."""
+
+    board = "ulx3s"
+    pins = _PINS
+    pll_search = staticmethod(ecp5_pll)
+    clocking_class = _ECP5Clocking
+
+    @staticmethod
+    def fliss_io(pins, direction):
+        # Inputs have pull-downs, so that an unconnected sensor bus reads as idle.
         if direction == "i":
             attrs = Attrs(IO_TYPE="LVCMOS33", PULLMODE="DOWN")
         else:
             attrs = Attrs(IO_TYPE="LVCMOS33", DRIVE="8", SLEWRATE="FAST")
-        resources.append(Resource(f"fliss_{name}", 0, ios, attrs))
-    return resources
-
-
-class FlissULX3SPlatform(ULX3S_85F_Platform):
-    """ULX3S (ECP5-85F) with the FLISS pins and a PLL to the design clock.
-
-    Parameters
-    ----------
-    clock_hz : int
-        Wanted design clock; the PLL gets as close as it can, see :attr:`clock_hz`.
-
-    Attributes
-    ----------
-    clock_hz : float
-        The real design clock, in Hz (80 MHz exactly when 80 MHz is asked).
-    pll_config : Ecp5PllConfig
-    """
-
-    board = "ulx3s"
-    pins = _PINS
-    shared_pins = {}
-
-    def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, **kwargs):
-        super().__init__(**kwargs)
-        self.pll_config = ecp5_pll(self.default_clk_frequency, clock_hz)
-        self.clock_hz = self.pll_config.f_out_hz
-        self.add_resources(_resources())
+        return Pins(pins, dir=direction, conn=("gpio", 0)), attrs
 
     @property
     def required_tools(self):
         # openFPGALoader programs the board; building does not need it.
         return [tool for tool in super().required_tools if tool != "openFPGALoader"]
-
-    def fliss_resource(self, name):
-        """Resource name of the FLISS pin ``name``."""
-        return f"fliss_{self.shared_pins.get(name, name)}"
-
-    def clocking(self):
-        """Elaboratable that makes the ``sync`` domain at :attr:`clock_hz`."""
-        return _ECP5Clocking()
 
     def programmers(self, bitstream):
         """Commands that program ``bitstream`` (the ``.bit``) into the FPGA's SRAM, most
