@@ -1,6 +1,9 @@
+import gc
 import os
+import warnings
 
 import pytest
+from amaranth.hdl import UnusedElaboratable
 
 from fliss.sim.cocotb_runner import SIMULATORS, prepare_path, simulator_available
 
@@ -26,6 +29,25 @@ def simulator(request):
             pytest.fail(message + " (FLISS_REQUIRE_SIMULATORS is set)")
         pytest.skip(message)
     return name
+
+
+@pytest.fixture
+def construction_error():
+    """``construction_error(factory, exception=ValueError)``: the message of the ``exception``
+    that ``factory()`` raises, or None if it raises none. The half-built component is collected
+    there, so that its UnusedElaboratable warning does not land in a later test."""
+    def message_of(factory, exception=ValueError):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UnusedElaboratable)
+            try:
+                factory()
+            except exception as error:
+                message = str(error)
+            else:
+                message = None
+            gc.collect()
+        return message
+    return message_of
 
 
 def pytest_collection_modifyitems(items):
