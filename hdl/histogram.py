@@ -410,9 +410,15 @@ class Histogram(wiring.Component):
         if single:
             self._single_engine(m, valid2, bin2, bank2, bank_data, increment, initialising,
                                 init_index, read_bank, read_index, read_addr, read_clear)
+            # captured from the RAM output in CAPTURE (below)
+            present_count = read_count
         else:
-            self._dual_engine(m, valid2, bin2, bank2, banks, increment, read_bank, read_index,
-                              read_addr, read_clear)
+            stored = self._dual_engine(m, valid2, bin2, bank2, banks, increment, read_bank,
+                                       read_index, read_addr, read_clear)
+            # The block RAM's output is slow: the readout takes the word where the pipeline
+            # registers it. The bank being read out holds its output from CAPTURE until its
+            # next read, which comes after PRESENT.
+            present_count = Mux(read_bank, stored[1], stored[0])
 
         # After a swap, the events of the finished frame leave the pipeline within `latency`
         # cycles; the readout waits for them.
@@ -438,13 +444,14 @@ class Histogram(wiring.Component):
                 m.next = "CAPTURE"
             with m.State("CAPTURE"):
                 # the word read in READ (with single-port banks: never the output after a write)
-                m.d.sync += read_count.eq(Mux(read_bank, bank_data[1], bank_data[0]))
+                if single:
+                    m.d.sync += read_count.eq(Mux(read_bank, bank_data[1], bank_data[0]))
                 m.next = "PRESENT"
             with m.State("PRESENT"):
                 m.d.comb += [
                     self.readout.valid.eq(1),
                     self.readout.payload.index.eq(read_index),
-                    self.readout.payload.count.eq(read_count),
+                    self.readout.payload.count.eq(present_count),
                     self.readout.payload.last.eq(read_last),
                 ]
                 with m.If(self.readout.ready):
@@ -572,6 +579,8 @@ class Histogram(wiring.Component):
                 write_port.en.eq(write_enable),
                 write_port.data.eq(Mux(write_zero, 0, written)),
             ]
+
+        return stored
 
     def _single_engine(self, m, valid2, bin2, bank2, bank_data, increment, initialising,
                        init_index, read_bank, read_index, read_addr, read_clear):
