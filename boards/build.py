@@ -49,7 +49,7 @@ BOARD_DESIGN = {
 #: test. A board whose design cannot close at 80 MHz is built at the highest clock that does
 #: (``docs/boards.md`` records it).
 BOARD_CLOCK_HZ = {
-    "icebreaker": 27_000_000,         # the delay core reaches 29-31 MHz on the UP5K
+    "icebreaker": 48_000_000,         # the delay core demo reaches 51-53 MHz on the UP5K
     "ulx3s":      DEFAULT_CLOCK_HZ,
 }
 
@@ -372,7 +372,7 @@ def main(argv=None):
         sub.add_argument("--clock", type=_frequency, default=None, metavar="HZ",
                          help="wanted design clock (80MHz, 80e6), the PLL makes the closest "
                               "it can; None: the board's BOARD_CLOCK_HZ (ulx3s 80 MHz, "
-                              "icebreaker 27 MHz)")
+                              "icebreaker 48 MHz)")
         sub.add_argument("--build-dir", type=Path, default=Path("build", "BOARD"),
                          metavar="DIR", help="build folder")
         sub.add_argument("--toolchain", choices=("yowasp", "system"), default="yowasp",
