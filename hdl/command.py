@@ -144,7 +144,9 @@ class CommandProcessor(wiring.Component):
         no_payload = Signal()           # length 0
         read_payload = Signal()         # length 3: address and count
         write_payload = Signal()        # length 2 + 4 n, n >= 1: address and n values
-        index = Signal(16)
+        # Payload byte, in and out. (Its comparisons with constants are tests of its high bits
+        # where they can be: as comparators they would be carry chains.)
+        index = Signal(range(MAX_PAYLOAD + 1))
         address = Signal(16)
         count = Signal(8)
         read_bad = Signal()             # READ: the registers asked for do not exist
@@ -157,15 +159,18 @@ class CommandProcessor(wiring.Component):
         reply_type = Signal(8)
         reply_length = Signal(16)
         reply_final = Signal(16)        # index of the last payload byte
-        # READ: address of the register being sent, and of the next one (a READ reaches no
-        # further than the last register, so they are narrow)
-        read_pointer = Signal(range(len(REGISTERS) + 1))
+        # READ: address of the register to be sent next (a READ reaches no further than the
+        # last register, so it is narrow)
         next_pointer = Signal(range(len(REGISTERS) + 2))
-        read_word = Signal(32)          # READ: its bytes not yet sent, LSB first
-        next_word = Signal(32)          # READ: the register after it
+        read_word = Signal(32)          # READ: bytes of the register being sent, LSB first
+        next_word = Signal(32)          # READ: the register at `next_pointer`
         nak = Signal(data.StructLayout({"seq": 8, "code": NakCode, "detail": 16}),
                      init={"code": NakCode.BAD_CRC})
+        # STATUS: the counters; after `running` (one bit, sent as is), the bytes not yet sent,
+        # the next one lowest
         snapshot = Signal(status_layout())
+        assert STATUS_FIELDS[0] == "running"
+        counters = snapshot.as_value()[COUNTER_BITS:]
         link_pending = Signal()
         link_code = Signal(NakCode, init=NakCode.BAD_CRC)
 
@@ -177,29 +182,42 @@ class CommandProcessor(wiring.Component):
         for register, value in zip(REGISTERS, words):
             m.d.comb += value.eq(self.settings[register.name])
 
-        # Range check of a WRITE value, one cycle after it completes (`check`): its register's
-        # bounds come out of two constant tables, so one pair of comparators serves them all.
+        # Range check of a WRITE value, one cycle after it completes (`check`; the value is
+        # still in `word` then): its register's bounds come out of constant tables, so one set of
+        # comparators serves them all. The minima are small, and the maxima are small or all
+        # ones below their top bit, so the bits from `LOW` up are only checked against a mask
+        # (the bits the register's values may have) and the comparators are `LOW` bits wide.
+        LOW = 6
+        for register in REGISTERS:
+            assert register.minimum < 1 << LOW, register
+            assert (register.maximum < 1 << LOW or
+                    register.maximum & (register.maximum + 1) == 0), register
         check = Signal()
-        value = Signal(32)
+        value = word
         value_address = Signal(16)      # address of the value being received
         known = Signal()
-        minimum = Signal(32)
-        maximum = Signal(32)
+        allowed = Signal(32)            # bits that may be set: `maximum` rounded up to all ones
+        minimum = Signal(LOW)
+        maximum = Signal(LOW)           # `maximum`, or all ones if that is larger
         with m.Switch(value_address):
             for register in REGISTERS:
                 with m.Case(register.address):
                     m.d.comb += [
                         known.eq(1),
+                        allowed.eq((1 << register.maximum.bit_length()) - 1),
                         minimum.eq(register.minimum),
-                        maximum.eq(register.maximum),
+                        maximum.eq(min(register.maximum, (1 << LOW) - 1)),
                     ]
+        out_of_range = ((value & ~allowed).any() |
+                        ((value[LOW:] == 0) & (value[:LOW] < minimum)) |
+                        (value[:LOW] > maximum))
         m.d.sync += check.eq(0)
         with m.If(check):
             with m.If(~has_error):
                 with m.If(~known):
                     m.d.sync += [has_error.eq(1), error.eq(NakCode.BAD_ADDRESS),
                                  error_detail.eq(value_address)]
-                with m.Elif((value < minimum) | (value > maximum)):
+                with m.Elif(out_of_range):
                     m.d.sync += [has_error.eq(1), error.eq(NakCode.OUT_OF_RANGE),
                                  error_detail.eq(value_address)]
             with m.Switch(value_address):
@@ -213,20 +231,38 @@ class CommandProcessor(wiring.Component):
         consistent = Signal()
         c = candidate
 
+        def below(n, width):
+            # `(1 << n) - 1` in `width` bits (all ones from `n = width` on), out of a constant
+            # table: a little logic per bit, where a shifter by `n` would be a barrel shifter
+            # (and comparators per bit would be carry chains).
+            masks = [min((1 << k) - 1, (1 << width) - 1) for k in range(1 << len(n))]
+            return Cat(Const(mask, width) for mask in masks).word_select(n, width)
+
         def max_delay(mode, length, mask_width):
-            return Mux(mode == DelayMode.MSEQ, (Const(1, 34) << length) - 2,
-                       Mux(mode == DelayMode.MASKED, (Const(1, 17) << mask_width) - 1, 0))
+            # `(1 << length) - 2` in 34 bits, all ones for `length = 0`; `(1 << mask_width) - 1`.
+            zero = length == 0
+            mseq = Cat(zero, below(length, 34)[1:] | zero.replicate(33))
+            return Mux(mode == DelayMode.MSEQ, mseq,
+                       Mux(mode == DelayMode.MASKED, below(mask_width, 31), 0))
+
+        def narrow_less(a, b):
+            # `a < b` for a narrower `a`: the high bits of `b` need no carry chain
+            return (b[len(a):] != 0) | (a < b[:len(a)])
+
+        def seed_fits(seed, length):
+            # `(seed >> length) == 0`, without the shifter
+            return (seed & ~below(length, len(seed))) == 0
 
         victim_max_delay = Signal(34)
         simple = Signal()
         m.d.sync += [
             victim_max_delay.eq(max_delay(c.delay_mode, c.length, c.mask_width)),
             simple.eq(
-                (c.pulse_width < c.period) &
-                ((c.delay_mode != DelayMode.MSEQ) | ((c.seed >> c.length) == 0)) &
-                (c.aggressor_width < c.aggressor_period) &
+                narrow_less(c.pulse_width, c.period) &
+                ((c.delay_mode != DelayMode.MSEQ) | seed_fits(c.seed, c.length)) &
+                narrow_less(c.aggressor_width, c.aggressor_period) &
                 ((c.aggressor_delay_mode != DelayMode.MSEQ) |
-                 ((c.aggressor_seed >> c.aggressor_length) == 0)) &
+                 seed_fits(c.aggressor_seed, c.aggressor_length)) &
                 (c.gate_start <= c.gate_end)),
             consistent.eq(simple & (~c.grid | (victim_max_delay + c.pulse_width < c.period))),
         ]
@@ -259,7 +295,7 @@ class CommandProcessor(wiring.Component):
                         cmd_type.eq(header.type), cmd_seq.eq(header.seq),
                         no_payload.eq(header.length == 0),
                         read_payload.eq(header.length == 3),
-                        write_payload.eq((header.length >= 6) & (header.length[:2] == 2)),
+                        write_payload.eq((header.length[:2] == 2) & (header.length[2:] != 0)),
                         index.eq(0), has_error.eq(0),
                         candidate.eq(self.settings),
                         self.commands.eq(self.commands + 1),
@@ -291,16 +327,19 @@ class CommandProcessor(wiring.Component):
                     with m.If(index == 2):
                         m.d.sync += count.eq(byte)
                     # A WRITE value is complete: check it and put it in the candidate next.
-                    with m.If((cmd_type == PacketType.WRITE) & (index >= 5) &
-                              (index[:2] == 1)):
-                        m.d.sync += [check.eq(1), value.eq(Cat(word[8:], byte))]
+                    with m.If((cmd_type == PacketType.WRITE) & (index[:2] == 1) &
+                              (index[2:] != 0)):
+                        m.d.sync += check.eq(1)
                     with m.If(self.packets.p.last):
                         m.next = "CHECK"
 
             with m.State("CHECK"):
                 # The check of the last WRITE value completes; the range of a READ is checked.
+                # (The sum needs only the bits that can address a register.)
+                bits = (len(REGISTERS) - 1).bit_length()
                 m.d.sync += read_bad.eq((count == 0) | (count > READ_MAX) |
-                                        (address + count > len(REGISTERS)))
+                                        (address[bits:] != 0) |
+                                        (address[:bits] + count > len(REGISTERS)))
                 m.next = "DISPATCH"
 
             with m.State("DISPATCH"):
@@ -373,11 +412,7 @@ class CommandProcessor(wiring.Component):
                     replies.p.last.eq(reply_length == 0),
                 ]
                 with m.If(replies.ready):
-                    m.d.sync += [
-                        index.eq(0),
-                        read_pointer.eq(address),
-                        next_pointer.eq(address + 1),
-                    ]
+                    m.d.sync += [index.eq(0), next_pointer.eq(address)]
                     m.next = "DATA"
 
             with m.State("DATA"):
@@ -385,21 +420,26 @@ class CommandProcessor(wiring.Component):
                     replies.valid.eq(1),
                     replies.p.last.eq(index == reply_final),
                 ]
-                # READ: the registers leave through `read_word`, loaded from registers (the
-                # first while the address goes out, each next one from `next_word`), so no
-                # wide multiplexer sits in front of the reply.
+                # READ: the registers leave through `read_word`, each loaded from `next_word`
+                # as the byte before it goes out (the last address byte, then the last byte of
+                # the register before), so no wide multiplexer sits in front of the reply, and
+                # only one serves all the registers. `next_word` follows `next_pointer` one
+                # cycle late: the first register is ready after the first address byte's cycle,
+                # each next one three cycles after the pointer moved.
                 m.d.sync += next_word.eq(words[next_pointer])
-                with m.If(index < 2):
-                    m.d.sync += read_word.eq(words[read_pointer])
                 with m.If(replies.ready):
                     m.d.sync += index.eq(index + 1)
-                    with m.If((index >= 5) & (index[:2] == 1)):
+                    # STATUS: the counters shift out a byte per byte sent, in place of a wide
+                    # byte multiplexer (the shift packs with each flip-flop into its logic
+                    # cell); not while `running` goes out, whose 31 zero bits then need none.
+                    with m.If(index[2:] != 0):       # index >= 4
+                        m.d.sync += counters.eq(counters[8:])
+                    with m.If(index[:2] == 1):
                         m.d.sync += [
-                            read_pointer.eq(next_pointer),
                             next_pointer.eq(next_pointer + 1),
                             read_word.eq(next_word),
                         ]
-                    with m.Elif(index >= 2):
+                    with m.Elif(index[1:] != 0):     # index >= 2
                         m.d.sync += read_word.eq(read_word >> 8)
                     with m.If(index == reply_final):
                         m.next = "IDLE"
@@ -422,10 +462,12 @@ class CommandProcessor(wiring.Component):
                 m.d.comb += replies.p.data.eq(
                     identity.as_value().word_select(index[:4], 8))
             with m.Case(PacketType.STATUS):
-                m.d.comb += replies.p.data.eq(
-                    snapshot.as_value().word_select(index[:7], 8))
+                with m.If(index[2:] == 0):           # index < 4
+                    m.d.comb += replies.p.data.eq(Mux(index == 0, snapshot.running[0], 0))
+                with m.Else():
+                    m.d.comb += replies.p.data.eq(counters[:8])
             with m.Case(PacketType.REGISTERS):
-                with m.If(index < 2):
+                with m.If(index[1:] == 0):           # index < 2
                     m.d.comb += replies.p.data.eq(address.word_select(index[0], 8))
                 with m.Else():
                     m.d.comb += replies.p.data.eq(read_word[:8])
