@@ -111,8 +111,10 @@ class FlissTop(wiring.Component):
         wiring.connect(m, decoder.o, command.packets)
         wiring.connect(m, command.replies, arbiter.i[0])
         wiring.connect(m, arbiter.o, encoder.i)
-        # A register slice between the encoder's run buffer and the transmitter, for timing
-        m.submodules.tx_buffer = tx_buffer = StreamBuffer(8)
+        # A register slice between the encoder's run buffer (block RAM, slow output) and the
+        # transmitter, for timing; half rate is plenty for a UART and puts no multiplexer after
+        # the RAM.
+        m.submodules.tx_buffer = tx_buffer = StreamBuffer(8, full_rate=False)
         wiring.connect(m, encoder.o, tx_buffer.i)
         wiring.connect(m, tx_buffer.o, uart_tx.i)
 
