@@ -494,6 +494,13 @@ def _non_paralysable(times, dead, last):
     return detected
 
 
+def _cycles(values, what):
+    values = np.asarray(values)
+    if values.ndim != 1 or (len(values) and not np.issubdtype(values.dtype, np.integer)):
+        raise ValueError(f"{what} must be a 1-D array of whole clock cycles")
+    return values.astype(np.int64)
+
+
 class Simulation:
     """The scene, laser cycle after laser cycle, in chunks.
 
@@ -508,9 +515,14 @@ class Simulation:
         The victim's TDC starts do not come from the reference scheduler (``scene.victim``) but
         are given with :meth:`feed`, for instance as a simulated gateware emits them; a laser
         cycle is simulated once the start of the next one is known.
+    external_aggressors : bool
+        The aggressors' laser triggers are given with :meth:`feed_aggressor`: each aggressor is
+        then a pulse ``offset_s + tof`` after each trigger edge, and its own period and delay
+        settings are not used.
     """
 
-    def __init__(self, scene, *, seed=None, chunk_cycles=1 << 16, external_starts=False):
+    def __init__(self, scene, *, seed=None, chunk_cycles=1 << 16, external_starts=False,
+                 external_aggressors=False):
         if not isinstance(scene, Scene):
             raise ValueError(f"Expected a Scene, not {scene!r}")
         if isinstance(chunk_cycles, bool) or not isinstance(chunk_cycles, (int, np.integer)) \
@@ -531,14 +543,22 @@ class Simulation:
         # Pulsed sources: (pulses, mean detections, sigma in LSBs, margin in LSBs)
         self._pulsed = []
         sigma = math.hypot(scene.fwhm_s / FWHM_PER_SIGMA / TDC_LSB_S, jitter)
-        self._signal = _Pulses(self._starts, scale=lsb, shift=scene.tof_s / TDC_LSB_S,
-                               guess=self.chunk_cycles + 2, trim=False)
+        # Fed from outside, the victim fires with some of the starts only (see `feed`).
+        self._fired = _Buffer(None) if self.external_starts else self._starts
+        self._signal = _Pulses(self._fired, scale=lsb, shift=scene.tof_s / TDC_LSB_S,
+                               guess=self.chunk_cycles + 2, trim=self.external_starts)
         self._pulsed.append((self._signal,
                              scene.detections_per_pulse, sigma))
+        self.external_aggressors = bool(external_aggressors)
+        self._aggressor_edges = []
         for aggressor in scene.aggressors:
             tof = scene.tof_s if aggressor.tof_s is None else aggressor.tof_s
             shift = (aggressor.offset_s + tof) / TDC_LSB_S
-            if aggressor.has_delays:
+            if self.external_aggressors:
+                edges = _Buffer(None)
+                self._aggressor_edges.append(edges)
+                pulses = _Pulses(edges, scale=lsb, shift=shift, guess=64)
+            elif aggressor.has_delays:
                 pulses = _Pulses(_Buffer(_Schedule(aggressor.settings(), self.chunk_cycles)),
                                  scale=lsb, shift=shift, guess=self.chunk_cycles + 2)
             else:
@@ -568,21 +588,37 @@ class Simulation:
         known = self._starts.get(self.pulse, self.pulse + 1)
         return int(known[0]) if len(known) else None
 
-    def feed(self, start_cycles):
-        """Give the next TDC starts (laser rising edges), in clock cycles, with
-        ``external_starts``: integers, increasing, after every start given before."""
+    def feed(self, start_cycles, *, fired=True):
+        """Give the next TDC starts, in clock cycles, with ``external_starts``: integers,
+        increasing, after every start given before. With ``fired``, the victim laser fires with
+        them (its echo follows); without, they only close the previous TDC window."""
         if not self.external_starts:
             raise ValueError("This simulation takes its TDC starts from the scheduler model; "
                              "create it with external_starts=True to feed them")
-        values = np.asarray(start_cycles)
-        if values.ndim != 1 or (len(values) and not np.issubdtype(values.dtype, np.integer)):
-            raise ValueError("TDC starts must be a 1-D array of whole clock cycles")
-        values = values.astype(np.int64)
+        values = _cycles(start_cycles, "TDC starts")
         previous = self._starts.get(self._starts.end - 1, self._starts.end)
-        joined = np.concatenate((previous, values))
-        if np.any(np.diff(joined) <= 0):
+        if np.any(np.diff(np.concatenate((previous, values))) <= 0):
             raise ValueError("TDC starts must increase strictly, also across calls to feed()")
         self._starts.feed(values)
+        if fired:
+            self._fired.feed(values)
+
+    def feed_aggressor(self, index, edge_cycles):
+        """Give the next rising edges of aggressor ``index``'s laser trigger, in clock cycles,
+        with ``external_aggressors``: integers, increasing, after every edge given before."""
+        if not self.external_aggressors:
+            raise ValueError("This simulation takes its aggressors from their settings; create "
+                             "it with external_aggressors=True to feed their triggers")
+        if not isinstance(index, (int, np.integer)) or not 0 <= index < len(self._aggressor_edges):
+            raise ValueError(f"Aggressor index must be from 0 to "
+                             f"{len(self._aggressor_edges) - 1}, not {index!r}")
+        edges = self._aggressor_edges[index]
+        values = _cycles(edge_cycles, "Aggressor trigger edges")
+        previous = edges.get(edges.end - 1, edges.end)
+        if np.any(np.diff(np.concatenate((previous, values))) <= 0):
+            raise ValueError("Aggressor trigger edges must increase strictly, also across calls "
+                             "to feed_aggressor()")
+        edges.feed(values)
 
     def step(self, max_cycles=None, *, until_cycle=None):
         """Simulate the next laser cycles: at most ``max_cycles`` (default: one chunk), and only
@@ -695,7 +731,8 @@ class Simulation:
 
         chunk = Chunk(self.pulse, cycles[:count].copy(), events, counts)
         self.pulse += count
-        self._starts.trim(min(self.pulse, self._signal.next_index))
+        self._starts.trim(self.pulse if self.external_starts else
+                          min(self.pulse, self._signal.next_index))
         self._previous_end = float(starts[-1] + TDC_CODES if self._separated else ends[-1])
         self.counts += counts
         return chunk

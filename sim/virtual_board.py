@@ -10,7 +10,7 @@ This is the cocotb test module that :mod:`fliss.host.board` runs in Icarus or Ve
   (not acquiring, nothing to send either way) the loop also waits a little in real time, so an
   idle board takes no CPU. It keeps its own descriptor of the slave side open, so host tools can
   open and close the port as often as they like, as with a USB UART;
-* feeds the sensor pins in closed loop from a :class:`ClosedLoopSimulation` of the scene
+* feeds the sensor pins in closed loop from a :class:`~fliss.sim.scene.Simulation` of the scene
   (:mod:`fliss.sim.scene`): the victim's echo from a target ``FLISS_BOARD_TARGET_M`` metres away
   relative to each ``tdc_start`` rising edge the gateware emits, the aggressor's photons after
   each ``aggressor_laser`` rising edge (over the same path unless
@@ -57,7 +57,7 @@ from . import scene as _scene
 from .uart_bfm import UartSink, UartSource
 
 
-__all__ = ["POLL_US", "ClosedLoopSimulation", "SensorModel", "PtyBridge", "virtual_board"]
+__all__ = ["POLL_US", "SensorModel", "PtyBridge", "virtual_board"]
 
 
 #: Simulated time between two polls of the pseudo-terminal, in microseconds (6 bytes at 12 M
@@ -84,65 +84,15 @@ def _env(name, default, convert=float):
     return default if value in (None, "") else convert(value)
 
 
-class ClosedLoopSimulation(_scene.Simulation):
-    """A :class:`~fliss.sim.scene.Simulation` whose victim and aggressors follow triggers fed
-    from outside.
-
-    ``feed_victim(cycle)`` gives a real TDC start (the victim laser fires then);
-    ``feed_closing(cycle)`` a start that only closes the previous window (no laser pulse); and
-    ``feed_aggressor(index, cycles)`` the rising edges of aggressor ``index``'s trigger. Each
-    aggressor of the scene is then a pulse ``offset_s + tof`` after each edge fed; its own
-    period and delay settings are not used.
-
-    Limitation: this relies on the scene module's internal pulse trains (``_Pulses`` over a
-    ``_Buffer`` fed from outside); ``Simulation(external_starts=True)`` exposes only the
-    victim's starts.
-    """
-
-    def __init__(self, scene, *, seed=None):
-        super().__init__(scene, seed=seed, chunk_cycles=64, external_starts=True)
-        lsb = self._lsb
-        # The victim's echo only after real starts, not after closing ones.
-        self._victim_starts = _scene._Buffer(None)
-        _, mean, sigma = self._pulsed[0]
-        self._pulsed[0] = (_scene._Pulses(self._victim_starts, scale=lsb,
-                                          shift=scene.tof_s / TDC_LSB_S, guess=64),
-                           mean, sigma)
-        self._aggressor_edges = []
-        for index, aggressor in enumerate(scene.aggressors):
-            tof = scene.tof_s if aggressor.tof_s is None else aggressor.tof_s
-            edges = _scene._Buffer(None)
-            _, mean, sigma = self._pulsed[1 + index]
-            self._pulsed[1 + index] = (_scene._Pulses(edges, scale=lsb,
-                                                      shift=(aggressor.offset_s + tof) / TDC_LSB_S,
-                                                      guess=64),
-                                       mean, sigma)
-            self._aggressor_edges.append(edges)
-
-    def feed_victim(self, cycle):
-        self.feed([cycle])
-        self._victim_starts.feed(np.array([cycle], dtype=np.int64))
-
-    def feed_closing(self, cycle):
-        self.feed([cycle])
-
-    def feed_aggressor(self, index, cycles):
-        self._aggressor_edges[index].feed(np.asarray(cycles, dtype=np.int64))
-
-    def step(self, *args, **kwargs):
-        chunk = super().step(*args, **kwargs)
-        # The base class keeps its starts for the victim's train, which no longer reads them.
-        self._starts.trim(self.pulse)
-        return chunk
-
-
 class SensorModel:
-    """Drives the sensor bus of ``dut`` from a :class:`ClosedLoopSimulation` in closed loop."""
+    """Drives the sensor bus of ``dut`` from a :class:`~fliss.sim.scene.Simulation` in closed
+    loop: its TDC starts and aggressor triggers are those the gateware emits."""
 
     def __init__(self, dut, scene, *, seed=None):
         self.dut = dut
         self.scene = scene
-        self.simulation = ClosedLoopSimulation(scene, seed=seed)
+        self.simulation = _scene.Simulation(scene, seed=seed, chunk_cycles=64,
+                                            external_starts=True, external_aggressors=True)
         # Cycles after a TDC start when the sensor's conversion range is over.
         self.window_cycles = math.ceil(_scene.TDC_CODES / scene.lsb_per_cycle)
         self.starts = 0          # real TDC starts seen
@@ -193,7 +143,7 @@ class SensorModel:
         """A TDC start (victim laser pulse) in clock cycle ``cycle``."""
         self.starts += 1
         cut = self._open is not None
-        self.simulation.feed_victim(cycle)
+        self.simulation.feed([cycle])
         if cut:
             # The previous window ends at this start: simulate it now.
             self.late += 1
@@ -205,7 +155,7 @@ class SensorModel:
         if self._open != cycle:
             return                      # a later start has cut this window already
         self._closing.add(cycle + self.window_cycles)
-        self.simulation.feed_closing(cycle + self.window_cycles)
+        self.simulation.feed([cycle + self.window_cycles], fired=False)
         self._emit()
 
     def _emit(self):

@@ -293,3 +293,42 @@ def test_fed_tdc_starts_give_the_same_run_as_the_scheduler_model():
     with pytest.raises(ValueError, match=r"^TDC starts must increase strictly, also across "
                                          r"calls to feed\(\)$"):
         fed.feed([int(edges[-1])])
+
+
+def test_fed_aggressor_triggers_give_the_same_run_as_its_settings():
+    # Closed loop for the aggressors: a free-running aggressor (period 95 cycles) fed as the
+    # trigger edges it makes, 1 + LATENCY cycles after each of its nominal frame starts.
+    victim = Settings(mode="mseq", length=5, period=80)
+    scene = Scene(victim=victim, aggressors=(Aggressor(period_cycles=95),))
+    cycles = 20_000
+    reference, starts, reference_counts = run_events(scene, cycles, chunk_cycles=4096)
+    fed = Simulation(scene, seed=1, chunk_cycles=4096, external_aggressors=True)
+    edges = 1 + scheduler.LATENCY + 95 * np.arange(starts[-1] // 95 + 100)
+    for piece in np.array_split(edges, 5):
+        fed.feed_aggressor(0, piece)
+    events = np.concatenate([chunk.events for chunk in fed.chunks(cycles)])
+    assert np.array_equal(events, reference)
+    assert np.array_equal(fed.counts, reference_counts)
+    assert reference_counts[2].sum() > 100      # the aggressor's photons are in the run
+    with pytest.raises(ValueError, match=r"^Aggressor trigger edges must increase strictly"):
+        fed.feed_aggressor(0, [int(edges[-1])])
+    with pytest.raises(ValueError, match=r"^Aggressor index must be from 0 to 0, not 1$"):
+        fed.feed_aggressor(1, [int(edges[-1]) + 1])
+    with pytest.raises(ValueError, match=r"^This simulation takes its aggressors from their "
+                                         r"settings; create it with external_aggressors=True"):
+        Simulation(scene).feed_aggressor(0, [1])
+
+
+def test_starts_that_do_not_fire_only_close_a_window():
+    # Starts every 80 cycles, the victim firing with every other one: its echo (26.7 ns, 2.1
+    # cycles) is only in the windows of the starts it fired with. No background, no dead time.
+    scene = Scene(background_hz=0, dead_time_s=0, detections_per_pulse=0.5)
+    fed = Simulation(scene, seed=3, chunk_cycles=256, external_starts=True)
+    starts = 80 * np.arange(1, 4001)
+    for index, start in enumerate(starts):
+        fed.feed([start], fired=index % 2 == 0)
+    events = np.concatenate([chunk.events for chunk in fed.chunks(4000)])
+    assert len(events) > 500
+    assert np.all(events["pulse"] % 2 == 0)
+    tof_codes = scene.tof_s / TDC_LSB_S
+    assert abs(np.median(events["timestamp"]) - tof_codes) < 5
