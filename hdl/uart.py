@@ -58,7 +58,16 @@ def bit_cycles(clock_hz, baud):
     return cycles
 
 
-class UartTx(wiring.Component):
+class _Uart(wiring.Component):
+    # What both ends share: the bit time, from the clock and the baud rate checked here.
+    def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, baud=115_200):
+        self.bit_cycles = bit_cycles(clock_hz, baud)
+        self.clock_hz = clock_hz
+        self.baud = baud
+        super().__init__()
+
+
+class UartTx(_Uart):
     """UART transmitter, 8N1.
 
     Sends each byte taken from ``i``: a start bit (0), 8 data bits least significant first, a
@@ -91,12 +100,6 @@ class UartTx(wiring.Component):
     i:    In(stream.Signature(DATA_BITS))
     tx:   Out(1, init=1)
     busy: Out(1)
-
-    def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, baud=115_200):
-        self.bit_cycles = bit_cycles(clock_hz, baud)
-        self.clock_hz = clock_hz
-        self.baud = baud
-        super().__init__()
 
     def elaborate(self, platform):
         m = Module()
@@ -154,7 +157,7 @@ class UartTx(wiring.Component):
         return m
 
 
-class UartRx(wiring.Component):
+class UartRx(_Uart):
     """UART receiver, 8N1, with a majority vote and framing error detection.
 
     The ``rx`` input passes through a two flip-flop synchroniser (high after reset). A low level
@@ -197,12 +200,6 @@ class UartRx(wiring.Component):
     framing_error:  Out(1)
     framing_errors: Out(COUNTER_BITS)
     overruns:       Out(COUNTER_BITS)
-
-    def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, baud=115_200):
-        self.bit_cycles = bit_cycles(clock_hz, baud)
-        self.clock_hz = clock_hz
-        self.baud = baud
-        super().__init__()
 
     def elaborate(self, platform):
         m = Module()
