@@ -142,7 +142,9 @@ def run(args):
                                           "--bin-shift", "3", "--integration", args.integration])
             name = "fliss-off.h5" if "off" in label else "fliss-on.h5"
             files[label] = out / name
-            _step(f"{label}: capture", ["capture", *common, *capture, "-o", str(files[label])])
+            # the demo's own files in its folder: a second run replaces them
+            _step(f"{label}: capture", ["capture", *common, *capture, "-o", str(files[label]),
+                                        "--overwrite"])
     paths = [str(path) for path in files.values()]
     _step("Peaks and suppression", ["analyze", *paths, "--victim-tof", f"{tof_s * 1e9:.3f}ns"])
     png = out / "demo.png"

@@ -317,3 +317,21 @@ def test_virtual_board(sim):
               f"{stats['wall_s']:.1f} s, {stats['bytes_to_host']} bytes to the host")
     finally:
         board.stop()
+
+
+def test_demo_runs_again(tmp_path, capsys):
+    """`make demo` twice: the second run replaces the demo's own files instead of stopping."""
+    if not simulator_available("verilator"):
+        message = "simulator verilator is not installed"
+        if os.environ.get("FLISS_REQUIRE_SIMULATORS"):
+            pytest.fail(message + " (FLISS_REQUIRE_SIMULATORS is set)")
+        pytest.skip(message)
+    argv = ["demo", "--out", str(tmp_path), "--integration", "0.5ms", "--acquisitions", "1"]
+    written = []
+    for _ in range(2):
+        assert main(argv) == 0
+        written.append({name: (tmp_path / name).stat().st_mtime_ns
+                        for name in ("fliss-off.h5", "fliss-on.h5", "demo.png")})
+        summary = capsys.readouterr().out.split("== Summary")[-1]
+        assert summary.count("victim peak") == 2, summary
+    assert all(written[1][name] > written[0][name] for name in written[0])
