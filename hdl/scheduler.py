@@ -54,7 +54,9 @@ class PulseScheduler(wiring.Component):
     pulse_width : In(16)
         Laser pulse width in clock cycles, passed on with each pulse.
     delays : In(stream.Signature(32))
-        Delays in clock cycles, one taken per frame.
+        Delays in clock cycles, one taken per frame. The payload only gives ``fire_delay``: the
+        pulse is timed from the hints below, so the delays must come from a
+        :class:`~fliss.hdl.delay.DelaySource`.
     reload : Out(1)
         Restart the delay sequence from its seed (to :class:`DelaySource` ``load``).
     running : Out(1)
@@ -173,7 +175,8 @@ class PulseScheduler(wiring.Component):
         # the take cycle, or in the pulse's cycle, and counts `T - 1` cycles.
         m.submodules.frame = frame = _Timer(PERIOD_WIDTH, target=2)
         m.d.comb += [
-            frame.load.eq(Mux(active_grid, take_d, pulse)),
+            # (not in a stop: a load would outlast the clear, into a restart a cycle later)
+            frame.load.eq(Mux(active_grid, take_d, pulse) & self.running & self.enable),
             frame.clear.eq(take | ~self.running | ~self.enable),
             frame.value.eq(active_period),
             frame.value_flags.eq(active_flags),

@@ -35,7 +35,9 @@ def register(subparsers, formatter):
                     "suppression, and writes a PNG of the two histograms.")
     parser.add_argument("--sim", choices=["verilator", "icarus"], default="verilator",
                         help="simulator of the virtual board")
-    parser.add_argument("--out", default="build/demo", metavar="DIR", help="output folder")
+    parser.add_argument("--out", default="build/demo", metavar="DIR",
+                        help="output folder; the demo replaces its own files there "
+                             "(fliss-off.h5, fliss-on.h5, demo.png)")
     parser.add_argument("--acquisitions", type=int, default=2,
                         help="histograms per setting")
     parser.add_argument("--integration", default="2ms", metavar="TIME",

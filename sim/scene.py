@@ -551,6 +551,7 @@ class Simulation:
                              scene.detections_per_pulse, sigma))
         self.external_aggressors = bool(external_aggressors)
         self._aggressor_edges = []
+        self._last_edges = [np.zeros(0, dtype=np.int64) for _ in scene.aggressors]
         for aggressor in scene.aggressors:
             tof = scene.tof_s if aggressor.tof_s is None else aggressor.tof_s
             shift = (aggressor.offset_s + tof) / TDC_LSB_S
@@ -605,20 +606,23 @@ class Simulation:
 
     def feed_aggressor(self, index, edge_cycles):
         """Give the next rising edges of aggressor ``index``'s laser trigger, in clock cycles,
-        with ``external_aggressors``: integers, increasing, after every edge given before."""
+        with ``external_aggressors``: integers, increasing, after every edge given before. Give
+        each edge before :meth:`step` simulates the laser cycles its photons fall in: photons of
+        an edge given later are not simulated."""
         if not self.external_aggressors:
             raise ValueError("This simulation takes its aggressors from their settings; create "
                              "it with external_aggressors=True to feed their triggers")
         if not isinstance(index, (int, np.integer)) or not 0 <= index < len(self._aggressor_edges):
             raise ValueError(f"Aggressor index must be from 0 to "
                              f"{len(self._aggressor_edges) - 1}, not {index!r}")
-        edges = self._aggressor_edges[index]
         values = _cycles(edge_cycles, "Aggressor trigger edges")
-        previous = edges.get(edges.end - 1, edges.end)
+        previous = self._last_edges[index]
         if np.any(np.diff(np.concatenate((previous, values))) <= 0):
             raise ValueError("Aggressor trigger edges must increase strictly, also across calls "
                              "to feed_aggressor()")
-        edges.feed(values)
+        self._aggressor_edges[index].feed(values)
+        if len(values):
+            self._last_edges[index] = values[-1:]
 
     def step(self, max_cycles=None, *, until_cycle=None):
         """Simulate the next laser cycles: at most ``max_cycles`` (default: one chunk), and only

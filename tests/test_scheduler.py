@@ -16,8 +16,10 @@ from fliss.sim.scheduler import (LATENCY, Settings, check_schedule, fire_cycles,
 FIELDS = ("mode", "length", "mask_width", "seed", "period", "grid", "pulse_width")
 
 
-def run_core(settings, cycles, *, updates=(), enable=1, disable=None, reset=None):
-    """Run the delay core; return pulses as (fire, delay, width, index) and the laser trace."""
+def run_core(settings, cycles, *, updates=(), enable=1, disable=None, reset=None, present=()):
+    """Run the delay core; return pulses as (fire, delay, width, index) and the laser trace.
+    ``enable`` is the cycle it rises in, or a function of the cycle; ``present`` holds (cycle,
+    settings) presented from that cycle on, without an update strobe."""
     dut = DelayCore()
     pulses, laser, starts = [], [], []
     updates = dict(updates)
@@ -27,8 +29,15 @@ def run_core(settings, cycles, *, updates=(), enable=1, disable=None, reset=None
             ctx.set(getattr(dut, name), getattr(settings, name))
         width = {}
         for cycle in range(cycles):
-            ctx.set(dut.enable, enable <= cycle and (disable is None or cycle < disable))
+            if callable(enable):
+                ctx.set(dut.enable, enable(cycle))
+            else:
+                ctx.set(dut.enable, enable <= cycle and (disable is None or cycle < disable))
             ctx.set(dut.update, cycle in updates)
+            for at, presented in present:
+                if cycle == at:
+                    for name in FIELDS:
+                        ctx.set(getattr(dut, name), getattr(presented, name))
             if cycle in updates:
                 for name in FIELDS:
                     ctx.set(getattr(dut, name), getattr(updates[cycle], name))
@@ -138,6 +147,34 @@ def test_stop_and_restart():
     assert [(f, d, i) for f, d, _, i in pulses] == [(f, d, i) for f, d, _, i in expected]
     assert max(f for f, *_ in pulses) < 300
     assert not laser[300 + 4:].any()
+
+
+_SHORT_STOP_SETTINGS = [
+    Settings(mode=DelayMode.MASKED, mask_width=3, seed=5, period=9, pulse_width=2),
+    Settings(mode=DelayMode.MSEQ, length=3, seed=2, period=11, grid=True, pulse_width=1),
+    Settings(mode=DelayMode.OFF, period=2, pulse_width=1),
+    Settings(mode=DelayMode.OFF, period=3, grid=True, pulse_width=2),
+    Settings(mode=DelayMode.OFF, period=2, grid=True, pulse_width=1),
+]
+
+
+@pytest.mark.parametrize("before", range(len(_SHORT_STOP_SETTINGS)))
+@pytest.mark.parametrize("after", range(len(_SHORT_STOP_SETTINGS)))
+@pytest.mark.parametrize("gap", [1, 2])
+def test_short_stops(before, after, gap):
+    # `enable` low for one or two cycles, at every point of a few frames, with other settings
+    # presented during the stop: the restarted run is a new run with them (pulse index and
+    # delay sequence from the start), as in the model.
+    settings, restarted = _SHORT_STOP_SETTINGS[before], _SHORT_STOP_SETTINGS[after]
+    cycles = 100
+    for stop in range(30, 30 + 2 * settings.period):
+        restart = stop + gap
+        pulses, _, _ = run_core(settings, cycles, present=[(stop, restarted)],
+                                enable=lambda cycle: 1 <= cycle < stop or cycle >= restart)
+        expected = simulate(settings, cycles - 1, enable=1, disable=stop) + \
+            simulate(restarted, cycles - 1, enable=restart)
+        assert [(f, d, i) for f, d, _, i in pulses] == \
+            [(f, d, i) for f, d, _, i in expected], (stop, gap)
 
 
 def test_laser_trigger_width_and_tdc_start():
