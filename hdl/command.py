@@ -432,6 +432,8 @@ class CommandProcessor(wiring.Component):
                     # STATUS: the counters shift out a byte per byte sent, in place of a wide
                     # byte multiplexer (the shift packs with each flip-flop into its logic
                     # cell); not while `running` goes out, whose 31 zero bits then need none.
+                    # (They shift during other replies too, which is harmless: each STATUS
+                    # loads the snapshot anew, and no condition on the reply type slows this.)
                     with m.If(index[2:] != 0):       # index >= 4
                         m.d.sync += counters.eq(counters[8:])
                     with m.If(index[:2] == 1):
