@@ -402,7 +402,6 @@ class Histogram(wiring.Component):
 
         # Readout: address, read, capture (and clear), present
         read_index = Signal(self.bin_bits)
-        read_count = Signal(self.count_width)
         read_last = Signal()
         read_addr = Signal()    # the readout sets the read address of its bank
         read_clear = Signal()   # the readout sets a clearing write of its bank
@@ -411,7 +410,7 @@ class Histogram(wiring.Component):
             self._single_engine(m, valid2, bin2, bank2, bank_data, increment, initialising,
                                 init_index, read_bank, read_index, read_addr, read_clear)
             # captured from the RAM output in CAPTURE (below)
-            present_count = read_count
+            present_count = Signal(self.count_width, name="read_count")
         else:
             stored = self._dual_engine(m, valid2, bin2, bank2, banks, increment, read_bank,
                                        read_index, read_addr, read_clear)
@@ -445,7 +444,7 @@ class Histogram(wiring.Component):
             with m.State("CAPTURE"):
                 # the word read in READ (with single-port banks: never the output after a write)
                 if single:
-                    m.d.sync += read_count.eq(Mux(read_bank, bank_data[1], bank_data[0]))
+                    m.d.sync += present_count.eq(Mux(read_bank, bank_data[1], bank_data[0]))
                 m.next = "PRESENT"
             with m.State("PRESENT"):
                 m.d.comb += [

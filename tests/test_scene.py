@@ -274,10 +274,14 @@ def test_memory_stays_bounded_however_long_the_run():
     assert peaks[1] < 1.5 * peaks[0]
 
 
+#: Scene of the closed-loop tests: an m-sequence victim and a free-running aggressor.
+CLOSED_LOOP_SCENE = Scene(victim=Settings(mode="mseq", length=5, period=80),
+                          aggressors=(Aggressor(period_cycles=95),))
+
+
 def test_fed_tdc_starts_give_the_same_run_as_the_scheduler_model():
     # Closed loop: the starts a gateware emits, fed in pieces, replace the reference scheduler.
-    victim = Settings(mode="mseq", length=5, period=80)
-    scene = Scene(victim=victim, aggressors=(Aggressor(period_cycles=95),))
+    scene = CLOSED_LOOP_SCENE
     cycles = 30_000
     reference, starts, _ = run_events(scene, cycles, chunk_cycles=4096)
     fed = Simulation(scene, seed=1, chunk_cycles=4096, external_starts=True)
@@ -298,8 +302,7 @@ def test_fed_tdc_starts_give_the_same_run_as_the_scheduler_model():
 def test_fed_aggressor_triggers_give_the_same_run_as_its_settings():
     # Closed loop for the aggressors: a free-running aggressor (period 95 cycles) fed as the
     # trigger edges it makes, 1 + LATENCY cycles after each of its nominal frame starts.
-    victim = Settings(mode="mseq", length=5, period=80)
-    scene = Scene(victim=victim, aggressors=(Aggressor(period_cycles=95),))
+    scene = CLOSED_LOOP_SCENE
     cycles = 20_000
     reference, starts, reference_counts = run_events(scene, cycles, chunk_cycles=4096)
     fed = Simulation(scene, seed=1, chunk_cycles=4096, external_aggressors=True)
