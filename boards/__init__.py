@@ -221,6 +221,13 @@ def fliss_top_spram(clock_hz):
     return FlissTop(clock_hz=clock_hz, histogram_ram="single")
 
 
+def fliss_top_up5k(clock_hz):
+    """:func:`fliss_top` cut to fit an iCE40UP5K: histogram banks in its SPRAM, and no delay
+    source of the aggressor's own (it fires on its nominal schedule)."""
+    from ..hdl.top import FlissTop
+    return FlissTop(clock_hz=clock_hz, histogram_ram="single", aggressor_delays=False)
+
+
 class DemoSettings(data.Struct):
     """Settings of the delay core in :class:`DelayCoreDemo`, LSB first."""
     mode:        DelayMode

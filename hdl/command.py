@@ -10,11 +10,11 @@ from .buffer import StreamBuffer
 from .delay import DelayMode
 from .framing import PacketBeat
 from .protocol import (PROTOCOL_VERSION, PacketType, NakCode, MAX_PAYLOAD, COUNTER_BITS)
-from .registers import REGISTERS, settings_layout, defaults
+from .registers import REGISTERS, BY_NAME, settings_layout, defaults
 
 
-__all__ = ["Identity", "STATUS_FIELDS", "status_layout", "READ_MAX", "CONSISTENCY",
-           "CommandProcessor"]
+__all__ = ["Identity", "STATUS_FIELDS", "StatusSignature", "READ_MAX", "CONSISTENCY",
+           "register_maxima", "CommandProcessor"]
 
 
 class Identity(data.Struct):
@@ -51,8 +51,16 @@ STATUS_FIELDS = (
 )
 
 
-def status_layout():
-    return data.StructLayout({name: COUNTER_BITS for name in STATUS_FIELDS})
+#: The command processor's port to the STATUS counters (:class:`fliss.hdl.status.StatusCounters`):
+#: ``capture`` (a strobe) asks for a snapshot of all the counters; ``ready`` is high when no
+#: snapshot is being taken (it falls in the cycle after ``capture`` at the latest); ``data`` is
+#: field ``addr`` of :data:`STATUS_FIELDS` in the snapshot, one cycle after ``addr``.
+StatusSignature = wiring.Signature({
+    "capture": Out(1),
+    "ready":   In(1),
+    "addr":    Out(range(len(STATUS_FIELDS))),
+    "data":    In(COUNTER_BITS),
+})
 
 
 #: Most registers in one READ (the REGISTERS reply carries the address and one u32 each).
@@ -61,6 +69,28 @@ READ_MAX = (MAX_PAYLOAD - 2) // 4
 #: ``detail`` of a NAK ``OUT_OF_RANGE`` refused for inconsistent settings rather than for one
 #: register out of its range (whose address is the detail then).
 CONSISTENCY = 0xffff
+
+
+def register_maxima(maxima, clock_hz):
+    """Largest value of every register, by name: the register map's, lowered by ``maxima``
+    (name -> maximum). Refuses unknown names, and maxima that are not lower or would refuse
+    the register's reset value."""
+    result = {register.name: register.maximum for register in REGISTERS}
+    if maxima is None:
+        return result
+    if not isinstance(maxima, dict):
+        raise TypeError(f"Register maxima must be a dict of name -> maximum, not {maxima!r}")
+    for name, maximum in maxima.items():
+        if name not in BY_NAME:
+            raise ValueError(f"Unknown register {name!r} in the register maxima")
+        register = BY_NAME[name]
+        if (not isinstance(maximum, int) or
+                not max(register.minimum, register.reset_value(clock_hz)) <= maximum
+                <= register.maximum):
+            raise ValueError(f"Maximum of register {name} must be an integer from its reset "
+                             f"value or minimum to {register.maximum}, not {maximum!r}")
+        result[name] = maximum
+    return result
 
 
 def _version(text):
@@ -86,6 +116,10 @@ class CommandProcessor(wiring.Component):
         Clock frequency, for the register reset values and the identity.
     baud : int
         Baud rate, for the identity.
+    maxima : dict
+        Register name -> a lower maximum than the register map's, for a build that lacks a
+        feature (``{"aggressor_delay_mode": 0}`` without the aggressor's delay source). A value
+        above it is refused as out of range.
 
     Members
     -------
@@ -104,15 +138,17 @@ class CommandProcessor(wiring.Component):
         register, for timing).
     running : Out(1)
         Acquisition started.
-    status : In(status_layout())
-        Counters for STATUS packets; ``running``, ``commands`` and ``refused`` are filled in here.
-    commands, refused : Out(32)
-        Commands received, and refused with a NAK.
+    status : Out(StatusSignature)
+        The counters of STATUS replies; ``running`` is filled in here.
+    tally : Out(data.StructLayout({"commands": 1, "refused": 1}))
+        Strobes for the ``commands`` and ``refused`` counters: a command received, a command
+        refused with a NAK.
     """
 
-    def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, baud=115_200):
+    def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, baud=115_200, maxima=None):
         self.clock_hz = int(clock_hz)
         self.baud = int(baud)
+        self.maxima = register_maxima(maxima, self.clock_hz)
         super().__init__({
             "packets":         In(stream.Signature(PacketBeat)),
             "replies":         Out(stream.Signature(PacketBeat)),
@@ -121,9 +157,8 @@ class CommandProcessor(wiring.Component):
             "settings":        Out(settings_layout(), init=defaults(self.clock_hz)),
             "update":          Out(1),
             "running":         Out(1),
-            "status":          In(status_layout()),
-            "commands":        Out(COUNTER_BITS),
-            "refused":         Out(COUNTER_BITS),
+            "status":          Out(StatusSignature),
+            "tally":           Out(data.StructLayout({"commands": 1, "refused": 1})),
         })
 
     def elaborate(self, platform):
@@ -159,18 +194,15 @@ class CommandProcessor(wiring.Component):
         reply_type = Signal(8)
         reply_length = Signal(16)
         reply_final = Signal(16)        # index of the last payload byte
-        # READ: address of the register to be sent next (a READ reaches no further than the
-        # last register, so it is narrow)
-        next_pointer = Signal(range(len(REGISTERS) + 2))
-        read_word = Signal(32)          # READ: bytes of the register being sent, LSB first
-        next_word = Signal(32)          # READ: the register at `next_pointer`
+        # READ and STATUS: address of the register or field to be sent next (a READ reaches no
+        # further than the last register, so it is narrow)
+        next_pointer = Signal(range(max(len(REGISTERS) + 2, len(STATUS_FIELDS))))
+        read_word = Signal(32)          # bytes of the register or counter being sent, LSB first
+        next_word = Signal(32)          # the register or counter at `next_pointer`
+        is_status = Signal()            # the reply is a STATUS
+        status_running = Signal()       # STATUS: `running` when it was asked for
         nak = Signal(data.StructLayout({"seq": 8, "code": NakCode, "detail": 16}),
                      init={"code": NakCode.BAD_CRC})
-        # STATUS: the counters; after `running` (one bit, sent as is), the bytes not yet sent,
-        # the next one lowest
-        snapshot = Signal(status_layout())
-        assert STATUS_FIELDS[0] == "running"
-        counters = snapshot.as_value()[COUNTER_BITS:]
         link_pending = Signal()
         link_code = Signal(NakCode, init=NakCode.BAD_CRC)
 
@@ -189,9 +221,9 @@ class CommandProcessor(wiring.Component):
         # (the bits the register's values may have) and the comparators are `LOW` bits wide.
         LOW = 6
         for register in REGISTERS:
+            top = self.maxima[register.name]
             assert register.minimum < 1 << LOW, register
-            assert (register.maximum < 1 << LOW or
-                    register.maximum & (register.maximum + 1) == 0), register
+            assert top < 1 << LOW or top & (top + 1) == 0, register
         check = Signal()
         value = word
         value_address = Signal(16)      # address of the value being received
@@ -201,12 +233,13 @@ class CommandProcessor(wiring.Component):
         maximum = Signal(LOW)           # `maximum`, or all ones if that is larger
         with m.Switch(value_address):
             for register in REGISTERS:
+                top = self.maxima[register.name]
                 with m.Case(register.address):
                     m.d.comb += [
                         known.eq(1),
-                        allowed.eq((1 << register.maximum.bit_length()) - 1),
+                        allowed.eq((1 << top.bit_length()) - 1),
                         minimum.eq(register.minimum),
-                        maximum.eq(min(register.maximum, (1 << LOW) - 1)),
+                        maximum.eq(min(top, (1 << LOW) - 1)),
                     ]
         out_of_range = ((value & ~allowed).any() |
                         ((value[LOW:] == 0) & (value[:LOW] < minimum)) |
@@ -270,14 +303,14 @@ class CommandProcessor(wiring.Component):
         def reply(type, length, final=None):
             # `final`: the index of the last payload byte, `length - 1`, given without an adder
             # when `length` is not a constant
-            return [reply_type.eq(type), reply_length.eq(length),
+            return [reply_type.eq(type), is_status.eq(type == PacketType.STATUS),
+                    reply_length.eq(length),
                     reply_final.eq(length - 1 if final is None else final)]
 
         m.d.sync += self.update.eq(0)
         refusing = Signal()     # a NAK was decided in the previous cycle: count it now
         m.d.sync += refusing.eq(0)
-        with m.If(refusing):
-            m.d.sync += self.refused.eq(self.refused + 1)
+        m.d.comb += self.tally.refused.eq(refusing)
 
         def refuse(code, detail=0):
             return [
@@ -298,8 +331,8 @@ class CommandProcessor(wiring.Component):
                         write_payload.eq((header.length[:2] == 2) & (header.length[2:] != 0)),
                         index.eq(0), has_error.eq(0),
                         candidate.eq(self.settings),
-                        self.commands.eq(self.commands + 1),
                     ]
+                    m.d.comb += self.tally.commands.eq(1)
                     with m.If(self.packets.p.last):
                         m.next = "DISPATCH"
                     with m.Else():
@@ -383,15 +416,19 @@ class CommandProcessor(wiring.Component):
                         with m.If(no_payload):
                             m.d.sync += [
                                 reply(PacketType.STATUS, len(STATUS_FIELDS) * 4),
-                                snapshot.eq(self.status),
-                                snapshot.running.eq(self.running),
-                                snapshot.commands.eq(self.commands),
-                                snapshot.refused.eq(self.refused),
+                                status_running.eq(self.running),
                             ]
+                            m.d.comb += self.status.capture.eq(1)
+                            m.next = "SNAPSHOT"
                         with m.Else():
                             m.d.sync += refuse(NakCode.BAD_PAYLOAD)
                     with m.Default():
                         m.d.sync += refuse(NakCode.UNKNOWN_TYPE, cmd_type)
+
+            with m.State("SNAPSHOT"):
+                # The counters are being copied (`ready` is low from this cycle on).
+                with m.If(self.status.ready):
+                    m.next = "HEADER"
 
             with m.State("CONSISTENCY"):
                 m.next = "COMMIT"
@@ -412,7 +449,10 @@ class CommandProcessor(wiring.Component):
                     replies.p.last.eq(reply_length == 0),
                 ]
                 with m.If(replies.ready):
-                    m.d.sync += [index.eq(0), next_pointer.eq(address)]
+                    m.d.sync += [
+                        index.eq(0),
+                        next_pointer.eq(Mux(is_status, 1, address)),
+                    ]
                     m.next = "DATA"
 
             with m.State("DATA"):
@@ -420,28 +460,23 @@ class CommandProcessor(wiring.Component):
                     replies.valid.eq(1),
                     replies.p.last.eq(index == reply_final),
                 ]
-                # READ: the registers leave through `read_word`, each loaded from `next_word`
-                # as the byte before it goes out (the last address byte, then the last byte of
-                # the register before), so no wide multiplexer sits in front of the reply, and
-                # only one serves all the registers. `next_word` follows `next_pointer` one
-                # cycle late: the first register is ready after the first address byte's cycle,
-                # each next one three cycles after the pointer moved.
-                m.d.sync += next_word.eq(words[next_pointer])
+                # READ and STATUS: the registers (counters) leave through `read_word`, each loaded
+                # from `next_word` as the byte before it goes out (the last address byte of a
+                # READ, the last byte of `running` in a STATUS, then the last byte of the one
+                # before), so no wide multiplexer sits in front of the reply, and only one serves
+                # all the registers. `next_word` follows `next_pointer` two cycles late (a
+                # counter is read in the cycle after its address): the first is ready after the
+                # first payload byte's cycle, each next one four cycles after the pointer moved.
+                m.d.comb += self.status.addr.eq(next_pointer)
+                m.d.sync += next_word.eq(Mux(is_status, self.status.data, words[next_pointer]))
                 with m.If(replies.ready):
                     m.d.sync += index.eq(index + 1)
-                    # STATUS: the counters shift out a byte per byte sent, in place of a wide
-                    # byte multiplexer (the shift packs with each flip-flop into its logic
-                    # cell); not while `running` goes out, whose 31 zero bits then need none.
-                    # (They shift during other replies too, which is harmless: each STATUS
-                    # loads the snapshot anew, and no condition on the reply type slows this.)
-                    with m.If(index[2:] != 0):       # index >= 4
-                        m.d.sync += counters.eq(counters[8:])
-                    with m.If(index[:2] == 1):
+                    with m.If(index[:2] == Mux(is_status, 3, 1)):
                         m.d.sync += [
                             next_pointer.eq(next_pointer + 1),
                             read_word.eq(next_word),
                         ]
-                    with m.Elif(index[1:] != 0):     # index >= 2
+                    with m.Else():
                         m.d.sync += read_word.eq(read_word >> 8)
                     with m.If(index == reply_final):
                         m.next = "IDLE"
@@ -465,9 +500,9 @@ class CommandProcessor(wiring.Component):
                     identity.as_value().word_select(index[:4], 8))
             with m.Case(PacketType.STATUS):
                 with m.If(index[2:] == 0):           # index < 4
-                    m.d.comb += replies.p.data.eq(Mux(index == 0, snapshot.running[0], 0))
+                    m.d.comb += replies.p.data.eq(Mux(index == 0, status_running, 0))
                 with m.Else():
-                    m.d.comb += replies.p.data.eq(counters[:8])
+                    m.d.comb += replies.p.data.eq(read_word[:8])
             with m.Case(PacketType.REGISTERS):
                 with m.If(index[1:] == 0):           # index < 2
                     m.d.comb += replies.p.data.eq(address.word_select(index[0], 8))

@@ -166,6 +166,9 @@ class Histogram(wiring.Component):
         cycle after an arrival counts it as the first).
     overflow : Out(32)
         Events whose bin is beyond ``2**bin_bits - 1`` (saturating).
+    tally : Out(data.StructLayout)
+        One strobe per counter above, same names: high in each cycle the counter counts (and
+        when it is full), for counters elsewhere.
 
     Attributes
     ----------
@@ -226,6 +229,8 @@ class Histogram(wiring.Component):
             "dropped":       Out(COUNTER_WIDTH),
             "dropped_busy":  Out(COUNTER_WIDTH),
             "overflow":      Out(COUNTER_WIDTH),
+            "tally":         Out(data.StructLayout({
+                                 "frames": 1, "dropped": 1, "dropped_busy": 1, "overflow": 1})),
         })
         if ram == "dual":
             self.banks = tuple(Memory(shape=count_width, depth=1 << bin_bits, init=[])
@@ -295,6 +300,7 @@ class Histogram(wiring.Component):
                 full.bit_select(fill_bank, 1).eq(1),
                 self.frames.eq(self.frames + 1),
             ]
+            m.d.comb += self.tally.frames.eq(1)
         m.d.comb += new_bank.eq(fill_bank ^ swap)
         with m.If(start_frame):
             m.d.sync += [
@@ -365,11 +371,11 @@ class Histogram(wiring.Component):
                 drop1.eq(arrive & ~take),
                 busy1.eq(arrive & self.filling & valid1),
             ]
-            count_event(m, self.dropped, drop1, self.clear)
-            count_event(m, self.dropped_busy, busy1, self.clear)
+            count_event(m, self.dropped, drop1, self.clear, self.tally.dropped)
+            count_event(m, self.dropped_busy, busy1, self.clear, self.tally.dropped_busy)
         else:
             take = arrive & self.filling
-            count_event(m, self.dropped, arrive & ~self.filling, self.clear)
+            count_event(m, self.dropped, arrive & ~self.filling, self.clear, self.tally.dropped)
         m.d.sync += [
             valid1.eq(take),
             timestamp1.eq(self.events.payload.timestamp),
@@ -391,7 +397,7 @@ class Histogram(wiring.Component):
             fine2.eq(shift1[:2]),
             bank2.eq(bank1),
         ]
-        count_event(m, self.overflow, valid1 & ~in_range, self.clear)
+        count_event(m, self.overflow, valid1 & ~in_range, self.clear, self.tally.overflow)
         bin2 = Signal(self.bin_bits)
         m.d.comb += bin2.eq(coarse2 >> fine2)
 

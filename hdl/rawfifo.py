@@ -49,6 +49,9 @@ class RawFifo(wiring.Component):
         Events written into the FIFO.
     dropped : Out(counter_width)
         Events dropped because the FIFO was full.
+    tally : Out(data.StructLayout)
+        Strobes ``accepted`` and ``dropped``: high in each cycle its counter counts (and when it
+        is full), for counters elsewhere.
     """
 
     def __init__(self, *, depth=DEPTH, counter_width=COUNTER_WIDTH):
@@ -66,6 +69,7 @@ class RawFifo(wiring.Component):
             "level":    Out(range(depth + 1)),
             "accepted": Out(counter_width),
             "dropped":  Out(counter_width),
+            "tally":    Out(data.StructLayout({"accepted": 1, "dropped": 1})),
         })
 
     def elaborate(self, platform):
@@ -90,8 +94,8 @@ class RawFifo(wiring.Component):
         ]
 
         # Counters
-        count_event(m, self.accepted, write, self.clear)
-        count_event(m, self.dropped, drop, self.clear)
+        count_event(m, self.accepted, write, self.clear, self.tally.accepted)
+        count_event(m, self.dropped, drop, self.clear, self.tally.dropped)
 
         # Read side
         m.d.comb += [

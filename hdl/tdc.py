@@ -5,7 +5,7 @@ the same :class:`EventFilter`, so the rest of the design does not care where eve
 """
 
 from amaranth.hdl import *
-from amaranth.lib import cdc, stream, wiring
+from amaranth.lib import cdc, data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from .event import Event, TIMESTAMP_BITS, ADDRESS_BITS, PULSE_BITS
@@ -31,11 +31,14 @@ OUTPUT_LATENCY = CAPTURE_LATENCY + 1 + FILTER_LATENCY
 MAX_TIMESTAMP = (1 << TIMESTAMP_BITS) - 1
 
 
-def count_event(m, counter, condition, clear):
+def count_event(m, counter, condition, clear, strobe=None):
     """Saturating event counter: ``counter`` counts the cycles with ``condition``, up to all
     ones. ``clear`` restarts it from the event of its own cycle (0 or 1), so no event goes
     uncounted. A register remembers that it is full, so no wide comparator sits in its enable
-    path."""
+    path. ``strobe``, if given, is driven with ``condition``: the same events, for a counter
+    elsewhere (a :class:`~fliss.hdl.counters.CounterBank`)."""
+    if strobe is not None:
+        m.d.comb += strobe.eq(condition)
     top = (1 << len(counter)) - 1
     full = Signal(name=f"{counter.name}_full")
     with m.If(clear):
@@ -90,6 +93,9 @@ class EventFilter(wiring.Component):
         Accepted events.
     accepted, dropped_stopped, dropped_overflow, dropped_gate, dropped_overrun : Out(32)
         Event counters.
+    tally : Out(data.StructLayout)
+        One strobe per counter, same names: high in each cycle the counter counts (and when it
+        is full), for counters elsewhere.
     """
 
     capture:          In(1)
@@ -105,6 +111,9 @@ class EventFilter(wiring.Component):
     dropped_overflow: Out(COUNTER_WIDTH)
     dropped_gate:     Out(COUNTER_WIDTH)
     dropped_overrun:  Out(COUNTER_WIDTH)
+    tally:            Out(data.StructLayout({name: 1 for name in (
+                          "accepted", "dropped_stopped", "dropped_overflow", "dropped_gate",
+                          "dropped_overrun")}))
 
     def elaborate(self, platform):
         m = Module()
@@ -134,11 +143,14 @@ class EventFilter(wiring.Component):
             overrun.eq(in_gate & busy),
             accept.eq(in_gate & ~busy),
         ]
-        count_event(m, self.accepted, accept, self.clear)
-        count_event(m, self.dropped_stopped, captured & stopped, self.clear)
-        count_event(m, self.dropped_overflow, captured & ~stopped & overflow, self.clear)
-        count_event(m, self.dropped_gate, captured & ~stopped & ~overflow & outside, self.clear)
-        count_event(m, self.dropped_overrun, overrun, self.clear)
+        t = self.tally
+        count_event(m, self.accepted, accept, self.clear, t.accepted)
+        count_event(m, self.dropped_stopped, captured & stopped, self.clear, t.dropped_stopped)
+        count_event(m, self.dropped_overflow, captured & ~stopped & overflow, self.clear,
+                    t.dropped_overflow)
+        count_event(m, self.dropped_gate, captured & ~stopped & ~overflow & outside, self.clear,
+                    t.dropped_gate)
+        count_event(m, self.dropped_overrun, overrun, self.clear, t.dropped_overrun)
 
         with m.If(self.events.ready):
             m.d.sync += self.events.valid.eq(0)

@@ -13,6 +13,7 @@ from .framing import FrameDecoder, FrameEncoder
 from .histogram import Histogram, RAM_KINDS
 from .packetizer import EventPacketizer, HistogramPacketizer
 from .rawfifo import RawFifo
+from .status import StatusCounters, link_strobes
 from .registers import AcquisitionMode, TdcSource
 from .tdc import EventFilter, TdcInterface, CoarseTdc
 from .uart import UartRx, UartTx, bit_cycles
@@ -43,6 +44,10 @@ class FlissTop(wiring.Component):
     histogram_ram : str
         Storage of the histogram banks (:class:`~fliss.hdl.histogram.Histogram` ``ram``):
         ``"dual"`` (block RAM) or ``"single"`` (single-port RAM: the SPRAM of an iCE40UP5K).
+    aggressor_delays : bool
+        Give the aggressor emitter a delay source of its own. Without it (a smaller build, for
+        the iCE40UP5K), the aggressor fires on its nominal schedule only, and a write of
+        ``aggressor_delay_mode`` other than 0 (off) is refused as out of range.
 
     Members
     -------
@@ -78,7 +83,7 @@ class FlissTop(wiring.Component):
     running:          Out(1)
 
     def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, baud=DEFAULT_BAUD, raw_depth=512,
-                 histogram_ram="dual"):
+                 histogram_ram="dual", aggressor_delays=True):
         self.clock_hz = clock_hz
         self.baud = baud
         self.raw_depth = raw_depth
@@ -87,9 +92,16 @@ class FlissTop(wiring.Component):
         if histogram_ram not in RAM_KINDS:
             raise ValueError(f"Histogram RAM must be one of {', '.join(map(repr, RAM_KINDS))}, "
                              f"not {histogram_ram!r}")
+        if not isinstance(aggressor_delays, bool):
+            raise TypeError(f"aggressor_delays must be True or False, not {aggressor_delays!r}")
+        self.aggressor_delays = aggressor_delays
         period_cycles(clock_hz, DEFAULT_PRF_HZ)
         bit_cycles(clock_hz, baud)
         super().__init__()
+
+    def register_maxima(self):
+        """Register maxima lowered for this build (see :class:`CommandProcessor`)."""
+        return {} if self.aggressor_delays else {"aggressor_delay_mode": 0}
 
     def elaborate(self, platform):
         m = Module()
@@ -99,7 +111,8 @@ class FlissTop(wiring.Component):
         m.submodules.uart_tx = uart_tx = UartTx(clock_hz=self.clock_hz, baud=self.baud)
         m.submodules.decoder = decoder = FrameDecoder()
         m.submodules.encoder = encoder = FrameEncoder()
-        m.submodules.command = command = CommandProcessor(clock_hz=self.clock_hz, baud=self.baud)
+        m.submodules.command = command = CommandProcessor(
+            clock_hz=self.clock_hz, baud=self.baud, maxima=self.register_maxima())
         m.submodules.arbiter = arbiter = PacketArbiter(3)
         m.d.comb += [
             uart_rx.rx.eq(self.uart_rx),
@@ -139,19 +152,22 @@ class FlissTop(wiring.Component):
         ]
 
         # Aggressor
-        m.submodules.aggressor = aggressor = Aggressor()
+        m.submodules.aggressor = aggressor = Aggressor(delay_source=self.aggressor_delays)
         m.d.comb += [
             aggressor.enable.eq(running & settings.aggressor),
             aggressor.update.eq(command.update),
             aggressor.offset.eq(settings.aggressor_offset),
             aggressor.period.eq(settings.aggressor_period),
             aggressor.pulse_width.eq(settings.aggressor_width),
-            aggressor.mode.eq(settings.aggressor_delay_mode),
-            aggressor.length.eq(settings.aggressor_length),
-            aggressor.mask_width.eq(settings.aggressor_mask_width),
-            aggressor.seed.eq(settings.aggressor_seed),
             self.aggressor_laser.eq(aggressor.laser),
         ]
+        if self.aggressor_delays:
+            m.d.comb += [
+                aggressor.mode.eq(settings.aggressor_delay_mode),
+                aggressor.length.eq(settings.aggressor_length),
+                aggressor.mask_width.eq(settings.aggressor_mask_width),
+                aggressor.seed.eq(settings.aggressor_seed),
+            ]
 
         # Events: the sensor bus or the built-in coarse TDC, tagged with the laser cycle index;
         # one event filter (gate, counters) serves the selected one.
@@ -214,25 +230,26 @@ class FlissTop(wiring.Component):
         wiring.connect(m, raw_fifo.output, event_packets.events)
         wiring.connect(m, event_packets.packets, arbiter.i[2])
 
-        # Status counters
-        status = command.status
+        # Status counters: strobes into a counter bank in block RAM
+        m.submodules.status = status = StatusCounters()
+        wiring.connect(m, command.status, status.port)
+        strobes = status.strobes
         m.d.comb += [
             status.pulses.eq(core.pulse_index),
-            status.frames.eq(histogram.frames),
-            status.events.eq(event_filter.accepted),
-            status.dropped_stopped.eq(event_filter.dropped_stopped),
-            status.dropped_gate.eq(event_filter.dropped_gate),
-            status.dropped_overflow.eq(event_filter.dropped_overflow),
-            status.dropped_overrun.eq(event_filter.dropped_overrun),
-            status.dropped_fifo.eq(raw_fifo.dropped),
-            status.dropped_histogram.eq(histogram.dropped),
-            status.histogram_overflow.eq(histogram.overflow),
-            status.uart_framing_errors.eq(uart_rx.framing_errors),
-            status.uart_overruns.eq(uart_rx.overruns),
-            status.bad_crc.eq(decoder.bad_crc),
-            status.truncated.eq(decoder.truncated),
-            status.oversize.eq(decoder.oversize),
-            status.bad_length.eq(decoder.bad_length),
+            strobes.frames.eq(histogram.tally.frames),
+            strobes.events.eq(event_filter.tally.accepted),
+            strobes.dropped_stopped.eq(event_filter.tally.dropped_stopped),
+            strobes.dropped_gate.eq(event_filter.tally.dropped_gate),
+            strobes.dropped_overflow.eq(event_filter.tally.dropped_overflow),
+            strobes.dropped_overrun.eq(event_filter.tally.dropped_overrun),
+            strobes.dropped_fifo.eq(raw_fifo.tally.dropped),
+            strobes.dropped_histogram.eq(histogram.tally.dropped),
+            strobes.histogram_overflow.eq(histogram.tally.overflow),
+            strobes.uart_framing_errors.eq(uart_rx.framing_error),
+            strobes.uart_overruns.eq(uart_rx.overrun),
+            *link_strobes(strobes, decoder),
+            strobes.commands.eq(command.tally.commands),
+            strobes.refused.eq(command.tally.refused),
         ]
 
         return m

@@ -189,6 +189,8 @@ class UartRx(_Uart):
         Bytes received with a good stop bit.
     framing_error : Out(1)
         Strobe: a character with a bad stop bit was dropped.
+    overrun : Out(1)
+        Strobe: a byte was dropped because ``o`` was not ready.
     framing_errors : Out(32)
         Characters dropped for a bad stop bit (wraps around).
     overruns : Out(32)
@@ -198,6 +200,7 @@ class UartRx(_Uart):
     rx:             In(1, init=1)
     o:              Out(stream.Signature(DATA_BITS))
     framing_error:  Out(1)
+    overrun:        Out(1)
     framing_errors: Out(COUNTER_BITS)
     overruns:       Out(COUNTER_BITS)
 
@@ -228,7 +231,7 @@ class UartRx(_Uart):
         with m.If(self.o.ready):
             m.d.sync += self.o.valid.eq(0)
 
-        m.d.sync += self.framing_error.eq(0)
+        m.d.sync += self.framing_error.eq(0), self.overrun.eq(0)
         with m.FSM():
             with m.State("IDLE"):
                 with m.If(~rx):
@@ -252,7 +255,10 @@ class UartRx(_Uart):
                     with m.Elif(bit == CHARACTER_BITS - 1):
                         with m.If(vote):
                             with m.If(self.o.valid & ~self.o.ready):
-                                m.d.sync += self.overruns.eq(self.overruns + 1)
+                                m.d.sync += [
+                                    self.overruns.eq(self.overruns + 1),
+                                    self.overrun.eq(1),
+                                ]
                             with m.Else():
                                 m.d.sync += [
                                     self.o.payload.eq(shreg),

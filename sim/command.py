@@ -2,7 +2,8 @@
 
 import struct
 
-from ..hdl.command import Identity, STATUS_FIELDS, READ_MAX, CONSISTENCY, _version
+from ..hdl.command import (Identity, STATUS_FIELDS, READ_MAX, CONSISTENCY, _version,
+                           register_maxima)
 from ..hdl.protocol import PROTOCOL_VERSION, PacketType, NakCode
 from ..hdl.registers import REGISTERS, BY_ADDRESS, defaults, problems
 from .. import __version__
@@ -21,11 +22,13 @@ class CommandModel:
     """Register file and replies, command by command.
 
     :meth:`command` takes a packet ``(type, seq, payload)`` and returns the reply
-    ``(type, payload)``; :meth:`link_error` the reply to a dropped frame.
+    ``(type, payload)``; :meth:`link_error` the reply to a dropped frame. ``maxima`` lowers
+    register maxima as in :class:`~fliss.hdl.command.CommandProcessor`.
     """
 
-    def __init__(self, clock_hz, baud):
+    def __init__(self, clock_hz, baud, maxima=None):
         self.clock_hz, self.baud = clock_hz, baud
+        self.maxima = register_maxima(maxima, clock_hz)
         self.settings = defaults(clock_hz)
         self.running = False
         self.commands = 0
@@ -76,7 +79,7 @@ class CommandModel:
                 register = BY_ADDRESS.get((address + offset) & 0xffff)
                 if register is None:
                     return self._nak(seq, NakCode.BAD_ADDRESS, (address + offset) & 0xffff)
-                if not register.minimum <= value <= register.maximum:
+                if not register.minimum <= value <= self.maxima[register.name]:
                     return self._nak(seq, NakCode.OUT_OF_RANGE, register.address)
                 candidate[register.name] = value
             if problems(candidate):

@@ -10,6 +10,7 @@ from ..hdl import DEFAULT_CLOCK_HZ
 from ..hdl.arbiter import PacketArbiter
 from ..hdl.command import CommandProcessor
 from ..hdl.framing import FrameDecoder, FrameEncoder
+from ..hdl.status import StatusCounters, link_strobes
 
 
 __all__ = ["LinkTop"]
@@ -39,6 +40,8 @@ class LinkTop(wiring.Component):
         m.submodules.command = command = CommandProcessor(clock_hz=self.clock_hz, baud=self.baud)
         m.submodules.arbiter = arbiter = PacketArbiter(1)
         m.submodules.encoder = encoder = FrameEncoder()
+        m.submodules.status = status = StatusCounters()
+        wiring.connect(m, command.status, status.port)
         wiring.connect(m, wiring.flipped(self.rx), decoder.i)
         wiring.connect(m, decoder.o, command.packets)
         wiring.connect(m, command.replies, arbiter.i[0])
@@ -47,9 +50,8 @@ class LinkTop(wiring.Component):
         m.d.comb += [
             command.link_error.eq(decoder.drop),
             command.link_error_code.eq(decoder.drop_reason),
-            command.status.bad_crc.eq(decoder.bad_crc),
-            command.status.truncated.eq(decoder.truncated),
-            command.status.oversize.eq(decoder.oversize),
-            command.status.bad_length.eq(decoder.bad_length),
+            *link_strobes(status.strobes, decoder),
+            status.strobes.commands.eq(command.tally.commands),
+            status.strobes.refused.eq(command.tally.refused),
         ]
         return m

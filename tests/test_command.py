@@ -40,9 +40,29 @@ def run_commands(packets, *, link_errors=(), status=None):
             while len(replies) < number + 1 + errors_so_far:
                 await ctx.tick()
 
+    async def status_port(ctx):
+        # The STATUS counters: `status`, with `commands` and `refused` counted here from the
+        # strobes; a snapshot takes a random number of cycles.
+        rng = random.Random(5)
+        counts = {"commands": 0, "refused": 0}
+        snapshot, busy = {}, 0
+        ctx.set(dut.status.ready, 1)
+        while True:
+            _, _, capture, addr, commands, refused = await ctx.tick().sample(
+                dut.status.capture, dut.status.addr, dut.tally.commands, dut.tally.refused)
+            counts["commands"] += commands
+            counts["refused"] += refused
+            if capture:
+                snapshot = {**(status or {}), **counts}
+                busy = rng.randrange(1, 30)
+            else:
+                busy = max(busy - 1, 0)
+            ctx.set(dut.status.ready, busy == 0)
+            # (`addr` follows the register pointer during other replies)
+            field = STATUS_FIELDS[addr] if addr < len(STATUS_FIELDS) else None
+            ctx.set(dut.status.data, snapshot.get(field, 0))
+
     async def receiver(ctx):
-        if status:
-            ctx.set(dut.status, status)
         rng = random.Random(3)
         current = None
         while True:
@@ -66,6 +86,7 @@ def run_commands(packets, *, link_errors=(), status=None):
     sim.add_clock(1 / CLOCK_HZ)
     sim.add_testbench(sender)
     sim.add_testbench(receiver, background=True)
+    sim.add_testbench(status_port, background=True)
     sim.run()
     return replies, settings, updates
 

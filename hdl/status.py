@@ -1,0 +1,84 @@
+"""Status counters: the counters of a STATUS reply, in block RAM, with an exact snapshot."""
+
+from amaranth.hdl import *
+from amaranth.lib import data, wiring
+from amaranth.lib.wiring import In, Out
+
+from .command import STATUS_FIELDS, StatusSignature
+from .counters import CounterBank
+from .protocol import COUNTER_BITS, NakCode
+
+
+__all__ = ["COUNTED_FIELDS", "strobes_layout", "link_strobes", "StatusCounters"]
+
+
+#: The STATUS fields counted here from strobes: all but ``running`` (a level, from the command
+#: processor) and ``pulses`` (the victim scheduler's pulse index).
+COUNTED_FIELDS = STATUS_FIELDS[2:]
+
+
+def strobes_layout():
+    return data.StructLayout({name: 1 for name in COUNTED_FIELDS})
+
+
+def link_strobes(strobes, decoder):
+    """Connections from a :class:`~fliss.hdl.framing.FrameDecoder`'s drops to the strobes of
+    the link error counters."""
+    return [
+        getattr(strobes, name).eq(decoder.drop & (decoder.drop_reason == code))
+        for name, code in (("bad_crc", NakCode.BAD_CRC), ("truncated", NakCode.TRUNCATED),
+                           ("oversize", NakCode.OVERSIZE), ("bad_length", NakCode.BAD_LENGTH))
+    ]
+
+
+class StatusCounters(wiring.Component):
+    """The STATUS counters of the top level, behind the command processor's status port.
+
+    Each counted field has a strobe; a :class:`~fliss.hdl.counters.CounterBank` counts them
+    (saturating at ``2**32 - 1``, zero after reset). A capture on ``port`` takes an exact
+    snapshot of all of them and of ``pulses`` in one cycle (the bank's ``captured``), at most
+    ``len(COUNTED_FIELDS)`` cycles after it is asked for; the port reads field ``addr`` of
+    :data:`~fliss.hdl.command.STATUS_FIELDS` one cycle later (``running`` reads as zero: the
+    command processor sends its own).
+
+    Members
+    -------
+    strobes : In(strobes_layout())
+        One strobe per field of :data:`COUNTED_FIELDS`: each cycle it is high counts one.
+    pulses : In(32)
+        Victim pulses since the start.
+    port : In(StatusSignature)
+        To the command processor's ``status``.
+    """
+
+    strobes: In(strobes_layout())
+    pulses:  In(COUNTER_BITS)
+    port:    In(StatusSignature)
+
+    def elaborate(self, platform):
+        m = Module()
+
+        m.submodules.bank = bank = CounterBank(len(COUNTED_FIELDS), width=COUNTER_BITS)
+        m.d.comb += [
+            bank.inc.eq(self.strobes.as_value()),
+            bank.capture.eq(self.port.capture),
+            self.port.ready.eq(bank.ready),
+        ]
+
+        pulses = Signal(COUNTER_BITS)
+        with m.If(bank.captured):
+            m.d.sync += pulses.eq(self.pulses)
+
+        first = STATUS_FIELDS.index(COUNTED_FIELDS[0])
+        field = Signal.like(self.port.addr)
+        m.d.sync += field.eq(self.port.addr)
+        m.d.comb += bank.read_addr.eq(self.port.addr - first)
+        with m.Switch(field):
+            with m.Case(STATUS_FIELDS.index("pulses")):
+                m.d.comb += self.port.data.eq(pulses)
+            with m.Case(STATUS_FIELDS.index("running")):
+                m.d.comb += self.port.data.eq(0)
+            with m.Default():
+                m.d.comb += self.port.data.eq(bank.read_data)
+
+        return m
