@@ -15,10 +15,10 @@ from fliss.sim.command import CommandModel
 CLOCK_HZ, BAUD = 80_000_000, 3_000_000
 
 
-def run_commands(packets, *, link_errors=(), status=None):
+def run_commands(packets, *, link_errors=(), status=None, maxima=None):
     """Send ``(type, seq, payload)`` packets; return the replies ``(type, payload)`` and the
     settings after each command."""
-    dut = CommandProcessor(clock_hz=CLOCK_HZ, baud=BAUD)
+    dut = CommandProcessor(clock_hz=CLOCK_HZ, baud=BAUD, maxima=maxima)
     replies, settings, updates = [], [], []
 
     async def sender(ctx):
@@ -210,3 +210,30 @@ def test_identity():
     replies, _, _ = run_commands([(PacketType.IDENTIFY.value, 1, b"")])
     protocol, major, minor, registers, clock_hz, baud = struct.unpack("<BBBBII", replies[0][1])
     assert (registers, clock_hz, baud) == (len(REGISTERS), CLOCK_HZ, BAUD)
+
+
+def test_lowered_maximum():
+    # A build without the aggressor's delay source refuses its modes but off, like the model.
+    maxima = {"aggressor_delay_mode": 0}
+    address = BY_NAME["aggressor_delay_mode"].address
+    packets = [(PacketType.WRITE.value, seq, _write(address, mode))
+               for seq, mode in enumerate([1, 0, 2, 3])]
+    packets.append((PacketType.WRITE.value, 9, _write(address - 1, 5, 1)))   # with a neighbour
+    replies, _, _ = run_commands(packets, maxima=maxima)
+    model = CommandModel(CLOCK_HZ, BAUD, maxima=maxima)
+    assert replies == [(t.value, p) for t, p in (model.command(*packet) for packet in packets)]
+    out_of_range = (PacketType.NAK.value, struct.pack("<BBH", 0, NakCode.OUT_OF_RANGE.value, address))
+    assert replies[0] == out_of_range and replies[1] == (PacketType.ACK.value, bytes([1]))
+
+
+@pytest.mark.parametrize("maxima, message", [
+    ({"nonsense": 0}, "Unknown register 'nonsense' in the register maxima"),
+    ({"aggressor_delay_mode": 3},
+     "Maximum of register aggressor_delay_mode must be an integer from its reset value or "
+     "minimum to 2, not 3"),
+    ({"period": 1},
+     "Maximum of register period must be an integer from its reset value or minimum to "
+     "4294967295, not 1"),
+])
+def test_refuses_bad_maxima(construction_error, maxima, message):
+    assert construction_error(lambda: CommandProcessor(maxima=maxima)) == message
