@@ -15,7 +15,8 @@ class PacketArbiter(wiring.Component):
     At a packet boundary the lowest-numbered input with a packet waiting wins, so replies to
     commands (input 0) never queue behind a histogram. Each packet leaves with the next sequence
     number (modulo 256) in its header. The output is registered (a :class:`StreamBuffer`), so no
-    combinational path runs from the inputs to the consumer.
+    combinational path runs from the inputs to the consumer. It passes a beat every other cycle
+    at most (a half-rate buffer, half the flip-flops): the UART behind it is far slower.
 
     Parameters
     ----------
@@ -42,7 +43,7 @@ class PacketArbiter(wiring.Component):
     def elaborate(self, platform):
         m = Module()
 
-        m.submodules.buffer = buffer = StreamBuffer(PacketBeat)
+        m.submodules.buffer = buffer = StreamBuffer(PacketBeat, full_rate=False)
         wiring.connect(m, buffer.o, wiring.flipped(self.o))
         merged = buffer.i
 

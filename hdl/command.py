@@ -164,8 +164,9 @@ class CommandProcessor(wiring.Component):
     def elaborate(self, platform):
         m = Module()
 
-        # Replies leave through a register slice: the byte multiplexers below end there.
-        m.submodules.reply_buffer = reply_buffer = StreamBuffer(PacketBeat)
+        # Replies leave through a register slice: the byte multiplexers below end there. Half
+        # rate (a beat every other cycle, half the flip-flops) is plenty for a UART link.
+        m.submodules.reply_buffer = reply_buffer = StreamBuffer(PacketBeat, full_rate=False)
         wiring.connect(m, reply_buffer.o, wiring.flipped(self.replies))
         replies = reply_buffer.i
 

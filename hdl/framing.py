@@ -246,6 +246,12 @@ class FrameEncoder(wiring.Component):
         e_len = Signal(range(COBS_MAX_RUN + 1))
         e_final = Signal()
         sent = Signal(range(COBS_MAX_RUN + 1))
+        # The output byte is one LUT after the run buffer (block RAM, slow to output): which
+        # byte goes out is decided a cycle ahead, into `e_is_code` and `e_is_data`, rather than
+        # decoded from the state.
+        e_is_code = Signal()
+        e_is_data = Signal()
+        m.d.comb += self.o.payload.eq(Mux(e_is_code, e_code, run_rd.data & e_is_data.replicate(8)))
         with m.FSM(name="emit"):
             with m.State("IDLE"):
                 with m.If(pending):
@@ -256,17 +262,18 @@ class FrameEncoder(wiring.Component):
                         e_len.eq(p_len),
                         e_bank.eq(p_bank),
                         e_final.eq(p_final),
+                        e_is_code.eq(1),
                     ]
                     m.next = "CODE"
             with m.State("CODE"):
                 m.d.comb += [
-                    self.o.payload.eq(e_code),
                     self.o.valid.eq(1),
                     run_rd.addr.eq(Cat(C(0, bank_bits), e_bank)),
                 ]
                 with m.If(self.o.ready):
-                    m.d.sync += sent.eq(0)
+                    m.d.sync += [sent.eq(0), e_is_code.eq(0)]
                     with m.If(e_len != 0):
+                        m.d.sync += e_is_data.eq(1)
                         m.next = "DATA"
                     with m.Elif(e_final):
                         m.d.sync += emitting.eq(0)
@@ -276,23 +283,20 @@ class FrameEncoder(wiring.Component):
                         m.next = "IDLE"
             with m.State("DATA"):
                 m.d.comb += [
-                    self.o.payload.eq(run_rd.data),
                     self.o.valid.eq(1),
                     run_rd.addr.eq(Cat(Mux(self.o.ready, sent + 1, sent)[:bank_bits], e_bank)),
                 ]
                 with m.If(self.o.ready):
                     m.d.sync += sent.eq(sent + 1)
                     with m.If(sent + 1 == e_len):
-                        m.d.sync += emitting.eq(0)
+                        m.d.sync += [emitting.eq(0), e_is_data.eq(0)]
                         with m.If(e_final):
                             m.next = "DELIMITER"
                         with m.Else():
                             m.next = "IDLE"
             with m.State("DELIMITER"):
-                m.d.comb += [
-                    self.o.payload.eq(DELIMITER),
-                    self.o.valid.eq(1),
-                ]
+                assert DELIMITER == 0   # neither the code nor the data: zero
+                m.d.comb += self.o.valid.eq(1)
                 with m.If(self.o.ready):
                     m.next = "IDLE"
 
