@@ -30,7 +30,7 @@ class CounterBank(wiring.Component):
     is the number of strobes on ``inc[k]`` up to and including the cycle of the handoff
     (``captured``), clamped to all ones. ``captured`` is the first handoff at or after the
     cycle of ``capture``, at most ``count - 1`` cycles later; ``ready`` rises once the snapshot
-    is complete, ``count + 1`` cycles after that.
+    is complete, ``count + 2`` cycles after ``captured``.
 
     Reset zeroes the counters: the first scan after it writes zeros.
 
