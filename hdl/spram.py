@@ -90,13 +90,14 @@ class SinglePortRam(wiring.Component):
         })
 
     def elaborate(self, platform):
+        if has_spram(platform) and (self.depth > SPRAM_DEPTH or self.width != SPRAM_WIDTH):
+            raise ValueError(f"SB_SPRAM256KA on {platform.device} holds up to "
+                             f"{SPRAM_DEPTH} words of {SPRAM_WIDTH} bits, not "
+                             f"{self.depth} words of {self.width} bits")
+
         m = Module()
 
         if has_spram(platform):
-            if self.depth > SPRAM_DEPTH or self.width != SPRAM_WIDTH:
-                raise ValueError(f"SB_SPRAM256KA on {platform.device} holds up to "
-                                 f"{SPRAM_DEPTH} words of {SPRAM_WIDTH} bits, not "
-                                 f"{self.depth} words of {self.width} bits")
             address = Signal(14)                    # the cell's address width
             m.d.comb += address.eq(self.addr)
             m.submodules.spram = Instance(
