@@ -1,8 +1,11 @@
 """cocotb tests of the whole top level through its pins, on Icarus and Verilator."""
 
+import gc
+import warnings
 from pathlib import Path
 
 import pytest
+from amaranth.hdl import UnusedElaboratable
 
 from fliss.hdl.top import FlissTop
 from fliss.sim.cocotb_runner import run_cocotb, write_verilog
@@ -31,3 +34,22 @@ def test_top(simulator, top_verilog, cocotb_counts):
     cocotb_counts(simulator, passed, failed, skipped)
     assert failed == 0
     assert passed == 4
+
+
+@pytest.mark.parametrize("kwargs, exception, message", [
+    (dict(histogram_ram="flash"), ValueError,
+     "Histogram RAM must be one of 'dual', 'single', not 'flash'"),
+    (dict(aggressor_delays=0), TypeError, "aggressor_delays must be True or False, not 0"),
+])
+def test_top_refuses(construction_error, kwargs, exception, message):
+    assert construction_error(lambda: FlissTop(**kwargs), exception) == message
+
+
+def test_top_without_aggressor_delays_refuses_their_modes():
+    # The build's register file lowers the maximum of the mode it cannot run, and only that.
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnusedElaboratable)    # built, never elaborated
+        assert FlissTop(aggressor_delays=False).register_maxima() == \
+            {"aggressor_delay_mode": 0}
+        assert FlissTop().register_maxima() == {}
+        gc.collect()
