@@ -268,12 +268,14 @@ async def _acquire(tb, **settings):
 
 @cocotb.test()
 async def test_raw_events_closed_loop(dut):
-    """Raw mode: every event the sensor model put on the bus comes back, bit for bit, with the
-    index of the laser cycle it followed."""
+    """Raw mode: every event the sensor model put on the bus inside the gate comes back, bit
+    for bit, with the index of the laser cycle it followed; STATUS counts the others as outside
+    the gate, and the pulses."""
     tb = TopTB(dut)
     await tb.start()
+    gate_start, gate_end = 1000, 6000
     await _acquire(tb, acquisition=AcquisitionMode.RAW.value, delay_mode=2, mask_width=5,
-                   seed=0xBEEF)
+                   seed=0xBEEF, gate_start=gate_start, gate_end=gate_end)
     tb.start_sensor(random.Random(5), 0.3)
     await Timer(400, unit="us")
     tb.stop_sensor()
@@ -286,14 +288,18 @@ async def test_raw_events_closed_loop(dut):
     got = np.concatenate(events) if events else np.zeros(0, EVENT_DTYPE)
     dut._log.info("status %s, packets %s", await tb.status(),
                   [(p.type, p.seq, len(p.payload)) for p in tb.data_packets + tb.packets][:20])
-    want = np.array(tb.sensor_events, dtype=[("timestamp", "u2"), ("address", "u1"),
+    sent = np.array(tb.sensor_events, dtype=[("timestamp", "u2"), ("address", "u1"),
                                              ("collision", "u1"), ("pulse", "u4")])
-    assert len(want) > 50
+    inside = (sent["timestamp"] >= gate_start) & (sent["timestamp"] <= gate_end)
+    want = sent[inside]
+    assert len(want) > 50 and (~inside).sum() > 20
     assert len(got) == len(want), (len(got), len(want))
     for name in ("timestamp", "address", "collision", "pulse"):
         assert np.array_equal(got[name], want[name]), (name, got[name][:8], want[name][:8])
     status = await tb.status()
-    assert status["events"] == len(want) and status["dropped_fifo"] == 0
+    assert status == {**dict.fromkeys(STATUS_FIELDS, 0), "pulses": tb.pulses,
+                      "events": len(want), "dropped_gate": int((~inside).sum()),
+                      "commands": status["commands"]}, status
 
 
 @cocotb.test()
