@@ -4,6 +4,7 @@ import random
 import struct
 
 import pytest
+from amaranth.hdl import ResetInserter, Signal
 from amaranth.sim import Simulator
 
 from fliss.hdl.command import CommandProcessor, STATUS_FIELDS
@@ -15,14 +16,20 @@ from fliss.sim.command import CommandModel
 CLOCK_HZ, BAUD = 80_000_000, 3_000_000
 
 
-def run_commands(packets, *, link_errors=(), status=None, maxima=None):
+def run_commands(packets, *, link_errors=(), status=None, maxima=None, reset_before=None):
     """Send ``(type, seq, payload)`` packets; return the replies ``(type, payload)`` and the
-    settings after each command."""
+    settings after each command. ``reset_before``: the number of a packet before which the
+    command processor is reset."""
     dut = CommandProcessor(clock_hz=CLOCK_HZ, baud=BAUD, maxima=maxima)
+    reset = Signal()
     replies, settings, updates = [], [], []
 
     async def sender(ctx):
         for number, (type, seq, payload) in enumerate(packets):
+            if number == reset_before:
+                ctx.set(reset, 1)
+                await ctx.tick()
+                ctx.set(reset, 0)
             if number in dict(link_errors):
                 ctx.set(dut.link_error, 1)
                 ctx.set(dut.link_error_code, dict(link_errors)[number])
@@ -82,7 +89,7 @@ def run_commands(packets, *, link_errors=(), status=None, maxima=None):
                     settings.append({r.name: ctx.get(dut.settings[r.name]) for r in REGISTERS})
             await ctx.tick()
 
-    sim = Simulator(dut)
+    sim = Simulator(ResetInserter({"sync": reset})(dut))
     sim.add_clock(1 / CLOCK_HZ)
     sim.add_testbench(sender)
     sim.add_testbench(receiver, background=True)
@@ -237,3 +244,21 @@ def test_lowered_maximum():
 ])
 def test_refuses_bad_maxima(construction_error, maxima, message):
     assert construction_error(lambda: CommandProcessor(maxima=maxima)) == message
+
+
+def test_reset_restores_the_registers():
+    # Registers written, then a reset: READ gives the reset values again, as the settings are.
+    writes = [(PacketType.WRITE.value, seq, _write(BY_NAME[name].address, value))
+              for seq, (name, value) in enumerate([("period", 1234), ("seed", 77),
+                                                   ("period", 999), ("gate_end", 4000)])]
+    read_all = (PacketType.READ.value, 9, struct.pack("<HB", 0, len(REGISTERS)))
+    packets = writes + [read_all, read_all]
+    replies, settings, _ = run_commands(packets, reset_before=len(writes) + 1)
+    model = CommandModel(CLOCK_HZ, BAUD)
+    for packet in writes + [read_all]:
+        model.command(*packet)
+    assert replies[len(writes)] == (PacketType.REGISTERS.value, model.command(*read_all)[1])
+    fresh = CommandModel(CLOCK_HZ, BAUD)
+    assert replies[-1] == (PacketType.REGISTERS.value, fresh.command(*read_all)[1])
+    assert replies[-1] != replies[len(writes)]
+    assert settings[-1] == defaults(CLOCK_HZ)
