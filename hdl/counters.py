@@ -118,14 +118,12 @@ class CounterBank(wiring.Component):
         clearing = Signal(init=1)
         with m.If(handoff):
             m.d.sync += clearing.eq(0)
-        valid1 = Signal()
         address1 = Signal(range(n))
         pending1 = Signal(range(n + 1))
         copy1 = Signal()
-        clear1 = Signal()
+        clear1 = Signal(init=1)     # (in the cycle after reset too: a write of zero to counter 0)
         m.d.comb += live_rd.addr.eq(position)
         m.d.sync += [
-            valid1.eq(1),
             address1.eq(position),
             pending1.eq(queue[0]),
             copy1.eq(copying),
@@ -138,10 +136,10 @@ class CounterBank(wiring.Component):
             value.eq(Mux(total[-1], (1 << self.width) - 1, total[:-1])),
             live_wr.addr.eq(address1),
             live_wr.data.eq(value),
-            live_wr.en.eq(valid1),
+            live_wr.en.eq(1),
             snap_wr.addr.eq(address1),
             snap_wr.data.eq(value),
-            snap_wr.en.eq(valid1 & copy1),
+            snap_wr.en.eq(copy1),
         ]
         m.d.comb += self.ready.eq(~asked & ~copying & ~copy1)
 

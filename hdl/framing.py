@@ -343,6 +343,9 @@ class FrameDecoder(wiring.Component):
         Packets accepted (wraps around).
     bad_crc, truncated, oversize, bad_length : Out(32)
         Frames dropped for each reason (wrap around).
+    tally : Out(data.StructLayout)
+        One strobe per drop counter above, same names: high in each cycle it counts, for
+        counters elsewhere.
     """
 
     i:           In(stream.Signature(8))
@@ -354,6 +357,8 @@ class FrameDecoder(wiring.Component):
     truncated:   Out(COUNTER_BITS)
     oversize:    Out(COUNTER_BITS)
     bad_length:  Out(COUNTER_BITS)
+    tally:       Out(data.StructLayout({
+                     "bad_crc": 1, "truncated": 1, "oversize": 1, "bad_length": 1}))
 
     def elaborate(self, platform):
         m = Module()
@@ -487,12 +492,14 @@ class FrameDecoder(wiring.Component):
             m.d.sync += self.packets.eq(self.packets + 1)
         with m.If(self.drop):
             with m.Switch(self.drop_reason):
-                for code, counter in ((NakCode.OVERSIZE, self.oversize),
-                                      (NakCode.TRUNCATED, self.truncated),
-                                      (NakCode.BAD_CRC, self.bad_crc),
-                                      (NakCode.BAD_LENGTH, self.bad_length)):
+                for code, name in ((NakCode.OVERSIZE, "oversize"),
+                                   (NakCode.TRUNCATED, "truncated"),
+                                   (NakCode.BAD_CRC, "bad_crc"),
+                                   (NakCode.BAD_LENGTH, "bad_length")):
+                    counter = getattr(self, name)
                     with m.Case(code):
                         m.d.sync += counter.eq(counter + 1)
+                        m.d.comb += getattr(self.tally, name).eq(1)
 
         # Output: a header beat, then the payload from the buffer; every output is a register.
         # `beat` counts beats sent. The buffer is read a beat ahead: `buf_rd.data` holds the

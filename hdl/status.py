@@ -6,29 +6,22 @@ from amaranth.lib.wiring import In, Out
 
 from .command import STATUS_FIELDS, StatusSignature
 from .counters import CounterBank
-from .protocol import COUNTER_BITS, NakCode
+from .protocol import COUNTER_BITS
 
 
-__all__ = ["COUNTED_FIELDS", "strobes_layout", "link_strobes", "StatusCounters"]
+__all__ = ["COUNTED_FIELDS", "LINK_FIELDS", "strobes_layout", "StatusCounters"]
 
 
 #: The STATUS fields counted here from strobes: all but ``running`` (a level, from the command
 #: processor) and ``pulses`` (the victim scheduler's pulse index).
 COUNTED_FIELDS = STATUS_FIELDS[2:]
 
+#: The counted fields that a :class:`~fliss.hdl.framing.FrameDecoder` strobes (its ``tally``).
+LINK_FIELDS = ("bad_crc", "truncated", "oversize", "bad_length")
+
 
 def strobes_layout():
     return data.StructLayout({name: 1 for name in COUNTED_FIELDS})
-
-
-def link_strobes(strobes, decoder):
-    """Connections from a :class:`~fliss.hdl.framing.FrameDecoder`'s drops to the strobes of
-    the link error counters."""
-    return [
-        getattr(strobes, name).eq(decoder.drop & (decoder.drop_reason == code))
-        for name, code in (("bad_crc", NakCode.BAD_CRC), ("truncated", NakCode.TRUNCATED),
-                           ("oversize", NakCode.OVERSIZE), ("bad_length", NakCode.BAD_LENGTH))
-    ]
 
 
 class StatusCounters(wiring.Component):

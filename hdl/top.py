@@ -13,7 +13,7 @@ from .framing import FrameDecoder, FrameEncoder
 from .histogram import Histogram, RAM_KINDS
 from .packetizer import EventPacketizer, HistogramPacketizer
 from .rawfifo import RawFifo
-from .status import StatusCounters, link_strobes
+from .status import StatusCounters, LINK_FIELDS
 from .registers import AcquisitionMode, TdcSource
 from .tdc import EventFilter, TdcInterface, CoarseTdc
 from .uart import UartRx, UartTx, bit_cycles
@@ -247,7 +247,7 @@ class FlissTop(wiring.Component):
             strobes.histogram_overflow.eq(histogram.tally.overflow),
             strobes.uart_framing_errors.eq(uart_rx.framing_error),
             strobes.uart_overruns.eq(uart_rx.overrun),
-            *link_strobes(strobes, decoder),
+            *(strobes[name].eq(decoder.tally[name]) for name in LINK_FIELDS),
             strobes.commands.eq(command.tally.commands),
             strobes.refused.eq(command.tally.refused),
         ]

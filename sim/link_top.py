@@ -10,7 +10,7 @@ from ..hdl import DEFAULT_CLOCK_HZ
 from ..hdl.arbiter import PacketArbiter
 from ..hdl.command import CommandProcessor
 from ..hdl.framing import FrameDecoder, FrameEncoder
-from ..hdl.status import StatusCounters, link_strobes
+from ..hdl.status import StatusCounters, LINK_FIELDS
 
 
 __all__ = ["LinkTop"]
@@ -50,7 +50,7 @@ class LinkTop(wiring.Component):
         m.d.comb += [
             command.link_error.eq(decoder.drop),
             command.link_error_code.eq(decoder.drop_reason),
-            *link_strobes(status.strobes, decoder),
+            *(status.strobes[name].eq(decoder.tally[name]) for name in LINK_FIELDS),
             status.strobes.commands.eq(command.tally.commands),
             status.strobes.refused.eq(command.tally.refused),
         ]

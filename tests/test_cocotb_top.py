@@ -7,6 +7,8 @@ from pathlib import Path
 import pytest
 from amaranth.hdl import UnusedElaboratable
 
+from fliss.hdl.delay import DelayMode
+from fliss.hdl.registers import REGISTERS
 from fliss.hdl.top import FlissTop
 from fliss.sim.cocotb_runner import run_cocotb, write_verilog
 
@@ -45,11 +47,19 @@ def test_top_refuses(construction_error, kwargs, exception, message):
     assert construction_error(lambda: FlissTop(**kwargs), exception) == message
 
 
-def test_top_without_aggressor_delays_refuses_their_modes():
-    # The build's register file lowers the maximum of the mode it cannot run, and only that.
+@pytest.mark.parametrize("aggressor_delays", [True, False])
+def test_top_register_file_takes_what_the_aggressor_runs(aggressor_delays):
+    # The register file accepts every aggressor delay mode the built aggressor can run, and
+    # only those; the other registers keep the register map's maxima.
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UnusedElaboratable)    # built, never elaborated
-        assert FlissTop(aggressor_delays=False).register_maxima() == \
-            {"aggressor_delay_mode": 0}
-        assert FlissTop().register_maxima() == {}
+        warnings.simplefilter("ignore", UnusedElaboratable)    # elaborated, never converted
+        top = FlissTop(aggressor_delays=aggressor_delays).elaborate(None)
+        command, aggressor = top.submodules.command, top.submodules.aggressor
+        runnable = [mode.value for mode in DelayMode
+                    if aggressor.delay_source or mode == DelayMode.OFF]
+        assert max(runnable) == command.maxima["aggressor_delay_mode"]
+        assert {name: maximum for name, maximum in command.maxima.items()
+                if name != "aggressor_delay_mode"} == \
+            {r.name: r.maximum for r in REGISTERS if r.name != "aggressor_delay_mode"}
+        del top, command, aggressor
         gc.collect()
