@@ -222,10 +222,10 @@ def fliss_top_spram(clock_hz):
 
 
 def fliss_top_up5k(clock_hz):
-    """:func:`fliss_top` cut to fit an iCE40UP5K: histogram banks in its SPRAM, and no delay
-    source of the aggressor's own (it fires on its nominal schedule)."""
-    from ..hdl.top import FlissTop
-    return FlissTop(clock_hz=clock_hz, histogram_ram="single", aggressor_delays=False)
+    """:func:`fliss_top` built to fit an iCE40UP5K (:data:`fliss.hdl.top.SMALL`): histograms
+    only, their banks in its SPRAM; no aggressor emitter; narrower period and pulse width."""
+    from ..hdl.top import FlissTop, SMALL
+    return FlissTop(clock_hz=clock_hz, **SMALL)
 
 
 class DemoSettings(data.Struct):

@@ -37,11 +37,10 @@ __all__ = ["BOARD_DESIGN", "BOARD_CLOCK_HZ", "TOOLS", "BuildResult", "toolchain_
 
 
 #: The design each board carries, as ``module:factory``; the factory takes the clock frequency in
-#: Hz and returns a :class:`wiring.Component` (see :class:`fliss.boards.BoardTop`). The whole
-#: instrument does not fit the iCE40UP5K yet (``docs/boards.md``): the iCEBreaker carries the
-#: delay core alone.
+#: Hz and returns a :class:`wiring.Component` (see :class:`fliss.boards.BoardTop`). The
+#: iCEBreaker carries the smaller build that fits its iCE40UP5K (``docs/boards.md``).
 BOARD_DESIGN = {
-    "icebreaker": "fliss.boards:DelayCoreDemo",
+    "icebreaker": "fliss.boards:fliss_top_up5k",
     "ulx3s":      "fliss.boards:fliss_top",
 }
 
@@ -49,7 +48,7 @@ BOARD_DESIGN = {
 #: test. A board whose design cannot close at 80 MHz is built at the highest clock that does
 #: (``docs/boards.md`` records it).
 BOARD_CLOCK_HZ = {
-    "icebreaker": 48_000_000,         # the delay core demo reaches 52-55 MHz on the UP5K
+    "icebreaker": 36_000_000,         # the UP5K, nine tenths full, reaches 37-38 MHz
     "ulx3s":      DEFAULT_CLOCK_HZ,
 }
 
@@ -372,7 +371,7 @@ def main(argv=None):
         sub.add_argument("--clock", type=_frequency, default=None, metavar="HZ",
                          help="wanted design clock (80MHz, 80e6), the PLL makes the closest "
                               "it can; None: the board's BOARD_CLOCK_HZ (ulx3s 80 MHz, "
-                              "icebreaker 48 MHz)")
+                              "icebreaker 36 MHz)")
         sub.add_argument("--build-dir", type=Path, default=Path("build", "BOARD"),
                          metavar="DIR", help="build folder")
         sub.add_argument("--toolchain", choices=("yowasp", "system"), default="yowasp",
@@ -380,7 +379,7 @@ def main(argv=None):
         sub.add_argument("--design", default=None, metavar="MODULE:FACTORY",
                          help="design factory: takes the clock in Hz, returns a "
                               "wiring.Component; None: the board's BOARD_DESIGN (ulx3s "
-                              "fliss.boards:fliss_top, icebreaker fliss.boards:DelayCoreDemo)")
+                              "fliss.boards:fliss_top, icebreaker fliss.boards:fliss_top_up5k)")
         if action == "build":
             sub.add_argument("--seed", type=int, default=None, help="nextpnr placement seed")
             sub.add_argument("-v", "--verbose", action="store_true",

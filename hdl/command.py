@@ -131,8 +131,8 @@ class CommandProcessor(wiring.Component):
         Strobe: the frame decoder dropped a frame.
     link_error_code : In(NakCode)
         Why, with ``link_error``.
-    settings : Out(settings_layout())
-        The registers.
+    settings : Out(settings_layout(maxima))
+        The registers, each as wide as its maximum needs.
     update : Out(1)
         Strobe: settings changed while running; in the cycle after ``settings`` changed (a
         register, for timing).
@@ -154,7 +154,7 @@ class CommandProcessor(wiring.Component):
             "replies":         Out(stream.Signature(PacketBeat)),
             "link_error":      In(1),
             "link_error_code": In(NakCode, init=NakCode.BAD_CRC),
-            "settings":        Out(settings_layout(), init=defaults(self.clock_hz)),
+            "settings":        Out(settings_layout(self.maxima), init=defaults(self.clock_hz)),
             "update":          Out(1),
             "running":         Out(1),
             "status":          Out(StatusSignature),
@@ -170,8 +170,12 @@ class CommandProcessor(wiring.Component):
         wiring.connect(m, reply_buffer.o, wiring.flipped(self.replies))
         replies = reply_buffer.i
 
-        layout = settings_layout()
+        layout = settings_layout(self.maxima)
+        # A WRITE puts its values in `candidate` and marks them in `written`; the registers it
+        # does not write keep theirs in `settings`. (Copying all of `settings` into the candidate
+        # first would put a multiplexer in front of every candidate bit.)
         candidate = Signal(layout, init=defaults(self.clock_hz))
+        written = Signal(len(REGISTERS))
 
         # Command being received
         cmd_type = Signal(8)
@@ -186,10 +190,16 @@ class CommandProcessor(wiring.Component):
         address = Signal(16)
         count = Signal(8)
         read_bad = Signal()             # READ: the registers asked for do not exist
+        # A WRITE value as its bytes come in; in a reply, the register or counter being sent,
+        # LSB first (one shift register serves both)
         word = Signal(32)
         error = Signal(NakCode, init=NakCode.BAD_ADDRESS)
         error_detail = Signal(16)
         has_error = Signal()
+        # How the command is refused, if it is (decided before it is answered)
+        refusal = Signal()
+        refusal_code = Signal(NakCode, init=NakCode.BAD_PAYLOAD)
+        refusal_detail = Signal(16)
 
         # Reply being sent
         reply_type = Signal(8)
@@ -198,7 +208,6 @@ class CommandProcessor(wiring.Component):
         # READ and STATUS: address of the register or field to be sent next (a READ reaches no
         # further than the last register, so it is narrow)
         next_pointer = Signal(range(max(len(REGISTERS) + 2, len(STATUS_FIELDS))))
-        read_word = Signal(32)          # bytes of the register or counter being sent, LSB first
         next_word = Signal(32)          # the register or counter at `next_pointer`
         is_status = Signal()            # the reply is a STATUS
         status_running = Signal()       # STATUS: `running` when it was asked for
@@ -216,10 +225,11 @@ class CommandProcessor(wiring.Component):
             m.d.comb += value.eq(self.settings[register.name])
 
         # Range check of a WRITE value, one cycle after it completes (`check`; the value is
-        # still in `word` then): its register's bounds come out of constant tables, so one set of
-        # comparators serves them all. The minima are small, and the maxima are small or all
-        # ones below their top bit, so the bits from `LOW` up are only checked against a mask
-        # (the bits the register's values may have) and the comparators are `LOW` bits wide.
+        # still in `word` then), its verdict registered and applied a cycle later: its
+        # register's bounds come out of constant tables, so one set of comparators serves them
+        # all. The minima are small, and the maxima are small or all ones below their top bit,
+        # so the bits from `LOW` up are only checked against a mask (the bits the register's
+        # values may have) and the comparators are `LOW` bits wide.
         LOW = 6
         for register in REGISTERS:
             top = self.maxima[register.name]
@@ -232,38 +242,58 @@ class CommandProcessor(wiring.Component):
         allowed = Signal(32)            # bits that may be set: `maximum` rounded up to all ones
         minimum = Signal(LOW)
         maximum = Signal(LOW)           # `maximum`, or all ones if that is larger
-        with m.Switch(value_address):
-            for register in REGISTERS:
-                top = self.maxima[register.name]
-                with m.Case(register.address):
-                    m.d.comb += [
-                        known.eq(1),
-                        allowed.eq((1 << top.bit_length()) - 1),
-                        minimum.eq(register.minimum),
-                        maximum.eq(min(top, (1 << LOW) - 1)),
-                    ]
+        # (The bounds are looked up into registers, from tables indexed by the low bits of the
+        # address: the address was set, or moved on, at least four cycles before the value at
+        # it is complete.)
+        bits = (len(REGISTERS) - 1).bit_length()
+        def table(values, width):
+            values = list(values) + [0] * ((1 << bits) - len(values))
+            return Cat(Const(v, width) for v in values).word_select(value_address[:bits], width)
+        tops = [self.maxima[register.name] for register in REGISTERS]
+        m.d.sync += [
+            known.eq((value_address[bits:] == 0) & (value_address[:bits] < len(REGISTERS))),
+            allowed.eq(table([(1 << top.bit_length()) - 1 for top in tops], 32)),
+            minimum.eq(table([register.minimum for register in REGISTERS], LOW)),
+            maximum.eq(table([min(top, (1 << LOW) - 1) for top in tops], LOW)),
+        ]
         out_of_range = ((value & ~allowed).any() |
                         ((value[LOW:] == 0) & (value[:LOW] < minimum)) |
                         (value[:LOW] > maximum))
-        m.d.sync += check.eq(0)
+        checked = Signal()              # the verdict on the value checked in the last cycle:
+        checked_unknown = Signal()      # no register at its address
+        checked_bad = Signal()          # out of its register's range
+        checked_address = Signal(16)
+        m.d.sync += [
+            check.eq(0),
+            checked.eq(check),
+            checked_unknown.eq(~known),
+            checked_bad.eq(out_of_range),
+            checked_address.eq(value_address),
+        ]
+        with m.If(checked & ~has_error):
+            with m.If(checked_unknown):
+                m.d.sync += [has_error.eq(1), error.eq(NakCode.BAD_ADDRESS),
+                             error_detail.eq(checked_address)]
+            with m.Elif(checked_bad):
+                m.d.sync += [has_error.eq(1), error.eq(NakCode.OUT_OF_RANGE),
+                             error_detail.eq(checked_address)]
         with m.If(check):
-            with m.If(~has_error):
-                with m.If(~known):
-                    m.d.sync += [has_error.eq(1), error.eq(NakCode.BAD_ADDRESS),
-                                 error_detail.eq(value_address)]
-                with m.Elif(out_of_range):
-                    m.d.sync += [has_error.eq(1), error.eq(NakCode.OUT_OF_RANGE),
-                                 error_detail.eq(value_address)]
             with m.Switch(value_address):
                 for register in REGISTERS:
                     with m.Case(register.address):
-                        m.d.sync += candidate[register.name].eq(value)
+                        m.d.sync += [candidate[register.name].eq(value),
+                                     written[register.address].eq(1)]
             m.d.sync += value_address.eq(value_address + 1)
 
         # Consistency of the candidate settings, in two registered steps (the largest delays
-        # first); it is needed two cycles after the candidate is complete.
+        # and the seeds' high bits first); it is needed two cycles after the candidate is
+        # complete.
         consistent = Signal()
-        c = candidate
+        c = Signal(layout)      # the settings the WRITE would make
+        for register in REGISTERS:
+            m.d.comb += c[register.name].eq(Mux(written[register.address],
+                                                candidate[register.name],
+                                                self.settings[register.name]))
 
         def below(n, width):
             # `(1 << n) - 1` in `width` bits (all ones from `n = width` on), out of a constant
@@ -283,22 +313,32 @@ class CommandProcessor(wiring.Component):
             # `a < b` for a narrower `a`: the high bits of `b` need no carry chain
             return (b[len(a):] != 0) | (a < b[:len(a)])
 
-        def seed_fits(seed, length):
-            # `(seed >> length) == 0`, without the shifter
-            return (seed & ~below(length, len(seed))) == 0
+        def seed_high(seed, length):
+            # The bits of `seed` at `2**length` and up (without the shifter), OR-ed in groups of
+            # four: all zeros when the seed fits in `length` bits.
+            high = seed & ~below(length, len(seed))
+            return Cat(high[k:k + 4].any() for k in range(0, len(high), 4))
 
         victim_max_delay = Signal(34)
         simple = Signal()
+        victim_mseq = Signal()
+        aggressor_mseq = Signal()
+        victim_seed_high = Signal((len(c.seed) + 3) // 4)
+        aggressor_seed_high = Signal((len(c.aggressor_seed) + 3) // 4)
         m.d.sync += [
             victim_max_delay.eq(max_delay(c.delay_mode, c.length, c.mask_width)),
             simple.eq(
                 narrow_less(c.pulse_width, c.period) &
-                ((c.delay_mode != DelayMode.MSEQ) | seed_fits(c.seed, c.length)) &
                 narrow_less(c.aggressor_width, c.aggressor_period) &
-                ((c.aggressor_delay_mode != DelayMode.MSEQ) |
-                 seed_fits(c.aggressor_seed, c.aggressor_length)) &
                 (c.gate_start <= c.gate_end)),
-            consistent.eq(simple & (~c.grid | (victim_max_delay + c.pulse_width < c.period))),
+            victim_mseq.eq(c.delay_mode == DelayMode.MSEQ),
+            aggressor_mseq.eq(c.aggressor_delay_mode == DelayMode.MSEQ),
+            victim_seed_high.eq(seed_high(c.seed, c.length)),
+            aggressor_seed_high.eq(seed_high(c.aggressor_seed, c.aggressor_length)),
+            consistent.eq(simple &
+                          ~(victim_mseq & victim_seed_high.any()) &
+                          ~(aggressor_mseq & aggressor_seed_high.any()) &
+                          (~c.grid | (victim_max_delay + c.pulse_width < c.period))),
         ]
 
         def reply(type, length, final=None):
@@ -331,11 +371,11 @@ class CommandProcessor(wiring.Component):
                         read_payload.eq(header.length == 3),
                         write_payload.eq((header.length[:2] == 2) & (header.length[2:] != 0)),
                         index.eq(0), has_error.eq(0),
-                        candidate.eq(self.settings),
+                        written.eq(0),
                     ]
                     m.d.comb += self.tally.commands.eq(1)
                     with m.If(self.packets.p.last):
-                        m.next = "DISPATCH"
+                        m.next = "VERDICT"
                     with m.Else():
                         m.next = "PAYLOAD"
                 with m.Elif(link_pending):
@@ -368,63 +408,66 @@ class CommandProcessor(wiring.Component):
                         m.next = "CHECK"
 
             with m.State("CHECK"):
-                # The check of the last WRITE value completes; the range of a READ is checked.
+                # The last WRITE value is checked; the range of a READ is checked.
                 # (The sum needs only the bits that can address a register.)
                 bits = (len(REGISTERS) - 1).bit_length()
                 m.d.sync += read_bad.eq((count == 0) | (count > READ_MAX) |
                                         (address[bits:] != 0) |
                                         (address[:bits] + count > len(REGISTERS)))
+                m.next = "VERDICT"
+
+            with m.State("VERDICT"):
+                # Whether the command is refused, and how, is decided into registers (a WRITE's
+                # range errors are final only in the next cycle: it is answered in COMMIT).
                 m.next = "DISPATCH"
+                m.d.sync += refusal.eq(1)
+                with m.Switch(cmd_type):
+                    with m.Case(PacketType.PING, PacketType.IDENTIFY, PacketType.START,
+                                PacketType.STOP, PacketType.GET_STATUS):
+                        m.d.sync += [refusal.eq(~no_payload),
+                                     refusal_code.eq(NakCode.BAD_PAYLOAD), refusal_detail.eq(0)]
+                    with m.Case(PacketType.READ):
+                        m.d.sync += [
+                            refusal.eq(~read_payload | read_bad),
+                            refusal_code.eq(Mux(read_payload, NakCode.BAD_ADDRESS,
+                                                NakCode.BAD_PAYLOAD)),
+                            refusal_detail.eq(Mux(read_payload, address, 0)),
+                        ]
+                    with m.Case(PacketType.WRITE):
+                        m.d.sync += [refusal.eq(~write_payload),
+                                     refusal_code.eq(NakCode.BAD_PAYLOAD), refusal_detail.eq(0)]
+                    with m.Default():
+                        m.d.sync += [refusal_code.eq(NakCode.UNKNOWN_TYPE),
+                                     refusal_detail.eq(cmd_type)]
 
             with m.State("DISPATCH"):
                 m.next = "HEADER"
-                with m.Switch(cmd_type):
-                    with m.Case(PacketType.PING):
-                        with m.If(no_payload):
+                with m.If(refusal):
+                    m.d.sync += refuse(refusal_code, refusal_detail)
+                with m.Else():
+                    with m.Switch(cmd_type):
+                        with m.Case(PacketType.PING):
                             m.d.sync += reply(PacketType.ACK, 1)
-                        with m.Else():
-                            m.d.sync += refuse(NakCode.BAD_PAYLOAD)
-                    with m.Case(PacketType.IDENTIFY):
-                        with m.If(no_payload):
+                        with m.Case(PacketType.IDENTIFY):
                             m.d.sync += reply(PacketType.IDENTITY,
                                               data.Layout.cast(Identity).size // 8)
-                        with m.Else():
-                            m.d.sync += refuse(NakCode.BAD_PAYLOAD)
-                    with m.Case(PacketType.READ):
-                        with m.If(~read_payload):
-                            m.d.sync += refuse(NakCode.BAD_PAYLOAD)
-                        with m.Elif(read_bad):
-                            m.d.sync += refuse(NakCode.BAD_ADDRESS, address)
-                        with m.Else():
+                        with m.Case(PacketType.READ):
                             m.d.sync += reply(PacketType.REGISTERS, Cat(C(2, 2), count),
                                               final=Cat(C(1, 2), count))
-                    with m.Case(PacketType.WRITE):
-                        with m.If(~write_payload):
-                            m.d.sync += refuse(NakCode.BAD_PAYLOAD)
-                        with m.Elif(has_error):
-                            m.d.sync += refuse(error, error_detail)
-                        with m.Else():
+                        with m.Case(PacketType.WRITE):
                             m.next = "CONSISTENCY"
-                    with m.Case(PacketType.START, PacketType.STOP):
-                        with m.If(no_payload):
+                        with m.Case(PacketType.START, PacketType.STOP):
                             m.d.sync += [
                                 reply(PacketType.ACK, 1),
                                 self.running.eq(cmd_type == PacketType.START),
                             ]
-                        with m.Else():
-                            m.d.sync += refuse(NakCode.BAD_PAYLOAD)
-                    with m.Case(PacketType.GET_STATUS):
-                        with m.If(no_payload):
+                        with m.Case(PacketType.GET_STATUS):
                             m.d.sync += [
                                 reply(PacketType.STATUS, len(STATUS_FIELDS) * 4),
                                 status_running.eq(self.running),
                             ]
                             m.d.comb += self.status.capture.eq(1)
                             m.next = "SNAPSHOT"
-                        with m.Else():
-                            m.d.sync += refuse(NakCode.BAD_PAYLOAD)
-                    with m.Default():
-                        m.d.sync += refuse(NakCode.UNKNOWN_TYPE, cmd_type)
 
             with m.State("SNAPSHOT"):
                 # The counters are being copied (`ready` is low from this cycle on).
@@ -437,8 +480,14 @@ class CommandProcessor(wiring.Component):
             with m.State("COMMIT"):
                 # `consistent` now reflects the complete candidate.
                 m.next = "HEADER"
-                with m.If(consistent):
-                    m.d.sync += [self.settings.eq(candidate), reply(PacketType.ACK, 1)]
+                with m.If(has_error):
+                    m.d.sync += refuse(error, error_detail)
+                with m.Elif(consistent):
+                    for register in REGISTERS:
+                        with m.If(written[register.address]):
+                            m.d.sync += self.settings[register.name].eq(
+                                candidate[register.name])
+                    m.d.sync += reply(PacketType.ACK, 1)
                     m.d.sync += self.update.eq(self.running)
                 with m.Else():
                     m.d.sync += refuse(NakCode.OUT_OF_RANGE, CONSISTENCY)
@@ -461,7 +510,7 @@ class CommandProcessor(wiring.Component):
                     replies.valid.eq(1),
                     replies.p.last.eq(index == reply_final),
                 ]
-                # READ and STATUS: the registers (counters) leave through `read_word`, each loaded
+                # READ and STATUS: the registers (counters) leave through `word`, each loaded
                 # from `next_word` as the byte before it goes out (the last address byte of a
                 # READ, the last byte of `running` in a STATUS, then the last byte of the one
                 # before), so no wide multiplexer sits in front of the reply, and only one serves
@@ -475,10 +524,10 @@ class CommandProcessor(wiring.Component):
                     with m.If(index[:2] == Mux(is_status, 3, 1)):
                         m.d.sync += [
                             next_pointer.eq(next_pointer + 1),
-                            read_word.eq(next_word),
+                            word.eq(next_word),
                         ]
                     with m.Else():
-                        m.d.sync += read_word.eq(read_word >> 8)
+                        m.d.sync += word.eq(word >> 8)
                     with m.If(index == reply_final):
                         m.next = "IDLE"
 
@@ -503,11 +552,11 @@ class CommandProcessor(wiring.Component):
                 with m.If(index[2:] == 0):           # index < 4
                     m.d.comb += replies.p.data.eq(Mux(index == 0, status_running, 0))
                 with m.Else():
-                    m.d.comb += replies.p.data.eq(read_word[:8])
+                    m.d.comb += replies.p.data.eq(word[:8])
             with m.Case(PacketType.REGISTERS):
                 with m.If(index[1:] == 0):           # index < 2
                     m.d.comb += replies.p.data.eq(address.word_select(index[0], 8))
                 with m.Else():
-                    m.d.comb += replies.p.data.eq(read_word[:8])
+                    m.d.comb += replies.p.data.eq(word[:8])
 
         return m

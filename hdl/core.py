@@ -5,7 +5,7 @@ from amaranth.lib.wiring import In, Out
 from . import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, period_cycles
 from .delay import DelayMode, DelaySource, DELAY_WIDTH, MAX_MASK_WIDTH
 from .lfsr import MAX_LENGTH
-from .scheduler import PulseScheduler, PERIOD_WIDTH, PULSE_WIDTH_WIDTH
+from .scheduler import PulseScheduler, PERIOD_WIDTH, PULSE_WIDTH_WIDTH, check_widths
 from .laser import LaserTrigger
 
 
@@ -22,6 +22,9 @@ class DelayCore(wiring.Component):
     clock_hz : int
         System clock frequency in Hz. It sets nothing in the logic: all settings are in cycles.
         It is kept as :attr:`clock_hz` for tools that convert to and from seconds.
+    period_width, pulse_width_width : int
+        Widths of the ``period`` and ``pulse_width`` settings, in bits
+        (:func:`~fliss.hdl.scheduler.check_widths`).
 
     Members
     -------
@@ -32,9 +35,9 @@ class DelayCore(wiring.Component):
     mask_width : In(range(1, 17))
     seed : In(32)
         Delay source settings (:class:`DelaySource`).
-    period : In(32)
+    period : In(period_width)
     grid : In(1)
-    pulse_width : In(16)
+    pulse_width : In(pulse_width_width)
         Scheduler settings (:class:`PulseScheduler`).
     laser : Out(1)
     tdc_start : Out(1)
@@ -46,33 +49,38 @@ class DelayCore(wiring.Component):
         Monitor outputs of the scheduler; ``fire`` leads ``tdc_start`` by one cycle.
     """
 
-    enable:      In(1)
-    update:      In(1)
-    mode:        In(DelayMode)
-    length:      In(range(2, MAX_LENGTH + 1))
-    mask_width:  In(range(1, MAX_MASK_WIDTH + 1))
-    seed:        In(MAX_LENGTH)
-    period:      In(PERIOD_WIDTH)
-    grid:        In(1)
-    pulse_width: In(PULSE_WIDTH_WIDTH)
-    laser:       Out(1)
-    tdc_start:   Out(1)
-    running:     Out(1)
-    fire:        Out(1)
-    fire_delay:  Out(DELAY_WIDTH)
-    pulse_index: Out(32)
-
-    def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ):
+    def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, period_width=PERIOD_WIDTH,
+                 pulse_width_width=PULSE_WIDTH_WIDTH):
         period_cycles(clock_hz, DEFAULT_PRF_HZ)  # validates the clock
+        check_widths(period_width, pulse_width_width)
         self.clock_hz = clock_hz
-        super().__init__()
+        self.period_width = period_width
+        self.pulse_width_width = pulse_width_width
+        super().__init__({
+            "enable":      In(1),
+            "update":      In(1),
+            "mode":        In(DelayMode),
+            "length":      In(range(2, MAX_LENGTH + 1)),
+            "mask_width":  In(range(1, MAX_MASK_WIDTH + 1)),
+            "seed":        In(MAX_LENGTH),
+            "period":      In(period_width),
+            "grid":        In(1),
+            "pulse_width": In(pulse_width_width),
+            "laser":       Out(1),
+            "tdc_start":   Out(1),
+            "running":     Out(1),
+            "fire":        Out(1),
+            "fire_delay":  Out(DELAY_WIDTH),
+            "pulse_index": Out(32),
+        })
 
     def elaborate(self, platform):
         m = Module()
 
         m.submodules.source = source = DelaySource()
-        m.submodules.scheduler = scheduler = PulseScheduler()
-        m.submodules.trigger = trigger = LaserTrigger()
+        m.submodules.scheduler = scheduler = PulseScheduler(
+            period_width=self.period_width, pulse_width_width=self.pulse_width_width)
+        m.submodules.trigger = trigger = LaserTrigger(width_bits=self.pulse_width_width)
 
         wiring.connect(m, source.delays, scheduler.delays)
         m.d.comb += [

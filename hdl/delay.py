@@ -2,7 +2,7 @@ from amaranth.hdl import *
 from amaranth.lib import enum, stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from .lfsr import MAX_LENGTH, POLYNOMIALS, _galois_step
+from .lfsr import MAX_LENGTH, POLYNOMIALS, _galois_step, _galois_steps
 
 
 __all__ = ["DelayMode", "MAX_MASK_WIDTH", "MASKED_LENGTH", "MASKED_STEPS", "DELAY_WIDTH",
@@ -167,14 +167,7 @@ class DelaySource(wiring.Component):
         # Masked register
         masked = Signal(MASKED_LENGTH, init=1)
         masked_seeded = Cat(self.seed[0] | (self.seed[1:] == 0), self.seed[1:])
-        taps_masked = Const(POLYNOMIALS[MASKED_LENGTH] >> 1, MASKED_LENGTH)
-        # one signal per step: each step reads its input twice, so a chain of expressions would
-        # grow as 2**MASKED_STEPS
-        masked_next = masked
-        for step in range(MASKED_STEPS):
-            stepped = Signal(MASKED_LENGTH, name=f"masked_step{step}")
-            m.d.comb += stepped.eq(_galois_step(masked_next, taps_masked))
-            masked_next = stepped
+        masked_next = _galois_steps(masked, POLYNOMIALS[MASKED_LENGTH] >> 1, MASKED_STEPS)
         with m.If(self.load):
             m.d.sync += masked.eq(masked_seeded)
         with m.Elif(advance == DelayMode.MASKED):

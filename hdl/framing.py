@@ -19,6 +19,7 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
+from .buffer import StreamBuffer
 from .protocol import (DELIMITER, COBS_MAX_RUN, CRC_WIDTH, CRC_POLY, CRC_INIT, CRC_BYTES, Header,
                        HEADER_BYTES, MAX_PAYLOAD, MAX_PACKET, MAX_ENCODED, NakCode, COUNTER_BITS)
 
@@ -127,18 +128,32 @@ class FrameEncoder(wiring.Component):
         run_wr = run.write_port()
         run_rd = run.read_port(transparent_for=())
 
-        # Packet bytes, unencoded: header, payload, CRC (`u_*`), taken when `u_ready`
-        u_data = Signal(8)
-        u_valid = Signal()
-        u_last = Signal()
-        u_ready = Signal()
+        # Packet bytes, unencoded: header, payload, CRC (`s_*`), taken when `s_ready`. They reach
+        # the COBS filler (`u_*`) through a half-rate register slice, tested for zero on the way
+        # in, so that no path runs from the byte multiplexers here through the filler's decisions.
+        m.submodules.byte_buffer = byte_buffer = StreamBuffer(
+            data.StructLayout({"data": 8, "last": 1, "zero": 1}), full_rate=False)
+        s_data = Signal(8)
+        s_valid = Signal()
+        s_last = Signal()
+        s_ready = byte_buffer.i.ready
+        m.d.comb += [
+            byte_buffer.i.valid.eq(s_valid),
+            byte_buffer.i.p.data.eq(s_data),
+            byte_buffer.i.p.last.eq(s_last),
+            byte_buffer.i.p.zero.eq(s_data == 0),
+        ]
+        u_data = byte_buffer.o.p.data
+        u_valid = byte_buffer.o.valid
+        u_last = byte_buffer.o.p.last
+        u_ready = byte_buffer.o.ready
         header = Signal(Header)
         has_payload = Signal()
         index = Signal(range(HEADER_BYTES))
-        u_checked = Signal()     # the byte is covered by the CRC
+        s_checked = Signal()     # the byte is covered by the CRC
         m.d.comb += [
-            crc.data.eq(u_data),
-            crc.valid.eq(u_valid & u_ready & u_checked),
+            crc.data.eq(s_data),
+            crc.valid.eq(s_valid & s_ready & s_checked),
         ]
         crc_bytes = Array(_byte(crc.crc, k) for k in reversed(range(CRC_BYTES)))  # MSB first
         with m.FSM(name="source"):
@@ -156,11 +171,11 @@ class FrameEncoder(wiring.Component):
                     m.d.sync += self.stray_beats.eq(self.stray_beats + 1)
             with m.State("HEADER"):
                 m.d.comb += [
-                    u_data.eq(_byte(header, index)),
-                    u_valid.eq(1),
-                    u_checked.eq(1),
+                    s_data.eq(_byte(header, index)),
+                    s_valid.eq(1),
+                    s_checked.eq(1),
                 ]
-                with m.If(u_ready):
+                with m.If(s_ready):
                     m.d.sync += index.eq(index + 1)
                     with m.If(index == HEADER_BYTES - 1):
                         m.d.sync += index.eq(0)
@@ -170,22 +185,22 @@ class FrameEncoder(wiring.Component):
                             m.next = "CRC"
             with m.State("PAYLOAD"):
                 m.d.comb += [
-                    u_data.eq(self.i.payload.data),
-                    u_valid.eq(self.i.valid),
-                    u_checked.eq(1),
-                    self.i.ready.eq(u_ready),
+                    s_data.eq(self.i.payload.data),
+                    s_valid.eq(self.i.valid),
+                    s_checked.eq(1),
+                    self.i.ready.eq(s_ready),
                 ]
-                with m.If(self.i.valid & u_ready & self.i.payload.last):
+                with m.If(self.i.valid & s_ready & self.i.payload.last):
                     m.next = "CRC"
             with m.State("CRC"):
                 m.d.comb += [
-                    u_data.eq(crc_bytes[index]),
-                    u_valid.eq(1),
-                    u_last.eq(index == CRC_BYTES - 1),
+                    s_data.eq(crc_bytes[index]),
+                    s_valid.eq(1),
+                    s_last.eq(index == CRC_BYTES - 1),
                 ]
-                with m.If(u_ready):
+                with m.If(s_ready):
                     m.d.sync += index.eq(index + 1)
-                    with m.If(u_last):
+                    with m.If(s_last):
                         m.next = "IDLE"
 
         # COBS, filler: collect a run of non-zero bytes in one bank of the run buffer. A zero
@@ -228,7 +243,7 @@ class FrameEncoder(wiring.Component):
         with m.Else():
             m.d.comb += u_ready.eq(~pending & ~(emitting & (e_bank == fill_bank)))
             with m.If(u_valid & u_ready):
-                with m.If(u_data == 0):
+                with m.If(byte_buffer.o.p.zero):
                     close(run_len + 1, run_len, final=0)
                     m.d.sync += ending.eq(u_last)
                 with m.Else():
@@ -246,6 +261,7 @@ class FrameEncoder(wiring.Component):
         e_len = Signal(range(COBS_MAX_RUN + 1))
         e_final = Signal()
         sent = Signal(range(COBS_MAX_RUN + 1))
+        e_last = Signal()           # the byte of the run being sent is its last (registered)
         # The output byte is one LUT after the run buffer (block RAM, slow to output): which
         # byte goes out is decided a cycle ahead, into `e_is_code` and `e_is_data`, rather than
         # decoded from the state.
@@ -271,7 +287,7 @@ class FrameEncoder(wiring.Component):
                     run_rd.addr.eq(Cat(C(0, bank_bits), e_bank)),
                 ]
                 with m.If(self.o.ready):
-                    m.d.sync += [sent.eq(0), e_is_code.eq(0)]
+                    m.d.sync += [sent.eq(0), e_is_code.eq(0), e_last.eq(e_len == 1)]
                     with m.If(e_len != 0):
                         m.d.sync += e_is_data.eq(1)
                         m.next = "DATA"
@@ -287,8 +303,8 @@ class FrameEncoder(wiring.Component):
                     run_rd.addr.eq(Cat(Mux(self.o.ready, sent + 1, sent)[:bank_bits], e_bank)),
                 ]
                 with m.If(self.o.ready):
-                    m.d.sync += sent.eq(sent + 1)
-                    with m.If(sent + 1 == e_len):
+                    m.d.sync += [sent.eq(sent + 1), e_last.eq(sent + 2 == e_len)]
+                    with m.If(e_last):
                         m.d.sync += [emitting.eq(0), e_is_data.eq(0)]
                         with m.If(e_final):
                             m.next = "DELIMITER"

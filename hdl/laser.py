@@ -20,11 +20,16 @@ class LaserTrigger(wiring.Component):
     starts with the same (delayed) pulse, so the delay cancels out of the victim's timestamps
     (equation 5 of the paper). Both outputs come straight from flip-flops.
 
+    Parameters
+    ----------
+    width_bits : int
+        Width of ``width``, in bits.
+
     Members
     -------
     fire : In(1)
         Fire a pulse.
-    width : In(16)
+    width : In(width_bits)
         Pulse width in clock cycles, sampled with ``fire``; zero acts as one.
     laser : Out(1)
         Laser trigger output.
@@ -32,15 +37,20 @@ class LaserTrigger(wiring.Component):
         TDC start strobe, one cycle long.
     """
 
-    fire:      In(1)
-    width:     In(PULSE_WIDTH_WIDTH)
-    laser:     Out(1)
-    tdc_start: Out(1)
+    def __init__(self, *, width_bits=PULSE_WIDTH_WIDTH):
+        if not isinstance(width_bits, int) or width_bits < 1:
+            raise ValueError(f"Pulse width bits must be a positive integer, not {width_bits!r}")
+        super().__init__({
+            "fire":      In(1),
+            "width":     In(width_bits),
+            "laser":     Out(1),
+            "tdc_start": Out(1),
+        })
 
     def elaborate(self, platform):
         m = Module()
 
-        remaining = Signal(PULSE_WIDTH_WIDTH)
+        remaining = Signal.like(self.width)
         m.d.sync += self.tdc_start.eq(self.fire)
         with m.If(self.fire):
             m.d.sync += [

@@ -61,6 +61,21 @@ def _galois_step(state, taps):
     return (state >> 1) ^ Mux(state[0], taps, 0)
 
 
+def _galois_steps(state, taps, steps):
+    # `steps` steps of the right-shifting Galois register with constant `taps` (an int): the
+    # steps compose into a linear map over GF(2), so each bit of the result is the XOR of some
+    # bits of `state`, built as one balanced XOR per bit (a chain of `steps` steps would be
+    # `steps` levels of logic deep).
+    columns = []            # the result for each single state bit set
+    for bit in range(len(state)):
+        value = 1 << bit
+        for _ in range(steps):
+            value = (value >> 1) ^ (taps if value & 1 else 0)
+        columns.append(value)
+    return Cat(Cat(state[bit] for bit, column in enumerate(columns) if column >> out & 1).xor()
+               for out in range(len(state)))
+
+
 class Lfsr(wiring.Component):
     """Galois linear feedback shift register.
 
@@ -138,7 +153,7 @@ class Lfsr(wiring.Component):
                 with m.Default():
                     m.d.comb += mask.eq(-1)
         else:
-            taps = Const(POLYNOMIALS[self._length] >> 1, MAX_LENGTH)
+            taps = POLYNOMIALS[self._length] >> 1
             mask = Const((1 << self._length) - 1, MAX_LENGTH)
 
         # Next state
@@ -146,11 +161,9 @@ class Lfsr(wiring.Component):
             seeded = self.seed & mask
             m.d.sync += state.eq(Mux(seeded == 0, 1, seeded))
         with m.Elif(self.advance):
-            next_state = state
-            for step in range(self._steps):
-                stepped = Signal(MAX_LENGTH, name=f"step{step + 1}")
-                m.d.comb += stepped.eq(_galois_step(next_state, taps))
-                next_state = stepped
-            m.d.sync += state.eq(next_state)
+            if self._length is None:
+                m.d.sync += state.eq(_galois_step(state, taps))
+            else:
+                m.d.sync += state.eq(_galois_steps(state, taps, self._steps))
 
         return m

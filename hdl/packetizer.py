@@ -148,24 +148,29 @@ class HistogramPacketizer(wiring.Component):
         byte = Signal(range(max(_CHUNK_HEADER, COUNT_BYTES)))
         count = Signal(COUNT_WIDTH)
         last_of_frame = Signal()
+        # (registered ahead, for timing: the packet's length and "this is its last bin")
+        length = Signal(16)
+        last_bin = Signal()
 
         frame_bins = Signal(range((1 << TIMESTAMP_BITS) + 1))
         m.d.comb += frame_bins.eq(Const(1 << TIMESTAMP_BITS) >> self.shift)
 
         m.d.comb += [
             self.packets.p.header.type.eq(PacketType.HISTOGRAM),
-            self.packets.p.header.length.eq(_CHUNK_HEADER + bins * COUNT_BYTES),
+            self.packets.p.header.length.eq(length),
         ]
 
         with m.FSM():
             with m.State("WAIT"):
+                chunk_bins = Mux(frame_bins < CHUNK_BINS, frame_bins, CHUNK_BINS)
                 with m.If(self.readout.valid):
                     m.d.sync += [
                         chunk.frame.eq(frame),
                         chunk.first_bin.eq(self.readout.p.index),
                         chunk.shift.eq(self.shift),
                         chunk.last.eq(self.readout.p.index + CHUNK_BINS >= frame_bins),
-                        bins.eq(Mux(frame_bins < CHUNK_BINS, frame_bins, CHUNK_BINS)),
+                        bins.eq(chunk_bins),
+                        length.eq(_CHUNK_HEADER + chunk_bins * COUNT_BYTES),
                     ]
                     m.next = "HEADER"
 
@@ -190,12 +195,12 @@ class HistogramPacketizer(wiring.Component):
                 m.d.comb += self.readout.ready.eq(1)
                 with m.If(self.readout.valid):
                     m.d.sync += [count.eq(self.readout.p.count),
-                                 last_of_frame.eq(self.readout.p.last)]
+                                 last_of_frame.eq(self.readout.p.last),
+                                 last_bin.eq(sent == bins - 1)]
                     m.next = "COUNT"
 
             with m.State("COUNT"):
                 last_byte = byte == COUNT_BYTES - 1
-                last_bin = sent == bins - 1
                 m.d.comb += [
                     self.packets.valid.eq(1),
                     self.packets.p.data.eq(count.word_select(byte, 8)),

@@ -122,9 +122,12 @@ BY_ADDRESS = {register.address: register for register in REGISTERS}
 assert [register.address for register in REGISTERS] == list(range(len(REGISTERS)))
 
 
-def settings_layout():
-    """``data.StructLayout`` with one field per register, ``width`` bits each."""
-    return data.StructLayout({register.name: register.width for register in REGISTERS})
+def settings_layout(maxima=None):
+    """``data.StructLayout`` with one field per register, ``width`` bits each, or as many as
+    its value in ``maxima`` (name -> largest value) needs when that is fewer."""
+    maxima = maxima or {}
+    return data.StructLayout({
+        r.name: min(r.width, maxima.get(r.name, r.maximum).bit_length()) for r in REGISTERS})
 
 
 def defaults(clock_hz):

@@ -5,8 +5,8 @@ from amaranth.lib.wiring import In, Out
 from .delay import DELAY_WIDTH
 
 
-__all__ = ["PERIOD_WIDTH", "PULSE_WIDTH_WIDTH", "DELAY_ZERO", "DELAY_WIDE", "DELAY_NARROW",
-           "PulseScheduler"]
+__all__ = ["PERIOD_WIDTH", "PULSE_WIDTH_WIDTH", "check_widths", "DELAY_ZERO", "DELAY_WIDE",
+           "DELAY_NARROW", "PulseScheduler"]
 
 
 #: Width of the period setting, in bits: down to 0.02 Hz at 80 MHz.
@@ -14,6 +14,19 @@ PERIOD_WIDTH = 32
 
 #: Width of the laser pulse width setting, in bits.
 PULSE_WIDTH_WIDTH = 16
+
+
+def check_widths(period_width, pulse_width_width):
+    """Refuse setting widths the scheduler cannot take: a period of 17 to
+    :data:`PERIOD_WIDTH` bits (its timers count in 16-bit halves), a pulse width of 1 to
+    :data:`PULSE_WIDTH_WIDTH` bits."""
+    if not isinstance(period_width, int) or not 17 <= period_width <= PERIOD_WIDTH:
+        raise ValueError(f"Period width must be an integer from 17 to {PERIOD_WIDTH} bits, "
+                         f"not {period_width!r}")
+    if not isinstance(pulse_width_width, int) or not 1 <= pulse_width_width <= PULSE_WIDTH_WIDTH:
+        raise ValueError(f"Pulse width width must be an integer from 1 to {PULSE_WIDTH_WIDTH} "
+                         f"bits, not {pulse_width_width!r}")
+
 
 #: Kinds of delay (``delay_kind``): always zero; ``delay_wide = R + 1``; ``delay_narrow = R``.
 DELAY_ZERO, DELAY_WIDE, DELAY_NARROW = 0, 1, 2
@@ -41,17 +54,23 @@ class PulseScheduler(wiring.Component):
     doubled, provided that ``pulse_width < period`` (and the ``grid`` condition above), which the
     register file enforces.
 
+    Parameters
+    ----------
+    period_width, pulse_width_width : int
+        Widths of the ``period`` and ``pulse_width`` settings, in bits (:func:`check_widths`);
+        narrower settings make a smaller scheduler.
+
     Members
     -------
     enable : In(1)
         Run.
     update : In(1)
         Sample the settings while running.
-    period : In(32)
+    period : In(period_width)
         Nominal period ``T`` in clock cycles, at least 2.
     grid : In(1)
         ``grid`` mode when high, ``interval`` mode when low.
-    pulse_width : In(16)
+    pulse_width : In(pulse_width_width)
         Laser pulse width in clock cycles, passed on with each pulse.
     delays : In(stream.Signature(32))
         Delays in clock cycles, one taken per frame. The payload only gives ``fire_delay``: the
@@ -63,7 +82,7 @@ class PulseScheduler(wiring.Component):
         Acquisition is running.
     fire : Out(1)
         Fire a laser pulse in this cycle.
-    fire_width : Out(16)
+    fire_width : Out(pulse_width_width)
         Width of the pulse fired in this cycle.
     fire_delay : Out(32)
         Delay ``R`` of the pulse fired in this cycle.
@@ -78,23 +97,29 @@ class PulseScheduler(wiring.Component):
     ahead, and the timers are split in 16-bit halves; a period below 2 is not supported.
     """
 
-    enable:      In(1)
-    update:      In(1)
-    period:      In(PERIOD_WIDTH)
-    grid:        In(1)
-    pulse_width: In(PULSE_WIDTH_WIDTH)
-    delays:      In(stream.Signature(DELAY_WIDTH))
-    reload:      Out(1)
-    running:     Out(1)
-    fire:        Out(1)
-    fire_width:  Out(PULSE_WIDTH_WIDTH)
-    fire_delay:  Out(DELAY_WIDTH)
-    pulse_index: Out(32)
-    delay_kind:   In(2)
-    delay_zero:   In(1)
-    delay_zero_late: In(1)
-    delay_wide:   In(DELAY_WIDTH)
-    delay_narrow: In(16)
+    def __init__(self, *, period_width=PERIOD_WIDTH, pulse_width_width=PULSE_WIDTH_WIDTH):
+        check_widths(period_width, pulse_width_width)
+        self.period_width = period_width
+        self.pulse_width_width = pulse_width_width
+        super().__init__({
+            "enable":          In(1),
+            "update":          In(1),
+            "period":          In(period_width),
+            "grid":            In(1),
+            "pulse_width":     In(pulse_width_width),
+            "delays":          In(stream.Signature(DELAY_WIDTH)),
+            "reload":          Out(1),
+            "running":         Out(1),
+            "fire":            Out(1),
+            "fire_width":      Out(pulse_width_width),
+            "fire_delay":      Out(DELAY_WIDTH),
+            "pulse_index":     Out(32),
+            "delay_kind":      In(2),
+            "delay_zero":      In(1),
+            "delay_zero_late": In(1),
+            "delay_wide":      In(DELAY_WIDTH),
+            "delay_narrow":    In(16),
+        })
 
     def elaborate(self, platform):
         m = Module()
@@ -102,14 +127,14 @@ class PulseScheduler(wiring.Component):
         # Settings: `pending` holds settings sampled on update, `active` those of the current frame.
         # The period is kept with the flags the frame timer needs when it loads it.
         pending         = Signal()
-        pending_period  = Signal(PERIOD_WIDTH)
+        pending_period  = Signal(self.period_width)
         pending_flags   = Signal(4)
         pending_grid    = Signal()
-        pending_width   = Signal(PULSE_WIDTH_WIDTH)
-        active_period   = Signal(PERIOD_WIDTH)
+        pending_width   = Signal(self.pulse_width_width)
+        active_period   = Signal(self.period_width)
         active_flags    = Signal(4)
         active_grid     = Signal()
-        active_width    = Signal(PULSE_WIDTH_WIDTH)
+        active_width    = Signal(self.pulse_width_width)
 
         sample = Signal()
         m.d.comb += sample.eq(~self.running | self.update)
@@ -173,7 +198,7 @@ class PulseScheduler(wiring.Component):
         # Frame timer: the next take cycle is `T` cycles after the take cycle (`grid`), or
         # `T - 1` cycles after the pulse (`interval`). It is loaded with `T` in the cycle after
         # the take cycle, or in the pulse's cycle, and counts `T - 1` cycles.
-        m.submodules.frame = frame = _Timer(PERIOD_WIDTH, target=2)
+        m.submodules.frame = frame = _Timer(self.period_width, target=2)
         m.d.comb += [
             # (not in a stop: a load would outlast the clear, into a restart a cycle later)
             frame.load.eq(Mux(active_grid, take_d, pulse) & self.running & self.enable),

@@ -13,17 +13,24 @@ from .framing import FrameDecoder, FrameEncoder
 from .histogram import Histogram, RAM_KINDS
 from .packetizer import EventPacketizer, HistogramPacketizer
 from .rawfifo import RawFifo
+from .scheduler import PERIOD_WIDTH, PULSE_WIDTH_WIDTH, check_widths
 from .status import StatusCounters, LINK_FIELDS
-from .registers import AcquisitionMode, TdcSource
+from .registers import REGISTERS, AcquisitionMode, TdcSource
 from .tdc import EventFilter, TdcInterface, CoarseTdc
 from .uart import UartRx, UartTx, bit_cycles
 
 
-__all__ = ["DEFAULT_BAUD", "FlissTop"]
+__all__ = ["DEFAULT_BAUD", "SMALL", "FlissTop"]
 
 
 #: Default UART baud rate: what an FT2232H bridge (iCEBreaker, many ULX3S) carries reliably.
 DEFAULT_BAUD = 3_000_000
+
+#: Options of :class:`FlissTop` for the smallest build, which fits an iCE40UP5K (the
+#: iCEBreaker's FPGA): histograms only, in single-port RAM; no aggressor emitter; periods up to
+#: 2**24 - 1 cycles (0.35 s at 48 MHz) and pulses up to 255 cycles.
+SMALL = dict(histogram_ram="single", aggressor=False, raw_events=False, period_width=24,
+             pulse_width_width=8)
 
 
 class FlissTop(wiring.Component):
@@ -48,6 +55,19 @@ class FlissTop(wiring.Component):
         Give the aggressor emitter a delay source of its own. Without it (a smaller build, for
         the iCE40UP5K), the aggressor fires on its nominal schedule only, and a write of
         ``aggressor_delay_mode`` other than 0 (off) is refused as out of range.
+    aggressor : bool
+        Build the aggressor emitter. Without it, ``aggressor_laser`` stays low, and a write of
+        ``aggressor`` other than 0 (off) is refused as out of range.
+    period_width, pulse_width_width : int
+        Widths of the victim's ``period`` and ``pulse_width`` settings (and the aggressor's), in
+        bits: 32 and 16 by default; narrower ones make a smaller build, whose register file
+        refuses larger values as out of range (see :func:`~fliss.hdl.scheduler.check_widths`).
+    raw_events : bool
+        Build raw-event mode (the event FIFO and the EVENTS packetizer). Without it, a write of
+        ``acquisition`` other than 0 (histograms) is refused as out of range.
+
+    Smaller builds answer every command as the full one does, except for the refusals above:
+    the host finds what is missing from a NAK ``OUT_OF_RANGE`` with the register's address.
 
     Members
     -------
@@ -83,7 +103,9 @@ class FlissTop(wiring.Component):
     running:          Out(1)
 
     def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, baud=DEFAULT_BAUD, raw_depth=512,
-                 histogram_ram="dual", aggressor_delays=True):
+                 histogram_ram="dual", aggressor_delays=True, aggressor=True,
+                 raw_events=True, period_width=PERIOD_WIDTH,
+                 pulse_width_width=PULSE_WIDTH_WIDTH):
         self.clock_hz = clock_hz
         self.baud = baud
         self.raw_depth = raw_depth
@@ -92,16 +114,43 @@ class FlissTop(wiring.Component):
         if histogram_ram not in RAM_KINDS:
             raise ValueError(f"Histogram RAM must be one of {', '.join(map(repr, RAM_KINDS))}, "
                              f"not {histogram_ram!r}")
-        if not isinstance(aggressor_delays, bool):
-            raise TypeError(f"aggressor_delays must be True or False, not {aggressor_delays!r}")
-        self.aggressor_delays = aggressor_delays
+        for name, value in (("aggressor_delays", aggressor_delays), ("aggressor", aggressor),
+                            ("raw_events", raw_events)):
+            if not isinstance(value, bool):
+                raise TypeError(f"{name} must be True or False, not {value!r}")
+        self.aggressor = aggressor
+        self.aggressor_delays = aggressor_delays and aggressor
+        self.raw_events = raw_events
+        check_widths(period_width, pulse_width_width)
+        self.period_width = period_width
+        self.pulse_width_width = pulse_width_width
         period_cycles(clock_hz, DEFAULT_PRF_HZ)
         bit_cycles(clock_hz, baud)
         super().__init__()
 
     def register_maxima(self):
         """Register maxima lowered for this build (see :class:`CommandProcessor`)."""
-        return {} if self.aggressor_delays else {"aggressor_delay_mode": 0}
+        maxima = {}
+        for name in ("period", "aggressor_period"):
+            if self.period_width < PERIOD_WIDTH:
+                maxima[name] = (1 << self.period_width) - 1
+        for name in ("pulse_width", "aggressor_width"):
+            if self.pulse_width_width < PULSE_WIDTH_WIDTH:
+                maxima[name] = (1 << self.pulse_width_width) - 1
+        if not self.aggressor:
+            # Its registers stay, for hosts that write a range of registers across them, but
+            # only as wide as their reset values need.
+            for register in REGISTERS:
+                if register.name.startswith("aggressor"):
+                    reset = register.reset_value(self.clock_hz)
+                    maxima[register.name] = min(register.maximum,
+                                                (1 << max(register.minimum, reset).bit_length()) - 1)
+            maxima["aggressor"] = 0
+        if not self.aggressor_delays:
+            maxima["aggressor_delay_mode"] = 0
+        if not self.raw_events:
+            maxima["acquisition"] = AcquisitionMode.HISTOGRAM.value
+        return maxima
 
     def elaborate(self, platform):
         m = Module()
@@ -113,7 +162,7 @@ class FlissTop(wiring.Component):
         m.submodules.encoder = encoder = FrameEncoder()
         m.submodules.command = command = CommandProcessor(
             clock_hz=self.clock_hz, baud=self.baud, maxima=self.register_maxima())
-        m.submodules.arbiter = arbiter = PacketArbiter(3)
+        m.submodules.arbiter = arbiter = PacketArbiter(3 if self.raw_events else 2)
         m.d.comb += [
             uart_rx.rx.eq(self.uart_rx),
             self.uart_tx.eq(uart_tx.tx),
@@ -136,7 +185,9 @@ class FlissTop(wiring.Component):
         m.d.comb += self.running.eq(running)
 
         # Victim: delay source, scheduler, laser trigger and TDC start
-        m.submodules.core = core = DelayCore(clock_hz=self.clock_hz)
+        m.submodules.core = core = DelayCore(clock_hz=self.clock_hz,
+                                             period_width=self.period_width,
+                                             pulse_width_width=self.pulse_width_width)
         m.d.comb += [
             core.enable.eq(running),
             core.update.eq(command.update),
@@ -152,22 +203,23 @@ class FlissTop(wiring.Component):
         ]
 
         # Aggressor
-        m.submodules.aggressor = aggressor = Aggressor(delay_source=self.aggressor_delays)
-        m.d.comb += [
-            aggressor.enable.eq(running & settings.aggressor),
-            aggressor.update.eq(command.update),
-            aggressor.offset.eq(settings.aggressor_offset),
-            aggressor.period.eq(settings.aggressor_period),
-            aggressor.pulse_width.eq(settings.aggressor_width),
-            self.aggressor_laser.eq(aggressor.laser),
-        ]
-        if self.aggressor_delays:
+        if self.aggressor:
+            m.submodules.aggressor = aggressor = Aggressor(delay_source=self.aggressor_delays)
             m.d.comb += [
-                aggressor.mode.eq(settings.aggressor_delay_mode),
-                aggressor.length.eq(settings.aggressor_length),
-                aggressor.mask_width.eq(settings.aggressor_mask_width),
-                aggressor.seed.eq(settings.aggressor_seed),
+                aggressor.enable.eq(running & settings.aggressor),
+                aggressor.update.eq(command.update),
+                aggressor.offset.eq(settings.aggressor_offset),
+                aggressor.period.eq(settings.aggressor_period),
+                aggressor.pulse_width.eq(settings.aggressor_width),
+                self.aggressor_laser.eq(aggressor.laser),
             ]
+            if self.aggressor_delays:
+                m.d.comb += [
+                    aggressor.mode.eq(settings.aggressor_delay_mode),
+                    aggressor.length.eq(settings.aggressor_length),
+                    aggressor.mask_width.eq(settings.aggressor_mask_width),
+                    aggressor.seed.eq(settings.aggressor_seed),
+                ]
 
         # Events: the sensor bus or the built-in coarse TDC, tagged with the laser cycle index;
         # one event filter (gate, counters) serves the selected one.
@@ -176,10 +228,9 @@ class FlissTop(wiring.Component):
         m.submodules.event_filter = event_filter = EventFilter()
         coarse_selected = settings.tdc_source == TdcSource.COARSE
         for tdc in (sensor, coarse):
-            m.d.comb += [
-                tdc.enable.eq(running),
-                tdc.pulse_index.eq(core.pulse_index),
-            ]
+            m.d.comb += tdc.enable.eq(running)
+            if self.raw_events:     # (histograms need no pulse index: leave it out)
+                m.d.comb += tdc.pulse_index.eq(core.pulse_index)
         m.d.comb += [
             sensor.pin_valid.eq(self.sensor_valid),
             sensor.pin_timestamp.eq(self.sensor_timestamp),
@@ -219,16 +270,17 @@ class FlissTop(wiring.Component):
         wiring.connect(m, histogram_packets.packets, arbiter.i[1])
 
         # Raw mode
-        m.submodules.raw_fifo = raw_fifo = RawFifo(depth=self.raw_depth)
-        m.submodules.event_packets = event_packets = EventPacketizer()
-        m.d.comb += [
-            raw_fifo.events.valid.eq(events_valid & raw_mode),
-            raw_fifo.events.payload.eq(events),
-            event_packets.level.eq(raw_fifo.level),
-            event_packets.flush.eq(~running),
-        ]
-        wiring.connect(m, raw_fifo.output, event_packets.events)
-        wiring.connect(m, event_packets.packets, arbiter.i[2])
+        if self.raw_events:
+            m.submodules.raw_fifo = raw_fifo = RawFifo(depth=self.raw_depth)
+            m.submodules.event_packets = event_packets = EventPacketizer()
+            m.d.comb += [
+                raw_fifo.events.valid.eq(events_valid & raw_mode),
+                raw_fifo.events.payload.eq(events),
+                event_packets.level.eq(raw_fifo.level),
+                event_packets.flush.eq(~running),
+            ]
+            wiring.connect(m, raw_fifo.output, event_packets.events)
+            wiring.connect(m, event_packets.packets, arbiter.i[2])
 
         # Status counters: strobes into a counter bank in block RAM
         m.submodules.status = status = StatusCounters()
@@ -242,7 +294,6 @@ class FlissTop(wiring.Component):
             strobes.dropped_gate.eq(event_filter.tally.dropped_gate),
             strobes.dropped_overflow.eq(event_filter.tally.dropped_overflow),
             strobes.dropped_overrun.eq(event_filter.tally.dropped_overrun),
-            strobes.dropped_fifo.eq(raw_fifo.tally.dropped),
             strobes.dropped_histogram.eq(histogram.tally.dropped),
             strobes.histogram_overflow.eq(histogram.tally.overflow),
             strobes.uart_framing_errors.eq(uart_rx.framing_error),
@@ -251,5 +302,8 @@ class FlissTop(wiring.Component):
             strobes.commands.eq(command.tally.commands),
             strobes.refused.eq(command.tally.refused),
         ]
+
+        if self.raw_events:
+            m.d.comb += strobes.dropped_fifo.eq(raw_fifo.tally.dropped)
 
         return m

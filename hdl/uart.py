@@ -219,13 +219,16 @@ class UartRx(_Uart):
         vote = Signal()
         m.d.comb += vote.eq((rx & rx_1) | (rx & rx_2) | (rx_1 & rx_2))
 
-        # Bit timing: a vote is taken when `cycle` (from the start edge) reaches `edge` + 1
+        # Bit timing: a vote is taken when `cycle` (from the start edge) reaches `edge` + 1,
+        # kept in `target` (so that the sum is not on the path to the vote's decisions)
         cycle = Signal(range((last_vote >> FRACTION_BITS) + 2))
         edge = Signal(range(last_vote + step + 1))
+        target = Signal.like(cycle)
         bit = Signal(range(CHARACTER_BITS))
         shreg = Signal(DATA_BITS)
         sample = Signal()
-        m.d.comb += sample.eq(cycle == (edge >> FRACTION_BITS) + 1)
+        m.d.comb += sample.eq(cycle == target)
+        first_target = ((step // 2) >> FRACTION_BITS) + 1
 
         # Output stream: a new byte waits until the previous one is taken
         with m.If(self.o.ready):
@@ -238,6 +241,7 @@ class UartRx(_Uart):
                     m.d.sync += [
                         cycle.eq(1),
                         edge.eq(step // 2),
+                        target.eq(first_target),
                         bit.eq(0),
                     ]
                     m.next = "RECEIVE"
@@ -247,6 +251,7 @@ class UartRx(_Uart):
                 with m.If(sample):
                     m.d.sync += [
                         edge.eq(edge + step),
+                        target.eq(((edge + step) >> FRACTION_BITS) + 1),
                         bit.eq(bit + 1),
                     ]
                     with m.If(bit == 0):
@@ -270,6 +275,7 @@ class UartRx(_Uart):
                                 m.d.sync += [
                                     cycle.eq(1),
                                     edge.eq(step // 2),
+                                    target.eq(first_target),
                                     bit.eq(0),
                                 ]
                             with m.Else():

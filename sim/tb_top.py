@@ -6,9 +6,12 @@ photon events on the timestamp bus, in closed loop. The expected replies come fr
 processor's model (:mod:`fliss.sim.command`); histograms and raw events from the events the
 sensor model produced.
 
-The baud rate is given to the design and to this testbench by ``FLISS_TB_BAUD``.
+The baud rate is given to the design and to this testbench by ``FLISS_TB_BAUD``; the register
+maxima of a smaller build (:meth:`fliss.hdl.top.FlissTop.register_maxima`) by
+``FLISS_TB_MAXIMA``, as JSON.
 """
 
+import json
 import os
 import random
 import struct
@@ -31,6 +34,7 @@ from .uart_bfm import UartSink, UartSource
 
 BAUD = int(os.environ.get("FLISS_TB_BAUD", 12_000_000))
 FUZZ_FRAMES = int(os.environ.get("FLISS_TB_FUZZ_FRAMES", 10_000))
+MAXIMA = json.loads(os.environ.get("FLISS_TB_MAXIMA", "{}"))
 CLOCK_PERIOD_PS = round(1e12 / DEFAULT_CLOCK_HZ)
 
 
@@ -39,7 +43,7 @@ class TopTB:
         self.dut = dut
         self.encoder = codec.PacketEncoder()
         self.decoder = codec.FrameDecoder(synced=True)
-        self.model = CommandModel(DEFAULT_CLOCK_HZ, BAUD)
+        self.model = CommandModel(DEFAULT_CLOCK_HZ, BAUD, maxima=MAXIMA)
         self.packets = []
         self.link_reports = []
         self.sensor_events = []
@@ -169,8 +173,11 @@ async def test_identify_and_registers(dut):
     await tb.command(PacketType.READ, struct.pack("<HB", 0, len(REGISTERS)))
     rng = random.Random(1)
     for register in REGISTERS:
-        for value in (register.minimum, register.maximum, register.maximum + 1,
-                      rng.randint(register.minimum, register.maximum)):
+        values = [register.minimum, register.maximum, register.maximum + 1,
+                  rng.randint(register.minimum, register.maximum)]
+        if register.name in MAXIMA:     # a smaller build's own maximum, and one above it
+            values += [MAXIMA[register.name], MAXIMA[register.name] + 1]
+        for value in values:
             if value < (1 << 32):
                 await tb.command(PacketType.WRITE, struct.pack("<HI", register.address, value))
     await tb.command(PacketType.READ, struct.pack("<HB", 0, len(REGISTERS)))

@@ -1,6 +1,7 @@
 """cocotb tests of the whole top level through its pins, on Icarus and Verilator."""
 
 import gc
+import json
 import warnings
 from pathlib import Path
 
@@ -8,12 +9,13 @@ import pytest
 from amaranth.hdl import UnusedElaboratable
 
 from fliss.hdl.delay import DelayMode
-from fliss.hdl.registers import REGISTERS
-from fliss.hdl.top import FlissTop
+from fliss.hdl.registers import REGISTERS, AcquisitionMode
+from fliss.hdl.top import FlissTop, SMALL
 from fliss.sim.cocotb_runner import run_cocotb, write_verilog
 
 
 BUILD = Path(__file__).resolve().parent.parent / "build" / "cocotb" / "fliss_top"
+BUILD_SMALL = BUILD.with_name("fliss_top_small")
 BAUD = 12_000_000
 #: Fuzz frames through the UART pins per simulator. A frame and its reply take about 40 µs of
 #: simulated time (3200 cycles), and the whole top level simulates at some 10^5 cycles/s in
@@ -38,28 +40,77 @@ def test_top(simulator, top_verilog, cocotb_counts):
     assert passed == 4
 
 
+def test_top_small(simulator, cocotb_counts):
+    # The iCE40UP5K build through its pins: every register written (in range, at its maximum,
+    # above it) and read back against the model with this build's maxima, and a histogram.
+    top = FlissTop(baud=BAUD, **SMALL)
+    maxima = top.register_maxima()
+    verilog_path = write_verilog(top, "fliss_top", BUILD_SMALL / "fliss_top.v")
+    passed, failed, skipped = run_cocotb(
+        simulator, verilog_path=verilog_path, toplevel="fliss_top",
+        test_module="fliss.sim.tb_top", build_dir=BUILD_SMALL,
+        testcase=["test_identify_and_registers", "test_histogram_closed_loop"],
+        extra_env={"FLISS_TB_BAUD": str(BAUD), "FLISS_TB_MAXIMA": json.dumps(maxima)})
+    cocotb_counts(simulator, passed, failed, skipped)
+    assert failed == 0
+    assert passed == 2
+
+
 @pytest.mark.parametrize("kwargs, exception, message", [
     (dict(histogram_ram="flash"), ValueError,
      "Histogram RAM must be one of 'dual', 'single', not 'flash'"),
     (dict(aggressor_delays=0), TypeError, "aggressor_delays must be True or False, not 0"),
+    (dict(aggressor=None), TypeError, "aggressor must be True or False, not None"),
+    (dict(raw_events="no"), TypeError, "raw_events must be True or False, not 'no'"),
+    (dict(period_width=16), ValueError,
+     "Period width must be an integer from 17 to 32 bits, not 16"),
 ])
 def test_top_refuses(construction_error, kwargs, exception, message):
     assert construction_error(lambda: FlissTop(**kwargs), exception) == message
 
 
-@pytest.mark.parametrize("aggressor_delays", [True, False])
-def test_top_register_file_takes_what_the_aggressor_runs(aggressor_delays):
-    # The register file accepts every aggressor delay mode the built aggressor can run, and
-    # only those; the other registers keep the register map's maxima.
+def _built(module, name):
+    try:
+        module.submodules[name]
+    except AttributeError:
+        return False
+    return True
+
+
+@pytest.mark.parametrize("options", [{}, dict(aggressor_delays=False), SMALL],
+                         ids=["full", "no-aggressor-delays", "small"])
+def test_top_register_file_takes_what_the_top_runs(options):
+    # The register file accepts every value the blocks the top level builds can take, and only
+    # those: aggressor delay modes its aggressor can run (none without an aggressor), periods
+    # and pulse widths that fit its delay core's settings, raw events only if it has the FIFO.
+    # The other registers keep the register map's maxima.
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UnusedElaboratable)    # elaborated, never converted
-        top = FlissTop(aggressor_delays=aggressor_delays).elaborate(None)
-        command, aggressor = top.submodules.command, top.submodules.aggressor
-        runnable = [mode.value for mode in DelayMode
-                    if aggressor.delay_source or mode == DelayMode.OFF]
-        assert max(runnable) == command.maxima["aggressor_delay_mode"]
-        assert {name: maximum for name, maximum in command.maxima.items()
-                if name != "aggressor_delay_mode"} == \
-            {r.name: r.maximum for r in REGISTERS if r.name != "aggressor_delay_mode"}
-        del top, command, aggressor
+        flisstop = FlissTop(**options)
+        top = flisstop.elaborate(None)
+        maxima = top.submodules.command.maxima
+        core = top.submodules.core
+        lowered = {}
+        for name in ("period", "aggressor_period"):
+            lowered[name] = (1 << core.period_width) - 1
+        for name in ("pulse_width", "aggressor_width"):
+            lowered[name] = (1 << core.pulse_width_width) - 1
+        lowered["acquisition"] = max(mode.value for mode in AcquisitionMode
+                                     if _built(top, "raw_fifo") or
+                                     mode == AcquisitionMode.HISTOGRAM)
+        if _built(top, "aggressor"):
+            aggressor = top.submodules.aggressor
+            lowered["aggressor_delay_mode"] = max(
+                mode.value for mode in DelayMode if aggressor.delay_source or mode == DelayMode.OFF)
+        else:
+            # no aggressor: its registers hold values as wide as their reset values only
+            lowered["aggressor"] = 0
+            for register in REGISTERS:
+                if register.name.startswith("aggressor_"):
+                    reset = register.reset_value(flisstop.clock_hz)
+                    assert maxima[register.name] < 2 * max(reset, register.minimum, 1)
+                    lowered[register.name] = maxima[register.name]
+        assert maxima == {r.name: min(r.maximum, lowered.get(r.name, r.maximum))
+                          for r in REGISTERS}
+        del flisstop, top, core
         gc.collect()

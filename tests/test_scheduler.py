@@ -16,11 +16,13 @@ from fliss.sim.scheduler import (LATENCY, Settings, check_schedule, fire_cycles,
 FIELDS = ("mode", "length", "mask_width", "seed", "period", "grid", "pulse_width")
 
 
-def run_core(settings, cycles, *, updates=(), enable=1, disable=None, reset=None, present=()):
+def run_core(settings, cycles, *, updates=(), enable=1, disable=None, reset=None, present=(),
+             widths={}):
     """Run the delay core; return pulses as (fire, delay, width, index) and the laser trace.
     ``enable`` is the cycle it rises in, or a function of the cycle; ``present`` holds (cycle,
-    settings) presented from that cycle on, without an update strobe."""
-    dut = DelayCore()
+    settings) presented from that cycle on, without an update strobe; ``widths`` are the
+    core's ``period_width`` and ``pulse_width_width``."""
+    dut = DelayCore(**widths)
     pulses, laser, starts = [], [], []
     updates = dict(updates)
 
@@ -61,9 +63,9 @@ def laser_pulses(laser):
     return list(zip(rises.tolist(), (falls - rises).tolist()))
 
 
-def check_against_model(settings, cycles, **kwargs):
+def check_against_model(settings, cycles, *, widths={}, **kwargs):
     kwargs.setdefault("enable", 1)
-    pulses, laser, starts = run_core(settings, cycles, **kwargs)
+    pulses, laser, starts = run_core(settings, cycles, widths=widths, **kwargs)
     expected = simulate(settings, cycles - 1 - LATENCY, **kwargs)
     assert [(f, d, i) for f, d, _, i in pulses[:len(expected)]] == \
         [(f, d, i) for f, d, _, i in expected]
@@ -87,6 +89,31 @@ def test_core_against_model(settings):
     settings.check()
     expected = check_against_model(settings, 3000)
     assert len(expected) > 20
+
+
+@pytest.mark.parametrize("settings", [
+    Settings(mode=DelayMode.MSEQ, length=3, seed=5, period=65_541, pulse_width=255),
+    Settings(mode=DelayMode.MASKED, mask_width=2, seed=9, period=65_539, grid=True,
+             pulse_width=200),
+], ids=["interval", "grid"])
+def test_narrow_core_against_model(settings):
+    # The smallest settings widths: a 17-bit period (its timers' high halves are one bit, and
+    # this period uses it) and an 8-bit pulse width at its maximum.
+    settings.check()
+    expected = check_against_model(settings, 3 * settings.period,
+                                   widths=dict(period_width=17, pulse_width_width=8))
+    assert len(expected) == 3
+
+
+@pytest.mark.parametrize("widths, message", [
+    (dict(period_width=16), "Period width must be an integer from 17 to 32 bits, not 16"),
+    (dict(period_width=33), "Period width must be an integer from 17 to 32 bits, not 33"),
+    (dict(pulse_width_width=0), "Pulse width width must be an integer from 1 to 16 bits, not 0"),
+    (dict(pulse_width_width=17),
+     "Pulse width width must be an integer from 1 to 16 bits, not 17"),
+])
+def test_core_refuses_widths(construction_error, widths, message):
+    assert construction_error(lambda: DelayCore(**widths), ValueError) == message
 
 
 def test_interval_mode_intervals_are_period_plus_delay():
