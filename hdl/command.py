@@ -285,9 +285,9 @@ class CommandProcessor(wiring.Component):
                                      written[register.address].eq(1)]
             m.d.sync += value_address.eq(value_address + 1)
 
-        # Consistency of the candidate settings, in two registered steps (the largest delays
-        # and the seeds' high bits first); it is needed two cycles after the candidate is
-        # complete.
+        # Consistency of the candidate settings, in three registered steps (the largest delays
+        # and the seeds' high bits, then the sum for the grid condition); it is needed three
+        # cycles after the candidate is complete.
         consistent = Signal()
         c = Signal(layout)      # the settings the WRITE would make
         for register in REGISTERS:
@@ -335,10 +335,15 @@ class CommandProcessor(wiring.Component):
             aggressor_mseq.eq(c.aggressor_delay_mode == DelayMode.MSEQ),
             victim_seed_high.eq(seed_high(c.seed, c.length)),
             aggressor_seed_high.eq(seed_high(c.aggressor_seed, c.aggressor_length)),
-            consistent.eq(simple &
-                          ~(victim_mseq & victim_seed_high.any()) &
-                          ~(aggressor_mseq & aggressor_seed_high.any()) &
-                          (~c.grid | (victim_max_delay + c.pulse_width < c.period))),
+        ]
+        delay_and_pulse = Signal(35)
+        all_but_grid = Signal()
+        m.d.sync += [
+            delay_and_pulse.eq(victim_max_delay + c.pulse_width),
+            all_but_grid.eq(simple &
+                            ~(victim_mseq & victim_seed_high.any()) &
+                            ~(aggressor_mseq & aggressor_seed_high.any())),
+            consistent.eq(all_but_grid & (~c.grid | (delay_and_pulse < c.period))),
         ]
 
         def reply(type, length, final=None):
@@ -360,9 +365,13 @@ class CommandProcessor(wiring.Component):
                 refusing.eq(1),
             ]
 
+        # Packets are taken in IDLE and PAYLOAD: `accepting` is high in those states, a
+        # register rather than decoded from the state, for timing.
+        accepting = Signal(init=1)
+        m.d.comb += self.packets.ready.eq(accepting)
+
         with m.FSM():
             with m.State("IDLE"):
-                m.d.comb += self.packets.ready.eq(1)
                 with m.If(self.packets.valid & self.packets.p.first):
                     header = self.packets.p.header
                     m.d.sync += [
@@ -376,6 +385,7 @@ class CommandProcessor(wiring.Component):
                     m.d.comb += self.tally.commands.eq(1)
                     with m.If(self.packets.p.last):
                         m.next = "VERDICT"
+                        m.d.sync += accepting.eq(0)
                     with m.Else():
                         m.next = "PAYLOAD"
                 with m.Elif(link_pending):
@@ -385,9 +395,9 @@ class CommandProcessor(wiring.Component):
                         *reply(PacketType.NAK, 4),
                     ]
                     m.next = "HEADER"
+                    m.d.sync += accepting.eq(0)
 
             with m.State("PAYLOAD"):
-                m.d.comb += self.packets.ready.eq(1)
                 byte = self.packets.p.data
                 with m.If(self.packets.valid):
                     m.d.sync += [index.eq(index + 1), word.eq(Cat(word[8:], byte))]
@@ -406,6 +416,7 @@ class CommandProcessor(wiring.Component):
                         m.d.sync += check.eq(1)
                     with m.If(self.packets.p.last):
                         m.next = "CHECK"
+                        m.d.sync += accepting.eq(0)
 
             with m.State("CHECK"):
                 # The last WRITE value is checked; the range of a READ is checked.
@@ -530,6 +541,7 @@ class CommandProcessor(wiring.Component):
                         m.d.sync += word.eq(word >> 8)
                     with m.If(index == reply_final):
                         m.next = "IDLE"
+                        m.d.sync += accepting.eq(1)
 
         # Reply header and payload bytes
         major, minor = _version(__version__)

@@ -396,9 +396,13 @@ class FrameDecoder(wiring.Component):
         delay = Signal(8 * CRC_BYTES)               # the last CRC_BYTES decoded bytes
 
         # Input: stall when a payload byte would overwrite the packet being sent, and for the
-        # cycle after each delimiter, while the frame is judged
+        # cycle after each delimiter, while the frame is judged. (`early` is registered, for
+        # timing, so it holds a cycle late: it ends a byte early, as a byte in that cycle may
+        # decode to one more.)
         ending = Signal()
-        m.d.comb += self.i.ready.eq((~sending | (dec_count < min_packet)) & ~ending)
+        early = Signal(init=1)
+        m.d.sync += early.eq(dec_count < min_packet - 1)
+        m.d.comb += self.i.ready.eq((~sending | early) & ~ending)
         take = Signal()
         delimiter = Signal()
         m.d.comb += [
