@@ -152,8 +152,18 @@ class HistogramPacketizer(wiring.Component):
         length = Signal(16)
         last_bin = Signal()
 
-        frame_bins = Signal(range((1 << TIMESTAMP_BITS) + 1))
-        m.d.comb += frame_bins.eq(Const(1 << TIMESTAMP_BITS) >> self.shift)
+        # Sizes that follow from the bin shift, out of constant tables indexed by it (a LUT per
+        # bit, where shifts, comparisons and sums would be carry chains): bins in a chunk, its
+        # packet length, and the first bin of the frame's last chunk.
+        def table(function):
+            values = [function((1 << TIMESTAMP_BITS) >> shift) for shift in range(MAX_SHIFT + 1)]
+            values += [values[-1]] * ((1 << len(self.shift)) - len(values))
+            width = max(values).bit_length()
+            return Cat(Const(value, width) for value in values).word_select(self.shift, width)
+        chunk_bins = table(lambda frame_bins: min(frame_bins, CHUNK_BINS))
+        chunk_length = table(lambda frame_bins: _CHUNK_HEADER +
+                             min(frame_bins, CHUNK_BINS) * COUNT_BYTES)
+        last_first_bin = table(lambda frame_bins: max(frame_bins - CHUNK_BINS, 0))
 
         m.d.comb += [
             self.packets.p.header.type.eq(PacketType.HISTOGRAM),
@@ -162,15 +172,14 @@ class HistogramPacketizer(wiring.Component):
 
         with m.FSM():
             with m.State("WAIT"):
-                chunk_bins = Mux(frame_bins < CHUNK_BINS, frame_bins, CHUNK_BINS)
                 with m.If(self.readout.valid):
                     m.d.sync += [
                         chunk.frame.eq(frame),
                         chunk.first_bin.eq(self.readout.p.index),
                         chunk.shift.eq(self.shift),
-                        chunk.last.eq(self.readout.p.index + CHUNK_BINS >= frame_bins),
+                        chunk.last.eq(self.readout.p.index >= last_first_bin),
                         bins.eq(chunk_bins),
-                        length.eq(_CHUNK_HEADER + chunk_bins * COUNT_BYTES),
+                        length.eq(chunk_length),
                     ]
                     m.next = "HEADER"
 
