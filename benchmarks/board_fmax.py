@@ -8,7 +8,7 @@ alone (``DelayCoreDemo``) on the same board and clock: the pulse path without th
 histogram and the TDC interfaces.
 
 Goals: ULX3S 80 MHz with an Fmax of at least 100 MHz; iCEBreaker 79.5 MHz (today it carries the
-delay core at 48 MHz, see docs/boards.md).
+smaller FlissTop build at 36 MHz, see docs/boards.md).
 
 Usage: python benchmarks/board_fmax.py [--board ulx3s|icebreaker] [--seeds N]
 """

@@ -3,11 +3,11 @@ packing, against the 5 280 of the chip.
 
 Synthesises each design with the YoWASP tools (``pip install -e '.[boards]'``) and runs nextpnr
 up to packing only (``--pack-only``): a design that does not fit is measured too, quickly. The
-baseline, in the same run, is the delay core alone (``DelayCoreDemo``), which the iCEBreaker
-carries today.
+baseline, in the same run, is the delay core alone (``DelayCoreDemo``).
 
-Goal: ``FlissTop`` within the chip, with room for placement (nextpnr found no placement for
-4 942 cells, 93 %).
+Goal: ``FlissTop`` within the chip, with room for placement (nextpnr places 89 % in about a
+minute, and failed on 4 958 cells, 94 %). The iCEBreaker carries ``fliss_top_up5k`` (the
+options of ``fliss.hdl.top.SMALL``); ``fliss_top_spram`` is every feature, for comparison.
 
 Usage: python benchmarks/up5k_fit.py
 """
@@ -26,7 +26,7 @@ from fliss.boards.build import BOARD_CLOCK_HZ, load_design, toolchain_env
 DESIGNS = [
     ("fliss.boards:DelayCoreDemo",   "baseline: the delay core alone"),
     ("fliss.boards:fliss_top_spram", "FlissTop, histogram in SPRAM"),
-    ("fliss.boards:fliss_top_up5k",  "FlissTop, no delay source of the aggressor's own"),
+    ("fliss.boards:fliss_top_up5k",  "FlissTop, the iCEBreaker build (SMALL)"),
 ]
 
 
