@@ -60,7 +60,8 @@ def main(argv=None):
             start = time.monotonic()
             cells = packed_cells(design, Path(root, str(number)))
             used, available = cells["ICESTORM_LC"]
-            print(f"  {label:50} logic cells {used:5} / {available} ({100 * used / available:3.0f} %)"
+            share = 100 * used / available
+            print(f"  {label:50} logic cells {used:5} / {available} ({share:3.0f} %)"
                   f"  BRAM {cells['ICESTORM_RAM'][0]:2}  SPRAM {cells['ICESTORM_SPRAM'][0]}"
                   f"  {time.monotonic() - start:3.0f} s  ({design})", flush=True)
 

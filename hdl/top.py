@@ -28,7 +28,7 @@ DEFAULT_BAUD = 3_000_000
 
 #: Options of :class:`FlissTop` for the smallest build, which fits an iCE40UP5K (the
 #: iCEBreaker's FPGA): histograms only, in single-port RAM; no aggressor emitter; periods up to
-#: 2**24 - 1 cycles (0.35 s at 48 MHz) and pulses up to 255 cycles.
+#: 2**24 - 1 cycles (0.47 s at 36 MHz, the iCEBreaker's clock) and pulses up to 255 cycles.
 SMALL = dict(histogram_ram="single", aggressor=False, raw_events=False, period_width=24,
              pulse_width_width=8)
 
@@ -142,9 +142,9 @@ class FlissTop(wiring.Component):
             # only as wide as their reset values need.
             for register in REGISTERS:
                 if register.name.startswith("aggressor"):
-                    reset = register.reset_value(self.clock_hz)
+                    least = max(register.minimum, register.reset_value(self.clock_hz))
                     maxima[register.name] = min(register.maximum,
-                                                (1 << max(register.minimum, reset).bit_length()) - 1)
+                                                (1 << least.bit_length()) - 1)
             maxima["aggressor"] = 0
         if not self.aggressor_delays:
             maxima["aggressor_delay_mode"] = 0
