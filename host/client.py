@@ -99,7 +99,13 @@ _LINK_CODES = (NakCode.BAD_CRC, NakCode.TRUNCATED, NakCode.OVERSIZE, NakCode.BAD
 
 
 class BoardError(UserError):
-    """The board refused a command (NAK) or answered nonsense."""
+    """The board refused a command (NAK, with its ``code`` and ``detail``) or answered
+    nonsense."""
+
+    def __init__(self, message, *, code=None, detail=None):
+        super().__init__(message)
+        self.code = code
+        self.detail = detail
 
 
 class BoardLost(UserError):
@@ -477,7 +483,8 @@ class Board:
                             resend = True
                             continue
                         if nak_seq == seq:
-                            raise BoardError(_nak_message(what, code, detail))
+                            raise BoardError(_nak_message(what, code, detail), code=code,
+                                             detail=detail)
                         self.stale_replies += 1
                         continue
                     if reply.type == PacketType.ACK and len(reply.payload) == 1 \
@@ -579,7 +586,19 @@ class Board:
         first, last = min(addresses), max(addresses)
         values = [candidate[BY_ADDRESS[a].name] for a in range(first, last + 1)]
         payload = struct.pack(f"<H{len(values)}I", first, *values)
-        self.command(PacketType.WRITE, payload, expect=lambda reply: False, what="WRITE")
+        try:
+            self.command(PacketType.WRITE, payload, expect=lambda reply: False, what="WRITE")
+        except BoardError as error:
+            # Every value passed the register map's range here: a refusal of one is a board
+            # whose build takes less (no raw events, no aggressor, narrower settings).
+            register = BY_ADDRESS.get(error.detail)
+            if error.code != NakCode.OUT_OF_RANGE.value or register is None:
+                raise
+            raise BoardError(f"the board refused WRITE: its build does not take "
+                             f"{register.name} = {candidate[register.name]} (a smaller build, "
+                             f"such as the iCEBreaker's, leaves out some features and narrows "
+                             f"some ranges: see docs/boards.md)",
+                             code=error.code, detail=error.detail) from None
         return candidate
 
     def start(self):

@@ -121,13 +121,15 @@ class ModelBoard:
         In raw mode, send no more events per block of ``integration`` cycles than the line
         carries at ``baud`` in full EVENTS frames; drop the rest at the raw FIFO and count them
         in ``dropped_fifo``, as the gateware does. (A pty itself carries anything.)
+    maxima : dict
+        Register maxima of a smaller build (:meth:`fliss.hdl.top.FlissTop.register_maxima`).
     """
 
     def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, baud=DEFAULT_BAUD, scene=None,
                  aggressor_detections_per_pulse=0.05, photon_seed=0, time_scale=1.0,
                  kill_after=None, hang_after=None, corrupt_every=None, corrupt_seed=1,
                  corrupt_types=None, corrupt_commands_every=None, protocol_version=None,
-                 line_limited=False):
+                 line_limited=False, maxima=None):
         self.clock_hz = int(clock_hz)
         self.baud = int(baud)
         self.template = Scene(clock_hz=self.clock_hz) if scene is None else scene
@@ -145,7 +147,7 @@ class ModelBoard:
         #: Reads from the host in which a byte was damaged.
         self.corrupted_commands = 0
         self._reads = 0
-        self.model = CommandModel(self.clock_hz, self.baud)
+        self.model = CommandModel(self.clock_hz, self.baud, maxima=maxima)
         self.status = dict.fromkeys(STATUS_FIELDS, 0)
         #: Frames damaged on the way out: ``(PacketType, seq)``.
         self.corrupted = []

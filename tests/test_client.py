@@ -85,6 +85,22 @@ def test_board_nak_is_reported(board_pair):
     assert board.read_registers(["seed"]) == {"seed": 1}
 
 
+def test_smaller_build_refusal_is_explained():
+    # A board whose build has no raw-event mode and a narrower period (as the iCEBreaker's):
+    # values in the register map's range that it refuses get a message that says so, and
+    # nothing changes.
+    with model_board(maxima={"acquisition": 0, "period": (1 << 24) - 1}) as model:
+        with Board(model.path, timeout_s=2.0) as board:
+            for name, value in (("acquisition", 1), ("period", 1 << 24)):
+                with pytest.raises(BoardError, match=rf"^the board refused WRITE: its build does "
+                                                     rf"not take {name} = {value} \(a smaller "
+                                                     rf"build"):
+                    board.write_registers({name: value})
+            assert board.read_registers() == defaults(CLOCK_HZ)
+            board.write_registers({"period": (1 << 24) - 1})
+            assert board.read_registers(["period"]) == {"period": (1 << 24) - 1}
+
+
 def test_status_has_every_field(board_pair):
     model, board = board_pair
     status = board.status()
