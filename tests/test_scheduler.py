@@ -116,6 +116,11 @@ def test_core_refuses_widths(construction_error, widths, message):
     assert construction_error(lambda: DelayCore(**widths), ValueError) == message
 
 
+def test_trigger_refuses_width_bits(construction_error):
+    assert construction_error(lambda: LaserTrigger(width_bits=0), ValueError) == \
+        "Pulse width bits must be a positive integer, not 0"
+
+
 def test_interval_mode_intervals_are_period_plus_delay():
     # Equation 3, worked out from the delays alone.
     settings = Settings(mode=DelayMode.MSEQ, length=5, seed=1, period=40, pulse_width=2)
