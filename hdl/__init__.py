@@ -23,6 +23,8 @@ Definitions shared by gateware, models and host: :mod:`.event` (the photon event
 that every simulator reads the same way.
 """
 
+from amaranth.hdl import Cat, Const, Value
+
 #: Default system clock of the design, in Hz (Table 1 of the paper).
 DEFAULT_CLOCK_HZ = 80_000_000
 
@@ -44,3 +46,19 @@ def period_cycles(clock_hz, prf_hz):
         raise ValueError(f"Pulse repetition frequency {prf_hz} Hz is too high for a "
                          f"{clock_hz} Hz clock: the period must be at least 2 cycles")
     return period
+
+
+def lookup(values, index, width=None, *, fill=0):
+    """The constant table ``values`` read at ``index`` (an Amaranth value), ``width`` bits wide
+    (by default, as wide as the largest value); entries past the end read as ``fill``.
+
+    Each bit of the result is a function of ``index`` alone: a LUT or two for a narrow index,
+    where the shifts, sums and comparisons that give the values would be carry chains or
+    shifters.
+    """
+    index = Value.cast(index)
+    values = list(values)
+    values += [fill] * ((1 << len(index)) - len(values))
+    if width is None:
+        width = max(values).bit_length()
+    return Cat(Const(value, width) for value in values).word_select(index, width)

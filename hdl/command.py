@@ -5,7 +5,7 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from .. import __version__
-from . import DEFAULT_CLOCK_HZ
+from . import DEFAULT_CLOCK_HZ, lookup
 from .buffer import StreamBuffer
 from .delay import DelayMode
 from .framing import PacketBeat
@@ -171,6 +171,7 @@ class CommandProcessor(wiring.Component):
         replies = reply_buffer.i
 
         layout = settings_layout(self.maxima)
+        address_bits = (len(REGISTERS) - 1).bit_length()    # enough to address every register
         # A WRITE puts its values in `candidate` and marks them in `written`; the registers it
         # does not write keep theirs in `settings`. (Copying all of `settings` into the candidate
         # first would put a multiplexer in front of every candidate bit.)
@@ -245,16 +246,13 @@ class CommandProcessor(wiring.Component):
         # (The bounds are looked up into registers, from tables indexed by the low bits of the
         # address: the address was set, or moved on, at least four cycles before the value at
         # it is complete.)
-        bits = (len(REGISTERS) - 1).bit_length()
-        def table(values, width):
-            values = list(values) + [0] * ((1 << bits) - len(values))
-            return Cat(Const(v, width) for v in values).word_select(value_address[:bits], width)
+        register_index = value_address[:address_bits]
         tops = [self.maxima[register.name] for register in REGISTERS]
         m.d.sync += [
-            known.eq((value_address[bits:] == 0) & (value_address[:bits] < len(REGISTERS))),
-            allowed.eq(table([(1 << top.bit_length()) - 1 for top in tops], 32)),
-            minimum.eq(table([register.minimum for register in REGISTERS], LOW)),
-            maximum.eq(table([min(top, (1 << LOW) - 1) for top in tops], LOW)),
+            known.eq((value_address[address_bits:] == 0) & (register_index < len(REGISTERS))),
+            allowed.eq(lookup([(1 << top.bit_length()) - 1 for top in tops], register_index, 32)),
+            minimum.eq(lookup([register.minimum for register in REGISTERS], register_index, LOW)),
+            maximum.eq(lookup([min(top, (1 << LOW) - 1) for top in tops], register_index, LOW)),
         ]
         out_of_range = ((value & ~allowed).any() |
                         ((value[LOW:] == 0) & (value[:LOW] < minimum)) |
@@ -299,8 +297,8 @@ class CommandProcessor(wiring.Component):
             # `(1 << n) - 1` in `width` bits (all ones from `n = width` on), out of a constant
             # table: a little logic per bit, where a shifter by `n` would be a barrel shifter
             # (and comparators per bit would be carry chains).
-            masks = [min((1 << k) - 1, (1 << width) - 1) for k in range(1 << len(n))]
-            return Cat(Const(mask, width) for mask in masks).word_select(n, width)
+            return lookup([min((1 << k) - 1, (1 << width) - 1) for k in range(1 << len(n))],
+                          n, width)
 
         def max_delay(mode, length, mask_width):
             # `(1 << length) - 2` in 34 bits, all ones for `length = 0`; `(1 << mask_width) - 1`.
@@ -421,10 +419,9 @@ class CommandProcessor(wiring.Component):
             with m.State("CHECK"):
                 # The last WRITE value is checked; the range of a READ is checked.
                 # (The sum needs only the bits that can address a register.)
-                bits = (len(REGISTERS) - 1).bit_length()
                 m.d.sync += read_bad.eq((count == 0) | (count > READ_MAX) |
-                                        (address[bits:] != 0) |
-                                        (address[:bits] + count > len(REGISTERS)))
+                                        (address[address_bits:] != 0) |
+                                        (address[:address_bits] + count > len(REGISTERS)))
                 m.next = "VERDICT"
 
             with m.State("VERDICT"):

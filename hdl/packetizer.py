@@ -4,6 +4,7 @@ from amaranth.hdl import *
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
+from . import lookup
 from .event import Event, TIMESTAMP_BITS
 from .framing import PacketBeat
 from .histogram import readout_layout, BIN_BITS, COUNT_WIDTH, MAX_SHIFT
@@ -157,9 +158,7 @@ class HistogramPacketizer(wiring.Component):
         # packet length, and the first bin of the frame's last chunk.
         def table(function):
             values = [function((1 << TIMESTAMP_BITS) >> shift) for shift in range(MAX_SHIFT + 1)]
-            values += [values[-1]] * ((1 << len(self.shift)) - len(values))
-            width = max(values).bit_length()
-            return Cat(Const(value, width) for value in values).word_select(self.shift, width)
+            return lookup(values, self.shift, fill=values[-1])
         chunk_bins = table(lambda frame_bins: min(frame_bins, CHUNK_BINS))
         chunk_length = table(lambda frame_bins: _CHUNK_HEADER +
                              min(frame_bins, CHUNK_BINS) * COUNT_BYTES)
