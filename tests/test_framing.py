@@ -6,7 +6,6 @@ import random
 import pytest
 from amaranth.hdl import Elaboratable, Module
 from amaranth.lib import wiring
-from amaranth.sim import Simulator
 
 from fliss.hdl import DEFAULT_CLOCK_HZ
 from fliss.hdl.framing import Crc16, FrameEncoder, FrameDecoder
@@ -15,34 +14,7 @@ from fliss.hdl.protocol import (PacketType, NakCode, MAX_PAYLOAD, MAX_ENCODED, C
 from fliss.hdl.uart import UartTx, UartRx
 from fliss.host import protocol as codec
 
-
-def simulate(dut, testbenches, background=()):
-    sim = Simulator(dut)
-    sim.add_clock(1 / DEFAULT_CLOCK_HZ)
-    for testbench in testbenches:
-        sim.add_testbench(testbench)
-    for testbench in background:
-        sim.add_testbench(testbench, background=True)
-    sim.run()
-
-
-async def stream_put(ctx, stream, payload):
-    ctx.set(stream.valid, 1)
-    ctx.set(stream.payload, payload)
-    await ctx.tick().until(stream.ready)
-    ctx.set(stream.valid, 0)
-
-
-async def stream_get(ctx, stream, timeout=None):
-    ctx.set(stream.ready, 1)
-    for _ in iter(int, 1) if timeout is None else range(timeout):
-        _, _, valid, payload = await ctx.tick().sample(stream.valid, stream.payload)
-        if valid:
-            break
-    else:
-        raise AssertionError(f"nothing on the stream for {timeout} cycles")
-    ctx.set(stream.ready, 0)
-    return payload
+from simulation import simulate, stream_put, stream_get
 
 
 def beats(packet):
@@ -156,7 +128,7 @@ def test_crc16_gateware():
             await ctx.tick()
         assert ctx.get(dut.crc) == 0
 
-    simulate(dut, [testbench])
+    simulate(dut, testbench)
 
 
 # Encoder
@@ -180,7 +152,7 @@ def test_encoder_matches_codec(idle):
         await ctx.tick().repeat(20)
         assert ctx.get(dut.o.valid) == 0
 
-    simulate(dut, [send, collect])
+    simulate(dut, send, collect)
     assert bytes(received) == expected
 
 
@@ -206,7 +178,7 @@ def test_encoder_drops_and_counts_stray_beats():
             received.append(await stream_get(ctx, dut.o, timeout=1000))
         assert ctx.get(dut.stray_beats) == 3
 
-    simulate(dut, [send, collect])
+    simulate(dut, send, collect)
     assert bytes(received) == expected
 
 
@@ -279,7 +251,7 @@ def check_decoder(stream, rng, *, idle_in=0.0, idle_out=0.0):
             if drop:
                 drops.append(reason)
 
-    simulate(dut, [send], background=[collect, monitor])
+    simulate(dut, send, background=[collect, monitor])
     assert packets == expected_packets
     assert drops == expected_drops
     return len(expected_packets), len(expected_drops)
@@ -373,5 +345,5 @@ def test_encoder_to_decoder(baud):
             assert ctx.get(dut.rx.framing_errors) == 0 and ctx.get(dut.rx.overruns) == 0
         assert ctx.get(dut.decoder.packets) == len(packets)
 
-    simulate(dut, [send, wait], background=[collect])
+    simulate(dut, send, wait, background=[collect])
     assert received == expected

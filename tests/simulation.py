@@ -1,0 +1,57 @@
+"""Helpers shared by the tests that run gateware in Amaranth's simulator.
+
+* :func:`simulate` sets up a clocked simulation of a design, adds its testbenches and runs it;
+* :func:`stream_put` and :func:`stream_get` move one payload over an ``amaranth.lib.stream``
+  interface, following its transfer rules (``valid`` does not wait for ``ready``; the payload
+  stays put until it is taken).
+"""
+
+from amaranth.sim import Simulator
+
+from fliss.hdl import DEFAULT_CLOCK_HZ
+
+
+__all__ = ["simulate", "stream_put", "stream_get"]
+
+
+def simulate(dut, *testbenches, background=(), clock_hz=DEFAULT_CLOCK_HZ, deadline=None):
+    """Run ``dut`` with a clock of ``clock_hz`` in the ``sync`` domain.
+
+    ``testbenches`` are ``async def testbench(ctx)`` functions; the simulation ends when they
+    have all returned. ``background`` testbenches run beside them and do not keep it going.
+    ``deadline``, in seconds of simulated time, stops a simulation that would run for ever.
+    """
+    sim = Simulator(dut)
+    sim.add_clock(1 / clock_hz)
+    for testbench in testbenches:
+        sim.add_testbench(testbench)
+    for testbench in background:
+        sim.add_testbench(testbench, background=True)
+    if deadline is None:
+        sim.run()
+    else:
+        sim.run_until(deadline)
+    return sim
+
+
+async def stream_put(ctx, stream, payload):
+    """Offer ``payload`` on ``stream`` (an interface whose ``valid`` and ``payload`` the
+    testbench drives) until it is taken."""
+    ctx.set(stream.valid, 1)
+    ctx.set(stream.payload, payload)
+    await ctx.tick().until(stream.ready)
+    ctx.set(stream.valid, 0)
+
+
+async def stream_get(ctx, stream, timeout=None):
+    """Take one payload from ``stream`` (an interface whose ``ready`` the testbench drives);
+    raise :exc:`AssertionError` if none comes within ``timeout`` cycles (if given)."""
+    ctx.set(stream.ready, 1)
+    for _ in iter(int, 1) if timeout is None else range(timeout):
+        _, _, valid, payload = await ctx.tick().sample(stream.valid, stream.payload)
+        if valid:
+            break
+    else:
+        raise AssertionError(f"nothing on the stream for {timeout} cycles")
+    ctx.set(stream.ready, 0)
+    return payload
