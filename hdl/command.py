@@ -5,7 +5,7 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from .. import __version__
-from . import DEFAULT_CLOCK_HZ, lookup
+from . import DEFAULT_CLOCK_HZ
 from .buffer import StreamBuffer
 from .framing import PacketBeat
 from .protocol import (PROTOCOL_VERSION, PacketType, NakCode, MAX_PAYLOAD, COUNTER_BITS)

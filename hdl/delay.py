@@ -4,20 +4,13 @@ from amaranth.lib.wiring import In, Out
 
 from .lfsr import POLYNOMIALS, _galois_step, _galois_steps
 from .registers import DelaySettings
-from .settings import DelayMode, MAX_LENGTH, MAX_MASK_WIDTH, DELAY_WIDTH
+from .settings import (DelayMode, MAX_LENGTH, MAX_MASK_WIDTH, DELAY_WIDTH, MASKED_LENGTH,
+                       MASKED_STEPS)
 
 
 __all__ = ["DelayMode", "MAX_MASK_WIDTH", "MASKED_LENGTH", "MASKED_STEPS", "DELAY_WIDTH",
            "Delay", "DelaySource"]
 
-
-#: Length of the register behind the ``masked`` source, in bits.
-MASKED_LENGTH = 32
-
-#: Register steps per pulse of the ``masked`` source. With at least ``MAX_MASK_WIDTH`` steps,
-#: consecutive delays are taken from fresh register bits rather than from shifted copies of the
-#: previous delay; 16 is coprime with ``2**32 - 1``, so the sequence still has the full period.
-MASKED_STEPS = 16
 
 class Delay(data.Struct):
     """A delay of :class:`DelaySource`, with hints that time its pulse in the scheduler

@@ -3,8 +3,16 @@
 Each register is 32 bits on the wire (``WRITE`` and ``READ`` packets, see
 :mod:`fliss.hdl.protocol`) and holds ``width`` bits in the gateware. A write is refused (NAK
 ``OUT_OF_RANGE``, nothing applied) when the value is outside ``[minimum, maximum]`` or when the
-settings it would make are inconsistent (:func:`problems`). The gateware (:mod:`.command`), the
+settings it would make are inconsistent (:func:`problems`). The gateware (:mod:`.regfile`), the
 host tool and ``docs/protocol.md`` all read this table.
+
+Registers come in groups (:class:`RegisterGroup`, :data:`GROUPS`) that travel together as one
+struct to the block that uses them: the victim's and the aggressor's delay cores (both from one
+definition, :data:`DELAY_SETTINGS`, whose layout is :class:`DelaySettings`), the aggressor
+emitter's own settings, and acquisition. The link has no settings. A new field of a group is
+added here and used in its block; the register file, its checks and the top level follow.
+
+A definitions module: it imports no gateware (the limits come from :mod:`.settings`).
 """
 
 from dataclasses import dataclass, field

@@ -8,7 +8,8 @@ from it and the blocks (:mod:`.lfsr`, :mod:`.delay`, :mod:`.scheduler`) can impo
 from amaranth.lib import enum
 
 
-__all__ = ["MIN_LENGTH", "MAX_LENGTH", "MAX_MASK_WIDTH", "DELAY_WIDTH", "PERIOD_WIDTH",
+__all__ = ["MIN_LENGTH", "MAX_LENGTH", "MAX_MASK_WIDTH", "MASKED_LENGTH", "MASKED_STEPS",
+           "DELAY_WIDTH", "PERIOD_WIDTH",
            "PULSE_WIDTH_WIDTH", "DelayMode", "check_widths"]
 
 
@@ -18,6 +19,14 @@ MAX_LENGTH = 32
 
 #: Widest bit-mask of the ``masked`` source, in bits.
 MAX_MASK_WIDTH = 16
+
+#: Length of the register behind the ``masked`` source, in bits.
+MASKED_LENGTH = 32
+
+#: Register steps per pulse of the ``masked`` source. With at least ``MAX_MASK_WIDTH`` steps,
+#: consecutive delays are taken from fresh register bits rather than from shifted copies of the
+#: previous delay; 16 is coprime with ``2**32 - 1``, so the sequence still has the full period.
+MASKED_STEPS = 16
 
 #: Width of a delay, in bits.
 DELAY_WIDTH = MAX_LENGTH

@@ -14,7 +14,7 @@ from cocotb.simtime import get_sim_time
 from cocotb.triggers import ClockCycles, FallingEdge, ReadOnly, RisingEdge
 
 from ..hdl import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, period_cycles
-from ..hdl.delay import DelayMode
+from ..hdl.settings import DelayMode
 from ..hdl.registers import DelaySettings
 from .scheduler import LATENCY, Settings, simulate
 

@@ -13,7 +13,8 @@ from cocotb.clock import Clock
 from cocotb.triggers import ClockCycles, FallingEdge, RisingEdge
 
 from ..hdl import DEFAULT_CLOCK_HZ
-from ..hdl.delay import Delay, DelayMode
+from ..hdl.delay import Delay
+from ..hdl.settings import DelayMode
 from ..hdl.registers import DelaySettings
 from .delay import delays as model_delays
 

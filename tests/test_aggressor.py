@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 from amaranth.hdl import Module, Elaboratable, UnusedElaboratable
 
-from fliss.hdl import DEFAULT_CLOCK_HZ
 from fliss.hdl.aggressor import Aggressor
 from fliss.hdl.core import DelayCore
 from fliss.hdl.delay import DelayMode

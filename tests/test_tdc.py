@@ -6,7 +6,6 @@ from amaranth.hdl import Module
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from fliss.hdl import DEFAULT_CLOCK_HZ
 from fliss.hdl.event import Event
 from fliss.hdl.tdc import (EventFilter, TdcInterface, CoarseTdc, SYNC_STAGES, CAPTURE_LATENCY,
                            OUTPUT_LATENCY, MAX_TIMESTAMP, COUNTER_WIDTH)
