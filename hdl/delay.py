@@ -14,7 +14,11 @@ __all__ = ["DelayMode", "MAX_MASK_WIDTH", "MASKED_LENGTH", "MASKED_STEPS", "DELA
 
 class Delay(data.Struct):
     """A delay of :class:`DelaySource`, with hints that time its pulse in the scheduler
-    (:class:`~fliss.hdl.scheduler.PulseScheduler`)."""
+    (:class:`~fliss.hdl.scheduler.PulseScheduler`).
+
+    ``value`` stays put until a transfer; ``zero`` and ``zero_late`` are timed as described
+    below, so they may change while the delay waits.
+    """
     #: The delay ``R`` in clock cycles.
     value:     DELAY_WIDTH
     #: The mode (a :class:`DelayMode` value).
