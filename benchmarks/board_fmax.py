@@ -4,8 +4,8 @@ Builds each design with the YoWASP tools (``pip install -e '.[boards]'``), as
 ``python -m fliss.boards.build`` does, and prints per design and seed the Fmax of the design
 clock, whether timing is met at the real clock, the LUT/FF count and the build time; then the
 range over the seeds next to the goal. The baseline, built in the same run, is the delay core
-alone (``DelayCoreDemo``) on the same board and clock: the pulse path without the link side, the
-histogram and the TDC interfaces.
+alone (``core_probe.DelayCoreProbe``, its settings shifted in from a pin) on the same board and
+clock: the pulse path without the link side, the histogram and the TDC interfaces.
 
 Goals: ULX3S 80 MHz with an Fmax of at least 100 MHz; iCEBreaker 79.5 MHz (today it carries the
 smaller FlissTop build at 36 MHz, see docs/boards.md).
@@ -19,15 +19,18 @@ from pathlib import Path
 
 from fliss.boards.build import BOARD_CLOCK_HZ, BOARD_DESIGN, build_board
 
+from core_probe import DelayCoreProbe
+
 
 GOAL_MHZ = {"ulx3s": 100.0, "icebreaker": 79.5}
-BASELINE = "fliss.boards:DelayCoreDemo"
+BASELINE = "core_probe:DelayCoreProbe"
 
 
 def measure(board, design, seeds, build_root):
     results = []
     for seed in range(seeds):
-        result = build_board(board, design=design, seed=seed + 1,
+        factory = DelayCoreProbe if design == BASELINE else design
+        result = build_board(board, design=factory, seed=seed + 1,
                              build_dir=Path(build_root, f"{board}-{design.split(':')[1]}-{seed}"))
         fmax = result.fmax_mhz.get(result.design_clock, 0.0)
         lut, ff = result.utilisation["LUT"][0], result.utilisation["FF"][0]

@@ -3,7 +3,8 @@ packing, against the 5 280 of the chip.
 
 Synthesises each design with the YoWASP tools (``pip install -e '.[boards]'``) and runs nextpnr
 up to packing only (``--pack-only``): a design that does not fit is measured too, quickly. The
-baseline, in the same run, is the delay core alone (``DelayCoreDemo``).
+baseline, in the same run, is the delay core alone (``core_probe.DelayCoreProbe``, its settings
+shifted in from a pin).
 
 Goal: ``FlissTop`` within the chip, with room for placement (nextpnr places 89 % in about a
 minute, and failed on 4 958 cells, 94 %). The iCEBreaker carries ``fliss_top_up5k`` (the
@@ -22,9 +23,11 @@ from pathlib import Path
 from fliss.boards import BoardTop, platform_class
 from fliss.boards.build import BOARD_CLOCK_HZ, load_design, toolchain_env
 
+from core_probe import DelayCoreProbe
+
 
 DESIGNS = [
-    ("fliss.boards:DelayCoreDemo",   "baseline: the delay core alone"),
+    (DelayCoreProbe,                 "baseline: the delay core alone"),
     ("fliss.boards:fliss_top_spram", "FlissTop, histogram in SPRAM"),
     ("fliss.boards:fliss_top_up5k",  "FlissTop, the iCEBreaker build (SMALL)"),
 ]
@@ -33,7 +36,8 @@ DESIGNS = [
 def packed_cells(design, build_dir):
     """Logic cells, block RAMs and SPRAMs of ``design`` on the UP5K after packing."""
     platform = platform_class("icebreaker")(clock_hz=BOARD_CLOCK_HZ["icebreaker"])
-    plan = platform.prepare(BoardTop(load_design(design)), name="fliss_icebreaker",
+    factory = design if callable(design) else load_design(design)
+    plan = platform.prepare(BoardTop(factory), name="fliss_icebreaker",
                             nextpnr_opts=["--pack-only"])
     plan.extract(str(build_dir))
     # (nextpnr ends with an error after packing, with no placement to write: its log holds
@@ -63,7 +67,8 @@ def main(argv=None):
             share = 100 * used / available
             print(f"  {label:50} logic cells {used:5} / {available} ({share:3.0f} %)"
                   f"  BRAM {cells['ICESTORM_RAM'][0]:2}  SPRAM {cells['ICESTORM_SPRAM'][0]}"
-                  f"  {time.monotonic() - start:3.0f} s  ({design})", flush=True)
+                  f"  {time.monotonic() - start:3.0f} s  ({getattr(design, '__name__', design)})",
+                  flush=True)
 
 
 if __name__ == "__main__":

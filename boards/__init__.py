@@ -6,8 +6,8 @@
   and utilisation from nextpnr, a non-zero exit when timing fails.
 
 This module holds what both boards share and needs no board package: the pin names, the board
-top level :class:`BoardTop` that puts any design on any of the boards, and :class:`DelayCoreDemo`,
-the design the boards carry until the full top level exists.
+top level :class:`BoardTop` that puts any design on any of the boards, and the factories of the
+designs the boards carry (:func:`fliss_top` and its variants).
 
 The board modules need the ``boards`` extra (``pip install -e '.[boards]'``).
 """
@@ -16,19 +16,15 @@ import importlib
 
 from amaranth.build import Resource
 from amaranth.hdl import *
-from amaranth.lib import data, io, wiring
-from amaranth.lib.cdc import FFSynchronizer, ResetSynchronizer
-from amaranth.lib.wiring import In, Out
+from amaranth.lib import io, wiring
+from amaranth.lib.cdc import ResetSynchronizer
+from amaranth.lib.wiring import In
 
-from ..hdl import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, period_cycles
-from ..hdl.core import DelayCore
-from ..hdl.delay import DelayMode, MAX_MASK_WIDTH
-from ..hdl.lfsr import MAX_LENGTH
-from ..hdl.scheduler import PERIOD_WIDTH, PULSE_WIDTH_WIDTH
+from ..hdl import DEFAULT_CLOCK_HZ
 
 
 __all__ = ["BOARDS", "FLISS_PINS", "BOARD_PINS", "PIN_ALIASES", "platform_class", "BoardTop",
-           "PllClocking", "FlissPlatform", "DemoSettings", "DelayCoreDemo"]
+           "PllClocking", "FlissPlatform", "fliss_top", "fliss_top_spram", "fliss_top_up5k"]
 
 
 #: Supported boards: name on the command line -> ``module:class`` of its platform.
@@ -111,12 +107,12 @@ class BoardTop(Elaboratable):
     Parameters
     ----------
     design : callable
-        ``design(clock_hz) -> wiring.Component``; :class:`DelayCoreDemo` by default.
+        ``design(clock_hz) -> wiring.Component``; :func:`fliss_top` by default.
     """
 
     def __init__(self, design=None):
         if design is None:
-            design = DelayCoreDemo
+            design = fliss_top
         if not callable(design):
             raise TypeError(f"Design must be a callable that takes the clock frequency and "
                             f"returns a wiring.Component, not {design!r}")
@@ -226,155 +222,6 @@ def fliss_top_up5k(clock_hz):
     only, their banks in its SPRAM; no aggressor emitter; narrower period and pulse width."""
     from ..hdl.top import FlissTop, SMALL
     return FlissTop(clock_hz=clock_hz, **SMALL)
-
-
-class DemoSettings(data.Struct):
-    """Settings of the delay core in :class:`DelayCoreDemo`, LSB first."""
-    mode:        DelayMode
-    length:      range(2, MAX_LENGTH + 1)
-    mask_width:  range(1, MAX_MASK_WIDTH + 1)
-    seed:        MAX_LENGTH
-    period:      PERIOD_WIDTH
-    grid:        1
-    pulse_width: PULSE_WIDTH_WIDTH
-
-
-class DelayCoreDemo(wiring.Component):
-    """The delay core alone, with its settings written over the UART.
-
-    A stand-in for the full FLISS top level on the boards. The core runs from reset with default
-    settings (an m-sequence of length 5 at 1 MHz, 50 ns pulses); the button starts and stops it.
-
-    Settings are a register, so that the synthesiser keeps all of the core, written over the
-    UART (8N1, ``baud`` baud). A byte with bit 7 clear shifts its 7 low bits into the settings
-    register from the bottom (send the most significant 7-bit group first; the register is
-    :class:`DemoSettings`, 94 bits, 14 bytes). A byte with bit 7 set is a command: bit 0 sets
-    ``enable``, bit 1 makes a running core take the new settings from its next frame
-    (``update``). A stopped core takes them when it starts.
-
-    Members
-    -------
-    button : In(1)
-        Start and stop, high when pressed.
-    uart_rx : In(1)
-        Settings; asynchronous, synchronised here.
-    uart_tx : Out(1)
-        Idle high.
-    laser, tdc_start : Out(1)
-        Laser trigger and TDC start.
-    aggressor : Out(1)
-        Low (the aggressor emitter comes with the full top level).
-    led : Out(2)
-        ``running`` and ``laser`` stretched to be visible.
-    """
-
-    button:    In(1)
-    uart_rx:   In(1, init=1)
-    uart_tx:   Out(1, init=1)
-    laser:     Out(1)
-    tdc_start: Out(1)
-    aggressor: Out(1)
-    led:       Out(2)
-
-    def __init__(self, clock_hz=DEFAULT_CLOCK_HZ, *, baud=115_200):
-        period_cycles(clock_hz, DEFAULT_PRF_HZ)  # validates the clock
-        if not isinstance(baud, int) or not 0 < baud <= clock_hz // 4:
-            raise ValueError(f"Baud rate must be an integer from 1 to a quarter of the clock, "
-                             f"not {baud!r}")
-        self.clock_hz = clock_hz
-        self.baud = baud
-        super().__init__()
-
-    def defaults(self):
-        """Initial settings, as a :class:`DemoSettings` initializer."""
-        return {
-            "mode":        DelayMode.MSEQ,
-            "length":      5,
-            "mask_width":  5,
-            "seed":        1,
-            "period":      period_cycles(self.clock_hz, DEFAULT_PRF_HZ),
-            "grid":        0,
-            "pulse_width": max(1, round(50e-9 * self.clock_hz)),
-        }
-
-    def elaborate(self, platform):
-        m = Module()
-
-        m.submodules.core = core = DelayCore(clock_hz=self.clock_hz)
-        m.d.comb += [
-            self.laser.eq(core.laser),
-            self.tdc_start.eq(core.tdc_start),
-            self.uart_tx.eq(1),
-        ]
-
-        # Settings register
-        settings = Signal(DemoSettings, init=self.defaults())
-        enable = Signal(init=1)
-        update = Signal()
-        m.d.sync += update.eq(0)
-        m.d.comb += [
-            core.enable.eq(enable),
-            core.update.eq(update),
-            core.mode.eq(settings.mode),
-            core.length.eq(settings.length),
-            core.mask_width.eq(settings.mask_width),
-            core.seed.eq(settings.seed),
-            core.period.eq(settings.period),
-            core.grid.eq(settings.grid),
-            core.pulse_width.eq(settings.pulse_width),
-        ]
-
-        # Button: start and stop on each press, ignoring bounces for 2**20 cycles (13 ms)
-        button = Signal()
-        button_last = Signal()
-        holdoff = Signal(20)
-        m.submodules.button_sync = FFSynchronizer(self.button, button)
-        m.d.sync += button_last.eq(button)
-        with m.If(holdoff != 0):
-            m.d.sync += holdoff.eq(holdoff + 1)
-        with m.Elif(button & ~button_last):
-            m.d.sync += enable.eq(~enable), holdoff.eq(1)
-
-        # UART receiver: 8N1, samples in the middle of each bit
-        rx = Signal(init=1)
-        m.submodules.rx_sync = FFSynchronizer(self.uart_rx, rx, init=1)
-        bit_cycles = round(self.clock_hz / self.baud)
-        timer = Signal(range(bit_cycles * 3 // 2 + 1))
-        bits = Signal(range(9))
-        shreg = Signal(8)
-        with m.FSM():
-            with m.State("IDLE"):
-                with m.If(~rx):
-                    m.d.sync += timer.eq(bit_cycles * 3 // 2 - 1), bits.eq(0)
-                    m.next = "DATA"
-            with m.State("DATA"):
-                with m.If(timer != 0):
-                    m.d.sync += timer.eq(timer - 1)
-                with m.Elif(bits == 8):
-                    # Stop bit: a byte with a framing error is dropped
-                    with m.If(rx):
-                        with m.If(shreg[7]):
-                            m.d.sync += enable.eq(shreg[0]), update.eq(shreg[1])
-                        with m.Else():
-                            m.d.sync += settings.as_value().eq(
-                                Cat(shreg[:7], settings.as_value()))
-                    m.next = "IDLE"
-                with m.Else():
-                    m.d.sync += [
-                        shreg.eq(Cat(shreg[1:], rx)),
-                        bits.eq(bits + 1),
-                        timer.eq(bit_cycles - 1),
-                    ]
-
-        # LEDs: running, and laser pulses stretched to 2**22 cycles (50 ms)
-        stretch = Signal(22)
-        with m.If(core.laser):
-            m.d.sync += stretch.eq(1)
-        with m.Elif(stretch != 0):
-            m.d.sync += stretch.eq(stretch + 1)
-        m.d.comb += self.led.eq(Cat(core.running, stretch != 0))
-
-        return m
 
 
 class PllClocking(Elaboratable):

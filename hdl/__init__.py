@@ -13,13 +13,15 @@ One block per module:
 * :mod:`.rawfifo`: the raw event FIFO that counts what it drops;
 * :mod:`.uart`: UART transmitter and receiver;
 * :mod:`.framing`: CRC-16 and COBS frame encoder and decoder;
-* :mod:`.command`: command processor and register file;
+* :mod:`.command`: command processor;
+* :mod:`.regfile`: register file (settings, their checks, groups as structs);
 * :mod:`.packetizer`: EVENTS and HISTOGRAM packets;
 * :mod:`.arbiter`: merges packet streams onto the link;
 * :mod:`.top`: :class:`~.top.FlissTop`, everything behind a UART.
 
 Definitions shared by gateware, models and host: :mod:`.event` (the photon event layout),
-:mod:`.protocol` (packets), :mod:`.registers` (the register map). :mod:`.verilog` writes Verilog
+:mod:`.protocol` (packets), :mod:`.registers` (the register map and its groups),
+:mod:`.settings` (the delay core's limits). :mod:`.verilog` writes Verilog
 that every simulator reads the same way.
 """
 

@@ -5,9 +5,8 @@ from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
 from .core import DelayCore
-from .delay import DelayMode, DELAY_WIDTH, MAX_MASK_WIDTH
-from .lfsr import MAX_LENGTH
-from .scheduler import PERIOD_WIDTH, PULSE_WIDTH_WIDTH
+from .registers import DelaySettings
+from .settings import DELAY_WIDTH, PERIOD_WIDTH, PULSE_WIDTH_WIDTH, check_widths
 
 
 __all__ = ["OFFSET_WIDTH", "PAPER_OFFSET_S", "Aggressor"]
@@ -38,8 +37,11 @@ class Aggressor(wiring.Component):
     Parameters
     ----------
     delay_source : bool
-        Give the aggressor its own delay source (ports ``mode``, ``length``, ``mask_width``,
-        ``seed``). Without it, the aggressor fires on its nominal schedule only.
+        Give the aggressor its own delay source. Without it, ``settings.mode`` is zero bits wide
+        and the aggressor fires on its nominal schedule only (``mode`` ``OFF``).
+    period_width, pulse_width_width : int
+        Widths of the ``period`` and ``pulse_width`` settings, as in
+        :class:`~fliss.hdl.core.DelayCore`.
 
     Members
     -------
@@ -49,15 +51,8 @@ class Aggressor(wiring.Component):
         Sample new settings while running.
     offset : In(32)
         Start offset in clock cycles.
-    period : In(32)
-    grid : In(1)
-    pulse_width : In(16)
-        Scheduler settings (:class:`~fliss.hdl.scheduler.PulseScheduler`).
-    mode : In(DelayMode)
-    length : In(range(2, 33))
-    mask_width : In(range(1, 17))
-    seed : In(32)
-        Delay source settings (:class:`~fliss.hdl.delay.DelaySource`), with ``delay_source``.
+    settings : In(DelaySettings(..., delays=delay_source))
+        Settings of the aggressor's delay core (:class:`~fliss.hdl.core.DelayCore`).
     laser : Out(1)
         Aggressor's laser trigger output.
     running : Out(1)
@@ -67,38 +62,33 @@ class Aggressor(wiring.Component):
         Monitor outputs of the aggressor's scheduler.
     """
 
-    def __init__(self, *, delay_source=True):
+    def __init__(self, *, delay_source=True, period_width=PERIOD_WIDTH,
+                 pulse_width_width=PULSE_WIDTH_WIDTH):
         if not isinstance(delay_source, bool):
             raise TypeError(f"delay_source must be True or False, not {delay_source!r}")
+        check_widths(period_width, pulse_width_width)
         self.delay_source = delay_source
-        ports = {
+        self.period_width = period_width
+        self.pulse_width_width = pulse_width_width
+        super().__init__({
             "enable":      In(1),
             "update":      In(1),
             "offset":      In(OFFSET_WIDTH),
-            "period":      In(PERIOD_WIDTH),
-            "grid":        In(1),
-            "pulse_width": In(PULSE_WIDTH_WIDTH),
-        }
-        if delay_source:
-            ports.update({
-                "mode":       In(DelayMode),
-                "length":     In(range(2, MAX_LENGTH + 1)),
-                "mask_width": In(range(1, MAX_MASK_WIDTH + 1)),
-                "seed":       In(MAX_LENGTH),
-            })
-        ports.update({
+            "settings":    In(DelaySettings(period_width=period_width,
+                                            pulse_width_width=pulse_width_width,
+                                            delays=delay_source)),
             "laser":       Out(1),
             "running":     Out(1),
             "fire":        Out(1),
             "fire_delay":  Out(DELAY_WIDTH),
             "pulse_index": Out(32),
         })
-        super().__init__(ports)
 
     def elaborate(self, platform):
         m = Module()
 
-        m.submodules.core = core = DelayCore()
+        m.submodules.core = core = DelayCore(period_width=self.period_width,
+                                             pulse_width_width=self.pulse_width_width)
 
         # Start offset: a countdown loaded with `offset` while stopped. `arrived` is registered,
         # so no comparator sits in front of the scheduler. `primed` marks the cycles after the
@@ -116,20 +106,14 @@ class Aggressor(wiring.Component):
 
         # Delay source, scheduler and trigger: a delay core of its own
         if self.delay_source:
-            m.d.comb += [
-                core.mode.eq(self.mode),
-                core.length.eq(self.length),
-                core.mask_width.eq(self.mask_width),
-                core.seed.eq(self.seed),
-            ]
+            m.d.comb += core.settings.eq(self.settings)
         else:
-            m.d.comb += core.mode.eq(DelayMode.OFF)
+            # (`mode` is zero bits wide here: zero-extended, it is OFF)
+            m.d.comb += [core.settings[name].eq(self.settings[name])
+                         for name, _ in self.settings.shape()]
         m.d.comb += [
             core.enable.eq(started),
             core.update.eq(self.update),
-            core.period.eq(self.period),
-            core.grid.eq(self.grid),
-            core.pulse_width.eq(self.pulse_width),
 
             self.laser.eq(core.laser),
             self.running.eq(core.running),

@@ -5,12 +5,12 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from .. import __version__
-from . import DEFAULT_CLOCK_HZ, lookup
+from . import DEFAULT_CLOCK_HZ
 from .buffer import StreamBuffer
-from .delay import DelayMode
 from .framing import PacketBeat
 from .protocol import (PROTOCOL_VERSION, PacketType, NakCode, MAX_PAYLOAD, COUNTER_BITS)
-from .registers import REGISTERS, BY_NAME, settings_layout, defaults
+from .regfile import RegisterFile
+from .registers import REGISTERS, register_maxima
 
 
 __all__ = ["Identity", "STATUS_FIELDS", "StatusSignature", "READ_MAX", "CONSISTENCY",
@@ -71,35 +71,13 @@ READ_MAX = (MAX_PAYLOAD - 2) // 4
 CONSISTENCY = 0xffff
 
 
-def register_maxima(maxima, clock_hz):
-    """Largest value of every register, by name: the register map's, lowered by ``maxima``
-    (name -> maximum). Refuses unknown names, and maxima that are not lower or would refuse
-    the register's reset value."""
-    result = {register.name: register.maximum for register in REGISTERS}
-    if maxima is None:
-        return result
-    if not isinstance(maxima, dict):
-        raise TypeError(f"Register maxima must be a dict of name -> maximum, not {maxima!r}")
-    for name, maximum in maxima.items():
-        if name not in BY_NAME:
-            raise ValueError(f"Unknown register {name!r} in the register maxima")
-        register = BY_NAME[name]
-        if (not isinstance(maximum, int) or
-                not max(register.minimum, register.reset_value(clock_hz)) <= maximum
-                <= register.maximum):
-            raise ValueError(f"Maximum of register {name} must be an integer from its reset "
-                             f"value or minimum to {register.maximum}, not {maximum!r}")
-        result[name] = maximum
-    return result
-
-
 def _version(text):
     parts = [int(part) if part.isdigit() else 0 for part in text.split(".")[:2]] + [0, 0]
     return parts[0] & 0xff, parts[1] & 0xff
 
 
 class CommandProcessor(wiring.Component):
-    """Command processor and register file.
+    """Command processor, around its register file.
 
     Takes verified packets (from :class:`~fliss.hdl.framing.FrameDecoder`) and answers each
     command with one packet: ``ACK``, ``NAK`` with a :class:`~fliss.hdl.protocol.NakCode`, or the
@@ -131,8 +109,6 @@ class CommandProcessor(wiring.Component):
         Strobe: the frame decoder dropped a frame.
     link_error_code : In(NakCode)
         Why, with ``link_error``.
-    settings : Out(settings_layout(maxima))
-        The registers, each as wide as its maximum needs.
     update : Out(1)
         Strobe: settings changed while running; in the cycle after ``settings`` changed (a
         register, for timing).
@@ -149,12 +125,13 @@ class CommandProcessor(wiring.Component):
         self.clock_hz = int(clock_hz)
         self.baud = int(baud)
         self.maxima = register_maxima(maxima, self.clock_hz)
+        #: The register file (:class:`~fliss.hdl.regfile.RegisterFile`), a submodule.
+        self.registers = RegisterFile(clock_hz=self.clock_hz, maxima=self.maxima)
         super().__init__({
             "packets":         In(stream.Signature(PacketBeat)),
             "replies":         Out(stream.Signature(PacketBeat)),
             "link_error":      In(1),
             "link_error_code": In(NakCode, init=NakCode.BAD_CRC),
-            "settings":        Out(settings_layout(self.maxima), init=defaults(self.clock_hz)),
             "update":          Out(1),
             "running":         Out(1),
             "status":          Out(StatusSignature),
@@ -170,13 +147,8 @@ class CommandProcessor(wiring.Component):
         wiring.connect(m, reply_buffer.o, wiring.flipped(self.replies))
         replies = reply_buffer.i
 
-        layout = settings_layout(self.maxima)
+        m.submodules.registers = registers = self.registers
         address_bits = (len(REGISTERS) - 1).bit_length()    # enough to address every register
-        # A WRITE puts its values in `candidate` and marks them in `written`; the registers it
-        # does not write keep theirs in `settings`. (Copying all of `settings` into the candidate
-        # first would put a multiplexer in front of every candidate bit.)
-        candidate = Signal(layout, init=defaults(self.clock_hz))
-        written = Signal(len(REGISTERS))
 
         # Command being received
         cmd_type = Signal(8)
@@ -194,9 +166,6 @@ class CommandProcessor(wiring.Component):
         # A WRITE value as its bytes come in; in a reply, the register or counter being sent,
         # LSB first (one shift register serves both)
         word = Signal(32)
-        error = Signal(NakCode, init=NakCode.BAD_ADDRESS)
-        error_detail = Signal(16)
-        has_error = Signal()
         # How the command is refused, if it is (decided before it is answered)
         refusal = Signal()
         refusal_code = Signal(NakCode, init=NakCode.BAD_PAYLOAD)
@@ -220,129 +189,10 @@ class CommandProcessor(wiring.Component):
         with m.If(self.link_error):
             m.d.sync += link_pending.eq(1), link_code.eq(self.link_error_code)
 
-        # Register values as u32 words, in address order
-        words = Array(Signal(32, name=f"reg_{r.name}") for r in REGISTERS)
-        for register, value in zip(REGISTERS, words):
-            m.d.comb += value.eq(self.settings[register.name])
-
-        # Range check of a WRITE value, one cycle after it completes (`check`; the value is
-        # still in `word` then), its verdict registered and applied a cycle later: its
-        # register's bounds come out of constant tables, so one set of comparators serves them
-        # all. The minima are small, and the maxima are small or all ones below their top bit,
-        # so the bits from `LOW` up are only checked against a mask (the bits the register's
-        # values may have) and the comparators are `LOW` bits wide.
-        LOW = 6
-        for register in REGISTERS:
-            top = self.maxima[register.name]
-            assert register.minimum < 1 << LOW, register
-            assert top < 1 << LOW or top & (top + 1) == 0, register
+        # WRITE values go to the register file, a cycle after they are complete (`check`).
         check = Signal()
-        value = word
-        value_address = Signal(16)      # address of the value being received
-        known = Signal()
-        allowed = Signal(32)            # bits that may be set: `maximum` rounded up to all ones
-        minimum = Signal(LOW)
-        maximum = Signal(LOW)           # `maximum`, or all ones if that is larger
-        # (The bounds are looked up into registers, from tables indexed by the low bits of the
-        # address: the address was set, or moved on, at least four cycles before the value at
-        # it is complete.)
-        register_index = value_address[:address_bits]
-        tops = [self.maxima[register.name] for register in REGISTERS]
-        m.d.sync += [
-            known.eq((value_address[address_bits:] == 0) & (register_index < len(REGISTERS))),
-            allowed.eq(lookup([(1 << top.bit_length()) - 1 for top in tops], register_index, 32)),
-            minimum.eq(lookup([register.minimum for register in REGISTERS], register_index, LOW)),
-            maximum.eq(lookup([min(top, (1 << LOW) - 1) for top in tops], register_index, LOW)),
-        ]
-        out_of_range = ((value & ~allowed).any() |
-                        ((value[LOW:] == 0) & (value[:LOW] < minimum)) |
-                        (value[:LOW] > maximum))
-        checked = Signal()              # the verdict on the value checked in the last cycle:
-        checked_unknown = Signal()      # no register at its address
-        checked_bad = Signal()          # out of its register's range
-        checked_address = Signal(16)
-        m.d.sync += [
-            check.eq(0),
-            checked.eq(check),
-            checked_unknown.eq(~known),
-            checked_bad.eq(out_of_range),
-            checked_address.eq(value_address),
-        ]
-        with m.If(checked & ~has_error):
-            with m.If(checked_unknown):
-                m.d.sync += [has_error.eq(1), error.eq(NakCode.BAD_ADDRESS),
-                             error_detail.eq(checked_address)]
-            with m.Elif(checked_bad):
-                m.d.sync += [has_error.eq(1), error.eq(NakCode.OUT_OF_RANGE),
-                             error_detail.eq(checked_address)]
-        with m.If(check):
-            with m.Switch(value_address):
-                for register in REGISTERS:
-                    with m.Case(register.address):
-                        m.d.sync += [candidate[register.name].eq(value),
-                                     written[register.address].eq(1)]
-            m.d.sync += value_address.eq(value_address + 1)
-
-        # Consistency of the candidate settings, in three registered steps (the largest delays
-        # and the seeds' high bits, then the sum for the grid condition); it is needed three
-        # cycles after the candidate is complete.
-        consistent = Signal()
-        c = Signal(layout)      # the settings the WRITE would make
-        for register in REGISTERS:
-            m.d.comb += c[register.name].eq(Mux(written[register.address],
-                                                candidate[register.name],
-                                                self.settings[register.name]))
-
-        def below(n, width):
-            # `(1 << n) - 1` in `width` bits (all ones from `n = width` on), out of a constant
-            # table: a little logic per bit, where a shifter by `n` would be a barrel shifter
-            # (and comparators per bit would be carry chains).
-            return lookup([min((1 << k) - 1, (1 << width) - 1) for k in range(1 << len(n))],
-                          n, width)
-
-        def max_delay(mode, length, mask_width):
-            # `(1 << length) - 2` in 34 bits, all ones for `length = 0`; `(1 << mask_width) - 1`.
-            zero = length == 0
-            mseq = Cat(zero, below(length, 34)[1:] | zero.replicate(33))
-            return Mux(mode == DelayMode.MSEQ, mseq,
-                       Mux(mode == DelayMode.MASKED, below(mask_width, 31), 0))
-
-        def narrow_less(a, b):
-            # `a < b` for a narrower `a`: the high bits of `b` need no carry chain
-            return (b[len(a):] != 0) | (a < b[:len(a)])
-
-        def seed_high(seed, length):
-            # The bits of `seed` at `2**length` and up (without the shifter), OR-ed in groups of
-            # four: all zeros when the seed fits in `length` bits.
-            high = seed & ~below(length, len(seed))
-            return Cat(high[k:k + 4].any() for k in range(0, len(high), 4))
-
-        victim_max_delay = Signal(34)
-        simple = Signal()
-        victim_mseq = Signal()
-        aggressor_mseq = Signal()
-        victim_seed_high = Signal((len(c.seed) + 3) // 4)
-        aggressor_seed_high = Signal((len(c.aggressor_seed) + 3) // 4)
-        m.d.sync += [
-            victim_max_delay.eq(max_delay(c.delay_mode, c.length, c.mask_width)),
-            simple.eq(
-                narrow_less(c.pulse_width, c.period) &
-                narrow_less(c.aggressor_width, c.aggressor_period) &
-                (c.gate_start <= c.gate_end)),
-            victim_mseq.eq(c.delay_mode == DelayMode.MSEQ),
-            aggressor_mseq.eq(c.aggressor_delay_mode == DelayMode.MSEQ),
-            victim_seed_high.eq(seed_high(c.seed, c.length)),
-            aggressor_seed_high.eq(seed_high(c.aggressor_seed, c.aggressor_length)),
-        ]
-        delay_and_pulse = Signal(35)
-        all_but_grid = Signal()
-        m.d.sync += [
-            delay_and_pulse.eq(victim_max_delay + c.pulse_width),
-            all_but_grid.eq(simple &
-                            ~(victim_mseq & victim_seed_high.any()) &
-                            ~(aggressor_mseq & aggressor_seed_high.any())),
-            consistent.eq(all_but_grid & (~c.grid | (delay_and_pulse < c.period))),
-        ]
+        m.d.sync += check.eq(0)
+        m.d.comb += [registers.value.eq(word), registers.check.eq(check)]
 
         def reply(type, length, final=None):
             # `final`: the index of the last payload byte, `length - 1`, given without an adder
@@ -377,10 +227,9 @@ class CommandProcessor(wiring.Component):
                         no_payload.eq(header.length == 0),
                         read_payload.eq(header.length == 3),
                         write_payload.eq((header.length[:2] == 2) & (header.length[2:] != 0)),
-                        index.eq(0), has_error.eq(0),
-                        written.eq(0),
+                        index.eq(0),
                     ]
-                    m.d.comb += self.tally.commands.eq(1)
+                    m.d.comb += [self.tally.commands.eq(1), registers.begin.eq(1)]
                     with m.If(self.packets.p.last):
                         m.next = "VERDICT"
                         m.d.sync += accepting.eq(0)
@@ -402,10 +251,9 @@ class CommandProcessor(wiring.Component):
                     with m.If(index == 0):
                         m.d.sync += address[:8].eq(byte)
                     with m.If(index == 1):
-                        m.d.sync += [
-                            address[8:].eq(byte),
-                            value_address.eq(Cat(address[:8], byte)),
-                        ]
+                        m.d.sync += address[8:].eq(byte)
+                        m.d.comb += [registers.start.eq(1),
+                                     registers.start_address.eq(Cat(address[:8], byte))]
                     with m.If(index == 2):
                         m.d.sync += count.eq(byte)
                     # A WRITE value is complete: check it and put it in the candidate next.
@@ -488,13 +336,10 @@ class CommandProcessor(wiring.Component):
             with m.State("COMMIT"):
                 # `consistent` now reflects the complete candidate.
                 m.next = "HEADER"
-                with m.If(has_error):
-                    m.d.sync += refuse(error, error_detail)
-                with m.Elif(consistent):
-                    for register in REGISTERS:
-                        with m.If(written[register.address]):
-                            m.d.sync += self.settings[register.name].eq(
-                                candidate[register.name])
+                with m.If(registers.error):
+                    m.d.sync += refuse(registers.error_code, registers.error_detail)
+                with m.Elif(registers.consistent):
+                    m.d.comb += registers.commit.eq(1)
                     m.d.sync += reply(PacketType.ACK, 1)
                     m.d.sync += self.update.eq(self.running)
                 with m.Else():
@@ -525,8 +370,9 @@ class CommandProcessor(wiring.Component):
                 # all the registers. `next_word` follows `next_pointer` two cycles late (a
                 # counter is read in the cycle after its address): the first is ready after the
                 # first payload byte's cycle, each next one four cycles after the pointer moved.
-                m.d.comb += self.status.addr.eq(next_pointer)
-                m.d.sync += next_word.eq(Mux(is_status, self.status.data, words[next_pointer]))
+                m.d.comb += [self.status.addr.eq(next_pointer),
+                             registers.read_address.eq(next_pointer)]
+                m.d.sync += next_word.eq(Mux(is_status, self.status.data, registers.read_data))
                 with m.If(replies.ready):
                     m.d.sync += index.eq(index + 1)
                     with m.If(index[:2] == Mux(is_status, 3, 1)):

@@ -1,39 +1,37 @@
 from amaranth.hdl import *
-from amaranth.lib import enum, stream, wiring
+from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from .lfsr import MAX_LENGTH, POLYNOMIALS, _galois_step, _galois_steps
+from .lfsr import POLYNOMIALS, _galois_step, _galois_steps
+from .registers import DelaySettings
+from .settings import (DelayMode, MAX_LENGTH, MAX_MASK_WIDTH, DELAY_WIDTH, MASKED_LENGTH,
+                       MASKED_STEPS)
 
 
 __all__ = ["DelayMode", "MAX_MASK_WIDTH", "MASKED_LENGTH", "MASKED_STEPS", "DELAY_WIDTH",
-           "DelaySource"]
+           "Delay", "DelaySource"]
 
 
-#: Widest bit-mask of the ``masked`` source, in bits.
-MAX_MASK_WIDTH = 16
+class Delay(data.Struct):
+    """A delay of :class:`DelaySource`, with hints that time its pulse in the scheduler
+    (:class:`~fliss.hdl.scheduler.PulseScheduler`).
 
-#: Length of the register behind the ``masked`` source, in bits.
-MASKED_LENGTH = 32
-
-#: Register steps per pulse of the ``masked`` source. With at least ``MAX_MASK_WIDTH`` steps,
-#: consecutive delays are taken from fresh register bits rather than from shifted copies of the
-#: previous delay; 16 is coprime with ``2**32 - 1``, so the sequence still has the full period.
-MASKED_STEPS = 16
-
-#: Width of a delay, in bits.
-DELAY_WIDTH = MAX_LENGTH
-
-
-class DelayMode(enum.Enum, shape=2):
-    """Source of the pseudorandom delay ``T_rnd``, in clock cycles."""
-    #: No delay: the laser fires on the nominal schedule.
-    OFF    = 0
-    #: Complete m-sequence of an ``L``-bit register, one state per pulse; delay ``R = state - 1``,
-    #: so ``R`` runs over ``0 … 2**L - 2`` once per period (equation 9 and Table 2 of the paper).
-    MSEQ   = 1
-    #: The ``Wm`` least significant bits of a 32-bit register that takes ``MASKED_STEPS`` steps per
-    #: pulse; delay from ``0`` to ``2**Wm - 1``.
-    MASKED = 2
+    ``value`` stays put until a transfer; ``zero`` and ``zero_late`` are timed as described
+    below, so they may change while the delay waits.
+    """
+    #: The delay ``R`` in clock cycles.
+    value:     DELAY_WIDTH
+    #: The mode (a :class:`DelayMode` value).
+    kind:      2
+    #: ``R == 0``, valid unless a transfer was made in the last cycle; low in the cycle after a
+    #: load.
+    zero:      1
+    #: ``R == 0`` of a transfer made in the cycle after a load, in the next cycle.
+    zero_late: 1
+    #: The m-sequence state ``R + 1`` (zero standing for 1), or zero in another mode.
+    wide:      DELAY_WIDTH
+    #: The masked delay ``R``, or zero in another mode.
+    narrow:    MAX_MASK_WIDTH
 
 
 class DelaySource(wiring.Component):
@@ -42,49 +40,37 @@ class DelaySource(wiring.Component):
     Produces one delay per transfer on ``delays``. The mode, register length, mask width and seed
     are run-time settings, sampled on ``load``; ``load`` also restarts the sequence from the seed.
 
+    Parameters
+    ----------
+    layout : DelaySettings
+        Layout of ``settings`` (that of the delay core around the source).
+
     Members
     -------
-    mode : In(DelayMode)
-        Delay source, sampled on ``load``.
-    length : In(range(2, 33))
-        Register length ``L`` of the ``MSEQ`` source, sampled on ``load``.
-    mask_width : In(range(1, 17))
-        Mask width ``Wm`` of the ``MASKED`` source, sampled on ``load``; a value out of range acts
-        as 16.
-    seed : In(32)
-        Seed; the register never holds zero (see :class:`Lfsr`).
+    settings : In(layout)
+        Of the delay core's settings, the source uses ``mode`` (the delay source),
+        ``length`` (register length ``L`` of the ``MSEQ`` source), ``mask_width`` (mask width
+        ``Wm`` of the ``MASKED`` source; a value out of range acts as 16) and ``seed`` (the
+        register never holds zero, see :class:`Lfsr`), all sampled on ``load``.
     load : In(1)
         Sample the settings and restart the sequence. The delay of the restarted sequence is on
         ``delays.payload`` in the next cycle.
-    delays : Out(stream.Signature(32))
-        Delays in clock cycles. ``valid`` is always high; each transfer moves to the next delay.
-    kind : Out(2)
-        Hint for :class:`~fliss.hdl.scheduler.PulseScheduler`: the mode.
-    zero : Out(1)
-        ``R == 0``, valid unless a transfer was made in the last cycle; low in the cycle after a
-        load.
-    zero_late : Out(1)
-        ``R == 0`` of a transfer made in the cycle after a load, in the next cycle.
-    wide : Out(32)
-        The m-sequence state ``R + 1`` (zero standing for 1), or zero in another mode.
-    narrow : Out(16)
-        The masked delay ``R``, or zero in another mode.
+    delays : Out(stream.Signature(Delay, always_valid=True))
+        Delays in clock cycles, with hints for the scheduler (:class:`Delay`); each transfer
+        moves to the next delay.
     """
 
-    mode:       In(DelayMode)
-    length:     In(range(2, MAX_LENGTH + 1))
-    mask_width: In(range(1, MAX_MASK_WIDTH + 1))
-    seed:       In(MAX_LENGTH)
-    load:       In(1)
-    delays:     Out(stream.Signature(DELAY_WIDTH))
-    kind:       Out(2)
-    zero:       Out(1)
-    zero_late:  Out(1)
-    wide:       Out(DELAY_WIDTH)
-    narrow:     Out(MAX_MASK_WIDTH)
+    def __init__(self, *, layout=None):
+        self.layout = DelaySettings() if layout is None else layout
+        super().__init__({
+            "settings": In(self.layout),
+            "load":     In(1),
+            "delays":   Out(stream.Signature(Delay, always_valid=True)),
+        })
 
     def elaborate(self, platform):
         m = Module()
+        settings = self.settings
 
         # The two registers are those of `Lfsr` (the m-sequence one with a run-time length, the
         # masked one taking `MASKED_STEPS` steps per advance), built here with a shorter path
@@ -97,13 +83,13 @@ class DelaySource(wiring.Component):
         mask_in = Signal(MAX_MASK_WIDTH)
         length_mask_in = Signal(MAX_LENGTH)
         taps_in = Signal(MAX_LENGTH)
-        with m.Switch(self.mask_width):
+        with m.Switch(settings.mask_width):
             for width in range(1, MAX_MASK_WIDTH + 1):
                 with m.Case(width):
                     m.d.comb += mask_in.eq((1 << width) - 1)
             with m.Default():
                 m.d.comb += mask_in.eq((1 << MAX_MASK_WIDTH) - 1)
-        with m.Switch(self.length):
+        with m.Switch(settings.length):
             for length, poly in POLYNOMIALS.items():
                 with m.Case(length):
                     m.d.comb += [
@@ -117,9 +103,9 @@ class DelaySource(wiring.Component):
                 ]
         with m.If(self.load):
             m.d.sync += [
-                mode.eq(self.mode),
+                mode.eq(settings.mode),
                 # zero unless masked: `narrow` is zero then (see the scheduler)
-                mask.eq(Mux(self.mode == DelayMode.MASKED, mask_in, 0)),
+                mask.eq(Mux(settings.mode == DelayMode.MASKED, mask_in, 0)),
                 taps.eq(taps_in),
             ]
 
@@ -143,13 +129,13 @@ class DelaySource(wiring.Component):
         mseq = Signal(MAX_LENGTH, init=1)
         mseq_raw_zero = Signal()    # `mseq` is zero, standing for 1
         fixing = Signal()
-        mseq_seeded = self.seed & length_mask_in
+        mseq_seeded = settings.seed & length_mask_in
         mseq_loaded_zero = mseq == 0
         mseq_advance = advance == DelayMode.MSEQ
         with m.If(self.load):
             m.d.sync += [
                 # zero unless m-sequence: its zero flags are set then (see below)
-                mseq.eq(Mux(self.mode == DelayMode.MSEQ, mseq_seeded, 0)),
+                mseq.eq(Mux(settings.mode == DelayMode.MSEQ, mseq_seeded, 0)),
                 mseq_raw_zero.eq(0),
                 fixing.eq(0),
             ]
@@ -166,7 +152,7 @@ class DelaySource(wiring.Component):
 
         # Masked register
         masked = Signal(MASKED_LENGTH, init=1)
-        masked_seeded = Cat(self.seed[0] | (self.seed[1:] == 0), self.seed[1:])
+        masked_seeded = Cat(settings.seed[0] | (settings.seed[1:] == 0), settings.seed[1:])
         masked_next = _galois_steps(masked, POLYNOMIALS[MASKED_LENGTH] >> 1, MASKED_STEPS)
         with m.If(self.load):
             m.d.sync += masked.eq(masked_seeded)
@@ -188,21 +174,19 @@ class DelaySource(wiring.Component):
         ]
         zero = mseq_zero_lo & mseq_zero_hi & masked_zero & ~fresh
 
-        # Delay
-        m.d.comb += self.delays.valid.eq(1)
+        # Delay, and hints for the scheduler
+        delay = self.delays.payload
         with m.Switch(mode):
             with m.Case(DelayMode.MSEQ):
-                m.d.comb += self.delays.payload.eq(mseq_state - 1)
+                m.d.comb += delay.value.eq(mseq_state - 1)
             with m.Case(DelayMode.MASKED):
-                m.d.comb += self.delays.payload.eq(masked_delay)
-
-        # Hints for the scheduler
+                m.d.comb += delay.value.eq(masked_delay)
         m.d.comb += [
-            self.kind.eq(mode.as_value()),
-            self.zero.eq(zero),
-            self.zero_late.eq(zero_late),
-            self.wide.eq(mseq),
-            self.narrow.eq(masked_delay),
+            delay.kind.eq(mode.as_value()),
+            delay.zero.eq(zero),
+            delay.zero_late.eq(zero_late),
+            delay.wide.eq(mseq),
+            delay.narrow.eq(masked_delay),
         ]
 
         return m

@@ -2,7 +2,7 @@ from amaranth.hdl import *
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
-from .scheduler import PULSE_WIDTH_WIDTH
+from .settings import PULSE_WIDTH_WIDTH
 
 
 __all__ = ["LATENCY", "LaserTrigger"]

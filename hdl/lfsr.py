@@ -2,13 +2,10 @@ from amaranth.hdl import *
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
+from .settings import MIN_LENGTH, MAX_LENGTH
 
 __all__ = ["POLYNOMIALS", "MIN_LENGTH", "MAX_LENGTH", "Lfsr"]
 
-
-#: Shortest and longest supported register, in bits.
-MIN_LENGTH = 2
-MAX_LENGTH = 32
 
 #: Primitive characteristic polynomial for each register length ``L``, written as an integer whose
 #: bit ``i`` is the coefficient of ``x**i`` (bit ``L`` and bit 0 are always set).

@@ -3,23 +3,32 @@
 Each register is 32 bits on the wire (``WRITE`` and ``READ`` packets, see
 :mod:`fliss.hdl.protocol`) and holds ``width`` bits in the gateware. A write is refused (NAK
 ``OUT_OF_RANGE``, nothing applied) when the value is outside ``[minimum, maximum]`` or when the
-settings it would make are inconsistent (:func:`problems`). The gateware (:mod:`.command`), the
+settings it would make are inconsistent (:func:`problems`). The gateware (:mod:`.regfile`), the
 host tool and ``docs/protocol.md`` all read this table.
+
+Registers come in groups (:class:`RegisterGroup`, :data:`GROUPS`) that travel together as one
+struct to the block that uses them: the victim's and the aggressor's delay cores (both from one
+definition, :data:`DELAY_SETTINGS`, whose layout is :class:`DelaySettings`), the aggressor
+emitter's own settings, and acquisition. The link has no settings. A new field of a group is
+added here and used in its block; the register file, its checks and the top level follow.
+
+A definitions module: it imports no gateware (the limits come from :mod:`.settings`).
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from amaranth.lib import data, enum
 
 from . import DEFAULT_PRF_HZ, period_cycles
-from .delay import DelayMode, MAX_MASK_WIDTH
 from .event import TIMESTAMP_BITS
-from .lfsr import MIN_LENGTH, MAX_LENGTH
-from .scheduler import PERIOD_WIDTH, PULSE_WIDTH_WIDTH
+from .settings import (DelayMode, MIN_LENGTH, MAX_LENGTH, MAX_MASK_WIDTH, PERIOD_WIDTH,
+                       PULSE_WIDTH_WIDTH)
 
 
-__all__ = ["AcquisitionMode", "TdcSource", "Register", "REGISTERS", "BY_NAME", "BY_ADDRESS",
-           "settings_layout", "defaults", "problems", "max_delay"]
+__all__ = ["AcquisitionMode", "TdcSource", "Register", "Setting", "RegisterGroup",
+           "DELAY_SETTINGS", "VICTIM", "AGGRESSOR", "AGGRESSOR_DELAY", "ACQUISITION", "GROUPS",
+           "REGISTERS", "BY_NAME", "BY_ADDRESS", "DelaySettings", "settings_layout",
+           "register_maxima", "defaults", "problems", "max_delay"]
 
 
 class AcquisitionMode(enum.Enum, shape=1):
@@ -42,7 +51,8 @@ class TdcSource(enum.Enum, shape=1):
 class Register:
     """One register: name, address, width in bits, allowed range, unit and meaning.
 
-    ``reset`` is a number, or a function of the clock frequency in Hz.
+    ``reset`` is a number, or a function of the clock frequency in Hz. ``group`` and ``field``
+    place it in a :class:`RegisterGroup`: the register is field ``field`` of the group's struct.
     """
     name: str
     address: int
@@ -52,6 +62,8 @@ class Register:
     reset: object
     unit: str
     doc: str
+    group: str = ""
+    field: str = ""
 
     def reset_value(self, clock_hz):
         return self.reset(clock_hz) if callable(self.reset) else self.reset
@@ -64,6 +76,62 @@ class Register:
                              f"not {value!r}")
 
 
+@dataclass(frozen=True)
+class Setting:
+    """One field of a settings struct: its name, width in bits, allowed range and unit (those of
+    every register that holds it)."""
+    name: str
+    width: int
+    minimum: int
+    maximum: int
+    unit: str = ""
+
+
+@dataclass(frozen=True)
+class RegisterGroup:
+    """Registers that travel together as one struct (a block's ``settings`` port).
+
+    ``settings`` are the struct's fields, in order; ``registers`` gives the register that holds
+    each field as ``field -> (name, address, reset, doc)``. A field without a register
+    (``fixed``: field -> value) reads as that constant. The register file exposes the group as
+    one port of :meth:`layout`, named ``name``.
+    """
+    name: str
+    settings: tuple
+    registers: dict
+    fixed: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        names = {setting.name for setting in self.settings}
+        assert set(self.registers) | set(self.fixed) == names, self.name
+        assert not set(self.registers) & set(self.fixed), self.name
+
+    @property
+    def members(self):
+        """The group's registers, in field order."""
+        return tuple(
+            Register(name, address, setting.width, setting.minimum, setting.maximum, reset,
+                     setting.unit, doc, self.name, setting.name)
+            for setting in self.settings if setting.name in self.registers
+            for name, address, reset, doc in [self.registers[setting.name]])
+
+    def register(self, field_name):
+        """The register of field ``field_name``, or None for a fixed field."""
+        return next((r for r in self.members if r.field == field_name), None)
+
+    def layout(self, maxima=None):
+        """``data.StructLayout`` of the group: each field as wide as its largest value needs,
+        that of its register in ``maxima`` (register name -> largest value) if given there."""
+        maxima = maxima or {}
+        fields = {}
+        for setting in self.settings:
+            register = self.register(setting.name)
+            top = setting.maximum if register is None else \
+                maxima.get(register.name, register.maximum)
+            fields[setting.name] = min(setting.width, top.bit_length())
+        return data.StructLayout(fields)
+
+
 def _period(clock_hz):
     return period_cycles(clock_hz, DEFAULT_PRF_HZ)
 
@@ -71,55 +139,111 @@ def _period(clock_hz):
 _U32 = (1 << 32) - 1
 _MODE_MAX = max(mode.value for mode in DelayMode)
 
-#: The registers, in address order.
-REGISTERS = (
-    Register("acquisition", 0x00, 1, 0, 1, AcquisitionMode.HISTOGRAM.value, "",
-             "acquisition mode: 0 histogram, 1 raw events"),
-    Register("delay_mode", 0x01, 2, 0, _MODE_MAX, DelayMode.MSEQ.value, "",
-             "victim delay source: 0 off, 1 mseq, 2 masked"),
-    Register("length", 0x02, 6, MIN_LENGTH, MAX_LENGTH, 6, "bits",
-             "register length L of the mseq source"),
-    Register("mask_width", 0x03, 5, 1, MAX_MASK_WIDTH, 6, "bits",
-             "mask width Wm of the masked source"),
-    Register("seed", 0x04, 32, 1, _U32, 1, "",
-             "seed of the victim delay source (below 2**L for mseq)"),
-    Register("period", 0x05, PERIOD_WIDTH, 2, _U32, _period, "cycles",
-             "nominal laser period T (1 MHz PRF by default)"),
-    Register("grid", 0x06, 1, 0, 1, 0, "",
-             "scheduler mode: 0 interval (T + R apart), 1 grid (k T + R)"),
-    Register("pulse_width", 0x07, PULSE_WIDTH_WIDTH, 1, (1 << PULSE_WIDTH_WIDTH) - 1, 1,
-             "cycles", "laser trigger pulse width, shorter than the period"),
-    Register("aggressor", 0x08, 1, 0, 1, 0, "", "aggressor emitter: 0 off, 1 on"),
-    Register("aggressor_period", 0x09, PERIOD_WIDTH, 2, _U32, _period, "cycles",
-             "aggressor period"),
-    Register("aggressor_offset", 0x0a, 32, 0, _U32, lambda clock_hz: round(75e-9 * clock_hz),
-             "cycles", "aggressor start offset after the victim's start (75 ns by default)"),
-    Register("aggressor_width", 0x0b, PULSE_WIDTH_WIDTH, 1, (1 << PULSE_WIDTH_WIDTH) - 1, 1,
-             "cycles", "aggressor trigger pulse width, shorter than its period"),
-    Register("aggressor_delay_mode", 0x0c, 2, 0, _MODE_MAX, DelayMode.OFF.value, "",
-             "aggressor's own delay source: 0 off, 1 mseq, 2 masked"),
-    Register("aggressor_length", 0x0d, 6, MIN_LENGTH, MAX_LENGTH, 6, "bits",
-             "register length of the aggressor's mseq source"),
-    Register("aggressor_mask_width", 0x0e, 5, 1, MAX_MASK_WIDTH, 6, "bits",
-             "mask width of the aggressor's masked source"),
-    Register("aggressor_seed", 0x0f, 32, 1, _U32, 0xACE1, "",
-             "seed of the aggressor's delay source"),
-    Register("tdc_source", 0x10, 1, 0, 1, TdcSource.SENSOR.value, "",
-             "event source: 0 sensor timestamp bus, 1 built-in coarse TDC"),
-    Register("gate_start", 0x11, TIMESTAMP_BITS, 0, (1 << TIMESTAMP_BITS) - 1, 0, "codes",
-             "first timestamp accepted"),
-    Register("gate_end", 0x12, TIMESTAMP_BITS, 0, (1 << TIMESTAMP_BITS) - 1,
-             (1 << TIMESTAMP_BITS) - 1, "codes", "last timestamp accepted"),
-    Register("bin_shift", 0x13, 4, 0, TIMESTAMP_BITS, 0, "",
-             "histogram bins are 2**bin_shift codes wide"),
-    Register("integration", 0x14, 32, 1, _U32, lambda clock_hz: round(10e-3 * clock_hz),
-             "cycles", "histogram integration time (10 ms by default)"),
+#: The settings of a delay core (:class:`~fliss.hdl.core.DelayCore`): delay source, then
+#: scheduler and laser trigger.
+DELAY_SETTINGS = (
+    Setting("mode",        2,                 0,              _MODE_MAX),
+    Setting("length",      6,                 MIN_LENGTH,     MAX_LENGTH, "bits"),
+    Setting("mask_width",  5,                 1,              MAX_MASK_WIDTH, "bits"),
+    Setting("seed",        32,                1,              _U32),
+    Setting("period",      PERIOD_WIDTH,      2,              _U32, "cycles"),
+    Setting("grid",        1,                 0,              1),
+    Setting("pulse_width", PULSE_WIDTH_WIDTH, 1,              (1 << PULSE_WIDTH_WIDTH) - 1,
+            "cycles"),
 )
+
+#: The victim's delay core.
+VICTIM = RegisterGroup("victim", DELAY_SETTINGS, {
+    "mode":        ("delay_mode", 0x01, DelayMode.MSEQ.value,
+                    "victim delay source: 0 off, 1 mseq, 2 masked"),
+    "length":      ("length", 0x02, 6, "register length L of the mseq source"),
+    "mask_width":  ("mask_width", 0x03, 6, "mask width Wm of the masked source"),
+    "seed":        ("seed", 0x04, 1, "seed of the victim delay source (below 2**L for mseq)"),
+    "period":      ("period", 0x05, _period, "nominal laser period T (1 MHz PRF by default)"),
+    "grid":        ("grid", 0x06, 0,
+                    "scheduler mode: 0 interval (T + R apart), 1 grid (k T + R)"),
+    "pulse_width": ("pulse_width", 0x07, 1, "laser trigger pulse width, shorter than the period"),
+})
+
+#: The aggressor's delay core: the victim's settings, without grid mode.
+AGGRESSOR_DELAY = RegisterGroup("aggressor_delay", DELAY_SETTINGS, {
+    "period":      ("aggressor_period", 0x09, _period, "aggressor period"),
+    "pulse_width": ("aggressor_width", 0x0b, 1,
+                    "aggressor trigger pulse width, shorter than its period"),
+    "mode":        ("aggressor_delay_mode", 0x0c, DelayMode.OFF.value,
+                    "aggressor's own delay source: 0 off, 1 mseq, 2 masked"),
+    "length":      ("aggressor_length", 0x0d, 6, "register length of the aggressor's mseq source"),
+    "mask_width":  ("aggressor_mask_width", 0x0e, 6,
+                    "mask width of the aggressor's masked source"),
+    "seed":        ("aggressor_seed", 0x0f, 0xACE1, "seed of the aggressor's delay source"),
+}, fixed={"grid": 0})
+
+#: The aggressor emitter's own settings (:class:`~fliss.hdl.aggressor.Aggressor`).
+AGGRESSOR = RegisterGroup("aggressor", (
+    Setting("enable", 1,  0, 1),
+    Setting("offset", 32, 0, _U32, "cycles"),
+), {
+    "enable": ("aggressor", 0x08, 0, "aggressor emitter: 0 off, 1 on"),
+    "offset": ("aggressor_offset", 0x0a, lambda clock_hz: round(75e-9 * clock_hz),
+               "aggressor start offset after the victim's start (75 ns by default)"),
+})
+
+#: What is acquired, and how.
+ACQUISITION = RegisterGroup("acquisition", (
+    Setting("mode",        1,              0, 1),
+    Setting("tdc_source",  1,              0, 1),
+    Setting("gate_start",  TIMESTAMP_BITS, 0, (1 << TIMESTAMP_BITS) - 1, "codes"),
+    Setting("gate_end",    TIMESTAMP_BITS, 0, (1 << TIMESTAMP_BITS) - 1, "codes"),
+    Setting("bin_shift",   4,              0, TIMESTAMP_BITS),
+    Setting("integration", 32,             1, _U32, "cycles"),
+), {
+    "mode":        ("acquisition", 0x00, 0, "acquisition mode: 0 histogram, 1 raw events"),
+    "tdc_source":  ("tdc_source", 0x10, 0,
+                    "event source: 0 sensor timestamp bus, 1 built-in coarse TDC"),
+    "gate_start":  ("gate_start", 0x11, 0, "first timestamp accepted"),
+    "gate_end":    ("gate_end", 0x12, (1 << TIMESTAMP_BITS) - 1, "last timestamp accepted"),
+    "bin_shift":   ("bin_shift", 0x13, 0, "histogram bins are 2**bin_shift codes wide"),
+    "integration": ("integration", 0x14, lambda clock_hz: round(10e-3 * clock_hz),
+                    "histogram integration time (10 ms by default)"),
+})
+
+#: Every group; the link has no settings, so it has no group.
+GROUPS = (VICTIM, AGGRESSOR, AGGRESSOR_DELAY, ACQUISITION)
+
+#: The registers, in address order.
+REGISTERS = tuple(sorted((r for group in GROUPS for r in group.members),
+                         key=lambda r: r.address))
 
 BY_NAME = {register.name: register for register in REGISTERS}
 BY_ADDRESS = {register.address: register for register in REGISTERS}
 
 assert [register.address for register in REGISTERS] == list(range(len(REGISTERS)))
+assert AcquisitionMode.HISTOGRAM.value == BY_NAME["acquisition"].reset
+assert TdcSource.SENSOR.value == BY_NAME["tdc_source"].reset
+
+
+class DelaySettings(data.StructLayout):
+    """Layout of a delay core's settings (:data:`DELAY_SETTINGS`): ``mode``, ``length``,
+    ``mask_width``, ``seed``, ``period``, ``grid``, ``pulse_width``, each as wide as its largest
+    value. It equals the layout of the register file's :data:`VICTIM` and
+    :data:`AGGRESSOR_DELAY` ports for the same widths.
+
+    Parameters
+    ----------
+    period_width, pulse_width_width : int
+        Widths of ``period`` and ``pulse_width``, in bits.
+    delays : bool
+        Without delays, ``mode`` is zero bits wide (always ``OFF``).
+    """
+
+    def __init__(self, *, period_width=PERIOD_WIDTH, pulse_width_width=PULSE_WIDTH_WIDTH,
+                 delays=True):
+        tops = {"period": (1 << period_width) - 1, "pulse_width": (1 << pulse_width_width) - 1,
+                "mode": _MODE_MAX if delays else DelayMode.OFF.value}
+        widths = {setting.name: min(setting.width,
+                                    tops.get(setting.name, setting.maximum).bit_length())
+                  for setting in DELAY_SETTINGS}
+        super().__init__({**widths, "mode": DelayMode if delays else 0})
 
 
 def settings_layout(maxima=None):
@@ -128,6 +252,28 @@ def settings_layout(maxima=None):
     maxima = maxima or {}
     return data.StructLayout({
         r.name: min(r.width, maxima.get(r.name, r.maximum).bit_length()) for r in REGISTERS})
+
+
+def register_maxima(maxima, clock_hz):
+    """Largest value of every register, by name: the register map's, lowered by ``maxima``
+    (name -> maximum). Refuses unknown names, and maxima that are not lower or would refuse
+    the register's reset value."""
+    result = {register.name: register.maximum for register in REGISTERS}
+    if maxima is None:
+        return result
+    if not isinstance(maxima, dict):
+        raise TypeError(f"Register maxima must be a dict of name -> maximum, not {maxima!r}")
+    for name, maximum in maxima.items():
+        if name not in BY_NAME:
+            raise ValueError(f"Unknown register {name!r} in the register maxima")
+        register = BY_NAME[name]
+        if (not isinstance(maximum, int) or
+                not max(register.minimum, register.reset_value(clock_hz)) <= maximum
+                <= register.maximum):
+            raise ValueError(f"Maximum of register {name} must be an integer from its reset "
+                             f"value or minimum to {register.maximum}, not {maximum!r}")
+        result[name] = maximum
+    return result
 
 
 def defaults(clock_hz):
@@ -144,30 +290,39 @@ def max_delay(mode, length, mask_width):
     return 0
 
 
+def group_values(group, values):
+    """The fields of ``group`` from ``values`` (register name -> value), fixed ones included."""
+    return {**group.fixed, **{r.field: values[r.name] for r in group.members}}
+
+
+def _delay_problems(group, values):
+    # The checks of one delay core's settings
+    v = group_values(group, values)
+    name = {r.field: r.name for r in group.members}
+    found = []
+    if v["pulse_width"] >= v["period"]:
+        found.append(f"{name['pulse_width']} ({v['pulse_width']} cycles) must be shorter than "
+                     f"{name['period']} ({v['period']} cycles)")
+    if v["grid"] and max_delay(v["mode"], v["length"], v["mask_width"]) + \
+            v["pulse_width"] >= v["period"]:
+        found.append(f"grid mode needs the largest delay plus {name['pulse_width']} to be "
+                     f"shorter than {name['period']}")
+    if v["mode"] == DelayMode.MSEQ.value and v["seed"] >> v["length"]:
+        found.append(f"{name['seed']} must be below 2**{name['length']} = "
+                     f"{1 << v['length']} for the mseq source")
+    return found
+
+
 def problems(values):
     """Inconsistencies between settings (each register already in range), as messages.
 
     The gateware refuses a write that would leave any of these.
     """
-    v = values
     found = []
-    if v["pulse_width"] >= v["period"]:
-        found.append(f"pulse_width ({v['pulse_width']} cycles) must be shorter than period "
-                     f"({v['period']} cycles)")
-    if v["grid"] and max_delay(v["delay_mode"], v["length"], v["mask_width"]) + \
-            v["pulse_width"] >= v["period"]:
-        found.append("grid mode needs the largest delay plus pulse_width to be shorter than "
-                     "period")
-    if v["delay_mode"] == DelayMode.MSEQ.value and v["seed"] >> v["length"]:
-        found.append(f"seed must be below 2**length = {1 << v['length']} for the mseq source")
-    if v["aggressor_width"] >= v["aggressor_period"]:
-        found.append(f"aggressor_width ({v['aggressor_width']} cycles) must be shorter than "
-                     f"aggressor_period ({v['aggressor_period']} cycles)")
-    if v["aggressor_delay_mode"] == DelayMode.MSEQ.value and \
-            v["aggressor_seed"] >> v["aggressor_length"]:
-        found.append(f"aggressor_seed must be below 2**aggressor_length = "
-                     f"{1 << v['aggressor_length']} for the mseq source")
-    if v["gate_start"] > v["gate_end"]:
-        found.append(f"gate_start ({v['gate_start']}) must not be after gate_end "
-                     f"({v['gate_end']})")
+    for group in GROUPS:
+        if group.settings is DELAY_SETTINGS:
+            found += _delay_problems(group, values)
+    if values["gate_start"] > values["gate_end"]:
+        found.append(f"gate_start ({values['gate_start']}) must not be after gate_end "
+                     f"({values['gate_end']})")
     return found

@@ -2,33 +2,17 @@ from amaranth.hdl import *
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from .delay import DELAY_WIDTH
+from .delay import Delay
+from .registers import DelaySettings
+from .settings import DELAY_WIDTH, PERIOD_WIDTH, PULSE_WIDTH_WIDTH, check_widths
 
 
 __all__ = ["PERIOD_WIDTH", "PULSE_WIDTH_WIDTH", "check_widths", "DELAY_ZERO", "DELAY_WIDE",
            "DELAY_NARROW", "PulseScheduler"]
 
 
-#: Width of the period setting, in bits: down to 0.02 Hz at 80 MHz.
-PERIOD_WIDTH = 32
-
-#: Width of the laser pulse width setting, in bits.
-PULSE_WIDTH_WIDTH = 16
-
-
-def check_widths(period_width, pulse_width_width):
-    """Refuse setting widths the scheduler cannot take: a period of 17 to
-    :data:`PERIOD_WIDTH` bits (its timers count in 16-bit halves), a pulse width of 1 to
-    :data:`PULSE_WIDTH_WIDTH` bits."""
-    if not isinstance(period_width, int) or not 17 <= period_width <= PERIOD_WIDTH:
-        raise ValueError(f"Period width must be an integer from 17 to {PERIOD_WIDTH} bits, "
-                         f"not {period_width!r}")
-    if not isinstance(pulse_width_width, int) or not 1 <= pulse_width_width <= PULSE_WIDTH_WIDTH:
-        raise ValueError(f"Pulse width width must be an integer from 1 to {PULSE_WIDTH_WIDTH} "
-                         f"bits, not {pulse_width_width!r}")
-
-
-#: Kinds of delay (``delay_kind``): always zero; ``delay_wide = R + 1``; ``delay_narrow = R``.
+#: Kinds of delay (:class:`~fliss.hdl.delay.Delay` ``kind``): always zero; ``wide = R + 1``;
+#: ``narrow = R``.
 DELAY_ZERO, DELAY_WIDE, DELAY_NARROW = 0, 1, 2
 
 
@@ -66,16 +50,15 @@ class PulseScheduler(wiring.Component):
         Run.
     update : In(1)
         Sample the settings while running.
-    period : In(period_width)
-        Nominal period ``T`` in clock cycles, at least 2.
-    grid : In(1)
-        ``grid`` mode when high, ``interval`` mode when low.
-    pulse_width : In(pulse_width_width)
-        Laser pulse width in clock cycles, passed on with each pulse.
-    delays : In(stream.Signature(32))
-        Delays in clock cycles, one taken per frame. The payload only gives ``fire_delay``: the
-        pulse is timed from the hints below, so the delays must come from a
-        :class:`~fliss.hdl.delay.DelaySource`.
+    settings : In(DelaySettings(period_width=..., pulse_width_width=...))
+        Of the delay core's settings, the scheduler uses ``period`` (nominal period ``T`` in
+        clock cycles, at least 2), ``grid`` (``grid`` mode when high, ``interval`` mode when
+        low) and ``pulse_width`` (laser pulse width in clock cycles, passed on with each pulse).
+    delays : In(stream.Signature(Delay, always_valid=True))
+        Delays in clock cycles, one taken per frame. The pulse is timed from the hints of the
+        payload (:class:`~fliss.hdl.delay.Delay`: the kind of delay, ``R == 0``, ``R + 1`` or
+        ``R``), so the delays must come from a :class:`~fliss.hdl.delay.DelaySource`; its
+        ``value`` only gives ``fire_delay``.
     reload : Out(1)
         Restart the delay sequence from its seed (to :class:`DelaySource` ``load``).
     running : Out(1)
@@ -88,10 +71,6 @@ class PulseScheduler(wiring.Component):
         Delay ``R`` of the pulse fired in this cycle.
     pulse_index : Out(32)
         Number of pulses fired since the start; the index of the pulse fired in this cycle.
-    delay_kind, delay_zero, delay_zero_late, delay_wide, delay_narrow : In
-        Hints from :class:`DelaySource` on the delay at ``delays.payload`` (its ports ``kind``,
-        ``zero``, ``zero_late``, ``wide``, ``narrow``), which time the pulse; ``payload`` itself
-        only gives ``fire_delay``.
 
     Takes are at least two cycles apart (``period >= 2``): the take cycle is predicted a cycle
     ahead, and the timers are split in 16-bit halves; a period below 2 is not supported.
@@ -102,27 +81,23 @@ class PulseScheduler(wiring.Component):
         self.period_width = period_width
         self.pulse_width_width = pulse_width_width
         super().__init__({
-            "enable":          In(1),
-            "update":          In(1),
-            "period":          In(period_width),
-            "grid":            In(1),
-            "pulse_width":     In(pulse_width_width),
-            "delays":          In(stream.Signature(DELAY_WIDTH)),
-            "reload":          Out(1),
-            "running":         Out(1),
-            "fire":            Out(1),
-            "fire_width":      Out(pulse_width_width),
-            "fire_delay":      Out(DELAY_WIDTH),
-            "pulse_index":     Out(32),
-            "delay_kind":      In(2),
-            "delay_zero":      In(1),
-            "delay_zero_late": In(1),
-            "delay_wide":      In(DELAY_WIDTH),
-            "delay_narrow":    In(16),
+            "enable":      In(1),
+            "update":      In(1),
+            "settings":    In(DelaySettings(period_width=period_width,
+                                            pulse_width_width=pulse_width_width)),
+            "delays":      In(stream.Signature(Delay, always_valid=True)),
+            "reload":      Out(1),
+            "running":     Out(1),
+            "fire":        Out(1),
+            "fire_width":  Out(pulse_width_width),
+            "fire_delay":  Out(DELAY_WIDTH),
+            "pulse_index": Out(32),
         })
 
     def elaborate(self, platform):
         m = Module()
+        settings = self.settings
+        delay = self.delays.payload
 
         # Settings: `pending` holds settings sampled on update, `active` those of the current frame.
         # The period is kept with the flags the frame timer needs when it loads it.
@@ -141,10 +116,10 @@ class PulseScheduler(wiring.Component):
         with m.If(sample):
             m.d.sync += [
                 pending.eq(1),
-                pending_period.eq(self.period),
-                pending_flags.eq(_Timer.flags(self.period, target=2)),
-                pending_grid.eq(self.grid),
-                pending_width.eq(self.pulse_width),
+                pending_period.eq(settings.period),
+                pending_flags.eq(_Timer.flags(settings.period, target=2)),
+                pending_grid.eq(settings.grid),
+                pending_width.eq(settings.pulse_width),
             ]
         m.d.comb += self.reload.eq(sample)
 
@@ -160,7 +135,7 @@ class PulseScheduler(wiring.Component):
                 active_flags.eq(Mux(pending, pending_flags, active_flags)),
                 active_grid.eq(Mux(pending, pending_grid, active_grid)),
                 active_width.eq(Mux(pending, pending_width, active_width)),
-                self.fire_delay.eq(self.delays.payload),
+                self.fire_delay.eq(delay.value),
             ]
             with m.If(~self.update):
                 m.d.sync += pending.eq(0)
@@ -172,27 +147,27 @@ class PulseScheduler(wiring.Component):
         armed = Signal()    # the pulse of this frame has not fired yet
         due = Signal()      # the pulse of this frame is due in this cycle, from the timers
         pulse = Signal()    # the pulse of this frame fires in this cycle (unless stopped)
-        kind = Signal(2)    # `delay_kind` of this frame
+        kind = Signal(2)    # `kind` of this frame's delay
         narrow = Signal(16)
         m.submodules.wide = wide = _Timer(DELAY_WIDTH, target=1)
         m.d.comb += [
             wide.load.eq(take),
             wide.clear.eq(pulse),
-            wide.value.eq(self.delay_wide),
-            wide.value_flags.eq(_Timer.flags(self.delay_wide, target=1)),
+            wide.value.eq(delay.wide),
+            wide.value_flags.eq(_Timer.flags(delay.wide, target=1)),
         ]
         with m.If(take):
             m.d.sync += [
-                kind.eq(self.delay_kind),
-                narrow.eq(self.delay_narrow),
+                kind.eq(delay.kind),
+                narrow.eq(delay.narrow),
             ]
         with m.Else():
             m.d.sync += narrow.eq(narrow - 1)
         counted = Mux(kind == DELAY_WIDE, wide.done_next, narrow == 1)
-        m.d.comb += pulse.eq(due | self.delay_zero_late)
+        m.d.comb += pulse.eq(due | delay.zero_late)
         m.d.sync += [
-            due.eq(Mux(take, self.delay_zero, armed & counted)),
-            armed.eq(Mux(take, ~self.delay_zero, armed & ~pulse)),
+            due.eq(Mux(take, delay.zero, armed & counted)),
+            armed.eq(Mux(take, ~delay.zero, armed & ~pulse)),
         ]
 
         # Frame timer: the next take cycle is `T` cycles after the take cycle (`grid`), or

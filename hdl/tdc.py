@@ -13,7 +13,7 @@ from .event import Event, TIMESTAMP_BITS, ADDRESS_BITS, PULSE_BITS
 
 __all__ = ["SYNC_STAGES", "COUNTER_WIDTH", "CAPTURE_LATENCY", "FILTER_LATENCY", "OUTPUT_LATENCY",
            "MAX_TIMESTAMP",
-           "count_event", "EventFilter", "CaptureSignature", "TdcInterface", "CoarseTdc"]
+           "count_event", "Capture", "EventFilter", "TdcInterface", "CoarseTdc"]
 
 
 #: Flip-flops of the input synchronisers.
@@ -59,13 +59,25 @@ def _synchronised_rise(m, pin, name):
     return rise
 
 
+class Capture(data.Struct):
+    """A raw capture of :class:`TdcInterface` or :class:`CoarseTdc`, for an
+    :class:`EventFilter`: ``valid`` strobes for one cycle with the event, whether its timestamp
+    overflowed, and whether acquisition was enabled. Both blocks give captures in this one
+    layout, so one filter can serve either (a multiplexer on the struct selects one)."""
+    valid:    1
+    event:    Event
+    overflow: 1
+    enabled:  1
+
+
 class EventFilter(wiring.Component):
     """Event gate and output register, with drop counters.
 
-    An event presented with ``capture`` is, in this order of precedence, dropped and counted in
+    An event presented with ``captures.valid`` is, in this order of precedence, dropped and
+    counted in
 
-    * ``dropped_stopped`` if ``enable`` is low (acquisition stopped);
-    * ``dropped_overflow`` if ``overflow`` is high (timestamp beyond 13 bits);
+    * ``dropped_stopped`` if ``captures.enabled`` is low (acquisition stopped);
+    * ``dropped_overflow`` if ``captures.overflow`` is high (timestamp beyond 13 bits);
     * ``dropped_gate`` if its timestamp is outside ``gate_start … gate_end`` (inclusive);
     * ``dropped_overrun`` if the previous event still waits on ``events``;
 
@@ -77,14 +89,9 @@ class EventFilter(wiring.Component):
 
     Members
     -------
-    capture : In(1)
-        An event is on ``event`` in this cycle.
-    event : In(Event)
-        The event.
-    overflow : In(1)
-        The event's timestamp overflowed.
-    enable : In(1)
-        Acquisition is running.
+    captures : In(Capture)
+        An event (``valid``: in this cycle), whether its timestamp overflowed, and whether
+        acquisition is running.
     gate_start, gate_end : In(13)
         Gate in timestamp codes, inclusive; by default ``0 … 8191`` (all codes).
     clear : In(1)
@@ -98,10 +105,7 @@ class EventFilter(wiring.Component):
         is full), for counters elsewhere.
     """
 
-    capture:          In(1)
-    event:            In(Event)
-    overflow:         In(1)
-    enable:           In(1)
+    captures:         In(Capture)
     gate_start:       In(TIMESTAMP_BITS)
     gate_end:         In(TIMESTAMP_BITS, init=MAX_TIMESTAMP)
     clear:            In(1)
@@ -119,17 +123,17 @@ class EventFilter(wiring.Component):
         m = Module()
 
         # Stage 1: classification, registered
-        timestamp = self.event.timestamp
+        timestamp = self.captures.event.timestamp
         captured = Signal()
         event = Signal(Event)
         stopped = Signal()
         overflow = Signal()
         outside = Signal()
         m.d.sync += [
-            captured.eq(self.capture),
-            event.eq(self.event),
-            stopped.eq(~self.enable),
-            overflow.eq(self.overflow),
+            captured.eq(self.captures.valid),
+            event.eq(self.captures.event),
+            stopped.eq(~self.captures.enabled),
+            overflow.eq(self.captures.overflow),
             outside.eq((timestamp < self.gate_start) | (timestamp > self.gate_end)),
         ]
 
@@ -177,20 +181,9 @@ def _filter_ports(component, event_filter):
     ]
 
 
-#: Raw captures of a capture block built with ``filtered=False``, for an :class:`EventFilter`
-#: outside it (one filter can then serve several blocks): ``valid`` strobes for one cycle with
-#: the event, whether its timestamp overflowed, and whether acquisition was enabled.
-CaptureSignature = wiring.Signature({
-    "valid":    Out(1),
-    "event":    Out(Event),
-    "overflow": Out(1),
-    "enabled":  Out(1),
-})
-
-
 def _capture_members(filtered, members):
     """The ports of a capture block: ``members`` and either those of its :class:`EventFilter`
-    (``filtered``) or a ``captures`` port of :data:`CaptureSignature`."""
+    (``filtered``) or a ``captures`` port of :class:`Capture`."""
     members = dict(members)
     if filtered:
         members.update({
@@ -205,29 +198,24 @@ def _capture_members(filtered, members):
             "dropped_overrun":  Out(COUNTER_WIDTH),
         })
     else:
-        members["captures"] = Out(CaptureSignature)
+        members["captures"] = Out(Capture)
     return members
 
 
 def _filter_or_forward(m, component, capture, event, overflow, enabled):
     """The filter of a capture block, or its raw captures on ``captures``."""
+    captures = Signal(Capture)
+    fields = {"valid": capture, "event": event, "overflow": overflow, "enabled": enabled}
+    m.d.comb += [captures[name].eq(value) for name, value in fields.items()]
     if component.filtered:
         m.submodules.filter = event_filter = EventFilter()
         m.d.comb += [
-            event_filter.capture.eq(capture),
-            event_filter.event.eq(event),
-            event_filter.overflow.eq(overflow),
-            event_filter.enable.eq(enabled),
+            event_filter.captures.eq(captures),
             *_filter_ports(component, event_filter),
         ]
         wiring.connect(m, wiring.flipped(component.events), event_filter.events)
     else:
-        m.d.comb += [
-            component.captures.valid.eq(capture),
-            component.captures.event.eq(event),
-            component.captures.overflow.eq(overflow),
-            component.captures.enabled.eq(enabled),
-        ]
+        m.d.comb += component.captures.eq(captures)
 
 
 class TdcInterface(wiring.Component):
@@ -279,7 +267,7 @@ class TdcInterface(wiring.Component):
         Accepted events.
     accepted, dropped_stopped, dropped_overflow, dropped_gate, dropped_overrun : Out(32)
         Event counters (:class:`EventFilter`); ``dropped_overflow`` stays zero here.
-    captures : Out(CaptureSignature)
+    captures : Out(Capture)
         Only with ``filtered=False``: what would go into the filter, in the cycle it would
         (``overflow`` is always low here).
     """
@@ -352,7 +340,7 @@ class CoarseTdc(wiring.Component):
         As in :class:`TdcInterface`.
     accepted, dropped_stopped, dropped_overflow, dropped_gate, dropped_overrun : Out(32)
         Event counters (:class:`EventFilter`).
-    captures : Out(CaptureSignature)
+    captures : Out(Capture)
         Only with ``filtered=False``, as in :class:`TdcInterface`.
     """
 

@@ -13,9 +13,9 @@ from .framing import FrameDecoder, FrameEncoder
 from .histogram import Histogram, RAM_KINDS
 from .packetizer import EventPacketizer, HistogramPacketizer
 from .rawfifo import RawFifo
-from .scheduler import PERIOD_WIDTH, PULSE_WIDTH_WIDTH, check_widths
+from .registers import VICTIM, AGGRESSOR, AGGRESSOR_DELAY, AcquisitionMode, TdcSource
+from .settings import PERIOD_WIDTH, PULSE_WIDTH_WIDTH, check_widths
 from .status import StatusCounters, LINK_FIELDS
-from .registers import REGISTERS, AcquisitionMode, TdcSource
 from .tdc import EventFilter, TdcInterface, CoarseTdc
 from .uart import UartRx, UartTx, bit_cycles
 
@@ -131,23 +131,20 @@ class FlissTop(wiring.Component):
     def register_maxima(self):
         """Register maxima lowered for this build (see :class:`CommandProcessor`)."""
         maxima = {}
-        for name in ("period", "aggressor_period"):
+        for group in (VICTIM, AGGRESSOR_DELAY):
             if self.period_width < PERIOD_WIDTH:
-                maxima[name] = (1 << self.period_width) - 1
-        for name in ("pulse_width", "aggressor_width"):
+                maxima[group.register("period").name] = (1 << self.period_width) - 1
             if self.pulse_width_width < PULSE_WIDTH_WIDTH:
-                maxima[name] = (1 << self.pulse_width_width) - 1
+                maxima[group.register("pulse_width").name] = (1 << self.pulse_width_width) - 1
         if not self.aggressor:
             # Its registers stay, for hosts that write a range of registers across them, but
             # only as wide as their reset values need.
-            for register in REGISTERS:
-                if register.name.startswith("aggressor"):
-                    least = max(register.minimum, register.reset_value(self.clock_hz))
-                    maxima[register.name] = min(register.maximum,
-                                                (1 << least.bit_length()) - 1)
-            maxima["aggressor"] = 0
+            for register in AGGRESSOR.members + AGGRESSOR_DELAY.members:
+                least = max(register.minimum, register.reset_value(self.clock_hz))
+                maxima[register.name] = min(register.maximum, (1 << least.bit_length()) - 1)
+            maxima[AGGRESSOR.register("enable").name] = 0
         if not self.aggressor_delays:
-            maxima["aggressor_delay_mode"] = 0
+            maxima[AGGRESSOR_DELAY.register("mode").name] = 0
         if not self.raw_events:
             maxima["acquisition"] = AcquisitionMode.HISTOGRAM.value
         return maxima
@@ -180,7 +177,8 @@ class FlissTop(wiring.Component):
         wiring.connect(m, encoder.o, tx_buffer.i)
         wiring.connect(m, tx_buffer.o, uart_tx.i)
 
-        settings = command.settings
+        registers = command.registers
+        acquisition = registers.acquisition
         running = command.running
         m.d.comb += self.running.eq(running)
 
@@ -191,42 +189,30 @@ class FlissTop(wiring.Component):
         m.d.comb += [
             core.enable.eq(running),
             core.update.eq(command.update),
-            core.mode.eq(settings.delay_mode),
-            core.length.eq(settings.length),
-            core.mask_width.eq(settings.mask_width),
-            core.seed.eq(settings.seed),
-            core.period.eq(settings.period),
-            core.grid.eq(settings.grid),
-            core.pulse_width.eq(settings.pulse_width),
+            core.settings.eq(registers.victim),
             self.laser.eq(core.laser),
             self.tdc_start.eq(core.tdc_start),
         ]
 
         # Aggressor
         if self.aggressor:
-            m.submodules.aggressor = aggressor = Aggressor(delay_source=self.aggressor_delays)
+            m.submodules.aggressor = aggressor = Aggressor(
+                delay_source=self.aggressor_delays, period_width=self.period_width,
+                pulse_width_width=self.pulse_width_width)
             m.d.comb += [
-                aggressor.enable.eq(running & settings.aggressor),
+                aggressor.enable.eq(running & registers.aggressor.enable),
                 aggressor.update.eq(command.update),
-                aggressor.offset.eq(settings.aggressor_offset),
-                aggressor.period.eq(settings.aggressor_period),
-                aggressor.pulse_width.eq(settings.aggressor_width),
+                aggressor.offset.eq(registers.aggressor.offset),
+                aggressor.settings.eq(registers.aggressor_delay),
                 self.aggressor_laser.eq(aggressor.laser),
             ]
-            if self.aggressor_delays:
-                m.d.comb += [
-                    aggressor.mode.eq(settings.aggressor_delay_mode),
-                    aggressor.length.eq(settings.aggressor_length),
-                    aggressor.mask_width.eq(settings.aggressor_mask_width),
-                    aggressor.seed.eq(settings.aggressor_seed),
-                ]
 
         # Events: the sensor bus or the built-in coarse TDC, tagged with the laser cycle index;
         # one event filter (gate, counters) serves the selected one.
         m.submodules.sensor = sensor = TdcInterface(filtered=False)
         m.submodules.coarse = coarse = CoarseTdc(filtered=False)
         m.submodules.event_filter = event_filter = EventFilter()
-        coarse_selected = settings.tdc_source == TdcSource.COARSE
+        coarse_selected = acquisition.tdc_source == TdcSource.COARSE
         for tdc in (sensor, coarse):
             m.d.comb += tdc.enable.eq(running)
             if self.raw_events:     # (histograms need no pulse index: leave it out)
@@ -239,29 +225,23 @@ class FlissTop(wiring.Component):
             coarse.pin_hit.eq(self.photon_hit),
             coarse.tdc_start.eq(core.tdc_start),
         ]
-        def pick(name):
-            return Mux(coarse_selected, getattr(coarse.captures, name),
-                       getattr(sensor.captures, name))
         m.d.comb += [
-            event_filter.capture.eq(pick("valid")),
-            event_filter.event.eq(pick("event")),
-            event_filter.overflow.eq(pick("overflow")),
-            event_filter.enable.eq(pick("enabled")),
-            event_filter.gate_start.eq(settings.gate_start),
-            event_filter.gate_end.eq(settings.gate_end),
+            event_filter.captures.eq(Mux(coarse_selected, coarse.captures, sensor.captures)),
+            event_filter.gate_start.eq(acquisition.gate_start),
+            event_filter.gate_end.eq(acquisition.gate_end),
             event_filter.events.ready.eq(1),
         ]
         events = event_filter.events.payload
         events_valid = event_filter.events.valid
 
         # Histogram mode
-        raw_mode = settings.acquisition == AcquisitionMode.RAW
+        raw_mode = acquisition.mode == AcquisitionMode.RAW
         m.submodules.histogram = histogram = Histogram(ram=self.histogram_ram)
         m.submodules.histogram_packets = histogram_packets = HistogramPacketizer()
         m.d.comb += [
             histogram.enable.eq(running & ~raw_mode),
-            histogram.integration.eq(settings.integration),
-            histogram.shift.eq(settings.bin_shift),
+            histogram.integration.eq(acquisition.integration),
+            histogram.shift.eq(acquisition.bin_shift),
             histogram.events.valid.eq(events_valid & ~raw_mode),
             histogram.events.payload.eq(events),
             histogram_packets.shift.eq(histogram.readout_shift),

@@ -2,8 +2,7 @@
 
 import numpy as np
 
-from ..hdl.delay import DelayMode, MAX_MASK_WIDTH, MASKED_LENGTH, MASKED_STEPS
-from ..hdl.lfsr import MAX_LENGTH
+from ..hdl.settings import DelayMode, MAX_LENGTH, MAX_MASK_WIDTH, MASKED_LENGTH, MASKED_STEPS
 from . import lfsr
 
 

@@ -12,7 +12,7 @@ from fractions import Fraction
 import numpy as np
 
 from ..hdl.laser import LATENCY
-from ..hdl.scheduler import PERIOD_WIDTH, PULSE_WIDTH_WIDTH
+from ..hdl.settings import PERIOD_WIDTH, PULSE_WIDTH_WIDTH
 from . import delay as _delay
 
 

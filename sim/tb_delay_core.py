@@ -14,7 +14,8 @@ from cocotb.simtime import get_sim_time
 from cocotb.triggers import ClockCycles, FallingEdge, ReadOnly, RisingEdge
 
 from ..hdl import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, period_cycles
-from ..hdl.delay import DelayMode
+from ..hdl.settings import DelayMode
+from ..hdl.registers import DelaySettings
 from .scheduler import LATENCY, Settings, simulate
 
 
@@ -54,14 +55,9 @@ class DelayCoreTB:
             task.cancel()
 
     def drive(self, settings):
-        dut = self.dut
-        dut.mode.value = int(settings.mode.value)
-        dut.length.value = settings.length
-        dut.mask_width.value = settings.mask_width
-        dut.seed.value = settings.seed
-        dut.period.value = settings.period
-        dut.grid.value = int(settings.grid)
-        dut.pulse_width.value = settings.pulse_width
+        # (one vector: the port is a DelaySettings struct)
+        self.dut.settings.value = DelaySettings().const(
+            {name: getattr(settings, name) for name, _ in DelaySettings()}).as_value().value
 
     async def edge(self):
         """Wait for the next rising clock edge; return its number."""

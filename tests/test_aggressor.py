@@ -6,27 +6,26 @@ import warnings
 import numpy as np
 import pytest
 from amaranth.hdl import Module, Elaboratable, UnusedElaboratable
-from amaranth.sim import Simulator
 
-from fliss.hdl import DEFAULT_CLOCK_HZ
 from fliss.hdl.aggressor import Aggressor
 from fliss.hdl.core import DelayCore
 from fliss.hdl.delay import DelayMode
 from fliss.sim import aggressor as model
 from fliss.sim.scheduler import Settings
+from simulation import simulate
 
 
 def apply(ctx, dut, settings, offset=None):
     if offset is not None:
         ctx.set(dut.offset, offset)
-    ctx.set(dut.period, settings.period)
-    ctx.set(dut.grid, int(settings.grid))
-    ctx.set(dut.pulse_width, settings.pulse_width)
+    ctx.set(dut.settings.period, settings.period)
+    ctx.set(dut.settings.grid, int(settings.grid))
+    ctx.set(dut.settings.pulse_width, settings.pulse_width)
     if dut.delay_source:
-        ctx.set(dut.mode, settings.mode)
-        ctx.set(dut.length, settings.length)
-        ctx.set(dut.mask_width, settings.mask_width)
-        ctx.set(dut.seed, settings.seed)
+        ctx.set(dut.settings.mode, settings.mode)
+        ctx.set(dut.settings.length, settings.length)
+        ctx.set(dut.settings.mask_width, settings.mask_width)
+        ctx.set(dut.settings.seed, settings.seed)
 
 
 def record(dut, cycles, script):
@@ -40,10 +39,7 @@ def record(dut, cycles, script):
             _, _, f, l = await ctx.tick().sample(dut.fire, dut.laser)
             fire[cycle], laser[cycle] = f, l
 
-    sim = Simulator(dut)
-    sim.add_clock(1 / DEFAULT_CLOCK_HZ)
-    sim.add_testbench(testbench)
-    sim.run()
+    simulate(dut, testbench)
     return fire, laser
 
 
@@ -134,8 +130,8 @@ def test_paper_bench_offset():
 
     async def testbench(ctx):
         for dut in (victim, aggressor):
-            ctx.set(dut.period, 80)
-            ctx.set(dut.pulse_width, 2)
+            ctx.set(dut.settings.period, 80)
+            ctx.set(dut.settings.pulse_width, 2)
         ctx.set(aggressor.offset, offset)
         await ctx.tick()
         ctx.set(victim.enable, 1)           # in cycle 1, as a register file would
@@ -148,10 +144,7 @@ def test_paper_bench_offset():
                     rises[name].append(cycle)
                 last[name] = value
 
-    sim = Simulator(bench)
-    sim.add_clock(1 / DEFAULT_CLOCK_HZ)
-    sim.add_testbench(testbench)
-    sim.run()
+    simulate(bench, testbench)
     victim_rises = np.array(rises["victim"])
     aggressor_rises = np.array(rises["aggressor"])
     # enable in cycle 1: first take in 2, fire in 3, laser up in 4 (loop cycle 3)

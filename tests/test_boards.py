@@ -1,4 +1,4 @@
-"""Board support: PLL settings, pin maps, the stand-in design, and (slow) real bitstream builds.
+"""Board support: PLL settings, pin maps, the board top level, and (slow) real bitstream builds.
 
 The builds run only with ``FLISS_BUILD_BOARDS=1``: they need the ``boards`` extra and take about a
 minute per board (several more the first time, while YoWASP compiles the tools).
@@ -14,10 +14,8 @@ from amaranth.hdl import *
 from amaranth.hdl import UnusedElaboratable
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
-from amaranth.sim import Simulator
 
-from fliss.boards import BOARDS, FLISS_PINS, BoardTop, DelayCoreDemo, DemoSettings, platform_class
-from fliss.hdl.delay import DelayMode
+from fliss.boards import BOARDS, FLISS_PINS, BoardTop, platform_class
 
 
 BUILD_BOARDS = os.environ.get("FLISS_BUILD_BOARDS") == "1"
@@ -185,56 +183,6 @@ def test_board_top_rejects_non_component():
     with _unused_elaboratables():
         with pytest.raises(TypeError, match=r"^Design factory must return a wiring.Component"):
             platform.prepare(BoardTop(lambda clock_hz: Module()), name="bad")
-
-
-# The stand-in design: settings written over the UART change the laser period
-
-def test_demo_uart_settings():
-    clock_hz, baud = 8_000_000, 1_000_000
-    dut = DelayCoreDemo(clock_hz, baud=baud)
-    bit_cycles = clock_hz // baud
-    settings = DemoSettings.const({**dut.defaults(), "mode": DelayMode.OFF, "period": 13,
-                                   "pulse_width": 2}).as_value().value
-    chunks = [(settings >> (7 * i)) & 0x7f for i in reversed(range(14))]
-    edges = []
-
-    async def send(ctx, byte):
-        for bit in [0] + [(byte >> i) & 1 for i in range(8)] + [1]:
-            ctx.set(dut.uart_rx, bit)
-            await ctx.tick().repeat(bit_cycles)
-
-    async def uart(ctx):
-        await ctx.tick().repeat(10)
-        for chunk in chunks:
-            await send(ctx, chunk)
-        await send(ctx, 0x80 | 0b11)  # enable, update
-
-    async def monitor(ctx):
-        last = 0
-        cycle = 0
-        async for clk_edge, rst, laser in ctx.tick().sample(dut.laser):
-            if laser and not last:
-                edges.append(cycle)
-            last = laser
-            cycle += 1
-
-    sim = Simulator(dut)
-    sim.add_clock(1 / clock_hz)
-    sim.add_testbench(uart)
-    sim.add_process(monitor)
-    sim.run_until(200 * bit_cycles * 10 / clock_hz)
-    gaps = [b - a for a, b in zip(edges, edges[1:])]
-    assert len(gaps) > 20
-    # Default m-sequence delays at first (gaps of at least 8 cycles), then a fixed 13 cycles
-    assert gaps[:3] != [13, 13, 13]
-    assert gaps[-10:] == [13] * 10
-
-
-def test_demo_bad_baud():
-    with _unused_elaboratables():
-        with pytest.raises(ValueError, match=r"^Baud rate must be an integer from 1 to a quarter "
-                                             r"of the clock, not 5000000$"):
-            DelayCoreDemo(8_000_000, baud=5_000_000)
 
 
 # Real builds

@@ -3,9 +3,12 @@
 from pathlib import Path
 
 import pytest
+from amaranth.hdl import Module
+from amaranth.lib import stream, wiring
+from amaranth.lib.wiring import In, Out
 
 from fliss.hdl.core import DelayCore
-from fliss.hdl.delay import DelaySource
+from fliss.hdl.delay import Delay, DelaySource
 from fliss.sim.cocotb_runner import run_cocotb, write_verilog
 
 
@@ -26,9 +29,35 @@ def test_delay_core(simulator, delay_core_verilog, cocotb_counts):
     assert passed >= 20
 
 
+class _DelaySourcePorts(wiring.Component):
+    """:class:`DelaySource` with ``delays.valid`` as a signal (always high): its stream is
+    ``always_valid``, whose ``valid`` is a constant, and a Verilog port must be a signal."""
+
+    def __init__(self):
+        self.source = DelaySource()
+        super().__init__({
+            "settings": In(self.source.settings.shape()),
+            "load":     In(1),
+            "delays":   Out(stream.Signature(Delay)),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        m.submodules.source = source = self.source
+        m.d.comb += [
+            source.settings.eq(self.settings),
+            source.load.eq(self.load),
+            source.delays.ready.eq(self.delays.ready),
+            self.delays.valid.eq(source.delays.valid),
+            self.delays.payload.eq(source.delays.payload),
+        ]
+        return m
+
+
 @pytest.fixture(scope="module")
 def delay_source_verilog():
-    return write_verilog(DelaySource(), "delay_source", BUILD / "delay_source" / "delay_source.v")
+    return write_verilog(_DelaySourcePorts(), "delay_source",
+                         BUILD / "delay_source" / "delay_source.v")
 
 
 def test_delay_source(simulator, delay_source_verilog, cocotb_counts):

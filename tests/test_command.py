@@ -5,12 +5,12 @@ import struct
 
 import pytest
 from amaranth.hdl import ResetInserter, Signal
-from amaranth.sim import Simulator
 
 from fliss.hdl.command import CommandProcessor, STATUS_FIELDS
 from fliss.hdl.protocol import PacketType, NakCode
 from fliss.hdl.registers import REGISTERS, BY_NAME, defaults, problems
 from fliss.sim.command import CommandModel
+from simulation import simulate
 
 
 CLOCK_HZ, BAUD = 80_000_000, 3_000_000
@@ -86,15 +86,11 @@ def run_commands(packets, *, link_errors=(), status=None, maxima=None, reset_bef
                 if beat.last:
                     assert len(current[2]) == current[1]
                     replies.append((current[0], bytes(current[2])))
-                    settings.append({r.name: ctx.get(dut.settings[r.name]) for r in REGISTERS})
+                    settings.append({r.name: ctx.get(dut.registers.settings[r.name]) for r in REGISTERS})
             await ctx.tick()
 
-    sim = Simulator(ResetInserter({"sync": reset})(dut))
-    sim.add_clock(1 / CLOCK_HZ)
-    sim.add_testbench(sender)
-    sim.add_testbench(receiver, background=True)
-    sim.add_testbench(status_port, background=True)
-    sim.run()
+    simulate(ResetInserter({"sync": reset})(dut), sender, background=[receiver, status_port],
+             clock_hz=CLOCK_HZ)
     return replies, settings, updates
 
 

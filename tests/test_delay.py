@@ -4,11 +4,11 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
-from amaranth.sim import Simulator
 
 from fliss.hdl.delay import DelayMode, DelaySource
 from fliss.sim import delay as model
 from fliss.sim.scheduler import effective_prf, fire_cycles, measured_prf
+from simulation import simulate
 
 
 #: Paper, Table 2: effective PRF at 80 MHz, 1 MHz nominal, complete m-sequences (Hz, as printed).
@@ -110,10 +110,10 @@ def test_gateware_against_model():
     async def testbench(ctx):
         rng = np.random.default_rng(7)
         for mode, settings in cases:
-            ctx.set(dut.mode, mode)
-            ctx.set(dut.length, settings.get("length", 2))
-            ctx.set(dut.mask_width, settings.get("mask_width", 1))
-            ctx.set(dut.seed, settings["seed"])
+            ctx.set(dut.settings.mode, mode)
+            ctx.set(dut.settings.length, settings.get("length", 2))
+            ctx.set(dut.settings.mask_width, settings.get("mask_width", 1))
+            ctx.set(dut.settings.seed, settings["seed"])
             ctx.set(dut.load, 1)
             await ctx.tick()
             ctx.set(dut.load, 0)
@@ -122,16 +122,13 @@ def test_gateware_against_model():
             while index < 500:
                 ready = bool(rng.integers(0, 3))
                 ctx.set(dut.delays.ready, ready)
-                if not ctx.get(dut.delays.valid) or ctx.get(dut.delays.payload) != expected[index]:
+                if not ctx.get(dut.delays.valid) or ctx.get(dut.delays.payload.value) != expected[index]:
                     errors.append((mode, settings, index))
                 await ctx.tick()
                 index += ready
             ctx.set(dut.delays.ready, 0)
 
-    sim = Simulator(dut)
-    sim.add_clock(1e-8)
-    sim.add_testbench(testbench)
-    sim.run()
+    simulate(dut, testbench, clock_hz=100e6)
     assert errors == []
 
 
@@ -158,10 +155,10 @@ def test_scheduler_hints_against_model():
     async def testbench(ctx):
         rng = np.random.default_rng(3)
         for mode, length, width, seed in cases * 3:
-            ctx.set(dut.mode, mode)
-            ctx.set(dut.length, length)
-            ctx.set(dut.mask_width, width)
-            ctx.set(dut.seed, seed)
+            ctx.set(dut.settings.mode, mode)
+            ctx.set(dut.settings.length, length)
+            ctx.set(dut.settings.mask_width, width)
+            ctx.set(dut.settings.seed, seed)
             ctx.set(dut.load, 1)
             await ctx.tick()
             ctx.set(dut.load, 0)
@@ -170,21 +167,21 @@ def test_scheduler_hints_against_model():
             while index < 60:
                 ready = bool(rng.integers(0, 2)) and late is None or fresh and index == 0 and \
                     bool(rng.integers(0, 2))
-                if ctx.get(dut.delays.payload) != delays[index]:
+                if ctx.get(dut.delays.payload.value) != delays[index]:
                     errors.append(("payload", mode, seed, index))
                 if late is not None:
                     checked[1] += 1
-                    if ctx.get(dut.zero_late) != (late == 0):
+                    if ctx.get(dut.delays.payload.zero_late) != (late == 0):
                         errors.append(("zero_late", mode, seed, index))
                     late = None
                 elif ready and not fresh:
                     checked[0] += 1
-                    if ctx.get(dut.zero) != (delays[index] == 0):
+                    if ctx.get(dut.delays.payload.zero) != (delays[index] == 0):
                         errors.append(("zero", mode, seed, index))
                 if ready:
                     if fresh:
                         late = delays[index]
-                    elif ctx.get(dut.zero_late):
+                    elif ctx.get(dut.delays.payload.zero_late):
                         errors.append(("zero_late high", mode, seed, index))
                 ctx.set(dut.delays.ready, ready)
                 await ctx.tick()
@@ -196,9 +193,6 @@ def test_scheduler_hints_against_model():
                         await ctx.tick()
                 fresh = False
 
-    sim = Simulator(dut)
-    sim.add_clock(1e-8)
-    sim.add_testbench(testbench)
-    sim.run()
+    simulate(dut, testbench, clock_hz=100e6)
     assert errors == []
     assert checked[0] > 200 and checked[1] > 3

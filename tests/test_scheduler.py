@@ -4,13 +4,13 @@ import random
 
 import numpy as np
 import pytest
-from amaranth.sim import Simulator
 
 from fliss.hdl import period_cycles
 from fliss.hdl.core import DelayCore
 from fliss.hdl.delay import DelayMode
 from fliss.hdl.laser import LaserTrigger
 from fliss.sim.scheduler import (LATENCY, Settings, check_schedule, fire_cycles, simulate)
+from simulation import simulate as run_simulation
 
 
 FIELDS = ("mode", "length", "mask_width", "seed", "period", "grid", "pulse_width")
@@ -28,7 +28,7 @@ def run_core(settings, cycles, *, updates=(), enable=1, disable=None, reset=None
 
     async def testbench(ctx):
         for name in FIELDS:
-            ctx.set(getattr(dut, name), getattr(settings, name))
+            ctx.set(dut.settings[name], getattr(settings, name))
         width = {}
         for cycle in range(cycles):
             if callable(enable):
@@ -39,20 +39,17 @@ def run_core(settings, cycles, *, updates=(), enable=1, disable=None, reset=None
             for at, presented in present:
                 if cycle == at:
                     for name in FIELDS:
-                        ctx.set(getattr(dut, name), getattr(presented, name))
+                        ctx.set(dut.settings[name], getattr(presented, name))
             if cycle in updates:
                 for name in FIELDS:
-                    ctx.set(getattr(dut, name), getattr(updates[cycle], name))
+                    ctx.set(dut.settings[name], getattr(updates[cycle], name))
             if ctx.get(dut.fire):
                 pulses.append((cycle, ctx.get(dut.fire_delay), None, ctx.get(dut.pulse_index)))
             laser.append(ctx.get(dut.laser))
             starts.append(ctx.get(dut.tdc_start))
             await ctx.tick()
 
-    sim = Simulator(dut)
-    sim.add_clock(1 / 80e6)
-    sim.add_testbench(testbench)
-    sim.run()
+    run_simulation(dut, testbench, clock_hz=80e6)
     return pulses, np.array(laser), np.array(starts)
 
 
@@ -221,10 +218,7 @@ def test_laser_trigger_width_and_tdc_start():
             trace.append((ctx.get(dut.laser), ctx.get(dut.tdc_start)))
             await ctx.tick()
 
-    sim = Simulator(dut)
-    sim.add_clock(1e-8)
-    sim.add_testbench(testbench)
-    sim.run()
+    run_simulation(dut, testbench, clock_hz=100e6)
     laser = np.array([l for l, _ in trace])
     starts = [c for c, (_, s) in enumerate(trace) if s]
     assert laser_pulses(laser) == [(3, 1), (11, 5), (21, 1), (31, 3)]  # width 0 acts as 1

@@ -5,14 +5,13 @@ import pytest
 from amaranth.hdl import Module
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
-from amaranth.sim import Simulator
 
-from fliss.hdl import DEFAULT_CLOCK_HZ
 from fliss.hdl.event import Event
 from fliss.hdl.tdc import (EventFilter, TdcInterface, CoarseTdc, SYNC_STAGES, CAPTURE_LATENCY,
                            OUTPUT_LATENCY, MAX_TIMESTAMP, COUNTER_WIDTH)
 from fliss.sim import tdc as model
 from fliss.sim.event import EVENT_DTYPE, unpack
+from simulation import simulate
 
 
 class FilterOutside(wiring.Component):
@@ -40,10 +39,7 @@ class FilterOutside(wiring.Component):
             if name != "captures":
                 m.d.comb += getattr(self.block, name).eq(getattr(self, name))
         m.d.comb += [
-            event_filter.capture.eq(self.block.captures.valid),
-            event_filter.event.eq(self.block.captures.event),
-            event_filter.overflow.eq(self.block.captures.overflow),
-            event_filter.enable.eq(self.block.captures.enabled),
+            event_filter.captures.eq(self.block.captures),
             event_filter.gate_start.eq(self.gate_start),
             event_filter.gate_end.eq(self.gate_end),
             event_filter.clear.eq(self.clear),
@@ -104,10 +100,7 @@ def run(dut, cycles, drive, ready):
         for name in model.COUNTERS:
             counters[name] = ctx.get(getattr(dut, name))
 
-    sim = Simulator(dut)
-    sim.add_clock(1 / DEFAULT_CLOCK_HZ)
-    sim.add_testbench(testbench)
-    sim.run()
+    simulate(dut, testbench)
     cycles_out = np.array([c for c, _ in transfers], dtype=np.int64)
     events_out = unpack([p for _, p in transfers]) if transfers else np.zeros(0, EVENT_DTYPE)
     return cycles_out, events_out, counters
@@ -239,10 +232,7 @@ def test_pulse_index_before_first_pulse():
             if valid:
                 got.append((cycle, pulse))
 
-    sim = Simulator(dut)
-    sim.add_clock(1 / DEFAULT_CLOCK_HZ)
-    sim.add_testbench(testbench)
-    sim.run()
+    simulate(dut, testbench)
     assert got == [(OUTPUT_LATENCY, (1 << 32) - 1), (10 + OUTPUT_LATENCY, 0)]
 
 
@@ -270,10 +260,7 @@ def test_coarse_timestamp_by_hand():
                 got.append((cycle, ts))
         assert ctx.get(dut.dropped_overflow) == 1
 
-    sim = Simulator(dut)
-    sim.add_clock(1 / DEFAULT_CLOCK_HZ)
-    sim.add_testbench(testbench)
-    sim.run()
+    simulate(dut, testbench)
     # hits in 9 and 10 merge into one rising edge at 9 (overflow); then 14 and 40
     assert got == [(14 + OUTPUT_LATENCY, 4), (40 + OUTPUT_LATENCY, 30)]
 

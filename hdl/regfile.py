@@ -1,0 +1,240 @@
+"""Register file: the settings, their range and consistency checks, and the commit of a WRITE."""
+
+from amaranth.hdl import *
+from amaranth.lib import wiring
+from amaranth.lib.wiring import In, Out
+
+from . import DEFAULT_CLOCK_HZ, lookup
+from .protocol import NakCode
+from .registers import (REGISTERS, GROUPS, DELAY_SETTINGS, settings_layout, defaults,
+                        register_maxima)
+from .settings import DelayMode
+
+
+__all__ = ["RegisterFile"]
+
+
+class RegisterFile(wiring.Component):
+    """Register file of :mod:`fliss.hdl.registers`, written by the command processor.
+
+    A WRITE puts its values, one at a time, into a candidate set of settings: each value is
+    range-checked (its register's minimum and maximum), and the settings the candidate would make
+    are checked together (:func:`fliss.hdl.registers.problems`); ``commit`` then applies every
+    value written at once.
+
+    Parameters
+    ----------
+    clock_hz : int
+        Clock frequency, for the reset values.
+    maxima : dict
+        Register name -> a lower maximum than the register map's
+        (:func:`~fliss.hdl.registers.register_maxima`).
+
+    Members
+    -------
+    begin : In(1)
+        A command begins: forget the values written and the error.
+    start : In(1)
+        The first value of a WRITE goes to register ``start_address``.
+    start_address : In(16)
+    value : In(32)
+        The value being received; complete in the cycle before ``check``.
+    check : In(1)
+        ``value`` is complete: check it, put it in the candidate, and move to the next address.
+    error : Out(1)
+        A value was refused, two cycles after its ``check`` (the first refusal stays):
+    error_code : Out(NakCode)
+        ``BAD_ADDRESS`` (no such register) or ``OUT_OF_RANGE``;
+    error_detail : Out(16)
+        the address of the value refused.
+    consistent : Out(1)
+        The candidate settings are consistent, three cycles after they are complete.
+    commit : In(1)
+        Apply the values written.
+    read_address : In(range(len(REGISTERS) + 2))
+    read_data : Out(32)
+        The register at ``read_address``, as a u32.
+    settings : Out(settings_layout(maxima))
+        Every register, each as wide as its maximum needs.
+    victim, aggressor, aggressor_delay, acquisition : Out(RegisterGroup.layout(maxima))
+        The registers of each group of :data:`~fliss.hdl.registers.GROUPS`, as its struct.
+    """
+
+    def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, maxima=None):
+        self.clock_hz = int(clock_hz)
+        self.maxima = register_maxima(maxima, self.clock_hz)
+        super().__init__({
+            "begin":         In(1),
+            "start":         In(1),
+            "start_address": In(16),
+            "value":         In(32),
+            "check":         In(1),
+            "error":         Out(1),
+            "error_code":    Out(NakCode, init=NakCode.BAD_ADDRESS),
+            "error_detail":  Out(16),
+            "consistent":    Out(1),
+            "commit":        In(1),
+            "read_address":  In(range(len(REGISTERS) + 2)),
+            "read_data":     Out(32),
+            "settings":      Out(settings_layout(self.maxima), init=defaults(self.clock_hz)),
+            **{group.name: Out(group.layout(self.maxima)) for group in GROUPS},
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+
+        settings = self.settings
+        layout = settings_layout(self.maxima)
+        address_bits = (len(REGISTERS) - 1).bit_length()    # enough to address every register
+
+        # Groups: the registers of each, as its struct
+        for group in GROUPS:
+            port = getattr(self, group.name)
+            m.d.comb += [port[r.field].eq(settings[r.name]) for r in group.members]
+            m.d.comb += [port[name].eq(value) for name, value in group.fixed.items()]
+
+        # Registers as u32 words, in address order
+        words = Array(Signal(32, name=f"reg_{r.name}") for r in REGISTERS)
+        for register, word in zip(REGISTERS, words):
+            m.d.comb += word.eq(settings[register.name])
+        m.d.comb += self.read_data.eq(words[self.read_address])
+
+        # A WRITE puts its values in `candidate` and marks them in `written`; the registers it
+        # does not write keep theirs in `settings`. (Copying all of `settings` into the candidate
+        # first would put a multiplexer in front of every candidate bit.)
+        candidate = Signal(layout, init=defaults(self.clock_hz))
+        written = Signal(len(REGISTERS))
+
+        # Range check of a WRITE value, one cycle after it completes (`check`; the value is
+        # still in `value` then), its verdict registered and applied a cycle later: its
+        # register's bounds come out of constant tables, so one set of comparators serves them
+        # all. The minima are small, and the maxima are small or all ones below their top bit,
+        # so the bits from `LOW` up are only checked against a mask (the bits the register's
+        # values may have) and the comparators are `LOW` bits wide.
+        LOW = 6
+        for register in REGISTERS:
+            top = self.maxima[register.name]
+            assert register.minimum < 1 << LOW, register
+            assert top < 1 << LOW or top & (top + 1) == 0, register
+        value = self.value
+        value_address = Signal(16)      # address of the value being received
+        known = Signal()
+        allowed = Signal(32)            # bits that may be set: `maximum` rounded up to all ones
+        minimum = Signal(LOW)
+        maximum = Signal(LOW)           # `maximum`, or all ones if that is larger
+        # (The bounds are looked up into registers, from tables indexed by the low bits of the
+        # address: the address was set, or moved on, at least four cycles before the value at
+        # it is complete.)
+        register_index = value_address[:address_bits]
+        tops = [self.maxima[register.name] for register in REGISTERS]
+        m.d.sync += [
+            known.eq((value_address[address_bits:] == 0) & (register_index < len(REGISTERS))),
+            allowed.eq(lookup([(1 << top.bit_length()) - 1 for top in tops], register_index, 32)),
+            minimum.eq(lookup([register.minimum for register in REGISTERS], register_index, LOW)),
+            maximum.eq(lookup([min(top, (1 << LOW) - 1) for top in tops], register_index, LOW)),
+        ]
+        out_of_range = ((value & ~allowed).any() |
+                        ((value[LOW:] == 0) & (value[:LOW] < minimum)) |
+                        (value[:LOW] > maximum))
+        checked = Signal()              # the verdict on the value checked in the last cycle:
+        checked_unknown = Signal()      # no register at its address
+        checked_bad = Signal()          # out of its register's range
+        checked_address = Signal(16)
+        m.d.sync += [
+            checked.eq(self.check),
+            checked_unknown.eq(~known),
+            checked_bad.eq(out_of_range),
+            checked_address.eq(value_address),
+        ]
+        with m.If(checked & ~self.error):
+            with m.If(checked_unknown):
+                m.d.sync += [self.error.eq(1), self.error_code.eq(NakCode.BAD_ADDRESS),
+                             self.error_detail.eq(checked_address)]
+            with m.Elif(checked_bad):
+                m.d.sync += [self.error.eq(1), self.error_code.eq(NakCode.OUT_OF_RANGE),
+                             self.error_detail.eq(checked_address)]
+        with m.If(self.check):
+            with m.Switch(value_address):
+                for register in REGISTERS:
+                    with m.Case(register.address):
+                        m.d.sync += [candidate[register.name].eq(value),
+                                     written[register.address].eq(1)]
+            m.d.sync += value_address.eq(value_address + 1)
+        with m.If(self.start):
+            m.d.sync += value_address.eq(self.start_address)
+        with m.If(self.begin):
+            m.d.sync += [self.error.eq(0), written.eq(0)]
+
+        # Commit
+        with m.If(self.commit):
+            for register in REGISTERS:
+                with m.If(written[register.address]):
+                    m.d.sync += settings[register.name].eq(candidate[register.name])
+
+        # Consistency of the candidate settings
+        c = Signal(layout)      # the settings the WRITE would make
+        for register in REGISTERS:
+            m.d.comb += c[register.name].eq(Mux(written[register.address],
+                                                candidate[register.name],
+                                                settings[register.name]))
+        self._consistency(m, c)
+
+        return m
+
+    def _consistency(self, m, c):
+        # Consistency of the candidate settings `c`, in three registered steps (the largest
+        # delays and the seeds' high bits, then the sum for the grid condition); it is needed
+        # three cycles after the candidate is complete. The checks of each delay core's group
+        # are made from its group definition.
+
+        def below(n, width):
+            # `(1 << n) - 1` in `width` bits (all ones from `n = width` on), out of a constant
+            # table: a little logic per bit, where a shifter by `n` would be a barrel shifter
+            # (and comparators per bit would be carry chains).
+            return lookup([min((1 << k) - 1, (1 << width) - 1) for k in range(1 << len(n))],
+                          n, width)
+
+        def max_delay(mode, length, mask_width):
+            # `(1 << length) - 2` in 34 bits, all ones for `length = 0`; `(1 << mask_width) - 1`.
+            zero = length == 0
+            mseq = Cat(zero, below(length, 34)[1:] | zero.replicate(33))
+            return Mux(mode == DelayMode.MSEQ, mseq,
+                       Mux(mode == DelayMode.MASKED, below(mask_width, 31), 0))
+
+        def narrow_less(a, b):
+            # `a < b` for a narrower `a`: the high bits of `b` need no carry chain
+            return (b[len(a):] != 0) | (a < b[:len(a)])
+
+        def seed_high(seed, length):
+            # The bits of `seed` at `2**length` and up (without the shifter), OR-ed in groups of
+            # four: all zeros when the seed fits in `length` bits.
+            high = seed & ~below(length, len(seed))
+            return Cat(high[k:k + 4].any() for k in range(0, len(high), 4))
+
+        simple = [c.gate_start <= c.gate_end]       # in the first step
+        seeds = []                                  # in the second step
+        grids = []                                  # in the third step
+        for group in GROUPS:
+            if group.settings is not DELAY_SETTINGS:
+                continue
+            g = {r.field: c[r.name] for r in group.members}
+            simple.append(narrow_less(g["pulse_width"], g["period"]))
+            mseq = Signal(name=f"{group.name}_mseq")
+            high = Signal((len(g["seed"]) + 3) // 4, name=f"{group.name}_seed_high")
+            m.d.sync += [mseq.eq(g["mode"] == DelayMode.MSEQ),
+                         high.eq(seed_high(g["seed"], g["length"]))]
+            seeds.append(mseq & high.any())
+            if "grid" in g:
+                largest = Signal(34, name=f"{group.name}_max_delay")
+                delay_and_pulse = Signal(35, name=f"{group.name}_delay_and_pulse")
+                m.d.sync += [largest.eq(max_delay(g["mode"], g["length"], g["mask_width"])),
+                             delay_and_pulse.eq(largest + g["pulse_width"])]
+                grids.append(~g["grid"] | (delay_and_pulse < g["period"]))
+
+        first = Signal()
+        all_but_grid = Signal()
+        m.d.sync += [
+            first.eq(Cat(simple).all()),
+            all_but_grid.eq(first & ~Cat(seeds).any()),
+            self.consistent.eq(all_but_grid & Cat(grids).all()),
+        ]

@@ -1,0 +1,62 @@
+"""Limits of the delay core's settings: the numbers the register map, the gateware and the models
+share.
+
+A definitions module: it imports no gateware, so :mod:`.registers` can build the register map
+from it and the blocks (:mod:`.lfsr`, :mod:`.delay`, :mod:`.scheduler`) can import it.
+"""
+
+from amaranth.lib import enum
+
+
+__all__ = ["MIN_LENGTH", "MAX_LENGTH", "MAX_MASK_WIDTH", "MASKED_LENGTH", "MASKED_STEPS",
+           "DELAY_WIDTH", "PERIOD_WIDTH",
+           "PULSE_WIDTH_WIDTH", "DelayMode", "check_widths"]
+
+
+#: Shortest and longest supported register of the m-sequence source, in bits.
+MIN_LENGTH = 2
+MAX_LENGTH = 32
+
+#: Widest bit-mask of the ``masked`` source, in bits.
+MAX_MASK_WIDTH = 16
+
+#: Length of the register behind the ``masked`` source, in bits.
+MASKED_LENGTH = 32
+
+#: Register steps per pulse of the ``masked`` source. With at least ``MAX_MASK_WIDTH`` steps,
+#: consecutive delays are taken from fresh register bits rather than from shifted copies of the
+#: previous delay; 16 is coprime with ``2**32 - 1``, so the sequence still has the full period.
+MASKED_STEPS = 16
+
+#: Width of a delay, in bits.
+DELAY_WIDTH = MAX_LENGTH
+
+#: Width of the period setting, in bits: down to 0.02 Hz at 80 MHz.
+PERIOD_WIDTH = 32
+
+#: Width of the laser pulse width setting, in bits.
+PULSE_WIDTH_WIDTH = 16
+
+
+class DelayMode(enum.Enum, shape=2):
+    """Source of the pseudorandom delay ``T_rnd``, in clock cycles."""
+    #: No delay: the laser fires on the nominal schedule.
+    OFF    = 0
+    #: Complete m-sequence of an ``L``-bit register, one state per pulse; delay ``R = state - 1``,
+    #: so ``R`` runs over ``0 … 2**L - 2`` once per period (equation 9 and Table 2 of the paper).
+    MSEQ   = 1
+    #: The ``Wm`` least significant bits of a 32-bit register that takes ``MASKED_STEPS`` steps per
+    #: pulse; delay from ``0`` to ``2**Wm - 1``.
+    MASKED = 2
+
+
+def check_widths(period_width, pulse_width_width):
+    """Refuse setting widths the scheduler cannot take: a period of 17 to
+    :data:`PERIOD_WIDTH` bits (its timers count in 16-bit halves), a pulse width of 1 to
+    :data:`PULSE_WIDTH_WIDTH` bits."""
+    if not isinstance(period_width, int) or not 17 <= period_width <= PERIOD_WIDTH:
+        raise ValueError(f"Period width must be an integer from 17 to {PERIOD_WIDTH} bits, "
+                         f"not {period_width!r}")
+    if not isinstance(pulse_width_width, int) or not 1 <= pulse_width_width <= PULSE_WIDTH_WIDTH:
+        raise ValueError(f"Pulse width width must be an integer from 1 to {PULSE_WIDTH_WIDTH} "
+                         f"bits, not {pulse_width_width!r}")
