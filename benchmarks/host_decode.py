@@ -32,7 +32,7 @@ from fliss.hdl.protocol import PacketType, MAX_EVENTS_PER_PACKET, CRC_INIT
 from fliss.hdl.registers import defaults
 from fliss.host.bulk import BulkDecoder, crc_rows, decode_stream
 from fliss.host.client import StreamAssembler, HistogramFrame, EventBatch
-from fliss.host.protocol import FrameDecoder, Packet, cobs_decode, encode_frame, pack_events
+from fliss.sim.codec import FrameDecoder, Packet, cobs_decode, encode_frame, pack_events
 from fliss.sim.model_board import scene_for
 from fliss.sim.scene import Scene, Simulation
 

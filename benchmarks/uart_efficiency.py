@@ -25,7 +25,7 @@ from fliss.hdl import DEFAULT_CLOCK_HZ
 from fliss.hdl.framing import FrameEncoder
 from fliss.hdl.protocol import PacketType, EVENT_BYTES, MAX_EVENTS_PER_PACKET, MAX_PAYLOAD
 from fliss.hdl.uart import UartTx, CHARACTER_BITS, DATA_BITS
-from fliss.host import protocol as codec
+from fliss.sim import codec
 from fliss.sim.event import EVENT_DTYPE
 
 

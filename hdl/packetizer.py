@@ -8,20 +8,11 @@ from . import lookup
 from .event import Event, TIMESTAMP_BITS
 from .framing import PacketBeat
 from .histogram import readout_layout, BIN_BITS, COUNT_WIDTH, MAX_SHIFT
-from .protocol import PacketType, EVENT_BYTES, MAX_EVENTS_PER_PACKET, MAX_PAYLOAD
+from .protocol import PacketType, HistogramChunk, EVENT_BYTES, MAX_EVENTS_PER_PACKET, MAX_PAYLOAD
 
 
 __all__ = ["HistogramChunk", "CHUNK_BINS", "COUNT_BYTES", "BATCH_TIMEOUT", "EventPacketizer",
            "HistogramPacketizer"]
-
-
-class HistogramChunk(data.Struct):
-    """Start of a HISTOGRAM payload (little-endian); ``CHUNK_BINS`` u16 counts follow (fewer
-    when a frame has fewer bins)."""
-    frame:     32   # histogram number since reset
-    first_bin: 16   # bin of the first count in this chunk
-    shift:     8    # bins are 2**shift timestamp codes wide
-    last:      8    # 1 in the last chunk of a frame
 
 
 #: Bytes per bin count.

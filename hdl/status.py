@@ -6,7 +6,7 @@ from amaranth.lib.wiring import In, Out
 
 from .command import STATUS_FIELDS, StatusSignature
 from .counters import CounterBank
-from .protocol import COUNTER_BITS
+from .protocol import COUNTER_BITS, LINK_FIELDS
 
 
 __all__ = ["COUNTED_FIELDS", "LINK_FIELDS", "strobes_layout", "StatusCounters"]
@@ -15,9 +15,6 @@ __all__ = ["COUNTED_FIELDS", "LINK_FIELDS", "strobes_layout", "StatusCounters"]
 #: The STATUS fields counted here from strobes: all but ``running`` (a level, from the command
 #: processor) and ``pulses`` (the victim scheduler's pulse index).
 COUNTED_FIELDS = STATUS_FIELDS[2:]
-
-#: The counted fields that a :class:`~fliss.hdl.framing.FrameDecoder` strobes (its ``tally``).
-LINK_FIELDS = ("bad_crc", "truncated", "oversize", "bad_length")
 
 
 def strobes_layout():

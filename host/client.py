@@ -3,7 +3,7 @@
 :class:`Board` opens a port with :func:`serial.serial_for_url`, so a device path
 (``/dev/ttyUSB1``), a pty of a virtual board (``/dev/pts/7``), ``loop://`` and
 ``socket://host:port`` all work the same. Every byte received goes through one
-:class:`fliss.host.protocol.FrameDecoder`, which checks CRC and sequence numbers and counts what
+:class:`fliss.sim.codec.FrameDecoder`, which checks CRC and sequence numbers and counts what
 is lost or damaged (a :class:`fliss.host.bulk.BulkDecoder`, which decodes large reads with numpy
 and gives the same results); replies go to the command that waits for them, data packets to a
 :class:`StreamAssembler`, which turns HISTOGRAM chunks into whole histograms and EVENTS packets
@@ -23,7 +23,6 @@ import errno
 import logging
 import os
 import stat
-import struct
 import time
 from collections import deque
 from dataclasses import dataclass, field
@@ -32,17 +31,16 @@ import numpy as np
 import serial
 from amaranth.lib import data
 
-from ..hdl.command import Identity, STATUS_FIELDS, READ_MAX, CONSISTENCY
 from ..hdl.event import Event, TIMESTAMP_BITS
-from ..hdl.histogram import MAX_SHIFT
-from ..hdl.packetizer import HistogramChunk
-from ..hdl.protocol import (PROTOCOL_VERSION, PacketType, NakCode, EVENT_BYTES, DELIMITER)
+from ..hdl.histogram import COUNT_WIDTH, MAX_SHIFT
+from ..hdl.protocol import (PROTOCOL_VERSION, DEFAULT_BAUD, PacketType, NakCode, EVENT_BYTES,
+                            DELIMITER, Identity, Nak, ReadRequest, Status, HistogramChunk,
+                            READ_MAX, CONSISTENCY, LINK_ERRORS, registers_layout)
 from ..hdl.registers import REGISTERS, BY_NAME, BY_ADDRESS, problems
-from ..hdl.top import DEFAULT_BAUD as _TOP_DEFAULT_BAUD
 from ..sim.event import EVENT_DTYPE
 from .cli import UserError
 from .bulk import BulkDecoder
-from .protocol import Packet, PacketEncoder
+from ..sim.codec import Packet, PacketEncoder, byte_size, pack, unpack, unpack_from
 
 
 __all__ = ["DEFAULT_BAUD", "DEFAULT_TIMEOUT_S", "PTY_TIMEOUT_S", "is_pty", "default_timeout",
@@ -52,9 +50,6 @@ __all__ = ["DEFAULT_BAUD", "DEFAULT_TIMEOUT_S", "PTY_TIMEOUT_S", "is_pty", "defa
 
 
 _logger = logging.getLogger(__name__)
-
-#: Default baud rate: the gateware's default.
-DEFAULT_BAUD = _TOP_DEFAULT_BAUD
 
 #: Seconds to wait for each reply from a board on a serial device or a URL.
 DEFAULT_TIMEOUT_S = 0.5
@@ -89,13 +84,9 @@ def default_timeout(port):
     pseudo-terminal, else :data:`DEFAULT_TIMEOUT_S`."""
     return PTY_TIMEOUT_S if is_pty(port) else DEFAULT_TIMEOUT_S
 
-_CHUNK = struct.Struct("<IHBB")      # HistogramChunk: frame, first_bin, shift, last
-assert _CHUNK.size == data.Layout.cast(HistogramChunk).size // 8
-_IDENTITY = struct.Struct("<BBBBII")   # Identity: protocol, major, minor, registers, clock, baud
-assert _IDENTITY.size == data.Layout.cast(Identity).size // 8
-_NAK = struct.Struct("<BBH")
-_LINK_CODES = (NakCode.BAD_CRC, NakCode.TRUNCATED, NakCode.OVERSIZE, NakCode.BAD_LENGTH,
-               NakCode.UART_FRAMING)
+_CHUNK_BYTES = byte_size(HistogramChunk)
+_COUNT_DTYPE = np.dtype(f"<u{COUNT_WIDTH // 8}")
+_LINK_CODES = {code.value for code in LINK_ERRORS}
 
 
 class BoardError(UserError):
@@ -173,7 +164,7 @@ _EVENT_FIELDS = [(name, np.uint64(field.offset), np.uint64((1 << field.width) - 
 
 def unpack_event_payload(payload):
     """``EVENT_DTYPE`` array from an EVENTS payload (vectorised; the same result as
-    :func:`fliss.host.protocol.unpack_events`)."""
+    :func:`fliss.sim.codec.unpack_events`)."""
     if len(payload) % EVENT_BYTES:
         raise ValueError(f"Event payload of {len(payload)} bytes is not a whole number of "
                          f"{EVENT_BYTES}-byte events")
@@ -231,11 +222,13 @@ class StreamAssembler:
 
     def _chunk(self, payload, time_s):
         out = []
-        if len(payload) < _CHUNK.size or (len(payload) - _CHUNK.size) % 2:
+        if len(payload) < _CHUNK_BYTES or (len(payload) - _CHUNK_BYTES) % _COUNT_DTYPE.itemsize:
             self.counters.malformed += 1
             return out
-        frame, first, shift, last = _CHUNK.unpack_from(payload)
-        counts = np.frombuffer(payload, dtype="<u2", offset=_CHUNK.size)
+        chunk = unpack_from(HistogramChunk, payload)
+        frame, first, shift, last = (chunk["frame"], chunk["first_bin"], chunk["shift"],
+                                     chunk["last"])
+        counts = np.frombuffer(payload, dtype=_COUNT_DTYPE, offset=_CHUNK_BYTES)
         bins = (1 << TIMESTAMP_BITS) >> shift if shift <= MAX_SHIFT else 0
         if shift > MAX_SHIFT or first + len(counts) > bins or last > 1:
             self.counters.malformed += 1
@@ -417,7 +410,7 @@ class Board:
 
     @property
     def link(self):
-        """The decoder's :class:`~fliss.host.protocol.LinkCounters`."""
+        """The decoder's :class:`~fliss.sim.codec.LinkCounters`."""
         return self.decoder.counters
 
     def link_counters(self):
@@ -476,9 +469,10 @@ class Board:
             while not resend:
                 while self._replies:
                     reply = self._replies.popleft()
-                    if reply.type == PacketType.NAK and len(reply.payload) == _NAK.size:
-                        nak_seq, code, detail = _NAK.unpack(reply.payload)
-                        if code in {c.value for c in _LINK_CODES}:
+                    if reply.type == PacketType.NAK and len(reply.payload) == byte_size(Nak):
+                        nak = unpack(Nak, reply.payload)
+                        nak_seq, code, detail = nak["seq"], nak["code"], nak["detail"]
+                        if code in _LINK_CODES:
                             self.link_naks += 1
                             resend = True
                             continue
@@ -509,11 +503,14 @@ class Board:
     def identify(self, *, check=True):
         """Read the identity; with ``check``, refuse a board with another protocol version."""
         reply = self.command(PacketType.IDENTIFY, expect=lambda r: r.type == PacketType.IDENTITY)
-        if len(reply.payload) != _IDENTITY.size:
+        if len(reply.payload) != byte_size(Identity):
             raise BoardError(f"the board sent an identity of {len(reply.payload)} bytes, not "
-                             f"{_IDENTITY.size}: is it a FLISS board?")
-        protocol, major, minor, registers, clock_hz, baud = _IDENTITY.unpack(reply.payload)
-        self.identity = IdentityInfo(protocol, f"{major}.{minor}", registers, clock_hz, baud)
+                             f"{byte_size(Identity)}: is it a FLISS board?")
+        fields = unpack(Identity, reply.payload)
+        protocol, registers = fields["protocol"], fields["registers"]
+        self.identity = IdentityInfo(protocol,
+                                     f"{fields['gateware_major']}.{fields['gateware_minor']}",
+                                     registers, fields["clock_hz"], fields["baud"])
         if check and protocol != PROTOCOL_VERSION:
             raise BoardError(f"the board speaks protocol version {protocol}, this fliss speaks "
                              f"version {PROTOCOL_VERSION}: update the "
@@ -540,15 +537,16 @@ class Board:
         while addresses:
             first = addresses[0]
             count = min(addresses[-1] - first + 1, READ_MAX)
-            payload = struct.pack("<HB", first, count)
+            payload = pack(ReadRequest, address=first, count=count)
+            layout = registers_layout(count)
 
-            def expect(reply, first=first, count=count):
+            def expect(reply, first=first, layout=layout):
                 return reply.type == PacketType.REGISTERS and \
-                    len(reply.payload) == 2 + 4 * count and \
-                    struct.unpack_from("<H", reply.payload)[0] == first
+                    len(reply.payload) == byte_size(layout) and \
+                    unpack(layout, reply.payload)["address"] == first
 
             reply = self.command(PacketType.READ, payload, expect=expect, what="READ")
-            words = struct.unpack_from(f"<{count}I", reply.payload, 2)
+            words = unpack(layout, reply.payload)["values"]
             for offset, word in enumerate(words):
                 values[BY_ADDRESS[first + offset].name] = word
             addresses = [a for a in addresses if a >= first + count]
@@ -585,7 +583,7 @@ class Board:
         addresses = [BY_NAME[name].address for name in changes]
         first, last = min(addresses), max(addresses)
         values = [candidate[BY_ADDRESS[a].name] for a in range(first, last + 1)]
-        payload = struct.pack(f"<H{len(values)}I", first, *values)
+        payload = pack(registers_layout(len(values)), address=first, values=values)
         try:
             self.command(PacketType.WRITE, payload, expect=lambda reply: False, what="WRITE")
         except BoardError as error:
@@ -608,12 +606,11 @@ class Board:
         self.command(PacketType.STOP, expect=lambda reply: False)
 
     def status(self):
-        """Board counters, a dict in :data:`~fliss.hdl.command.STATUS_FIELDS` order."""
-        size = 4 * len(STATUS_FIELDS)
+        """Board counters, a dict in :data:`~fliss.hdl.protocol.STATUS_FIELDS` order."""
         reply = self.command(PacketType.GET_STATUS,
                              expect=lambda r: r.type == PacketType.STATUS and
-                             len(r.payload) == size, what="GET_STATUS")
-        return dict(zip(STATUS_FIELDS, struct.unpack(f"<{len(STATUS_FIELDS)}I", reply.payload)))
+                             len(r.payload) == byte_size(Status), what="GET_STATUS")
+        return unpack(Status, reply.payload)
 
     # Streaming
 

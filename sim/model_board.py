@@ -33,17 +33,16 @@ import tty
 from contextlib import contextmanager
 
 import numpy as np
-from amaranth.lib import data
 
 from ..hdl import DEFAULT_CLOCK_HZ
-from ..hdl.command import STATUS_FIELDS
 from ..hdl.event import TIMESTAMP_BITS
 from ..hdl.histogram import COUNT_WIDTH
-from ..hdl.packetizer import CHUNK_BINS, HistogramChunk
-from ..hdl.protocol import PacketType, NakCode, MAX_EVENTS_PER_PACKET, EVENT_BYTES
+from ..hdl.packetizer import CHUNK_BINS
+from ..hdl.protocol import (DEFAULT_BAUD, PacketType, HistogramChunk, STATUS_FIELDS,
+                            LINK_COUNTERS, MAX_EVENTS_PER_PACKET, EVENT_BYTES)
 from ..hdl.registers import AcquisitionMode, TdcSource
-from ..hdl.top import DEFAULT_BAUD as _TOP_DEFAULT_BAUD
-from ..host.protocol import FrameDecoder, LinkError, Packet, encode_frame, pack_events
+from .codec import (FrameDecoder, LinkError, Packet, encode_frame, pack, pack_events,
+                    pack_words)
 from . import scheduler as _scheduler
 from .command import CommandModel
 from .delay import DelayMode
@@ -53,19 +52,11 @@ from .scene import Aggressor, Scene, Simulation
 __all__ = ["DEFAULT_BAUD", "BACKLOG_BYTES", "ModelBoard", "scene_for", "model_board", "main"]
 
 
-#: Baud rate reported in the identity (a pty carries any rate): the gateware's default.
-DEFAULT_BAUD = _TOP_DEFAULT_BAUD
-
 #: While more bytes than this wait to go out, the model simulates no further: a host slower
 #: than the model slows the model's time down rather than piling up data (the gateware would
 #: drop histograms or events instead, and count them).
 BACKLOG_BYTES = 32 * 1024
 
-_CHUNK = struct.Struct("<IHBB")      # HistogramChunk: frame, first_bin, shift, last
-assert _CHUNK.size == data.Layout.cast(HistogramChunk).size // 8
-
-_LINK_COUNTERS = {NakCode.BAD_CRC: "bad_crc", NakCode.TRUNCATED: "truncated",
-                  NakCode.OVERSIZE: "oversize", NakCode.BAD_LENGTH: "bad_length"}
 
 
 def scene_for(settings, template=None, *, aggressor_detections_per_pulse=0.05, clock_hz=None):
@@ -258,7 +249,7 @@ class ModelBoard:
 
     def _receive(self, item):
         if isinstance(item, LinkError):
-            self.status[_LINK_COUNTERS[item.code]] += 1
+            self.status[LINK_COUNTERS[item.code]] += 1
             self._send(*self.model.link_error(item.code))
             return
         if not isinstance(item, Packet):
@@ -383,12 +374,13 @@ class ModelBoard:
         bins = (1 << TIMESTAMP_BITS) >> shift
         counts = self._frame_counts if self._frame_counts is not None else \
             np.zeros(bins, dtype=np.int64)
-        counts = np.minimum(counts, (1 << COUNT_WIDTH) - 1).astype("<u2")
+        counts = np.minimum(counts, (1 << COUNT_WIDTH) - 1)
         step = min(CHUNK_BINS, bins)
         for first in range(0, bins, step):
             last = int(first + step >= bins)
-            payload = _CHUNK.pack(self._frame & 0xffffffff, first, shift, last) + \
-                counts[first:first + step].tobytes()
+            payload = pack(HistogramChunk, frame=self._frame & 0xffffffff, first_bin=first,
+                           shift=shift, last=last) + \
+                pack_words(counts[first:first + step], COUNT_WIDTH)
             self._send(PacketType.HISTOGRAM, payload, data=True)
         self._frame += 1
         self.status["frames"] += 1

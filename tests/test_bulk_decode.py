@@ -15,7 +15,7 @@ from fliss.hdl.event import Event
 from fliss.hdl.protocol import PacketType, NakCode, MAX_EVENTS_PER_PACKET, MAX_ENCODED
 from fliss.host import bulk
 from fliss.host.client import EventBatch, StreamAssembler
-from fliss.host.protocol import (FrameDecoder, Packet, LinkError, cobs_encode, crc16,
+from fliss.sim.codec import (FrameDecoder, Packet, LinkError, cobs_encode, crc16,
                                  encode_frame, pack_events)
 from fliss.sim.event import EVENT_DTYPE
 

@@ -1,19 +1,21 @@
 """Serial client (host/client.py) against the Python model board on a real pty."""
 
 import os
-import struct
 import time
 
 import numpy as np
 import pytest
 
-from fliss.hdl.command import STATUS_FIELDS
+from fliss.hdl.protocol import STATUS_FIELDS
 from fliss.hdl.protocol import PacketType, PROTOCOL_VERSION, EVENT_BYTES
 from fliss.hdl.registers import REGISTERS, defaults
 from fliss.host.cli import UserError
 from fliss.host.client import (Board, BoardError, BoardLost, StreamAssembler, HistogramFrame,
                                unpack_event_payload)
-from fliss.host.protocol import FrameDecoder, Packet, unpack_events
+from fliss.hdl.histogram import COUNT_WIDTH
+from fliss.hdl.protocol import HistogramChunk, registers_layout
+from fliss.sim.codec import (FrameDecoder, Packet, unpack_events, pack, pack_words, unpack_from,
+                             unpack_words, byte_size)
 from fliss.sim.event import EVENT_DTYPE
 from fliss.sim.model_board import model_board
 
@@ -78,7 +80,7 @@ def test_out_of_range_is_caught_before_sending(board_pair):
 def test_board_nak_is_reported(board_pair):
     model, board = board_pair
     # Bypass the host checks: a WRITE of a seed of zero, built by hand.
-    payload = struct.pack("<HI", 0x04, 0)
+    payload = pack(registers_layout(1), address=0x04, values=[0])
     with pytest.raises(BoardError, match=r"the board refused WRITE: seed out of range "
                                          r"\(OUT_OF_RANGE\)"):
         board.command(PacketType.WRITE, payload, expect=lambda reply: False, what="WRITE")
@@ -159,8 +161,8 @@ def test_lost_reply_is_retried():
 
 def _chunk(frame, first, shift, last, counts):
     return Packet(PacketType.HISTOGRAM, 0,
-                  struct.pack("<IHBB", frame, first, shift, last) +
-                  np.asarray(counts, dtype="<u2").tobytes())
+                  pack(HistogramChunk, frame=frame, first_bin=first, shift=shift, last=last) +
+                  pack_words(counts, COUNT_WIDTH))
 
 
 def _frame_packets(frame, counts, shift, per_chunk=128):
@@ -240,9 +242,10 @@ def test_stream_corruption_is_counted_and_never_accepted():
     # What the board sent, reassembled here from its own record, chunk by chunk.
     sent = {}
     for type, seq, payload in model.sent:
-        frame, first, shift, last = struct.unpack_from("<IHBB", payload)
+        chunk = unpack_from(HistogramChunk, payload)
+        frame, first = chunk["frame"], chunk["first_bin"]
         sent.setdefault(frame, np.zeros(2048, dtype=np.int64))[first:first + 128] = \
-            np.frombuffer(payload, "<u2", offset=8)
+            unpack_words(payload, COUNT_WIDTH, offset=byte_size(HistogramChunk))
     corrupted = {seq for type, seq in model.corrupted}
     assert len(corrupted) >= 10
     assert link["dropped_frames"] == len(model.corrupted)

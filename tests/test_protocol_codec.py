@@ -1,4 +1,4 @@
-"""Host codec of the link protocol (fliss.host.protocol), against independent references."""
+"""Software codec of the link protocol (fliss.sim.codec), against independent references."""
 
 import binascii
 import random
@@ -9,7 +9,7 @@ import pytest
 from fliss.hdl.protocol import (PacketType, NakCode, Header, HEADER_BYTES, MAX_PAYLOAD,
                                 MAX_PACKET, MAX_ENCODED, CRC_BYTES, CRC_CHECK, CRC_INIT,
                                 DIRECTION_BIT, EVENT_BYTES, MAX_EVENTS_PER_PACKET)
-from fliss.host import protocol as codec
+from fliss.sim import codec
 from fliss.sim.event import EVENT_DTYPE
 
 
