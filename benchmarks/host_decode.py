@@ -32,7 +32,7 @@ from fliss.hdl.histogram import COUNT_WIDTH
 from fliss.hdl.protocol import PacketType, MAX_EVENTS_PER_PACKET, CRC_INIT, HistogramChunk
 from fliss.hdl.registers import defaults
 from fliss.host.bulk import BulkDecoder, crc_rows, decode_stream
-from fliss.host.client import StreamAssembler, HistogramFrame, EventBatch
+from fliss.host.stream import StreamAssembler, HistogramFrame, EventBatch
 from fliss.sim.codec import (FrameDecoder, Packet, cobs_decode, encode_frame, pack, pack_events,
                              pack_words)
 from fliss.sim.model_board import scene_for

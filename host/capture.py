@@ -9,7 +9,9 @@ import time
 
 from ..hdl.registers import AcquisitionMode
 from .cli import UserError
-from .client import BoardLost, EventBatch, HistogramFrame, add_port_arguments, connect
+from .errors import BoardLost
+from .port_options import add_port_arguments, connect
+from .stream import EventBatch, HistogramFrame
 from .fileformat import CaptureWriter
 from .units import format_time, parse_time
 
@@ -141,7 +143,7 @@ def run(args):
 
 def capture(board, path, *, mode="histogram", integration_s=10e-3, acquisitions=10,
             duration_s=None, port="", progress=True, quiet=False, out=None):
-    """Capture into ``path`` from an identified :class:`~fliss.host.client.Board`.
+    """Capture into ``path`` from an identified :class:`~fliss.host.client.BoardClient`.
 
     Returns the exit status: 0 when done, 130 when interrupted (Ctrl-C); raises
     :exc:`UserError` (after saving the file) when the board was lost.

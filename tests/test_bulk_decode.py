@@ -16,7 +16,7 @@ from fliss.hdl.histogram import COUNT_WIDTH
 from fliss.hdl.protocol import (PacketType, NakCode, MAX_EVENTS_PER_PACKET, MAX_ENCODED,
                                 HistogramChunk)
 from fliss.host import bulk
-from fliss.host.client import EventBatch, StreamAssembler
+from fliss.host.stream import EventBatch, StreamAssembler
 from fliss.sim.codec import (FrameDecoder, Packet, LinkError, cobs_encode, crc16,
                              encode_frame, pack, pack_events, pack_words)
 from fliss.sim.event import EVENT_DTYPE
@@ -328,7 +328,7 @@ def test_small_reads_go_to_the_scalar_decoder():
 # The client
 
 def test_reply_timeout_is_longer_on_a_pty(tmp_path):
-    from fliss.host.client import default_timeout, is_pty, DEFAULT_TIMEOUT_S, PTY_TIMEOUT_S
+    from fliss.host.port import default_timeout, is_pty, DEFAULT_TIMEOUT_S, PTY_TIMEOUT_S
     master, slave = os.openpty()
     try:
         path = os.ttyname(slave)
