@@ -28,7 +28,7 @@ COMMAND_MODULES = [
     "capture",
     "plot_commands",
     "generate",
-    "board",
+    "board_command",
 ]
 
 

@@ -6,14 +6,14 @@
 :class:`fliss.sim.codec.FrameDecoder`, which checks CRC and sequence numbers and counts what
 is lost or damaged (a :class:`fliss.host.bulk.BulkDecoder`, which decodes large reads with numpy
 and gives the same results); replies go to the command that waits for them, data packets to a
-:class:`~fliss.host.stream.StreamAssembler`, which turns HISTOGRAM chunks into whole histograms and EVENTS packets
-into event arrays.
+:class:`~fliss.host.stream.StreamAssembler`, which turns HISTOGRAM chunks into whole histograms
+and EVENTS packets into event arrays.
 
 Commands are sent with a sequence number and re-sent with the *same* one when no reply comes in
 time (``timeout_s``, ``retries``; by default :data:`~fliss.host.port.DEFAULT_TIMEOUT_S`, or
-:data:`~fliss.host.port.PTY_TIMEOUT_S` on a pseudo-terminal, such as a virtual board's). A reply is matched by what it answers: an ACK
-or NAK by the sequence number in its payload, IDENTITY, REGISTERS and STATUS by their type (and
-address).
+:data:`~fliss.host.port.PTY_TIMEOUT_S` on a pseudo-terminal, such as a virtual board's). A reply
+is matched by what it answers: an ACK or NAK by the sequence number in its payload, IDENTITY,
+REGISTERS and STATUS by their type (and address).
 
 Everything that goes wrong raises a :exc:`~fliss.host.errors.BoardError` (the board is lost,
 refused a command, is of another protocol version; settings refused on the host) with one line

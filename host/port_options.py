@@ -43,8 +43,9 @@ def _timeout(text):
 
 
 def connect(args: argparse.Namespace) -> BoardClient:
-    """A :class:`~fliss.host.client.BoardClient` from the arguments of :func:`add_port_arguments`, identified (so a
-    board of another protocol version is refused at once)."""
+    """A :class:`~fliss.host.client.BoardClient` from the arguments of
+    :func:`add_port_arguments`, identified (so a board of another protocol version is refused
+    at once)."""
     if args.timeout is not None and args.timeout <= 0:
         raise UserError(f"--timeout must be positive, not {args.timeout:g}")
     if args.retries < 0:

@@ -37,9 +37,9 @@ from . import event as _event
 
 
 __all__ = ["byte_size", "pack", "unpack", "unpack_from", "word_dtype", "pack_words",
-           "unpack_words", "CRC_TABLE", "packet_type", "CobsError", "crc16", "cobs_encode", "cobs_decode",
-           "Packet", "encode_packet", "encode_frame", "decode_packet", "decode_frame",
-           "LinkError", "SequenceGap", "Resync", "LinkCounters", "FrameDecoder",
+           "unpack_words", "CRC_TABLE", "packet_type", "CobsError", "crc16", "cobs_encode",
+           "cobs_decode", "Packet", "encode_packet", "encode_frame", "decode_packet",
+           "decode_frame", "LinkError", "SequenceGap", "Resync", "LinkCounters", "FrameDecoder",
            "PacketEncoder", "pack_events", "unpack_events"]
 
 

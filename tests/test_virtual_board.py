@@ -17,7 +17,7 @@ from fliss.hdl.protocol import (EVENT_BYTES, PROTOCOL_VERSION, NakCode, PacketTy
                                 ReadRequest, Status, HistogramChunk, registers_layout)
 from fliss.hdl.registers import BY_NAME, REGISTERS
 from fliss.sim import codec
-from fliss.host.board import SIMULATORS, VirtualBoard
+from fliss.host.virtual import SIMULATORS, VirtualBoard
 from fliss.host.cli import main
 from fliss.sim import scene
 from fliss.sim.cocotb_runner import simulator_available
