@@ -4,9 +4,9 @@ from amaranth.hdl import *
 from amaranth.lib import data, wiring
 from amaranth.lib.wiring import In, Out
 
-from .command import STATUS_FIELDS, StatusSignature
+from .command import StatusSignature
 from .counters import CounterBank
-from .protocol import COUNTER_BITS, LINK_FIELDS
+from .protocol import COUNTER_BITS, LINK_FIELDS, STATUS_FIELDS
 
 
 __all__ = ["COUNTED_FIELDS", "LINK_FIELDS", "strobes_layout", "StatusCounters"]
