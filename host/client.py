@@ -24,6 +24,7 @@ import logging
 import time
 from collections import deque
 from dataclasses import dataclass
+from typing import Any, Callable, Dict, Iterable, Iterator, List, Mapping, Optional, Union
 
 import serial
 
@@ -31,11 +32,11 @@ from ..hdl.protocol import (PROTOCOL_VERSION, DEFAULT_BAUD, PacketType, NakCode,
                             Identity, Nak, ReadRequest, Status, READ_MAX, CONSISTENCY,
                             LINK_ERRORS, registers_layout)
 from ..hdl.registers import REGISTERS, BY_NAME, BY_ADDRESS, problems
-from ..sim.codec import Packet, PacketEncoder, byte_size, pack, unpack
+from ..sim.codec import LinkCounters, Packet, PacketEncoder, byte_size, pack, unpack
 from .bulk import BulkDecoder
 from .errors import BoardLost, BoardMismatch, BoardRefused, SettingsError
 from .port import default_timeout, open_port
-from .stream import StreamAssembler, StreamCounters
+from .stream import EventBatch, HistogramFrame, StreamAssembler, StreamCounters
 
 
 __all__ = ["IdentityInfo", "BoardClient"]
@@ -55,7 +56,7 @@ class IdentityInfo:
     clock_hz: int
     baud: int
 
-    def as_dict(self):
+    def as_dict(self) -> Dict[str, Any]:
         return {"protocol": self.protocol, "gateware_version": self.gateware_version,
                 "registers": self.registers, "clock_hz": self.clock_hz, "baud": self.baud}
 
@@ -77,7 +78,8 @@ class BoardClient:
         An open port to use instead of opening ``port``.
     """
 
-    def __init__(self, port, *, baud=DEFAULT_BAUD, timeout_s=None, retries=3, serial_port=None):
+    def __init__(self, port: str, *, baud: int = DEFAULT_BAUD, timeout_s: Optional[float] = None,
+                 retries: int = 3, serial_port: Optional[serial.SerialBase] = None) -> None:
         self.port_name = port
         self.timeout_s = float(default_timeout(port) if timeout_s is None else timeout_s)
         self.retries = int(retries)
@@ -120,14 +122,14 @@ class BoardClient:
         self._replies.clear()
         self.reset_counters()
 
-    def reset_counters(self):
+    def reset_counters(self) -> None:
         """Count link and stream events from now on (the decoder keeps its totals)."""
         self._baseline = self._raw_link_counters()
         self.assembler.counters = StreamCounters()
 
     # Context manager
 
-    def close(self):
+    def close(self) -> None:
         try:
             self.serial.close()
         except Exception:   # closing a port that is already gone
@@ -145,7 +147,7 @@ class BoardClient:
         raise BoardLost(f"lost the connection to the board on {self.port_name} "
                         f"({str(error) or type(error).__name__})") from None
 
-    def poll(self, wait_s=0.05):
+    def poll(self, wait_s: float = 0.05) -> int:
         """Read what has arrived (waiting up to ``wait_s`` for the first byte) and decode it.
         Returns the number of bytes read.
 
@@ -175,16 +177,16 @@ class BoardClient:
         return len(data)
 
     @property
-    def idle_s(self):
+    def idle_s(self) -> float:
         """Seconds since the last byte arrived."""
         return time.monotonic() - self._last_rx
 
     @property
-    def link(self):
+    def link(self) -> LinkCounters:
         """The decoder's :class:`~fliss.sim.codec.LinkCounters`."""
         return self.decoder.counters
 
-    def link_counters(self):
+    def link_counters(self) -> Dict[str, int]:
         """Link counters since :meth:`reset_counters` as a flat dict, with the client's own
         retry counters."""
         raw = self._raw_link_counters()
@@ -202,7 +204,7 @@ class BoardClient:
                    stale_replies=self.stale_replies)
         return out
 
-    def take_data(self):
+    def take_data(self) -> List[Union[HistogramFrame, EventBatch]]:
         """Histograms and event batches received so far, in order."""
         items = list(self._data)
         self._data.clear()
@@ -217,7 +219,8 @@ class BoardClient:
         except (serial.SerialException, OSError) as error:
             self._lost(error)
 
-    def command(self, type, payload=b"", *, expect, what=None):
+    def command(self, type: PacketType, payload: bytes = b"", *,
+                expect: Callable[[Packet], bool], what: Optional[str] = None) -> Packet:
         """Send a command and return the reply that ``expect(packet)`` accepts.
 
         ``expect`` gets each reply (not ACK/NAK for this command: those are handled here) and
@@ -267,10 +270,10 @@ class BoardClient:
                         f"{attempts} attempts of {self.timeout_s:g} s); is it connected and "
                         f"powered, and is the baud rate right?")
 
-    def ping(self):
+    def ping(self) -> None:
         self.command(PacketType.PING, expect=lambda reply: False)
 
-    def identify(self, *, check=True):
+    def identify(self, *, check: bool = True) -> IdentityInfo:
         """Read the identity; with ``check``, refuse a board with another protocol version."""
         reply = self.command(PacketType.IDENTIFY, expect=lambda r: r.type == PacketType.IDENTITY)
         if len(reply.payload) != byte_size(Identity):
@@ -291,12 +294,12 @@ class BoardClient:
         return self.identity
 
     @property
-    def clock_hz(self):
+    def clock_hz(self) -> int:
         if self.identity is None:
             self.identify()
         return self.identity.clock_hz
 
-    def read_registers(self, names=None):
+    def read_registers(self, names: Optional[Iterable[str]] = None) -> Dict[str, int]:
         """Register values by name (all of them by default), read in as few READs as possible."""
         names = [register.name for register in REGISTERS] if names is None else list(names)
         for name in names:
@@ -322,7 +325,8 @@ class BoardClient:
             addresses = [a for a in addresses if a >= first + count]
         return {name: values[name] for name in names}
 
-    def check_settings(self, current, changes):
+    def check_settings(self, current: Mapping[str, int],
+                       changes: Mapping[str, int]) -> Dict[str, int]:
         """The settings ``current`` with ``changes`` applied, if every value is in range and
         the whole is consistent (:func:`fliss.hdl.registers.problems`); else
         :exc:`~fliss.host.errors.SettingsError`."""
@@ -340,7 +344,8 @@ class BoardClient:
             raise SettingsError("; ".join(found))
         return candidate
 
-    def write_registers(self, changes, *, current=None):
+    def write_registers(self, changes: Mapping[str, int], *,
+                        current: Optional[Mapping[str, int]] = None) -> Dict[str, int]:
         """Write registers by name, after checking range and consistency on the host.
 
         All registers from the lowest to the highest address changed go in one WRITE, which
@@ -370,13 +375,13 @@ class BoardClient:
                                code=error.code, detail=error.detail, register=register) from None
         return candidate
 
-    def start(self):
+    def start(self) -> None:
         self.command(PacketType.START, expect=lambda reply: False)
 
-    def stop(self):
+    def stop(self) -> None:
         self.command(PacketType.STOP, expect=lambda reply: False)
 
-    def status(self):
+    def status(self) -> Dict[str, int]:
         """Board counters, a dict in :data:`~fliss.hdl.protocol.STATUS_FIELDS` order."""
         reply = self.command(PacketType.GET_STATUS,
                              expect=lambda r: r.type == PacketType.STATUS and
@@ -385,7 +390,8 @@ class BoardClient:
 
     # Streaming
 
-    def stream(self, *, idle_timeout_s=2.0, poll_s=0.05):
+    def stream(self, *, idle_timeout_s: float = 2.0, poll_s: float = 0.05
+               ) -> Iterator[Union[HistogramFrame, EventBatch, None]]:
         """Yield :class:`HistogramFrame` and :class:`EventBatch` items as they arrive, forever;
         between items it yields ``None`` about every ``poll_s`` so a caller can update a
         progress display or stop. Raises :exc:`BoardLost` when no byte arrives for
@@ -403,7 +409,7 @@ class BoardClient:
                                 f"{idle_timeout_s:g} s during an acquisition)")
             yield None
 
-    def settle(self, limit_s=120.0):
+    def settle(self, limit_s: float = 120.0) -> List[Union[HistogramFrame, EventBatch]]:
         """After a STOP: read until every histogram the board completed has arrived (its STATUS
         ``frames`` count), or until ``limit_s``; returns everything received. A board that
         is slow to send its last histogram (a simulation, a slow link) is waited for rather
@@ -419,7 +425,8 @@ class BoardClient:
             if ended is None and not items:
                 return items   # nothing of this capture's histograms: not ours to wait for
 
-    def drain(self, quiet_s=0.3, limit_s=10.0):
+    def drain(self, quiet_s: float = 0.3, limit_s: float = 10.0
+              ) -> List[Union[HistogramFrame, EventBatch]]:
         """Read until nothing has arrived for ``quiet_s`` (at most ``limit_s``), then finish the
         histogram in progress; returns everything received."""
         end = time.monotonic() + limit_s

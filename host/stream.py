@@ -7,6 +7,7 @@ malformed (:class:`StreamCounters`).
 
 import time
 from dataclasses import dataclass
+from typing import Dict, List, Optional, Union
 
 import numpy as np
 from amaranth.lib import data
@@ -14,7 +15,7 @@ from amaranth.lib import data
 from ..hdl.event import Event, TIMESTAMP_BITS
 from ..hdl.histogram import COUNT_WIDTH, MAX_SHIFT
 from ..hdl.protocol import PacketType, EVENT_BYTES, HistogramChunk
-from ..sim.codec import byte_size, unpack_from, word_dtype
+from ..sim.codec import Packet, byte_size, unpack_from, word_dtype
 from ..sim.event import EVENT_DTYPE
 
 
@@ -62,7 +63,7 @@ class StreamCounters:
     malformed: int = 0
     unexpected: int = 0
 
-    def as_dict(self):
+    def as_dict(self) -> Dict[str, int]:
         return dict(self.__dict__)
 
 
@@ -71,7 +72,7 @@ _EVENT_FIELDS = [(name, np.uint64(field.offset), np.uint64((1 << field.width) - 
                  for name, field in data.Layout.cast(Event)]
 
 
-def unpack_event_payload(payload):
+def unpack_event_payload(payload: bytes) -> np.ndarray:
     """``EVENT_DTYPE`` array from an EVENTS payload (vectorised; the same result as
     :func:`fliss.sim.codec.unpack_events`)."""
     if len(payload) % EVENT_BYTES:
@@ -108,7 +109,8 @@ class StreamAssembler:
         #: STATUS ``frames`` once every histogram it made has arrived.
         self.frames_ended = None
 
-    def add(self, packet, time_s=None):
+    def add(self, packet: Packet, time_s: Optional[float] = None
+            ) -> List[Union[HistogramFrame, EventBatch]]:
         time_s = time.time() if time_s is None else time_s
         if packet.type == PacketType.HISTOGRAM:
             return self._chunk(packet.payload, time_s)
@@ -122,7 +124,8 @@ class StreamAssembler:
         self.counters.unexpected += 1
         return []
 
-    def add_events(self, events, time_s=None):
+    def add_events(self, events: np.ndarray, time_s: Optional[float] = None
+                   ) -> List[EventBatch]:
         """The events of one EVENTS packet, already unpacked (``EVENT_DTYPE``), as by
         :meth:`fliss.host.bulk.BulkDecoder.feed_events`."""
         self.counters.event_packets += 1
@@ -171,7 +174,7 @@ class StreamAssembler:
         self._frame = self._counts = self._filled = None
         return result
 
-    def flush(self, time_s=None):
+    def flush(self, time_s: Optional[float] = None) -> List[HistogramFrame]:
         """Finish the frame in progress (at the end of a stream); returns it in a list."""
         if self._frame is None:
             return []
