@@ -38,8 +38,8 @@ from amaranth.lib import data
 from ..hdl.protocol import (DELIMITER, COBS_MAX_RUN, CRC_WIDTH, CRC_INIT, CRC_BYTES, PacketType,
                             Header, HEADER_BYTES, MAX_PACKET, MAX_ENCODED, NakCode, EVENT_BYTES)
 from ..sim import event as _event
-from ..sim.codec import (CRC_TABLE, FrameDecoder, LinkError, Packet, SequenceGap, decode_frame,
-                       packet_type)
+from ..sim.codec import (CRC_TABLE, FrameDecoder, LinkError, Packet, SequenceGap,
+                         decode_frame, packet_type)
 
 
 __all__ = ["BULK_MIN_BYTES", "BULK_MIN_GROUP", "Decoded", "BulkDecoder", "decode_stream"]
