@@ -28,8 +28,8 @@ import time
 
 import numpy as np
 
-from fliss.hdl.histogram import COUNT_WIDTH
-from fliss.hdl.protocol import PacketType, MAX_EVENTS_PER_PACKET, CRC_INIT, HistogramChunk
+from fliss.hdl.protocol import (HISTOGRAM_COUNT_BITS, PacketType, MAX_EVENTS_PER_PACKET, CRC_INIT,
+                                HistogramChunk)
 from fliss.hdl.registers import defaults
 from fliss.host.bulk import BulkDecoder, crc_rows, decode_stream
 from fliss.host.stream import StreamAssembler, HistogramFrame, EventBatch
@@ -69,7 +69,7 @@ def histogram_stream(histograms):
         for first in range(0, len(counts), 128):
             payload = pack(HistogramChunk, frame=number, first_bin=first,
                            last=int(first + 128 >= len(counts))) + \
-                pack_words(counts[first:first + 128], COUNT_WIDTH)
+                pack_words(counts[first:first + 128], HISTOGRAM_COUNT_BITS)
             frames.append(encode_frame(PacketType.HISTOGRAM, seq % 256, payload))
             seq += 1
     return b"".join(frames)

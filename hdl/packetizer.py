@@ -8,7 +8,8 @@ from . import lookup
 from .event import Event, TIMESTAMP_BITS
 from .framing import PacketBeat
 from .histogram import readout_layout, BIN_BITS, COUNT_WIDTH, MAX_SHIFT
-from .protocol import PacketType, HistogramChunk, EVENT_BYTES, MAX_EVENTS_PER_PACKET, MAX_PAYLOAD
+from .protocol import (PacketType, HistogramChunk, HISTOGRAM_COUNT_BITS, CHUNK_BINS, EVENT_BYTES,
+                       MAX_EVENTS_PER_PACKET, MAX_PAYLOAD)
 
 
 __all__ = ["HistogramChunk", "CHUNK_BINS", "COUNT_BYTES", "BATCH_TIMEOUT", "EventPacketizer",
@@ -16,11 +17,9 @@ __all__ = ["HistogramChunk", "CHUNK_BINS", "COUNT_BYTES", "BATCH_TIMEOUT", "Even
 
 
 #: Bytes per bin count.
-COUNT_BYTES = COUNT_WIDTH // 8
-#: Bins per HISTOGRAM chunk.
-CHUNK_BINS = 128
+COUNT_BYTES = HISTOGRAM_COUNT_BITS // 8
 _CHUNK_HEADER = data.Layout.cast(HistogramChunk).size // 8
-assert _CHUNK_HEADER + CHUNK_BINS * COUNT_BYTES <= MAX_PAYLOAD
+assert COUNT_WIDTH == HISTOGRAM_COUNT_BITS, "the readout's counts go out as they are"
 
 #: Cycles an incomplete event batch waits for more events before it is sent anyway.
 BATCH_TIMEOUT = 1 << 14

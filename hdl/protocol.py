@@ -29,6 +29,7 @@ __all__ = [
     "MAX_FRAME", "NakCode", "Ack", "Nak", "Identity", "ReadRequest", "REGISTER_BITS",
     "REGISTER_BYTES", "registers_layout", "READ_MAX", "CONSISTENCY", "COUNTER_BITS", "Status",
     "STATUS_FIELDS", "LINK_COUNTERS", "LINK_FIELDS", "LINK_ERRORS", "HistogramChunk",
+    "HISTOGRAM_COUNT_BITS", "CHUNK_BINS",
     "EVENT_BYTES", "MAX_EVENTS_PER_PACKET", "DIRECTION_BIT",
 ]
 
@@ -276,13 +277,23 @@ LINK_ERRORS = frozenset(LINK_COUNTERS) | {NakCode.UART_FRAMING}
 
 
 class HistogramChunk(data.Struct):
-    """Start of a HISTOGRAM payload; up to
-    :data:`~fliss.hdl.packetizer.CHUNK_BINS` u16 counts follow, in bin order."""
+    """Start of a HISTOGRAM payload; up to :data:`CHUNK_BINS` counts of
+    :data:`HISTOGRAM_COUNT_BITS` bits follow, in bin order."""
     frame:     32   # histogram number since reset
     first_bin: 16   # bin of the first count in this chunk
     shift:     8    # bins are 2**shift timestamp codes wide
     last:      8    # 1 in the last chunk of a frame
 
+
+#: Width of each bin count in a HISTOGRAM payload, in bits (little-endian words).
+HISTOGRAM_COUNT_BITS = 16
+
+#: Most bins in one HISTOGRAM chunk.
+CHUNK_BINS = 128
+
+
+assert (data.Layout.cast(HistogramChunk).size + CHUNK_BINS * HISTOGRAM_COUNT_BITS) // 8 \
+    <= MAX_PAYLOAD
 
 #: Bytes per event in an EVENTS packet: the :class:`~fliss.hdl.event.Event` struct, as a
 #: little-endian integer, padded to whole bytes.

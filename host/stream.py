@@ -13,8 +13,8 @@ import numpy as np
 from amaranth.lib import data
 
 from ..hdl.event import Event, TIMESTAMP_BITS
-from ..hdl.histogram import COUNT_WIDTH, MAX_SHIFT
-from ..hdl.protocol import PacketType, EVENT_BYTES, HistogramChunk
+from ..hdl.histogram import MAX_SHIFT
+from ..hdl.protocol import HISTOGRAM_COUNT_BITS, PacketType, EVENT_BYTES, HistogramChunk
 from ..sim.codec import Packet, byte_size, unpack_from, word_dtype
 from ..sim.event import EVENT_DTYPE
 
@@ -24,7 +24,7 @@ __all__ = ["HistogramFrame", "EventBatch", "StreamCounters", "StreamAssembler",
 
 
 _CHUNK_BYTES = byte_size(HistogramChunk)
-_COUNT_DTYPE = word_dtype(COUNT_WIDTH)
+_COUNT_DTYPE = word_dtype(HISTOGRAM_COUNT_BITS)
 
 
 @dataclass

@@ -2,10 +2,10 @@
 simulator.
 
 :class:`ModelBoard` speaks the real protocol bytes (:mod:`fliss.hdl.protocol`) over a pty: it
-decodes commands with the software codec (:mod:`fliss.sim.codec`), answers them with :class:`fliss.sim.command.CommandModel`
-(the reply semantics of the gateware command processor) and, while acquiring, sends HISTOGRAM
-chunks or EVENTS batches made from the photon scene simulator (:mod:`fliss.sim.scene`) with the
-configured delay settings, paced by the wall clock.
+decodes commands with the software codec (:mod:`fliss.sim.codec`), answers them with
+:class:`fliss.sim.command.CommandModel` (the reply semantics of the gateware command processor)
+and, while acquiring, sends HISTOGRAM chunks or EVENTS batches made from the photon scene
+simulator (:mod:`fliss.sim.scene`) with the configured delay settings, paced by the wall clock.
 
 It is a behavioural model of the whole board, not a cycle-accurate one: frame ``k`` of an
 acquisition holds the laser cycles whose TDC start falls in clock cycles ``[k I, (k + 1) I)``
@@ -29,10 +29,9 @@ import numpy as np
 
 from ..hdl import DEFAULT_CLOCK_HZ
 from ..hdl.event import TIMESTAMP_BITS
-from ..hdl.histogram import COUNT_WIDTH
-from ..hdl.packetizer import CHUNK_BINS
-from ..hdl.protocol import (DEFAULT_BAUD, PacketType, HistogramChunk, STATUS_FIELDS,
-                            LINK_COUNTERS, MAX_EVENTS_PER_PACKET, EVENT_BYTES)
+from ..hdl.protocol import (HISTOGRAM_COUNT_BITS, CHUNK_BINS, DEFAULT_BAUD, PacketType,
+                            HistogramChunk, STATUS_FIELDS, LINK_COUNTERS, MAX_EVENTS_PER_PACKET,
+                            EVENT_BYTES)
 from ..hdl.registers import AcquisitionMode, TdcSource
 from .codec import LinkError, Packet, encode_frame, pack, pack_events, pack_words
 from . import scheduler as _scheduler
@@ -287,13 +286,13 @@ class ModelBoard(PtyBoard):
         bins = (1 << TIMESTAMP_BITS) >> shift
         counts = self._frame_counts if self._frame_counts is not None else \
             np.zeros(bins, dtype=np.int64)
-        counts = np.minimum(counts, (1 << COUNT_WIDTH) - 1)
+        counts = np.minimum(counts, (1 << HISTOGRAM_COUNT_BITS) - 1)
         step = min(CHUNK_BINS, bins)
         for first in range(0, bins, step):
             last = int(first + step >= bins)
             payload = pack(HistogramChunk, frame=self._frame & 0xffffffff, first_bin=first,
                            shift=shift, last=last) + \
-                pack_words(counts[first:first + step], COUNT_WIDTH)
+                pack_words(counts[first:first + step], HISTOGRAM_COUNT_BITS)
             self._send(PacketType.HISTOGRAM, payload, data=True)
         self._frame += 1
         self.status["frames"] += 1

@@ -1,9 +1,10 @@
 """cocotb fuzz of the link (:class:`fliss.sim.link_top.LinkTop`) at one byte per cycle.
 
 Random and mutated frames go in one after the other, each as soon as the previous one is
-answered, at one byte per cycle. Each must come back as its proper reply (the command processor's model says which) or as a NAK with
-the reason the host codec finds; every link error is counted in STATUS; and at the end the
-registers hold exactly what the model accepted: no refused setting was applied.
+answered, at one byte per cycle. Each must come back as its proper reply (the command
+processor's model says which) or as a NAK with the reason the software codec finds; every link
+error is counted in STATUS; and at the end the registers hold exactly what the model accepted:
+no refused setting was applied.
 ``FLISS_TB_FUZZ_FRAMES`` frames (10 000 by default).
 """
 

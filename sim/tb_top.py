@@ -22,9 +22,8 @@ from cocotb.simtime import get_sim_time
 from cocotb.triggers import ClockCycles, ReadOnly, RisingEdge, Timer, with_timeout
 
 from ..hdl import DEFAULT_CLOCK_HZ
-from ..hdl.histogram import COUNT_WIDTH
-from ..hdl.protocol import (PacketType, MAX_ENCODED, Nak, ReadRequest, Status, STATUS_FIELDS,
-                            HistogramChunk, LINK_COUNTERS, registers_layout)
+from ..hdl.protocol import (HISTOGRAM_COUNT_BITS, PacketType, MAX_ENCODED, Nak, ReadRequest,
+                            Status, STATUS_FIELDS, HistogramChunk, LINK_COUNTERS, registers_layout)
 from ..hdl.registers import BY_NAME, REGISTERS, AcquisitionMode
 from . import codec
 from .command import CommandModel
@@ -343,7 +342,7 @@ async def test_histogram_closed_loop(dut):
     chunk = codec.unpack_from(HistogramChunk, first)
     frame, first_bin, chunk_shift, last = (chunk["frame"], chunk["first_bin"], chunk["shift"],
                                            chunk["last"])
-    counts = np.array(codec.unpack_words(first, COUNT_WIDTH,
+    counts = np.array(codec.unpack_words(first, HISTOGRAM_COUNT_BITS,
                                          offset=codec.byte_size(HistogramChunk)))
     want = np.bincount(np.array([e[0] for e in tb.sensor_events]) >> shift,
                        minlength=8192 >> shift)

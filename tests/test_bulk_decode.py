@@ -12,9 +12,8 @@ import pytest
 from amaranth.lib import data
 
 from fliss.hdl.event import Event
-from fliss.hdl.histogram import COUNT_WIDTH
-from fliss.hdl.protocol import (PacketType, NakCode, MAX_EVENTS_PER_PACKET, MAX_ENCODED,
-                                HistogramChunk)
+from fliss.hdl.protocol import (HISTOGRAM_COUNT_BITS, PacketType, NakCode, MAX_EVENTS_PER_PACKET,
+                                MAX_ENCODED, HistogramChunk)
 from fliss.host import bulk
 from fliss.host.stream import EventBatch, StreamAssembler
 from fliss.sim.codec import (FrameDecoder, Packet, LinkError, cobs_encode, crc16,
@@ -40,7 +39,7 @@ def random_events(rng, count, *, big=False):
 def histogram_payload(rng, frame, first, bins=128, last=False):
     counts = rng.poisson(3.0, bins)
     return pack(HistogramChunk, frame=frame, first_bin=first, shift=0, last=int(last)) + \
-        pack_words(counts, COUNT_WIDTH)
+        pack_words(counts, HISTOGRAM_COUNT_BITS)
 
 
 def mixed_frames(rng, *, packets=300, seq=0):

@@ -6,7 +6,7 @@ import time
 import numpy as np
 import pytest
 
-from fliss.hdl.protocol import STATUS_FIELDS
+from fliss.hdl.protocol import HISTOGRAM_COUNT_BITS, STATUS_FIELDS
 from fliss.hdl.protocol import PacketType, PROTOCOL_VERSION, EVENT_BYTES, NakCode
 from fliss.hdl.registers import REGISTERS, defaults
 from fliss.host.cli import UserError
@@ -14,7 +14,6 @@ from fliss.host.client import BoardClient
 from fliss.host.errors import BoardError, BoardLost, BoardRefused, PortError, SettingsError
 from fliss.host.stream import (StreamAssembler, HistogramFrame,
                                unpack_event_payload)
-from fliss.hdl.histogram import COUNT_WIDTH
 from fliss.hdl.protocol import HistogramChunk, registers_layout
 from fliss.sim.codec import (FrameDecoder, Packet, unpack_events, pack, pack_words, unpack_from,
                              unpack_words, byte_size)
@@ -176,7 +175,7 @@ def test_lost_reply_is_retried():
 def _chunk(frame, first, shift, last, counts):
     return Packet(PacketType.HISTOGRAM, 0,
                   pack(HistogramChunk, frame=frame, first_bin=first, shift=shift, last=last) +
-                  pack_words(counts, COUNT_WIDTH))
+                  pack_words(counts, HISTOGRAM_COUNT_BITS))
 
 
 def _frame_packets(frame, counts, shift, per_chunk=128):
@@ -259,7 +258,7 @@ def test_stream_corruption_is_counted_and_never_accepted():
         chunk = unpack_from(HistogramChunk, payload)
         frame, first = chunk["frame"], chunk["first_bin"]
         sent.setdefault(frame, np.zeros(2048, dtype=np.int64))[first:first + 128] = \
-            unpack_words(payload, COUNT_WIDTH, offset=byte_size(HistogramChunk))
+            unpack_words(payload, HISTOGRAM_COUNT_BITS, offset=byte_size(HistogramChunk))
     corrupted = {seq for type, seq in model.corrupted}
     assert len(corrupted) >= 10
     assert link["dropped_frames"] == len(model.corrupted)

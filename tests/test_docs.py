@@ -7,10 +7,9 @@ from pathlib import Path
 from amaranth.lib import data
 
 from fliss.hdl.event import Event
-from fliss.hdl.packetizer import CHUNK_BINS
-from fliss.hdl.protocol import (GATEWARE_VERSION, Header, Ack, Nak, Identity, ReadRequest,
-                                Status, HistogramChunk, registers_layout, READ_MAX, CONSISTENCY,
-                                EVENT_BYTES)
+from fliss.hdl.protocol import (GATEWARE_VERSION, CHUNK_BINS, Header, Ack, Nak, Identity,
+                                ReadRequest, Status, HistogramChunk, registers_layout, READ_MAX,
+                                CONSISTENCY, EVENT_BYTES)
 from fliss.hdl.registers import REGISTERS
 
 

@@ -4,9 +4,8 @@ import random
 
 import pytest
 
-from fliss.hdl.histogram import COUNT_WIDTH
-from fliss.hdl.packetizer import CHUNK_BINS, HistogramPacketizer
-from fliss.hdl.protocol import PacketType, HistogramChunk
+from fliss.hdl.packetizer import HistogramPacketizer
+from fliss.hdl.protocol import HISTOGRAM_COUNT_BITS, CHUNK_BINS, PacketType, HistogramChunk
 from fliss.sim.codec import pack, pack_words
 from simulation import simulate
 
@@ -68,7 +67,7 @@ def test_histogram_chunks(shift):
             chunk = counts[first:first + CHUNK_BINS]
             last = int(first + CHUNK_BINS >= bins)
             payload = pack(HistogramChunk, frame=number, first_bin=first, shift=shift,
-                           last=last) + pack_words(chunk, COUNT_WIDTH)
+                           last=last) + pack_words(chunk, HISTOGRAM_COUNT_BITS)
             want.append((PacketType.HISTOGRAM.value, len(payload), payload))
     got = packetize(shift, frames, seed=shift)
     assert got == want

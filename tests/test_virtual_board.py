@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from fliss.hdl import DEFAULT_CLOCK_HZ
-from fliss.hdl.histogram import COUNT_WIDTH
-from fliss.hdl.protocol import (EVENT_BYTES, PROTOCOL_VERSION, NakCode, PacketType, Identity,
-                                ReadRequest, Status, HistogramChunk, registers_layout)
+from fliss.hdl.protocol import (HISTOGRAM_COUNT_BITS, EVENT_BYTES, PROTOCOL_VERSION, NakCode,
+                                PacketType, Identity, ReadRequest, Status, HistogramChunk,
+                                registers_layout)
 from fliss.hdl.registers import BY_NAME, REGISTERS
 from fliss.sim import codec
 from fliss.host.virtual import SIMULATORS, VirtualBoard
@@ -212,7 +212,7 @@ def _frame(link, number, timeout_s):
             continue
         assert frame == number, (frame, number)
         chunks[first_bin] = np.array(codec.unpack_words(
-            packet.payload, COUNT_WIDTH, offset=codec.byte_size(HistogramChunk)))
+            packet.payload, HISTOGRAM_COUNT_BITS, offset=codec.byte_size(HistogramChunk)))
         if last:
             break
     bins = np.concatenate([chunks[first] for first in sorted(chunks)])
