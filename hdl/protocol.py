@@ -84,9 +84,9 @@ class PacketType(enum.Enum, shape=8):
     PING      = 0x01
     #: Ask for the IDENTITY packet.
     IDENTIFY  = 0x02
-    #: Read registers: payload ``address`` (u16), ``count`` (u8); answered with REGISTERS.
+    #: Read registers: payload :class:`ReadRequest`; answered with REGISTERS.
     READ      = 0x03
-    #: Write registers: payload ``address`` (u16), then one u32 per register; answered with ACK.
+    #: Write registers: payload :func:`registers_layout`; answered with ACK.
     WRITE     = 0x04
     #: Start acquisition; answered with ACK.
     START     = 0x05
@@ -100,15 +100,15 @@ class PacketType(enum.Enum, shape=8):
     ACK       = 0x80
     #: Command refused: payload :class:`Nak`.
     NAK       = 0x81
-    #: Identity: protocol version, gateware version, clock frequency.
+    #: Identity: payload :class:`Identity`.
     IDENTITY  = 0x82
-    #: Register values: payload ``address`` (u16), then one u32 per register.
+    #: Register values: payload :func:`registers_layout`.
     REGISTERS = 0x83
-    #: Status with counters (events, dropped events, UART errors, bad CRCs, refused commands).
+    #: Status with counters: payload :class:`Status`.
     STATUS    = 0x84
-    #: Raw event batch: a whole number of :data:`EVENT_BYTES`-byte events.
+    #: Raw event batch: a whole number of :data:`EVENT_BYTES`-byte :class:`Event` values.
     EVENTS    = 0x85
-    #: Histogram chunk.
+    #: Histogram chunk: a :class:`HistogramChunk`, then up to :data:`CHUNK_BINS` counts.
     HISTOGRAM = 0x86
 
 
