@@ -2,7 +2,7 @@
 plus histogramming of recorded raw data come to ``numpy.bincount`` alone?
 
 Recorded data: a stream of full EVENTS frames (37 events each) and a stream of HISTOGRAM chunks,
-encoded with the host codec exactly as the gateware sends them, with scene-simulator events.
+encoded with the software codec exactly as the gateware sends them, with scene-simulator events.
 
 Figures, all measured in the same run on the same data (best of ``--repeat``):
 

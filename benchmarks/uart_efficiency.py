@@ -9,7 +9,7 @@ Definitions (8N1: every byte on the line is a 10-bit character, start + 8 data +
   the line's raw bit rate that carries event bits, start and stop bits counted as overhead.
 
 Payload is the EVENTS packet payload: EVENT_BYTES bytes per event. Frame sizes are measured by
-encoding random events with the host codec; then the gateware (FrameEncoder into UartTx at
+encoding random events with the software codec; then the gateware (FrameEncoder into UartTx at
 12 Mbaud from 80 MHz) is simulated for the baseline and for full packets, and the cycles from
 the first start bit to the last stop bit give the payload rate actually achieved.
 

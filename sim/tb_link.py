@@ -138,7 +138,7 @@ async def test_fuzz(dut):
         items.append(await link.exchange(frame))
     cycles = link.cycles
 
-    # What a correct device answers, frame by frame, from the host codec and the command model.
+    # What a correct device answers, frame by frame, from the software codec and the command model.
     model = CommandModel(DEFAULT_CLOCK_HZ, BAUD)
     errors = dict.fromkeys(LINK_COUNTERS, 0)
     accepted = 0

@@ -1,5 +1,5 @@
 """The virtual board through a real pseudo-terminal: the generated Verilog of the top level in
-Icarus and Verilator, the host codec on the other side of the pty, the scene simulator on the
+Icarus and Verilator, the software codec on the other side of the pty, the scene simulator on the
 sensor pins.
 
 A missing simulator skips its tests, or fails them when ``FLISS_REQUIRE_SIMULATORS`` is set.
