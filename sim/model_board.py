@@ -12,7 +12,7 @@ acquisition holds the laser cycles whose TDC start falls in clock cycles ``[k I,
 (``I`` = ``integration``), exactly as :func:`fliss.sim.scene.acquire` cuts a run, so a test can
 predict every histogram from the scene and the seeds.
 
-Faults can be injected (:class:`fliss.sim.pty_board.PtyBoard`): ``kill_after`` closes the pty
+Faults can be injected (:class:`fliss.sim.pty_server.PtyServer`): ``kill_after`` closes the pty
 after that many data packets (a board unplugged mid-capture), ``hang_after`` stops sending
 without closing, and ``corrupt_every`` damages one byte of every n-th frame sent (never a
 delimiter, never into a delimiter), keeping the list of what it damaged in
@@ -37,7 +37,7 @@ from .codec import LinkError, Packet, encode_frame, pack, pack_events, pack_word
 from . import scheduler as _scheduler
 from .command import CommandModel
 from .delay import DelayMode
-from .pty_board import PtyBoard
+from .pty_server import PtyServer
 from .scene import Aggressor, Scene, Simulation
 
 
@@ -71,9 +71,9 @@ def scene_for(settings, template=None, *, aggressor_detections_per_pulse=0.05, c
     return template.replace(victim=victim, aggressors=aggressors, clock_hz=clock_hz)
 
 
-class ModelBoard(PtyBoard):
+class ModelBoard(PtyServer):
     """A board on a pseudo-terminal, served by a thread (a
-    :class:`~fliss.sim.pty_board.PtyBoard`).
+    :class:`~fliss.sim.pty_server.PtyServer`).
 
     Parameters
     ----------

@@ -1,13 +1,13 @@
 """The byte side of a board model on a pseudo-terminal, with fault injection.
 
-:class:`PtyBoard` opens a pty, serves it from a thread, decodes what the host sends with
+:class:`PtyServer` opens a pty, serves it from a thread, decodes what the host sends with
 :class:`fliss.sim.codec.FrameDecoder` and sends packets as frames. Faults can be injected:
 ``kill_after`` closes the pty after that many data packets (a board unplugged mid-capture),
 ``hang_after`` stops sending without closing, ``corrupt_every`` damages one byte of every n-th
 frame sent (never a delimiter, never into a delimiter), keeping the list of what it damaged in
-:attr:`PtyBoard.corrupted`, and ``corrupt_commands_every`` damages one byte of every n-th read
+:attr:`PtyServer.corrupted`, and ``corrupt_commands_every`` damages one byte of every n-th read
 from the host. A subclass (:class:`fliss.sim.model_board.ModelBoard`) answers the packets
-(:meth:`PtyBoard._receive`) and makes the data (:meth:`PtyBoard._work`).
+(:meth:`PtyServer._receive`) and makes the data (:meth:`PtyServer._work`).
 """
 
 import errno
@@ -25,10 +25,10 @@ import numpy as np
 from .codec import FrameDecoder, encode_frame
 
 
-__all__ = ["PtyBoard"]
+__all__ = ["PtyServer"]
 
 
-class PtyBoard:
+class PtyServer:
     """A pseudo-terminal served by a thread, for a board model.
 
     Parameters
