@@ -9,7 +9,7 @@ Definitions (8N1: every byte on the line is a 10-bit character, start + 8 data +
   the line's raw bit rate that carries event bits, start and stop bits counted as overhead.
 
 Payload is the EVENTS packet payload: EVENT_BYTES bytes per event. Frame sizes are measured by
-encoding random events with the host codec; then the gateware (FrameEncoder into UartTx at
+encoding random events with the software codec; then the gateware (FrameEncoder into UartTx at
 12 Mbaud from 80 MHz) is simulated for the baseline and for full packets, and the cycles from
 the first start bit to the last stop bit give the payload rate actually achieved.
 
@@ -25,7 +25,7 @@ from fliss.hdl import DEFAULT_CLOCK_HZ
 from fliss.hdl.framing import FrameEncoder
 from fliss.hdl.protocol import PacketType, EVENT_BYTES, MAX_EVENTS_PER_PACKET, MAX_PAYLOAD
 from fliss.hdl.uart import UartTx, CHARACTER_BITS, DATA_BITS
-from fliss.host import protocol as codec
+from fliss.sim import codec
 from fliss.sim.event import EVENT_DTYPE
 
 

@@ -4,51 +4,16 @@ from amaranth.hdl import *
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from .. import __version__
 from . import DEFAULT_CLOCK_HZ
 from .buffer import StreamBuffer
 from .framing import PacketBeat
-from .protocol import (PROTOCOL_VERSION, PacketType, NakCode, MAX_PAYLOAD, COUNTER_BITS)
+from .protocol import (PROTOCOL_VERSION, GATEWARE_MAJOR, GATEWARE_MINOR, PacketType, NakCode,
+                       MAX_PAYLOAD, COUNTER_BITS, Identity, STATUS_FIELDS, READ_MAX, CONSISTENCY)
 from .regfile import RegisterFile
 from .registers import REGISTERS, register_maxima
 
 
-__all__ = ["Identity", "STATUS_FIELDS", "StatusSignature", "READ_MAX", "CONSISTENCY",
-           "register_maxima", "CommandProcessor"]
-
-
-class Identity(data.Struct):
-    """Payload of an IDENTITY packet (little-endian)."""
-    protocol:       8
-    gateware_major: 8
-    gateware_minor: 8
-    registers:      8
-    clock_hz:       32
-    baud:           32
-
-
-#: Counters of a STATUS packet, in payload order, each a little-endian u32.
-STATUS_FIELDS = (
-    "running",              # 1 while acquiring
-    "pulses",               # victim laser pulses since the start
-    "frames",               # histograms completed
-    "events",               # events accepted from the TDC
-    "dropped_stopped",      # events while stopped
-    "dropped_gate",         # events outside the gate
-    "dropped_overflow",     # coarse TDC: photon beyond the timestamp range
-    "dropped_overrun",      # events faster than the interface can take
-    "dropped_fifo",         # raw mode: events dropped at the full FIFO
-    "dropped_histogram",    # histogram mode: events while no frame was filling
-    "histogram_overflow",   # histogram mode: events beyond the last bin
-    "uart_framing_errors",  # bytes with a bad stop bit
-    "uart_overruns",        # bytes lost because the receiver was full
-    "bad_crc",              # frames dropped: bad CRC
-    "truncated",            # frames dropped: truncated
-    "oversize",             # frames dropped: oversize
-    "bad_length",           # frames dropped: header length wrong
-    "commands",             # commands received
-    "refused",              # commands refused with a NAK
-)
+__all__ = ["StatusSignature", "CommandProcessor"]
 
 
 #: The command processor's port to the STATUS counters (:class:`fliss.hdl.status.StatusCounters`):
@@ -63,17 +28,6 @@ StatusSignature = wiring.Signature({
 })
 
 
-#: Most registers in one READ (the REGISTERS reply carries the address and one u32 each).
-READ_MAX = (MAX_PAYLOAD - 2) // 4
-
-#: ``detail`` of a NAK ``OUT_OF_RANGE`` refused for inconsistent settings rather than for one
-#: register out of its range (whose address is the detail then).
-CONSISTENCY = 0xffff
-
-
-def _version(text):
-    parts = [int(part) if part.isdigit() else 0 for part in text.split(".")[:2]] + [0, 0]
-    return parts[0] & 0xff, parts[1] & 0xff
 
 
 class CommandProcessor(wiring.Component):
@@ -387,7 +341,7 @@ class CommandProcessor(wiring.Component):
                         m.d.sync += accepting.eq(1)
 
         # Reply header and payload bytes
-        major, minor = _version(__version__)
+        major, minor = GATEWARE_MAJOR, GATEWARE_MINOR
         identity = Const({"protocol": PROTOCOL_VERSION, "gateware_major": major,
                           "gateware_minor": minor, "registers": len(REGISTERS),
                           "clock_hz": self.clock_hz, "baud": self.baud}, Identity)

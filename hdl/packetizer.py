@@ -8,28 +8,18 @@ from . import lookup
 from .event import Event, TIMESTAMP_BITS
 from .framing import PacketBeat
 from .histogram import readout_layout, BIN_BITS, COUNT_WIDTH, MAX_SHIFT
-from .protocol import PacketType, EVENT_BYTES, MAX_EVENTS_PER_PACKET, MAX_PAYLOAD
+from .protocol import (PacketType, HistogramChunk, HISTOGRAM_COUNT_BITS, CHUNK_BINS, EVENT_BYTES,
+                       MAX_EVENTS_PER_PACKET, MAX_PAYLOAD)
 
 
 __all__ = ["HistogramChunk", "CHUNK_BINS", "COUNT_BYTES", "BATCH_TIMEOUT", "EventPacketizer",
            "HistogramPacketizer"]
 
 
-class HistogramChunk(data.Struct):
-    """Start of a HISTOGRAM payload (little-endian); ``CHUNK_BINS`` u16 counts follow (fewer
-    when a frame has fewer bins)."""
-    frame:     32   # histogram number since reset
-    first_bin: 16   # bin of the first count in this chunk
-    shift:     8    # bins are 2**shift timestamp codes wide
-    last:      8    # 1 in the last chunk of a frame
-
-
 #: Bytes per bin count.
-COUNT_BYTES = COUNT_WIDTH // 8
-#: Bins per HISTOGRAM chunk.
-CHUNK_BINS = 128
+COUNT_BYTES = HISTOGRAM_COUNT_BITS // 8
 _CHUNK_HEADER = data.Layout.cast(HistogramChunk).size // 8
-assert _CHUNK_HEADER + CHUNK_BINS * COUNT_BYTES <= MAX_PAYLOAD
+assert COUNT_WIDTH == HISTOGRAM_COUNT_BITS, "the readout's counts go out as they are"
 
 #: Cycles an incomplete event batch waits for more events before it is sent anyway.
 BATCH_TIMEOUT = 1 << 14

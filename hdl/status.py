@@ -4,9 +4,9 @@ from amaranth.hdl import *
 from amaranth.lib import data, wiring
 from amaranth.lib.wiring import In, Out
 
-from .command import STATUS_FIELDS, StatusSignature
+from .command import StatusSignature
 from .counters import CounterBank
-from .protocol import COUNTER_BITS
+from .protocol import COUNTER_BITS, LINK_FIELDS, STATUS_FIELDS
 
 
 __all__ = ["COUNTED_FIELDS", "LINK_FIELDS", "strobes_layout", "StatusCounters"]
@@ -15,9 +15,6 @@ __all__ = ["COUNTED_FIELDS", "LINK_FIELDS", "strobes_layout", "StatusCounters"]
 #: The STATUS fields counted here from strobes: all but ``running`` (a level, from the command
 #: processor) and ``pulses`` (the victim scheduler's pulse index).
 COUNTED_FIELDS = STATUS_FIELDS[2:]
-
-#: The counted fields that a :class:`~fliss.hdl.framing.FrameDecoder` strobes (its ``tally``).
-LINK_FIELDS = ("bad_crc", "truncated", "oversize", "bad_length")
 
 
 def strobes_layout():
@@ -31,7 +28,7 @@ class StatusCounters(wiring.Component):
     (saturating at ``2**32 - 1``, zero after reset). A capture on ``port`` takes an exact
     snapshot of all of them and of ``pulses`` in one cycle (the bank's ``captured``), at most
     ``len(COUNTED_FIELDS)`` cycles after it is asked for; the port reads field ``addr`` of
-    :data:`~fliss.hdl.command.STATUS_FIELDS` one cycle later (``running`` reads as zero: the
+    :data:`~fliss.hdl.protocol.STATUS_FIELDS` one cycle later (``running`` reads as zero: the
     command processor sends its own).
 
     Members

@@ -12,6 +12,7 @@ from .event import TIMESTAMP_BITS, ADDRESS_BITS
 from .framing import FrameDecoder, FrameEncoder
 from .histogram import Histogram, RAM_KINDS
 from .packetizer import EventPacketizer, HistogramPacketizer
+from .protocol import DEFAULT_BAUD
 from .rawfifo import RawFifo
 from .registers import VICTIM, AGGRESSOR, AGGRESSOR_DELAY, AcquisitionMode, TdcSource
 from .settings import PERIOD_WIDTH, PULSE_WIDTH_WIDTH, check_widths
@@ -22,9 +23,6 @@ from .uart import UartRx, UartTx, bit_cycles
 
 __all__ = ["DEFAULT_BAUD", "SMALL", "FlissTop"]
 
-
-#: Default UART baud rate: what an FT2232H bridge (iCEBreaker, many ULX3S) carries reliably.
-DEFAULT_BAUD = 3_000_000
 
 #: Options of :class:`FlissTop` for the smallest build, which fits an iCE40UP5K (the
 #: iCEBreaker's FPGA): histograms only, in single-port RAM; no aggressor emitter; periods up to

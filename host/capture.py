@@ -1,24 +1,21 @@
-"""``fliss capture``: histograms or raw events from a board into an HDF5 file."""
+"""``fliss capture``: histograms or raw events from a board into an HDF5 file.
+
+The capture itself is :func:`fliss.host.acquisition.capture`; this module adds the command
+line, the progress bar and the report.
+"""
 
 import argparse
-import math
 import os
-import signal
 import sys
 import time
 
-from ..hdl.registers import AcquisitionMode
+from .acquisition import capture
 from .cli import UserError
-from .client import BoardLost, EventBatch, HistogramFrame, add_port_arguments, connect
-from .fileformat import CaptureWriter
-from .units import format_time, parse_time
+from .port_options import add_port_arguments, connect
+from .units import parse_time
 
 
-__all__ = ["register", "run", "Progress", "capture"]
-
-
-#: Seconds between STATUS requests during a capture (a heartbeat that finds a silent board).
-HEARTBEAT_S = 1.0
+__all__ = ["register", "run", "report", "Progress"]
 
 
 class Progress:
@@ -53,41 +50,6 @@ class Progress:
         if self.enabled and self._length:
             self.stream.write("\n")
             self.stream.flush()
-
-
-class _Interrupt:
-    """Ctrl-C during a capture only sets a flag, checked between packets, so that it never
-    breaks into the middle of an HDF5 write (h5py holds a lock then) or of a packet's
-    decoding. A second Ctrl-C interrupts at once."""
-
-    def __init__(self):
-        self.requested = False
-        self._previous = None
-
-    def _handler(self, signum, frame):
-        if self.requested:
-            raise KeyboardInterrupt
-        self.requested = True
-
-    def install(self):
-        try:
-            self._previous = signal.signal(signal.SIGINT, self._handler)
-        except ValueError:      # not the main thread: leave Ctrl-C alone
-            self._previous = None
-
-    def restore(self):
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
-            self._previous = None
-
-
-def _rate(events, seconds):
-    rate = events / seconds if seconds > 0 else 0.0
-    if rate >= 1e6:
-        return f"{rate / 1e6:.2f} Mevents/s"
-    if rate >= 1e3:
-        return f"{rate / 1e3:.1f} kevents/s"
-    return f"{rate:.0f} events/s"
 
 
 def register(subparsers, formatter):
@@ -133,136 +95,26 @@ def run(args):
     if os.path.exists(args.output) and not args.overwrite:
         raise UserError(f"{args.output} exists (use --overwrite to replace it)")
     quiet = getattr(args, "quiet", 0) > 0
-    with connect(args) as board:
-        return capture(board, args.output, mode=args.mode, integration_s=integration_s,
-                       acquisitions=args.acquisitions, duration_s=duration_s, port=args.port,
-                       progress=not quiet, quiet=quiet)
-
-
-def capture(board, path, *, mode="histogram", integration_s=10e-3, acquisitions=10,
-            duration_s=None, port="", progress=True, quiet=False, out=None):
-    """Capture into ``path`` from an identified :class:`~fliss.host.client.Board`.
-
-    Returns the exit status: 0 when done, 130 when interrupted (Ctrl-C); raises
-    :exc:`UserError` (after saving the file) when the board was lost.
-    """
-    out = sys.stdout if out is None else out
-    clock_hz = board.identity.clock_hz
-    cycles = round(integration_s * clock_hz)
-    if cycles < 1:
-        raise UserError(f"--integration {format_time(integration_s)} is shorter than one clock "
-                        f"cycle of the board ({format_time(1 / clock_hz)})")
-    board.stop()
-    board.drain(quiet_s=0.1, limit_s=2.0)
-    current = board.read_registers()
-    board.write_registers({"acquisition": AcquisitionMode[mode.upper()].value,
-                           "integration": cycles}, current=current)
-    configuration = board.read_registers()
-    status_start = board.status()
-
-    writer = CaptureWriter(path, mode=mode, identity=board.identity.as_dict(),
-                           configuration=configuration, port=port)
-    writer.file.attrs["integration_s"] = cycles / clock_hz
-    if mode == "histogram":
-        writer.file.attrs["acquisitions_requested"] = acquisitions
-        bar = Progress(acquisitions, "histograms", enabled=progress)
+    if args.mode == "histogram":
+        bar = Progress(args.acquisitions, "histograms", enabled=not quiet)
     else:
-        writer.file.attrs["duration_s_requested"] = duration_s
-        bar = Progress(round(duration_s, 1), "s", enabled=progress)
+        bar = Progress(round(duration_s, 1), "s", enabled=not quiet)
+    with connect(args) as board:
+        result = capture(board, args.output, mode=args.mode, integration_s=integration_s,
+                         acquisitions=args.acquisitions, duration_s=duration_s, port=args.port,
+                         progress=bar)
+    return report(result, quiet=quiet)
 
-    state = {"events": 0, "histograms": 0, "discarded": 0}
 
-    def store(item):
-        if isinstance(item, HistogramFrame):
-            if mode != "histogram" or state["histograms"] >= acquisitions:
-                state["discarded"] += 1
-                return
-            if writer.add_histogram(item):
-                state["histograms"] += 1
-                state["events"] += int(item.counts.sum())
-            else:
-                state["discarded"] += 1
-        elif isinstance(item, EventBatch):
-            writer.add_events(item)
-            state["events"] += len(item.events)
-
-    reason, complete, lost = "completed", True, None
-    interrupt = _Interrupt()
-    board.reset_counters()
-    started = time.monotonic()
-    heartbeat = started
-    status_end = None
-    idle_timeout_s = max(3.0, 3 * cycles / clock_hz + 1.0)
-    try:
-        interrupt.install()
-        board.start()
-        started = heartbeat = time.monotonic()
-        for item in board.stream(idle_timeout_s=idle_timeout_s if mode == "histogram"
-                                 else math.inf):
-            if item is not None:
-                store(item)
-            if interrupt.requested:
-                raise KeyboardInterrupt
-            now = time.monotonic()
-            elapsed = now - started
-            link = board.link_counters()
-            stream = board.assembler.counters
-            damaged = f"{link['dropped_frames']} corrupt, {link['missing_packets']} lost"
-            if mode == "histogram":
-                seen = state["histograms"] + state["discarded"] + stream.lost_frames
-                bar.update(min(state["histograms"], acquisitions),
-                           f"{_rate(state['events'], elapsed)}  link: {damaged}")
-                if seen >= acquisitions:
-                    break
-            else:
-                bar.update(min(elapsed, duration_s),
-                           f"{_rate(state['events'], elapsed)}  link: {damaged}")
-                if elapsed >= duration_s:
-                    break
-            if now - heartbeat >= HEARTBEAT_S:
-                heartbeat = now
-                board.status()    # data that arrive meanwhile are kept
-    except KeyboardInterrupt:
-        reason, complete = "interrupted", False
-    except BoardLost as error:
-        reason, complete, lost = f"board lost: {error}", False, error
-    finally:
-        interrupt.restore()
-    bar.update(state["histograms"] if mode == "histogram" else
-               min(time.monotonic() - started, duration_s), force=True)
-    bar.close()
-
-    if lost is None:
-        try:
-            board.stop()
-            for item in board.settle():
-                store(item)
-            status_end = board.status()
-        except BoardLost as error:
-            reason, complete, lost = f"board lost while stopping: {error}", False, error
-        except KeyboardInterrupt:
-            reason, complete = "interrupted", False
-    if lost is not None:
-        for item in board.take_data() + board.assembler.flush():
-            store(item)
-
-    link = board.link_counters()
-    stream = board.assembler.counters.as_dict()
-    stream["discarded_frames"] = state["discarded"]
-    writer.set_counters("link", link)
-    writer.set_counters("stream", stream)
-    writer.set_counters("board_start", status_start)
-    if status_end is not None:
-        writer.set_counters("board_end", status_end)
-    writer.close(reason, complete=complete, capture_s=time.monotonic() - started)
-
-    what = f"{state['histograms']} histograms" if mode == "histogram" else \
-        f"{writer.events} events in {writer.batches} packets"
+def report(result, *, quiet=False, out=None):
+    """Print what :func:`~fliss.host.acquisition.capture` saved and warn about what was lost;
+    returns the exit status (130 when interrupted). Raises :exc:`UserError` when the board
+    was lost."""
+    out = sys.stdout if out is None else out
+    link, stream, what, path = result.link, result.stream, result.what, result.path
+    status_start, status_end = result.status_start, result.status_end
     damaged = link["dropped_frames"] + link["missing_packets"]
-    board_dropped = 0
-    if status_end is not None:
-        board_dropped = sum(status_end[name] - status_start.get(name, 0) for name in
-                            ("dropped_fifo", "dropped_overrun", "dropped_histogram"))
+    board_dropped = result.board_dropped
     if not quiet:
         print(f"saved {what} to {path}", file=out)
         print(f"link: {link['bytes']} bytes, {link['packets']} packets, "
@@ -280,15 +132,15 @@ def capture(board, path, *, mode="histogram", integration_s=10e-3, acquisitions=
               file=sys.stderr)
     if board_dropped:
         advice = ("the link is too slow for this event rate; use a higher baud rate or "
-                  "histogram mode") if mode == "raw" else \
+                  "histogram mode") if result.mode == "raw" else \
             ("events arrived while no histogram was filling, as the previous one was still "
              "being sent; use a longer integration time, a larger bin shift or a higher baud "
              "rate")
         print(f"fliss: warning: {board_dropped} events dropped on the board (counted in the "
               f"file): {advice}", file=sys.stderr)
-    if lost is not None:
-        raise UserError(f"{lost}; saved what was received ({what}) to {path}")
-    if reason == "interrupted":
+    if result.lost is not None:
+        raise UserError(f"{result.lost}; saved what was received ({what}) to {path}")
+    if result.interrupted:
         print("fliss: interrupted; acquisition stopped, capture saved", file=sys.stderr)
         return 130
     return 0

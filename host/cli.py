@@ -2,7 +2,8 @@
 
 Each sub-command lives in its own module of :mod:`fliss.host`, which provides
 ``register(subparsers)``: it adds its parser and sets ``run(args)`` as the parser's ``run``
-default. A command reports a user mistake by raising :class:`UserError`, printed as one line.
+default. A command reports a user mistake by raising :class:`UserError`; it and every
+:class:`~fliss.host.errors.BoardError` of the library are printed as one line.
 """
 
 import argparse
@@ -11,6 +12,7 @@ import logging
 import sys
 
 from .. import __version__
+from .errors import BoardError
 
 
 __all__ = ["UserError", "main"]
@@ -26,7 +28,7 @@ COMMAND_MODULES = [
     "capture",
     "plot_commands",
     "generate",
-    "board",
+    "board_command",
 ]
 
 
@@ -63,7 +65,7 @@ def main(argv=None):
                         format="fliss: %(message)s")
     try:
         return args.run(args) or 0
-    except UserError as error:
+    except (UserError, BoardError) as error:
         print(f"fliss: error: {error}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:

@@ -3,113 +3,48 @@
 :class:`Board` opens a port with :func:`serial.serial_for_url`, so a device path
 (``/dev/ttyUSB1``), a pty of a virtual board (``/dev/pts/7``), ``loop://`` and
 ``socket://host:port`` all work the same. Every byte received goes through one
-:class:`fliss.host.protocol.FrameDecoder`, which checks CRC and sequence numbers and counts what
+:class:`fliss.sim.codec.FrameDecoder`, which checks CRC and sequence numbers and counts what
 is lost or damaged (a :class:`fliss.host.bulk.BulkDecoder`, which decodes large reads with numpy
 and gives the same results); replies go to the command that waits for them, data packets to a
-:class:`StreamAssembler`, which turns HISTOGRAM chunks into whole histograms and EVENTS packets
-into event arrays.
+:class:`~fliss.host.stream.StreamAssembler`, which turns HISTOGRAM chunks into whole histograms
+and EVENTS packets into event arrays.
 
 Commands are sent with a sequence number and re-sent with the *same* one when no reply comes in
-time (``timeout_s``, ``retries``; by default :data:`DEFAULT_TIMEOUT_S`, or :data:`PTY_TIMEOUT_S`
-on a pseudo-terminal, such as a virtual board's). A reply is matched by what it answers: an ACK
-or NAK by the sequence number in its payload, IDENTITY, REGISTERS and STATUS by their type (and
-address).
-Everything that goes wrong for a reason outside the program raises
-:class:`~fliss.host.cli.UserError` with one line that says what and what to do.
+time (``timeout_s``, ``retries``; by default :data:`~fliss.host.port.DEFAULT_TIMEOUT_S`, or
+:data:`~fliss.host.port.PTY_TIMEOUT_S` on a pseudo-terminal, such as a virtual board's). A reply
+is matched by what it answers: an ACK or NAK by the sequence number in its payload, IDENTITY,
+REGISTERS and STATUS by their type (and address).
+
+Everything that goes wrong raises a :exc:`~fliss.host.errors.BoardError` (the board is lost,
+refused a command, is of another protocol version; settings refused on the host) with one line
+that says what and what to do.
 """
 
-import argparse
-import errno
 import logging
-import os
-import stat
-import struct
 import time
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from typing import Any, Callable, Dict, Iterable, Iterator, List, Mapping, Optional, Union
 
-import numpy as np
 import serial
-from amaranth.lib import data
 
-from ..hdl.command import Identity, STATUS_FIELDS, READ_MAX, CONSISTENCY
-from ..hdl.event import Event, TIMESTAMP_BITS
-from ..hdl.histogram import MAX_SHIFT
-from ..hdl.packetizer import HistogramChunk
-from ..hdl.protocol import (PROTOCOL_VERSION, PacketType, NakCode, EVENT_BYTES, DELIMITER)
+from ..hdl.protocol import (PROTOCOL_VERSION, DEFAULT_BAUD, PacketType, NakCode, DELIMITER,
+                            Identity, Nak, ReadRequest, Status, READ_MAX, CONSISTENCY,
+                            LINK_ERRORS, registers_layout)
 from ..hdl.registers import REGISTERS, BY_NAME, BY_ADDRESS, problems
-from ..hdl.top import DEFAULT_BAUD as _TOP_DEFAULT_BAUD
-from ..sim.event import EVENT_DTYPE
-from .cli import UserError
+from ..sim.codec import LinkCounters, Packet, PacketEncoder, byte_size, pack, unpack
 from .bulk import BulkDecoder
-from .protocol import Packet, PacketEncoder
+from .errors import BoardLost, BoardMismatch, BoardRefused, SettingsError
+from .port import default_timeout, open_port
+from .stream import EventBatch, HistogramFrame, StreamAssembler, StreamCounters
 
 
-__all__ = ["DEFAULT_BAUD", "DEFAULT_TIMEOUT_S", "PTY_TIMEOUT_S", "is_pty", "default_timeout",
-           "BoardError", "BoardLost", "IdentityInfo", "HistogramFrame",
-           "EventBatch", "StreamCounters", "StreamAssembler", "unpack_event_payload", "Board",
-           "open_port", "add_port_arguments", "connect"]
+__all__ = ["IdentityInfo", "BoardClient"]
 
 
 _logger = logging.getLogger(__name__)
 
-#: Default baud rate: the gateware's default.
-DEFAULT_BAUD = _TOP_DEFAULT_BAUD
-
-#: Seconds to wait for each reply from a board on a serial device or a URL.
-DEFAULT_TIMEOUT_S = 0.5
-
-#: Seconds to wait for each reply on a pseudo-terminal. Behind a pty there is a program, most
-#: often the virtual board (a simulation, far slower than the gateware); its replies queue
-#: behind the histograms it is sending, and a short timeout makes the host re-send commands the
-#: board has not even read yet.
-PTY_TIMEOUT_S = 5.0
-
-# Character devices of Unix98 pty terminals on Linux (devices.txt: majors 136 to 143).
-_PTY_MAJORS = range(136, 144)
-
-
-def is_pty(port):
-    """True when ``port`` is the terminal side of a pseudo-terminal (``/dev/pts/N``, or a link to
-    one such as ``build/virtual-board/tty``; ``/dev/ttysN`` on macOS)."""
-    if "://" in port:
-        return False
-    path = os.path.realpath(port)
-    if path.startswith("/dev/pts/") or (path.startswith("/dev/ttys") and path[9:].isdigit()):
-        return True
-    try:
-        mode = os.stat(path)
-    except OSError:
-        return False
-    return stat.S_ISCHR(mode.st_mode) and os.major(mode.st_rdev) in _PTY_MAJORS
-
-
-def default_timeout(port):
-    """The reply timeout for ``port`` when none is given: :data:`PTY_TIMEOUT_S` for a
-    pseudo-terminal, else :data:`DEFAULT_TIMEOUT_S`."""
-    return PTY_TIMEOUT_S if is_pty(port) else DEFAULT_TIMEOUT_S
-
-_CHUNK = struct.Struct("<IHBB")      # HistogramChunk: frame, first_bin, shift, last
-assert _CHUNK.size == data.Layout.cast(HistogramChunk).size // 8
-_IDENTITY = struct.Struct("<BBBBII")   # Identity: protocol, major, minor, registers, clock, baud
-assert _IDENTITY.size == data.Layout.cast(Identity).size // 8
-_NAK = struct.Struct("<BBH")
-_LINK_CODES = (NakCode.BAD_CRC, NakCode.TRUNCATED, NakCode.OVERSIZE, NakCode.BAD_LENGTH,
-               NakCode.UART_FRAMING)
-
-
-class BoardError(UserError):
-    """The board refused a command (NAK, with its ``code`` and ``detail``) or answered
-    nonsense."""
-
-    def __init__(self, message, *, code=None, detail=None):
-        super().__init__(message)
-        self.code = code
-        self.detail = detail
-
-
-class BoardLost(UserError):
-    """The connection to the board went away, or the board stopped sending."""
+_LINK_CODES = {code.value for code in LINK_ERRORS}
 
 
 @dataclass(frozen=True)
@@ -121,182 +56,12 @@ class IdentityInfo:
     clock_hz: int
     baud: int
 
-    def as_dict(self):
+    def as_dict(self) -> Dict[str, Any]:
         return {"protocol": self.protocol, "gateware_version": self.gateware_version,
                 "registers": self.registers, "clock_hz": self.clock_hz, "baud": self.baud}
 
 
-@dataclass
-class HistogramFrame:
-    """One histogram as read out by the board.
-
-    ``counts`` has ``2**13 >> shift`` bins; bins of chunks that never arrived are 0 and
-    ``complete`` is False. ``time_s`` is the host's receive time (``time.time()``) of its last
-    chunk.
-    """
-    frame: int
-    shift: int
-    counts: np.ndarray
-    complete: bool
-    missing_bins: int
-    time_s: float
-
-
-@dataclass
-class EventBatch:
-    """The events of one EVENTS packet (``EVENT_DTYPE``) and the host's receive time."""
-    events: np.ndarray
-    time_s: float
-
-
-@dataclass
-class StreamCounters:
-    """What the stream assembler has seen (the link's own counters are the decoder's)."""
-    histogram_chunks: int = 0
-    frames: int = 0
-    incomplete_frames: int = 0
-    lost_frames: int = 0
-    missing_bins: int = 0
-    event_packets: int = 0
-    events: int = 0
-    malformed: int = 0
-    unexpected: int = 0
-
-    def as_dict(self):
-        return dict(self.__dict__)
-
-
-#: (name, offset, mask) of each Event field, read once from the layout.
-_EVENT_FIELDS = [(name, np.uint64(field.offset), np.uint64((1 << field.width) - 1))
-                 for name, field in data.Layout.cast(Event)]
-
-
-def unpack_event_payload(payload):
-    """``EVENT_DTYPE`` array from an EVENTS payload (vectorised; the same result as
-    :func:`fliss.host.protocol.unpack_events`)."""
-    if len(payload) % EVENT_BYTES:
-        raise ValueError(f"Event payload of {len(payload)} bytes is not a whole number of "
-                         f"{EVENT_BYTES}-byte events")
-    raw = np.frombuffer(payload, dtype=np.uint8).reshape(-1, EVENT_BYTES)
-    padded = np.zeros((len(raw), 8), dtype=np.uint8)
-    padded[:, :EVENT_BYTES] = raw
-    words = padded.view("<u8")[:, 0]
-    events = np.empty(len(words), dtype=EVENT_DTYPE)
-    for name, offset, mask in _EVENT_FIELDS:
-        events[name] = (words >> offset) & mask
-    return events
-
-
-class StreamAssembler:
-    """Whole histograms from HISTOGRAM chunks, event arrays from EVENTS packets.
-
-    Feed it data packets in order of arrival with :meth:`add`; it returns what is complete.
-    A frame is finished by its ``last`` chunk or by the first chunk of another frame; a frame
-    that misses chunks is still returned, with ``complete`` False, and a jump in frame numbers
-    counts the frames lost in between. Nothing malformed is accepted: a chunk that does not fit
-    its frame is counted in ``malformed`` and dropped.
-    """
-
-    def __init__(self):
-        self.counters = StreamCounters()
-        self._frame = None
-        self._shift = None
-        self._counts = None
-        self._filled = None
-        self._next_frame = None
-        #: One more than the frame number of the last chunk that ended a frame: the board's
-        #: STATUS ``frames`` once every histogram it made has arrived.
-        self.frames_ended = None
-
-    def add(self, packet, time_s=None):
-        time_s = time.time() if time_s is None else time_s
-        if packet.type == PacketType.HISTOGRAM:
-            return self._chunk(packet.payload, time_s)
-        if packet.type == PacketType.EVENTS:
-            try:
-                events = unpack_event_payload(packet.payload)
-            except ValueError:
-                self.counters.malformed += 1
-                return []
-            return self.add_events(events, time_s)
-        self.counters.unexpected += 1
-        return []
-
-    def add_events(self, events, time_s=None):
-        """The events of one EVENTS packet, already unpacked (``EVENT_DTYPE``), as by
-        :meth:`fliss.host.bulk.BulkDecoder.feed_events`."""
-        self.counters.event_packets += 1
-        self.counters.events += len(events)
-        return [EventBatch(events, time.time() if time_s is None else time_s)]
-
-    def _chunk(self, payload, time_s):
-        out = []
-        if len(payload) < _CHUNK.size or (len(payload) - _CHUNK.size) % 2:
-            self.counters.malformed += 1
-            return out
-        frame, first, shift, last = _CHUNK.unpack_from(payload)
-        counts = np.frombuffer(payload, dtype="<u2", offset=_CHUNK.size)
-        bins = (1 << TIMESTAMP_BITS) >> shift if shift <= MAX_SHIFT else 0
-        if shift > MAX_SHIFT or first + len(counts) > bins or last > 1:
-            self.counters.malformed += 1
-            return out
-        self.counters.histogram_chunks += 1
-        if self._frame is not None and (frame != self._frame or shift != self._shift):
-            out.append(self._finish(time_s))
-        if self._frame is None:
-            if self._next_frame is not None and frame != self._next_frame:
-                self.counters.lost_frames += (frame - self._next_frame) % (1 << 32)
-            self._frame, self._shift = frame, shift
-            self._counts = np.zeros(bins, dtype=np.uint32)
-            self._filled = np.zeros(bins, dtype=bool)
-        self._counts[first:first + len(counts)] = counts
-        self._filled[first:first + len(counts)] = True
-        if last:
-            self.frames_ended = (frame + 1) % (1 << 32)
-        if last:
-            out.append(self._finish(time_s))
-        return out
-
-    def _finish(self, time_s):
-        missing = int(np.count_nonzero(~self._filled))
-        result = HistogramFrame(self._frame, self._shift, self._counts, missing == 0, missing,
-                                time_s)
-        self.counters.frames += 1
-        if missing:
-            self.counters.incomplete_frames += 1
-            self.counters.missing_bins += missing
-        self._next_frame = (self._frame + 1) % (1 << 32)
-        self._frame = self._counts = self._filled = None
-        return result
-
-    def flush(self, time_s=None):
-        """Finish the frame in progress (at the end of a stream); returns it in a list."""
-        if self._frame is None:
-            return []
-        return [self._finish(time.time() if time_s is None else time_s)]
-
-
-def open_port(port, baud=DEFAULT_BAUD):
-    """``serial_for_url(port)`` with one-line errors for what users get wrong."""
-    try:
-        return serial.serial_for_url(port, baudrate=baud, timeout=0.05, write_timeout=2.0)
-    except serial.SerialException as error:
-        code = getattr(error, "errno", None)
-        text = str(error)
-        if code == errno.ENOENT or "No such file" in text:
-            raise UserError(f"no serial port {port!r} (see `fliss ports`)") from None
-        if code == errno.EACCES or "Permission denied" in text:
-            raise UserError(f"permission denied opening {port!r} (on Linux, add yourself to "
-                            f"the dialout group and log in again)") from None
-        if code == errno.EBUSY or "busy" in text.lower():
-            raise UserError(f"serial port {port!r} is busy (is another program using it?)") \
-                from None
-        raise UserError(f"cannot open serial port {port!r}: {text}") from None
-    except ValueError as error:
-        raise UserError(f"cannot open serial port {port!r}: {error}") from None
-
-
-class Board:
+class BoardClient:
     """A FLISS board on a serial port.
 
     Parameters
@@ -313,7 +78,8 @@ class Board:
         An open port to use instead of opening ``port``.
     """
 
-    def __init__(self, port, *, baud=DEFAULT_BAUD, timeout_s=None, retries=3, serial_port=None):
+    def __init__(self, port: str, *, baud: int = DEFAULT_BAUD, timeout_s: Optional[float] = None,
+                 retries: int = 3, serial_port: Optional[serial.SerialBase] = None) -> None:
         self.port_name = port
         self.timeout_s = float(default_timeout(port) if timeout_s is None else timeout_s)
         self.retries = int(retries)
@@ -356,14 +122,14 @@ class Board:
         self._replies.clear()
         self.reset_counters()
 
-    def reset_counters(self):
+    def reset_counters(self) -> None:
         """Count link and stream events from now on (the decoder keeps its totals)."""
         self._baseline = self._raw_link_counters()
         self.assembler.counters = StreamCounters()
 
     # Context manager
 
-    def close(self):
+    def close(self) -> None:
         try:
             self.serial.close()
         except Exception:   # closing a port that is already gone
@@ -381,7 +147,7 @@ class Board:
         raise BoardLost(f"lost the connection to the board on {self.port_name} "
                         f"({str(error) or type(error).__name__})") from None
 
-    def poll(self, wait_s=0.05):
+    def poll(self, wait_s: float = 0.05) -> int:
         """Read what has arrived (waiting up to ``wait_s`` for the first byte) and decode it.
         Returns the number of bytes read.
 
@@ -411,16 +177,16 @@ class Board:
         return len(data)
 
     @property
-    def idle_s(self):
+    def idle_s(self) -> float:
         """Seconds since the last byte arrived."""
         return time.monotonic() - self._last_rx
 
     @property
-    def link(self):
-        """The decoder's :class:`~fliss.host.protocol.LinkCounters`."""
+    def link(self) -> LinkCounters:
+        """The decoder's :class:`~fliss.sim.codec.LinkCounters`."""
         return self.decoder.counters
 
-    def link_counters(self):
+    def link_counters(self) -> Dict[str, int]:
         """Link counters since :meth:`reset_counters` as a flat dict, with the client's own
         retry counters."""
         raw = self._raw_link_counters()
@@ -438,7 +204,7 @@ class Board:
                    stale_replies=self.stale_replies)
         return out
 
-    def take_data(self):
+    def take_data(self) -> List[Union[HistogramFrame, EventBatch]]:
         """Histograms and event batches received so far, in order."""
         items = list(self._data)
         self._data.clear()
@@ -453,12 +219,13 @@ class Board:
         except (serial.SerialException, OSError) as error:
             self._lost(error)
 
-    def command(self, type, payload=b"", *, expect, what=None):
+    def command(self, type: PacketType, payload: bytes = b"", *,
+                expect: Callable[[Packet], bool], what: Optional[str] = None) -> Packet:
         """Send a command and return the reply that ``expect(packet)`` accepts.
 
         ``expect`` gets each reply (not ACK/NAK for this command: those are handled here) and
         returns True for the one wanted. ACK with this command's sequence number returns that
-        ACK. NAK with its sequence number raises :exc:`BoardError`; a NAK for a link error
+        ACK. NAK with its sequence number raises :exc:`BoardRefused`; a NAK for a link error
         means the command arrived damaged, and it is re-sent at once.
         """
         what = what or type.name
@@ -476,15 +243,15 @@ class Board:
             while not resend:
                 while self._replies:
                     reply = self._replies.popleft()
-                    if reply.type == PacketType.NAK and len(reply.payload) == _NAK.size:
-                        nak_seq, code, detail = _NAK.unpack(reply.payload)
-                        if code in {c.value for c in _LINK_CODES}:
+                    if reply.type == PacketType.NAK and len(reply.payload) == byte_size(Nak):
+                        nak = unpack(Nak, reply.payload)
+                        nak_seq, code, detail = nak["seq"], nak["code"], nak["detail"]
+                        if code in _LINK_CODES:
                             self.link_naks += 1
                             resend = True
                             continue
                         if nak_seq == seq:
-                            raise BoardError(_nak_message(what, code, detail), code=code,
-                                             detail=detail)
+                            raise _refused(what, code, detail)
                         self.stale_replies += 1
                         continue
                     if reply.type == PacketType.ACK and len(reply.payload) == 1 \
@@ -503,75 +270,82 @@ class Board:
                         f"{attempts} attempts of {self.timeout_s:g} s); is it connected and "
                         f"powered, and is the baud rate right?")
 
-    def ping(self):
+    def ping(self) -> None:
         self.command(PacketType.PING, expect=lambda reply: False)
 
-    def identify(self, *, check=True):
+    def identify(self, *, check: bool = True) -> IdentityInfo:
         """Read the identity; with ``check``, refuse a board with another protocol version."""
         reply = self.command(PacketType.IDENTIFY, expect=lambda r: r.type == PacketType.IDENTITY)
-        if len(reply.payload) != _IDENTITY.size:
-            raise BoardError(f"the board sent an identity of {len(reply.payload)} bytes, not "
-                             f"{_IDENTITY.size}: is it a FLISS board?")
-        protocol, major, minor, registers, clock_hz, baud = _IDENTITY.unpack(reply.payload)
-        self.identity = IdentityInfo(protocol, f"{major}.{minor}", registers, clock_hz, baud)
+        if len(reply.payload) != byte_size(Identity):
+            raise BoardMismatch(f"the board sent an identity of {len(reply.payload)} bytes, not "
+                             f"{byte_size(Identity)}: is it a FLISS board?")
+        fields = unpack(Identity, reply.payload)
+        protocol, registers = fields["protocol"], fields["registers"]
+        self.identity = IdentityInfo(protocol,
+                                     f"{fields['gateware_major']}.{fields['gateware_minor']}",
+                                     registers, fields["clock_hz"], fields["baud"])
         if check and protocol != PROTOCOL_VERSION:
-            raise BoardError(f"the board speaks protocol version {protocol}, this fliss speaks "
+            raise BoardMismatch(f"the board speaks protocol version {protocol}, this fliss speaks "
                              f"version {PROTOCOL_VERSION}: update the "
                              f"{'gateware' if protocol < PROTOCOL_VERSION else 'host tool'}")
         if check and registers != len(REGISTERS):
-            raise BoardError(f"the board has {registers} registers, this fliss knows "
+            raise BoardMismatch(f"the board has {registers} registers, this fliss knows "
                              f"{len(REGISTERS)}: gateware and host tool do not match")
         return self.identity
 
     @property
-    def clock_hz(self):
+    def clock_hz(self) -> int:
         if self.identity is None:
             self.identify()
         return self.identity.clock_hz
 
-    def read_registers(self, names=None):
+    def read_registers(self, names: Optional[Iterable[str]] = None) -> Dict[str, int]:
         """Register values by name (all of them by default), read in as few READs as possible."""
         names = [register.name for register in REGISTERS] if names is None else list(names)
         for name in names:
             if name not in BY_NAME:
-                raise UserError(f"no register named {name!r}")
+                raise SettingsError(f"no register named {name!r}")
         addresses = sorted(BY_NAME[name].address for name in names)
         values = {}
         while addresses:
             first = addresses[0]
             count = min(addresses[-1] - first + 1, READ_MAX)
-            payload = struct.pack("<HB", first, count)
+            payload = pack(ReadRequest, address=first, count=count)
+            layout = registers_layout(count)
 
-            def expect(reply, first=first, count=count):
+            def expect(reply, first=first, layout=layout):
                 return reply.type == PacketType.REGISTERS and \
-                    len(reply.payload) == 2 + 4 * count and \
-                    struct.unpack_from("<H", reply.payload)[0] == first
+                    len(reply.payload) == byte_size(layout) and \
+                    unpack(layout, reply.payload)["address"] == first
 
             reply = self.command(PacketType.READ, payload, expect=expect, what="READ")
-            words = struct.unpack_from(f"<{count}I", reply.payload, 2)
+            words = unpack(layout, reply.payload)["values"]
             for offset, word in enumerate(words):
                 values[BY_ADDRESS[first + offset].name] = word
             addresses = [a for a in addresses if a >= first + count]
         return {name: values[name] for name in names}
 
-    def check_settings(self, current, changes):
+    def check_settings(self, current: Mapping[str, int],
+                       changes: Mapping[str, int]) -> Dict[str, int]:
         """The settings ``current`` with ``changes`` applied, if every value is in range and
-        the whole is consistent (:func:`fliss.hdl.registers.problems`); else :exc:`UserError`."""
+        the whole is consistent (:func:`fliss.hdl.registers.problems`); else
+        :exc:`~fliss.host.errors.SettingsError`."""
         candidate = dict(current)
         for name, value in changes.items():
             if name not in BY_NAME:
-                raise UserError(f"no register named {name!r}")
+                raise SettingsError(f"no register named {name!r}")
             try:
                 BY_NAME[name].check(value)
             except ValueError as error:
-                raise UserError(str(error)) from None
+                raise SettingsError(str(error)) from None
             candidate[name] = value
         found = problems(candidate)
         if found:
-            raise UserError("; ".join(found))
+            raise SettingsError("; ".join(found))
         return candidate
 
-    def write_registers(self, changes, *, current=None):
+    def write_registers(self, changes: Mapping[str, int], *,
+                        current: Optional[Mapping[str, int]] = None) -> Dict[str, int]:
         """Write registers by name, after checking range and consistency on the host.
 
         All registers from the lowest to the highest address changed go in one WRITE, which
@@ -585,39 +359,39 @@ class Board:
         addresses = [BY_NAME[name].address for name in changes]
         first, last = min(addresses), max(addresses)
         values = [candidate[BY_ADDRESS[a].name] for a in range(first, last + 1)]
-        payload = struct.pack(f"<H{len(values)}I", first, *values)
+        payload = pack(registers_layout(len(values)), address=first, values=values)
         try:
             self.command(PacketType.WRITE, payload, expect=lambda reply: False, what="WRITE")
-        except BoardError as error:
+        except BoardRefused as error:
             # Every value passed the register map's range here: a refusal of one is a board
             # whose build takes less (no raw events, no aggressor, narrower settings).
-            register = BY_ADDRESS.get(error.detail)
-            if error.code != NakCode.OUT_OF_RANGE.value or register is None:
+            register = error.register
+            if error.code != NakCode.OUT_OF_RANGE or register is None:
                 raise
-            raise BoardError(f"the board refused WRITE: its build does not take "
-                             f"{register.name} = {candidate[register.name]} (a smaller build, "
-                             f"such as the iCEBreaker's, leaves out some features and narrows "
-                             f"some ranges: see docs/boards.md)",
-                             code=error.code, detail=error.detail) from None
+            raise BoardRefused(f"the board refused WRITE: its build does not take "
+                               f"{register.name} = {candidate[register.name]} (a smaller build, "
+                               f"such as the iCEBreaker's, leaves out some features and "
+                               f"narrows some ranges: see docs/boards.md)", command="WRITE",
+                               code=error.code, detail=error.detail, register=register) from None
         return candidate
 
-    def start(self):
+    def start(self) -> None:
         self.command(PacketType.START, expect=lambda reply: False)
 
-    def stop(self):
+    def stop(self) -> None:
         self.command(PacketType.STOP, expect=lambda reply: False)
 
-    def status(self):
-        """Board counters, a dict in :data:`~fliss.hdl.command.STATUS_FIELDS` order."""
-        size = 4 * len(STATUS_FIELDS)
+    def status(self) -> Dict[str, int]:
+        """Board counters, a dict in :data:`~fliss.hdl.protocol.STATUS_FIELDS` order."""
         reply = self.command(PacketType.GET_STATUS,
                              expect=lambda r: r.type == PacketType.STATUS and
-                             len(r.payload) == size, what="GET_STATUS")
-        return dict(zip(STATUS_FIELDS, struct.unpack(f"<{len(STATUS_FIELDS)}I", reply.payload)))
+                             len(r.payload) == byte_size(Status), what="GET_STATUS")
+        return unpack(Status, reply.payload)
 
     # Streaming
 
-    def stream(self, *, idle_timeout_s=2.0, poll_s=0.05):
+    def stream(self, *, idle_timeout_s: float = 2.0, poll_s: float = 0.05
+               ) -> Iterator[Union[HistogramFrame, EventBatch, None]]:
         """Yield :class:`HistogramFrame` and :class:`EventBatch` items as they arrive, forever;
         between items it yields ``None`` about every ``poll_s`` so a caller can update a
         progress display or stop. Raises :exc:`BoardLost` when no byte arrives for
@@ -635,7 +409,7 @@ class Board:
                                 f"{idle_timeout_s:g} s during an acquisition)")
             yield None
 
-    def settle(self, limit_s=120.0):
+    def settle(self, limit_s: float = 120.0) -> List[Union[HistogramFrame, EventBatch]]:
         """After a STOP: read until every histogram the board completed has arrived (its STATUS
         ``frames`` count), or until ``limit_s``; returns everything received. A board that
         is slow to send its last histogram (a simulation, a slow link) is waited for rather
@@ -651,7 +425,8 @@ class Board:
             if ended is None and not items:
                 return items   # nothing of this capture's histograms: not ours to wait for
 
-    def drain(self, quiet_s=0.3, limit_s=10.0):
+    def drain(self, quiet_s: float = 0.3, limit_s: float = 10.0
+              ) -> List[Union[HistogramFrame, EventBatch]]:
         """Read until nothing has arrived for ``quiet_s`` (at most ``limit_s``), then finish the
         histogram in progress; returns everything received."""
         end = time.monotonic() + limit_s
@@ -662,65 +437,25 @@ class Board:
         return self.take_data()
 
 
-def _nak_message(what, code, detail):
+def _refused(what, code, detail):
+    # The BoardRefused for a NAK of ``what`` with ``code`` (a number) and ``detail``.
     try:
-        name = NakCode(code).name
+        code = NakCode(code)
+        name = code.name
     except ValueError:
         name = f"code {code:#04x}"
-    if code == NakCode.OUT_OF_RANGE.value:
+    register = None
+    if code in (NakCode.OUT_OF_RANGE, NakCode.BAD_ADDRESS):
+        register = BY_ADDRESS.get(detail)
+    if code == NakCode.OUT_OF_RANGE:
         if detail == CONSISTENCY:
             reason = "the settings would be inconsistent"
         else:
-            register = BY_ADDRESS.get(detail)
             reason = f"{register.name if register else detail} out of range"
-        return f"the board refused {what}: {reason} ({name})"
-    if code == NakCode.BAD_ADDRESS.value:
-        register = BY_ADDRESS.get(detail)
-        return f"the board refused {what}: no register at address {detail:#06x}" + \
+        message = f"the board refused {what}: {reason} ({name})"
+    elif code == NakCode.BAD_ADDRESS:
+        message = f"the board refused {what}: no register at address {detail:#06x}" + \
             (f" ({register.name})" if register else "")
-    return f"the board refused {what} ({name}, detail {detail})"
-
-
-def add_port_arguments(parser):
-    """``--port``, ``--baud``, ``--timeout``, ``--retries``: how to reach a board."""
-    port = os.environ.get("FLISS_PORT")
-    parser.add_argument("--port", required=port is None,
-                        default=port if port is not None else argparse.SUPPRESS,
-                        metavar="PORT",
-                        help="serial port: device (/dev/ttyUSB1, COM3), pty of a virtual board "
-                             "(/dev/pts/N) or pyserial URL (socket://host:port); see "
-                             "`fliss ports`; the environment variable FLISS_PORT sets a "
-                             "default")
-    parser.add_argument("--baud", type=int, default=DEFAULT_BAUD,
-                        help="baud rate of the port (ignored by ptys and sockets)")
-    parser.add_argument("--timeout", type=_timeout, default="auto", metavar="S",
-                        help=f"seconds to wait for each reply; auto: {DEFAULT_TIMEOUT_S:g} s, or "
-                             f"{PTY_TIMEOUT_S:g} s on a pty (a virtual board: a simulation, "
-                             f"slow to answer while it sends histograms)")
-    parser.add_argument("--retries", type=int, default=3,
-                        help="times a command is re-sent when no reply comes")
-
-
-def _timeout(text):
-    if text == "auto":
-        return None
-    try:
-        return float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number of seconds or auto: {text!r}") from None
-
-
-def connect(args):
-    """A :class:`Board` from the arguments of :func:`add_port_arguments`, identified (so a
-    board of another protocol version is refused at once)."""
-    if args.timeout is not None and args.timeout <= 0:
-        raise UserError(f"--timeout must be positive, not {args.timeout:g}")
-    if args.retries < 0:
-        raise UserError(f"--retries must not be negative, not {args.retries}")
-    board = Board(args.port, baud=args.baud, timeout_s=args.timeout, retries=args.retries)
-    try:
-        board.identify()
-    except BaseException:
-        board.close()
-        raise
-    return board
+    else:
+        message = f"the board refused {what} ({name}, detail {detail})"
+    return BoardRefused(message, command=what, code=code, detail=detail, register=register)

@@ -7,7 +7,7 @@ from ..hdl.delay import DelayMode
 from ..hdl.event import TDC_LSB_S
 from ..hdl.registers import REGISTERS, AcquisitionMode, TdcSource
 from .cli import UserError
-from .client import add_port_arguments, connect
+from .port_options import add_port_arguments, connect
 from .units import format_frequency, format_time, parse_frequency, parse_time
 
 

@@ -108,7 +108,7 @@ def run(args):
         return run_trace()
     if args.acquisitions < 1:
         raise UserError(f"--acquisitions must be at least 1, not {args.acquisitions}")
-    from .board import start_virtual_board
+    from .virtual import start_virtual_board
     from .fileformat import read_capture
     from .plot_commands import analyze
 

@@ -91,7 +91,7 @@ class CaptureWriter:
         self._bins = bins
 
     def add_histogram(self, frame):
-        """Append a :class:`~fliss.host.client.HistogramFrame`; returns False (and stores
+        """Append a :class:`~fliss.host.stream.HistogramFrame`; returns False (and stores
         nothing) if its bin count differs from the first one's."""
         bins = len(frame.counts)
         if self._bins is None:
@@ -113,7 +113,7 @@ class CaptureWriter:
         return True
 
     def add_events(self, batch):
-        """Append an :class:`~fliss.host.client.EventBatch`."""
+        """Append an :class:`~fliss.host.stream.EventBatch`."""
         group = self.file["events"]
         count = len(batch.events)
         group["events"].resize(self.events + count, axis=0)

@@ -3,7 +3,8 @@
 from pathlib import Path
 
 from ..hdl import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, period_cycles
-from ..hdl.top import DEFAULT_BAUD, FlissTop
+from ..hdl.protocol import DEFAULT_BAUD
+from ..hdl.top import FlissTop
 from ..hdl.uart import bit_cycles
 from ..hdl.verilog import convert
 from .cli import UserError

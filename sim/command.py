@@ -1,21 +1,19 @@
 """Model of :class:`fliss.hdl.command.CommandProcessor`: packets in, replies out."""
 
-import struct
-
-from ..hdl.command import (Identity, STATUS_FIELDS, READ_MAX, CONSISTENCY, _version,
-                           register_maxima)
-from ..hdl.protocol import PROTOCOL_VERSION, PacketType, NakCode
-from ..hdl.registers import REGISTERS, BY_ADDRESS, defaults, problems
-from .. import __version__
+from ..hdl.protocol import (PROTOCOL_VERSION, GATEWARE_MAJOR, GATEWARE_MINOR, PacketType,
+                            NakCode, Identity, Nak, ReadRequest, Status, STATUS_FIELDS,
+                            READ_MAX, CONSISTENCY, REGISTER_BYTES, registers_layout)
+from ..hdl.registers import REGISTERS, BY_ADDRESS, defaults, problems, register_maxima
+from .codec import pack, unpack, byte_size, unpack_words
 
 
 __all__ = ["CommandModel", "identity_bytes"]
 
 
 def identity_bytes(clock_hz, baud):
-    major, minor = _version(__version__)
-    return struct.pack("<BBBBII", PROTOCOL_VERSION, major, minor, len(REGISTERS),
-                       int(clock_hz), int(baud))
+    return pack(Identity, protocol=PROTOCOL_VERSION, gateware_major=GATEWARE_MAJOR,
+                gateware_minor=GATEWARE_MINOR, registers=len(REGISTERS), clock_hz=int(clock_hz),
+                baud=int(baud))
 
 
 class CommandModel:
@@ -36,10 +34,10 @@ class CommandModel:
 
     def _nak(self, seq, code, detail=0):
         self.refused += 1
-        return PacketType.NAK, struct.pack("<BBH", seq, code.value, detail)
+        return PacketType.NAK, pack(Nak, seq=seq, code=code, detail=detail)
 
     def link_error(self, code):
-        return PacketType.NAK, struct.pack("<BBH", 0, code.value, 0)
+        return PacketType.NAK, pack(Nak, code=code)
 
     def command(self, type, seq, payload, status=None):
         self.commands += 1
@@ -59,21 +57,23 @@ class CommandModel:
             counters.update(status or {})
             counters.update(running=int(self.running), commands=self.commands,
                             refused=self.refused)
-            return PacketType.STATUS, struct.pack(f"<{len(STATUS_FIELDS)}I",
-                                                  *(counters[f] for f in STATUS_FIELDS))
+            return PacketType.STATUS, pack(Status, {f: counters[f] for f in STATUS_FIELDS})
         if type == PacketType.READ.value:
-            if length != 3:
+            if length != byte_size(ReadRequest):
                 return self._nak(seq, NakCode.BAD_PAYLOAD)
-            address, count = struct.unpack("<HB", payload)
+            request = unpack(ReadRequest, payload)
+            address, count = request["address"], request["count"]
             if count == 0 or count > READ_MAX or address + count > len(REGISTERS):
                 return self._nak(seq, NakCode.BAD_ADDRESS, address)
             values = [self.settings[REGISTERS[address + k].name] for k in range(count)]
-            return PacketType.REGISTERS, struct.pack(f"<H{count}I", address, *values)
+            return PacketType.REGISTERS, pack(registers_layout(count), address=address,
+                                              values=values)
         if type == PacketType.WRITE.value:
-            if length < 6 or (length - 2) % 4:
+            start = byte_size(registers_layout(0))
+            if length < start + REGISTER_BYTES or (length - start) % REGISTER_BYTES:
                 return self._nak(seq, NakCode.BAD_PAYLOAD)
-            address, = struct.unpack_from("<H", payload)
-            values = struct.unpack_from(f"<{(length - 2) // 4}I", payload, 2)
+            address = unpack(registers_layout(0), payload[:start])["address"]
+            values = unpack_words(payload, offset=start)
             candidate = dict(self.settings)
             for offset, value in enumerate(values):
                 register = BY_ADDRESS.get((address + offset) & 0xffff)

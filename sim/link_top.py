@@ -10,7 +10,8 @@ from ..hdl import DEFAULT_CLOCK_HZ
 from ..hdl.arbiter import PacketArbiter
 from ..hdl.command import CommandProcessor
 from ..hdl.framing import FrameDecoder, FrameEncoder
-from ..hdl.status import StatusCounters, LINK_FIELDS
+from ..hdl.protocol import LINK_FIELDS
+from ..hdl.status import StatusCounters
 
 
 __all__ = ["LinkTop"]

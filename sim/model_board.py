@@ -2,70 +2,53 @@
 simulator.
 
 :class:`ModelBoard` speaks the real protocol bytes (:mod:`fliss.hdl.protocol`) over a pty: it
-decodes commands with the host codec, answers them with :class:`fliss.sim.command.CommandModel`
-(the reply semantics of the gateware command processor) and, while acquiring, sends HISTOGRAM
-chunks or EVENTS batches made from the photon scene simulator (:mod:`fliss.sim.scene`) with the
-configured delay settings, paced by the wall clock.
+decodes commands with the software codec (:mod:`fliss.sim.codec`), answers them with
+:class:`fliss.sim.command.CommandModel` (the reply semantics of the gateware command processor)
+and, while acquiring, sends HISTOGRAM chunks or EVENTS batches made from the photon scene
+simulator (:mod:`fliss.sim.scene`) with the configured delay settings, paced by the wall clock.
 
 It is a behavioural model of the whole board, not a cycle-accurate one: frame ``k`` of an
 acquisition holds the laser cycles whose TDC start falls in clock cycles ``[k I, (k + 1) I)``
 (``I`` = ``integration``), exactly as :func:`fliss.sim.scene.acquire` cuts a run, so a test can
 predict every histogram from the scene and the seeds.
 
-Faults can be injected: ``kill_after`` closes the pty after that many data packets (a board
-unplugged mid-capture), ``hang_after`` stops sending without closing, and ``corrupt_every``
-damages one byte of every n-th frame sent (never a delimiter, never into a delimiter), keeping
-the list of what it damaged in :attr:`ModelBoard.corrupted`.
+Faults can be injected (:class:`fliss.sim.pty_server.PtyServer`): ``kill_after`` closes the pty
+after that many data packets (a board unplugged mid-capture), ``hang_after`` stops sending
+without closing, and ``corrupt_every`` damages one byte of every n-th frame sent (never a
+delimiter, never into a delimiter), keeping the list of what it damaged in
+:attr:`ModelBoard.corrupted`.
 
 Run ``python -m fliss.sim.model_board`` to get a board on a pty for ``fliss`` commands.
 """
 
 import argparse
-import errno
-import fcntl
-import os
-import select
-import struct
-import termios
-import threading
 import time
-import tty
 from contextlib import contextmanager
 
 import numpy as np
-from amaranth.lib import data
 
 from ..hdl import DEFAULT_CLOCK_HZ
-from ..hdl.command import STATUS_FIELDS
 from ..hdl.event import TIMESTAMP_BITS
-from ..hdl.histogram import COUNT_WIDTH
-from ..hdl.packetizer import CHUNK_BINS, HistogramChunk
-from ..hdl.protocol import PacketType, NakCode, MAX_EVENTS_PER_PACKET, EVENT_BYTES
+from ..hdl.protocol import (HISTOGRAM_COUNT_BITS, CHUNK_BINS, DEFAULT_BAUD, PacketType,
+                            HistogramChunk, STATUS_FIELDS, LINK_COUNTERS, MAX_EVENTS_PER_PACKET,
+                            EVENT_BYTES)
 from ..hdl.registers import AcquisitionMode, TdcSource
-from ..hdl.top import DEFAULT_BAUD as _TOP_DEFAULT_BAUD
-from ..host.protocol import FrameDecoder, LinkError, Packet, encode_frame, pack_events
+from .codec import LinkError, Packet, encode_frame, pack, pack_events, pack_words
 from . import scheduler as _scheduler
 from .command import CommandModel
 from .delay import DelayMode
+from .pty_server import PtyServer
 from .scene import Aggressor, Scene, Simulation
 
 
 __all__ = ["DEFAULT_BAUD", "BACKLOG_BYTES", "ModelBoard", "scene_for", "model_board", "main"]
 
 
-#: Baud rate reported in the identity (a pty carries any rate): the gateware's default.
-DEFAULT_BAUD = _TOP_DEFAULT_BAUD
-
 #: While more bytes than this wait to go out, the model simulates no further: a host slower
 #: than the model slows the model's time down rather than piling up data (the gateware would
 #: drop histograms or events instead, and count them).
 BACKLOG_BYTES = 32 * 1024
 
-_CHUNK = struct.Struct("<IHBB")      # HistogramChunk: frame, first_bin, shift, last
-assert _CHUNK.size == data.Layout.cast(HistogramChunk).size // 8
-
-_LINK_COUNTERS = {NakCode.BAD_CRC: "bad_crc", NakCode.TRUNCATED: "truncated",
-                  NakCode.OVERSIZE: "oversize", NakCode.BAD_LENGTH: "bad_length"}
 
 
 def scene_for(settings, template=None, *, aggressor_detections_per_pulse=0.05, clock_hz=None):
@@ -88,8 +71,9 @@ def scene_for(settings, template=None, *, aggressor_detections_per_pulse=0.05, c
     return template.replace(victim=victim, aggressors=aggressors, clock_hz=clock_hz)
 
 
-class ModelBoard:
-    """A board on a pseudo-terminal, served by a thread.
+class ModelBoard(PtyServer):
+    """A board on a pseudo-terminal, served by a thread (a
+    :class:`~fliss.sim.pty_server.PtyServer`).
 
     Parameters
     ----------
@@ -130,74 +114,23 @@ class ModelBoard:
                  kill_after=None, hang_after=None, corrupt_every=None, corrupt_seed=1,
                  corrupt_types=None, corrupt_commands_every=None, protocol_version=None,
                  line_limited=False, maxima=None):
+        super().__init__(kill_after=kill_after, hang_after=hang_after,
+                         corrupt_every=corrupt_every, corrupt_seed=corrupt_seed,
+                         corrupt_types=corrupt_types,
+                         corrupt_commands_every=corrupt_commands_every)
         self.clock_hz = int(clock_hz)
         self.baud = int(baud)
         self.template = Scene(clock_hz=self.clock_hz) if scene is None else scene
         self.aggressor_detections_per_pulse = aggressor_detections_per_pulse
         self.photon_seed = photon_seed
         self.time_scale = float(time_scale)
-        self.kill_after = kill_after
-        self.hang_after = hang_after
-        self.corrupt_every = corrupt_every
-        self._corrupt_rng = np.random.default_rng(corrupt_seed)
         self.protocol_version = protocol_version
-        self.corrupt_types = None if corrupt_types is None else frozenset(corrupt_types)
-        self.corrupt_commands_every = corrupt_commands_every
         self.line_limited = line_limited
-        #: Reads from the host in which a byte was damaged.
-        self.corrupted_commands = 0
-        self._reads = 0
         self.model = CommandModel(self.clock_hz, self.baud, maxima=maxima)
         self.status = dict.fromkeys(STATUS_FIELDS, 0)
-        #: Frames damaged on the way out: ``(PacketType, seq)``.
-        self.corrupted = []
-        #: Every data packet sent: ``(PacketType, seq, payload)`` (before any corruption).
-        self.sent = []
         #: Acquisitions started so far (each START while stopped).
         self.starts = 0
-        self.killed = False
-        self.hung = False
-        self._frames_sent = 0
-        self._seq = 0
         self._frame = 0          # histogram number since reset
-        self._out = bytearray()
-        self._lock = threading.Lock()
-        self._stop = threading.Event()
-        self._thread = None
-        self._master = self._slave = None
-        self.path = None
-
-    # Life cycle
-
-    def open(self):
-        """Create the pty and start serving it; returns the path of its terminal."""
-        self._master, self._slave = os.openpty()
-        tty.setraw(self._slave)
-        flags = fcntl.fcntl(self._master, fcntl.F_GETFL)
-        fcntl.fcntl(self._master, fcntl.F_SETFL, flags | os.O_NONBLOCK)
-        self.path = os.ttyname(self._slave)
-        self._thread = threading.Thread(target=self._serve, name="fliss-model-board", daemon=True)
-        self._thread.start()
-        return self.path
-
-    def close(self):
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=5)
-        for fd in (self._master, self._slave):
-            if fd is not None:
-                try:
-                    os.close(fd)
-                except OSError:
-                    pass
-        self._master = self._slave = None
-
-    def __enter__(self):
-        self.open()
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
 
     def seed_for(self, acquisition):
         """Seed of the photon statistics of acquisition ``acquisition`` (0 for the first START)."""
@@ -215,50 +148,20 @@ class ModelBoard:
 
     # Serving
 
-    def _serve(self):
-        decoder = FrameDecoder(synced=False)
-        while not self._stop.is_set():
-            timeout = 0.005 if self.model.running or self._out else 0.05
-            try:
-                readable, _, _ = select.select([self._master], [], [], timeout)
-            except (OSError, ValueError):
-                return
-            if readable:
-                try:
-                    data = os.read(self._master, 4096)
-                except OSError as error:
-                    if error.errno in (errno.EIO, errno.EAGAIN):
-                        time.sleep(0.01)
-                        data = b""
-                    else:
-                        return
-                data = self._damage_commands(data)
-                with self._lock:
-                    for item in decoder.feed(data):
-                        self._receive(item)
-            with self._lock:
-                if self.model.running and len(self._out) < BACKLOG_BYTES:
-                    self._advance(time.monotonic())
-                self._flush()
-            if self.killed:
-                return
+    @property
+    def _busy(self):
+        return self.model.running
 
-    def _damage_commands(self, data):
-        if not self.corrupt_commands_every or not data.strip(b"\0"):
-            return data
-        self._reads += 1
-        if self._reads % self.corrupt_commands_every:
-            return data
-        data = bytearray(data)
-        positions = [i for i, byte in enumerate(data) if byte]
-        position = positions[int(self._corrupt_rng.integers(0, len(positions)))]
-        data[position] = 0xff if data[position] != 0xff else 0x7f
-        self.corrupted_commands += 1
-        return bytes(data)
+    def _work(self, now):
+        if self.model.running and len(self._out) < BACKLOG_BYTES:
+            self._advance(now)
+
+    def _killed(self):
+        self.model.running = False
 
     def _receive(self, item):
         if isinstance(item, LinkError):
-            self.status[_LINK_COUNTERS[item.code]] += 1
+            self.status[LINK_COUNTERS[item.code]] += 1
             self._send(*self.model.link_error(item.code))
             return
         if not isinstance(item, Packet):
@@ -383,12 +286,13 @@ class ModelBoard:
         bins = (1 << TIMESTAMP_BITS) >> shift
         counts = self._frame_counts if self._frame_counts is not None else \
             np.zeros(bins, dtype=np.int64)
-        counts = np.minimum(counts, (1 << COUNT_WIDTH) - 1).astype("<u2")
+        counts = np.minimum(counts, (1 << HISTOGRAM_COUNT_BITS) - 1)
         step = min(CHUNK_BINS, bins)
         for first in range(0, bins, step):
             last = int(first + step >= bins)
-            payload = _CHUNK.pack(self._frame & 0xffffffff, first, shift, last) + \
-                counts[first:first + step].tobytes()
+            payload = pack(HistogramChunk, frame=self._frame & 0xffffffff, first_bin=first,
+                           shift=shift, last=last) + \
+                pack_words(counts[first:first + step], HISTOGRAM_COUNT_BITS)
             self._send(PacketType.HISTOGRAM, payload, data=True)
         self._frame += 1
         self.status["frames"] += 1
@@ -405,71 +309,6 @@ class ModelBoard:
             self._send(PacketType.EVENTS, pack_events(batch), data=True)
         rest = events[cut:]
         self._pending_events = [rest] if len(rest) else []
-
-    # Output
-
-    def _send(self, type, payload, data=False):
-        if self.killed or self.hung:
-            return
-        seq = self._seq
-        self._seq = (self._seq + 1) % 256
-        frame = bytearray(encode_frame(type, seq, payload))
-        eligible = self.corrupt_types is None or type in self.corrupt_types
-        self._frames_sent += eligible
-        if eligible and self.corrupt_every and self._frames_sent % self.corrupt_every == 0:
-            position = int(self._corrupt_rng.integers(0, len(frame) - 1))
-            value = frame[position]
-            while True:
-                new = int(self._corrupt_rng.integers(1, 256))
-                if new != value:
-                    break
-            frame[position] = new
-            self.corrupted.append((type, seq))
-        if data:
-            self.sent.append((type, seq, bytes(payload)))
-        self._out += frame
-        if data:
-            if self.kill_after is not None and len(self.sent) >= self.kill_after:
-                self._flush(block=True)
-                self._wait_drained()
-                self.killed = True
-                self.model.running = False
-                os.close(self._master)
-                self._master = None
-            elif self.hang_after is not None and len(self.sent) >= self.hang_after:
-                self._flush(block=True)
-                self.hung = True
-
-    def _wait_drained(self, limit_s=2.0):
-        """Wait until the host has read what was sent (a pty drops it when the board goes)."""
-        end = time.monotonic() + limit_s
-        empty_since = None
-        while time.monotonic() < end:
-            waiting = struct.unpack("i", fcntl.ioctl(self._slave, termios.FIONREAD,
-                                                     b"\0\0\0\0"))[0]
-            if waiting:
-                empty_since = None
-            elif empty_since is None:
-                empty_since = time.monotonic()
-            elif time.monotonic() - empty_since > 0.1:
-                # Empty for a while: also nothing left in the pty's own buffer.
-                return
-            time.sleep(0.005)
-
-    def _flush(self, block=False):
-        while self._out and self._master is not None:
-            try:
-                written = os.write(self._master, self._out)
-            except BlockingIOError:
-                if not block:
-                    return
-                time.sleep(0.001)
-                continue
-            except OSError:
-                self._out.clear()
-                return
-            del self._out[:written]
-
 
 @contextmanager
 def model_board(**options):

@@ -1,34 +1,31 @@
 """cocotb fuzz of the link (:class:`fliss.sim.link_top.LinkTop`) at one byte per cycle.
 
 Random and mutated frames go in one after the other, each as soon as the previous one is
-answered, at one byte per cycle. Each must come back as its proper reply (the command processor's model says which) or as a NAK with
-the reason the host codec finds; every link error is counted in STATUS; and at the end the
-registers hold exactly what the model accepted: no refused setting was applied.
+answered, at one byte per cycle. Each must come back as its proper reply (the command
+processor's model says which) or as a NAK with the reason the software codec finds; every link
+error is counted in STATUS; and at the end the registers hold exactly what the model accepted:
+no refused setting was applied.
 ``FLISS_TB_FUZZ_FRAMES`` frames (10 000 by default).
 """
 
 import os
 import random
-import struct
 
 import cocotb
 from cocotb.clock import Clock
 from cocotb.triggers import ClockCycles, FallingEdge, First, RisingEdge, Timer
 
 from ..hdl import DEFAULT_CLOCK_HZ
-from ..hdl.command import STATUS_FIELDS
-from ..hdl.protocol import PacketType, NakCode, MAX_ENCODED
+from ..hdl.protocol import (DEFAULT_BAUD, PacketType, MAX_ENCODED, Nak, ReadRequest, Status,
+                            LINK_COUNTERS, registers_layout)
 from ..hdl.registers import REGISTERS
-from ..host import protocol as codec
+from . import codec
 from .command import CommandModel
 
 
 FRAMES = int(os.environ.get("FLISS_TB_FUZZ_FRAMES", 10_000))
 CLOCK_PERIOD_PS = round(1e12 / DEFAULT_CLOCK_HZ)
-BAUD = 3_000_000   # LinkTop's default: only the identity reports it
-
-LINK_COUNTERS = ((NakCode.BAD_CRC, "bad_crc"), (NakCode.TRUNCATED, "truncated"),
-                 (NakCode.OVERSIZE, "oversize"), (NakCode.BAD_LENGTH, "bad_length"))
+BAUD = DEFAULT_BAUD   # LinkTop's default: only the identity reports it
 
 
 def fuzz_frames(rng, count):
@@ -38,13 +35,15 @@ def fuzz_frames(rng, count):
     commands = [
         (PacketType.PING, b""), (PacketType.IDENTIFY, b""), (PacketType.GET_STATUS, b""),
         (PacketType.START, b""), (PacketType.STOP, b""),
-        (PacketType.READ, struct.pack("<HB", 0, 5)), (PacketType.READ, struct.pack("<HB", 30, 1)),
+        (PacketType.READ, codec.pack(ReadRequest, address=0, count=5)),
+        (PacketType.READ, codec.pack(ReadRequest, address=30, count=1)),
         (0x42, b""), (PacketType.EVENTS, b""),
     ]
     for register in REGISTERS:
         for value in (register.minimum, register.maximum, register.maximum + 1, 0):
             if value < (1 << 32):
-                commands.append((PacketType.WRITE, struct.pack("<HI", register.address, value)))
+                commands.append((PacketType.WRITE, codec.pack(
+                    registers_layout(1), address=register.address, values=[value])))
     for _ in range(count):
         type, payload = rng.choice(commands)
         seq = encoder.seq
@@ -132,16 +131,16 @@ async def test_fuzz(dut):
     # One frame at a time, as a host waits for each reply: every frame must be answered.
     link = Link(dut)
     frames = list(fuzz_frames(random.Random(0x11F0), FRAMES))
-    read_back = codec.encode_frame(PacketType.READ, 0, struct.pack("<HB", 0, len(REGISTERS)))
+    read_back = codec.encode_frame(PacketType.READ, 0,
+                                   codec.pack(ReadRequest, address=0, count=len(REGISTERS)))
     items = []
     for frame in frames + [read_back]:
         items.append(await link.exchange(frame))
     cycles = link.cycles
 
-    # What a correct device answers, frame by frame, from the host codec and the command model.
+    # What a correct device answers, frame by frame, from the software codec and the command model.
     model = CommandModel(DEFAULT_CLOCK_HZ, BAUD)
-    errors = dict.fromkeys(code for code, _ in LINK_COUNTERS)
-    errors = {code: 0 for code in errors}
+    errors = dict.fromkeys(LINK_COUNTERS, 0)
     accepted = 0
     for number, (frame, reply) in enumerate(zip(frames, items)):
         assert isinstance(reply, codec.Packet), (number, reply)
@@ -149,16 +148,15 @@ async def test_fuzz(dut):
         if isinstance(expected, codec.LinkError):
             errors[expected.code] += 1
             assert (reply.type, reply.payload) == (
-                PacketType.NAK, struct.pack("<BBH", 0, expected.code.value, 0)), \
+                PacketType.NAK, codec.pack(Nak, code=expected.code)), \
                 (number, frame.hex(), expected, reply)
             continue
         type = expected.type.value if isinstance(expected.type, PacketType) else expected.type
         want = model.command(type, expected.seq, expected.payload)
         if reply.type == PacketType.STATUS:
-            got = dict(zip(STATUS_FIELDS,
-                           struct.unpack(f"<{len(STATUS_FIELDS)}I", reply.payload)))
-            assert {name: got[name] for _, name in LINK_COUNTERS} == \
-                {name: errors[code] for code, name in LINK_COUNTERS}, number
+            got = codec.unpack(Status, reply.payload)
+            assert {name: got[name] for name in LINK_COUNTERS.values()} == \
+                {name: errors[code] for code, name in LINK_COUNTERS.items()}, number
             assert (got["commands"], got["refused"], got["running"]) == \
                 (model.commands, model.refused, int(model.running)), number
         else:
@@ -167,7 +165,7 @@ async def test_fuzz(dut):
         accepted += want[0] == PacketType.ACK
 
     # Nothing refused was applied: the registers are the model's.
-    values = struct.unpack(f"<H{len(REGISTERS)}I", items[-1].payload)[1:]
+    values = codec.unpack(registers_layout(len(REGISTERS)), items[-1].payload)["values"]
     assert dict(zip((r.name for r in REGISTERS), values)) == model.settings
     assert accepted > FRAMES // 20 and all(count > FRAMES // 200 for count in errors.values())
     dut._log.info("%d frames in %d cycles: %d commands accepted, link errors %s", FRAMES,

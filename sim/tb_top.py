@@ -1,7 +1,7 @@
 """cocotb testbench of :class:`fliss.hdl.top.FlissTop`, driven only through its pins.
 
 A :class:`TopTB` owns the clock, a UART driver and monitor speaking the protocol with the host
-codec (:mod:`fliss.host.protocol`), and a sensor model that answers the laser's TDC starts with
+codec (:mod:`fliss.sim.codec`), and a sensor model that answers the laser's TDC starts with
 photon events on the timestamp bus, in closed loop. The expected replies come from the command
 processor's model (:mod:`fliss.sim.command`); histograms and raw events from the events the
 sensor model produced.
@@ -14,7 +14,6 @@ maxima of a smaller build (:meth:`fliss.hdl.top.FlissTop.register_maxima`) by
 import json
 import os
 import random
-import struct
 
 import cocotb
 import numpy as np
@@ -23,10 +22,10 @@ from cocotb.simtime import get_sim_time
 from cocotb.triggers import ClockCycles, ReadOnly, RisingEdge, Timer, with_timeout
 
 from ..hdl import DEFAULT_CLOCK_HZ
-from ..hdl.command import STATUS_FIELDS
-from ..hdl.protocol import PacketType, NakCode, MAX_ENCODED
+from ..hdl.protocol import (HISTOGRAM_COUNT_BITS, PacketType, MAX_ENCODED, Nak, ReadRequest,
+                            Status, STATUS_FIELDS, HistogramChunk, LINK_COUNTERS, registers_layout)
 from ..hdl.registers import BY_NAME, REGISTERS, AcquisitionMode
-from ..host import protocol as codec
+from . import codec
 from .command import CommandModel
 from .event import EVENT_DTYPE
 from .uart_bfm import UartSink, UartSource
@@ -36,6 +35,16 @@ BAUD = int(os.environ.get("FLISS_TB_BAUD", 12_000_000))
 FUZZ_FRAMES = int(os.environ.get("FLISS_TB_FUZZ_FRAMES", 10_000))
 MAXIMA = json.loads(os.environ.get("FLISS_TB_MAXIMA", "{}"))
 CLOCK_PERIOD_PS = round(1e12 / DEFAULT_CLOCK_HZ)
+
+
+def read_payload(address, count):
+    """Payload of a READ of ``count`` registers from ``address``."""
+    return codec.pack(ReadRequest, address=address, count=count)
+
+
+def write_payload(address, value):
+    """Payload of a WRITE of ``value`` to the register at ``address``."""
+    return codec.pack(registers_layout(1), address=address, values=[value])
 
 
 class TopTB:
@@ -116,13 +125,12 @@ class TopTB:
         # Counters the model cannot know come from the board's own reply.
         if reply.type != PacketType.STATUS:
             return None
-        values = struct.unpack(f"<{len(STATUS_FIELDS)}I", reply.payload)
-        return dict(zip(STATUS_FIELDS, values))
+        return codec.unpack(Status, reply.payload)
 
     async def write(self, **values):
         for name, value in values.items():
             reply = await self.command(PacketType.WRITE,
-                                       struct.pack("<HI", BY_NAME[name].address, value))
+                                       write_payload(BY_NAME[name].address, value))
             assert reply.type == PacketType.ACK, (name, value, reply)
 
     async def status(self):
@@ -170,7 +178,7 @@ async def test_identify_and_registers(dut):
     reply = await tb.command(PacketType.PING)
     assert reply.type == PacketType.ACK
     await tb.command(PacketType.IDENTIFY)
-    await tb.command(PacketType.READ, struct.pack("<HB", 0, len(REGISTERS)))
+    await tb.command(PacketType.READ, read_payload(0, len(REGISTERS)))
     rng = random.Random(1)
     for register in REGISTERS:
         values = [register.minimum, register.maximum, register.maximum + 1,
@@ -179,8 +187,8 @@ async def test_identify_and_registers(dut):
             values += [MAXIMA[register.name], MAXIMA[register.name] + 1]
         for value in values:
             if value < (1 << 32):
-                await tb.command(PacketType.WRITE, struct.pack("<HI", register.address, value))
-    await tb.command(PacketType.READ, struct.pack("<HB", 0, len(REGISTERS)))
+                await tb.command(PacketType.WRITE, write_payload(register.address, value))
+    await tb.command(PacketType.READ, read_payload(0, len(REGISTERS)))
     await tb.command(PacketType.GET_STATUS)
     assert not tb.link_reports
 
@@ -194,17 +202,16 @@ async def test_fuzz(dut):
     rng = random.Random(0xF022)
     valid = [
         (PacketType.PING, b""), (PacketType.IDENTIFY, b""), (PacketType.GET_STATUS, b""),
-        (PacketType.READ, struct.pack("<HB", 2, 4)),
-        (PacketType.WRITE, struct.pack("<HI", BY_NAME["length"].address, 40)),
-        (PacketType.WRITE, struct.pack("<HI", BY_NAME["mask_width"].address, 17)),
-        (PacketType.WRITE, struct.pack("<HI", BY_NAME["period"].address, 1)),
-        (PacketType.WRITE, struct.pack("<HI", BY_NAME["seed"].address, 0)),
-        (PacketType.WRITE, struct.pack("<HI", BY_NAME["pulse_width"].address, 80)),
-        (PacketType.WRITE, struct.pack("<HI", BY_NAME["length"].address, 5)),
+        (PacketType.READ, read_payload(2, 4)),
+        (PacketType.WRITE, write_payload(BY_NAME["length"].address, 40)),
+        (PacketType.WRITE, write_payload(BY_NAME["mask_width"].address, 17)),
+        (PacketType.WRITE, write_payload(BY_NAME["period"].address, 1)),
+        (PacketType.WRITE, write_payload(BY_NAME["seed"].address, 0)),
+        (PacketType.WRITE, write_payload(BY_NAME["pulse_width"].address, 80)),
+        (PacketType.WRITE, write_payload(BY_NAME["length"].address, 5)),
         (0x42, b""),
     ]
-    expected_errors = dict.fromkeys([NakCode.BAD_CRC, NakCode.TRUNCATED, NakCode.OVERSIZE,
-                                     NakCode.BAD_LENGTH], 0)
+    expected_errors = dict.fromkeys(LINK_COUNTERS, 0)
     answered = 0
     for number in range(FUZZ_FRAMES):
         type, payload = rng.choice(valid)
@@ -243,7 +250,7 @@ async def test_fuzz(dut):
         if check and isinstance(check[0], codec.LinkError):
             expected_errors[check[0].code] += 1
             reply = await tb.next_packet(types={PacketType.NAK})
-            assert reply.payload == struct.pack("<BBH", 0, check[0].code.value, 0), \
+            assert reply.payload == codec.pack(Nak, code=check[0].code), \
                 (number, check, reply)
         elif check:
             # A mutation that still decodes: a valid command (not counted as an error).
@@ -257,12 +264,11 @@ async def test_fuzz(dut):
                 assert (reply.type, reply.payload) == want, (number, packet, reply, want)
         answered += 1
     status = await tb.status()
-    for code, name in ((NakCode.BAD_CRC, "bad_crc"), (NakCode.TRUNCATED, "truncated"),
-                       (NakCode.OVERSIZE, "oversize"), (NakCode.BAD_LENGTH, "bad_length")):
+    for code, name in LINK_COUNTERS.items():
         assert status[name] == expected_errors[code], (name, status[name], expected_errors)
     assert sum(expected_errors.values()) > FUZZ_FRAMES // 2
     # The settings are those the model accepted, nothing else.
-    reply = await tb.command(PacketType.READ, struct.pack("<HB", 0, len(REGISTERS)))
+    reply = await tb.command(PacketType.READ, read_payload(0, len(REGISTERS)))
     assert not [r for r in tb.link_reports if not isinstance(r, codec.SequenceGap)]
     dut._log.info("%d frames, errors %s", FUZZ_FRAMES,
                   {code.name: count for code, count in expected_errors.items()})
@@ -333,8 +339,11 @@ async def test_histogram_closed_loop(dut):
         await Timer(20, unit="us")
     assert chunks, "no histogram"
     first = chunks[0].payload
-    frame, first_bin, chunk_shift, last = struct.unpack_from("<IHBB", first)
-    counts = np.frombuffer(first[8:], dtype="<u2")
+    chunk = codec.unpack_from(HistogramChunk, first)
+    frame, first_bin, chunk_shift, last = (chunk["frame"], chunk["first_bin"], chunk["shift"],
+                                           chunk["last"])
+    counts = np.array(codec.unpack_words(first, HISTOGRAM_COUNT_BITS,
+                                         offset=codec.byte_size(HistogramChunk)))
     want = np.bincount(np.array([e[0] for e in tb.sensor_events]) >> shift,
                        minlength=8192 >> shift)
     assert (frame, first_bin, chunk_shift, last) == (0, 0, shift, 1)

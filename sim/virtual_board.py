@@ -1,6 +1,6 @@
 """The virtual board: the top level's generated Verilog in a simulator, behind a pseudo-terminal.
 
-This is the cocotb test module that :mod:`fliss.host.board` runs in Icarus or Verilator. It
+This is the cocotb test module that :mod:`fliss.host.virtual` runs in Icarus or Verilator. It
 
 * opens a pseudo-terminal, writes the path of its slave side to the file named by
   ``FLISS_BOARD_PTY_FILE`` (written whole, then renamed, so the launcher never reads half of it),

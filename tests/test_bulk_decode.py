@@ -12,11 +12,12 @@ import pytest
 from amaranth.lib import data
 
 from fliss.hdl.event import Event
-from fliss.hdl.protocol import PacketType, NakCode, MAX_EVENTS_PER_PACKET, MAX_ENCODED
+from fliss.hdl.protocol import (HISTOGRAM_COUNT_BITS, PacketType, NakCode, MAX_EVENTS_PER_PACKET,
+                                MAX_ENCODED, HistogramChunk)
 from fliss.host import bulk
-from fliss.host.client import EventBatch, StreamAssembler
-from fliss.host.protocol import (FrameDecoder, Packet, LinkError, cobs_encode, crc16,
-                                 encode_frame, pack_events)
+from fliss.host.stream import EventBatch, StreamAssembler
+from fliss.sim.codec import (FrameDecoder, Packet, LinkError, cobs_encode, crc16,
+                             encode_frame, pack, pack_events, pack_words)
 from fliss.sim.event import EVENT_DTYPE
 
 
@@ -36,9 +37,9 @@ def random_events(rng, count, *, big=False):
 
 
 def histogram_payload(rng, frame, first, bins=128, last=False):
-    counts = rng.poisson(3.0, bins).astype("<u2")
-    return np.array([frame], "<u4").tobytes() + np.array([first], "<u2").tobytes() + \
-        bytes([0, int(last)]) + counts.tobytes()
+    counts = rng.poisson(3.0, bins)
+    return pack(HistogramChunk, frame=frame, first_bin=first, shift=0, last=int(last)) + \
+        pack_words(counts, HISTOGRAM_COUNT_BITS)
 
 
 def mixed_frames(rng, *, packets=300, seq=0):
@@ -326,7 +327,7 @@ def test_small_reads_go_to_the_scalar_decoder():
 # The client
 
 def test_reply_timeout_is_longer_on_a_pty(tmp_path):
-    from fliss.host.client import default_timeout, is_pty, DEFAULT_TIMEOUT_S, PTY_TIMEOUT_S
+    from fliss.host.port import default_timeout, is_pty, DEFAULT_TIMEOUT_S, PTY_TIMEOUT_S
     master, slave = os.openpty()
     try:
         path = os.ttyname(slave)

@@ -1,19 +1,22 @@
 """Serial client (host/client.py) against the Python model board on a real pty."""
 
 import os
-import struct
 import time
 
 import numpy as np
 import pytest
 
-from fliss.hdl.command import STATUS_FIELDS
-from fliss.hdl.protocol import PacketType, PROTOCOL_VERSION, EVENT_BYTES
+from fliss.hdl.protocol import HISTOGRAM_COUNT_BITS, STATUS_FIELDS
+from fliss.hdl.protocol import PacketType, PROTOCOL_VERSION, EVENT_BYTES, NakCode
 from fliss.hdl.registers import REGISTERS, defaults
 from fliss.host.cli import UserError
-from fliss.host.client import (Board, BoardError, BoardLost, StreamAssembler, HistogramFrame,
+from fliss.host.client import BoardClient
+from fliss.host.errors import BoardError, BoardLost, BoardRefused, PortError, SettingsError
+from fliss.host.stream import (StreamAssembler, HistogramFrame,
                                unpack_event_payload)
-from fliss.host.protocol import FrameDecoder, Packet, unpack_events
+from fliss.hdl.protocol import HistogramChunk, registers_layout
+from fliss.sim.codec import (FrameDecoder, Packet, unpack_events, pack, pack_words, unpack_from,
+                             unpack_words, byte_size)
 from fliss.sim.event import EVENT_DTYPE
 from fliss.sim.model_board import model_board
 
@@ -24,7 +27,7 @@ CLOCK_HZ = 80_000_000
 @pytest.fixture
 def board_pair():
     with model_board() as model:
-        with Board(model.path, timeout_s=2.0) as board:
+        with BoardClient(model.path, timeout_s=2.0) as board:
             yield model, board
 
 
@@ -41,7 +44,7 @@ def test_identify(board_pair):
 
 def test_version_mismatch_is_refused():
     with model_board(protocol_version=PROTOCOL_VERSION + 1) as model:
-        with Board(model.path, timeout_s=2.0) as board:
+        with BoardClient(model.path, timeout_s=2.0) as board:
             with pytest.raises(BoardError, match=f"the board speaks protocol version "
                                                  f"{PROTOCOL_VERSION + 1}, this fliss speaks "
                                                  f"version {PROTOCOL_VERSION}: update the "
@@ -64,13 +67,13 @@ def test_registers_round_trip(board_pair):
 def test_out_of_range_is_caught_before_sending(board_pair):
     model, board = board_pair
     before = model.model.commands
-    with pytest.raises(UserError, match=r"^Register length takes values from 2 to 32 bits, "
-                                        r"not 33$"):
+    with pytest.raises(SettingsError, match=r"^Register length takes values from 2 to 32 "
+                                            r"bits, not 33$"):
         board.write_registers({"length": 33}, current=defaults(CLOCK_HZ))
-    with pytest.raises(UserError, match=r"pulse_width \(80 cycles\) must be shorter than "
-                                        r"period \(80 cycles\)"):
+    with pytest.raises(SettingsError, match=r"pulse_width \(80 cycles\) must be shorter "
+                                            r"than period \(80 cycles\)"):
         board.write_registers({"pulse_width": 80}, current=defaults(CLOCK_HZ))
-    with pytest.raises(UserError, match="no register named 'speed'"):
+    with pytest.raises(SettingsError, match="no register named 'speed'"):
         board.write_registers({"speed": 1}, current=defaults(CLOCK_HZ))
     assert model.model.commands == before
 
@@ -78,11 +81,23 @@ def test_out_of_range_is_caught_before_sending(board_pair):
 def test_board_nak_is_reported(board_pair):
     model, board = board_pair
     # Bypass the host checks: a WRITE of a seed of zero, built by hand.
-    payload = struct.pack("<HI", 0x04, 0)
+    payload = pack(registers_layout(1), address=0x04, values=[0])
     with pytest.raises(BoardError, match=r"the board refused WRITE: seed out of range "
                                          r"\(OUT_OF_RANGE\)"):
         board.command(PacketType.WRITE, payload, expect=lambda reply: False, what="WRITE")
     assert board.read_registers(["seed"]) == {"seed": 1}
+
+
+def test_library_errors_are_board_errors_not_cli_errors(board_pair):
+    # A script catches BoardError; the command line's UserError is not in the library's way.
+    model, board = board_pair
+    for error in (BoardLost, BoardRefused, PortError, SettingsError):
+        assert issubclass(error, BoardError) and not issubclass(error, UserError)
+    payload = pack(registers_layout(1), address=0x04, values=[0])
+    with pytest.raises(BoardRefused) as refused:
+        board.command(PacketType.WRITE, payload, expect=lambda reply: False, what="WRITE")
+    assert (refused.value.command, refused.value.code, refused.value.detail,
+            refused.value.register.name) == ("WRITE", NakCode.OUT_OF_RANGE, 0x04, "seed")
 
 
 def test_smaller_build_refusal_is_explained():
@@ -90,7 +105,7 @@ def test_smaller_build_refusal_is_explained():
     # values in the register map's range that it refuses get a message that says so, and
     # nothing changes.
     with model_board(maxima={"acquisition": 0, "period": (1 << 24) - 1}) as model:
-        with Board(model.path, timeout_s=2.0) as board:
+        with BoardClient(model.path, timeout_s=2.0) as board:
             for name, value in (("acquisition", 1), ("period", 1 << 24)):
                 with pytest.raises(BoardError, match=rf"^the board refused WRITE: its build does "
                                                      rf"not take {name} = {value} \(a smaller "
@@ -117,7 +132,7 @@ def test_silent_port_times_out_with_same_sequence_number():
     master, slave = os.openpty()
     try:
         path = os.ttyname(slave)
-        board = Board(path, timeout_s=0.1, retries=2)
+        board = BoardClient(path, timeout_s=0.1, retries=2)
         start = time.monotonic()
         with pytest.raises(BoardLost, match=rf"^the board on {path} does not answer \(IDENTIFY: "
                                             r"no reply in 3 attempts of 0.1 s\)"):
@@ -138,16 +153,16 @@ def test_silent_port_times_out_with_same_sequence_number():
 
 
 def test_missing_port_and_permission():
-    with pytest.raises(UserError, match=r"^no serial port '/nonexistent/tty' \(see "
+    with pytest.raises(PortError, match=r"^no serial port '/nonexistent/tty' \(see "
                                         r"`fliss ports`\)$"):
-        Board("/nonexistent/tty")
+        BoardClient("/nonexistent/tty")
 
 
 def test_lost_reply_is_retried():
     # Every reply frame is damaged once in three: commands still succeed by re-sending.
     with model_board(corrupt_every=3, corrupt_types={PacketType.ACK, PacketType.REGISTERS,
                                                      PacketType.IDENTITY}) as model:
-        with Board(model.path, timeout_s=0.2, retries=5) as board:
+        with BoardClient(model.path, timeout_s=0.2, retries=5) as board:
             for value in range(2, 8):
                 board.write_registers({"length": value, "seed": 1})
                 assert board.read_registers(["length"]) == {"length": value}
@@ -159,8 +174,8 @@ def test_lost_reply_is_retried():
 
 def _chunk(frame, first, shift, last, counts):
     return Packet(PacketType.HISTOGRAM, 0,
-                  struct.pack("<IHBB", frame, first, shift, last) +
-                  np.asarray(counts, dtype="<u2").tobytes())
+                  pack(HistogramChunk, frame=frame, first_bin=first, shift=shift, last=last) +
+                  pack_words(counts, HISTOGRAM_COUNT_BITS))
 
 
 def _frame_packets(frame, counts, shift, per_chunk=128):
@@ -224,7 +239,7 @@ def test_event_payload_matches_codec():
 
 def test_stream_corruption_is_counted_and_never_accepted():
     with model_board(corrupt_every=5, corrupt_types={PacketType.HISTOGRAM}) as model:
-        with Board(model.path, timeout_s=2.0) as board:
+        with BoardClient(model.path, timeout_s=2.0) as board:
             board.write_registers({"integration": 80_000, "bin_shift": 2})
             board.reset_counters()
             board.start()
@@ -240,9 +255,10 @@ def test_stream_corruption_is_counted_and_never_accepted():
     # What the board sent, reassembled here from its own record, chunk by chunk.
     sent = {}
     for type, seq, payload in model.sent:
-        frame, first, shift, last = struct.unpack_from("<IHBB", payload)
+        chunk = unpack_from(HistogramChunk, payload)
+        frame, first = chunk["frame"], chunk["first_bin"]
         sent.setdefault(frame, np.zeros(2048, dtype=np.int64))[first:first + 128] = \
-            np.frombuffer(payload, "<u2", offset=8)
+            unpack_words(payload, HISTOGRAM_COUNT_BITS, offset=byte_size(HistogramChunk))
     corrupted = {seq for type, seq in model.corrupted}
     assert len(corrupted) >= 10
     assert link["dropped_frames"] == len(model.corrupted)
@@ -262,7 +278,7 @@ def test_stream_corruption_is_counted_and_never_accepted():
 def test_damaged_commands_are_refused_and_resent():
     # The board answers a damaged command with a link-error NAK; the client re-sends it.
     with model_board(corrupt_commands_every=3) as model:
-        with Board(model.path, timeout_s=0.3, retries=3) as board:
+        with BoardClient(model.path, timeout_s=0.3, retries=3) as board:
             for value in range(2, 10):
                 board.write_registers({"length": value, "seed": 1})
                 assert board.read_registers(["length"]) == {"length": value}
@@ -305,7 +321,7 @@ def test_socket_url_reaches_the_same_board():
         thread = threading.Thread(target=bridge, daemon=True)
         thread.start()
         try:
-            with Board(f"socket://127.0.0.1:{port}") as board:
+            with BoardClient(f"socket://127.0.0.1:{port}") as board:
                 assert board.identify().clock_hz == CLOCK_HZ
                 board.write_registers({"mask_width": 3})
                 assert model.model.settings["mask_width"] == 3
@@ -316,6 +332,6 @@ def test_socket_url_reaches_the_same_board():
 
 
 def test_loop_url_opens_but_nobody_answers():
-    with Board("loop://", timeout_s=0.05, retries=0) as board:
+    with BoardClient("loop://", timeout_s=0.05, retries=0) as board:
         with pytest.raises(BoardLost, match=r"^the board on loop:// does not answer"):
             board.identify()

@@ -6,8 +6,8 @@ import struct
 import pytest
 from amaranth.hdl import ResetInserter, Signal
 
-from fliss.hdl.command import CommandProcessor, STATUS_FIELDS
-from fliss.hdl.protocol import PacketType, NakCode
+from fliss.hdl.command import CommandProcessor
+from fliss.hdl.protocol import PacketType, NakCode, STATUS_FIELDS
 from fliss.hdl.registers import REGISTERS, BY_NAME, defaults, problems
 from fliss.sim.command import CommandModel
 from simulation import simulate

@@ -1,8 +1,15 @@
-"""The register table of docs/protocol.md says what hdl/registers.py defines."""
+"""docs/protocol.md says what hdl/registers.py and hdl/protocol.py define: the register table,
+the header and every payload layout."""
 
 import re
 from pathlib import Path
 
+from amaranth.lib import data
+
+from fliss.hdl.event import Event
+from fliss.hdl.protocol import (GATEWARE_VERSION, CHUNK_BINS, Header, Ack, Nak, Identity,
+                                ReadRequest, Status, HistogramChunk, registers_layout, READ_MAX,
+                                CONSISTENCY, EVENT_BYTES)
 from fliss.hdl.registers import REGISTERS
 
 
@@ -17,3 +24,51 @@ def test_register_table_matches_the_register_map():
     defined = [(r.address, r.name, r.width, r.minimum, r.maximum, r.reset_value(80_000_000))
                for r in REGISTERS]
     assert documented == defined
+
+
+def _payload_tables():
+    # {heading name: [(offset, size, field)]} from the payload tables under "## Payloads".
+    text = DOC.read_text().split("## Payloads\n", 1)[1].split("\n## ", 1)[0]
+    tables = {}
+    for section in text.split("\n### ")[1:]:
+        name = re.match(r"`([^`]+)`", section).group(1)
+        rows = re.findall(r"^\| (\d+) \| (\d+)( × n)? \| `(\w+)` \|", section, flags=re.MULTILINE)
+        tables[name] = [(int(offset), int(size), field) for offset, size, _, field in rows]
+    return tables
+
+
+def test_payload_tables_match_the_layouts():
+    layouts = {"Ack": Ack, "Nak": Nak, "Identity": Identity, "ReadRequest": ReadRequest,
+               "registers_layout(n)": registers_layout(1), "Status": Status,
+               "HistogramChunk": HistogramChunk, "Event": Event}
+    tables = _payload_tables()
+    assert sorted(tables) == sorted(layouts)
+    for name, layout in layouts.items():
+        unit = 1 if name == "Event" else 8      # the Event table counts bits, the others bytes
+        defined = [(field.offset // unit, field.width // unit, field_name)
+                   for field_name, field in data.Layout.cast(layout)]
+        assert all(field.offset % unit == 0 and field.width % unit == 0
+                   for _, field in data.Layout.cast(layout)), name
+        assert tables[name] == defined, name
+
+
+def test_payload_limits_in_the_text():
+    text = DOC.read_text()
+    assert f"`READ_MAX = {READ_MAX}`" in text
+    assert f"`EVENT_BYTES = {EVENT_BYTES}`" in text
+    assert f"`CHUNK_BINS` = {CHUNK_BINS}" in text
+    assert f"`CONSISTENCY = {CONSISTENCY:#06x}`" in text
+
+
+def test_packet_header_table_matches_the_header():
+    rows = re.findall(r"^\| (\d+) +\| (\d+) +\| `(\w+)` +\|", DOC.read_text().split(
+        "## Packet\n", 1)[1].split("\n## ", 1)[0], flags=re.MULTILINE)
+    documented = [(int(offset), int(size), name) for offset, size, name in rows]
+    assert documented == [(field.offset // 8, field.width // 8, name)
+                          for name, field in data.Layout.cast(Header)]
+
+
+def test_gateware_version_is_the_package_version():
+    pyproject = (DOC.parent.parent / "pyproject.toml").read_text()
+    version = re.search(r'^version = "([^"]+)"', pyproject, flags=re.MULTILINE).group(1)
+    assert GATEWARE_VERSION == version

@@ -12,7 +12,7 @@ from fliss.hdl.framing import Crc16, FrameEncoder, FrameDecoder
 from fliss.hdl.protocol import (PacketType, NakCode, MAX_PAYLOAD, MAX_ENCODED, CRC_BYTES,
                                 CRC_CHECK, COBS_MAX_RUN)
 from fliss.hdl.uart import UartTx, UartRx
-from fliss.host import protocol as codec
+from fliss.sim import codec
 
 from simulation import simulate, stream_put, stream_get
 

@@ -15,7 +15,7 @@ import serial
 from fliss.hdl.protocol import PacketType, PROTOCOL_VERSION
 from fliss.hdl.registers import defaults
 from fliss.host.cli import main
-from fliss.host.client import Board
+from fliss.host.client import BoardClient
 from fliss.host.fileformat import read_capture
 from fliss.sim.model_board import model_board, scene_for
 from fliss.sim.scene import Scene, Simulation, time_of_flight
@@ -76,7 +76,7 @@ def test_config_round_trip(model, capsys):
                     aggressor=1, aggressor_offset=8, integration=400_000, gate_end=2000,
                     bin_shift=2, acquisition=1, grid=1, seed=0x2b)
     assert model.model.settings == expected
-    with Board(model.path, timeout_s=2.0) as board:
+    with BoardClient(model.path, timeout_s=2.0) as board:
         assert board.read_registers() == expected
     # Shown again without settings, with units.
     status, out, err = fliss(capsys, "config", "--port", model.path)
@@ -153,7 +153,7 @@ def test_ports(capsys):
 # capture
 
 def _prepare(model, **changes):
-    with Board(model.path, timeout_s=2.0) as board:
+    with BoardClient(model.path, timeout_s=2.0) as board:
         board.write_registers(dict({"bin_shift": SHIFT}, **changes))
         return board.read_registers()
 

@@ -1,13 +1,13 @@
 """HISTOGRAM packets from a histogram readout, in Amaranth's simulator, against the protocol."""
 
 import random
-import struct
 
 import pytest
-from amaranth.sim import Simulator
 
-from fliss.hdl.packetizer import CHUNK_BINS, HistogramPacketizer
-from fliss.hdl.protocol import PacketType
+from fliss.hdl.packetizer import HistogramPacketizer
+from fliss.hdl.protocol import HISTOGRAM_COUNT_BITS, CHUNK_BINS, PacketType, HistogramChunk
+from fliss.sim.codec import pack, pack_words
+from simulation import simulate
 
 
 def packetize(shift, frames, *, seed=0):
@@ -47,11 +47,7 @@ def packetize(shift, frames, *, seed=0):
                     packets.append((*header, bytes(payload)))
             await ctx.tick()
 
-    sim = Simulator(dut)
-    sim.add_clock(1e-8)
-    sim.add_testbench(source)
-    sim.add_testbench(sink, background=True)
-    sim.run()
+    simulate(dut, source, background=[sink], clock_hz=100e6)
     return packets
 
 
@@ -70,8 +66,8 @@ def test_histogram_chunks(shift):
         for first in range(0, bins, CHUNK_BINS):
             chunk = counts[first:first + CHUNK_BINS]
             last = int(first + CHUNK_BINS >= bins)
-            payload = struct.pack("<IHBB", number, first, shift, last) + \
-                struct.pack(f"<{len(chunk)}H", *chunk)
+            payload = pack(HistogramChunk, frame=number, first_bin=first, shift=shift,
+                           last=last) + pack_words(chunk, HISTOGRAM_COUNT_BITS)
             want.append((PacketType.HISTOGRAM.value, len(payload), payload))
     got = packetize(shift, frames, seed=shift)
     assert got == want

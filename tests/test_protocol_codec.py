@@ -1,4 +1,4 @@
-"""Host codec of the link protocol (fliss.host.protocol), against independent references."""
+"""Software codec of the link protocol (fliss.sim.codec), against independent references."""
 
 import binascii
 import random
@@ -6,10 +6,15 @@ import random
 import numpy as np
 import pytest
 
+from amaranth.hdl import Shape
+from amaranth.lib import data
+
 from fliss.hdl.protocol import (PacketType, NakCode, Header, HEADER_BYTES, MAX_PAYLOAD,
                                 MAX_PACKET, MAX_ENCODED, CRC_BYTES, CRC_CHECK, CRC_INIT,
-                                DIRECTION_BIT, EVENT_BYTES, MAX_EVENTS_PER_PACKET)
-from fliss.host import protocol as codec
+                                DIRECTION_BIT, EVENT_BYTES, MAX_EVENTS_PER_PACKET, Ack, Nak,
+                                Identity, ReadRequest, Status, HistogramChunk, READ_MAX,
+                                registers_layout)
+from fliss.sim import codec
 from fliss.sim.event import EVENT_DTYPE
 
 
@@ -22,6 +27,57 @@ def test_layout_constants():
     assert (MAX_EVENTS_PER_PACKET + 1) * EVENT_BYTES > MAX_PAYLOAD
     assert MAX_PACKET == HEADER_BYTES + MAX_PAYLOAD + CRC_BYTES
     assert MAX_ENCODED == len(codec.cobs_encode(b"\x01" * MAX_PACKET))
+
+
+def _random_values(layout, rng):
+    # Random values of every field of ``layout``, nested as pack() takes them.
+    if isinstance(layout, data.StructLayout):
+        return {name: _random_values(field.shape, rng) for name, field in layout}
+    if isinstance(layout, data.ArrayLayout):
+        return [_random_values(layout.elem_shape, rng) for _ in range(layout.length)]
+    return rng.getrandbits(Shape.cast(layout).width)
+
+
+@pytest.mark.parametrize("layout", [Header, Ack, Identity, ReadRequest, Status, HistogramChunk,
+                                    registers_layout(1), registers_layout(READ_MAX)],
+                         ids=lambda layout: getattr(layout, "__name__", "registers_layout"))
+def test_pack_is_the_gateware_value(layout):
+    # pack() gives the little-endian bytes of the layout's value as Amaranth builds it, and
+    # unpack() gives the values back.
+    rng = random.Random(7)
+    cast = data.Layout.cast(layout)
+    for _ in range(20):
+        values = _random_values(cast, rng)
+        payload = codec.pack(layout, values)
+        assert len(payload) == codec.byte_size(layout) == cast.size // 8
+        assert int.from_bytes(payload, "little") == cast.const(values).as_bits()
+        assert codec.unpack(layout, payload) == values
+        assert codec.unpack_from(layout, b"\xaa" + payload + b"\x55", 1) == values
+
+
+def test_pack_nak_and_words():
+    payload = codec.pack(Nak, seq=3, code=NakCode.OUT_OF_RANGE, detail=0x0102)
+    assert payload == bytes([3, NakCode.OUT_OF_RANGE.value, 0x02, 0x01])
+    assert codec.unpack(Nak, payload) == {"seq": 3, "code": NakCode.OUT_OF_RANGE.value,
+                                         "detail": 0x0102}
+    assert codec.pack(Nak, code=NakCode.BAD_CRC) == bytes([0, 1, 0, 0])   # left out: zero
+    assert codec.pack_words([1, 0xffffffff]) == bytes([1, 0, 0, 0, 0xff, 0xff, 0xff, 0xff])
+    assert codec.unpack_words(bytes([9, 1, 0, 2, 0]), 16, offset=1) == [0x0001, 0x0002]
+
+
+def test_pack_refuses_what_does_not_fit():
+    with pytest.raises(ValueError, match=r"^payload\.seq = 256 does not fit in 8 bits$"):
+        codec.pack(Ack, seq=256)
+    with pytest.raises(ValueError, match=r"^payload has no field 'sequence'$"):
+        codec.pack(Ack, sequence=1)
+    with pytest.raises(ValueError, match=r"^payload\.values needs 2 elements, not 1$"):
+        codec.pack(registers_layout(2), address=0, values=[1])
+    with pytest.raises(ValueError, match=r"^Payload of 3 bytes, not 4$"):
+        codec.unpack(Nak, b"abc")
+    with pytest.raises(ValueError, match=r"^Words must be from 0 to 65535$"):
+        codec.pack_words([1 << 16], 16)
+    with pytest.raises(ValueError, match=r"^3 bytes are not a whole number of 4-byte words$"):
+        codec.unpack_words(b"abc")
 
 
 def test_packet_type_directions():

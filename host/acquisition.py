@@ -1,0 +1,241 @@
+"""Capture from a board into an HDF5 file: the library side of ``fliss capture``.
+
+:func:`capture` sets the acquisition mode and integration time, starts the board, writes what it
+sends to a file as it arrives (:class:`~fliss.host.fileformat.CaptureWriter`) and returns a
+:class:`CaptureResult`; it prints nothing (the command, :mod:`fliss.host.capture`, reports).
+"""
+
+import math
+import signal
+import time
+from dataclasses import dataclass
+from typing import Optional
+
+from ..hdl.registers import AcquisitionMode
+from .client import BoardClient
+from .errors import BoardLost, SettingsError
+from .fileformat import CaptureWriter
+from .stream import EventBatch, HistogramFrame
+from .units import format_time
+
+
+__all__ = ["HEARTBEAT_S", "CaptureResult", "capture", "rate"]
+
+
+#: Seconds between STATUS requests during a capture (a heartbeat that finds a silent board).
+HEARTBEAT_S = 1.0
+
+
+@dataclass
+class CaptureResult:
+    """What :func:`capture` did.
+
+    ``reason`` is ``"completed"``, ``"interrupted"`` or why the board was lost (``lost``, the
+    :exc:`~fliss.host.errors.BoardLost`); ``complete`` is True when everything asked for was
+    captured. ``link`` and ``stream`` are the client's counters, ``status_start`` and
+    ``status_end`` the board's (``status_end`` is None when the board was lost).
+    """
+    path: str
+    mode: str
+    histograms: int
+    events: int
+    batches: int
+    reason: str
+    complete: bool
+    lost: Optional[BoardLost]
+    link: dict
+    stream: dict
+    status_start: dict
+    status_end: Optional[dict]
+
+    @property
+    def interrupted(self) -> bool:
+        return self.reason == "interrupted"
+
+    @property
+    def what(self) -> str:
+        """What was saved, as text: ``"10 histograms"``, ``"1234 events in 40 packets"``."""
+        if self.mode == "histogram":
+            return f"{self.histograms} histograms"
+        return f"{self.events} events in {self.batches} packets"
+
+    @property
+    def board_dropped(self) -> int:
+        """Events the board dropped during the capture (0 when the board was lost)."""
+        if self.status_end is None:
+            return 0
+        return sum(self.status_end[name] - self.status_start.get(name, 0) for name in
+                   ("dropped_fifo", "dropped_overrun", "dropped_histogram"))
+
+
+class _NoProgress:
+    def update(self, done, extra="", force=False):
+        pass
+
+    def close(self):
+        pass
+
+
+class _Interrupt:
+    """Ctrl-C during a capture only sets a flag, checked between packets, so that it never
+    breaks into the middle of an HDF5 write (h5py holds a lock then) or of a packet's
+    decoding. A second Ctrl-C interrupts at once."""
+
+    def __init__(self):
+        self.requested = False
+        self._previous = None
+
+    def _handler(self, signum, frame):
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+
+    def install(self):
+        try:
+            self._previous = signal.signal(signal.SIGINT, self._handler)
+        except ValueError:      # not the main thread: leave Ctrl-C alone
+            self._previous = None
+
+    def restore(self):
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+            self._previous = None
+
+
+def rate(events, seconds):
+    """``events`` per ``seconds`` as text, in events/s, kevents/s or Mevents/s."""
+    rate = events / seconds if seconds > 0 else 0.0
+    if rate >= 1e6:
+        return f"{rate / 1e6:.2f} Mevents/s"
+    if rate >= 1e3:
+        return f"{rate / 1e3:.1f} kevents/s"
+    return f"{rate:.0f} events/s"
+
+
+def capture(board: BoardClient, path: str, *, mode: str = "histogram",
+            integration_s: float = 10e-3, acquisitions: int = 10,
+            duration_s: Optional[float] = None, port: str = "",
+            progress=None) -> CaptureResult:
+    """Capture into ``path`` from an identified :class:`~fliss.host.client.BoardClient`.
+
+    ``mode`` is ``"histogram"`` (``acquisitions`` histograms) or ``"raw"`` (events for
+    ``duration_s``); each histogram (and raw-mode block) integrates for ``integration_s``.
+    ``progress``, if given, has ``update(done, extra="", force=False)`` and ``close()`` (as
+    :class:`fliss.host.capture.Progress`). Ctrl-C stops the acquisition and keeps what was
+    captured; a board lost mid-capture leaves a file with everything received. Both are told
+    by the result; :exc:`~fliss.host.errors.SettingsError` for an integration time shorter
+    than one clock cycle, and any :exc:`~fliss.host.errors.BoardError` before the capture
+    starts, are raised.
+    """
+    clock_hz = board.identity.clock_hz
+    cycles = round(integration_s * clock_hz)
+    if cycles < 1:
+        raise SettingsError(f"--integration {format_time(integration_s)} is shorter than one "
+                            f"clock cycle of the board ({format_time(1 / clock_hz)})")
+    board.stop()
+    board.drain(quiet_s=0.1, limit_s=2.0)
+    current = board.read_registers()
+    board.write_registers({"acquisition": AcquisitionMode[mode.upper()].value,
+                           "integration": cycles}, current=current)
+    configuration = board.read_registers()
+    status_start = board.status()
+
+    writer = CaptureWriter(path, mode=mode, identity=board.identity.as_dict(),
+                           configuration=configuration, port=port)
+    writer.file.attrs["integration_s"] = cycles / clock_hz
+    if mode == "histogram":
+        writer.file.attrs["acquisitions_requested"] = acquisitions
+    else:
+        writer.file.attrs["duration_s_requested"] = duration_s
+    bar = progress if progress is not None else _NoProgress()
+
+    state = {"events": 0, "histograms": 0, "discarded": 0}
+
+    def store(item):
+        if isinstance(item, HistogramFrame):
+            if mode != "histogram" or state["histograms"] >= acquisitions:
+                state["discarded"] += 1
+                return
+            if writer.add_histogram(item):
+                state["histograms"] += 1
+                state["events"] += int(item.counts.sum())
+            else:
+                state["discarded"] += 1
+        elif isinstance(item, EventBatch):
+            writer.add_events(item)
+            state["events"] += len(item.events)
+
+    reason, complete, lost = "completed", True, None
+    interrupt = _Interrupt()
+    board.reset_counters()
+    started = time.monotonic()
+    heartbeat = started
+    status_end = None
+    idle_timeout_s = max(3.0, 3 * cycles / clock_hz + 1.0)
+    try:
+        interrupt.install()
+        board.start()
+        started = heartbeat = time.monotonic()
+        for item in board.stream(idle_timeout_s=idle_timeout_s if mode == "histogram"
+                                 else math.inf):
+            if item is not None:
+                store(item)
+            if interrupt.requested:
+                raise KeyboardInterrupt
+            now = time.monotonic()
+            elapsed = now - started
+            link = board.link_counters()
+            stream = board.assembler.counters
+            damaged = f"{link['dropped_frames']} corrupt, {link['missing_packets']} lost"
+            if mode == "histogram":
+                seen = state["histograms"] + state["discarded"] + stream.lost_frames
+                bar.update(min(state["histograms"], acquisitions),
+                           f"{rate(state['events'], elapsed)}  link: {damaged}")
+                if seen >= acquisitions:
+                    break
+            else:
+                bar.update(min(elapsed, duration_s),
+                           f"{rate(state['events'], elapsed)}  link: {damaged}")
+                if elapsed >= duration_s:
+                    break
+            if now - heartbeat >= HEARTBEAT_S:
+                heartbeat = now
+                board.status()    # data that arrive meanwhile are kept
+    except KeyboardInterrupt:
+        reason, complete = "interrupted", False
+    except BoardLost as error:
+        reason, complete, lost = f"board lost: {error}", False, error
+    finally:
+        interrupt.restore()
+    bar.update(state["histograms"] if mode == "histogram" else
+               min(time.monotonic() - started, duration_s), force=True)
+    bar.close()
+
+    if lost is None:
+        try:
+            board.stop()
+            for item in board.settle():
+                store(item)
+            status_end = board.status()
+        except BoardLost as error:
+            reason, complete, lost = f"board lost while stopping: {error}", False, error
+        except KeyboardInterrupt:
+            reason, complete = "interrupted", False
+    if lost is not None:
+        for item in board.take_data() + board.assembler.flush():
+            store(item)
+
+    link = board.link_counters()
+    stream = board.assembler.counters.as_dict()
+    stream["discarded_frames"] = state["discarded"]
+    writer.set_counters("link", link)
+    writer.set_counters("stream", stream)
+    writer.set_counters("board_start", status_start)
+    if status_end is not None:
+        writer.set_counters("board_end", status_end)
+    writer.close(reason, complete=complete, capture_s=time.monotonic() - started)
+    return CaptureResult(
+        path=str(path), mode=mode, histograms=state["histograms"], events=writer.events,
+        batches=writer.batches, reason=reason, complete=complete, lost=lost, link=link,
+        stream=stream, status_start=status_start, status_end=status_end)
+

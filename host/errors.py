@@ -1,0 +1,60 @@
+"""Exceptions of the host library.
+
+Everything the host library (:mod:`fliss.host.client`, :mod:`fliss.host.virtual`, ...) raises
+about a board derives from :exc:`BoardError`, so a script or a notebook catches that one class.
+The ``fliss`` command turns each into its one-line message (:func:`fliss.host.cli.main`).
+"""
+
+__all__ = ["BoardError", "BoardLost", "PortError", "BoardRefused", "BoardMismatch",
+           "SettingsError", "VirtualBoardError"]
+
+
+class BoardError(Exception):
+    """Something went wrong with a board; the message is one line that says what and what to
+    do."""
+
+
+class BoardLost(BoardError):
+    """The board does not answer, the connection to it went away, or it stopped sending."""
+
+
+class PortError(BoardError):
+    """The serial port cannot be opened (missing, busy, no permission, a bad URL)."""
+
+
+class BoardRefused(BoardError):
+    """The board refused a command with a NAK.
+
+    Attributes
+    ----------
+    command : str
+        What was refused (``"WRITE"``, ``"READ"``, ...).
+    code : NakCode or int
+        The NAK code (the number, for a code this host does not know).
+    detail : int
+        The NAK's detail: the register address refused, for example.
+    register : Register or None
+        The register that ``detail`` names, for a refused address or value.
+    """
+
+    def __init__(self, message, *, command=None, code=None, detail=None, register=None):
+        super().__init__(message)
+        self.command = command
+        self.code = code
+        self.detail = detail
+        self.register = register
+
+
+class BoardMismatch(BoardError):
+    """The board is not one this host speaks to: another protocol version, another register
+    map, or replies that are not FLISS packets."""
+
+
+class SettingsError(BoardError, ValueError):
+    """Settings refused on the host before they were sent: an unknown register, a value out of
+    its range, or settings that are not consistent."""
+
+
+class VirtualBoardError(BoardError):
+    """The virtual board (a simulation of the gateware) cannot be built or started, or it
+    stopped."""
