@@ -15,7 +15,7 @@ payload is empty).
 """
 
 from amaranth.hdl import *
-from amaranth.lib import data, stream, wiring
+from amaranth.lib import crc as lib_crc, data, stream, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
@@ -38,6 +38,11 @@ class PacketBeat(data.Struct):
     data:   8
     first:  1
     last:   1
+
+
+#: The link's CRC-16/IBM-3740 as an :class:`amaranth.lib.crc.Algorithm`.
+LINK_CRC = lib_crc.Algorithm(crc_width=CRC_WIDTH, polynomial=CRC_POLY, initial_crc=CRC_INIT,
+                             reflect_input=False, reflect_output=False, xor_output=0)
 
 
 def crc16_next(crc, byte):
@@ -122,7 +127,7 @@ class FrameEncoder(wiring.Component):
     def elaborate(self, platform):
         m = Module()
 
-        m.submodules.crc = crc = Crc16()
+        m.submodules.crc = crc = LINK_CRC(8).create()
         m.submodules.run = run = Memory(shape=8, depth=2 << (COBS_MAX_RUN - 1).bit_length(),
                                         init=[])   # two banks
         run_wr = run.write_port()
@@ -160,7 +165,7 @@ class FrameEncoder(wiring.Component):
             with m.State("IDLE"):
                 m.d.comb += self.i.ready.eq(1)
                 with m.If(self.i.valid & self.i.payload.first):
-                    m.d.comb += crc.clear.eq(1)
+                    m.d.comb += crc.start.eq(1)
                     m.d.sync += [
                         header.eq(self.i.payload.header),
                         has_payload.eq(~self.i.payload.last),
@@ -379,7 +384,7 @@ class FrameDecoder(wiring.Component):
     def elaborate(self, platform):
         m = Module()
 
-        m.submodules.crc = crc = Crc16()
+        m.submodules.crc = crc = LINK_CRC(8).create()
         m.submodules.buffer = buffer = Memory(shape=8, depth=MAX_PAYLOAD, init=[])
         buf_wr = buffer.write_port()
         buf_rd = buffer.read_port(transparent_for=())
@@ -493,7 +498,7 @@ class FrameDecoder(wiring.Component):
         sent_header = Signal(Header)    # the header of the accepted packet
         m.d.sync += [self.drop.eq(0), accept.eq(0)]
         with m.If(ending):
-            m.d.comb += crc.clear.eq(1)
+            m.d.comb += crc.start.eq(1)
             m.d.sync += [
                 raw_count.eq(0),
                 dec_count.eq(0),
