@@ -130,7 +130,8 @@ class FrameEncoder(wiring.Component):
 class FrameDecoder(wiring.Component):
     """Frame decoder: framed bytes in, verified packets out.
 
-    Decodes COBS as bytes arrive, checks each frame at its delimiter and sends the packets that
+    Decodes COBS as bytes arrive (:class:`~.cobs.CobsDecoder`), checks and removes the CRC
+    (:class:`~.crc.CrcChecker`), checks each frame at its delimiter and sends the packets that
     pass on ``o``. A frame that fails is dropped, counted by reason and reported on ``drop``
     and ``drop_reason``; the checks, in order:
 
