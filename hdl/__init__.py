@@ -12,7 +12,9 @@ One block per module:
 * :mod:`.histogram`: the two-bank block-RAM histogram engine;
 * :mod:`.rawfifo`: the raw event FIFO that counts what it drops;
 * :mod:`.uart`: UART transmitter and receiver;
-* :mod:`.framing`: CRC-16 and COBS frame encoder and decoder;
+* :mod:`.crc`: the link's CRC-16, appended and checked as stream stages;
+* :mod:`.cobs`: COBS encoder and decoder stream stages;
+* :mod:`.framing`: frame encoder and decoder, packets to and from the stages above;
 * :mod:`.command`: command processor;
 * :mod:`.regfile`: register file (settings, their checks, groups as structs);
 * :mod:`.packetizer`: EVENTS and HISTOGRAM packets;

@@ -1,4 +1,4 @@
-"""Framed, checked packets over a byte stream: CRC-16, frame encoder and frame decoder.
+"""Framed, checked packets over a byte stream: the frame encoder and the frame decoder.
 
 The format is defined in :mod:`fliss.hdl.protocol` (and described in ``docs/protocol.md``): a
 packet is header, payload and CRC-16; a frame is the packet COBS-encoded, then a zero byte.
@@ -11,7 +11,12 @@ so a receiver resynchronises at the next zero whatever came before.
 
 Packets inside the gateware travel as :class:`PacketBeat` streams: a header beat (``first``),
 then one beat per payload byte; ``last`` marks the final beat (the header beat itself when the
-payload is empty).
+payload is empty). Each direction is a chain of stream stages:
+
+* out: packet beats -> bytes (:class:`FrameEncoder`) -> :class:`~.crc.CrcAppender` ->
+  :class:`~.cobs.CobsEncoder` (COBS, then the delimiter);
+* in: bytes -> :class:`~.cobs.CobsDecoder` -> :class:`~.crc.CrcChecker` (checks and removes the
+  CRC) -> the length checks, the payload buffer and packet beats (:class:`FrameDecoder`).
 """
 
 from amaranth.hdl import *
@@ -19,12 +24,13 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
-from .buffer import StreamBuffer
-from .protocol import (DELIMITER, COBS_MAX_RUN, CRC_WIDTH, CRC_POLY, CRC_INIT, CRC_BYTES, Header,
-                       HEADER_BYTES, MAX_PAYLOAD, MAX_PACKET, MAX_ENCODED, NakCode, COUNTER_BITS)
+from .cobs import CobsEncoder, CobsDecoder
+from .crc import CrcAppender, CrcChecker
+from .protocol import (Header, HEADER_BYTES, MAX_PAYLOAD, MAX_PACKET, MAX_ENCODED, CRC_BYTES,
+                       NakCode, COUNTER_BITS)
 
 
-__all__ = ["PacketBeat", "crc16_next", "Crc16", "FrameEncoder", "FrameDecoder"]
+__all__ = ["PacketBeat", "FrameEncoder", "FrameDecoder"]
 
 
 class PacketBeat(data.Struct):
@@ -40,70 +46,21 @@ class PacketBeat(data.Struct):
     last:   1
 
 
-def crc16_next(crc, byte):
-    """CRC after one more byte: ``crc`` (16 bits) and ``byte`` (8 bits) are Amaranth values.
-
-    The byte is processed most significant bit first with :data:`~fliss.hdl.protocol.CRC_POLY`,
-    as CRC-16/IBM-3740 does; the result is a combinational expression.
-    """
-    crc = Value.cast(crc)
-    byte = Value.cast(byte)
-    for bit in reversed(range(8)):
-        feedback = crc[CRC_WIDTH - 1] ^ byte[bit]
-        shifted = Cat(C(0, 1), crc[:CRC_WIDTH - 1])
-        crc = shifted ^ Mux(feedback, CRC_POLY, 0)
-    return crc
-
-
-class Crc16(wiring.Component):
-    """CRC-16/IBM-3740 generator and checker, one byte per cycle.
-
-    Members
-    -------
-    clear : In(1)
-        Restart from :data:`~fliss.hdl.protocol.CRC_INIT`; the byte on ``data`` is ignored.
-    valid : In(1)
-        Add the byte on ``data``.
-    data : In(8)
-        Byte to add.
-    crc : Out(16)
-        CRC of the bytes added since the last ``clear``, from the next cycle. Send it most
-        significant byte first; after its two bytes are added too, ``crc`` is zero.
-    """
-
-    clear: In(1)
-    valid: In(1)
-    data:  In(8)
-    crc:   Out(CRC_WIDTH, init=CRC_INIT)
-
-    def elaborate(self, platform):
-        m = Module()
-        with m.If(self.clear):
-            m.d.sync += self.crc.eq(CRC_INIT)
-        with m.Elif(self.valid):
-            m.d.sync += self.crc.eq(crc16_next(self.crc, self.data))
-        return m
-
-
-def _byte(value, index):
-    return Value.cast(value).word_select(index, 8)
-
-
 class FrameEncoder(wiring.Component):
     """Frame encoder: packets in, framed bytes out.
 
-    Adds the CRC, COBS-encodes header, payload and CRC and appends the delimiter; the output is
-    exactly :func:`fliss.host.protocol.encode_frame` of the packet. The header is sent as given:
-    the producer sets ``length`` to the number of payload beats and numbers the packets (one
-    sequence counter for everything sent on the link). A beat other than a header beat where a
-    packet should start is dropped and counted in ``stray_beats``.
+    Sends header and payload as bytes through a :class:`~.crc.CrcAppender` and a
+    :class:`~.cobs.CobsEncoder`; the output is exactly :func:`fliss.host.protocol.encode_frame`
+    of the packet. The header is sent as given: the producer sets ``length`` to the number of
+    payload beats and numbers the packets (one sequence counter for everything sent on the
+    link). A beat other than a header beat where a packet should start is dropped and counted in
+    ``stray_beats``.
 
-    A run of non-zero bytes waits in the run buffer until the code byte in front of it is known.
-    The buffer has two banks of :data:`~fliss.hdl.protocol.COBS_MAX_RUN` bytes: one run is sent
-    from one bank while the next is collected, at one byte per cycle, in the other. Fed at one
-    beat per cycle, the encoder only leaves a UART waiting when collecting a run takes longer
-    than sending the block before it: at the start of a burst, or for a long run right after a
-    short block (at most 254 cycles, less than 4 characters at 12 Mbaud from 80 MHz).
+    The COBS encoder's run buffer has two banks: one run is sent from one bank while the next
+    is collected in the other. Fed at one beat per cycle, the encoder only leaves a UART waiting
+    when collecting a run takes longer than sending the block before it: at the start of a
+    burst, or for a long run right after a short block (at most 254 cycles, less than 4
+    characters at 12 Mbaud from 80 MHz).
 
     Members
     -------
@@ -122,45 +79,20 @@ class FrameEncoder(wiring.Component):
     def elaborate(self, platform):
         m = Module()
 
-        m.submodules.crc = crc = Crc16()
-        m.submodules.run = run = Memory(shape=8, depth=2 << (COBS_MAX_RUN - 1).bit_length(),
-                                        init=[])   # two banks
-        run_wr = run.write_port()
-        run_rd = run.read_port(transparent_for=())
+        m.submodules.crc = crc = CrcAppender()
+        m.submodules.cobs = cobs = CobsEncoder()
+        wiring.connect(m, crc.o, cobs.i)
+        wiring.connect(m, cobs.o, wiring.flipped(self.o))
 
-        # Packet bytes, unencoded: header, payload, CRC (`s_*`), taken when `s_ready`. They reach
-        # the COBS filler (`u_*`) through a half-rate register slice, tested for zero on the way
-        # in, so that no path runs from the byte multiplexers here through the filler's decisions.
-        m.submodules.byte_buffer = byte_buffer = StreamBuffer(
-            data.StructLayout({"data": 8, "last": 1, "zero": 1}), full_rate=False)
-        s_data = Signal(8)
-        s_valid = Signal()
-        s_last = Signal()
-        s_ready = byte_buffer.i.ready
-        m.d.comb += [
-            byte_buffer.i.valid.eq(s_valid),
-            byte_buffer.i.p.data.eq(s_data),
-            byte_buffer.i.p.last.eq(s_last),
-            byte_buffer.i.p.zero.eq(s_data == 0),
-        ]
-        u_data = byte_buffer.o.p.data
-        u_valid = byte_buffer.o.valid
-        u_last = byte_buffer.o.p.last
-        u_ready = byte_buffer.o.ready
+        # Packet beats to bytes: the header, little-endian, then the payload
+        s = crc.i
         header = Signal(Header)
         has_payload = Signal()
         index = Signal(range(HEADER_BYTES))
-        s_checked = Signal()     # the byte is covered by the CRC
-        m.d.comb += [
-            crc.data.eq(s_data),
-            crc.valid.eq(s_valid & s_ready & s_checked),
-        ]
-        crc_bytes = Array(_byte(crc.crc, k) for k in reversed(range(CRC_BYTES)))  # MSB first
         with m.FSM(name="source"):
             with m.State("IDLE"):
                 m.d.comb += self.i.ready.eq(1)
                 with m.If(self.i.valid & self.i.payload.first):
-                    m.d.comb += crc.clear.eq(1)
                     m.d.sync += [
                         header.eq(self.i.payload.header),
                         has_payload.eq(~self.i.payload.last),
@@ -171,149 +103,25 @@ class FrameEncoder(wiring.Component):
                     m.d.sync += self.stray_beats.eq(self.stray_beats + 1)
             with m.State("HEADER"):
                 m.d.comb += [
-                    s_data.eq(_byte(header, index)),
-                    s_valid.eq(1),
-                    s_checked.eq(1),
+                    s.p.data.eq(header.as_value().word_select(index, 8)),
+                    s.p.last.eq(~has_payload & (index == HEADER_BYTES - 1)),
+                    s.valid.eq(1),
                 ]
-                with m.If(s_ready):
+                with m.If(s.ready):
                     m.d.sync += index.eq(index + 1)
                     with m.If(index == HEADER_BYTES - 1):
-                        m.d.sync += index.eq(0)
                         with m.If(has_payload):
                             m.next = "PAYLOAD"
                         with m.Else():
-                            m.next = "CRC"
+                            m.next = "IDLE"
             with m.State("PAYLOAD"):
                 m.d.comb += [
-                    s_data.eq(self.i.payload.data),
-                    s_valid.eq(self.i.valid),
-                    s_checked.eq(1),
-                    self.i.ready.eq(s_ready),
+                    s.p.data.eq(self.i.payload.data),
+                    s.p.last.eq(self.i.payload.last),
+                    s.valid.eq(self.i.valid),
+                    self.i.ready.eq(s.ready),
                 ]
-                with m.If(self.i.valid & s_ready & self.i.payload.last):
-                    m.next = "CRC"
-            with m.State("CRC"):
-                m.d.comb += [
-                    s_data.eq(crc_bytes[index]),
-                    s_valid.eq(1),
-                    s_last.eq(index == CRC_BYTES - 1),
-                ]
-                with m.If(s_ready):
-                    m.d.sync += index.eq(index + 1)
-                    with m.If(s_last):
-                        m.next = "IDLE"
-
-        # COBS, filler: collect a run of non-zero bytes in one bank of the run buffer. A zero
-        # byte, a full run or the end of the packet closes the block: its code byte, length and
-        # bank go to `pending`, and the filler goes on in the other bank while the emitter sends
-        # the block. The end of the packet closes the last run like a zero byte does (the run
-        # after a final zero byte is empty: code 1), unless the packet ended with a full run,
-        # as in `fliss.host.protocol.cobs_encode`.
-        bank_bits = (COBS_MAX_RUN - 1).bit_length()
-        run_len = Signal(range(COBS_MAX_RUN + 1))
-        fill_bank = Signal()
-        ending = Signal()           # the last packet byte is in, its final block is not closed
-        pending = Signal()
-        p_code = Signal(8)
-        p_len = Signal(range(COBS_MAX_RUN + 1))
-        p_bank = Signal()
-        p_final = Signal()          # the block is the last of its frame
-        emitting = Signal()
-        e_bank = Signal()
-
-        def close(code, length, final):
-            m.d.sync += [
-                pending.eq(1),
-                p_code.eq(code),
-                p_len.eq(length),
-                p_bank.eq(fill_bank),
-                p_final.eq(final),
-                run_len.eq(0),
-                fill_bank.eq(~fill_bank),
-            ]
-
-        m.d.comb += [
-            run_wr.addr.eq(Cat(run_len[:bank_bits], fill_bank)),
-            run_wr.data.eq(u_data),
-        ]
-        with m.If(ending):
-            with m.If(~pending):
-                close(run_len + 1, run_len, final=1)
-                m.d.sync += ending.eq(0)
-        with m.Else():
-            m.d.comb += u_ready.eq(~pending & ~(emitting & (e_bank == fill_bank)))
-            with m.If(u_valid & u_ready):
-                with m.If(byte_buffer.o.p.zero):
-                    close(run_len + 1, run_len, final=0)
-                    m.d.sync += ending.eq(u_last)
-                with m.Else():
-                    m.d.comb += run_wr.en.eq(1)
-                    with m.If(run_len == COBS_MAX_RUN - 1):
-                        close(COBS_MAX_RUN + 1, COBS_MAX_RUN, final=u_last)
-                    with m.Else():
-                        m.d.sync += [
-                            run_len.eq(run_len + 1),
-                            ending.eq(u_last),
-                        ]
-
-        # COBS, emitter: the code byte, the run, and after the last block the delimiter
-        e_code = Signal(8)
-        e_len = Signal(range(COBS_MAX_RUN + 1))
-        e_final = Signal()
-        sent = Signal(range(COBS_MAX_RUN + 1))
-        e_last = Signal()           # the byte of the run being sent is its last (registered)
-        # The output byte is one LUT after the run buffer (block RAM, slow to output): which
-        # byte goes out is decided a cycle ahead, into `e_is_code` and `e_is_data`, rather than
-        # decoded from the state.
-        e_is_code = Signal()
-        e_is_data = Signal()
-        m.d.comb += self.o.payload.eq(Mux(e_is_code, e_code, run_rd.data & e_is_data.replicate(8)))
-        with m.FSM(name="emit"):
-            with m.State("IDLE"):
-                with m.If(pending):
-                    m.d.sync += [
-                        pending.eq(0),
-                        emitting.eq(1),
-                        e_code.eq(p_code),
-                        e_len.eq(p_len),
-                        e_bank.eq(p_bank),
-                        e_final.eq(p_final),
-                        e_is_code.eq(1),
-                    ]
-                    m.next = "CODE"
-            with m.State("CODE"):
-                m.d.comb += [
-                    self.o.valid.eq(1),
-                    run_rd.addr.eq(Cat(C(0, bank_bits), e_bank)),
-                ]
-                with m.If(self.o.ready):
-                    m.d.sync += [sent.eq(0), e_is_code.eq(0), e_last.eq(e_len == 1)]
-                    with m.If(e_len != 0):
-                        m.d.sync += e_is_data.eq(1)
-                        m.next = "DATA"
-                    with m.Elif(e_final):
-                        m.d.sync += emitting.eq(0)
-                        m.next = "DELIMITER"
-                    with m.Else():
-                        m.d.sync += emitting.eq(0)
-                        m.next = "IDLE"
-            with m.State("DATA"):
-                m.d.comb += [
-                    self.o.valid.eq(1),
-                    run_rd.addr.eq(Cat(Mux(self.o.ready, sent + 1, sent)[:bank_bits], e_bank)),
-                ]
-                with m.If(self.o.ready):
-                    m.d.sync += [sent.eq(sent + 1), e_last.eq(sent + 2 == e_len)]
-                    with m.If(e_last):
-                        m.d.sync += [emitting.eq(0), e_is_data.eq(0)]
-                        with m.If(e_final):
-                            m.next = "DELIMITER"
-                        with m.Else():
-                            m.next = "IDLE"
-            with m.State("DELIMITER"):
-                assert DELIMITER == 0   # neither the code nor the data: zero
-                m.d.comb += self.o.valid.eq(1)
-                with m.If(self.o.ready):
+                with m.If(self.i.valid & s.ready & self.i.payload.last):
                     m.next = "IDLE"
 
         return m
@@ -322,7 +130,8 @@ class FrameEncoder(wiring.Component):
 class FrameDecoder(wiring.Component):
     """Frame decoder: framed bytes in, verified packets out.
 
-    Decodes COBS as bytes arrive, checks each frame at its delimiter and sends the packets that
+    Decodes COBS as bytes arrive (:class:`~.cobs.CobsDecoder`), checks and removes the CRC
+    (:class:`~.crc.CrcChecker`), checks each frame at its delimiter and sends the packets that
     pass on ``o``. A frame that fails is dropped, counted by reason and reported on ``drop``
     and ``drop_reason``; the checks, in order:
 
@@ -379,76 +188,47 @@ class FrameDecoder(wiring.Component):
     def elaborate(self, platform):
         m = Module()
 
-        m.submodules.crc = crc = Crc16()
+        m.submodules.cobs = cobs = CobsDecoder(max_encoded=MAX_ENCODED)
+        m.submodules.crc = crc = CrcChecker()
+        wiring.connect(m, wiring.flipped(self.i), cobs.i)
+        wiring.connect(m, cobs.o, crc.i)
         m.submodules.buffer = buffer = Memory(shape=8, depth=MAX_PAYLOAD, init=[])
         buf_wr = buffer.write_port()
         buf_rd = buffer.read_port(transparent_for=())
 
         sending = Signal()      # a checked packet is on its way out
-        min_packet = HEADER_BYTES + CRC_BYTES
-
-        # Frame state
-        raw_count = Signal(range(MAX_ENCODED + 2))  # bytes received, saturating
-        dec_count = Signal(range(MAX_PACKET + 2))   # bytes decoded, saturating
-        code_left = Signal(range(COBS_MAX_RUN + 1)) # bytes left in the current COBS block
-        block_ff = Signal()                         # the current block has no implied zero
+        max_bytes = MAX_PACKET - CRC_BYTES                  # header and payload
+        count = Signal(range(max_bytes + 2))                # bytes of the frame, saturating
         header = Signal(Header)
-        delay = Signal(8 * CRC_BYTES)               # the last CRC_BYTES decoded bytes
 
         # Input: stall when a payload byte would overwrite the packet being sent, and for the
         # cycle after each delimiter, while the frame is judged. (`early` is registered, for
         # timing, so it holds a cycle late: it ends a byte early, as a byte in that cycle may
-        # decode to one more.)
+        # decode to one more. The CRC checker holds the last CRC_BYTES bytes back, so it ends
+        # when six bytes are decoded.)
         ending = Signal()
         early = Signal(init=1)
-        m.d.sync += early.eq(dec_count < min_packet - 1)
-        m.d.comb += self.i.ready.eq((~sending | early) & ~ending)
+        m.d.sync += early.eq(count < HEADER_BYTES - 1)
+        m.d.comb += crc.o.ready.eq((~sending | early) & ~ending)
         take = Signal()
-        delimiter = Signal()
+        end = Signal()
         m.d.comb += [
-            take.eq(self.i.valid & self.i.ready),
-            delimiter.eq(self.i.payload == DELIMITER),
+            take.eq(crc.o.valid & crc.o.ready & ~crc.o.p.end),
+            end.eq(crc.o.valid & crc.o.ready & crc.o.p.end),
         ]
 
-        # COBS decoding: at most one decoded byte per input byte
-        d_valid = Signal()
-        d_data = Signal(8)
-        with m.If(take & ~delimiter):
-            with m.If(raw_count <= MAX_ENCODED):
-                m.d.sync += raw_count.eq(raw_count + 1)
-            with m.If(code_left == 0):
-                m.d.sync += [
-                    code_left.eq(self.i.payload - 1),
-                    block_ff.eq(self.i.payload == COBS_MAX_RUN + 1),
-                ]
-                m.d.comb += [
-                    d_valid.eq((raw_count != 0) & ~block_ff),
-                    d_data.eq(0),
-                ]
-            with m.Else():
-                m.d.sync += code_left.eq(code_left - 1)
-                m.d.comb += [
-                    d_valid.eq(1),
-                    d_data.eq(self.i.payload),
-                ]
-
-        # Decoded bytes: header, then a delay line of CRC_BYTES bytes, so that only payload
-        # reaches the buffer, at offset `dec_count - HEADER_BYTES - CRC_BYTES`
+        # Packet bytes: the header, then the payload into the buffer at `count - HEADER_BYTES`
         m.d.comb += [
-            crc.valid.eq(d_valid),
-            crc.data.eq(d_data),
-            buf_wr.addr.eq(dec_count - min_packet),
-            buf_wr.data.eq(delay[:8]),
+            buf_wr.addr.eq(count - HEADER_BYTES),
+            buf_wr.data.eq(crc.o.p.data),
         ]
-        with m.If(d_valid):
-            with m.If(dec_count <= MAX_PACKET):
-                m.d.sync += dec_count.eq(dec_count + 1)
-            with m.If(dec_count < HEADER_BYTES):
-                m.d.sync += header.eq(Cat(header.as_value()[8:], d_data))
-            with m.Else():
-                m.d.sync += delay.eq(Cat(delay[8:], d_data))
-                with m.If((dec_count >= min_packet) & (dec_count < MAX_PACKET)):
-                    m.d.comb += buf_wr.en.eq(1)
+        with m.If(take):
+            with m.If(count <= max_bytes):
+                m.d.sync += count.eq(count + 1)
+            with m.If(count < HEADER_BYTES):
+                m.d.sync += header.eq(Cat(header.as_value()[8:], crc.o.p.data))
+            with m.Elif(count < max_bytes):
+                m.d.comb += buf_wr.en.eq(1)
 
         # Checks, in two steps for timing: at the delimiter each check is registered; in the next
         # cycle (`ending`, when the input waits) the verdict is drawn from them and registered
@@ -461,16 +241,17 @@ class FrameDecoder(wiring.Component):
         short = Signal()
         crc_bad = Signal()
         length_bad = Signal()
-        m.d.sync += ending.eq(take & delimiter)
-        with m.If(take & delimiter):
+        verdict = crc.o.p.verdict
+        m.d.sync += ending.eq(end)
+        with m.If(end):
             m.d.sync += [
-                nonempty.eq(raw_count != 0),
-                raw_oversize.eq(raw_count > MAX_ENCODED),
-                cut_block.eq(code_left != 0),
-                oversize.eq(dec_count > MAX_PACKET),
-                short.eq(dec_count < min_packet),
-                crc_bad.eq(crc.crc != 0),
-                length_bad.eq(header.length != dec_count - min_packet),
+                nonempty.eq(~verdict.empty),
+                raw_oversize.eq(verdict.oversize),
+                cut_block.eq(verdict.truncated),
+                oversize.eq(count > max_bytes),
+                short.eq(crc.o.p.short | (count < HEADER_BYTES)),
+                crc_bad.eq(crc.o.p.bad_crc),
+                length_bad.eq(header.length != count - HEADER_BYTES),
             ]
         good = Signal()
         reason = Signal(NakCode, init=NakCode.BAD_CRC)
@@ -493,13 +274,7 @@ class FrameDecoder(wiring.Component):
         sent_header = Signal(Header)    # the header of the accepted packet
         m.d.sync += [self.drop.eq(0), accept.eq(0)]
         with m.If(ending):
-            m.d.comb += crc.clear.eq(1)
-            m.d.sync += [
-                raw_count.eq(0),
-                dec_count.eq(0),
-                code_left.eq(0),
-                block_ff.eq(0),
-            ]
+            m.d.sync += count.eq(0)
             with m.If(nonempty):
                 with m.If(good):
                     m.d.sync += [accept.eq(1), sent_header.eq(header)]

@@ -8,7 +8,8 @@ from amaranth.hdl import Elaboratable, Module
 from amaranth.lib import wiring
 
 from fliss.hdl import DEFAULT_CLOCK_HZ
-from fliss.hdl.framing import Crc16, FrameEncoder, FrameDecoder
+from fliss.hdl.crc import Crc16
+from fliss.hdl.framing import FrameEncoder, FrameDecoder
 from fliss.hdl.protocol import (PacketType, NakCode, MAX_PAYLOAD, MAX_ENCODED, CRC_BYTES,
                                 CRC_CHECK, COBS_MAX_RUN)
 from fliss.hdl.uart import UartTx, UartRx
