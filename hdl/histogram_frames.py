@@ -135,7 +135,7 @@ class FrameSequencer(wiring.Component):
         with m.If(start_frame):
             m.d.sync += [
                 remaining.eq(self.integration),
-                final.eq(self.integration <= 1),
+                final.eq(self.integration[1:] == 0),   # 0 or 1: a frame of one cycle
                 bank_shift[new_bank].eq(self.shift),
                 bank_last[new_bank].eq(last_for_shift),
                 bank_mask[new_bank].eq(mask_for_shift),
