@@ -17,11 +17,15 @@ Conventions
   clipped out.
 """
 
+from __future__ import annotations
+
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..hdl.event import TDC_LSB_S
 
@@ -78,8 +82,8 @@ class Suppression:
     pv: float
     pa: float
     limited: bool
-    victim: object
-    aggressors: tuple
+    victim: Peak | None
+    aggressors: tuple[Peak, ...]
 
 
 def _check_histogram(histogram):
@@ -100,7 +104,7 @@ def _kernel(sigma_bins):
     return kernel / kernel.sum()
 
 
-def smooth(histogram, sigma_bins=5.0):
+def smooth(histogram: ArrayLike, sigma_bins: float = 5.0) -> np.ndarray:
     """The histogram convolved with a unit-area Gaussian of ``sigma_bins`` (edges: zero padding
     corrected, so a flat histogram stays flat)."""
     histogram = _check_histogram(histogram)
@@ -113,13 +117,14 @@ def _edge_weight(length, sigma_bins):
     return np.convolve(np.ones(length), _kernel(sigma_bins), mode="same")
 
 
-def noise_sigma(level, sigma_bins=5.0):
+def noise_sigma(level: float, sigma_bins: float = 5.0) -> float:
     """Standard deviation of the smoothed histogram where the raw one is Poisson of mean
     ``level`` per code: ``sqrt(level * sum(k**2))``."""
     return math.sqrt(max(level, 0.0) * float(np.sum(_kernel(sigma_bins) ** 2)))
 
 
-def background(histogram, *, sigma_bins=5.0, clip_sigma=4.0, guard_bins=100, iterations=20):
+def background(histogram: ArrayLike, *, sigma_bins: float = 5.0, clip_sigma: float = 4.0,
+               guard_bins: int = 100, iterations: int = 20) -> float:
     """Background level in counts per code: the mean of the codes left after clipping, again and
     again, whatever the smoothed histogram lifts above ``clip_sigma`` noise deviations (plus
     ``guard_bins`` codes either side)."""
@@ -174,8 +179,9 @@ def _measure(smoothed, index, level, sigma_bins, bin_s):
                 fwhm_s=width * bin_s, height=float(height))
 
 
-def find_peaks(histogram, *, bin_s=TDC_LSB_S, sigma_bins=5.0, threshold_sigma=5.0,
-               min_separation_s=5e-9, level=None):
+def find_peaks(histogram: ArrayLike, *, bin_s: float = TDC_LSB_S, sigma_bins: float = 5.0,
+               threshold_sigma: float = 5.0, min_separation_s: float = 5e-9,
+               level: float | None = None) -> list[Peak]:
     """Peaks of a histogram, highest first.
 
     A peak is a maximum of the smoothed histogram at least ``threshold_sigma`` noise deviations
@@ -206,7 +212,8 @@ def _threshold(level, sigma_bins, threshold_sigma):
     return max(threshold_sigma * noise_sigma(level, sigma_bins), 1.0)
 
 
-def identify(peaks, victim_s, aggressors_s=(), *, tolerance_s=1.5e-9):
+def identify(peaks: Sequence[Peak], victim_s: float, aggressors_s: Sequence[float] = (), *,
+             tolerance_s: float = 1.5e-9) -> tuple[Peak | None, list[Peak], list[Peak]]:
     """Sort peaks into the victim's, the aggressors' and the others, by reference positions.
 
     Parameters
@@ -236,15 +243,16 @@ def identify(peaks, victim_s, aggressors_s=(), *, tolerance_s=1.5e-9):
     return victim, aggressors, others
 
 
-def suppression_db(pv, pa):
+def suppression_db(pv: float, pa: float) -> float:
     """Equation 10: ``S = 10 log10(Pv / Pa)`` in dB."""
     if not pv > 0 or not pa > 0:
         raise ValueError(f"Peak heights must be positive, not Pv={pv!r}, Pa={pa!r}")
     return 10.0 * math.log10(pv / pa)
 
 
-def suppression(histogram, victim_s, aggressors_s, *, bin_s=TDC_LSB_S, sigma_bins=5.0,
-                threshold_sigma=5.0, tolerance_s=1.5e-9):
+def suppression(histogram: ArrayLike, victim_s: float, aggressors_s: Sequence[float], *,
+                bin_s: float = TDC_LSB_S, sigma_bins: float = 5.0, threshold_sigma: float = 5.0,
+                tolerance_s: float = 1.5e-9) -> Suppression:
     """Suppression ratio of one histogram, Pa being the highest aggressor peak.
 
     The victim's and the aggressors' peaks are told apart by reference positions (see
@@ -268,7 +276,7 @@ def suppression(histogram, victim_s, aggressors_s, *, bin_s=TDC_LSB_S, sigma_bin
                        tuple(aggressors))
 
 
-def relative_deviation(values, reference):
+def relative_deviation(values: ArrayLike, reference: float) -> np.ndarray:
     """``(values - reference) / reference``, element by element (Figure 11)."""
     values = np.asarray(values, dtype=float)
     if reference == 0:
@@ -276,7 +284,7 @@ def relative_deviation(values, reference):
     return (values - reference) / reference
 
 
-def mean_std(values):
+def mean_std(values: ArrayLike) -> tuple[float, float]:
     """Mean and sample standard deviation (``ddof=1``; 0 for a single value) of the finite
     values."""
     values = np.asarray(values, dtype=float)

@@ -1,5 +1,7 @@
 """Bit-exact model of :class:`fliss.hdl.delay.DelaySource`."""
 
+import sys
+
 import numpy as np
 
 from ..hdl.settings import DelayMode, MAX_LENGTH, MAX_MASK_WIDTH, MASKED_LENGTH, MASKED_STEPS
@@ -7,7 +9,7 @@ from . import lfsr
 
 
 __all__ = ["DelayMode", "parse_mode", "check_settings", "delays", "max_delay", "mean_delay",
-           "sequence_period"]
+           "sequence_period", "DelayStream"]
 
 
 def parse_mode(mode):
@@ -95,3 +97,91 @@ def mean_delay(mode, *, length=None, mask_width=None):
         total = per_value * ((1 << mask_width) - 1) * (1 << mask_width) // 2
         return Fraction(total, (1 << MASKED_LENGTH) - 1)
     return Fraction(0)
+
+
+class DelayStream:
+    """The delays of a delay source after a load, continued block after block.
+
+    ``take(n)`` returns the next ``n`` delays; consecutive calls give exactly
+    :func:`fliss.sim.delay.delays` of the total count. Sequences of up to ``2**16`` pulses are
+    tabulated once; longer ones advance a block of register states by a precomputed jump.
+    """
+
+    TABLE_LIMIT = 1 << 16
+
+    def __init__(self, mode, *, length=None, mask_width=None, seed=1, block=1 << 16):
+        self.mode = check_settings(mode, length=length, mask_width=mask_width, seed=seed)
+        self._table = None
+        self._position = 0
+        if self.mode == DelayMode.OFF:
+            self._table = np.zeros(1, dtype=np.int64)
+            return
+        period = sequence_period(self.mode, length=length, mask_width=mask_width)
+        if period <= self.TABLE_LIMIT:
+            self._table = delays(self.mode, period, length=length, mask_width=mask_width,
+                                        seed=seed)
+            return
+        if self.mode == DelayMode.MSEQ:
+            bits, steps = length, 1
+            self._offset, self._mask = 1, None
+        else:
+            bits, steps = MASKED_LENGTH, MASKED_STEPS
+            self._offset, self._mask = 0, np.uint32((1 << mask_width) - 1)
+        self._states = lfsr.states(bits, seed, block, steps=steps).astype(np.uint32)
+        # The map of `block` pulses as two lookup tables of 16 bits each: the image of a state is
+        # the XOR of the images of its set bits (the register is linear over GF(2)).
+        columns = [int(lfsr.states(bits, 1 << bit, 2, steps=steps * block)[1])
+                   for bit in range(bits)]
+        self._tables = np.zeros(((bits + 15) // 16, 1 << 16), dtype=np.uint32)
+        for half, table in enumerate(self._tables):
+            for bit in range(min(16, bits - 16 * half)):
+                table[1 << bit:2 << bit] = table[:1 << bit] ^ np.uint32(columns[16 * half + bit])
+
+    @property
+    def table(self):
+        """One whole period of a tabulated sequence from its start, or ``None``."""
+        return self._table
+
+    def _next_states(self):
+        # The low and high 16 bits of each state, as strided views of the uint32 array
+        halves = self._states.view(np.uint16)
+        low, high = (0, 1) if sys.byteorder == "little" else (1, 0)
+        result = np.take(self._tables[0], halves[low::2])
+        if len(self._tables) > 1:
+            result ^= np.take(self._tables[1], halves[high::2])
+        self._states = result
+
+    def take(self, count):
+        """The next ``count`` delays, as ``numpy.int64``."""
+        if self._table is not None:
+            index = (self._position + np.arange(count, dtype=np.int64)) % len(self._table)
+            self._position = (self._position + count) % len(self._table)
+            return self._table[index]
+        pieces = []
+        while count > 0:
+            if self._position == len(self._states):
+                self._next_states()
+                self._position = 0
+            piece = self._states[self._position:self._position + count]
+            self._position += len(piece)
+            count -= len(piece)
+            pieces.append(piece)
+        states = np.concatenate(pieces) if pieces else np.zeros(0, dtype=np.uint32)
+        return self._delays_of(states)
+
+    def _delays_of(self, states):
+        if self._mask is not None:
+            return (states & self._mask).astype(np.int64)
+        return states.astype(np.int64) - self._offset
+
+    def block(self):
+        """The delays from the current position to the end of the current block of register
+        states (all of a block but the first time); the same sequence as :meth:`take`. Only for
+        sequences that are not tabulated."""
+        if self._position == len(self._states):
+            self._next_states()
+            self._position = 0
+        states = self._states[self._position:]
+        self._position = len(self._states)
+        return self._delays_of(states)
+

@@ -56,10 +56,11 @@ def pytest_collection_modifyitems(items):
 
 @pytest.fixture
 def cocotb_counts(record_property):
-    """Record cocotb test counts per simulator for the summary at the end of the run (the
-    report carries them back from parallel workers)."""
-    def record(simulator, passed, failed, skipped):
-        record_property("cocotb", (simulator, passed, failed, skipped))
+    """``cocotb_counts(simulator, results)``: record the counts of a
+    :class:`~fliss.sim.cocotb_runner.CocotbResults` per simulator for the summary at the end of
+    the run (the report carries them back from parallel workers)."""
+    def record(simulator, results):
+        record_property("cocotb", (simulator, *results.counts))
     return record
 
 

@@ -3,9 +3,10 @@ two cycles at half rate), and its ``ready`` and outputs are registered."""
 
 import numpy as np
 import pytest
-from amaranth.sim import Simulator
 
 from fliss.hdl.buffer import StreamBuffer
+
+from simulation import simulate
 
 
 def run_buffer(valid, ready, full_rate=True):
@@ -32,10 +33,7 @@ def run_buffer(valid, ready, full_rate=True):
                 out.append(ctx.get(dut.o.payload))
             await ctx.tick()
 
-    sim = Simulator(dut)
-    sim.add_clock(1e-6)
-    sim.add_testbench(testbench)
-    sim.run()
+    simulate(dut, testbench)
     return out, taken_in, taken_out, ready_in
 
 

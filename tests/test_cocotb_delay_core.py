@@ -21,12 +21,12 @@ def delay_core_verilog():
 
 
 def test_delay_core(simulator, delay_core_verilog, cocotb_counts):
-    passed, failed, skipped = run_cocotb(
+    results = run_cocotb(
         simulator, verilog_path=delay_core_verilog, toplevel="delay_core",
         test_module="fliss.sim.tb_delay_core", build_dir=BUILD / "delay_core")
-    cocotb_counts(simulator, passed, failed, skipped)
-    assert failed == 0
-    assert passed >= 20
+    cocotb_counts(simulator, results)
+    assert results.failed == []
+    assert results.passed == results.expected
 
 
 class _DelaySourcePorts(wiring.Component):
@@ -61,10 +61,10 @@ def delay_source_verilog():
 
 
 def test_delay_source(simulator, delay_source_verilog, cocotb_counts):
-    passed, failed, skipped = run_cocotb(
+    results = run_cocotb(
         simulator, verilog_path=delay_source_verilog, toplevel="delay_source",
         test_module="fliss.sim.tb_delay_source", build_dir=BUILD / "delay_source",
         extra_env={"FLISS_TB_TRANSFERS": str(100_000 if simulator == "verilator" else 25_000)})
-    cocotb_counts(simulator, passed, failed, skipped)
-    assert failed == 0
-    assert passed == 3
+    cocotb_counts(simulator, results)
+    assert results.failed == []
+    assert results.passed == results.expected

@@ -30,14 +30,14 @@ def top_verilog():
 
 
 def test_top(simulator, top_verilog, cocotb_counts):
-    passed, failed, skipped = run_cocotb(
+    results = run_cocotb(
         simulator, verilog_path=top_verilog, toplevel="fliss_top",
         test_module="fliss.sim.tb_top", build_dir=BUILD,
         extra_env={"FLISS_TB_BAUD": str(BAUD),
                    "FLISS_TB_FUZZ_FRAMES": str(FUZZ_FRAMES[simulator])})
-    cocotb_counts(simulator, passed, failed, skipped)
-    assert failed == 0
-    assert passed == 4
+    cocotb_counts(simulator, results)
+    assert results.failed == []
+    assert results.passed == results.expected
 
 
 def test_top_small(simulator, cocotb_counts):
@@ -46,14 +46,14 @@ def test_top_small(simulator, cocotb_counts):
     top = FlissTop(baud=BAUD, **SMALL)
     maxima = top.register_maxima()
     verilog_path = write_verilog(top, "fliss_top", BUILD_SMALL / "fliss_top.v")
-    passed, failed, skipped = run_cocotb(
+    results = run_cocotb(
         simulator, verilog_path=verilog_path, toplevel="fliss_top",
         test_module="fliss.sim.tb_top", build_dir=BUILD_SMALL,
         testcase=["test_identify_and_registers", "test_histogram_closed_loop"],
         extra_env={"FLISS_TB_BAUD": str(BAUD), "FLISS_TB_MAXIMA": json.dumps(maxima)})
-    cocotb_counts(simulator, passed, failed, skipped)
-    assert failed == 0
-    assert passed == 2
+    cocotb_counts(simulator, results)
+    assert results.failed == []
+    assert results.passed == results.expected
 
 
 @pytest.mark.parametrize("kwargs, exception, message", [

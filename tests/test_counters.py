@@ -3,9 +3,10 @@
 import numpy as np
 import pytest
 from amaranth.hdl import ResetInserter, Signal
-from amaranth.sim import Simulator
 
 from fliss.hdl.counters import CounterBank
+
+from simulation import simulate
 
 
 def run_bank(dut, strobes, captures):
@@ -44,10 +45,7 @@ def run_bank(dut, strobes, captures):
                 snapshots.append((*captured, ready, values))
                 captured = None
 
-    sim = Simulator(dut)
-    sim.add_clock(1e-8)
-    sim.add_testbench(testbench)
-    sim.run()
+    simulate(dut, testbench)
     return np.array(driven), snapshots
 
 
@@ -106,10 +104,7 @@ def test_reset_clears():
             await ctx.tick()
             got.append(ctx.get(bank.read_data))
 
-    sim = Simulator(dut)
-    sim.add_clock(1e-8)
-    sim.add_testbench(testbench)
-    sim.run()
+    simulate(dut, testbench)
     cycle, *values = got
     assert values == [cycle + 1, 0, cycle + 1, 0]
 

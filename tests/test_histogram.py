@@ -6,12 +6,12 @@ import warnings
 import numpy as np
 import pytest
 from amaranth.hdl import Fragment, Instance, UnusedElaboratable
-from amaranth.sim import Simulator
 
-from fliss.hdl import DEFAULT_CLOCK_HZ
 from fliss.hdl.histogram import Histogram, BIN_BITS, COUNT_WIDTH
 from fliss.hdl.spram import SinglePortRam
 from fliss.sim import histogram as model
+
+from simulation import simulate
 
 
 def hazard_stimulus(rng, cycles, *, bins, shift, gaps=True):
@@ -115,13 +115,7 @@ def run_histogram(dut, valid, timestamps, *, integration, shift, ready=None, set
                     frames.append((np.array(counts), bank_shift))
                     counts = []
 
-    sim = Simulator(dut)
-    sim.add_clock(1 / DEFAULT_CLOCK_HZ)
-    sim.add_testbench(stimulus)
-    sim.add_testbench(consumer, background=True)
-    if probe is not None:
-        sim.add_testbench(probe, background=True)
-    sim.run()
+    simulate(dut, stimulus, background=[consumer] + ([probe] if probe is not None else []))
     return frames, result
 
 
@@ -286,10 +280,7 @@ def test_counts_saturate(ram):
                     break
         frames.append(counts)
 
-    sim = Simulator(dut)
-    sim.add_clock(1 / DEFAULT_CLOCK_HZ)
-    sim.add_testbench(stimulus)
-    sim.run()
+    simulate(dut, stimulus)
     hits = np.bincount([v for v in stream if v is not None], minlength=16)
     want = np.minimum(preload + hits, count_max)
     assert frames[0] == list(want)
@@ -433,10 +424,7 @@ def test_single_port_ram():
             assert ctx.get(ram.read_data) == out
         assert out == 4321
 
-    sim = Simulator(ram)
-    sim.add_clock(1 / DEFAULT_CLOCK_HZ)
-    sim.add_testbench(testbench)
-    sim.run()
+    simulate(ram, testbench)
 
 
 def test_single_port_ram_spram_on_ice40_up():
@@ -535,8 +523,5 @@ def test_shortest_frame_without_dead_time(ram):
             ctx.set(dut.enable, 0)
             await ctx.tick().repeat(4 * integration)
 
-    sim = Simulator(dut)
-    sim.add_clock(1 / DEFAULT_CLOCK_HZ)
-    sim.add_testbench(testbench)
-    sim.run()
+    simulate(dut, testbench)
     assert lows[shortest] == 0 and lows[shortest - 1] > 0

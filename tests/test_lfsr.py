@@ -2,10 +2,11 @@
 
 import numpy as np
 import pytest
-from amaranth.sim import Simulator
 
 from fliss.hdl.lfsr import Lfsr, POLYNOMIALS
 from fliss.sim import lfsr as model
+
+from simulation import simulate
 
 
 # Polynomial arithmetic over GF(2), written here independently of the code under test.
@@ -108,13 +109,6 @@ def test_gateware_rejects_bad_parameters(construction_error):
         "Only a fixed-length register can take 4 steps per advance"
 
 
-def _run(dut, testbench):
-    sim = Simulator(dut)
-    sim.add_clock(1e-8)
-    sim.add_testbench(testbench)
-    sim.run()
-
-
 def test_gateware_runtime_length():
     # Every length, loaded with a seed whose low bits may be zero, stepped with gaps, then
     # reloaded with another length: the states are the model's.
@@ -142,7 +136,7 @@ def test_gateware_runtime_length():
                 index += advance
             ctx.set(dut.advance, 0)
 
-    _run(dut, testbench)
+    simulate(dut, testbench)
     assert mismatches == []
 
 
@@ -161,5 +155,5 @@ def test_gateware_fixed_length_multistep():
             got.append(ctx.get(dut.state))
             await ctx.tick()
 
-    _run(dut, testbench)
+    simulate(dut, testbench)
     assert got == expected.tolist()

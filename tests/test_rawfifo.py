@@ -2,12 +2,12 @@
 
 import numpy as np
 import pytest
-from amaranth.sim import Simulator
 
-from fliss.hdl import DEFAULT_CLOCK_HZ
 from fliss.hdl.rawfifo import RawFifo
 from fliss.sim import rawfifo as model
 from fliss.sim.event import EVENT_DTYPE, pack, unpack
+
+from simulation import simulate
 
 
 def random_events(rng, count):
@@ -48,10 +48,7 @@ def run_fifo(dut, valid, ready, words):
                 transfers.append((cycle, payload))
         counters.update(accepted=ctx.get(dut.accepted), dropped=ctx.get(dut.dropped))
 
-    sim = Simulator(dut)
-    sim.add_clock(1 / DEFAULT_CLOCK_HZ)
-    sim.add_testbench(testbench)
-    sim.run()
+    simulate(dut, testbench)
     return transfers, np.array(levels), counters
 
 
@@ -98,10 +95,7 @@ def test_clear_counters():
         await ctx.tick().repeat(3)
         assert ctx.get(dut.dropped) == 4
 
-    sim = Simulator(dut)
-    sim.add_clock(1 / DEFAULT_CLOCK_HZ)
-    sim.add_testbench(testbench)
-    sim.run()
+    simulate(dut, testbench)
 
 
 @pytest.mark.parametrize("kwargs, message", [

@@ -12,9 +12,9 @@ import pytest
 from fliss.hdl.event import TDC_LSB_S
 from fliss.sim import delay as delay_model
 from fliss.sim import scheduler
+from fliss.sim.delay import DelayStream
 from fliss.sim.event import EVENT_DTYPE, pack
-from fliss.sim.scene import (COUNTERS, Aggressor, DelayStream, Scene, Simulation, acquire,
-                             histogram)
+from fliss.sim.scene import COUNTERS, Aggressor, Scene, Simulation, acquire, histogram
 from fliss.sim.scheduler import Settings
 
 

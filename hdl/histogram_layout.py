@@ -1,0 +1,32 @@
+"""Widths, limits and the readout layout of the histogram engine (:mod:`fliss.hdl.histogram`)."""
+
+from amaranth.lib import data
+
+from .event import TIMESTAMP_BITS
+
+
+__all__ = ["BIN_BITS", "COUNT_WIDTH", "MIN_COUNT_WIDTH", "MAX_COUNT_WIDTH", "MAX_SHIFT",
+           "INTEGRATION_WIDTH", "readout_layout"]
+
+
+#: Default bin index width: one bin per timestamp code, 8192 bins.
+BIN_BITS = TIMESTAMP_BITS
+#: Default width of a bin count, in bits.
+COUNT_WIDTH = 16
+#: Narrowest bin count, in bits.
+MIN_COUNT_WIDTH = 16
+#: Widest bin count, in bits.
+MAX_COUNT_WIDTH = 32
+#: Largest bin shift: with it every timestamp falls in bin 0.
+MAX_SHIFT = TIMESTAMP_BITS
+#: Width of the integration time setting, in clock cycles: up to 53 s at 80 MHz.
+INTEGRATION_WIDTH = 32
+
+
+def readout_layout(bin_bits=BIN_BITS, count_width=COUNT_WIDTH):
+    """Payload of :attr:`Histogram.readout`: bin index, count, last bin of the frame."""
+    return data.StructLayout({
+        "index": bin_bits,
+        "count": count_width,
+        "last":  1,
+    })

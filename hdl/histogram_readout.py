@@ -1,0 +1,125 @@
+"""Readout of the histogram engine: a full bank, bin after bin, cleared as it goes."""
+
+from amaranth.hdl import *
+from amaranth.lib import stream, wiring
+from amaranth.lib.wiring import In, Out
+
+from .histogram_layout import readout_layout
+
+
+__all__ = ["READOUT_CYCLES_PER_BIN", "BankReadout"]
+
+
+#: Clock cycles per bin on ``readout`` when its consumer is always ready (both RAM kinds).
+READOUT_CYCLES_PER_BIN = 4
+
+
+class BankReadout(wiring.Component):
+    """Reads the full bank of :class:`~fliss.hdl.histogram.Histogram` out in bin order.
+
+    After a swap it waits ``latency`` cycles for the last events of the frame to leave the
+    pipeline, then for each bin sets the bank's read address (ADDRESS), sets a clearing write
+    (READ), takes the word (CAPTURE) and presents it on ``readout`` (PRESENT) until transferred:
+    :data:`READOUT_CYCLES_PER_BIN` cycles per bin.
+
+    Parameters
+    ----------
+    bin_bits : int
+        Width of the bin index.
+    count_width : int
+        Width of a bin count.
+    latency : int
+        Most cycles from an event's arrival to the RAM write of its bin.
+    capture : bool
+        Register ``word`` in CAPTURE (single-port banks, whose output after a write cycle is not
+        the word read); otherwise ``word`` holds from CAPTURE until the next read of the bank.
+
+    Members
+    -------
+    swap : In(1)
+        The banks swap in this cycle.
+    full : In(1)
+        The read bank holds a completed frame.
+    last : In(bin_bits)
+        Last bin of the read bank's readout.
+    word : In(count_width)
+        The word the read bank gives for the bin read.
+    index : Out(bin_bits)
+        Bin being read out.
+    address : Out(1)
+        The read bank reads ``index`` (set up in this cycle).
+    clear : Out(1)
+        The read bank writes zero to ``index`` (set up in this cycle).
+    done : Out(1)
+        The last bin is transferred: the read bank is free.
+    readout : Out(stream.Signature(readout_layout(bin_bits, count_width)))
+        Bins of the frame: ``index``, ``count``, ``last``.
+    """
+
+    def __init__(self, bin_bits, count_width, *, latency, capture):
+        self.latency = latency
+        self.capture = capture
+        super().__init__({
+            "swap":    In(1),
+            "full":    In(1),
+            "last":    In(bin_bits),
+            "word":    In(count_width),
+            "index":   Out(bin_bits),
+            "address": Out(1),
+            "clear":   Out(1),
+            "done":    Out(1),
+            "readout": Out(stream.Signature(readout_layout(bin_bits, count_width))),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+
+        read_index = self.index
+        read_last = Signal()
+        if self.capture:
+            present_count = Signal.like(self.word, name="read_count")
+        else:
+            present_count = self.word
+
+        # After a swap, the events of the finished frame leave the pipeline within `latency`
+        # cycles; the readout waits for them.
+        drain = Signal(range(self.latency + 1))
+        with m.If(self.swap):
+            m.d.sync += drain.eq(self.latency)
+        with m.Elif(drain != 0):
+            m.d.sync += drain.eq(drain - 1)
+        start_read = Signal()   # registered: a full bank, drained, and not just finished
+        m.d.sync += start_read.eq(self.full & (drain == 0) & ~self.done)
+        with m.FSM():
+            with m.State("IDLE"):
+                with m.If(start_read):
+                    m.d.sync += read_index.eq(0)
+                    m.next = "ADDRESS"
+            with m.State("ADDRESS"):
+                m.d.comb += self.address.eq(1)
+                m.d.sync += read_last.eq(read_index == self.last)
+                m.next = "READ"
+            with m.State("READ"):
+                m.d.comb += self.clear.eq(1)
+                m.next = "CAPTURE"
+            with m.State("CAPTURE"):
+                # the word read in READ (with single-port banks: never the output after a write)
+                if self.capture:
+                    m.d.sync += present_count.eq(self.word)
+                m.next = "PRESENT"
+            with m.State("PRESENT"):
+                m.d.comb += [
+                    self.readout.valid.eq(1),
+                    self.readout.payload.index.eq(read_index),
+                    self.readout.payload.count.eq(present_count),
+                    self.readout.payload.last.eq(read_last),
+                ]
+                with m.If(self.readout.ready):
+                    with m.If(read_last):
+                        m.d.comb += self.done.eq(1)
+                        m.next = "IDLE"
+                    with m.Else():
+                        m.d.sync += read_index.eq(read_index + 1)
+                        m.next = "ADDRESS"
+
+        return m
