@@ -62,6 +62,8 @@ class CobsEncoder(wiring.Component):
     cycles), where each byte is tested for zero, so that no path runs from the producer through
     the filler's decisions; the output byte is one LUT after the block RAM, its choice made a
     cycle ahead.
+    The delimiter is the emitter's, not a stage of its own, which cost 13 logic cells on the
+    iCE40UP5K (``docs/boards.md``).
 
     Members
     -------
