@@ -4,7 +4,7 @@ Consistent Overhead Byte Stuffing removes every zero byte from a packet, so that
 (:data:`~fliss.hdl.protocol.DELIMITER`) only ever ends a frame: a block is a code byte ``n``,
 then ``n - 1`` non-zero bytes, then an implied zero unless ``n`` is ``0xff`` (a full run of
 :data:`~fliss.hdl.protocol.COBS_MAX_RUN` bytes) or the block ends the packet.
-:func:`fliss.host.protocol.cobs_encode` and :func:`~fliss.host.protocol.cobs_decode` are the
+:func:`fliss.sim.codec.cobs_encode` and :func:`~fliss.sim.codec.cobs_decode` are the
 software model; the tests compare the two bit for bit.
 
 :class:`CobsEncoder` turns packets (:class:`PacketByte` streams) into frames, delimiter included;
@@ -51,7 +51,7 @@ class DecodedByte(data.Struct):
 class CobsEncoder(wiring.Component):
     """COBS encoder: packets in, frames (encoded packet, then the delimiter) out.
 
-    The output is exactly :func:`fliss.host.protocol.cobs_encode` of each packet followed by
+    The output is exactly :func:`fliss.sim.codec.cobs_encode` of each packet followed by
     :data:`~fliss.hdl.protocol.DELIMITER`. An empty packet cannot be given (every packet has a
     ``last`` byte).
 
@@ -104,7 +104,7 @@ class CobsEncoder(wiring.Component):
         # to `pending`, and the filler goes on in the other bank while the emitter sends the
         # block. The end of the packet closes the last run like a zero byte does (the run after
         # a final zero byte is empty: code 1), unless the packet ended with a full run, as in
-        # `fliss.host.protocol.cobs_encode`.
+        # `fliss.sim.codec.cobs_encode`.
         bank_bits = (COBS_MAX_RUN - 1).bit_length()
         run_len = Signal(range(COBS_MAX_RUN + 1))
         fill_bank = Signal()

@@ -3,7 +3,7 @@
 The CRC is CRC-16/IBM-3740 (:data:`~fliss.hdl.protocol.CRC_POLY`,
 :data:`~fliss.hdl.protocol.CRC_INIT`), sent most significant byte first, so that the CRC of a
 whole packet, CRC included, is zero. :data:`LINK_CRC` describes it for :mod:`amaranth.lib.crc`;
-:func:`fliss.host.protocol.crc16` is the software model.
+:func:`fliss.sim.codec.crc16` is the software model.
 
 The engine is our own :class:`Crc16` rather than :class:`amaranth.lib.crc.Processor`: the two
 compute the same function, but the library's engine restarts through a multiplexer in front of

@@ -2,7 +2,7 @@
 
 The format is defined in :mod:`fliss.hdl.protocol` (and described in ``docs/protocol.md``): a
 packet is header, payload and CRC-16; a frame is the packet COBS-encoded, then a zero byte.
-:mod:`fliss.host.protocol` is the software model; the tests compare the two bit for bit.
+:mod:`fliss.sim.codec` is the software model; the tests compare the two bit for bit.
 
 COBS rather than SLIP: the overhead is bounded (one code byte per 254 bytes, plus one, plus the
 delimiter) whatever the data, where SLIP doubles every escaped byte; raw event data is not
@@ -27,7 +27,7 @@ from amaranth.lib.wiring import In, Out
 from .cobs import CobsEncoder, CobsDecoder
 from .crc import CrcAppender, CrcChecker
 from .protocol import (Header, HEADER_BYTES, MAX_PAYLOAD, MAX_PACKET, MAX_ENCODED, CRC_BYTES,
-                       NakCode, COUNTER_BITS)
+                       NakCode, COUNTER_BITS, LINK_COUNTERS, LINK_FIELDS)
 
 
 __all__ = ["PacketBeat", "FrameEncoder", "FrameDecoder"]
@@ -50,7 +50,7 @@ class FrameEncoder(wiring.Component):
     """Frame encoder: packets in, framed bytes out.
 
     Sends header and payload as bytes through a :class:`~.crc.CrcAppender` and a
-    :class:`~.cobs.CobsEncoder`; the output is exactly :func:`fliss.host.protocol.encode_frame`
+    :class:`~.cobs.CobsEncoder`; the output is exactly :func:`fliss.sim.codec.encode_frame`
     of the packet. The header is sent as given: the producer sets ``length`` to the number of
     payload beats and numbers the packets (one sequence counter for everything sent on the
     link). A beat other than a header beat where a packet should start is dropped and counted in
@@ -167,23 +167,23 @@ class FrameDecoder(wiring.Component):
     packets : Out(32)
         Packets accepted (wraps around).
     bad_crc, truncated, oversize, bad_length : Out(32)
-        Frames dropped for each reason (wrap around).
+        Frames dropped for each reason (wrap around): one counter per entry of
+        :data:`~fliss.hdl.protocol.LINK_COUNTERS`.
     tally : Out(data.StructLayout)
         One strobe per drop counter above, same names: high in each cycle it counts, for
         counters elsewhere.
     """
 
-    i:           In(stream.Signature(8))
-    o:           Out(stream.Signature(PacketBeat))
-    drop:        Out(1)
-    drop_reason: Out(NakCode, init=NakCode.BAD_CRC)
-    packets:     Out(COUNTER_BITS)
-    bad_crc:     Out(COUNTER_BITS)
-    truncated:   Out(COUNTER_BITS)
-    oversize:    Out(COUNTER_BITS)
-    bad_length:  Out(COUNTER_BITS)
-    tally:       Out(data.StructLayout({
-                     "bad_crc": 1, "truncated": 1, "oversize": 1, "bad_length": 1}))
+    def __init__(self):
+        super().__init__({
+            "i":           In(stream.Signature(8)),
+            "o":           Out(stream.Signature(PacketBeat)),
+            "drop":        Out(1),
+            "drop_reason": Out(NakCode, init=NakCode.BAD_CRC),
+            "packets":     Out(COUNTER_BITS),
+            **{name: Out(COUNTER_BITS) for name in LINK_FIELDS},
+            "tally":       Out(data.StructLayout({name: 1 for name in LINK_FIELDS})),
+        })
 
     def elaborate(self, platform):
         m = Module()
@@ -287,10 +287,7 @@ class FrameDecoder(wiring.Component):
             m.d.sync += self.packets.eq(self.packets + 1)
         with m.If(self.drop):
             with m.Switch(self.drop_reason):
-                for code, name in ((NakCode.OVERSIZE, "oversize"),
-                                   (NakCode.TRUNCATED, "truncated"),
-                                   (NakCode.BAD_CRC, "bad_crc"),
-                                   (NakCode.BAD_LENGTH, "bad_length")):
+                for code, name in LINK_COUNTERS.items():
                     counter = getattr(self, name)
                     with m.Case(code):
                         m.d.sync += counter.eq(counter + 1)

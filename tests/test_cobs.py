@@ -6,7 +6,7 @@ import pytest
 
 from fliss.hdl.cobs import CobsEncoder, CobsDecoder
 from fliss.hdl.protocol import COBS_MAX_RUN, MAX_ENCODED, MAX_PACKET
-from fliss.host import protocol as codec
+from fliss.sim import codec
 
 from simulation import simulate, stream_put, stream_get
 

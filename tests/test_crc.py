@@ -8,7 +8,7 @@ from amaranth.lib.crc import catalog
 
 from fliss.hdl.crc import LINK_CRC, CrcAppender, CrcChecker
 from fliss.hdl.protocol import CRC_BYTES, CRC_CHECK
-from fliss.host import protocol as codec
+from fliss.sim import codec
 
 from simulation import simulate, stream_put, stream_get
 
