@@ -6,7 +6,7 @@ PY      := $(VENV)/bin/python
 STAMP   := $(VENV)/.installed-stamp
 PYTEST_ARGS ?=
 
-.PHONY: all demo test verilog venv clean
+.PHONY: all demo test lint verilog venv clean
 
 all: test
 
@@ -22,8 +22,11 @@ venv: $(STAMP)
 demo: $(STAMP)
 	$(PY) -m fliss demo
 
-test: $(STAMP)
+test: lint
 	$(PY) -m pytest $(PYTEST_ARGS)
+
+lint: $(STAMP)
+	$(PY) -m ruff check .
 
 verilog: $(STAMP)
 	$(PY) -m fliss generate -o build/verilog

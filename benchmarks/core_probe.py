@@ -7,7 +7,7 @@ path without the link side, the histogram and the TDC interfaces (docs/boards.md
 on the UP5K").
 """
 
-from amaranth.hdl import *
+from amaranth.hdl import Cat, Module, Signal
 from amaranth.lib import wiring
 from amaranth.lib.cdc import FFSynchronizer
 from amaranth.lib.wiring import In, Out

@@ -28,7 +28,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from amaranth.hdl import *
+from amaranth.hdl import Cat, Elaboratable, Module, Mux, Signal
 from amaranth.lib import wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out

@@ -200,9 +200,9 @@ def main(argv=None):
     print(f"histograms: 20 x 8192 bins in {len(hstream)} bytes")
     for name, make in (("scalar", lambda: FrameDecoder(synced=True)),
                        ("bulk", lambda: BulkDecoder(synced=True))):
-        t_hist, (items, _) = best_of(lambda: decode(hstream, make(), BULK_READ_BYTES
-                                                    if name == "bulk" else READ_BYTES),
-                                     args.repeat)
+        read_bytes = BULK_READ_BYTES if name == "bulk" else READ_BYTES
+        t_hist, (items, _) = best_of(lambda make=make, read_bytes=read_bytes:
+                                     decode(hstream, make(), read_bytes), args.repeat)
         frames = [item for item in items if isinstance(item, HistogramFrame)]
         assert len(frames) == 20 and all(f.complete for f in frames)
         assert np.array_equal(np.array([f.counts for f in frames]), histograms)

@@ -15,7 +15,7 @@ The board modules need the ``boards`` extra (``pip install -e '.[boards]'``).
 import importlib
 
 from amaranth.build import Resource
-from amaranth.hdl import *
+from amaranth.hdl import ClockDomain, ClockSignal, Elaboratable, Module, Signal
 from amaranth.lib import io, wiring
 from amaranth.lib.cdc import ResetSynchronizer
 from amaranth.lib.wiring import In

@@ -5,7 +5,7 @@ PLL makes. Pins: the three PMOD connectors (see ``docs/boards.md``); UART on the
 """
 
 from amaranth.build import Attrs, Pins
-from amaranth.hdl import *
+from amaranth.hdl import Const, Instance, Signal
 
 try:
     from amaranth_boards.icebreaker import ICEBreakerPlatform

@@ -5,7 +5,7 @@ GP0-GP12 and GN0-GN12 (see ``docs/boards.md``); UART on the FT231X.
 """
 
 from amaranth.build import Attrs, Pins
-from amaranth.hdl import *
+from amaranth.hdl import Const, Instance, Signal
 from amaranth.lib import io
 
 try:

@@ -1,6 +1,6 @@
 """Aggressor emitter: a second laser trigger with its own period, offset and delays."""
 
-from amaranth.hdl import *
+from amaranth.hdl import Module, Signal
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 

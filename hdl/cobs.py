@@ -12,7 +12,7 @@ software model; the tests compare the two bit for bit.
 it found (:class:`DecodedByte`). Neither checks a CRC: :mod:`.crc` does, in the stage beside.
 """
 
-from amaranth.hdl import *
+from amaranth.hdl import C, Cat, Module, Mux, Signal
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out

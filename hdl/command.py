@@ -1,6 +1,6 @@
 """Command processor: verified packets in, replies out, the register file in between."""
 
-from amaranth.hdl import *
+from amaranth.hdl import C, Cat, Const, Module, Mux, Signal
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 

@@ -1,6 +1,6 @@
 """Delay core: delay source, pulse scheduler and laser trigger."""
 
-from amaranth.hdl import *
+from amaranth.hdl import Module
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 

@@ -1,6 +1,6 @@
 """Counter bank: many saturating event counters in block RAM, with an exact snapshot."""
 
-from amaranth.hdl import *
+from amaranth.hdl import Module, Mux, Signal
 from amaranth.lib import wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out

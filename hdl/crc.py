@@ -11,7 +11,7 @@ its XOR network, which cost 22 logic cells on the iCE40UP5K for the two engines 
 ``docs/boards.md``). :data:`LINK_CRC` stays the reference the tests hold the engine to.
 """
 
-from amaranth.hdl import *
+from amaranth.hdl import Array, C, Cat, Module, Mux, Signal, Value
 from amaranth.lib import crc as lib_crc, data, stream, wiring
 from amaranth.lib.wiring import In, Out
 

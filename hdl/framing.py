@@ -19,7 +19,7 @@ payload is empty). Each direction is a chain of stream stages:
   CRC) -> the length checks, the payload buffer and packet beats (:class:`FrameDecoder`).
 """
 
-from amaranth.hdl import *
+from amaranth.hdl import Cat, Module, Mux, Signal
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out

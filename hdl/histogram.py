@@ -5,7 +5,7 @@
 (:mod:`~fliss.hdl.histogram_banks`) and the readout (:mod:`~fliss.hdl.histogram_readout`).
 """
 
-from amaranth.hdl import *
+from amaranth.hdl import C, Cat, Module, Signal
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 

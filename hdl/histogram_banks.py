@@ -6,7 +6,7 @@ counts an event at most every other cycle. Both present the same ports to
 :class:`~fliss.hdl.histogram.Histogram`.
 """
 
-from amaranth.hdl import *
+from amaranth.hdl import Module, Mux, Signal
 from amaranth.lib import wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out

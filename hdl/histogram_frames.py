@@ -1,6 +1,6 @@
 """Frames and banks of the histogram engine: which bank fills, for how long, with which settings."""
 
-from amaranth.hdl import *
+from amaranth.hdl import Array, Module, Signal
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 

@@ -1,6 +1,6 @@
 """Readout of the histogram engine: a full bank, bin after bin, cleared as it goes."""
 
-from amaranth.hdl import *
+from amaranth.hdl import Module, Signal
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 

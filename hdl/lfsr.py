@@ -1,4 +1,4 @@
-from amaranth.hdl import *
+from amaranth.hdl import Cat, Const, Module, Mux, Signal
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
@@ -138,15 +138,15 @@ class Lfsr(wiring.Component):
             taps = Signal(MAX_LENGTH)
             mask = Signal(MAX_LENGTH)
             with m.Switch(length):
-                for l, poly in POLYNOMIALS.items():
-                    with m.Case(l):
+                for bits, poly in POLYNOMIALS.items():
+                    with m.Case(bits):
                         m.d.comb += taps.eq(poly >> 1)
                 with m.Default():
                     m.d.comb += taps.eq(POLYNOMIALS[MAX_LENGTH] >> 1)
             with m.Switch(self.length):
-                for l in POLYNOMIALS:
-                    with m.Case(l):
-                        m.d.comb += mask.eq((1 << l) - 1)
+                for bits in POLYNOMIALS:
+                    with m.Case(bits):
+                        m.d.comb += mask.eq((1 << bits) - 1)
                 with m.Default():
                     m.d.comb += mask.eq(-1)
         else:

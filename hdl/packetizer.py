@@ -1,6 +1,6 @@
 """Data packets: raw event batches and histogram chunks, built from the acquisition streams."""
 
-from amaranth.hdl import *
+from amaranth.hdl import Module, Mux, Signal
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
@@ -9,7 +9,7 @@ from .event import Event, TIMESTAMP_BITS
 from .framing import PacketBeat
 from .histogram import readout_layout, BIN_BITS, COUNT_WIDTH, MAX_SHIFT
 from .protocol import (PacketType, HistogramChunk, HISTOGRAM_COUNT_BITS, CHUNK_BINS, EVENT_BYTES,
-                       MAX_EVENTS_PER_PACKET, MAX_PAYLOAD)
+                       MAX_EVENTS_PER_PACKET)
 
 
 __all__ = ["HistogramChunk", "CHUNK_BINS", "COUNT_BYTES", "BATCH_TIMEOUT", "EventPacketizer",

@@ -1,6 +1,6 @@
 """Raw-event FIFO between the event stream and the link, with drop counting."""
 
-from amaranth.hdl import *
+from amaranth.hdl import Module, Signal
 from amaranth.lib import data, fifo, stream, wiring
 from amaranth.lib.wiring import In, Out
 

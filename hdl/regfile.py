@@ -1,6 +1,6 @@
 """Register file: the settings, their range and consistency checks, and the commit of a WRITE."""
 
-from amaranth.hdl import *
+from amaranth.hdl import Array, Cat, Module, Mux, Signal
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 

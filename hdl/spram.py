@@ -1,6 +1,6 @@
 """Single-port RAM: an iCE40 UltraPlus SPRAM block, or a generic memory elsewhere."""
 
-from amaranth.hdl import *
+from amaranth.hdl import C, ClockSignal, Instance, MemoryData, Module, Signal
 from amaranth.lib import wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out

@@ -1,8 +1,8 @@
 """Status counters: the counters of a STATUS reply, in block RAM, with an exact snapshot."""
 
-from amaranth.hdl import *
+from amaranth.hdl import Module, Signal
 from amaranth.lib import data, wiring
-from amaranth.lib.wiring import In, Out
+from amaranth.lib.wiring import In
 
 from .command import StatusSignature
 from .counters import CounterBank

@@ -4,7 +4,7 @@ Both blocks deliver :class:`~fliss.hdl.event.Event` records on the same kind of 
 the same :class:`EventFilter`, so the rest of the design does not care where events come from.
 """
 
-from amaranth.hdl import *
+from amaranth.hdl import C, Module, Mux, Signal
 from amaranth.lib import cdc, data, stream, wiring
 from amaranth.lib.wiring import In, Out
 

@@ -7,7 +7,7 @@ drift: 12 Mbaud from 80 MHz (``c = 6.67``) is exact on average. :func:`bit_cycle
 parameters; :mod:`fliss.sim.uart` is the bit-level model of both blocks.
 """
 
-from amaranth.hdl import *
+from amaranth.hdl import C, Cat, Module, Mux, Signal
 from amaranth.lib import stream, wiring
 from amaranth.lib.cdc import FFSynchronizer
 from amaranth.lib.wiring import In, Out

@@ -77,7 +77,9 @@ def _period(text, clock_hz, what):
 def add_setting_arguments(parser):
     group = parser.add_argument_group(
         "settings (each changes one register; times take a unit, 25ns, or are clock cycles)")
-    add = lambda *names, **kw: group.add_argument(*names, default=argparse.SUPPRESS, **kw)
+    def add(*names, **kw):
+        group.add_argument(*names, default=argparse.SUPPRESS, **kw)
+
     add("--acquisition", choices=["histogram", "raw"], help="what the board sends")
     add("--mode", choices=_MODES, help="victim delay source")
     add("--length", metavar="L", help="register length of the mseq source (bits)")
@@ -111,7 +113,9 @@ def add_setting_arguments(parser):
 
 def changes_from_args(args, current, clock_hz):
     """Register changes by name from the setting flags, converted with ``clock_hz``."""
-    get = lambda name: getattr(args, name, None)
+    def get(name):
+        return getattr(args, name, None)
+
     changes = {}
     if get("acquisition") is not None:
         changes["acquisition"] = AcquisitionMode[args.acquisition.upper()].value

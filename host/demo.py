@@ -82,7 +82,7 @@ def run_trace(pulses=12):
     cycles = (period + 15) * (pulses + 1)
     fired, edges = trace_gateware(settings, cycles)
     expected = scheduler_model.simulate(settings, cycles - 1, enable=1)
-    print(f"Gateware trace (mseq, L = 4, seed 1): each pulse T + R cycles after the previous")
+    print("Gateware trace (mseq, L = 4, seed 1): each pulse T + R cycles after the previous")
     print(f"  {'pulse':>5} {'delay R':>8} {'laser/TDC start':>16} {'interval':>9}")
     previous = None
     for (_, delay, _, index), edge in list(zip(fired, edges))[:pulses]:

@@ -2,7 +2,7 @@
 byte per cycle: frame decoder, command processor, packet arbiter and frame encoder, wired as in
 the top level."""
 
-from amaranth.hdl import *
+from amaranth.hdl import Module
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 

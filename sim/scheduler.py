@@ -139,7 +139,7 @@ def simulate(settings, until, *, updates=(), enable=0, disable=None):
         try:
             delay = int(next(sequence))
         except StopIteration:  # pragma: no cover - chunk sized to outlast any simulation
-            raise RuntimeError("delay sequence exhausted")
+            raise RuntimeError("delay sequence exhausted") from None
         fire = take + 1 + delay
         if fire < stop:
             pulses.append((fire, delay, current.pulse_width, len(pulses)))

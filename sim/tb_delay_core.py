@@ -95,7 +95,7 @@ class DelayCoreTB:
         if len(self.fires) != len(expected):
             self.dut._log.error("pulse count: RTL %d, model %d", len(self.fires), len(expected))
             mismatches += 1
-        for (fire, delay, width, index), got, start, rise in zip(
+        for (fire, delay, _width, index), got, start, rise in zip(
                 expected, got_fires, self.starts, self.rises):
             if got != (fire, delay, index) or start != fire + LATENCY or rise != fire + LATENCY:
                 if mismatches < 10:

@@ -46,13 +46,11 @@ import time
 import tty
 
 import cocotb
-import numpy as np
 from cocotb.clock import Clock
 from cocotb.simtime import get_sim_time
 from cocotb.triggers import ClockCycles, Event, RisingEdge, Timer
 
 from ..hdl import DEFAULT_CLOCK_HZ
-from ..hdl.event import TDC_LSB_S
 from . import scene as _scene
 from .uart_bfm import UartSink, UartSource
 

@@ -36,8 +36,7 @@ def record(dut, cycles, script):
     async def testbench(ctx):
         for cycle in range(cycles):
             script(ctx, cycle)
-            _, _, f, l = await ctx.tick().sample(dut.fire, dut.laser)
-            fire[cycle], laser[cycle] = f, l
+            _, _, fire[cycle], laser[cycle] = await ctx.tick().sample(dut.fire, dut.laser)
 
     simulate(dut, testbench)
     return fire, laser

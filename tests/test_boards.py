@@ -10,7 +10,7 @@ import warnings
 from contextlib import contextmanager
 
 import pytest
-from amaranth.hdl import *
+from amaranth.hdl import Module
 from amaranth.hdl import UnusedElaboratable
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out

@@ -254,7 +254,7 @@ def test_stream_corruption_is_counted_and_never_accepted():
             link = board.link_counters()
     # What the board sent, reassembled here from its own record, chunk by chunk.
     sent = {}
-    for type, seq, payload in model.sent:
+    for _type, _seq, payload in model.sent:
         chunk = unpack_from(HistogramChunk, payload)
         frame, first = chunk["frame"], chunk["first_bin"]
         sent.setdefault(frame, np.zeros(2048, dtype=np.int64))[first:first + 128] = \

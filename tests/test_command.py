@@ -162,7 +162,6 @@ def test_against_model(seed):
 
 def test_consistency_checks_match_python():
     # Writes that are each in range but leave inconsistent settings are refused whole.
-    d = defaults(CLOCK_HZ)
     cases = [
         _write(BY_NAME["pulse_width"].address, 80),                       # width = period
         _write(BY_NAME["period"].address, 1, 1),                          # period out of range

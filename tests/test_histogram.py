@@ -23,7 +23,10 @@ def hazard_stimulus(rng, cycles, *, bins, shift, gaps=True):
     while len(timestamps) < cycles:
         kind = rng.integers(6)
         a, b = rng.integers(bins, size=2) << shift
-        jitter = lambda n: rng.integers(1 << shift, size=n) if shift else 0
+
+        def jitter(n, shift=shift):
+            return rng.integers(1 << shift, size=n) if shift else 0
+
         if kind == 0:    # long run of one bin, timestamps anywhere inside it
             n = int(rng.integers(50, 400))
             timestamps.extend(a + jitter(n) * np.ones(n, dtype=np.int64))
@@ -312,8 +315,10 @@ def test_busy_reader_drops_are_counted(ram):
             filling[cycle] = f
             cycle += 1
 
-    stall = lambda cycle: not (700 <= cycle < 1_000 or 1_500 <= cycle < 1_800)
-    stall_at = lambda cycle: stall(cycle - dut.init_cycles)
+    def stall_at(cycle):
+        cycle -= dut.init_cycles
+        return not (700 <= cycle < 1_000 or 1_500 <= cycle < 1_800)
+
     frames, result = run_histogram(dut, valid, timestamps, integration=integration, shift=shift,
                                    ready=stall_at, probe=probe)
     # Fill windows from the observed `filling`: a frame ends after `integration` filling

@@ -17,19 +17,18 @@ FIELDS = ("mode", "length", "mask_width", "seed", "period", "grid", "pulse_width
 
 
 def run_core(settings, cycles, *, updates=(), enable=1, disable=None, reset=None, present=(),
-             widths={}):
+             widths=None):
     """Run the delay core; return pulses as (fire, delay, width, index) and the laser trace.
     ``enable`` is the cycle it rises in, or a function of the cycle; ``present`` holds (cycle,
     settings) presented from that cycle on, without an update strobe; ``widths`` are the
     core's ``period_width`` and ``pulse_width_width``."""
-    dut = DelayCore(**widths)
+    dut = DelayCore(**(widths or {}))
     pulses, laser, starts = [], [], []
     updates = dict(updates)
 
     async def testbench(ctx):
         for name in FIELDS:
             ctx.set(dut.settings[name], getattr(settings, name))
-        width = {}
         for cycle in range(cycles):
             if callable(enable):
                 ctx.set(dut.enable, enable(cycle))
@@ -60,7 +59,7 @@ def laser_pulses(laser):
     return list(zip(rises.tolist(), (falls - rises).tolist()))
 
 
-def check_against_model(settings, cycles, *, widths={}, **kwargs):
+def check_against_model(settings, cycles, *, widths=None, **kwargs):
     kwargs.setdefault("enable", 1)
     pulses, laser, starts = run_core(settings, cycles, widths=widths, **kwargs)
     expected = simulate(settings, cycles - 1 - LATENCY, **kwargs)
@@ -199,7 +198,8 @@ def test_short_stops(before, after, gap):
     for stop in range(30, 30 + 2 * settings.period):
         restart = stop + gap
         pulses, _, _ = run_core(settings, cycles, present=[(stop, restarted)],
-                                enable=lambda cycle: 1 <= cycle < stop or cycle >= restart)
+                                enable=lambda cycle, stop=stop, restart=restart:
+                                    1 <= cycle < stop or cycle >= restart)
         expected = simulate(settings, cycles - 1, enable=1, disable=stop) + \
             simulate(restarted, cycles - 1, enable=restart)
         assert [(f, d, i) for f, d, _, i in pulses] == \
@@ -219,7 +219,7 @@ def test_laser_trigger_width_and_tdc_start():
             await ctx.tick()
 
     run_simulation(dut, testbench, clock_hz=100e6)
-    laser = np.array([l for l, _ in trace])
+    laser = np.array([level for level, _ in trace])
     starts = [c for c, (_, s) in enumerate(trace) if s]
     assert laser_pulses(laser) == [(3, 1), (11, 5), (21, 1), (31, 3)]  # width 0 acts as 1
     assert starts == [3, 11, 21, 31]

@@ -35,7 +35,7 @@ class FilterOutside(wiring.Component):
         m = Module()
         m.submodules.block = self.block
         m.submodules.filter = event_filter = EventFilter()
-        for name, member in self.block.signature.members.items():
+        for name in self.block.signature.members:
             if name != "captures":
                 m.d.comb += getattr(self.block, name).eq(getattr(self, name))
         m.d.comb += [
