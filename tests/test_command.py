@@ -1,14 +1,15 @@
 """Command processor in Amaranth's simulator against its model, packet by packet."""
 
 import random
-import struct
 
 import pytest
 from amaranth.hdl import ResetInserter, Signal
 
 from fliss.hdl.command import CommandProcessor
-from fliss.hdl.protocol import PacketType, NakCode, STATUS_FIELDS
+from fliss.hdl.protocol import (PacketType, NakCode, STATUS_FIELDS, Identity, Nak, ReadRequest,
+                                registers_layout)
 from fliss.hdl.registers import REGISTERS, BY_NAME, defaults, problems
+from fliss.sim.codec import pack, unpack
 from fliss.sim.command import CommandModel
 from simulation import simulate
 
@@ -95,7 +96,7 @@ def run_commands(packets, *, link_errors=(), status=None, maxima=None, reset_bef
 
 
 def _write(address, *values):
-    return struct.pack(f"<H{len(values)}I", address, *values)
+    return pack(registers_layout(len(values)), address=address, values=list(values))
 
 
 def random_packets(rng, count):
@@ -121,7 +122,7 @@ def random_packets(rng, count):
         elif kind < 0.6:
             address = rng.randrange(0, len(REGISTERS) + 2)
             packets.append((PacketType.READ.value, seq,
-                            struct.pack("<HB", address, rng.randrange(0, 8))))
+                            pack(ReadRequest, address=address, count=rng.randrange(0, 8))))
         elif kind < 0.7:
             packets.append((rng.choice([PacketType.START.value, PacketType.STOP.value]), seq, b""))
         elif kind < 0.8:
@@ -204,14 +205,15 @@ def test_link_errors_are_answered():
     # The NAK of the dropped frame goes out once the processor is free: before or after the
     # reply to a packet that arrived at the same time.
     assert sorted(replies[1:]) == sorted([
-        (PacketType.NAK.value, struct.pack("<BBH", 0, NakCode.BAD_CRC.value, 0)),
+        (PacketType.NAK.value, pack(Nak, seq=0, code=NakCode.BAD_CRC, detail=0)),
         (PacketType.ACK.value, bytes([8]))])
 
 
 def test_identity():
     replies, _, _ = run_commands([(PacketType.IDENTIFY.value, 1, b"")])
-    protocol, major, minor, registers, clock_hz, baud = struct.unpack("<BBBBII", replies[0][1])
-    assert (registers, clock_hz, baud) == (len(REGISTERS), CLOCK_HZ, BAUD)
+    identity = unpack(Identity, replies[0][1])
+    assert (identity["registers"], identity["clock_hz"], identity["baud"]) == \
+        (len(REGISTERS), CLOCK_HZ, BAUD)
 
 
 def test_lowered_maximum():
@@ -224,7 +226,8 @@ def test_lowered_maximum():
     replies, _, _ = run_commands(packets, maxima=maxima)
     model = CommandModel(CLOCK_HZ, BAUD, maxima=maxima)
     assert replies == [(t.value, p) for t, p in (model.command(*packet) for packet in packets)]
-    out_of_range = (PacketType.NAK.value, struct.pack("<BBH", 0, NakCode.OUT_OF_RANGE.value, address))
+    out_of_range = (PacketType.NAK.value, pack(Nak, seq=0, code=NakCode.OUT_OF_RANGE,
+                                               detail=address))
     assert replies[0] == out_of_range and replies[1] == (PacketType.ACK.value, bytes([1]))
 
 
@@ -246,7 +249,7 @@ def test_reset_restores_the_registers():
     writes = [(PacketType.WRITE.value, seq, _write(BY_NAME[name].address, value))
               for seq, (name, value) in enumerate([("period", 1234), ("seed", 77),
                                                    ("period", 999), ("gate_end", 4000)])]
-    read_all = (PacketType.READ.value, 9, struct.pack("<HB", 0, len(REGISTERS)))
+    read_all = (PacketType.READ.value, 9, pack(ReadRequest, address=0, count=len(REGISTERS)))
     packets = writes + [read_all, read_all]
     replies, settings, _ = run_commands(packets, reset_before=len(writes) + 1)
     model = CommandModel(CLOCK_HZ, BAUD)
