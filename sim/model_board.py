@@ -89,16 +89,8 @@ class ModelBoard(PtyServer):
         made uses :meth:`seed_for` ``(n)``.
     time_scale : float
         Simulated seconds per wall-clock second.
-    kill_after, hang_after : int or None
-        Close the pty (or stop sending) once this many data packets have been sent.
-    corrupt_every : int or None
-        Damage one byte in every n-th frame sent (data and replies).
-    corrupt_seed : int
-        Seed of the corruption's choices.
-    corrupt_types : set of PacketType or None
-        Damage only frames of these types (all by default); ``corrupt_every`` counts them.
-    corrupt_commands_every : int or None
-        Damage one non-delimiter byte in every n-th read from the host (commands).
+    kill_after, hang_after, corrupt_every, corrupt_seed, corrupt_types, corrupt_commands_every
+        Faults of the line, as in :class:`~fliss.sim.pty_server.PtyServer`.
     protocol_version : int or None
         Report this protocol version instead of the real one.
     line_limited : bool

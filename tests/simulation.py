@@ -11,7 +11,7 @@ from amaranth.sim import Simulator
 from fliss.hdl import DEFAULT_CLOCK_HZ
 
 
-__all__ = ["simulate", "stream_put", "stream_get"]
+__all__ = ["simulate", "stream_put", "stream_get", "stream_put_all", "stream_get_each"]
 
 
 def simulate(dut, *testbenches, background=(), clock_hz=DEFAULT_CLOCK_HZ, deadline=None):
@@ -55,3 +55,21 @@ async def stream_get(ctx, stream, timeout=None):
         raise AssertionError(f"nothing on the stream for {timeout} cycles")
     ctx.set(stream.ready, 0)
     return payload
+
+
+async def stream_put_all(ctx, stream, payloads, *, rng=None, idle=0.0):
+    """Put each of ``payloads`` on ``stream`` in turn; before each, with probability ``idle``
+    (drawn from ``rng``, a :class:`random.Random`), wait 1 to 3 cycles with ``valid`` low."""
+    for payload in payloads:
+        if rng is not None and rng.random() < idle:
+            await ctx.tick().repeat(rng.randint(1, 3))
+        await stream_put(ctx, stream, payload)
+
+
+async def stream_get_each(ctx, stream, *, rng=None, idle=0.0):
+    """Take payloads from ``stream`` for ever, yielding each; before each, with probability
+    ``idle``, wait 1 to 4 cycles with ``ready`` low (back pressure)."""
+    while True:
+        if rng is not None and rng.random() < idle:
+            await ctx.tick().repeat(rng.randint(1, 4))
+        yield await stream_get(ctx, stream)

@@ -8,7 +8,7 @@ from fliss.hdl.cobs import CobsEncoder, CobsDecoder
 from fliss.hdl.protocol import COBS_MAX_RUN, MAX_ENCODED, MAX_PACKET
 from fliss.sim import codec
 
-from simulation import simulate, stream_put, stream_get
+from simulation import simulate, stream_put_all, stream_get_each
 
 
 def nonzero_bytes(rng, count):
@@ -50,19 +50,16 @@ def test_cobs_encoder_matches_codec(seed, idle):
     received = bytearray()
 
     async def send(ctx):
-        for packet in packets:
-            for index, byte in enumerate(packet):
-                if rng.random() < idle:
-                    await ctx.tick().repeat(rng.randint(1, 3))
-                await stream_put(ctx, dut.i, {"data": byte, "last": index == len(packet) - 1})
+        await stream_put_all(ctx, dut.i, ({"data": byte, "last": index == len(packet) - 1}
+                                          for packet in packets
+                                          for index, byte in enumerate(packet)),
+                             rng=rng, idle=idle)
         await ctx.tick().repeat(2000)
         assert ctx.get(dut.o.valid) == 0
 
     async def collect(ctx):
-        while True:
-            if rng.random() < idle:
-                await ctx.tick().repeat(rng.randint(1, 4))
-            received.append(await stream_get(ctx, dut.o))
+        async for byte in stream_get_each(ctx, dut.o, rng=rng, idle=idle):
+            received.append(byte)
 
     simulate(dut, send, background=[collect])
     assert bytes(received) == expected
@@ -115,17 +112,11 @@ def test_cobs_decoder_matches_codec(seed, idle, max_encoded):
     received = []
 
     async def send(ctx):
-        for byte in stream:
-            if rng.random() < idle:
-                await ctx.tick().repeat(rng.randint(1, 3))
-            await stream_put(ctx, dut.i, byte)
+        await stream_put_all(ctx, dut.i, stream, rng=rng, idle=idle)
         await ctx.tick().repeat(200)
 
     async def collect(ctx):
-        while True:
-            if rng.random() < idle:
-                await ctx.tick().repeat(rng.randint(1, 4))
-            item = await stream_get(ctx, dut.o)
+        async for item in stream_get_each(ctx, dut.o, rng=rng, idle=idle):
             if item.end:
                 assert item.data == 0
                 verdict = item.verdict

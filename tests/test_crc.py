@@ -10,7 +10,7 @@ from fliss.hdl.crc import LINK_CRC, CrcAppender, CrcChecker
 from fliss.hdl.protocol import CRC_BYTES, CRC_CHECK
 from fliss.sim import codec
 
-from simulation import simulate, stream_put, stream_get
+from simulation import simulate, stream_put, stream_put_all, stream_get_each
 
 
 def random_packets(rng, count):
@@ -42,18 +42,14 @@ def test_crc_appender_matches_codec(seed, idle):
     received = []
 
     async def send(ctx):
-        for packet in packets:
-            for index, byte in enumerate(packet):
-                if rng.random() < idle:
-                    await ctx.tick().repeat(rng.randint(1, 3))
-                await stream_put(ctx, dut.i, {"data": byte, "last": index == len(packet) - 1})
+        await stream_put_all(ctx, dut.i, ({"data": byte, "last": index == len(packet) - 1}
+                                          for packet in packets
+                                          for index, byte in enumerate(packet)),
+                             rng=rng, idle=idle)
         await ctx.tick().repeat(200)
 
     async def collect(ctx):
-        while True:
-            if rng.random() < idle:
-                await ctx.tick().repeat(rng.randint(1, 4))
-            item = await stream_get(ctx, dut.o)
+        async for item in stream_get_each(ctx, dut.o, rng=rng, idle=idle):
             received.append((item.data, item.last))
 
     simulate(dut, send, background=[collect])
@@ -87,19 +83,14 @@ def test_crc_checker_matches_codec(seed, idle):
 
     async def send(ctx):
         for body, verdict in frames:
-            for byte in body:
-                if rng.random() < idle:
-                    await ctx.tick().repeat(rng.randint(1, 3))
-                await stream_put(ctx, dut.i, {"data": byte, "end": 0})
+            await stream_put_all(ctx, dut.i, ({"data": byte, "end": 0} for byte in body),
+                                 rng=rng, idle=idle)
             await stream_put(ctx, dut.i, {"end": 1, "verdict": {
                 "empty": verdict & 1, "truncated": verdict >> 1 & 1, "oversize": verdict >> 2}})
         await ctx.tick().repeat(200)
 
     async def collect(ctx):
-        while True:
-            if rng.random() < idle:
-                await ctx.tick().repeat(rng.randint(1, 4))
-            item = await stream_get(ctx, dut.o)
+        async for item in stream_get_each(ctx, dut.o, rng=rng, idle=idle):
             if item.end:
                 verdict = (item.verdict.empty | item.verdict.truncated << 1 |
                            item.verdict.oversize << 2)

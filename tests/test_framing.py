@@ -15,7 +15,7 @@ from fliss.hdl.protocol import (PacketType, NakCode, MAX_PAYLOAD, MAX_ENCODED, C
 from fliss.hdl.uart import UartTx, UartRx
 from fliss.sim import codec
 
-from simulation import simulate, stream_put, stream_get
+from simulation import simulate, stream_put, stream_get, stream_put_all
 
 
 def beats(packet):
@@ -31,11 +31,8 @@ def beats(packet):
 
 
 async def put_packets(ctx, stream, packets, rng, idle=0.0):
-    for packet in packets:
-        for beat in beats(packet):
-            if rng.random() < idle:
-                await ctx.tick().repeat(rng.randint(1, 3))
-            await stream_put(ctx, stream, beat)
+    await stream_put_all(ctx, stream, (beat for packet in packets for beat in beats(packet)),
+                         rng=rng, idle=idle)
 
 
 async def get_packets(ctx, stream, rng, out, idle=0.0):
@@ -233,10 +230,7 @@ def check_decoder(stream, rng, *, idle_in=0.0, idle_out=0.0):
     packets, drops = [], []
 
     async def send(ctx):
-        for byte in stream:
-            if rng.random() < idle_in:
-                await ctx.tick().repeat(rng.randint(1, 3))
-            await stream_put(ctx, dut.i, byte)
+        await stream_put_all(ctx, dut.i, stream, rng=rng, idle=idle_in)
         await ctx.tick().repeat(2 * MAX_PAYLOAD + 50)
         counts = {NakCode.BAD_CRC: ctx.get(dut.bad_crc), NakCode.TRUNCATED: ctx.get(dut.truncated),
                   NakCode.OVERSIZE: ctx.get(dut.oversize),
