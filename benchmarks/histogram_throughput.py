@@ -102,8 +102,8 @@ class _Harness(Elaboratable):
                 dut.events.valid.eq(1),
                 dut.events.payload.timestamp.eq(lfsr[:TIMESTAMP_BITS]),
                 dut.enable.eq(enable),
-                dut.integration.eq(lfsr[5:25]),
-                dut.shift.eq(3),
+                dut.settings.integration.eq(lfsr[5:25]),
+                dut.settings.bin_shift.eq(3),
                 dut.readout.ready.eq(ready),
             ]
             folded = Cat(dut.readout.payload.as_value().xor() ^ dut.readout.valid,
@@ -159,8 +159,8 @@ def measure(dut, timestamps, *, fliss):
 
     async def source(ctx):
         if fliss:
-            ctx.set(dut.integration, 1 << 30)
-            ctx.set(dut.shift, SHIFT)
+            ctx.set(dut.settings.integration, 1 << 30)
+            ctx.set(dut.settings.bin_shift, SHIFT)
             ctx.set(dut.enable, 1)
             await ctx.tick()  # the first frame starts in the cycle after enable rises
         ctx.set(valid, 1)

@@ -251,6 +251,7 @@ class CobsDecoder(wiring.Component):
 
         count = Signal(range(self.max_encoded + 2))     # bytes of the frame, saturating
         code_left = Signal(range(COBS_MAX_RUN + 1))     # bytes left in the current block
+        at_code = Signal(init=1)                        # `code_left == 0`, as a register
         block_ff = Signal()                             # the current block has no implied zero
 
         take = Signal()
@@ -266,17 +267,18 @@ class CobsDecoder(wiring.Component):
                 self.o.valid.eq(self.i.valid),
                 self.o.p.end.eq(1),
                 self.o.p.verdict.empty.eq(count == 0),
-                self.o.p.verdict.truncated.eq(code_left != 0),
+                self.o.p.verdict.truncated.eq(~at_code),
                 self.o.p.verdict.oversize.eq(count > self.max_encoded),
             ]
             with m.If(take):
-                m.d.sync += [count.eq(0), code_left.eq(0), block_ff.eq(0)]
-        with m.Elif(code_left == 0):
+                m.d.sync += [count.eq(0), code_left.eq(0), at_code.eq(1), block_ff.eq(0)]
+        with m.Elif(at_code):
             # Code byte: the zero implied by the block before
             m.d.comb += self.o.valid.eq(self.i.valid & (count != 0) & ~block_ff)
             with m.If(take):
                 m.d.sync += [
                     code_left.eq(self.i.payload - 1),
+                    at_code.eq(self.i.payload == 1),
                     block_ff.eq(self.i.payload == COBS_MAX_RUN + 1),
                 ]
         with m.Else():
@@ -285,7 +287,7 @@ class CobsDecoder(wiring.Component):
                 self.o.p.data.eq(self.i.payload),
             ]
             with m.If(take):
-                m.d.sync += code_left.eq(code_left - 1)
+                m.d.sync += [code_left.eq(code_left - 1), at_code.eq(code_left == 1)]
         with m.If(take & ~delimiter & (count <= self.max_encoded)):
             m.d.sync += count.eq(count + 1)
 

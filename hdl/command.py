@@ -172,6 +172,10 @@ class CommandProcessor(wiring.Component):
         accepting = Signal(init=1)
         m.d.comb += self.packets.ready.eq(accepting)
 
+        # The register file is read at `next_pointer` in every state (a multiplexer whose
+        # select depends on the state would lengthen the path to `next_word`).
+        m.d.comb += registers.read_address.eq(next_pointer)
+
         with m.FSM():
             with m.State("IDLE"):
                 with m.If(self.packets.valid & self.packets.p.first):
@@ -324,8 +328,7 @@ class CommandProcessor(wiring.Component):
                 # all the registers. `next_word` follows `next_pointer` two cycles late (a
                 # counter is read in the cycle after its address): the first is ready after the
                 # first payload byte's cycle, each next one four cycles after the pointer moved.
-                m.d.comb += [self.status.addr.eq(next_pointer),
-                             registers.read_address.eq(next_pointer)]
+                m.d.comb += self.status.addr.eq(next_pointer)
                 m.d.sync += next_word.eq(Mux(is_status, self.status.data, registers.read_data))
                 with m.If(replies.ready):
                     m.d.sync += index.eq(index + 1)

@@ -13,14 +13,14 @@ from .event import Event, TIMESTAMP_BITS
 from .histogram_banks import LATENCY, SINGLE_LATENCY, DualPortBanks, SinglePortBanks
 from .histogram_frames import FrameSequencer
 from .histogram_layout import (BIN_BITS, COUNT_WIDTH, INTEGRATION_WIDTH, MAX_COUNT_WIDTH,
-                               MAX_SHIFT, MIN_COUNT_WIDTH, readout_layout)
+                               MAX_SHIFT, MIN_COUNT_WIDTH, HistogramSettings, readout_layout)
 from .histogram_readout import READOUT_CYCLES_PER_BIN, BankReadout
 from .tdc import COUNTER_WIDTH, count_event
 
 
 __all__ = ["BIN_BITS", "COUNT_WIDTH", "MIN_COUNT_WIDTH", "MAX_COUNT_WIDTH", "MAX_SHIFT",
            "INTEGRATION_WIDTH", "LATENCY", "SINGLE_LATENCY", "READOUT_CYCLES_PER_BIN",
-           "RAM_KINDS", "readout_layout", "Histogram"]
+           "RAM_KINDS", "HistogramSettings", "readout_layout", "Histogram"]
 
 
 #: Values of the ``ram`` parameter of :class:`Histogram`.
@@ -118,10 +118,9 @@ class Histogram(wiring.Component):
         Events; ``ready`` is always high.
     enable : In(1)
         Acquire frames.
-    integration : In(32)
-        Frame length in clock cycles, sampled when a frame starts.
-    shift : In(range(14))
-        Bin shift: a bin is ``2**shift`` timestamp codes wide. Sampled when a frame starts.
+    settings : In(HistogramSettings)
+        ``integration``: frame length in clock cycles; ``bin_shift``: a bin is
+        ``2**bin_shift`` timestamp codes wide. Both sampled when a frame starts.
     clear : In(1)
         Reset ``dropped``, ``dropped_busy`` and ``overflow``.
     readout : Out(stream.Signature(readout_layout(bin_bits, count_width)))
@@ -199,8 +198,7 @@ class Histogram(wiring.Component):
         super().__init__({
             "events":        In(stream.Signature(Event)),
             "enable":        In(1),
-            "integration":   In(INTEGRATION_WIDTH),
-            "shift":         In(range(MAX_SHIFT + 1)),
+            "settings":      In(HistogramSettings),
             "clear":         In(1),
             "readout":       Out(stream.Signature(readout_layout(bin_bits, count_width))),
             "readout_shift": Out(range(MAX_SHIFT + 1)),
@@ -226,8 +224,8 @@ class Histogram(wiring.Component):
         # Frames and banks
         m.d.comb += [
             sequencer.enable.eq(self.enable),
-            sequencer.integration.eq(self.integration),
-            sequencer.shift.eq(self.shift),
+            sequencer.integration.eq(self.settings.integration),
+            sequencer.shift.eq(self.settings.bin_shift),
             sequencer.hold.eq(storage.initialising),
             sequencer.done.eq(reader.done),
             self.filling.eq(sequencer.filling),

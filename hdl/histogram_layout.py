@@ -3,10 +3,11 @@
 from amaranth.lib import data
 
 from .event import TIMESTAMP_BITS
+from .registers import HISTOGRAM
 
 
 __all__ = ["BIN_BITS", "COUNT_WIDTH", "MIN_COUNT_WIDTH", "MAX_COUNT_WIDTH", "MAX_SHIFT",
-           "INTEGRATION_WIDTH", "readout_layout"]
+           "INTEGRATION_WIDTH", "HistogramSettings", "readout_layout"]
 
 
 #: Default bin index width: one bin per timestamp code, 8192 bins.
@@ -21,6 +22,12 @@ MAX_COUNT_WIDTH = 32
 MAX_SHIFT = TIMESTAMP_BITS
 #: Width of the integration time setting, in clock cycles: up to 53 s at 80 MHz.
 INTEGRATION_WIDTH = 32
+
+#: Settings of a :class:`~fliss.hdl.histogram.Histogram`: ``bin_shift`` (bins are
+#: ``2**bin_shift`` timestamp codes wide) and ``integration`` (frame length in clock cycles); the
+#: layout of the register group :data:`~fliss.hdl.registers.HISTOGRAM`.
+HistogramSettings = HISTOGRAM.layout()
+assert HistogramSettings.size == (MAX_SHIFT.bit_length() + INTEGRATION_WIDTH)
 
 
 def readout_layout(bin_bits=BIN_BITS, count_width=COUNT_WIDTH):

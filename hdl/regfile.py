@@ -154,7 +154,10 @@ class RegisterFile(wiring.Component):
                 m.d.sync += [self.error.eq(1), self.error_code.eq(NakCode.OUT_OF_RANGE),
                              self.error_detail.eq(checked_address)]
         with m.If(self.check):
-            with m.Switch(value_address):
+            # (Decoded from the low bits of the address only: a value whose address has high
+            # bits set lands on some register here, but it is refused above, so the WRITE is
+            # never committed.)
+            with m.Switch(register_index):
                 for register in REGISTERS:
                     with m.Case(register.address):
                         m.d.sync += [candidate[register.name].eq(value),

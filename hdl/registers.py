@@ -9,7 +9,8 @@ host tool and ``docs/protocol.md`` all read this table.
 Registers come in groups (:class:`RegisterGroup`, :data:`GROUPS`) that travel together as one
 struct to the block that uses them: the victim's and the aggressor's delay cores (both from one
 definition, :data:`DELAY_SETTINGS`, whose layout is :class:`DelaySettings`), the aggressor
-emitter's own settings, and acquisition. The link has no settings. A new field of a group is
+emitter's own settings, the event filter's gate, the histogram's frames, and the top level's
+own choices (acquisition). The link has no settings. A new field of a group is
 added here and used in its block; the register file, its checks and the top level follow.
 
 A definitions module: it imports no gateware (the limits come from :mod:`.settings`).
@@ -26,7 +27,8 @@ from .settings import (DelayMode, MIN_LENGTH, MAX_LENGTH, MAX_MASK_WIDTH, PERIOD
 
 
 __all__ = ["AcquisitionMode", "TdcSource", "Register", "Setting", "RegisterGroup",
-           "DELAY_SETTINGS", "VICTIM", "AGGRESSOR", "AGGRESSOR_DELAY", "ACQUISITION", "GROUPS",
+           "DELAY_SETTINGS", "VICTIM", "AGGRESSOR", "AGGRESSOR_DELAY", "ACQUISITION", "GATE",
+           "HISTOGRAM", "GROUPS",
            "REGISTERS", "BY_NAME", "BY_ADDRESS", "DelaySettings", "settings_layout",
            "register_maxima", "defaults", "problems", "max_delay"]
 
@@ -188,27 +190,37 @@ AGGRESSOR = RegisterGroup("aggressor", (
                "aggressor start offset after the victim's start (75 ns by default)"),
 })
 
-#: What is acquired, and how.
+#: What is acquired, and from where (the top level's own choices).
 ACQUISITION = RegisterGroup("acquisition", (
-    Setting("mode",        1,              0, 1),
-    Setting("tdc_source",  1,              0, 1),
-    Setting("gate_start",  TIMESTAMP_BITS, 0, (1 << TIMESTAMP_BITS) - 1, "codes"),
-    Setting("gate_end",    TIMESTAMP_BITS, 0, (1 << TIMESTAMP_BITS) - 1, "codes"),
-    Setting("bin_shift",   4,              0, TIMESTAMP_BITS),
-    Setting("integration", 32,             1, _U32, "cycles"),
+    Setting("mode",       1, 0, 1),
+    Setting("tdc_source", 1, 0, 1),
 ), {
-    "mode":        ("acquisition", 0x00, 0, "acquisition mode: 0 histogram, 1 raw events"),
-    "tdc_source":  ("tdc_source", 0x10, 0,
-                    "event source: 0 sensor timestamp bus, 1 built-in coarse TDC"),
-    "gate_start":  ("gate_start", 0x11, 0, "first timestamp accepted"),
-    "gate_end":    ("gate_end", 0x12, (1 << TIMESTAMP_BITS) - 1, "last timestamp accepted"),
+    "mode":       ("acquisition", 0x00, 0, "acquisition mode: 0 histogram, 1 raw events"),
+    "tdc_source": ("tdc_source", 0x10, 0,
+                   "event source: 0 sensor timestamp bus, 1 built-in coarse TDC"),
+})
+
+#: The event filter's gate (:class:`~fliss.hdl.tdc.EventFilter`).
+GATE = RegisterGroup("gate", (
+    Setting("start", TIMESTAMP_BITS, 0, (1 << TIMESTAMP_BITS) - 1, "codes"),
+    Setting("end",   TIMESTAMP_BITS, 0, (1 << TIMESTAMP_BITS) - 1, "codes"),
+), {
+    "start": ("gate_start", 0x11, 0, "first timestamp accepted"),
+    "end":   ("gate_end", 0x12, (1 << TIMESTAMP_BITS) - 1, "last timestamp accepted"),
+})
+
+#: The histogram's frames (:class:`~fliss.hdl.histogram.Histogram`).
+HISTOGRAM = RegisterGroup("histogram", (
+    Setting("bin_shift",   4,  0, TIMESTAMP_BITS),
+    Setting("integration", 32, 1, _U32, "cycles"),
+), {
     "bin_shift":   ("bin_shift", 0x13, 0, "histogram bins are 2**bin_shift codes wide"),
     "integration": ("integration", 0x14, lambda clock_hz: round(10e-3 * clock_hz),
                     "histogram integration time (10 ms by default)"),
 })
 
 #: Every group; the link has no settings, so it has no group.
-GROUPS = (VICTIM, AGGRESSOR, AGGRESSOR_DELAY, ACQUISITION)
+GROUPS = (VICTIM, AGGRESSOR, AGGRESSOR_DELAY, ACQUISITION, GATE, HISTOGRAM)
 
 #: The registers, in address order.
 REGISTERS = tuple(sorted((r for group in GROUPS for r in group.members),

@@ -9,11 +9,12 @@ from amaranth.lib import cdc, data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from .event import Event, TIMESTAMP_BITS, ADDRESS_BITS, PULSE_BITS
+from .registers import GATE
 
 
 __all__ = ["SYNC_STAGES", "COUNTER_WIDTH", "CAPTURE_LATENCY", "FILTER_LATENCY", "OUTPUT_LATENCY",
            "MAX_TIMESTAMP",
-           "count_event", "Capture", "EventFilter", "TdcInterface", "CoarseTdc"]
+           "count_event", "Gate", "Capture", "EventFilter", "TdcInterface", "CoarseTdc"]
 
 
 #: Flip-flops of the input synchronisers.
@@ -29,6 +30,10 @@ FILTER_LATENCY = 2
 OUTPUT_LATENCY = CAPTURE_LATENCY + 1 + FILTER_LATENCY
 #: Largest timestamp code.
 MAX_TIMESTAMP = (1 << TIMESTAMP_BITS) - 1
+
+#: The gate of an :class:`EventFilter`: ``start`` and ``end`` in timestamp codes, inclusive
+#: (the register group :data:`~fliss.hdl.registers.GATE`).
+Gate = GATE.layout()
 
 
 def count_event(m, counter, condition, clear, strobe=None):
@@ -78,7 +83,7 @@ class EventFilter(wiring.Component):
 
     * ``dropped_stopped`` if ``captures.enabled`` is low (acquisition stopped);
     * ``dropped_overflow`` if ``captures.overflow`` is high (timestamp beyond 13 bits);
-    * ``dropped_gate`` if its timestamp is outside ``gate_start … gate_end`` (inclusive);
+    * ``dropped_gate`` if its timestamp is outside ``gate.start … gate.end`` (inclusive);
     * ``dropped_overrun`` if the previous event still waits on ``events``;
 
     and otherwise counted in ``accepted`` and put on ``events``. The classification takes two
@@ -92,8 +97,9 @@ class EventFilter(wiring.Component):
     captures : In(Capture)
         An event (``valid``: in this cycle), whether its timestamp overflowed, and whether
         acquisition is running.
-    gate_start, gate_end : In(13)
-        Gate in timestamp codes, inclusive; by default ``0 … 8191`` (all codes).
+    gate : In(Gate)
+        Gate in timestamp codes, ``start … end`` inclusive; by default ``0 … 8191`` (all codes).
+        The layout of the register group :data:`~fliss.hdl.registers.GATE`.
     clear : In(1)
         Reset the counters.
     events : Out(stream.Signature(Event))
@@ -106,8 +112,7 @@ class EventFilter(wiring.Component):
     """
 
     captures:         In(Capture)
-    gate_start:       In(TIMESTAMP_BITS)
-    gate_end:         In(TIMESTAMP_BITS, init=MAX_TIMESTAMP)
+    gate:             In(Gate, init={"end": MAX_TIMESTAMP})
     clear:            In(1)
     events:           Out(stream.Signature(Event))
     accepted:         Out(COUNTER_WIDTH)
@@ -134,7 +139,7 @@ class EventFilter(wiring.Component):
             event.eq(self.captures.event),
             stopped.eq(~self.captures.enabled),
             overflow.eq(self.captures.overflow),
-            outside.eq((timestamp < self.gate_start) | (timestamp > self.gate_end)),
+            outside.eq((timestamp < self.gate.start) | (timestamp > self.gate.end)),
         ]
 
         # Stage 2: output register, counters
@@ -170,8 +175,7 @@ class EventFilter(wiring.Component):
 def _filter_ports(component, event_filter):
     """Connections from a capture block's setting ports to its filter."""
     return [
-        event_filter.gate_start.eq(component.gate_start),
-        event_filter.gate_end.eq(component.gate_end),
+        event_filter.gate.eq(component.gate),
         event_filter.clear.eq(component.clear),
         component.accepted.eq(event_filter.accepted),
         component.dropped_stopped.eq(event_filter.dropped_stopped),
@@ -187,8 +191,7 @@ def _capture_members(filtered, members):
     members = dict(members)
     if filtered:
         members.update({
-            "gate_start":       In(TIMESTAMP_BITS),
-            "gate_end":         In(TIMESTAMP_BITS, init=MAX_TIMESTAMP),
+            "gate":             In(Gate, init={"end": MAX_TIMESTAMP}),
             "clear":            In(1),
             "events":           Out(stream.Signature(Event)),
             "accepted":         Out(COUNTER_WIDTH),
@@ -259,8 +262,8 @@ class TdcInterface(wiring.Component):
         Acquisition is running; events outside are dropped and counted.
     pulse_index : In(32)
         Pulses fired so far (:class:`~fliss.hdl.scheduler.PulseScheduler` ``pulse_index``).
-    gate_start, gate_end : In(13)
-        Gate in timestamp codes, inclusive; by default all codes.
+    gate : In(Gate)
+        Gate in timestamp codes, ``start … end`` inclusive; by default all codes.
     clear : In(1)
         Reset the counters.
     events : Out(stream.Signature(Event))
@@ -336,7 +339,7 @@ class CoarseTdc(wiring.Component):
         Pulses fired so far (:class:`~fliss.hdl.scheduler.PulseScheduler` ``pulse_index``).
     address : In(6)
         Pixel address given to the events.
-    enable, gate_start, gate_end, clear, events
+    enable, gate, clear, events
         As in :class:`TdcInterface`.
     accepted, dropped_stopped, dropped_overflow, dropped_gate, dropped_overrun : Out(32)
         Event counters (:class:`EventFilter`).

@@ -225,8 +225,7 @@ class FlissTop(wiring.Component):
         ]
         m.d.comb += [
             event_filter.captures.eq(Mux(coarse_selected, coarse.captures, sensor.captures)),
-            event_filter.gate_start.eq(acquisition.gate_start),
-            event_filter.gate_end.eq(acquisition.gate_end),
+            event_filter.gate.eq(registers.gate),
             event_filter.events.ready.eq(1),
         ]
         events = event_filter.events.payload
@@ -238,8 +237,7 @@ class FlissTop(wiring.Component):
         m.submodules.histogram_packets = histogram_packets = HistogramPacketizer()
         m.d.comb += [
             histogram.enable.eq(running & ~raw_mode),
-            histogram.integration.eq(acquisition.integration),
-            histogram.shift.eq(acquisition.bin_shift),
+            histogram.settings.eq(registers.histogram),
             histogram.events.valid.eq(events_valid & ~raw_mode),
             histogram.events.payload.eq(events),
             histogram_packets.shift.eq(histogram.readout_shift),

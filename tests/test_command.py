@@ -17,6 +17,14 @@ from simulation import simulate
 CLOCK_HZ, BAUD = 80_000_000, 3_000_000
 
 
+def group_settings(ctx, registers):
+    """Every register's value as the register file's group ports carry it (each register is a
+    field of one group), checked against its flat ``settings``."""
+    values = {r.name: ctx.get(getattr(registers, r.group)[r.field]) for r in REGISTERS}
+    assert values == {r.name: ctx.get(registers.settings[r.name]) for r in REGISTERS}
+    return values
+
+
 def run_commands(packets, *, link_errors=(), status=None, maxima=None, reset_before=None):
     """Send ``(type, seq, payload)`` packets; return the replies ``(type, payload)`` and the
     settings after each command. ``reset_before``: the number of a packet before which the
@@ -87,7 +95,7 @@ def run_commands(packets, *, link_errors=(), status=None, maxima=None, reset_bef
                 if beat.last:
                     assert len(current[2]) == current[1]
                     replies.append((current[0], bytes(current[2])))
-                    settings.append({r.name: ctx.get(dut.registers.settings[r.name]) for r in REGISTERS})
+                    settings.append(group_settings(ctx, dut.registers))
             await ctx.tick()
 
     simulate(ResetInserter({"sync": reset})(dut), sender, background=[receiver, status_port],

@@ -79,8 +79,8 @@ def run_histogram(dut, valid, timestamps, *, integration, shift, ready=None, set
                     ctx.set(bank.data[index], int(value))
         if dut.init_cycles and wait_init:
             await ctx.tick().repeat(dut.init_cycles)
-        ctx.set(dut.integration, integration)
-        ctx.set(dut.shift, shift)
+        ctx.set(dut.settings.integration, integration)
+        ctx.set(dut.settings.bin_shift, shift)
         ctx.set(dut.enable, 1)
         for cycle in range(cycles):
             ctx.set(dut.events.valid, int(valid[cycle]))
@@ -262,8 +262,8 @@ def test_counts_saturate(ram):
             await ctx.tick().repeat(dut.init_cycles)
         for index, value in enumerate(preload):
             ctx.set(dut.banks[0].data[index], int(value))
-        ctx.set(dut.integration, 1000)
-        ctx.set(dut.shift, shift)
+        ctx.set(dut.settings.integration, 1000)
+        ctx.set(dut.settings.bin_shift, shift)
         ctx.set(dut.enable, 1)
         await ctx.tick()
         for value in stream:
@@ -517,7 +517,7 @@ def test_shortest_frame_without_dead_time(ram):
         if dut.init_cycles:
             await ctx.tick().repeat(dut.init_cycles)
         for integration in (shortest, shortest - 1):
-            ctx.set(dut.integration, integration)
+            ctx.set(dut.settings.integration, integration)
             ctx.set(dut.enable, 1)
             await ctx.tick().repeat(2)
             filling = []

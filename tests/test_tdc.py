@@ -7,7 +7,7 @@ from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from fliss.hdl.event import Event
-from fliss.hdl.tdc import (EventFilter, TdcInterface, CoarseTdc, SYNC_STAGES, CAPTURE_LATENCY,
+from fliss.hdl.tdc import (Gate, EventFilter, TdcInterface, CoarseTdc, SYNC_STAGES, CAPTURE_LATENCY,
                            OUTPUT_LATENCY, MAX_TIMESTAMP, COUNTER_WIDTH)
 from fliss.sim import tdc as model
 from fliss.sim.event import EVENT_DTYPE, unpack
@@ -23,8 +23,7 @@ class FilterOutside(wiring.Component):
         members = {name: member for name, member in block.signature.members.items()
                    if name != "captures"}
         members.update({
-            "gate_start": In(13),
-            "gate_end":   In(13, init=MAX_TIMESTAMP),
+            "gate":       In(Gate, init={"end": MAX_TIMESTAMP}),
             "clear":      In(1),
             "events":     Out(stream.Signature(Event)),
         })
@@ -40,8 +39,7 @@ class FilterOutside(wiring.Component):
                 m.d.comb += getattr(self.block, name).eq(getattr(self, name))
         m.d.comb += [
             event_filter.captures.eq(self.block.captures),
-            event_filter.gate_start.eq(self.gate_start),
-            event_filter.gate_end.eq(self.gate_end),
+            event_filter.gate.eq(self.gate),
             event_filter.clear.eq(self.clear),
         ]
         m.d.comb += [getattr(self, name).eq(getattr(event_filter, name))
@@ -133,8 +131,8 @@ def test_tdc_interface_matches_model(filtered):
 
     def drive(ctx, cycle):
         if cycle == 0:
-            ctx.set(dut.gate_start, gate_start)
-            ctx.set(dut.gate_end, gate_end)
+            ctx.set(dut.gate.start, gate_start)
+            ctx.set(dut.gate.end, gate_end)
         ctx.set(dut.pin_valid, int(pin_valid[cycle]))
         ctx.set(dut.pin_timestamp, int(bus[cycle, 0]))
         ctx.set(dut.pin_address, int(bus[cycle, 1]))
@@ -191,8 +189,8 @@ def test_coarse_tdc_matches_model(filtered):
 
     def drive(ctx, cycle):
         if cycle == 0:
-            ctx.set(dut.gate_start, gate_start)
-            ctx.set(dut.gate_end, gate_end)
+            ctx.set(dut.gate.start, gate_start)
+            ctx.set(dut.gate.end, gate_end)
             ctx.set(dut.address, 42)
         ctx.set(dut.pin_hit, int(pin_hit[cycle]))
         ctx.set(dut.tdc_start, int(tdc_start[cycle]))
