@@ -5,11 +5,11 @@ from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
 from .core import DelayCore
-from .registers import DelaySettings
+from .registers import AGGRESSOR, DelaySettings
 from .settings import DELAY_WIDTH, PERIOD_WIDTH, PULSE_WIDTH_WIDTH, check_widths
 
 
-__all__ = ["OFFSET_WIDTH", "PAPER_OFFSET_S", "Aggressor"]
+__all__ = ["OFFSET_WIDTH", "PAPER_OFFSET_S", "EmitterSettings", "Aggressor"]
 
 
 #: Width of the start offset setting, in bits.
@@ -18,6 +18,11 @@ OFFSET_WIDTH = 32
 #: Start offset of the aggressor in the paper's experiments, in seconds (6 cycles at 80 MHz).
 PAPER_OFFSET_S = 75e-9
 
+#: The emitter's own settings: ``enable`` (the emitter is on) and ``offset`` (start offset in
+#: clock cycles); the layout of the register group :data:`~fliss.hdl.registers.AGGRESSOR`.
+EmitterSettings = AGGRESSOR.layout()
+assert EmitterSettings.size == 1 + OFFSET_WIDTH
+
 
 class Aggressor(wiring.Component):
     """Aggressor emitter.
@@ -25,14 +30,15 @@ class Aggressor(wiring.Component):
     A second illuminator trigger driven by the same FPGA, as on the paper's bench: a
     :class:`~fliss.hdl.core.DelayCore` of its own, whose delay source is used only with
     ``delay_source`` (otherwise it stays ``OFF``). It
-    starts ``offset`` cycles after ``enable`` rises: if ``enable`` rises in cycle ``e``, the
-    aggressor's scheduler sees its enable rise in cycle ``e + offset``. With the victim's delay
-    core enabled in the same cycle, the same period and no delays on either side, each aggressor
-    pulse is exactly ``offset`` cycles after the matching victim pulse. ``enable`` falling stops
-    the aggressor at once (a pulse already firing completes); the offset counts again from the
-    next rise. ``offset`` is sampled while ``enable`` is low; the other settings behave as in
-    :class:`~fliss.hdl.core.DelayCore`. (If ``enable`` is already high in the first cycle after
-    reset, the aggressor starts one cycle late; a register file never does that.)
+    runs while ``enable`` and ``emitter.enable`` are both high (call that "on"), and starts
+    ``emitter.offset`` cycles after it turns on: if it turns on in cycle ``e``, the aggressor's
+    scheduler sees its enable rise in cycle ``e + offset``. With the victim's delay core enabled
+    in the same cycle, the same period and no delays on either side, each aggressor pulse is
+    exactly ``offset`` cycles after the matching victim pulse. Turning off stops the aggressor
+    at once (a pulse already firing completes); the offset counts again from the next time it
+    turns on. ``offset`` is sampled while it is off; the other settings behave as in
+    :class:`~fliss.hdl.core.DelayCore`. (If it is already on in the first cycle after reset,
+    the aggressor starts one cycle late; a register file never does that.)
 
     Parameters
     ----------
@@ -49,8 +55,9 @@ class Aggressor(wiring.Component):
         Run; normally the victim's enable.
     update : In(1)
         Sample new settings while running.
-    offset : In(32)
-        Start offset in clock cycles.
+    emitter : In(EmitterSettings)
+        The emitter is on (``enable``, high by default) and its start offset in clock cycles
+        (``offset``).
     settings : In(DelaySettings(..., delays=delay_source))
         Settings of the aggressor's delay core (:class:`~fliss.hdl.core.DelayCore`).
     laser : Out(1)
@@ -73,7 +80,7 @@ class Aggressor(wiring.Component):
         super().__init__({
             "enable":      In(1),
             "update":      In(1),
-            "offset":      In(OFFSET_WIDTH),
+            "emitter":     In(EmitterSettings, init={"enable": 1}),
             "settings":    In(DelaySettings(period_width=period_width,
                                             pulse_width_width=pulse_width_width,
                                             delays=delay_source)),
@@ -90,19 +97,21 @@ class Aggressor(wiring.Component):
         m.submodules.core = core = DelayCore(period_width=self.period_width,
                                              pulse_width_width=self.pulse_width_width)
 
-        # Start offset: a countdown loaded with `offset` while stopped. `arrived` is registered,
+        # Start offset: a countdown loaded with `offset` while off. `arrived` is registered,
         # so no comparator sits in front of the scheduler. `primed` marks the cycles after the
         # first one: the countdown is loaded at least once before it is used.
+        on = self.enable & self.emitter.enable
+        offset = self.emitter.offset
         primed = Signal()
         countdown = Signal(OFFSET_WIDTH)
         arrived = Signal()
         started = Signal()
         m.d.sync += primed.eq(1)
-        with m.If(~self.enable | ~primed):
-            m.d.sync += countdown.eq(self.offset), arrived.eq(self.offset == 0)
+        with m.If(~on | ~primed):
+            m.d.sync += countdown.eq(offset), arrived.eq(offset == 0)
         with m.Elif(~arrived):
             m.d.sync += countdown.eq(countdown - 1), arrived.eq(countdown == 1)
-        m.d.comb += started.eq(self.enable & primed & arrived)
+        m.d.comb += started.eq(on & primed & arrived)
 
         # Delay source, scheduler and trigger: a delay core of its own
         if self.delay_source:

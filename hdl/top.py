@@ -198,9 +198,9 @@ class FlissTop(wiring.Component):
                 delay_source=self.aggressor_delays, period_width=self.period_width,
                 pulse_width_width=self.pulse_width_width)
             m.d.comb += [
-                aggressor.enable.eq(running & registers.aggressor.enable),
+                aggressor.enable.eq(running),
                 aggressor.update.eq(command.update),
-                aggressor.offset.eq(registers.aggressor.offset),
+                aggressor.emitter.eq(registers.aggressor),
                 aggressor.settings.eq(registers.aggressor_delay),
                 self.aggressor_laser.eq(aggressor.laser),
             ]

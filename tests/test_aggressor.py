@@ -17,7 +17,7 @@ from simulation import simulate
 
 def apply(ctx, dut, settings, offset=None):
     if offset is not None:
-        ctx.set(dut.offset, offset)
+        ctx.set(dut.emitter.offset, offset)
     ctx.set(dut.settings.period, settings.period)
     ctx.set(dut.settings.grid, int(settings.grid))
     ctx.set(dut.settings.pulse_width, settings.pulse_width)
@@ -81,20 +81,27 @@ def test_matches_model(delay_source, first, second):
     assert np.flatnonzero(fire)[0] >= enable + offset + 2
 
 
-def test_offset_restarts_with_enable():
+@pytest.mark.parametrize("switch", ["enable", "emitter.enable"])
+def test_offset_restarts_with_enable(switch):
+    # The aggressor runs while both `enable` (the victim's) and its own `emitter.enable` (the
+    # `aggressor` register) are high: switching either one restarts the offset.
     settings = Settings(mode=DelayMode.MSEQ, length=4, seed=5, period=30, pulse_width=2)
     dut = Aggressor()
     offset, cycles = 21, 900
     segments = [(3, 300), (310, 320), (500, None)]   # the second is shorter than the offset
+    signal, other = ((dut.enable, dut.emitter.enable) if switch == "enable" else
+                     (dut.emitter.enable, dut.enable))
 
     def script(ctx, cycle):
         if cycle == 0:
             apply(ctx, dut, settings, offset)
+            ctx.set(signal, 0)
+            ctx.set(other, 1)
         for on, off in segments:
             if cycle == on:
-                ctx.set(dut.enable, 1)
+                ctx.set(signal, 1)
             if cycle == off:
-                ctx.set(dut.enable, 0)
+                ctx.set(signal, 0)
 
     fire, laser = record(dut, cycles, script)
     pulses = []
@@ -131,7 +138,7 @@ def test_paper_bench_offset():
         for dut in (victim, aggressor):
             ctx.set(dut.settings.period, 80)
             ctx.set(dut.settings.pulse_width, 2)
-        ctx.set(aggressor.offset, offset)
+        ctx.set(aggressor.emitter.offset, offset)
         await ctx.tick()
         ctx.set(victim.enable, 1)           # in cycle 1, as a register file would
         ctx.set(aggressor.enable, 1)
