@@ -409,21 +409,28 @@ class BoardClient:
                                 f"{idle_timeout_s:g} s during an acquisition)")
             yield None
 
-    def settle(self, limit_s: float = 120.0) -> List[Union[HistogramFrame, EventBatch]]:
+    def settle(self, limit_s: float = 120.0, give_up_s: float = 3.0
+               ) -> List[Union[HistogramFrame, EventBatch]]:
         """After a STOP: read until every histogram the board completed has arrived (its STATUS
-        ``frames`` count), or until ``limit_s``; returns everything received. A board that
-        is slow to send its last histogram (a simulation, a slow link) is waited for rather
-        than left to spill into the next capture."""
+        ``frames`` count), until nothing more has come for ``give_up_s`` (a histogram lost on a
+        noisy line), or until ``limit_s``; returns everything received. A board that is slow to send its
+        last histogram (a simulation, a slow link) is waited for rather than left to spill into
+        the next capture."""
         end = time.monotonic() + limit_s
         items = []
+        last = time.monotonic()
         while True:
-            items += self.drain(quiet_s=0.3, limit_s=max(0.5, end - time.monotonic()))
+            received = self.drain(quiet_s=0.3, limit_s=max(0.5, end - time.monotonic()))
+            items += received
             frames = self.status()["frames"]
             ended = self.assembler.frames_ended
             if frames == 0 or ended == frames or time.monotonic() > end:
                 return items
-            if ended is None and not items:
-                return items   # nothing of this capture's histograms: not ours to wait for
+            if received:
+                last = time.monotonic()
+            elif time.monotonic() - last > give_up_s:
+                # Nothing more came: the rest was lost on the way (or is not ours to wait for).
+                return items
 
     def drain(self, quiet_s: float = 0.3, limit_s: float = 10.0
               ) -> List[Union[HistogramFrame, EventBatch]]:

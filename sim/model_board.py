@@ -14,7 +14,8 @@ predict every histogram from the scene and the seeds.
 
 Faults can be injected (:class:`fliss.sim.pty_server.PtyServer`): ``kill_after`` closes the pty
 after that many data packets (a board unplugged mid-capture), ``hang_after`` stops sending
-without closing, and ``corrupt_every`` damages one byte of every n-th frame sent (never a
+without closing, ``reset_after`` resets the board (a power cycle mid-capture: registers,
+counters, histogram and sequence numbers back to reset, acquisition stopped), and ``corrupt_every`` damages one byte of every n-th frame sent (never a
 delimiter, never into a delimiter), keeping the list of what it damaged in
 :attr:`ModelBoard.corrupted`.
 
@@ -89,7 +90,7 @@ class ModelBoard(PtyServer):
         made uses :meth:`seed_for` ``(n)``.
     time_scale : float
         Simulated seconds per wall-clock second.
-    kill_after, hang_after, corrupt_every, corrupt_seed, corrupt_types, corrupt_commands_every
+    kill_after, hang_after, reset_after, corrupt_every, corrupt_seed, corrupt_types, corrupt_commands_every
         Faults of the line, as in :class:`~fliss.sim.pty_server.PtyServer`.
     protocol_version : int or None
         Report this protocol version instead of the real one.
@@ -103,10 +104,10 @@ class ModelBoard(PtyServer):
 
     def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, baud=DEFAULT_BAUD, scene=None,
                  aggressor_detections_per_pulse=0.05, photon_seed=0, time_scale=1.0,
-                 kill_after=None, hang_after=None, corrupt_every=None, corrupt_seed=1,
-                 corrupt_types=None, corrupt_commands_every=None, protocol_version=None,
-                 line_limited=False, maxima=None):
-        super().__init__(kill_after=kill_after, hang_after=hang_after,
+                 kill_after=None, hang_after=None, reset_after=None, corrupt_every=None,
+                 corrupt_seed=1, corrupt_types=None, corrupt_commands_every=None,
+                 protocol_version=None, line_limited=False, maxima=None):
+        super().__init__(kill_after=kill_after, hang_after=hang_after, reset_after=reset_after,
                          corrupt_every=corrupt_every, corrupt_seed=corrupt_seed,
                          corrupt_types=corrupt_types,
                          corrupt_commands_every=corrupt_commands_every)
@@ -118,6 +119,7 @@ class ModelBoard(PtyServer):
         self.time_scale = float(time_scale)
         self.protocol_version = protocol_version
         self.line_limited = line_limited
+        self.maxima = maxima
         self.model = CommandModel(self.clock_hz, self.baud, maxima=maxima)
         self.status = dict.fromkeys(STATUS_FIELDS, 0)
         #: Acquisitions started so far (each START while stopped).
@@ -150,6 +152,13 @@ class ModelBoard(PtyServer):
 
     def _killed(self):
         self.model.running = False
+
+    def _reset(self):
+        self.model = CommandModel(self.clock_hz, self.baud, maxima=self.maxima)
+        self.status = dict.fromkeys(STATUS_FIELDS, 0)
+        self._frame = 0
+        self._frame_counts = None
+        self._pending_events = []
 
     def _receive(self, item):
         if isinstance(item, LinkError):
