@@ -125,13 +125,12 @@ def check_reset(board: BoardClient, before: dict, now: dict) -> None:
     if now["running"] and now["pulses"] >= before["pulses"] and \
             now["frames"] >= before["frames"]:
         return
-    gaps = board.link_counters()["sequence_gaps"]
+    seq = board.last_reply.seq
     identity = board.identify()
-    raise BoardReset(f"the board on {board.port_name} was reset during the capture (it stopped "
-                     f"acquiring, its counters went back from {before['frames']} to "
-                     f"{now['frames']} histograms, {gaps} sequence number jumps; IDENTITY "
-                     f"again: protocol {identity.protocol}, gateware "
-                     f"{identity.gateware_version})")
+    raise BoardReset(f"the board on {board.port_name} was reset during the capture: its STATUS "
+                     f"(sequence number {seq}) shows it stopped, with its counters back at "
+                     f"{now['frames']} histograms and {now['pulses']} pulses; its IDENTITY "
+                     f"reads protocol {identity.protocol}, gateware {identity.gateware_version}")
 
 
 class _Rows:

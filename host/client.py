@@ -91,6 +91,8 @@ class BoardClient:
         self.retransmissions = 0
         self.link_naks = 0
         self.stale_replies = 0
+        #: The last reply :meth:`command` returned (other than an ACK).
+        self.last_reply = None
         self._replies = deque()
         self._data = deque()
         self._last_rx = time.monotonic()
@@ -258,6 +260,7 @@ class BoardClient:
                             and reply.payload[0] == seq:
                         return reply
                     if expect(reply):
+                        self.last_reply = reply
                         return reply
                     self.stale_replies += 1
                 if resend:
@@ -426,6 +429,8 @@ class BoardClient:
             ended = self.assembler.frames_ended
             if frames == 0 or ended == frames or time.monotonic() > end:
                 return items
+            if ended is None and not items:
+                return items   # nothing of this capture's histograms: not ours to wait for
             if received:
                 last = time.monotonic()
             elif time.monotonic() - last > give_up_s:

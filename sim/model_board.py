@@ -23,6 +23,8 @@ Run ``python -m fliss.sim.model_board`` to get a board on a pty for ``fliss`` co
 """
 
 import argparse
+import signal
+import sys
 import time
 from contextlib import contextmanager
 
@@ -38,6 +40,7 @@ from .codec import LinkError, Packet, encode_frame, pack, pack_events, pack_word
 from . import scheduler as _scheduler
 from .command import CommandModel
 from .delay import DelayMode
+from .noisy_line import NoisyLine, add_line_arguments, describe, faults_from_args
 from .pty_server import PtyServer
 from .scene import Aggressor, Scene, Simulation
 
@@ -336,18 +339,43 @@ def main(argv=None):
                         help="aggressor detections per pulse")
     parser.add_argument("--background-hz", type=float, default=1e5, help="background rate")
     parser.add_argument("--seed", type=int, default=0, help="photon statistics seed")
+    parser.add_argument("--reset-after", type=int, default=None, metavar="PACKETS",
+                        help="reset the board (a power cycle) after this many data packets")
+    add_line_arguments(parser)
     args = parser.parse_args(argv)
+    try:
+        faults = faults_from_args(args)
+    except ValueError as error:
+        parser.exit(2, f"{parser.prog}: error: {error}\n")
+    if args.reset_after is not None and args.reset_after < 1:
+        parser.exit(2, f"{parser.prog}: error: --reset-after must be at least 1, not "
+                       f"{args.reset_after}\n")
     scene = Scene(distance_m=args.distance_m, detections_per_pulse=args.signal,
                   background_hz=args.background_hz)
+    signal.signal(signal.SIGTERM, _terminate)
+    line = None
     with model_board(scene=scene, aggressor_detections_per_pulse=args.aggressor_signal,
-                     photon_seed=args.seed) as board:
-        print(board.path, flush=True)
+                     photon_seed=args.seed, reset_after=args.reset_after) as board:
         try:
+            if faults is not None:
+                line = NoisyLine(board.path, to_host=faults[0], to_board=faults[1],
+                                 seed=args.line_seed)
+                print(line.open(), flush=True)
+            else:
+                print(board.path, flush=True)
             while True:
                 time.sleep(1)
         except KeyboardInterrupt:
             pass
+        finally:
+            if line is not None:
+                line.close()
+                print(f"{parser.prog}: noisy line: {describe(line)}", file=sys.stderr)
     return 0
+
+
+def _terminate(number, frame):
+    raise KeyboardInterrupt
 
 
 if __name__ == "__main__":

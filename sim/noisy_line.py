@@ -23,6 +23,8 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
+from ..hdl.protocol import DEFAULT_BAUD
+
 
 __all__ = ["LineFaults", "FaultCounts", "FaultInjector", "NoisyLine", "add_line_arguments",
            "faults_from_args", "main"]
@@ -98,6 +100,8 @@ class FaultInjector:
 
     def __post_init__(self):
         self._rng = np.random.default_rng(self.seed)
+        #: Offsets in the incoming stream of the bytes damaged, dropped or duplicated.
+        self.faulty_offsets = []
 
     def apply(self, data):
         """Returns ``(out, stalls)``: the bytes to send, and the offsets in ``out`` after which
@@ -121,6 +125,8 @@ class FaultInjector:
         out = np.repeat(values, repeats)
         ends = np.cumsum(repeats)
         stalls = [int(end) for end in ends[stall]]
+        faulty = np.flatnonzero((masks != 0) | drop | duplicate)
+        self.faulty_offsets.extend((faulty + counts.bytes_in - len(data)).tolist())
         counts.bits_flipped += int(np.count_nonzero(flips[~drop]))
         counts.bytes_damaged += int(np.count_nonzero(masks))
         counts.bytes_dropped += int(np.count_nonzero(drop))
@@ -149,7 +155,7 @@ class NoisyLine:
     """
 
     def __init__(self, port, *, to_host=LineFaults(), to_board=LineFaults(), seed=0,
-                 baud=115_200):
+                 baud=DEFAULT_BAUD):
         self.port = port
         self.baud = baud
         sequence = np.random.SeedSequence(seed)
@@ -307,7 +313,7 @@ def main(argv=None):
                     "new pty whose bytes reach the board with faults injected; stop with Ctrl-C "
                     "(prints what the line did).")
     parser.add_argument("--port", required=True, help="the board's port (device, pty or URL)")
-    parser.add_argument("--baud", type=int, default=115_200, help="baud rate of PORT")
+    parser.add_argument("--baud", type=int, default=DEFAULT_BAUD, help="baud rate of PORT")
     add_line_arguments(parser)
     args = parser.parse_args(argv)
     try:

@@ -67,6 +67,9 @@ class PtyServer:
         self.corrupted = []
         #: Every data packet sent: ``(PacketType, seq, payload)`` (before any corruption).
         self.sent = []
+        #: Every frame sent (data and replies): ``(PacketType, seq, end)``, ``end`` its end in
+        #: bytes from the start of the first one.
+        self.frames_out = []
         self.killed = False
         self.hung = False
         self._reset_due = False
@@ -200,6 +203,8 @@ class PtyServer:
         if data:
             self.sent.append((type, seq, bytes(payload)))
         self._out += frame
+        self.frames_out.append((type, seq, (self.frames_out[-1][2] if self.frames_out else 0) +
+                                len(frame)))
         if data:
             if self.kill_after is not None and len(self.sent) >= self.kill_after:
                 self._flush(block=True)
