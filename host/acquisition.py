@@ -22,11 +22,15 @@ from .stream import EventBatch, HistogramFrame
 from .units import format_time
 
 
-__all__ = ["HEARTBEAT_S", "CaptureResult", "capture", "rate", "check_reset"]
+__all__ = ["HEARTBEAT_S", "DATA_TIMEOUT_S", "CaptureResult", "capture", "rate", "check_reset"]
 
 
 #: Seconds between STATUS requests during a capture (a heartbeat that finds a silent board).
 HEARTBEAT_S = 1.0
+
+#: Seconds without a data packet after which a histogram capture gives the board up (at least;
+#: ten integration times if longer), even if it answers commands.
+DATA_TIMEOUT_S = 30.0
 
 
 @dataclass
@@ -239,13 +243,16 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
     heartbeat = started
     status_end = None
     idle_timeout_s = max(3.0, 3 * cycles / clock_hz + 1.0)
+    # Heartbeat replies keep the line busy: a board that stopped acquiring shows as no data.
+    data_timeout_s = max(DATA_TIMEOUT_S, 10 * cycles / clock_hz) if mode == "histogram" \
+        else math.inf
     try:
         interrupt.install()
         board.start()
         status_last = dict(status_start, running=1)
         started = heartbeat = time.monotonic()
         for item in board.stream(idle_timeout_s=idle_timeout_s if mode == "histogram"
-                                 else math.inf):
+                                 else math.inf, data_timeout_s=data_timeout_s):
             if item is not None:
                 store(item)
             if interrupt.requested:

@@ -21,6 +21,7 @@ that says what and what to do.
 """
 
 import logging
+import math
 import time
 from collections import deque
 from dataclasses import dataclass
@@ -95,7 +96,7 @@ class BoardClient:
         self.last_reply = None
         self._replies = deque()
         self._data = deque()
-        self._last_rx = time.monotonic()
+        self._last_rx = self._last_data = time.monotonic()
         self._baseline = {}
         try:
             try:
@@ -171,10 +172,12 @@ class BoardClient:
             for item in decoded.items:
                 if isinstance(item, Packet):
                     if item.type in (PacketType.HISTOGRAM, PacketType.EVENTS):
+                        self._last_data = self._last_rx
                         self._data.extend(self.assembler.add(item, now))
                     else:
                         self._replies.append(item)
             for events in decoded.batches():
+                self._last_data = self._last_rx
                 self._data.extend(self.assembler.add_events(events, now))
         return len(data)
 
@@ -393,13 +396,15 @@ class BoardClient:
 
     # Streaming
 
-    def stream(self, *, idle_timeout_s: float = 2.0, poll_s: float = 0.05
+    def stream(self, *, idle_timeout_s: float = 2.0, poll_s: float = 0.05,
+               data_timeout_s: float = math.inf
                ) -> Iterator[Union[HistogramFrame, EventBatch, None]]:
         """Yield :class:`HistogramFrame` and :class:`EventBatch` items as they arrive, forever;
         between items it yields ``None`` about every ``poll_s`` so a caller can update a
         progress display or stop. Raises :exc:`BoardLost` when no byte arrives for
-        ``idle_timeout_s`` or the port goes away."""
-        self._last_rx = time.monotonic()
+        ``idle_timeout_s``, when no data packet arrives for ``data_timeout_s`` (a board that
+        answers commands but has stopped acquiring), or when the port goes away."""
+        self._last_rx = self._last_data = time.monotonic()
         while True:
             if self._data:
                 yield self._data.popleft()
@@ -410,6 +415,9 @@ class BoardClient:
             if self.idle_s > idle_timeout_s:
                 raise BoardLost(f"the board on {self.port_name} stopped sending (nothing for "
                                 f"{idle_timeout_s:g} s during an acquisition)")
+            if time.monotonic() - self._last_data > data_timeout_s:
+                raise BoardLost(f"the board on {self.port_name} answers but sent no data for "
+                                f"{data_timeout_s:g} s during an acquisition")
             yield None
 
     def settle(self, limit_s: float = 120.0, give_up_s: float = 3.0
