@@ -23,9 +23,8 @@ class Progress:
     """Progress of a capture on a stream (stderr).
 
     On a terminal, a one-line bar redrawn in place at most ten times a second. Anywhere else (a
-    file, a pipe) a plain line at most every ``interval_s`` seconds, and one at the end if any
-    came before, so that a log holds a few lines rather than hundreds of carriage-return
-    updates.
+    file, a pipe) a plain line at most every ``interval_s`` seconds and one at the end, so
+    that a log holds a few lines rather than hundreds of carriage-return updates.
     """
 
     def __init__(self, total, unit, *, stream=None, enabled=True, width=24, interactive=None,
@@ -42,10 +41,12 @@ class Progress:
         self._drawn = time.monotonic() if not interactive else 0.0
         self._length = 0
         self._last = None
+        self._extra = ""
 
     def update(self, done, extra="", force=False):
         if not self.enabled:
             return
+        self._extra = extra or self._extra
         now = time.monotonic()
         if not force and now - self._drawn < self.interval_s:
             return
@@ -53,9 +54,7 @@ class Progress:
         shown = f"{done:.1f}/{self.total:g}" if isinstance(done, float) else \
             f"{done}/{self.total}"
         if not self.interactive:
-            if force and self._last is None:
-                return      # a short capture: its report says it all
-            line = f"{shown} {self.unit} {extra}".rstrip()
+            line = f"[{shown} {self.unit}] {self._extra}".rstrip()
             if line != self._last:
                 self.stream.write(line + "\n")
                 self.stream.flush()

@@ -208,8 +208,8 @@ def test_board_reset_mid_capture_is_reported_and_data_kept(tmp_path, capsys):
     with model_board(reset_after=30) as model:
         with BoardClient(model.path, timeout_s=2.0) as board:
             board.write_registers({"bin_shift": SHIFT})
-        status = main(["capture", "--port", model.path, "--timeout", "2", "--integration",
-                       "1ms", "--acquisitions", "100", "-o", str(output)])
+        status = main(["-q", "capture", "--port", model.path, "--timeout", "2",
+                       "--integration", "1ms", "--acquisitions", "100", "-o", str(output)])
         out, err = capsys.readouterr()
         sent = _sent_histograms(model)
         assert model.resets == 1 and not model.running
@@ -240,7 +240,7 @@ def test_progress_on_a_terminal_and_in_a_file():
     bar.close()
     lines = stream.getvalue().splitlines()
     assert "\r" not in stream.getvalue()
-    assert lines == ["5/100 histograms x", "100/100 histograms"]
+    assert lines == ["[5/100 histograms] x", "[100/100 histograms] x"]
     stream = io.StringIO()
     bar = Progress(10, "histograms", stream=stream, interactive=True)
     bar.update(3, force=True)
@@ -263,5 +263,6 @@ def test_capture_with_output_redirected_writes_a_few_lines(tmp_path):
     assert process.returncode == 0, text
     assert "\r" not in text
     lines = text.splitlines()
-    assert 3 <= len(lines) <= 6
-    assert lines[0].startswith("saved 60 histograms to ")
+    assert 4 <= len(lines) <= 6
+    assert lines[0].startswith("[60/60 histograms] ") and "events/s" in lines[0]
+    assert lines[1].startswith("saved 60 histograms to ")
