@@ -87,13 +87,16 @@ class _NoProgress:
 
 
 class _Interrupt:
-    """Ctrl-C during a capture only sets a flag, checked between packets, so that it never
-    breaks into the middle of an HDF5 write (h5py holds a lock then) or of a packet's
-    decoding. A second Ctrl-C interrupts at once."""
+    """Ctrl-C (or ``kill``: SIGTERM) during a capture only sets a flag, checked between packets,
+    so that it never breaks into the middle of an HDF5 write (h5py holds a lock then) or of a
+    packet's decoding, and the board is stopped and the file closed. A second one interrupts
+    at once."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
     def __init__(self):
         self.requested = False
-        self._previous = None
+        self._previous = {}
 
     def _handler(self, signum, frame):
         if self.requested:
@@ -102,14 +105,15 @@ class _Interrupt:
 
     def install(self):
         try:
-            self._previous = signal.signal(signal.SIGINT, self._handler)
-        except ValueError:      # not the main thread: leave Ctrl-C alone
-            self._previous = None
+            for number in self.SIGNALS:
+                self._previous[number] = signal.signal(number, self._handler)
+        except ValueError:      # not the main thread: leave the signals alone
+            self._previous = {}
 
     def restore(self):
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
-            self._previous = None
+        for number, previous in self._previous.items():
+            signal.signal(number, previous)
+        self._previous = {}
 
 
 def rate(events, seconds):

@@ -266,3 +266,28 @@ def test_capture_with_output_redirected_writes_a_few_lines(tmp_path):
     assert 4 <= len(lines) <= 6
     assert lines[0].startswith("[60/60 histograms] ") and "events/s" in lines[0]
     assert lines[1].startswith("saved 60 histograms to ")
+
+
+def test_kill_stops_the_board_and_saves(tmp_path):
+    # `kill` (SIGTERM) in the middle of a capture does what Ctrl-C does.
+    output = tmp_path / "killed.h5"
+    with model_board() as model:
+        with BoardClient(model.path, timeout_s=2.0) as board:
+            board.write_registers({"bin_shift": SHIFT})
+        process = subprocess.Popen(
+            [sys.executable, "-m", "fliss", "capture", "--port", model.path, "--timeout", "2",
+             "--integration", "2ms", "--acquisitions", "100000", "-o", str(output)],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline and model.next_frame < 5:
+            time.sleep(0.05)
+        time.sleep(0.3)
+        process.terminate()
+        out, err = process.communicate(timeout=15)
+        assert not model.running
+    assert process.returncode == 130, err
+    assert err.strip().splitlines()[-1] == \
+        "fliss: interrupted; acquisition stopped, capture saved"
+    capture_file = read_capture(output)
+    assert capture_file.attrs["end_reason"] == "interrupted"
+    assert len(capture_file.histograms) >= 3
