@@ -149,7 +149,7 @@ class _Rows:
         self.writer, self.acquisitions = writer, acquisitions
         self.first_expected, self.shift = first_expected, shift
         self.next = None        # frame number of the next row
-        self.saved = self.lost = self.discarded = 0
+        self.saved = self.lost = self.incomplete = self.discarded = 0
 
     @property
     def done(self):
@@ -171,6 +171,7 @@ class _Rows:
             self.discarded += 1
         elif self.writer.add_histogram(item):
             self.saved += 1
+            self.incomplete += not item.complete
             self.next = (item.frame + 1) % (1 << 32)
         else:
             self.discarded += 1
@@ -312,6 +313,7 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
     stream = board.assembler.counters.as_dict()
     stream["discarded_frames"] = state["discarded"] + rows.discarded
     stream["lost_rows"] = rows.lost
+    stream["incomplete_rows"] = rows.incomplete
     writer.set_counters("link", link)
     writer.set_counters("stream", stream)
     writer.set_counters("board_start", status_start)

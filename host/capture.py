@@ -142,7 +142,7 @@ def report(result, *, quiet=False, out=None):
         print(f"link: {link['bytes']} bytes, {link['packets']} packets, "
               f"{link['dropped_frames']} corrupt frames dropped, "
               f"{link['missing_packets']} packets missing, "
-              f"{stream['incomplete_frames']} incomplete histograms, "
+              f"{stream['incomplete_rows']} incomplete histograms, "
               f"{stream['lost_rows']} histograms lost", file=out)
         if status_end is not None:
             print(f"board: {status_end['events'] - status_start['events']} events accepted, "
