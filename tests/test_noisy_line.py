@@ -180,8 +180,8 @@ def test_capture_at_1e4_both_ways_accepts_nothing_wrong(tmp_path):
     assert len(marked) == result.lost_histograms == capture_file.counters["stream"]["lost_rows"]
     # Every damaged frame was detected and counted: each frame the board sent was either
     # accepted or counted missing (the first one synchronises the decoder).
-    assert counts["to_host"]["bits_flipped"] > 10
-    assert len(damaged) > 10
+    assert counts["to_host"]["bits_flipped"] >= 5      # about 25 expected
+    assert len(damaged) >= 5
     assert link["dropped_frames"] >= len(damaged) and decoder.missing_packets >= len(damaged)
     assert decoder.packets + decoder.missing_packets + 1 == len(model.frames_out)
 
