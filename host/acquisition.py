@@ -128,16 +128,22 @@ def rate(events, seconds):
 
 def check_reset(board: BoardClient, before: dict, now: dict) -> None:
     """Raise :exc:`~fliss.host.errors.BoardReset` if the board's STATUS ``now`` shows that it
-    was reset since STATUS ``before`` of a running acquisition (it stopped, and its counters
-    went back), after reading its IDENTITY again."""
-    if now["running"] and now["pulses"] >= before["pulses"] and \
-            now["frames"] >= before["frames"]:
+    was reset since STATUS ``before`` of the same acquisition (or, with ``before["pulses"]``
+    None, since just before its START): it stopped, or its counters went back. Reads its
+    IDENTITY again first."""
+    signs = []
+    if not now["running"]:
+        signs.append("stopped")
+    if now["frames"] < before["frames"]:
+        signs.append(f"its histogram count back from {before['frames']} to {now['frames']}")
+    if before["pulses"] is not None and now["pulses"] < before["pulses"]:
+        signs.append(f"its pulse count back from {before['pulses']} to {now['pulses']}")
+    if not signs:
         return
     seq = board.last_reply.seq
     identity = board.identify()
     raise BoardReset(f"the board on {board.port_name} was reset during the capture: its STATUS "
-                     f"(sequence number {seq}) shows it stopped, with its counters back at "
-                     f"{now['frames']} histograms and {now['pulses']} pulses; its IDENTITY "
+                     f"(sequence number {seq}) shows it {', '.join(signs)}; its IDENTITY "
                      f"reads protocol {identity.protocol}, gateware {identity.gateware_version}")
 
 
@@ -254,7 +260,8 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
     try:
         interrupt.install()
         board.start()
-        status_last = dict(status_start, running=1)
+        # The pulse count starts again at START: compared between heartbeats only.
+        status_last = dict(status_start, pulses=None)
         started = heartbeat = time.monotonic()
         for item in board.stream(idle_timeout_s=idle_timeout_s if mode == "histogram"
                                  else math.inf, data_timeout_s=data_timeout_s):
