@@ -16,6 +16,7 @@ virtual board (``fliss board --line-errors 1e-4``) put one in front of themselve
 import argparse
 import os
 import select
+import signal
 import threading
 import time
 import tty
@@ -322,6 +323,7 @@ def main(argv=None):
         parser.exit(2, f"{parser.prog}: error: {error}\n")
     line = NoisyLine(args.port, to_host=faults[0], to_board=faults[1], seed=args.line_seed,
                      baud=args.baud)
+    signal.signal(signal.SIGTERM, _terminate)
     try:
         print(line.open(), flush=True)
     except Exception as error:
@@ -336,6 +338,10 @@ def main(argv=None):
         line.close()
         print(describe(line), flush=True)
     return 0
+
+
+def _terminate(number, frame):
+    raise KeyboardInterrupt
 
 
 if __name__ == "__main__":
