@@ -11,19 +11,26 @@ import time
 from dataclasses import dataclass
 from typing import Optional
 
+import numpy as np
+
+from ..hdl.event import TIMESTAMP_BITS
 from ..hdl.registers import AcquisitionMode
 from .client import BoardClient
-from .errors import BoardLost, SettingsError
+from .errors import BoardLost, BoardReset, SettingsError
 from .fileformat import CaptureWriter
 from .stream import EventBatch, HistogramFrame
 from .units import format_time
 
 
-__all__ = ["HEARTBEAT_S", "CaptureResult", "capture", "rate"]
+__all__ = ["HEARTBEAT_S", "DATA_TIMEOUT_S", "CaptureResult", "capture", "rate", "check_reset"]
 
 
 #: Seconds between STATUS requests during a capture (a heartbeat that finds a silent board).
 HEARTBEAT_S = 1.0
+
+#: Seconds without a data packet after which a histogram capture gives the board up (at least;
+#: ten integration times if longer), even if it answers commands.
+DATA_TIMEOUT_S = 30.0
 
 
 @dataclass
@@ -31,13 +38,16 @@ class CaptureResult:
     """What :func:`capture` did.
 
     ``reason`` is ``"completed"``, ``"interrupted"`` or why the board was lost (``lost``, the
-    :exc:`~fliss.host.errors.BoardLost`); ``complete`` is True when everything asked for was
-    captured. ``link`` and ``stream`` are the client's counters, ``status_start`` and
+    :exc:`~fliss.host.errors.BoardLost`, a :exc:`~fliss.host.errors.BoardReset` for a board
+    that was reset); ``complete`` is True when everything asked for was captured.
+    ``histograms`` counts the rows saved, ``lost_histograms`` those of them that never arrived
+    (rows of zeros marked incomplete). ``link`` and ``stream`` are the client's counters, ``status_start`` and
     ``status_end`` the board's (``status_end`` is None when the board was lost).
     """
     path: str
     mode: str
     histograms: int
+    lost_histograms: int
     events: int
     batches: int
     reason: str
@@ -77,13 +87,16 @@ class _NoProgress:
 
 
 class _Interrupt:
-    """Ctrl-C during a capture only sets a flag, checked between packets, so that it never
-    breaks into the middle of an HDF5 write (h5py holds a lock then) or of a packet's
-    decoding. A second Ctrl-C interrupts at once."""
+    """Ctrl-C (or ``kill``: SIGTERM) during a capture only sets a flag, checked between packets,
+    so that it never breaks into the middle of an HDF5 write (h5py holds a lock then) or of a
+    packet's decoding, and the board is stopped and the file closed. A second one interrupts
+    at once."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
     def __init__(self):
         self.requested = False
-        self._previous = None
+        self._previous = {}
 
     def _handler(self, signum, frame):
         if self.requested:
@@ -92,14 +105,15 @@ class _Interrupt:
 
     def install(self):
         try:
-            self._previous = signal.signal(signal.SIGINT, self._handler)
-        except ValueError:      # not the main thread: leave Ctrl-C alone
-            self._previous = None
+            for number in self.SIGNALS:
+                self._previous[number] = signal.signal(number, self._handler)
+        except ValueError:      # not the main thread: leave the signals alone
+            self._previous = {}
 
     def restore(self):
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
-            self._previous = None
+        for number, previous in self._previous.items():
+            signal.signal(number, previous)
+        self._previous = {}
 
 
 def rate(events, seconds):
@@ -110,6 +124,77 @@ def rate(events, seconds):
     if rate >= 1e3:
         return f"{rate / 1e3:.1f} kevents/s"
     return f"{rate:.0f} events/s"
+
+
+def check_reset(board: BoardClient, before: dict, now: dict) -> None:
+    """Raise :exc:`~fliss.host.errors.BoardReset` if the board's STATUS ``now`` shows that it
+    was reset since STATUS ``before`` of the same acquisition (or, with ``before["pulses"]``
+    None, since just before its START): it stopped, or its counters went back. Reads its
+    IDENTITY again first."""
+    signs = []
+    if not now["running"]:
+        signs.append("stopped")
+    if now["frames"] < before["frames"]:
+        signs.append(f"its histogram count back from {before['frames']} to {now['frames']}")
+    if before["pulses"] is not None and now["pulses"] < before["pulses"]:
+        signs.append(f"its pulse count back from {before['pulses']} to {now['pulses']}")
+    if not signs:
+        return
+    seq = board.last_reply.seq
+    identity = board.identify()
+    raise BoardReset(f"the board on {board.port_name} was reset during the capture: its STATUS "
+                     f"(sequence number {seq}) shows it {', '.join(signs)}; its IDENTITY "
+                     f"reads protocol {identity.protocol}, gateware {identity.gateware_version}")
+
+
+class _Rows:
+    """The histogram rows of a capture: ``acquisitions`` consecutive frame numbers from the
+    first one, with a row of zeros marked incomplete for each that never arrived."""
+
+    def __init__(self, writer, acquisitions, first_expected, shift):
+        self.writer, self.acquisitions = writer, acquisitions
+        self.first_expected, self.shift = first_expected, shift
+        self.next = None        # frame number of the next row
+        self.saved = self.lost = self.incomplete = self.discarded = 0
+
+    @property
+    def done(self):
+        return self.saved >= self.acquisitions
+
+    def add(self, item):
+        """Store a :class:`HistogramFrame`, after rows for the frames lost before it; returns
+        the rows added."""
+        if self.next is None:
+            ahead = (item.frame - self.first_expected) % (1 << 32)
+            self.next = self.first_expected if ahead < self.acquisitions else item.frame
+        ahead = (item.frame - self.next) % (1 << 32)
+        if self.done or ahead >= 1 << 31:       # beyond the capture, or from before it
+            self.discarded += 1
+            return 0
+        before = self.saved
+        self.lose_up_to(item.frame)
+        if self.done:
+            self.discarded += 1
+        elif self.writer.add_histogram(item):
+            self.saved += 1
+            self.incomplete += not item.complete
+            self.next = (item.frame + 1) % (1 << 32)
+        else:
+            self.discarded += 1
+        return self.saved - before
+
+    def lose_up_to(self, frame):
+        """Rows of zeros for the frames from the next one up to ``frame`` (excluded)."""
+        if self.next is None:
+            return
+        bins = (1 << TIMESTAMP_BITS) >> self.shift
+        while self.next != frame and not self.done:
+            self.writer.add_histogram(HistogramFrame(self.next, self.shift,
+                                                     np.zeros(bins, np.uint32), False, bins,
+                                                     math.nan))
+            self.saved += 1
+            self.lost += 1
+            self.next = (self.next + 1) % (1 << 32)
 
 
 def capture(board: BoardClient, path: str, *, mode: str = "histogram",
@@ -149,18 +234,15 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
         writer.file.attrs["duration_s_requested"] = duration_s
     bar = progress if progress is not None else _NoProgress()
 
-    state = {"events": 0, "histograms": 0, "discarded": 0}
+    state = {"events": 0, "discarded": 0}
+    rows = _Rows(writer, acquisitions, status_start["frames"], configuration["bin_shift"])
 
     def store(item):
         if isinstance(item, HistogramFrame):
-            if mode != "histogram" or state["histograms"] >= acquisitions:
+            if mode != "histogram":
                 state["discarded"] += 1
-                return
-            if writer.add_histogram(item):
-                state["histograms"] += 1
+            elif rows.add(item):
                 state["events"] += int(item.counts.sum())
-            else:
-                state["discarded"] += 1
         elif isinstance(item, EventBatch):
             writer.add_events(item)
             state["events"] += len(item.events)
@@ -172,12 +254,17 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
     heartbeat = started
     status_end = None
     idle_timeout_s = max(3.0, 3 * cycles / clock_hz + 1.0)
+    # Heartbeat replies keep the line busy: a board that stopped acquiring shows as no data.
+    data_timeout_s = max(DATA_TIMEOUT_S, 10 * cycles / clock_hz) if mode == "histogram" \
+        else math.inf
     try:
         interrupt.install()
         board.start()
+        # The pulse count starts again at START: compared between heartbeats only.
+        status_last = dict(status_start, pulses=None)
         started = heartbeat = time.monotonic()
         for item in board.stream(idle_timeout_s=idle_timeout_s if mode == "histogram"
-                                 else math.inf):
+                                 else math.inf, data_timeout_s=data_timeout_s):
             if item is not None:
                 store(item)
             if interrupt.requested:
@@ -185,13 +272,10 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
             now = time.monotonic()
             elapsed = now - started
             link = board.link_counters()
-            stream = board.assembler.counters
             damaged = f"{link['dropped_frames']} corrupt, {link['missing_packets']} lost"
             if mode == "histogram":
-                seen = state["histograms"] + state["discarded"] + stream.lost_frames
-                bar.update(min(state["histograms"], acquisitions),
-                           f"{rate(state['events'], elapsed)}  link: {damaged}")
-                if seen >= acquisitions:
+                bar.update(rows.saved, f"{rate(state['events'], elapsed)}  link: {damaged}")
+                if rows.done:
                     break
             else:
                 bar.update(min(elapsed, duration_s),
@@ -200,14 +284,18 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
                     break
             if now - heartbeat >= HEARTBEAT_S:
                 heartbeat = now
-                board.status()    # data that arrive meanwhile are kept
+                status = board.status()    # data that arrive meanwhile are kept
+                check_reset(board, status_last, status)
+                status_last = status
     except KeyboardInterrupt:
         reason, complete = "interrupted", False
+    except BoardReset as error:
+        reason, complete, lost = f"board reset: {error}", False, error
     except BoardLost as error:
         reason, complete, lost = f"board lost: {error}", False, error
     finally:
         interrupt.restore()
-    bar.update(state["histograms"] if mode == "histogram" else
+    bar.update(rows.saved if mode == "histogram" else
                min(time.monotonic() - started, duration_s), force=True)
     bar.close()
 
@@ -217,6 +305,9 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
             for item in board.settle():
                 store(item)
             status_end = board.status()
+            # Histograms the board completed that never arrived, up to the last one asked for.
+            rows.lose_up_to((status_start["frames"] + min(
+                status_end["frames"] - status_start["frames"], acquisitions)) % (1 << 32))
         except BoardLost as error:
             reason, complete, lost = f"board lost while stopping: {error}", False, error
         except KeyboardInterrupt:
@@ -227,7 +318,9 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
 
     link = board.link_counters()
     stream = board.assembler.counters.as_dict()
-    stream["discarded_frames"] = state["discarded"]
+    stream["discarded_frames"] = state["discarded"] + rows.discarded
+    stream["lost_rows"] = rows.lost
+    stream["incomplete_rows"] = rows.incomplete
     writer.set_counters("link", link)
     writer.set_counters("stream", stream)
     writer.set_counters("board_start", status_start)
@@ -235,7 +328,8 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
         writer.set_counters("board_end", status_end)
     writer.close(reason, complete=complete, capture_s=time.monotonic() - started)
     return CaptureResult(
-        path=str(path), mode=mode, histograms=state["histograms"], events=writer.events,
+        path=str(path), mode=mode, histograms=rows.saved,
+        lost_histograms=rows.lost, events=writer.events,
         batches=writer.batches, reason=reason, complete=complete, lost=lost, link=link,
         stream=stream, status_start=status_start, status_end=status_end)
 

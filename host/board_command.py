@@ -6,6 +6,7 @@ import signal
 import sys
 import time
 
+from ..sim.noisy_line import NoisyLine, add_line_arguments, describe, faults_from_args
 from .cli import UserError
 from .units import parse_baud, parse_frequency
 from .virtual import SIMULATORS, VirtualBoard
@@ -40,6 +41,7 @@ def register(subparsers, formatter):
     parser.add_argument("--aggressor-signal", type=float, default=0.05, metavar="PHOTONS",
                         help="mean detected photons per aggressor pulse")
     parser.add_argument("--seed", type=int, default=None, help="seed of the photon statistics")
+    add_line_arguments(parser)
     parser.set_defaults(run=run_board)
 
 
@@ -47,6 +49,7 @@ def run_board(args):
     try:
         baud = parse_baud(args.baud)
         ambient_hz = parse_frequency(args.ambient)
+        faults = faults_from_args(args)
     except ValueError as error:
         raise UserError(str(error)) from None
     board = VirtualBoard(args.sim, baud=baud, target_m=args.target_m, ambient_hz=ambient_hz,
@@ -60,17 +63,27 @@ def run_board(args):
     # board as cleanly as Ctrl-C.
     signal.signal(signal.SIGTERM, terminate)
     signal.signal(signal.SIGHUP, terminate)
+    line = None
     try:
         path = board.start()
-        print(path, flush=True)
-        print(f"fliss: virtual board ({args.sim}, {baud} baud) on {path} "
-              f"(link {board.root / 'tty'}); Ctrl-C stops it", file=sys.stderr, flush=True)
+        if faults is not None:
+            line = NoisyLine(path, to_host=faults[0], to_board=faults[1], seed=args.line_seed)
+            print(line.open(), flush=True)
+            print(f"fliss: virtual board ({args.sim}, {baud} baud) on {path} (link "
+                  f"{board.root / 'tty'}), behind a noisy line on {line.path}; Ctrl-C stops it",
+                  file=sys.stderr, flush=True)
+        else:
+            print(path, flush=True)
+            print(f"fliss: virtual board ({args.sim}, {baud} baud) on {path} "
+                  f"(link {board.root / 'tty'}); Ctrl-C stops it", file=sys.stderr, flush=True)
         last = time.monotonic()
         previous = {}
         while True:
             time.sleep(0.5)
             if not board.running:
                 raise UserError(f"the {args.sim} simulation stopped: {board.last_log_line()}")
+            if line is not None and not line.running:
+                raise UserError(f"the noisy line stopped: {line.error}")
             if time.monotonic() - last >= 10:
                 last = time.monotonic()
                 stats = board.stats()
@@ -85,4 +98,7 @@ def run_board(args):
         print("fliss: virtual board stopped", file=sys.stderr)
         return 0
     finally:
+        if line is not None:
+            line.close()
+            print(f"fliss: noisy line: {describe(line)}", file=sys.stderr)
         board.stop()

@@ -11,6 +11,7 @@ import time
 
 from .acquisition import capture
 from .cli import UserError
+from .errors import BoardReset
 from .port_options import add_port_arguments, connect
 from .units import parse_time
 
@@ -19,27 +20,48 @@ __all__ = ["register", "run", "report", "Progress"]
 
 
 class Progress:
-    """A one-line progress bar on a stream (stderr), redrawn at most ten times a second."""
+    """Progress of a capture on a stream (stderr).
 
-    def __init__(self, total, unit, *, stream=None, enabled=True, width=24):
+    On a terminal, a one-line bar redrawn in place at most ten times a second. Anywhere else (a
+    file, a pipe) a plain line at most every ``interval_s`` seconds and one at the end, so
+    that a log holds a few lines rather than hundreds of carriage-return updates.
+    """
+
+    def __init__(self, total, unit, *, stream=None, enabled=True, width=24, interactive=None,
+                 interval_s=10.0):
         self.total, self.unit = total, unit
         self.stream = sys.stderr if stream is None else stream
         self.enabled = enabled
         self.width = width
-        self._drawn = 0.0
+        if interactive is None:
+            isatty = getattr(self.stream, "isatty", None)
+            interactive = bool(isatty and isatty())
+        self.interactive = interactive
+        self.interval_s = interval_s if not interactive else 0.1
+        self._drawn = time.monotonic() if not interactive else 0.0
         self._length = 0
+        self._last = None
+        self._extra = ""
 
     def update(self, done, extra="", force=False):
         if not self.enabled:
             return
+        self._extra = extra or self._extra
         now = time.monotonic()
-        if not force and now - self._drawn < 0.1:
+        if not force and now - self._drawn < self.interval_s:
             return
         self._drawn = now
-        fraction = min(max(done / self.total, 0.0), 1.0) if self.total else 0.0
-        filled = int(round(fraction * self.width))
         shown = f"{done:.1f}/{self.total:g}" if isinstance(done, float) else \
             f"{done}/{self.total}"
+        if not self.interactive:
+            line = f"[{shown} {self.unit}] {self._extra}".rstrip()
+            if line != self._last:
+                self.stream.write(line + "\n")
+                self.stream.flush()
+                self._last = line
+            return
+        fraction = min(max(done / self.total, 0.0), 1.0) if self.total else 0.0
+        filled = int(round(fraction * self.width))
         line = f"[{'#' * filled}{'.' * (self.width - filled)}] {shown} {self.unit} {extra}"
         pad = max(self._length - len(line), 0)
         self.stream.write("\r" + line + " " * pad)
@@ -47,7 +69,7 @@ class Progress:
         self._length = len(line)
 
     def close(self):
-        if self.enabled and self._length:
+        if self.enabled and self.interactive and self._length:
             self.stream.write("\n")
             self.stream.flush()
 
@@ -59,8 +81,9 @@ def register(subparsers, formatter):
         description="Sets the acquisition mode and integration time, starts the board, and "
                     "writes what it sends to FILE as it arrives (schema: docs/file-format.md), "
                     "with the board's configuration and identity and the link's counters. "
-                    "Ctrl-C stops the acquisition on the board and keeps what was captured; a "
-                    "board that stops answering leaves a file with everything received.")
+                    "Ctrl-C (or kill) stops the acquisition on the board and keeps what was "
+                    "captured; a board that stops answering, or is reset, leaves a file with "
+                    "everything received.")
     add_port_arguments(parser)
     parser.add_argument("--mode", choices=["histogram", "raw"], default="histogram",
                         help="histograms made on the board, or every event")
@@ -120,13 +143,13 @@ def report(result, *, quiet=False, out=None):
         print(f"link: {link['bytes']} bytes, {link['packets']} packets, "
               f"{link['dropped_frames']} corrupt frames dropped, "
               f"{link['missing_packets']} packets missing, "
-              f"{stream['incomplete_frames']} incomplete histograms, "
-              f"{stream['lost_frames']} histograms lost", file=out)
+              f"{stream['incomplete_rows']} incomplete histograms, "
+              f"{stream['lost_rows']} histograms lost", file=out)
         if status_end is not None:
             print(f"board: {status_end['events'] - status_start['events']} events accepted, "
                   f"{board_dropped} dropped on the board, "
                   f"{status_end['frames'] - status_start['frames']} histograms", file=out)
-    if damaged:
+    if damaged and not isinstance(result.lost, BoardReset):
         print(f"fliss: warning: {link['dropped_frames']} corrupt frames and "
               f"{link['missing_packets']} missing packets on the link (counted in the file)",
               file=sys.stderr)

@@ -21,6 +21,7 @@ that says what and what to do.
 """
 
 import logging
+import math
 import time
 from collections import deque
 from dataclasses import dataclass
@@ -91,9 +92,11 @@ class BoardClient:
         self.retransmissions = 0
         self.link_naks = 0
         self.stale_replies = 0
+        #: The last reply :meth:`command` returned (other than an ACK).
+        self.last_reply = None
         self._replies = deque()
         self._data = deque()
-        self._last_rx = time.monotonic()
+        self._last_rx = self._last_data = time.monotonic()
         self._baseline = {}
         try:
             try:
@@ -169,10 +172,12 @@ class BoardClient:
             for item in decoded.items:
                 if isinstance(item, Packet):
                     if item.type in (PacketType.HISTOGRAM, PacketType.EVENTS):
+                        self._last_data = self._last_rx
                         self._data.extend(self.assembler.add(item, now))
                     else:
                         self._replies.append(item)
             for events in decoded.batches():
+                self._last_data = self._last_rx
                 self._data.extend(self.assembler.add_events(events, now))
         return len(data)
 
@@ -258,6 +263,7 @@ class BoardClient:
                             and reply.payload[0] == seq:
                         return reply
                     if expect(reply):
+                        self.last_reply = reply
                         return reply
                     self.stale_replies += 1
                 if resend:
@@ -390,13 +396,15 @@ class BoardClient:
 
     # Streaming
 
-    def stream(self, *, idle_timeout_s: float = 2.0, poll_s: float = 0.05
+    def stream(self, *, idle_timeout_s: float = 2.0, poll_s: float = 0.05,
+               data_timeout_s: float = math.inf
                ) -> Iterator[Union[HistogramFrame, EventBatch, None]]:
         """Yield :class:`HistogramFrame` and :class:`EventBatch` items as they arrive, forever;
         between items it yields ``None`` about every ``poll_s`` so a caller can update a
         progress display or stop. Raises :exc:`BoardLost` when no byte arrives for
-        ``idle_timeout_s`` or the port goes away."""
-        self._last_rx = time.monotonic()
+        ``idle_timeout_s``, when no data packet arrives for ``data_timeout_s`` (a board that
+        answers commands but has stopped acquiring), or when the port goes away."""
+        self._last_rx = self._last_data = time.monotonic()
         while True:
             if self._data:
                 yield self._data.popleft()
@@ -407,23 +415,35 @@ class BoardClient:
             if self.idle_s > idle_timeout_s:
                 raise BoardLost(f"the board on {self.port_name} stopped sending (nothing for "
                                 f"{idle_timeout_s:g} s during an acquisition)")
+            if time.monotonic() - self._last_data > data_timeout_s:
+                raise BoardLost(f"the board on {self.port_name} answers but sent no data for "
+                                f"{data_timeout_s:g} s during an acquisition")
             yield None
 
-    def settle(self, limit_s: float = 120.0) -> List[Union[HistogramFrame, EventBatch]]:
+    def settle(self, limit_s: float = 120.0, give_up_s: float = 3.0
+               ) -> List[Union[HistogramFrame, EventBatch]]:
         """After a STOP: read until every histogram the board completed has arrived (its STATUS
-        ``frames`` count), or until ``limit_s``; returns everything received. A board that
-        is slow to send its last histogram (a simulation, a slow link) is waited for rather
-        than left to spill into the next capture."""
+        ``frames`` count), until nothing more has come for ``give_up_s`` (a histogram lost on a
+        noisy line), or until ``limit_s``; returns everything received. A board that is slow to send its
+        last histogram (a simulation, a slow link) is waited for rather than left to spill into
+        the next capture."""
         end = time.monotonic() + limit_s
         items = []
+        last = time.monotonic()
         while True:
-            items += self.drain(quiet_s=0.3, limit_s=max(0.5, end - time.monotonic()))
+            received = self.drain(quiet_s=0.3, limit_s=max(0.5, end - time.monotonic()))
+            items += received
             frames = self.status()["frames"]
             ended = self.assembler.frames_ended
             if frames == 0 or ended == frames or time.monotonic() > end:
                 return items
             if ended is None and not items:
                 return items   # nothing of this capture's histograms: not ours to wait for
+            if received:
+                last = time.monotonic()
+            elif time.monotonic() - last > give_up_s:
+                # Nothing more came: the rest was lost on the way (or is not ours to wait for).
+                return items
 
     def drain(self, quiet_s: float = 0.3, limit_s: float = 10.0
               ) -> List[Union[HistogramFrame, EventBatch]]:

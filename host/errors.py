@@ -5,7 +5,7 @@ about a board derives from :exc:`BoardError`, so a script or a notebook catches 
 The ``fliss`` command turns each into its one-line message (:func:`fliss.host.cli.main`).
 """
 
-__all__ = ["BoardError", "BoardLost", "PortError", "BoardRefused", "BoardMismatch",
+__all__ = ["BoardError", "BoardLost", "BoardReset", "PortError", "BoardRefused", "BoardMismatch",
            "SettingsError", "VirtualBoardError"]
 
 
@@ -16,6 +16,11 @@ class BoardError(Exception):
 
 class BoardLost(BoardError):
     """The board does not answer, the connection to it went away, or it stopped sending."""
+
+
+class BoardReset(BoardLost):
+    """The board was reset (a power cycle, a reconfiguration) while in use: its counters and
+    sequence numbers started again from zero and it stopped acquiring."""
 
 
 class PortError(BoardError):

@@ -14,7 +14,8 @@ predict every histogram from the scene and the seeds.
 
 Faults can be injected (:class:`fliss.sim.pty_server.PtyServer`): ``kill_after`` closes the pty
 after that many data packets (a board unplugged mid-capture), ``hang_after`` stops sending
-without closing, and ``corrupt_every`` damages one byte of every n-th frame sent (never a
+without closing, ``reset_after`` resets the board (a power cycle mid-capture: registers,
+counters, histogram and sequence numbers back to reset, acquisition stopped), and ``corrupt_every`` damages one byte of every n-th frame sent (never a
 delimiter, never into a delimiter), keeping the list of what it damaged in
 :attr:`ModelBoard.corrupted`.
 
@@ -22,6 +23,8 @@ Run ``python -m fliss.sim.model_board`` to get a board on a pty for ``fliss`` co
 """
 
 import argparse
+import signal
+import sys
 import time
 from contextlib import contextmanager
 
@@ -37,6 +40,7 @@ from .codec import LinkError, Packet, encode_frame, pack, pack_events, pack_word
 from . import scheduler as _scheduler
 from .command import CommandModel
 from .delay import DelayMode
+from .noisy_line import NoisyLine, add_line_arguments, describe, faults_from_args
 from .pty_server import PtyServer
 from .scene import Aggressor, Scene, Simulation
 
@@ -89,7 +93,7 @@ class ModelBoard(PtyServer):
         made uses :meth:`seed_for` ``(n)``.
     time_scale : float
         Simulated seconds per wall-clock second.
-    kill_after, hang_after, corrupt_every, corrupt_seed, corrupt_types, corrupt_commands_every
+    kill_after, hang_after, reset_after, corrupt_every, corrupt_seed, corrupt_types, corrupt_commands_every
         Faults of the line, as in :class:`~fliss.sim.pty_server.PtyServer`.
     protocol_version : int or None
         Report this protocol version instead of the real one.
@@ -103,10 +107,10 @@ class ModelBoard(PtyServer):
 
     def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, baud=DEFAULT_BAUD, scene=None,
                  aggressor_detections_per_pulse=0.05, photon_seed=0, time_scale=1.0,
-                 kill_after=None, hang_after=None, corrupt_every=None, corrupt_seed=1,
-                 corrupt_types=None, corrupt_commands_every=None, protocol_version=None,
-                 line_limited=False, maxima=None):
-        super().__init__(kill_after=kill_after, hang_after=hang_after,
+                 kill_after=None, hang_after=None, reset_after=None, corrupt_every=None,
+                 corrupt_seed=1, corrupt_types=None, corrupt_commands_every=None,
+                 protocol_version=None, line_limited=False, maxima=None):
+        super().__init__(kill_after=kill_after, hang_after=hang_after, reset_after=reset_after,
                          corrupt_every=corrupt_every, corrupt_seed=corrupt_seed,
                          corrupt_types=corrupt_types,
                          corrupt_commands_every=corrupt_commands_every)
@@ -118,6 +122,7 @@ class ModelBoard(PtyServer):
         self.time_scale = float(time_scale)
         self.protocol_version = protocol_version
         self.line_limited = line_limited
+        self.maxima = maxima
         self.model = CommandModel(self.clock_hz, self.baud, maxima=maxima)
         self.status = dict.fromkeys(STATUS_FIELDS, 0)
         #: Acquisitions started so far (each START while stopped).
@@ -150,6 +155,13 @@ class ModelBoard(PtyServer):
 
     def _killed(self):
         self.model.running = False
+
+    def _reset(self):
+        self.model = CommandModel(self.clock_hz, self.baud, maxima=self.maxima)
+        self.status = dict.fromkeys(STATUS_FIELDS, 0)
+        self._frame = 0
+        self._frame_counts = None
+        self._pending_events = []
 
     def _receive(self, item):
         if isinstance(item, LinkError):
@@ -327,18 +339,43 @@ def main(argv=None):
                         help="aggressor detections per pulse")
     parser.add_argument("--background-hz", type=float, default=1e5, help="background rate")
     parser.add_argument("--seed", type=int, default=0, help="photon statistics seed")
+    parser.add_argument("--reset-after", type=int, default=None, metavar="PACKETS",
+                        help="reset the board (a power cycle) after this many data packets")
+    add_line_arguments(parser)
     args = parser.parse_args(argv)
+    try:
+        faults = faults_from_args(args)
+    except ValueError as error:
+        parser.exit(2, f"{parser.prog}: error: {error}\n")
+    if args.reset_after is not None and args.reset_after < 1:
+        parser.exit(2, f"{parser.prog}: error: --reset-after must be at least 1, not "
+                       f"{args.reset_after}\n")
     scene = Scene(distance_m=args.distance_m, detections_per_pulse=args.signal,
                   background_hz=args.background_hz)
+    signal.signal(signal.SIGTERM, _terminate)
+    line = None
     with model_board(scene=scene, aggressor_detections_per_pulse=args.aggressor_signal,
-                     photon_seed=args.seed) as board:
-        print(board.path, flush=True)
+                     photon_seed=args.seed, reset_after=args.reset_after) as board:
         try:
+            if faults is not None:
+                line = NoisyLine(board.path, to_host=faults[0], to_board=faults[1],
+                                 seed=args.line_seed)
+                print(line.open(), flush=True)
+            else:
+                print(board.path, flush=True)
             while True:
                 time.sleep(1)
         except KeyboardInterrupt:
             pass
+        finally:
+            if line is not None:
+                line.close()
+                print(f"{parser.prog}: noisy line: {describe(line)}", file=sys.stderr)
     return 0
+
+
+def _terminate(number, frame):
+    raise KeyboardInterrupt
 
 
 if __name__ == "__main__":

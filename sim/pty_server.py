@@ -3,7 +3,9 @@
 :class:`PtyServer` opens a pty, serves it from a thread, decodes what the host sends with
 :class:`fliss.sim.codec.FrameDecoder` and sends packets as frames. Faults can be injected:
 ``kill_after`` closes the pty after that many data packets (a board unplugged mid-capture),
-``hang_after`` stops sending without closing, ``corrupt_every`` damages one byte of every n-th
+``hang_after`` stops sending without closing, ``reset_after`` resets the board (a power cycle:
+registers, counters and sequence numbers back to their reset values, bytes not yet sent lost),
+``corrupt_every`` damages one byte of every n-th
 frame sent (never a delimiter, never into a delimiter), keeping the list of what it damaged in
 :attr:`PtyServer.corrupted`, and ``corrupt_commands_every`` damages one byte of every n-th read
 from the host. A subclass (:class:`fliss.sim.model_board.ModelBoard`) answers the packets
@@ -35,6 +37,8 @@ class PtyServer:
     ----------
     kill_after, hang_after : int or None
         Close the pty (or stop sending) once this many data packets have been sent.
+    reset_after : int or None
+        Reset the board (:meth:`_reset`) once this many data packets have been sent.
     corrupt_every : int or None
         Damage one byte in every n-th frame sent (data and replies).
     corrupt_seed : int
@@ -45,9 +49,12 @@ class PtyServer:
         Damage one non-delimiter byte in every n-th read from the host (commands).
     """
 
-    def __init__(self, *, kill_after=None, hang_after=None, corrupt_every=None, corrupt_seed=1,
-                 corrupt_types=None, corrupt_commands_every=None):
+    def __init__(self, *, kill_after=None, hang_after=None, reset_after=None, corrupt_every=None,
+                 corrupt_seed=1, corrupt_types=None, corrupt_commands_every=None):
         self.kill_after = kill_after
+        self.reset_after = reset_after
+        #: Resets so far (``reset_after``).
+        self.resets = 0
         self.hang_after = hang_after
         self.corrupt_every = corrupt_every
         self._corrupt_rng = np.random.default_rng(corrupt_seed)
@@ -60,8 +67,12 @@ class PtyServer:
         self.corrupted = []
         #: Every data packet sent: ``(PacketType, seq, payload)`` (before any corruption).
         self.sent = []
+        #: Every frame sent (data and replies): ``(PacketType, seq, end)``, ``end`` its end in
+        #: bytes from the start of the first one.
+        self.frames_out = []
         self.killed = False
         self.hung = False
+        self._reset_due = False
         self._frames_sent = 0
         self._seq = 0
         self._out = bytearray()
@@ -86,6 +97,10 @@ class PtyServer:
 
     def _killed(self):
         """The board was unplugged (``kill_after``)."""
+
+    def _reset(self):
+        """The board's own state back to reset (``reset_after``); the sequence numbers and the
+        bytes not yet sent are reset here."""
 
     # Life cycle
 
@@ -142,6 +157,13 @@ class PtyServer:
                         self._receive(item)
             with self._lock:
                 self._work(time.monotonic())
+                if self._reset_due:
+                    # A power cycle after this packet: what is sent so far goes out first.
+                    self._flush(block=True)
+                    self._reset_due = False
+                    self._seq = 0
+                    self.resets += 1
+                    self._reset()
                 self._flush()
             if self.killed:
                 return
@@ -181,6 +203,8 @@ class PtyServer:
         if data:
             self.sent.append((type, seq, bytes(payload)))
         self._out += frame
+        self.frames_out.append((type, seq, (self.frames_out[-1][2] if self.frames_out else 0) +
+                                len(frame)))
         if data:
             if self.kill_after is not None and len(self.sent) >= self.kill_after:
                 self._flush(block=True)
@@ -192,6 +216,9 @@ class PtyServer:
             elif self.hang_after is not None and len(self.sent) >= self.hang_after:
                 self._flush(block=True)
                 self.hung = True
+            elif self.reset_after is not None and not self.resets and \
+                    len(self.sent) >= self.reset_after:
+                self._reset_due = True
 
     def _wait_drained(self, limit_s=2.0):
         """Wait until the host has read what was sent (a pty drops it when the board goes)."""
