@@ -24,7 +24,7 @@ __all__ = ["FORMAT", "FORMAT_VERSION", "CaptureWriter", "Capture", "read_capture
 #: Value of the root attribute ``format``.
 FORMAT = "fliss-capture"
 #: Version of this schema; readers refuse newer major versions.
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
 
 _FLUSH_S = 1.0
 
