@@ -174,6 +174,8 @@ def _sby(check):
         "",
         "[script]",
         "read_rtlil design.il",
+        # (no ROMs from large switches: an induction would take a ROM's contents as free state)
+        "proc -norom",
         "prep -top top",
         "",
         "[files]",
