@@ -321,8 +321,8 @@ class SourceHarness(wiring.Component):
         source = self._source(layout=SETTINGS)
         invariants = self._source is DelaySource
         if invariants:
-            m.submodules.source, (s_mode, s_mask, s_taps, s_mseq) = _internals(
-                source, "mode", "mask", "taps", "mseq")
+            m.submodules.source, (s_mode, s_mask, s_taps, s_mseq, s_masked) = _internals(
+                source, "mode", "mask", "taps", "mseq", "masked")
         else:
             m.submodules.source = source
         m.d.comb += [source.load.eq(self.load), source.settings.eq(self.settings),
@@ -355,7 +355,10 @@ class SourceHarness(wiring.Component):
             # the source's registers agree with the settings of the last load
             m.d.comb += [Assert(s_mode == mode.as_value()), Assert(s_taps == taps),
                          Assert(s_mask == Mux(mode == DelayMode.MASKED, top, 0)),
-                         Assert(s_mseq <= Mux(mode == DelayMode.MSEQ, top + 1, 1))]
+                         Assert(s_mseq <= Mux(mode == DelayMode.MSEQ, top + 1, 1)),
+                         # the masked register never holds zero (the m-sequence one holds zero
+                         # only standing for 1: `value <= top` below shows it is never 0 - 1)
+                         Assert(s_masked != 0)]
         m.d.comb += [Assert(value <= top),
                      Cover((mode == DelayMode.MSEQ) & (value == top) & (top == 6)),
                      Cover((mode == DelayMode.MASKED) & (value == top) & (top == 3))]
@@ -474,20 +477,21 @@ PROOFS = [
     Proof("delay_core.trigger_start", TriggerHarness, "prove", 2,
           "laser trigger: a TDC start in every rising edge's cycle, and only while the laser is on",
           mutant=lambda: TriggerHarness(_LateStartTrigger)),
-    _core("start", 30, "the laser's rising edge and the TDC start are always in the same cycle",
+    _core("start", 40, "the laser's rising edge and the TDC start are always in the same cycle",
           {"LaserTrigger": _LateStartTrigger}),
-    _core("interval", 30, "interval mode: consecutive pulses exactly T + R apart, never closer "
+    _core("interval", 40, "interval mode: consecutive pulses exactly T + R apart, never closer "
           "than T", {"PulseScheduler": _NoDelayScheduler}, fixed=True),
-    _core("grid", 30, "grid mode: pulse k fires at k T + 1 + R[k] after the start, inside "
+    _core("grid", 32, "grid mode: pulse k fires at k T + 1 + R[k] after the start, inside "
           "slot k", {"PulseScheduler": _LongPeriodScheduler}, fixed=True),
-    _core("disabled", 30, "no pulse while disabled: no fire, no rising edge, the laser off "
+    _core("disabled", 40, "no pulse while disabled: no fire, no rising edge, the laser off "
           "once the last pulse ends", {"PulseScheduler": _LateStopScheduler}),
-    _core("settings", 30, "settings (the pulse width) change only at a frame boundary, from "
+    _core("settings", 40, "settings (the pulse width) change only at a frame boundary, from "
           "the first take after they are sampled", {"PulseScheduler": _EagerWidthScheduler}),
-    _core("pulses", 30, "no runt, merged or doubled pulse: each exactly pulse_width cycles "
+    _core("pulses", 40, "no runt, merged or doubled pulse: each exactly pulse_width cycles "
           "high, low at least one cycle between", {"LaserTrigger": _RuntTrigger}),
     Proof("delay_core.source_range", SourceHarness, "prove", 2,
-          "delay source: R within 0 … 2^L − 2 (mseq), 0 … 2^Wm − 1 (masked), 0 (off)",
+          "delay source: R within 0 … 2^L − 2 (mseq), 0 … 2^Wm − 1 (masked), 0 (off); "
+          "its registers never hold zero (L 2 … 32, Wm 1 … 16)",
           mutant=lambda: SourceHarness(_OffByOneSource)),
     Proof("delay_core.lfsr_fixed", lambda: LfsrHarness(length=5, steps=3), "prove", 1,
           "LFSR (L = 5, 3 steps per advance): never zero, nothing above bit L − 1",

@@ -144,15 +144,11 @@ def discover(package="fliss.formal"):
 
 
 def checks(proofs, *, cover=True, mutants=False):
-    """The checks to run for ``proofs``: each proof, its cover, its mutant."""
-    result = []
-    for proof in proofs:
-        result.append(Check(proof, "proof"))
-        if cover:
-            result.append(Check(proof, "cover"))
-        if mutants and proof.mutant is not None:
-            result.append(Check(proof, "mutant"))
-    return result
+    """The checks to run for ``proofs``: the proofs first (the long ones), then their covers,
+    then their mutants."""
+    kinds = ["proof"] + (["cover"] if cover else []) + (["mutant"] if mutants else [])
+    return [Check(proof, kind) for kind in kinds for proof in proofs
+            if kind != "mutant" or proof.mutant is not None]
 
 
 def _rtlil(design):
