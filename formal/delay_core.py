@@ -483,8 +483,9 @@ PROOFS = [
           "than T", {"PulseScheduler": _NoDelayScheduler}, fixed=True),
     _core("grid", 32, "grid mode: pulse k fires at k T + 1 + R[k] after the start, inside "
           "slot k", {"PulseScheduler": _LongPeriodScheduler}, fixed=True),
-    _core("disabled", 40, "no pulse while disabled: no fire, no rising edge, the laser off "
-          "once the last pulse ends", {"PulseScheduler": _LateStopScheduler}),
+    _core("disabled", 10, "no pulse while disabled: no fire, no rising edge, the laser off "
+          "once the last pulse ends", {"PulseScheduler": _LateStopScheduler}, mode="prove",
+          cover_depth=30),
     _core("settings", 40, "settings (the pulse width) change only at a frame boundary, from "
           "the first take after they are sampled", {"PulseScheduler": _EagerWidthScheduler}),
     _core("pulses", 40, "no runt, merged or doubled pulse: each exactly pulse_width cycles "
