@@ -448,24 +448,49 @@ class _ZeroLoadingLfsr(wiring.Component):
 # Laser trigger alone
 
 class TriggerHarness(wiring.Component):
-    """The laser trigger alone, with ``fire`` and ``width`` free: the TDC start strobes in the
-    cycle of every rising edge of the laser, and only while the laser is on."""
+    """The laser trigger alone, with ``fire`` and ``width`` free. ``check``: ``"start"``, the
+    TDC start strobes in the cycle of every rising edge of the laser, and only while the laser is
+    on; ``"width"``, with ``fire`` only while the laser is off (the scheduler's part, proved on
+    the core by ``delay_core.pulses``), every pulse is exactly ``width`` cycles high (zero acting
+    as one)."""
 
     fire:  In(1)
     width: In(PULSE_WIDTH_WIDTH)
 
-    def __init__(self, trigger=LaserTrigger):
+    def __init__(self, trigger=LaserTrigger, check="start"):
         self._trigger = trigger
+        self._check = check
         super().__init__()
 
     def elaborate(self, platform):
         m = Module()
-        m.submodules.trigger = trigger = self._trigger(width_bits=PULSE_WIDTH_WIDTH)
+        trigger = self._trigger(width_bits=PULSE_WIDTH_WIDTH)
+        if self._check == "width" and self._trigger is LaserTrigger:
+            m.submodules.trigger, (remaining,) = _internals(trigger, "remaining")
+        else:
+            remaining = None
+            m.submodules.trigger = trigger
         m.d.comb += [trigger.fire.eq(self.fire), trigger.width.eq(self.width)]
         m.d.comb += Assume(~ResetSignal())
-        rise = trigger.laser & ~_past(m, trigger.laser)
-        m.d.comb += [Assert(~rise | trigger.tdc_start), Assert(~trigger.tdc_start | trigger.laser),
-                     Cover(rise)]
+        laser_d = _past(m, trigger.laser)
+        rise = trigger.laser & ~laser_d
+        if self._check == "start":
+            m.d.comb += [Assert(~rise | trigger.tdc_start),
+                         Assert(~trigger.tdc_start | trigger.laser), Cover(rise)]
+            return m
+
+        m.d.comb += Assume(~self.fire | ~trigger.laser)
+        width = Signal(PULSE_WIDTH_WIDTH)       # width of the pulse on the laser
+        with m.If(self.fire):
+            m.d.sync += width.eq(Mux(self.width == 0, 1, self.width))
+        high = Signal(PULSE_WIDTH_WIDTH)        # cycles the laser has been high before this one
+        m.d.sync += high.eq(Mux(trigger.laser, high + 1, 0))
+        fall = ~trigger.laser & laser_d
+        m.d.comb += [Assert(~trigger.laser | (high < width)),
+                     Assert(~fall | (high == width)),
+                     Cover(fall & (high == 7)), Cover(fall & (high == 1))]
+        if remaining is not None:
+            m.d.comb += Assert(Mux(trigger.laser, remaining + high == width - 1, remaining == 0))
         return m
 
 
@@ -477,6 +502,10 @@ PROOFS = [
     Proof("delay_core.trigger_start", TriggerHarness, "prove", 2,
           "laser trigger: a TDC start in every rising edge's cycle, and only while the laser is on",
           mutant=lambda: TriggerHarness(_LateStartTrigger)),
+    Proof("delay_core.trigger_width", lambda: TriggerHarness(check="width"), "prove", 2,
+          "laser trigger, fired only while the laser is off: every pulse exactly width cycles "
+          "high (zero acting as one)",
+          mutant=lambda: TriggerHarness(_RuntTrigger, check="width")),
     _core("start", 40, "the laser's rising edge and the TDC start are always in the same cycle",
           {"LaserTrigger": _LateStartTrigger}),
     _core("interval", 40, "interval mode: consecutive pulses exactly T + R apart, never closer "
