@@ -11,9 +11,7 @@ laser is off (the host restarts after milliseconds; see ``docs/verification.md``
 Mutants swap a block of the core for a broken wrapper around it (:class:`_ProbedCore`).
 """
 
-from amaranth.hdl import (Assert, Assume, Cover, Const, Fragment, Module, Mux, ResetSignal,
-                          Signal)
-from amaranth.hdl._ast import Assign, Switch
+from amaranth.hdl import Assert, Assume, Cover, Const, Module, Mux, ResetSignal, Signal
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
@@ -25,7 +23,7 @@ from fliss.hdl.lfsr import POLYNOMIALS, Lfsr, _galois_step
 from fliss.hdl.registers import DelaySettings
 from fliss.hdl.scheduler import PulseScheduler
 
-from .runner import Proof
+from .runner import Proof, internals
 
 
 #: Small settings of the core harness.
@@ -38,27 +36,6 @@ def _past(m, value):
     past = Signal.like(value, name="past")
     m.d.sync += past.eq(value)
     return past
-
-
-def _internals(block, *names):
-    """Elaborate ``block`` into a fragment and find the signals it assigns named ``names``, for
-    invariants about its state (a k-induction needs them); returns the fragment (to add as the
-    submodule in place of the block) and the signals."""
-    fragment = Fragment.get(block, None)
-    found = {}
-
-    def walk(statements):
-        for statement in statements:
-            if isinstance(statement, Assign):
-                for signal in statement._lhs_signals():
-                    found.setdefault(signal.name, signal)
-            elif isinstance(statement, Switch):
-                for case in statement.cases:
-                    walk(case[1] if isinstance(case, tuple) else statement.cases[case])
-
-    for statements in fragment.statements.values():
-        walk(statements)
-    return fragment, [found[name] for name in names]
 
 
 def _assume_valid(m, settings, *, max_l=MAX_L, max_wm=MAX_WM):
@@ -321,7 +298,7 @@ class SourceHarness(wiring.Component):
         source = self._source(layout=SETTINGS)
         invariants = self._source is DelaySource
         if invariants:
-            m.submodules.source, (s_mode, s_mask, s_taps, s_mseq, s_masked) = _internals(
+            m.submodules.source, (s_mode, s_mask, s_taps, s_mseq, s_masked) = internals(
                 source, "mode", "mask", "taps", "mseq", "masked")
         else:
             m.submodules.source = source
@@ -399,7 +376,7 @@ class LfsrHarness(wiring.Component):
         lfsr = self._lfsr(**self._kwargs)
         fixed = self._kwargs.get("length")
         if fixed is None and self._lfsr is Lfsr:
-            m.submodules.lfsr, (l_length,) = _internals(lfsr, "length")
+            m.submodules.lfsr, (l_length,) = internals(lfsr, "length")
         else:
             m.submodules.lfsr = lfsr
         m.d.comb += [lfsr.seed.eq(self.seed), lfsr.load.eq(self.load),
@@ -466,7 +443,7 @@ class TriggerHarness(wiring.Component):
         m = Module()
         trigger = self._trigger(width_bits=PULSE_WIDTH_WIDTH)
         if self._check == "width" and self._trigger is LaserTrigger:
-            m.submodules.trigger, (remaining,) = _internals(trigger, "remaining")
+            m.submodules.trigger, (remaining,) = internals(trigger, "remaining")
         else:
             remaining = None
             m.submodules.trigger = trigger

@@ -25,10 +25,12 @@ from pathlib import Path
 from typing import Callable, Optional
 
 from amaranth.back import rtlil
+from amaranth.hdl import Fragment
+from amaranth.hdl._ast import Assign, Switch
 from amaranth.lib import wiring
 
 
-__all__ = ["Proof", "Check", "Result", "discover", "checks", "prepare", "run_check", "run_all", "warm_up", "main"]
+__all__ = ["Proof", "Check", "Result", "discover", "internals", "checks", "prepare", "run_check", "run_all", "warm_up", "main"]
 
 
 #: Where the proofs are built, from the repository root.
@@ -126,6 +128,28 @@ class Result:
         if self.check.kind == "mutant":
             return self.status == "FAIL" and self.trace is not None
         return self.status == "PASS"
+
+
+def internals(block, *names):
+    """Elaborate ``block`` and find the signals it assigns named ``names`` (its local registers),
+    for invariants about its state that a k-induction needs. Returns the fragment, to add as the
+    submodule in place of the block (``m.submodules.x, (a, b) = internals(x, "a", "b")``), and
+    the signals, in the order of ``names``; the first signal of each name is taken."""
+    fragment = Fragment.get(block, None)
+    found = {}
+
+    def walk(statements):
+        for statement in statements:
+            if isinstance(statement, Assign):
+                for signal in statement._lhs_signals():
+                    found.setdefault(signal.name, signal)
+            elif isinstance(statement, Switch):
+                for case in statement.cases:
+                    walk(case[1] if isinstance(case, tuple) else statement.cases[case])
+
+    for statements in fragment.statements.values():
+        walk(statements)
+    return fragment, [found[name] for name in names]
 
 
 def discover(package="fliss.formal"):
