@@ -5,8 +5,7 @@ The core is proved with small settings, as the register file would accept them: 
 2 to :data:`MAX_PERIOD` (a 17-bit ``period``, the narrowest the scheduler takes), a 3-bit
 ``pulse_width`` from 1 to ``period - 1``, register lengths ``L`` up to :data:`MAX_L` and mask
 widths ``Wm`` up to :data:`MAX_WM`; in ``grid`` mode the largest delay plus the pulse width is
-below the period. ``enable`` and ``update`` are free, except that ``enable`` rises only while the
-laser is off (the host restarts after milliseconds; see ``docs/verification.md``).
+below the period. ``enable`` and ``update`` are free in every cycle.
 
 Mutants swap a block of the core for a broken one (``formal/_mutants.py``) while the core
 elaborates (:class:`_ProbedCore`).
@@ -108,7 +107,6 @@ class CoreHarness(wiring.Component):
         m.d.comb += Assume(~ResetSignal())
         _assume_valid(m, self.settings)
         enable_d = _past(m, self.enable)
-        m.d.comb += Assume(~(self.enable & ~enable_d) | ~core.laser)
         if self.fixed:
             settings_d = _past(m, self.settings)
             m.d.comb += [Assume(~self.update), Assume(~core.running | (self.settings == settings_d))]

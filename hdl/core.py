@@ -81,7 +81,6 @@ class DelayCore(wiring.Component):
             source.load.eq(scheduler.reload),
 
             scheduler.settings.eq(self.settings),
-            scheduler.enable.eq(self.enable),
             scheduler.update.eq(self.update),
 
             trigger.fire.eq(scheduler.fire),
@@ -94,5 +93,10 @@ class DelayCore(wiring.Component):
             self.fire_delay.eq(scheduler.fire_delay),
             self.pulse_index.eq(scheduler.pulse_index),
         ]
+
+        # A run starts only once the last pulse of the one before has ended: after a stop and
+        # a quick restart, the new run's first pulse would otherwise fire into it and merge with
+        # it (found by the formal proof `delay_core.pulses`). A running scheduler is not held.
+        m.d.comb += scheduler.enable.eq(self.enable & (scheduler.running | ~trigger.laser))
 
         return m

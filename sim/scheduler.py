@@ -17,7 +17,7 @@ from . import delay as _delay
 
 
 __all__ = ["LATENCY", "Settings", "check_schedule", "frame_lengths", "fire_cycles",
-           "effective_prf", "measured_prf", "simulate"]
+           "effective_prf", "measured_prf", "start_cycle", "simulate"]
 
 
 def check_schedule(period, pulse_width, *, grid=False, max_delay=0):
@@ -97,6 +97,16 @@ class Settings:
     def delays(self, count):
         return _delay.delays(self.mode, count, length=self.length, mask_width=self.mask_width,
                              seed=self.seed)
+
+
+def start_cycle(enable, pulses):
+    """The cycle a run whose ``enable`` rises in cycle ``enable`` starts in (the ``enable`` to
+    give :func:`simulate` for it), after the ``pulses`` of the runs before it: the delay core
+    holds a start back until the laser is off, so that a stop and a quick restart cannot merge
+    the last pulse of one run with the first of the next."""
+    laser_off = max((fire + LATENCY + max(width, 1) for fire, _, width, _ in pulses),
+                    default=enable)
+    return max(enable, laser_off)
 
 
 def simulate(settings, until, *, updates=(), enable=0, disable=None):

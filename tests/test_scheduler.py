@@ -9,7 +9,9 @@ from fliss.hdl import period_cycles
 from fliss.hdl.core import DelayCore
 from fliss.hdl.delay import DelayMode
 from fliss.hdl.laser import LaserTrigger
-from fliss.sim.scheduler import (LATENCY, Settings, check_schedule, fire_cycles, simulate)
+from fliss.sim.aggressor import laser_waveform
+from fliss.sim.scheduler import (LATENCY, Settings, check_schedule, fire_cycles, simulate,
+                                 start_cycle)
 from simulation import simulate as run_simulation
 
 
@@ -197,13 +199,17 @@ def test_short_stops(before, after, gap):
     cycles = 100
     for stop in range(30, 30 + 2 * settings.period):
         restart = stop + gap
-        pulses, _, _ = run_core(settings, cycles, present=[(stop, restarted)],
+        pulses, laser, _ = run_core(settings, cycles, present=[(stop, restarted)],
                                 enable=lambda cycle, stop=stop, restart=restart:
                                     1 <= cycle < stop or cycle >= restart)
-        expected = simulate(settings, cycles - 1, enable=1, disable=stop) + \
-            simulate(restarted, cycles - 1, enable=restart)
+        before = simulate(settings, cycles - 1, enable=1, disable=stop)
+        expected = before + simulate(restarted, cycles - 1,
+                                     enable=start_cycle(restart, before))
         assert [(f, d, i) for f, d, _, i in pulses] == \
             [(f, d, i) for f, d, _, i in expected], (stop, gap)
+        # (and the laser never merges two pulses: each is exactly as wide as asked)
+        np.testing.assert_array_equal(np.asarray(laser, dtype=bool),
+                                      laser_waveform(expected, len(laser)), str((stop, gap)))
 
 
 def test_laser_trigger_width_and_tdc_start():
