@@ -52,3 +52,17 @@ program: $(BOARDS_STAMP)
 
 test-boards: $(BOARDS_STAMP)
 	FLISS_BUILD_BOARDS=1 $(PY) -m pytest tests/test_boards.py $(PYTEST_ARGS)
+
+# Formal proofs with SymbiYosys from PyPI: every proof, its covers and its mutant
+# (docs/verification.md). FORMAL_ARGS: e.g. `-j 1`, or proof names.
+FORMAL_STAMP := $(VENV)/.formal-stamp
+FORMAL_ARGS ?= -j 2
+
+.PHONY: formal
+
+$(FORMAL_STAMP): pyproject.toml $(STAMP)
+	$(PY) -m pip install --quiet -e ".[test,formal]"
+	@touch $@
+
+formal: $(FORMAL_STAMP)
+	$(PY) -m fliss.formal --mutants $(FORMAL_ARGS)

@@ -1,0 +1,498 @@
+"""Formal harnesses of the delay core (``hdl/core.py``): laser trigger, pulse scheduler, delay
+source and LFSR.
+
+The core is proved with small settings, as the register file would accept them: ``period`` from
+2 to :data:`MAX_PERIOD` (a 17-bit ``period``, the narrowest the scheduler takes), a 3-bit
+``pulse_width`` from 1 to ``period - 1``, register lengths ``L`` up to :data:`MAX_L` and mask
+widths ``Wm`` up to :data:`MAX_WM`; in ``grid`` mode the largest delay plus the pulse width is
+below the period. ``enable`` and ``update`` are free, except that ``enable`` rises only while the
+laser is off (the host restarts after milliseconds; see ``docs/verification.md``).
+
+Mutants swap a block of the core for a broken wrapper around it (:class:`_ProbedCore`).
+"""
+
+from amaranth.hdl import (Assert, Assume, Cover, Const, Fragment, Module, Mux, ResetSignal,
+                          Signal)
+from amaranth.hdl._ast import Assign, Switch
+from amaranth.lib import wiring
+from amaranth.lib.wiring import In, Out
+
+import fliss.hdl.core as core_module
+from fliss.hdl.core import DelayCore
+from fliss.hdl.delay import DelayMode, DelaySource
+from fliss.hdl.laser import LaserTrigger
+from fliss.hdl.lfsr import POLYNOMIALS, Lfsr, _galois_step
+from fliss.hdl.registers import DelaySettings
+from fliss.hdl.scheduler import PulseScheduler
+
+from .runner import Proof
+
+
+#: Small settings of the core harness.
+PERIOD_WIDTH, PULSE_WIDTH_WIDTH, MAX_PERIOD, MAX_L, MAX_WM = 17, 3, 10, 3, 2
+SETTINGS = DelaySettings(period_width=PERIOD_WIDTH, pulse_width_width=PULSE_WIDTH_WIDTH)
+
+
+def _past(m, value):
+    """``value`` in the previous cycle (its initial value in the first)."""
+    past = Signal.like(value, name="past")
+    m.d.sync += past.eq(value)
+    return past
+
+
+def _internals(block, *names):
+    """Elaborate ``block`` into a fragment and find the signals it assigns named ``names``, for
+    invariants about its state (a k-induction needs them); returns the fragment (to add as the
+    submodule in place of the block) and the signals."""
+    fragment = Fragment.get(block, None)
+    found = {}
+
+    def walk(statements):
+        for statement in statements:
+            if isinstance(statement, Assign):
+                for signal in statement._lhs_signals():
+                    found.setdefault(signal.name, signal)
+            elif isinstance(statement, Switch):
+                for case in statement.cases:
+                    walk(case[1] if isinstance(case, tuple) else statement.cases[case])
+
+    for statements in fragment.statements.values():
+        walk(statements)
+    return fragment, [found[name] for name in names]
+
+
+def _assume_valid(m, settings, *, max_l=MAX_L, max_wm=MAX_WM):
+    """Settings the register file accepts, small."""
+    max_delay = Signal(33)
+    with m.Switch(settings.mode):
+        with m.Case(DelayMode.MSEQ):
+            m.d.comb += max_delay.eq((Const(1, 33) << settings.length) - 2)
+        with m.Case(DelayMode.MASKED):
+            m.d.comb += max_delay.eq((Const(1, 33) << settings.mask_width) - 1)
+    m.d.comb += [
+        Assume(settings.mode.as_value() != 3),
+        Assume((settings.length >= 2) & (settings.length <= max_l)),
+        Assume((settings.mask_width >= 1) & (settings.mask_width <= max_wm)),
+        Assume((settings.period >= 2) & (settings.period <= MAX_PERIOD)),
+        Assume((settings.pulse_width >= 1) & (settings.pulse_width < settings.period)),
+        Assume(~settings.grid | (max_delay + settings.pulse_width < settings.period)),
+    ]
+
+
+# Broken blocks for the mutants: wrappers with the signature of the block they wrap
+
+class _Wrapper(wiring.Component):
+    def __init__(self, inner):
+        self.inner = inner
+        super().__init__(inner.signature)
+
+    def forward(self, m, **replace):
+        """Connect every port to the inner block's, but those in ``replace`` (name -> value
+        driven into the inner block's input, or out of the wrapper's output)."""
+        m.submodules.inner = inner = self.inner
+        for name, member in self.signature.members.items():
+            outer, block = getattr(self, name), getattr(inner, name)
+            if name == "delays" and member.flow == In:
+                # (always valid: `valid` is a constant)
+                m.d.comb += [block.payload.eq(replace.get("payload", outer.payload)),
+                             outer.ready.eq(block.ready)]
+            elif name == "delays":
+                m.d.comb += [outer.payload.eq(block.payload), block.ready.eq(outer.ready)]
+            elif member.flow == In:
+                m.d.comb += block.eq(replace.get(name, outer))
+            else:
+                m.d.comb += outer.eq(replace.get(name, block))
+        return m
+
+
+class _LateStartTrigger(_Wrapper):
+    """The TDC start one cycle after the laser's rising edge."""
+
+    def __init__(self, *, width_bits):
+        super().__init__(LaserTrigger(width_bits=width_bits))
+
+    def elaborate(self, platform):
+        m = Module()
+        return self.forward(m, tdc_start=_past(m, self.inner.tdc_start))
+
+
+class _RuntTrigger(_Wrapper):
+    """Laser pulses a cycle short."""
+
+    def __init__(self, *, width_bits):
+        super().__init__(LaserTrigger(width_bits=width_bits))
+
+    def elaborate(self, platform):
+        return self.forward(Module(), width=self.width - 1)
+
+
+class _NoDelayScheduler(_Wrapper):
+    """Fires as if every delay were zero (and still reports it in ``fire_delay``)."""
+
+    def __init__(self, **kwargs):
+        super().__init__(PulseScheduler(**kwargs))
+
+    def elaborate(self, platform):
+        m = Module()
+        payload = Signal.like(self.delays.payload)
+        m.d.comb += [payload.eq(self.delays.payload), payload.zero.eq(1),
+                     payload.zero_late.eq(0)]
+        return self.forward(m, payload=payload)
+
+
+class _LongPeriodScheduler(_Wrapper):
+    """Takes every period a cycle long."""
+
+    def __init__(self, **kwargs):
+        super().__init__(PulseScheduler(**kwargs))
+
+    def elaborate(self, platform):
+        m = Module()
+        settings = Signal.like(self.settings)
+        m.d.comb += [settings.eq(self.settings), settings.period.eq(self.settings.period + 1)]
+        return self.forward(m, settings=settings)
+
+
+class _LateStopScheduler(_Wrapper):
+    """Stops a cycle after ``enable`` falls."""
+
+    def __init__(self, **kwargs):
+        super().__init__(PulseScheduler(**kwargs))
+
+    def elaborate(self, platform):
+        m = Module()
+        return self.forward(m, enable=self.enable | _past(m, self.enable))
+
+
+class _EagerWidthScheduler(_Wrapper):
+    """Applies a new pulse width in the ``update`` cycle, in the middle of a frame."""
+
+    def __init__(self, **kwargs):
+        super().__init__(PulseScheduler(**kwargs))
+
+    def elaborate(self, platform):
+        m = Module()
+        return self.forward(m, fire_width=Mux(self.update, self.settings.pulse_width,
+                                              self.inner.fire_width))
+
+
+class _ProbedCore(DelayCore):
+    """The delay core, with the scheduler's take cycle and pulse width brought out, and blocks
+    swapped for mutants (``swaps``: name in ``hdl/core.py`` -> class)."""
+
+    def __init__(self, swaps=None):
+        super().__init__(period_width=PERIOD_WIDTH, pulse_width_width=PULSE_WIDTH_WIDTH)
+        self.swaps = swaps or {}
+        self.take = Signal()
+        self.fire_width = Signal(PULSE_WIDTH_WIDTH)
+
+    def elaborate(self, platform):
+        saved = {name: getattr(core_module, name) for name in self.swaps}
+        try:
+            for name, block in self.swaps.items():
+                setattr(core_module, name, block)
+            m = super().elaborate(platform)
+        finally:
+            for name, block in saved.items():
+                setattr(core_module, name, block)
+        scheduler = m.submodules.scheduler
+        m.d.comb += [self.take.eq(scheduler.delays.ready),
+                     self.fire_width.eq(scheduler.fire_width)]
+        return m
+
+
+# Delay core
+
+class CoreHarness(wiring.Component):
+    """The delay core with free ``enable``, ``update`` and valid settings; ``check`` names the
+    property asserted. ``fixed`` settings stay put while running, and ``update`` stays low."""
+
+    enable:   In(1)
+    update:   In(1)
+    settings: In(SETTINGS)
+
+    def __init__(self, check, *, swaps=None, fixed=False):
+        self.check = check
+        self.swaps = swaps
+        self.fixed = fixed
+        super().__init__()
+
+    def elaborate(self, platform):
+        m = Module()
+        m.submodules.core = core = _ProbedCore(self.swaps)
+        m.d.comb += [core.enable.eq(self.enable), core.update.eq(self.update),
+                     core.settings.eq(self.settings)]
+        m.d.comb += Assume(~ResetSignal())
+        _assume_valid(m, self.settings)
+        enable_d = _past(m, self.enable)
+        m.d.comb += Assume(~(self.enable & ~enable_d) | ~core.laser)
+        if self.fixed:
+            settings_d = _past(m, self.settings)
+            m.d.comb += [Assume(~self.update), Assume(~core.running | (self.settings == settings_d))]
+
+        laser_d = _past(m, core.laser)
+        rise = core.laser & ~laser_d
+        fire_width = Signal(PULSE_WIDTH_WIDTH)    # width of the pulse on the laser
+        with m.If(core.fire):
+            m.d.sync += fire_width.eq(core.fire_width)
+        high = Signal(PULSE_WIDTH_WIDTH + 1)      # cycles the laser has been high
+        m.d.sync += high.eq(Mux(core.laser, high + 1, 0))
+        fired = Signal()                          # a pulse fired since the start
+        since = Signal(8)                         # cycles since the last pulse of this run
+        slot = Signal(8)                          # grid: cycle in this slot, from the take
+        slot_index = Signal(8)                    # grid: slot since the start
+        with m.If(~core.running):
+            m.d.sync += [fired.eq(0), since.eq(0), slot.eq(0), slot_index.eq(0)]
+        with m.Else():
+            m.d.sync += since.eq(Mux(core.fire, 1, since + 1))
+            m.d.sync += fired.eq(fired | core.fire)
+            last = slot == self.settings.period - 1
+            m.d.sync += [slot.eq(Mux(last, 0, slot + 1)), slot_index.eq(slot_index + last)]
+
+        if self.check == "start":
+            m.d.comb += [Assert(rise == core.tdc_start), Cover(rise & fired)]
+        elif self.check == "interval":
+            gap = self.settings.period + core.fire_delay
+            with m.If(core.fire & fired & ~self.settings.grid):
+                m.d.comb += [Assert(since == gap), Assert(since >= self.settings.period)]
+            m.d.comb += Cover(core.fire & fired & ~self.settings.grid & (core.fire_delay > 1))
+        elif self.check == "grid":
+            with m.If(core.fire & self.settings.grid):
+                m.d.comb += [Assert(slot_index == core.pulse_index[:8]),
+                             Assert(slot == 1 + core.fire_delay)]
+            m.d.comb += Cover(core.fire & self.settings.grid & (core.pulse_index == 2)
+                              & (core.fire_delay > 0))
+        elif self.check == "disabled":
+            stopped = Signal(PULSE_WIDTH_WIDTH + 1)   # cycles since enable fell, saturating
+            m.d.sync += stopped.eq(Mux(self.enable, 0, Mux(stopped[-1], stopped, stopped + 1)))
+            m.d.comb += [Assert(~core.fire | self.enable), Assert(~rise | enable_d),
+                         Assert(~stopped[-1] | ~core.laser),
+                         Cover(~self.enable & core.laser & fired)]
+        elif self.check == "settings":
+            # the model of the contract: settings sampled while stopped or on update apply from
+            # the first take cycle after the sampling cycle
+            pending = Signal()
+            pending_width = Signal(PULSE_WIDTH_WIDTH)
+            width = Signal(PULSE_WIDTH_WIDTH)
+            take_d = _past(m, core.take)
+            with m.If(core.take):
+                m.d.sync += [width.eq(Mux(pending, pending_width, width)), pending.eq(0)]
+            with m.If(~core.running | self.update):
+                m.d.sync += [pending.eq(1), pending_width.eq(self.settings.pulse_width)]
+            width_d = _past(m, core.fire_width)
+            m.d.comb += [Assert(take_d | (core.fire_width == width_d)),
+                         Assert(core.fire_width == width),
+                         Cover(self.update & core.running & (self.settings.pulse_width != width)
+                               & fired & core.fire)]
+        elif self.check == "pulses":
+            fall = ~core.laser & laser_d
+            m.d.comb += [Assert(~core.laser | (high < fire_width)),
+                         Assert(~fall | (high == fire_width)),
+                         Assert(~core.tdc_start | ~laser_d),
+                         Cover(fall & (high == 3) & ~self.enable)]
+        else:
+            raise ValueError(f"Unknown check {self.check!r}")
+        return m
+
+
+def _core(check, depth, doc, swaps, *, fixed=False, mode="bmc", cover_depth=None):
+    return Proof(f"delay_core.{check}", lambda: CoreHarness(check, fixed=fixed), mode, depth,
+                 doc, mutant=lambda: CoreHarness(check, fixed=fixed, swaps=swaps),
+                 cover_depth=cover_depth)
+
+
+# Delay source
+
+class SourceHarness(wiring.Component):
+    """The delay source with free ``load``, transfers and valid settings: every delay is within
+    ``0 … 2**L - 2`` (``mseq``), ``0 … 2**Wm - 1`` (``masked``), or zero (``off``), for the
+    settings sampled on the last load."""
+
+    load:     In(1)
+    ready:    In(1)
+    settings: In(SETTINGS)
+
+    def __init__(self, source=DelaySource):
+        self._source = source
+        super().__init__()
+
+    def elaborate(self, platform):
+        m = Module()
+        source = self._source(layout=SETTINGS)
+        invariants = self._source is DelaySource
+        if invariants:
+            m.submodules.source, (s_mode, s_mask, s_taps, s_mseq) = _internals(
+                source, "mode", "mask", "taps", "mseq")
+        else:
+            m.submodules.source = source
+        m.d.comb += [source.load.eq(self.load), source.settings.eq(self.settings),
+                     source.delays.ready.eq(self.ready)]
+        m.d.comb += Assume(~ResetSignal())
+        _assume_valid(m, self.settings, max_l=32, max_wm=16)
+        # transfers at least two cycles apart, as the scheduler makes them
+        m.d.comb += Assume(~(self.ready & _past(m, self.ready)))
+
+        # settings of the last load, and the largest delay and the taps they give
+        mode = Signal(DelayMode)
+        length = Signal.like(self.settings.length, init=32)
+        mask_width = Signal.like(self.settings.mask_width)
+        with m.If(self.load):
+            m.d.sync += [mode.eq(self.settings.mode), length.eq(self.settings.length),
+                         mask_width.eq(self.settings.mask_width)]
+        top = Signal(33)
+        with m.Switch(mode):
+            with m.Case(DelayMode.MSEQ):
+                m.d.comb += top.eq((Const(1, 33) << length) - 2)
+            with m.Case(DelayMode.MASKED):
+                m.d.comb += top.eq((Const(1, 33) << mask_width) - 1)
+        taps = Signal(32)
+        with m.Switch(length):
+            for bits, poly in POLYNOMIALS.items():
+                with m.Case(bits):
+                    m.d.comb += taps.eq(poly >> 1)
+        value = source.delays.payload.value
+        if invariants:
+            # the source's registers agree with the settings of the last load
+            m.d.comb += [Assert(s_mode == mode.as_value()), Assert(s_taps == taps),
+                         Assert(s_mask == Mux(mode == DelayMode.MASKED, top, 0)),
+                         Assert(s_mseq <= Mux(mode == DelayMode.MSEQ, top + 1, 1))]
+        m.d.comb += [Assert(value <= top),
+                     Cover((mode == DelayMode.MSEQ) & (value == top) & (top == 6)),
+                     Cover((mode == DelayMode.MASKED) & (value == top) & (top == 3))]
+        return m
+
+
+class _OffByOneSource(_Wrapper):
+    """``mseq`` delays ``R + 1``: the register state rather than ``state - 1``."""
+
+    def __init__(self, **kwargs):
+        super().__init__(DelaySource(**kwargs))
+
+    def elaborate(self, platform):
+        m = Module()
+        m = self.forward(m)
+        m.d.comb += self.delays.payload.value.eq(self.inner.delays.payload.value + 1)
+        return m
+
+
+# LFSR
+
+class LfsrHarness(wiring.Component):
+    """The LFSR with free ``seed``, ``load`` and ``advance``: it never holds zero, nor a bit at
+    or above its length (the length sampled on the last load)."""
+
+    seed:    In(32)
+    load:    In(1)
+    advance: In(1)
+    length:  In(range(2, 33))
+
+    def __init__(self, lfsr=Lfsr, **kwargs):
+        self._lfsr = lfsr
+        self._kwargs = kwargs
+        super().__init__()
+
+    def elaborate(self, platform):
+        m = Module()
+        lfsr = self._lfsr(**self._kwargs)
+        fixed = self._kwargs.get("length")
+        if fixed is None and self._lfsr is Lfsr:
+            m.submodules.lfsr, (l_length,) = _internals(lfsr, "length")
+        else:
+            m.submodules.lfsr = lfsr
+        m.d.comb += [lfsr.seed.eq(self.seed), lfsr.load.eq(self.load),
+                     lfsr.advance.eq(self.advance)]
+        m.d.comb += Assume(~ResetSignal())
+        if fixed is None:
+            m.d.comb += lfsr.length.eq(self.length)
+            raw = Signal(range(2, 33), init=32)
+            with m.If(self.load):
+                m.d.sync += raw.eq(self.length)
+            if self._lfsr is Lfsr:
+                m.d.comb += Assert(l_length == raw)
+            length = Mux((raw >= 2) & (raw <= 32), raw, 32)
+            bound = Const(1, 33) << length
+        else:
+            bound = 1 << fixed
+        m.d.comb += [Assert(lfsr.state != 0), Assert(lfsr.state < bound),
+                     Cover(self.load & (self.seed == 0)),
+                     Cover((lfsr.state == bound - 1) & self.advance)]
+        return m
+
+
+class _ZeroLoadingLfsr(wiring.Component):
+    """An LFSR (one step per advance) that loads a zero seed as it is."""
+
+    def __init__(self, *, length=None):
+        self._length = length
+        members = {"seed": In(32), "load": In(1), "advance": In(1), "state": Out(32)}
+        if length is None:
+            members["length"] = In(range(2, 33))
+        super().__init__(members)
+
+    def elaborate(self, platform):
+        m = Module()
+        taps = POLYNOMIALS[self._length or 32] >> 1
+        mask = (1 << (self._length or 32)) - 1
+        state = Signal(32, init=1)
+        m.d.comb += self.state.eq(state)
+        with m.If(self.load):
+            m.d.sync += state.eq(self.seed & mask)
+        with m.Elif(self.advance):
+            m.d.sync += state.eq(_galois_step(state, taps))
+        return m
+
+
+# Laser trigger alone
+
+class TriggerHarness(wiring.Component):
+    """The laser trigger alone, with ``fire`` and ``width`` free: the TDC start strobes in the
+    cycle of every rising edge of the laser, and only while the laser is on."""
+
+    fire:  In(1)
+    width: In(PULSE_WIDTH_WIDTH)
+
+    def __init__(self, trigger=LaserTrigger):
+        self._trigger = trigger
+        super().__init__()
+
+    def elaborate(self, platform):
+        m = Module()
+        m.submodules.trigger = trigger = self._trigger(width_bits=PULSE_WIDTH_WIDTH)
+        m.d.comb += [trigger.fire.eq(self.fire), trigger.width.eq(self.width)]
+        m.d.comb += Assume(~ResetSignal())
+        rise = trigger.laser & ~_past(m, trigger.laser)
+        m.d.comb += [Assert(~rise | trigger.tdc_start), Assert(~trigger.tdc_start | trigger.laser),
+                     Cover(rise)]
+        return m
+
+
+def _zero_loading(**kwargs):
+    return _ZeroLoadingLfsr(length=kwargs.get("length"))
+
+
+PROOFS = [
+    Proof("delay_core.trigger_start", TriggerHarness, "prove", 2,
+          "laser trigger: a TDC start in every rising edge's cycle, and only while the laser is on",
+          mutant=lambda: TriggerHarness(_LateStartTrigger)),
+    _core("start", 30, "the laser's rising edge and the TDC start are always in the same cycle",
+          {"LaserTrigger": _LateStartTrigger}),
+    _core("interval", 30, "interval mode: consecutive pulses exactly T + R apart, never closer "
+          "than T", {"PulseScheduler": _NoDelayScheduler}, fixed=True),
+    _core("grid", 30, "grid mode: pulse k fires at k T + 1 + R[k] after the start, inside "
+          "slot k", {"PulseScheduler": _LongPeriodScheduler}, fixed=True),
+    _core("disabled", 30, "no pulse while disabled: no fire, no rising edge, the laser off "
+          "once the last pulse ends", {"PulseScheduler": _LateStopScheduler}),
+    _core("settings", 30, "settings (the pulse width) change only at a frame boundary, from "
+          "the first take after they are sampled", {"PulseScheduler": _EagerWidthScheduler}),
+    _core("pulses", 30, "no runt, merged or doubled pulse: each exactly pulse_width cycles "
+          "high, low at least one cycle between", {"LaserTrigger": _RuntTrigger}),
+    Proof("delay_core.source_range", SourceHarness, "prove", 2,
+          "delay source: R within 0 … 2^L − 2 (mseq), 0 … 2^Wm − 1 (masked), 0 (off)",
+          mutant=lambda: SourceHarness(_OffByOneSource)),
+    Proof("delay_core.lfsr_fixed", lambda: LfsrHarness(length=5, steps=3), "prove", 1,
+          "LFSR (L = 5, 3 steps per advance): never zero, nothing above bit L − 1",
+          mutant=lambda: LfsrHarness(_zero_loading, length=5)),
+    Proof("delay_core.lfsr_runtime", LfsrHarness, "prove", 1,
+          "LFSR (run-time L): never zero, nothing above bit L − 1 of the loaded L",
+          mutant=lambda: LfsrHarness(_zero_loading)),
+]
