@@ -1,0 +1,97 @@
+"""Formal harnesses of the link: the UART receiver (``hdl/uart.py``), the frame decoder
+(``hdl/framing.py`` with ``hdl/cobs.py`` and ``hdl/crc.py``) and the command processor with its
+register file (``hdl/command.py``, ``hdl/regfile.py``).
+
+The UART runs at four cycles a bit (the shortest :func:`fliss.hdl.uart.bit_cycles` allows), so
+that a character lasts 40 cycles. Inputs are free in every cycle (any line, any byte, any
+backpressure). Mutants override a block's own statements (:func:`._harness.open_block`).
+"""
+
+from amaranth.hdl import Assert, Assume, Cover, Module, ResetSignal, Signal
+from amaranth.lib import wiring
+from amaranth.lib.wiring import In
+
+from fliss.hdl.uart import CHARACTER_BITS, FRACTION_BITS, UartRx
+
+from ._harness import assigned, open_block, past
+from .runner import Proof
+
+
+# UART receiver
+
+#: Clock and baud rate of the UART harness: four cycles a bit.
+UART_CLOCK_HZ, UART_BAUD = 4_000_000, 1_000_000
+
+#: The receiver is idle (looking for a start bit) after this many cycles of a high line.
+UART_IDLE_CYCLES = 39
+
+
+def _uart_break_stuck(block, module):
+    # a framing error's wait for the line to go high never ends
+    state, = assigned(module, "fsm_state")
+    with module.If(state == 2):
+        module.d.sync += state.eq(2)
+
+
+class UartRxHarness(wiring.Component):
+    """The UART receiver on a free line: after :data:`UART_IDLE_CYCLES` cycles of a high line
+    it is idle, ready for the next start bit, whatever came before (a break, noise, a
+    character cut short)."""
+
+    rx:    In(1)
+    ready: In(1)
+
+    def __init__(self, mutate=None):
+        self.mutate = mutate
+        super().__init__()
+
+    def elaborate(self, platform):
+        m = Module()
+        dut = UartRx(clock_hz=UART_CLOCK_HZ, baud=UART_BAUD)
+        dut._MustUse__silence = True      # (elaborated here, not by the converter)
+        dut._MustUse__silence = True      # (elaborated here, not by the converter)
+        m.submodules.dut = module = open_block(dut, self.mutate, platform)
+        m.d.comb += [dut.rx.eq(self.rx), dut.o.ready.eq(self.ready),
+                     Assume(~ResetSignal("sync"))]
+
+        # consecutive cycles of a high line before this one, saturating
+        high = Signal(range(UART_IDLE_CYCLES + 1))
+        with m.If(~self.rx):
+            m.d.sync += high.eq(0)
+        with m.Elif(high != UART_IDLE_CYCLES):
+            m.d.sync += high.eq(high + 1)
+
+        state, cycle, edge, target, bit = assigned(module, "fsm_state", "cycle", "edge",
+                                                  "target", "bit")
+        idle, receive, wait_high = state == 0, state == 1, state == 2
+        step = dut.bit_cycles
+        m.d.comb += Assert((high != UART_IDLE_CYCLES) | idle)
+
+        # Invariants of the receiver's timing (for the induction)
+        m.d.comb += Assert(idle | receive | wait_high)
+        with m.If(receive):
+            m.d.comb += [
+                Assert(bit < CHARACTER_BITS),
+                Assert(edge == step // 2 + bit * step),
+                Assert(target == (edge >> FRACTION_BITS) + 1),
+                Assert((cycle >= 1) & (cycle <= target)),
+                Assert(high <= cycle + 1),
+                Assert((bit == 0) | (high + 1 <= cycle)),
+            ]
+        with m.If(wait_high):
+            m.d.comb += Assert(high <= 4)
+
+        m.d.comb += [
+            Cover(dut.o.valid & (high == 4)),                    # a byte, then the line idles
+            Cover(past(m, dut.framing_error, 8) & idle & (high == 8)),   # a break, then idle
+            Cover(receive & (high == UART_IDLE_CYCLES - 1)),      # the bound is tight
+        ]
+        return m
+
+
+PROOFS = [
+    Proof("link.uart_rx_idle", UartRxHarness, "prove", 4,
+          f"UART receiver: idle (ready for a start bit) after {UART_IDLE_CYCLES} cycles of a "
+          f"high line, from any state",
+          mutant=lambda: UartRxHarness(_uart_break_stuck), cover_depth=60, mutant_depth=70),
+]
