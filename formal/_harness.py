@@ -17,6 +17,7 @@ def past(m, value, cycles=1, *, name="past"):
 def assigned(module, *names):
     """The signals named ``names`` that the elaborated ``module`` (a :class:`Module`, not yet a
     fragment) assigns, in that order; for invariants about its state and for mutants."""
+    module._flush()         # (close the block's last `If` chain, or it is not in the list)
     found = {}
 
     def walk(statements):

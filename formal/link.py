@@ -11,9 +11,12 @@ from amaranth.hdl import Assert, Assume, Cover, Module, ResetSignal, Signal
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In
 
+from fliss.hdl.crc import CRC_INIT
+from fliss.hdl.framing import FrameDecoder
+from fliss.hdl.protocol import DELIMITER
 from fliss.hdl.uart import CHARACTER_BITS, FRACTION_BITS, UartRx
 
-from ._harness import assigned, open_block, past
+from ._harness import assigned, open_block, open_submodule, past
 from .runner import Proof
 
 
@@ -89,9 +92,77 @@ class UartRxHarness(wiring.Component):
         return m
 
 
+# Frame decoder
+
+def _cobs_keeps_block(block, module):
+    # a delimiter does not end the COBS block it cuts short
+    delimiter, code_left, at_code = assigned(module, "delimiter", "code_left", "at_code")
+    with module.If(delimiter):
+        module.d.sync += [code_left.eq(code_left), at_code.eq(at_code)]
+
+
+class DecoderHarness(wiring.Component):
+    """The frame decoder on free bytes and backpressure: two cycles after it takes a delimiter,
+    every part of it is at the start of a frame (COBS block and count, CRC and its delay line,
+    the frame's byte count), and a cycle later it takes input again (unless that cycle judges
+    another frame): whatever came before, it resynchronises at the next delimiter."""
+
+    valid:   In(1)
+    payload: In(8)
+    ready:   In(1)
+
+    def __init__(self, cobs_mutate=None):
+        self.cobs_mutate = cobs_mutate
+        super().__init__()
+
+    def elaborate(self, platform):
+        m = Module()
+        dut = FrameDecoder()
+        dut._MustUse__silence = True
+        m.submodules.dut = module = open_block(dut, platform=platform)
+        _, cobs = open_submodule(module, "cobs", self.cobs_mutate, platform)
+        crc_block, crc = open_submodule(module, "crc", platform=platform)
+        m.d.comb += [
+            dut.i.valid.eq(self.valid), dut.i.payload.eq(self.payload),
+            dut.o.ready.eq(self.ready),
+            Assume(~ResetSignal("sync")),
+        ]
+        count, ending = assigned(module, "count", "ending")
+        cobs_count, code_left, at_code, block_ff = assigned(cobs, "count", "code_left",
+                                                            "at_code", "block_ff")
+        held, = assigned(crc, "held")
+        engine = crc._named_submodules["engine"][0]
+
+        delimiter = Signal()
+        m.d.comb += delimiter.eq(dut.i.valid & dut.i.ready & (dut.i.payload == DELIMITER))
+        fresh = Signal()
+        m.d.comb += fresh.eq((count == 0) & (cobs_count == 0) & (code_left == 0) & at_code &
+                             ~block_ff & (held == 0) & (engine.crc == CRC_INIT))
+        m.d.comb += [
+            Assert(~past(m, delimiter, 2) | fresh),
+            Assert(~past(m, delimiter, 3) | dut.i.ready | ending),
+        ]
+        # Invariant (for the induction): the COBS block's register `at_code` is `code_left == 0`
+        m.d.comb += Assert(at_code == (code_left == 0))
+
+        # A frame cut short in a COBS block, then a good packet after the delimiter
+        cut = Signal()
+        with m.If(delimiter & ~at_code & (cobs_count != 0)):
+            m.d.sync += cut.eq(1)
+        m.d.comb += [
+            Cover(past(m, delimiter, 2) & fresh & cut),
+            Cover(dut.o.valid & dut.o.p.first & cut),
+        ]
+        return m
+
+
 PROOFS = [
     Proof("link.uart_rx_idle", UartRxHarness, "prove", 4,
           f"UART receiver: idle (ready for a start bit) after {UART_IDLE_CYCLES} cycles of a "
           f"high line, from any state",
           mutant=lambda: UartRxHarness(_uart_break_stuck), cover_depth=60, mutant_depth=70),
+    Proof("link.decoder_resync", DecoderHarness, "prove", 4,
+          "frame decoder: from any state, at the start of a frame two cycles after a delimiter "
+          "and taking input a cycle later",
+          mutant=lambda: DecoderHarness(_cobs_keeps_block), cover_depth=20, mutant_depth=10),
 ]
