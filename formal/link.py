@@ -11,9 +11,9 @@ from amaranth.hdl import Assert, Assume, Cover, Module, ResetSignal, Signal
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In
 
-from fliss.hdl.crc import CRC_INIT
+from fliss.hdl.crc import CRC_INIT, crc16_next
 from fliss.hdl.framing import FrameDecoder
-from fliss.hdl.protocol import DELIMITER
+from fliss.hdl.protocol import CRC_BYTES, DELIMITER, HEADER_BYTES, MAX_PACKET, NakCode
 from fliss.hdl.uart import CHARACTER_BITS, FRACTION_BITS, UartRx
 
 from ._harness import assigned, open_block, open_submodule, past
@@ -156,6 +156,101 @@ class DecoderHarness(wiring.Component):
         return m
 
 
+def _crc_unchecked(block, module):
+    # the CRC check skipped
+    end, crc_bad = assigned(module, "end", "crc_bad")
+    with module.If(end):
+        module.d.sync += crc_bad.eq(0)
+
+
+class DecoderChecksHarness(wiring.Component):
+    """The frame decoder on free bytes and backpressure: a packet is accepted (and sent to the
+    command processor) only from a frame whose CRC is right and whose header ``length`` is the
+    number of its payload bytes, both computed here from the decoded bytes of the frame."""
+
+    valid:   In(1)
+    payload: In(8)
+    ready:   In(1)
+
+    def __init__(self, mutate=None):
+        self.mutate = mutate
+        super().__init__()
+
+    def elaborate(self, platform):
+        m = Module()
+        dut = FrameDecoder()
+        dut._MustUse__silence = True
+        m.submodules.dut = module = open_block(dut, self.mutate, platform)
+        _, cobs = open_submodule(module, "cobs", platform=platform)
+        crc_block, crc_module = open_submodule(module, "crc", platform=platform)
+        m.d.comb += [
+            dut.i.valid.eq(self.valid), dut.i.payload.eq(self.payload),
+            dut.o.ready.eq(self.ready),
+            Assume(~ResetSignal("sync")),
+        ]
+
+        # The frame's decoded bytes (CRC included), as the COBS decoder gives them
+        beat = crc_block.i
+        taken = Signal()
+        m.d.comb += taken.eq(beat.valid & beat.ready)
+        limit = MAX_PACKET + 1
+        size = Signal(range(limit + 1))          # bytes, saturating
+        crc = Signal(16, init=CRC_INIT)
+        length = Signal(16)                      # header `length`, from bytes 2 and 3
+        with m.If(taken & beat.p.end):
+            m.d.sync += [size.eq(0), crc.eq(CRC_INIT)]
+        with m.Elif(taken):
+            m.d.sync += crc.eq(crc16_next(crc, beat.p.data))
+            with m.If(size != limit):
+                m.d.sync += size.eq(size + 1)
+            with m.If(size == 2):
+                m.d.sync += length[:8].eq(beat.p.data)
+            with m.If(size == 3):
+                m.d.sync += length[8:].eq(beat.p.data)
+        good = Signal()
+        m.d.comb += good.eq((size >= HEADER_BYTES + CRC_BYTES) & (crc == 0) &
+                            (length == size - HEADER_BYTES - CRC_BYTES))
+        judged_good = past(m, taken & beat.p.end & good, 2)
+        accept, = assigned(module, "accept")
+        m.d.comb += Assert(~accept | judged_good)
+
+        # Invariants (for the induction): the decoder's CRC, byte count and header are these
+        count, header = assigned(module, "count", "header")
+        held, = assigned(crc_module, "held")
+        engine = crc_module._named_submodules["engine"][0]
+        m.d.comb += [Assert(engine.crc == crc), Assert(size <= limit)]
+        ending, = assigned(module, "ending")
+        with m.If(ending):      # (the frame's byte count is cleared at the end of this cycle)
+            m.d.comb += [Assert(size == 0), Assert(held == 0)]
+        with m.Elif(size < CRC_BYTES):
+            m.d.comb += [Assert(held == size), Assert(count == 0)]
+        with m.Else():
+            m.d.comb += Assert(held == CRC_BYTES)
+            with m.If(size < limit):
+                m.d.comb += Assert(count == size - CRC_BYTES)
+            with m.Else():
+                m.d.comb += Assert(count == limit - CRC_BYTES)
+        # (the header register, as bits, and the CRC checker's delay line: bytes 2 and 3)
+        delay, = assigned(crc_module, "delay")
+        with m.If(~ending & (count >= HEADER_BYTES)):
+            m.d.comb += Assert(header[16:] == length)
+        with m.If(~ending & (count == HEADER_BYTES - 1)):
+            m.d.comb += Assert(header[24:] == length[:8])
+        with m.If(size == 3):
+            m.d.comb += Assert(delay[8:] == length[:8])
+        with m.If(size == 4):
+            m.d.comb += Assert(delay == length)
+        with m.If(size == 5):
+            m.d.comb += Assert(delay[:8] == length[8:])
+
+        m.d.comb += [
+            Cover(accept & (past(m, length, 3) == 1)),           # a packet with a payload byte
+            Cover(dut.drop & (dut.drop_reason == NakCode.BAD_CRC)),
+            Cover(dut.drop & (dut.drop_reason == NakCode.BAD_LENGTH)),
+        ]
+        return m
+
+
 PROOFS = [
     Proof("link.uart_rx_idle", UartRxHarness, "prove", 4,
           f"UART receiver: idle (ready for a start bit) after {UART_IDLE_CYCLES} cycles of a "
@@ -165,4 +260,7 @@ PROOFS = [
           "frame decoder: from any state, at the start of a frame two cycles after a delimiter "
           "and taking input a cycle later",
           mutant=lambda: DecoderHarness(_cobs_keeps_block), cover_depth=20, mutant_depth=10),
+    Proof("link.decoder_checks", DecoderChecksHarness, "prove", 3,
+          "frame decoder: a packet is accepted only from a frame with a good CRC and length",
+          mutant=lambda: DecoderChecksHarness(_crc_unchecked), cover_depth=16, mutant_depth=12),
 ]
