@@ -60,3 +60,11 @@ def open_submodule(module, name, mutate=None, platform=None):
     inner = open_block(block, mutate, platform)
     module._named_submodules[name] = (inner, src_loc)
     return block, inner
+
+
+def fsm(module, name="fsm"):
+    """The state signal of the FSM ``name`` of ``module`` and a function of a state's name that
+    tests for it."""
+    machine = module._generated[name]
+    return machine.state, lambda *states: machine.state.matches(
+        *(machine.encoding[state] for state in states))

@@ -8,15 +8,17 @@ backpressure). Mutants override a block's own statements (:func:`._harness.open_
 """
 
 from amaranth.hdl import Assert, Assume, Cover, Module, ResetSignal, Signal
-from amaranth.lib import wiring
+from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In
 
+from fliss.hdl.command import CommandProcessor
 from fliss.hdl.crc import CRC_INIT, crc16_next
-from fliss.hdl.framing import FrameDecoder
-from fliss.hdl.protocol import CRC_BYTES, DELIMITER, HEADER_BYTES, MAX_PACKET, NakCode
+from fliss.hdl.framing import FrameDecoder, PacketBeat
+from fliss.hdl.protocol import (CRC_BYTES, DELIMITER, HEADER_BYTES, MAX_PACKET, MAX_PAYLOAD,
+                                NakCode, PacketType)
 from fliss.hdl.uart import CHARACTER_BITS, FRACTION_BITS, UartRx
 
-from ._harness import assigned, open_block, open_submodule, past
+from ._harness import assigned, fsm, open_block, open_submodule, past
 from .runner import Proof
 
 
@@ -251,6 +253,172 @@ class DecoderChecksHarness(wiring.Component):
         return m
 
 
+# Command processor and register file
+
+#: A command is answered (its reply's header leaves) within this many cycles of its last beat,
+#: when nothing waits on the reply stream or the STATUS counters.
+ANSWER_CYCLES = 6
+
+
+def _answers_twice(block, module):
+    # a reply is sent again once it has gone
+    state, is_state = fsm(module)
+    index, reply_final = assigned(module, "index", "reply_final")
+    replies = module._named_submodules["reply_buffer"][0].i
+    with module.If(is_state("DATA") & replies.ready & (index == reply_final)):
+        module.d.sync += state.eq(module._generated["fsm"].encoding["HEADER"])
+
+
+def _refusal_unanswered(block, module):
+    # a refused command is never answered
+    state, is_state = fsm(module)
+    refusal, = assigned(module, "refusal")
+    with module.If(is_state("DISPATCH") & refusal):
+        module.d.sync += state.eq(module._generated["fsm"].encoding["DISPATCH"])
+
+
+def _commits_unchecked(block, module):
+    # a WRITE's values are committed as they come in, before the packet is whole
+    check, = assigned(module, "check")
+    module.d.comb += block.registers.commit.eq(check)
+
+
+class CommandHarness(wiring.Component):
+    """The command processor and its register file, fed any sequence of well-formed packets
+    (as the frame decoder sends them: a header beat, then ``length`` payload beats) and link
+    errors, with any backpressure on its replies.
+
+    ``check`` is ``"answer"``: a command is taken only when none is waiting for its reply, and
+    every reply answers exactly one command or a link error (``patient``: and a command is
+    answered within :data:`ANSWER_CYCLES` cycles); or ``"write"``: the settings change only in
+    the cycle after a commit, and only the commit of a whole ``WRITE`` packet taken from the
+    decoder (with a decoder that accepts only good frames, ``link.decoder_checks``, no bad frame
+    ever changes a register).
+    """
+
+    packets:     In(stream.Signature(PacketBeat))
+    replies_ready: In(1)
+    link_error:  In(1)
+    status_ready: In(1)
+
+    def __init__(self, check, *, patient=False, mutate=None):
+        self.check, self.patient, self.mutate = check, patient, mutate
+        super().__init__()
+
+    def elaborate(self, platform):
+        m = Module()
+        dut = CommandProcessor(clock_hz=UART_CLOCK_HZ, baud=UART_BAUD)
+        dut._MustUse__silence = True
+        m.submodules.dut = module = open_block(dut, self.mutate, platform)
+        m.d.comb += [
+            dut.packets.valid.eq(self.packets.valid), dut.packets.payload.eq(self.packets.payload),
+            self.packets.ready.eq(dut.packets.ready),
+            dut.replies.ready.eq(self.replies_ready),
+            dut.link_error.eq(self.link_error),
+            dut.status.ready.eq(self.status_ready),
+            Assume(~ResetSignal("sync")),
+        ]
+        if self.patient:
+            m.d.comb += [Assume(self.replies_ready), Assume(self.status_ready)]
+
+        # Well-formed packets, held until taken
+        beat = self.packets
+        taken = Signal()
+        m.d.comb += taken.eq(beat.valid & beat.ready)
+        inside = Signal()                       # between a header beat and the last beat
+        left = Signal(range(MAX_PAYLOAD + 1))   # payload beats to come
+        header = Signal.like(beat.p.header)
+        with m.If(beat.valid):
+            with m.If(~inside):
+                m.d.comb += [Assume(beat.p.first), Assume(beat.p.header.length <= MAX_PAYLOAD),
+                             Assume(beat.p.last == (beat.p.header.length == 0))]
+            with m.Else():
+                m.d.comb += [Assume(~beat.p.first), Assume(beat.p.header == header),
+                             Assume(beat.p.last == (left == 1))]
+        with m.If(past(m, beat.valid & ~beat.ready)):
+            m.d.comb += [Assume(beat.valid), Assume(beat.payload == past(m, beat.payload))]
+        with m.If(taken & beat.p.first):
+            m.d.sync += [inside.eq(~beat.p.last), left.eq(beat.p.header.length),
+                         header.eq(beat.p.header)]
+        with m.Elif(taken):
+            m.d.sync += [inside.eq(~beat.p.last), left.eq(left - 1)]
+        m.d.comb += Assert(~inside | (left != 0))
+
+        # Commands and replies
+        state, is_state = fsm(module)
+        link_pending, = assigned(module, "link_pending")
+        replies = module._named_submodules["reply_buffer"][0].i
+        reply_start = Signal()
+        m.d.comb += reply_start.eq(replies.valid & replies.ready & replies.p.first)
+        command = Signal()
+        m.d.comb += command.eq(taken & beat.p.first)
+        owed = Signal()                         # a command waits for its reply
+        whole = Signal()                        # ... and its packet has been taken whole
+        link_nak = Signal()                     # a link error's NAK is on its way
+        is_write = Signal()
+        wait = Signal(range(ANSWER_CYCLES + 1))
+        with m.If(command):
+            m.d.sync += [owed.eq(1), whole.eq(beat.p.last), wait.eq(0),
+                         is_write.eq(beat.p.header.type == PacketType.WRITE)]
+        with m.Elif(reply_start & owed):
+            m.d.sync += [owed.eq(0), whole.eq(0), wait.eq(0)]
+        with m.Elif(taken & beat.p.last):
+            m.d.sync += whole.eq(1)
+        with m.Elif(owed & whole & (wait != ANSWER_CYCLES)):
+            m.d.sync += wait.eq(wait + 1)
+        with m.If(is_state("IDLE") & ~command & link_pending):
+            m.d.sync += link_nak.eq(1)
+        with m.Elif(reply_start & ~owed):
+            m.d.sync += link_nak.eq(0)
+
+        commit = dut.registers.commit
+        settings = dut.registers.settings.as_value()
+        if self.check == "answer":
+            m.d.comb += [
+                Assert(~command | ~owed),                   # one command at a time
+                Assert(~reply_start | owed | link_nak),     # no reply unless one is owed
+            ]
+            if self.patient:
+                m.d.comb += Assert(wait != ANSWER_CYCLES)
+                # (invariants: how long each step takes)
+                for states, most in ((("CHECK",), 0), (("VERDICT",), 1), (("DISPATCH",), 2),
+                                     (("CONSISTENCY", "SNAPSHOT"), 3), (("COMMIT",), 4)):
+                    m.d.comb += Assert(~is_state(*states) | (wait <= most))
+                with m.If(is_state("HEADER") & owed):
+                    m.d.comb += Assert((wait <= 5) | ((wait <= 6) & ~dut.replies.valid))
+            m.d.comb += [
+                Cover(reply_start & owed & is_state("HEADER") &
+                      (past(m, state) == module._generated["fsm"].encoding["COMMIT"])),
+                Cover(reply_start & ~owed),                 # a link error's NAK
+                Cover(reply_start & owed & (wait == ANSWER_CYCLES - 1)),    # the bound is tight
+            ]
+        else:
+            m.d.comb += [
+                Assert(~commit | (owed & whole & is_write)),
+                Assert((settings == past(m, settings)) | past(m, commit)),
+                Cover(settings != past(m, settings)),
+            ]
+
+        # Invariants (for the induction)
+        accepting, cmd_type = assigned(module, "accepting", "cmd_type")
+        m.d.comb += [
+            Assert(state < len(module._generated["fsm"].encoding)),
+            Assert(~owed | (is_write == (cmd_type == PacketType.WRITE))),
+            Assert(accepting == is_state("IDLE", "PAYLOAD")),
+            Assert(is_state("IDLE", "DATA") | owed | (is_state("HEADER") & link_nak)),
+            Assert(~is_state("IDLE", "DATA") | ~owed),
+            Assert(~link_nak | is_state("HEADER")),
+            Assert(~(owed & link_nak)),
+            Assert((owed & whole) | (wait == 0)),
+            Assert(wait <= ANSWER_CYCLES),
+            Assert(~owed | inside | whole),
+            Assert(~is_state("PAYLOAD") | (inside & ~whole)),
+            Assert(~is_state("IDLE") | ~inside),
+            Assert(~inside | is_state("PAYLOAD")),
+        ]
+        return m
+
+
 PROOFS = [
     Proof("link.uart_rx_idle", UartRxHarness, "prove", 4,
           f"UART receiver: idle (ready for a start bit) after {UART_IDLE_CYCLES} cycles of a "
@@ -263,4 +431,18 @@ PROOFS = [
     Proof("link.decoder_checks", DecoderChecksHarness, "prove", 3,
           "frame decoder: a packet is accepted only from a frame with a good CRC and length",
           mutant=lambda: DecoderChecksHarness(_crc_unchecked), cover_depth=16, mutant_depth=12),
+    Proof("link.command_one_reply", lambda: CommandHarness("answer"), "prove", 4,
+          "command processor: one command at a time, and every reply answers exactly one "
+          "command or a link error",
+          mutant=lambda: CommandHarness("answer", mutate=_answers_twice), cover_depth=16,
+          mutant_depth=12),
+    Proof("link.command_answers", lambda: CommandHarness("answer", patient=True), "prove", 4,
+          f"command processor: every command answered within {ANSWER_CYCLES} cycles of its "
+          f"last beat when replies are taken",
+          mutant=lambda: CommandHarness("answer", patient=True, mutate=_refusal_unanswered),
+          cover_depth=16, mutant_depth=16),
+    Proof("link.command_writes", lambda: CommandHarness("write"), "prove", 4,
+          "register file: settings change only by the commit of a whole WRITE packet",
+          mutant=lambda: CommandHarness("write", mutate=_commits_unchecked), cover_depth=20,
+          mutant_depth=16),
 ]
