@@ -22,6 +22,12 @@ from ._harness import assigned, fsm, open_block, open_submodule, past
 from .runner import Proof
 
 
+def _invariant(mutate):
+    """``Assert`` for the invariants that help an induction; nothing for a mutant, whose
+    counterexample must break the property itself."""
+    return Assert if mutate is None else (lambda *args, **kwargs: [])
+
+
 # UART receiver
 
 #: Clock and baud rate of the UART harness: four cycles a bit.
@@ -52,6 +58,7 @@ class UartRxHarness(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
+        inv = _invariant(self.mutate)
         dut = UartRx(clock_hz=UART_CLOCK_HZ, baud=UART_BAUD)
         dut._MustUse__silence = True      # (elaborated here, not by the converter)
         dut._MustUse__silence = True      # (elaborated here, not by the converter)
@@ -73,18 +80,18 @@ class UartRxHarness(wiring.Component):
         m.d.comb += Assert((high != UART_IDLE_CYCLES) | idle)
 
         # Invariants of the receiver's timing (for the induction)
-        m.d.comb += Assert(idle | receive | wait_high)
+        m.d.comb += inv(idle | receive | wait_high)
         with m.If(receive):
             m.d.comb += [
-                Assert(bit < CHARACTER_BITS),
-                Assert(edge == step // 2 + bit * step),
-                Assert(target == (edge >> FRACTION_BITS) + 1),
-                Assert((cycle >= 1) & (cycle <= target)),
-                Assert(high <= cycle + 1),
-                Assert((bit == 0) | (high + 1 <= cycle)),
+                inv(bit < CHARACTER_BITS),
+                inv(edge == step // 2 + bit * step),
+                inv(target == (edge >> FRACTION_BITS) + 1),
+                inv((cycle >= 1) & (cycle <= target)),
+                inv(high <= cycle + 1),
+                inv((bit == 0) | (high + 1 <= cycle)),
             ]
         with m.If(wait_high):
-            m.d.comb += Assert(high <= 4)
+            m.d.comb += inv(high <= 4)
 
         m.d.comb += [
             Cover(dut.o.valid & (high == 4)),                    # a byte, then the line idles
@@ -114,15 +121,16 @@ class DecoderHarness(wiring.Component):
     ready:   In(1)
 
     def __init__(self, cobs_mutate=None):
-        self.cobs_mutate = cobs_mutate
+        self.mutate = cobs_mutate
         super().__init__()
 
     def elaborate(self, platform):
         m = Module()
+        inv = _invariant(self.mutate)
         dut = FrameDecoder()
         dut._MustUse__silence = True
         m.submodules.dut = module = open_block(dut, platform=platform)
-        _, cobs = open_submodule(module, "cobs", self.cobs_mutate, platform)
+        _, cobs = open_submodule(module, "cobs", self.mutate, platform)
         crc_block, crc = open_submodule(module, "crc", platform=platform)
         m.d.comb += [
             dut.i.valid.eq(self.valid), dut.i.payload.eq(self.payload),
@@ -145,7 +153,7 @@ class DecoderHarness(wiring.Component):
             Assert(~past(m, delimiter, 3) | dut.i.ready | ending),
         ]
         # Invariant (for the induction): the COBS block's register `at_code` is `code_left == 0`
-        m.d.comb += Assert(at_code == (code_left == 0))
+        m.d.comb += inv(at_code == (code_left == 0))
 
         # A frame cut short in a COBS block, then a good packet after the delimiter
         cut = Signal()
@@ -180,6 +188,7 @@ class DecoderChecksHarness(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
+        inv = _invariant(self.mutate)
         dut = FrameDecoder()
         dut._MustUse__silence = True
         m.submodules.dut = module = open_block(dut, self.mutate, platform)
@@ -220,26 +229,26 @@ class DecoderChecksHarness(wiring.Component):
         count, header = assigned(module, "count", "header")
         held, = assigned(crc_module, "held")
         engine = crc_module._named_submodules["engine"][0]
-        m.d.comb += [Assert(engine.crc == crc), Assert(size <= limit)]
+        m.d.comb += [inv(engine.crc == crc), inv(size <= limit)]
         ending, = assigned(module, "ending")
         with m.If(ending):      # (the frame's byte count is cleared at the end of this cycle)
-            m.d.comb += [Assert(size == 0), Assert(held == 0)]
+            m.d.comb += [inv(size == 0), inv(held == 0)]
         with m.Elif(size < CRC_BYTES):
-            m.d.comb += [Assert(held == size), Assert(count == 0)]
+            m.d.comb += [inv(held == size), inv(count == 0)]
         with m.Else():
-            m.d.comb += Assert(held == CRC_BYTES)
+            m.d.comb += inv(held == CRC_BYTES)
             with m.If(size < limit):
-                m.d.comb += Assert(count == size - CRC_BYTES)
+                m.d.comb += inv(count == size - CRC_BYTES)
             with m.Else():
-                m.d.comb += Assert(count == limit - CRC_BYTES)
+                m.d.comb += inv(count == limit - CRC_BYTES)
         # (the header register, as bits, and the CRC checker's delay line: bytes 2 and 3)
         delay, = assigned(crc_module, "delay")
         with m.If(~ending & (count >= HEADER_BYTES)):
-            m.d.comb += Assert(header[16:] == length)
+            m.d.comb += inv(header[16:] == length)
         with m.If(~ending & (count == HEADER_BYTES - 1)):
-            m.d.comb += Assert(header[24:] == length[:8])
+            m.d.comb += inv(header[24:] == length[:8])
         with m.If(size == 3):
-            m.d.comb += Assert(delay[8:] == length[:8])
+            m.d.comb += inv(delay[8:] == length[:8])
         with m.If(size == 4):
             m.d.comb += Assert(delay == length)
         with m.If(size == 5):
@@ -307,6 +316,7 @@ class CommandHarness(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
+        inv = _invariant(self.mutate)
         dut = CommandProcessor(clock_hz=UART_CLOCK_HZ, baud=UART_BAUD)
         dut._MustUse__silence = True
         m.submodules.dut = module = open_block(dut, self.mutate, platform)
@@ -342,7 +352,7 @@ class CommandHarness(wiring.Component):
                          header.eq(beat.p.header)]
         with m.Elif(taken):
             m.d.sync += [inside.eq(~beat.p.last), left.eq(left - 1)]
-        m.d.comb += Assert(~inside | (left != 0))
+        m.d.comb += inv(~inside | (left != 0))
 
         # Commands and replies
         state, is_state = fsm(module)
@@ -383,9 +393,9 @@ class CommandHarness(wiring.Component):
                 # (invariants: how long each step takes)
                 for states, most in ((("CHECK",), 0), (("VERDICT",), 1), (("DISPATCH",), 2),
                                      (("CONSISTENCY", "SNAPSHOT"), 3), (("COMMIT",), 4)):
-                    m.d.comb += Assert(~is_state(*states) | (wait <= most))
+                    m.d.comb += inv(~is_state(*states) | (wait <= most))
                 with m.If(is_state("HEADER") & owed):
-                    m.d.comb += Assert((wait <= 5) | ((wait <= 6) & ~dut.replies.valid))
+                    m.d.comb += inv((wait <= 5) | ((wait <= 6) & ~dut.replies.valid))
             m.d.comb += [
                 Cover(reply_start & owed & is_state("HEADER") &
                       (past(m, state) == module._generated["fsm"].encoding["COMMIT"])),
@@ -402,19 +412,19 @@ class CommandHarness(wiring.Component):
         # Invariants (for the induction)
         accepting, cmd_type = assigned(module, "accepting", "cmd_type")
         m.d.comb += [
-            Assert(state < len(module._generated["fsm"].encoding)),
-            Assert(~owed | (is_write == (cmd_type == PacketType.WRITE))),
-            Assert(accepting == is_state("IDLE", "PAYLOAD")),
-            Assert(is_state("IDLE", "DATA") | owed | (is_state("HEADER") & link_nak)),
-            Assert(~is_state("IDLE", "DATA") | ~owed),
-            Assert(~link_nak | is_state("HEADER")),
-            Assert(~(owed & link_nak)),
-            Assert((owed & whole) | (wait == 0)),
-            Assert(wait <= ANSWER_CYCLES),
-            Assert(~owed | inside | whole),
-            Assert(~is_state("PAYLOAD") | (inside & ~whole)),
-            Assert(~is_state("IDLE") | ~inside),
-            Assert(~inside | is_state("PAYLOAD")),
+            inv(state < len(module._generated["fsm"].encoding)),
+            inv(~owed | (is_write == (cmd_type == PacketType.WRITE))),
+            inv(accepting == is_state("IDLE", "PAYLOAD")),
+            inv(is_state("IDLE", "DATA") | owed | (is_state("HEADER") & link_nak)),
+            inv(~is_state("IDLE", "DATA") | ~owed),
+            inv(~link_nak | is_state("HEADER")),
+            inv(~(owed & link_nak)),
+            inv((owed & whole) | (wait == 0)),
+            inv(wait <= ANSWER_CYCLES),
+            inv(~owed | inside | whole),
+            inv(~is_state("PAYLOAD") | (inside & ~whole)),
+            inv(~is_state("IDLE") | ~inside),
+            inv(~inside | is_state("PAYLOAD")),
         ]
         return m
 
@@ -423,7 +433,7 @@ PROOFS = [
     Proof("link.uart_rx_idle", UartRxHarness, "prove", 4,
           f"UART receiver: idle (ready for a start bit) after {UART_IDLE_CYCLES} cycles of a "
           f"high line, from any state",
-          mutant=lambda: UartRxHarness(_uart_break_stuck), cover_depth=60, mutant_depth=70),
+          mutant=lambda: UartRxHarness(_uart_break_stuck), cover_depth=60, mutant_depth=90),
     Proof("link.decoder_resync", DecoderHarness, "prove", 4,
           "frame decoder: from any state, at the start of a frame two cycles after a delimiter "
           "and taking input a cycle later",
