@@ -45,6 +45,7 @@ def open_block(block, mutate=None, platform=None):
     """Elaborate ``block`` into its :class:`Module` (to add as a submodule in its place), whose
     signals :func:`assigned` finds; ``mutate(block, module)`` may then add statements that
     override the block's own (a mutant)."""
+    block._MustUse__silence = True      # (elaborated here, not by the converter)
     module = block.elaborate(platform)
     if not isinstance(module, Module):
         raise TypeError(f"{type(block).__name__} does not elaborate into a Module")

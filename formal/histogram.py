@@ -60,7 +60,6 @@ class HistogramHarness(wiring.Component):
     def elaborate(self, platform):
         m = Module()
         dut = Histogram(bin_bits=1, count_width=16)
-        dut._MustUse__silence = True
         m.submodules.dut = module = open_block(dut, platform=platform)
         storage, banks = open_submodule(module, "storage", self.mutate, platform)
         reader, readout = open_submodule(module, "reader", platform=platform)

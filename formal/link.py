@@ -60,8 +60,6 @@ class UartRxHarness(wiring.Component):
         m = Module()
         inv = _invariant(self.mutate)
         dut = UartRx(clock_hz=UART_CLOCK_HZ, baud=UART_BAUD)
-        dut._MustUse__silence = True      # (elaborated here, not by the converter)
-        dut._MustUse__silence = True      # (elaborated here, not by the converter)
         m.submodules.dut = module = open_block(dut, self.mutate, platform)
         m.d.comb += [dut.rx.eq(self.rx), dut.o.ready.eq(self.ready),
                      Assume(~ResetSignal("sync"))]
@@ -128,7 +126,6 @@ class DecoderHarness(wiring.Component):
         m = Module()
         inv = _invariant(self.mutate)
         dut = FrameDecoder()
-        dut._MustUse__silence = True
         m.submodules.dut = module = open_block(dut, platform=platform)
         _, cobs = open_submodule(module, "cobs", self.mutate, platform)
         crc_block, crc = open_submodule(module, "crc", platform=platform)
@@ -190,7 +187,6 @@ class DecoderChecksHarness(wiring.Component):
         m = Module()
         inv = _invariant(self.mutate)
         dut = FrameDecoder()
-        dut._MustUse__silence = True
         m.submodules.dut = module = open_block(dut, self.mutate, platform)
         _, cobs = open_submodule(module, "cobs", platform=platform)
         crc_block, crc_module = open_submodule(module, "crc", platform=platform)
@@ -318,7 +314,6 @@ class CommandHarness(wiring.Component):
         m = Module()
         inv = _invariant(self.mutate)
         dut = CommandProcessor(clock_hz=UART_CLOCK_HZ, baud=UART_BAUD)
-        dut._MustUse__silence = True
         m.submodules.dut = module = open_block(dut, self.mutate, platform)
         m.d.comb += [
             dut.packets.valid.eq(self.packets.valid), dut.packets.payload.eq(self.packets.payload),
