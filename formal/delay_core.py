@@ -8,24 +8,25 @@ widths ``Wm`` up to :data:`MAX_WM`; in ``grid`` mode the largest delay plus the 
 below the period. ``enable`` and ``update`` are free, except that ``enable`` rises only while the
 laser is off (the host restarts after milliseconds; see ``docs/verification.md``).
 
-Mutants swap a block of the core for a broken wrapper around it (:class:`_ProbedCore`).
+Mutants swap a block of the core for a broken one (``formal/_mutants.py``) while the core
+elaborates (:class:`_ProbedCore`).
 """
 
-from amaranth.hdl import (Assert, Assume, Cover, Const, Fragment, Module, Mux, ResetSignal,
-                          Signal)
-from amaranth.hdl._ast import Assign, Switch
+from amaranth.hdl import Assert, Assume, Cover, Const, Module, Mux, ResetSignal, Signal
 from amaranth.lib import wiring
-from amaranth.lib.wiring import In, Out
+from amaranth.lib.wiring import In
 
 import fliss.hdl.core as core_module
 from fliss.hdl.core import DelayCore
 from fliss.hdl.delay import DelayMode, DelaySource
 from fliss.hdl.laser import LaserTrigger
-from fliss.hdl.lfsr import POLYNOMIALS, Lfsr, _galois_step
+from fliss.hdl.lfsr import POLYNOMIALS, Lfsr
 from fliss.hdl.registers import DelaySettings
-from fliss.hdl.scheduler import PulseScheduler
 
-from .runner import Proof
+from ._mutants import (_EagerWidthScheduler, _LateStartTrigger, _LateStopScheduler,
+                       _LongPeriodScheduler, _NoDelayScheduler, _OffByOneSource, _RuntTrigger,
+                       _ZeroLoadingLfsr)
+from .runner import Proof, internals
 
 
 #: Small settings of the core harness.
@@ -38,27 +39,6 @@ def _past(m, value):
     past = Signal.like(value, name="past")
     m.d.sync += past.eq(value)
     return past
-
-
-def _internals(block, *names):
-    """Elaborate ``block`` into a fragment and find the signals it assigns named ``names``, for
-    invariants about its state (a k-induction needs them); returns the fragment (to add as the
-    submodule in place of the block) and the signals."""
-    fragment = Fragment.get(block, None)
-    found = {}
-
-    def walk(statements):
-        for statement in statements:
-            if isinstance(statement, Assign):
-                for signal in statement._lhs_signals():
-                    found.setdefault(signal.name, signal)
-            elif isinstance(statement, Switch):
-                for case in statement.cases:
-                    walk(case[1] if isinstance(case, tuple) else statement.cases[case])
-
-    for statements in fragment.statements.values():
-        walk(statements)
-    return fragment, [found[name] for name in names]
 
 
 def _assume_valid(m, settings, *, max_l=MAX_L, max_wm=MAX_WM):
@@ -77,103 +57,6 @@ def _assume_valid(m, settings, *, max_l=MAX_L, max_wm=MAX_WM):
         Assume((settings.pulse_width >= 1) & (settings.pulse_width < settings.period)),
         Assume(~settings.grid | (max_delay + settings.pulse_width < settings.period)),
     ]
-
-
-# Broken blocks for the mutants: wrappers with the signature of the block they wrap
-
-class _Wrapper(wiring.Component):
-    def __init__(self, inner):
-        self.inner = inner
-        super().__init__(inner.signature)
-
-    def forward(self, m, **replace):
-        """Connect every port to the inner block's, but those in ``replace`` (name -> value
-        driven into the inner block's input, or out of the wrapper's output)."""
-        m.submodules.inner = inner = self.inner
-        for name, member in self.signature.members.items():
-            outer, block = getattr(self, name), getattr(inner, name)
-            if name == "delays" and member.flow == In:
-                # (always valid: `valid` is a constant)
-                m.d.comb += [block.payload.eq(replace.get("payload", outer.payload)),
-                             outer.ready.eq(block.ready)]
-            elif name == "delays":
-                m.d.comb += [outer.payload.eq(block.payload), block.ready.eq(outer.ready)]
-            elif member.flow == In:
-                m.d.comb += block.eq(replace.get(name, outer))
-            else:
-                m.d.comb += outer.eq(replace.get(name, block))
-        return m
-
-
-class _LateStartTrigger(_Wrapper):
-    """The TDC start one cycle after the laser's rising edge."""
-
-    def __init__(self, *, width_bits):
-        super().__init__(LaserTrigger(width_bits=width_bits))
-
-    def elaborate(self, platform):
-        m = Module()
-        return self.forward(m, tdc_start=_past(m, self.inner.tdc_start))
-
-
-class _RuntTrigger(_Wrapper):
-    """Laser pulses a cycle short."""
-
-    def __init__(self, *, width_bits):
-        super().__init__(LaserTrigger(width_bits=width_bits))
-
-    def elaborate(self, platform):
-        return self.forward(Module(), width=self.width - 1)
-
-
-class _NoDelayScheduler(_Wrapper):
-    """Fires as if every delay were zero (and still reports it in ``fire_delay``)."""
-
-    def __init__(self, **kwargs):
-        super().__init__(PulseScheduler(**kwargs))
-
-    def elaborate(self, platform):
-        m = Module()
-        payload = Signal.like(self.delays.payload)
-        m.d.comb += [payload.eq(self.delays.payload), payload.zero.eq(1),
-                     payload.zero_late.eq(0)]
-        return self.forward(m, payload=payload)
-
-
-class _LongPeriodScheduler(_Wrapper):
-    """Takes every period a cycle long."""
-
-    def __init__(self, **kwargs):
-        super().__init__(PulseScheduler(**kwargs))
-
-    def elaborate(self, platform):
-        m = Module()
-        settings = Signal.like(self.settings)
-        m.d.comb += [settings.eq(self.settings), settings.period.eq(self.settings.period + 1)]
-        return self.forward(m, settings=settings)
-
-
-class _LateStopScheduler(_Wrapper):
-    """Stops a cycle after ``enable`` falls."""
-
-    def __init__(self, **kwargs):
-        super().__init__(PulseScheduler(**kwargs))
-
-    def elaborate(self, platform):
-        m = Module()
-        return self.forward(m, enable=self.enable | _past(m, self.enable))
-
-
-class _EagerWidthScheduler(_Wrapper):
-    """Applies a new pulse width in the ``update`` cycle, in the middle of a frame."""
-
-    def __init__(self, **kwargs):
-        super().__init__(PulseScheduler(**kwargs))
-
-    def elaborate(self, platform):
-        m = Module()
-        return self.forward(m, fire_width=Mux(self.update, self.settings.pulse_width,
-                                              self.inner.fire_width))
 
 
 class _ProbedCore(DelayCore):
@@ -321,8 +204,8 @@ class SourceHarness(wiring.Component):
         source = self._source(layout=SETTINGS)
         invariants = self._source is DelaySource
         if invariants:
-            m.submodules.source, (s_mode, s_mask, s_taps, s_mseq) = _internals(
-                source, "mode", "mask", "taps", "mseq")
+            m.submodules.source, (s_mode, s_mask, s_taps, s_mseq, s_masked) = internals(
+                source, "mode", "mask", "taps", "mseq", "masked")
         else:
             m.submodules.source = source
         m.d.comb += [source.load.eq(self.load), source.settings.eq(self.settings),
@@ -355,23 +238,13 @@ class SourceHarness(wiring.Component):
             # the source's registers agree with the settings of the last load
             m.d.comb += [Assert(s_mode == mode.as_value()), Assert(s_taps == taps),
                          Assert(s_mask == Mux(mode == DelayMode.MASKED, top, 0)),
-                         Assert(s_mseq <= Mux(mode == DelayMode.MSEQ, top + 1, 1))]
+                         Assert(s_mseq <= Mux(mode == DelayMode.MSEQ, top + 1, 1)),
+                         # the masked register never holds zero (the m-sequence one holds zero
+                         # only standing for 1: `value <= top` below shows it is never 0 - 1)
+                         Assert(s_masked != 0)]
         m.d.comb += [Assert(value <= top),
                      Cover((mode == DelayMode.MSEQ) & (value == top) & (top == 6)),
                      Cover((mode == DelayMode.MASKED) & (value == top) & (top == 3))]
-        return m
-
-
-class _OffByOneSource(_Wrapper):
-    """``mseq`` delays ``R + 1``: the register state rather than ``state - 1``."""
-
-    def __init__(self, **kwargs):
-        super().__init__(DelaySource(**kwargs))
-
-    def elaborate(self, platform):
-        m = Module()
-        m = self.forward(m)
-        m.d.comb += self.delays.payload.value.eq(self.inner.delays.payload.value + 1)
         return m
 
 
@@ -396,7 +269,7 @@ class LfsrHarness(wiring.Component):
         lfsr = self._lfsr(**self._kwargs)
         fixed = self._kwargs.get("length")
         if fixed is None and self._lfsr is Lfsr:
-            m.submodules.lfsr, (l_length,) = _internals(lfsr, "length")
+            m.submodules.lfsr, (l_length,) = internals(lfsr, "length")
         else:
             m.submodules.lfsr = lfsr
         m.d.comb += [lfsr.seed.eq(self.seed), lfsr.load.eq(self.load),
@@ -419,50 +292,52 @@ class LfsrHarness(wiring.Component):
         return m
 
 
-class _ZeroLoadingLfsr(wiring.Component):
-    """An LFSR (one step per advance) that loads a zero seed as it is."""
-
-    def __init__(self, *, length=None):
-        self._length = length
-        members = {"seed": In(32), "load": In(1), "advance": In(1), "state": Out(32)}
-        if length is None:
-            members["length"] = In(range(2, 33))
-        super().__init__(members)
-
-    def elaborate(self, platform):
-        m = Module()
-        taps = POLYNOMIALS[self._length or 32] >> 1
-        mask = (1 << (self._length or 32)) - 1
-        state = Signal(32, init=1)
-        m.d.comb += self.state.eq(state)
-        with m.If(self.load):
-            m.d.sync += state.eq(self.seed & mask)
-        with m.Elif(self.advance):
-            m.d.sync += state.eq(_galois_step(state, taps))
-        return m
-
-
 # Laser trigger alone
 
 class TriggerHarness(wiring.Component):
-    """The laser trigger alone, with ``fire`` and ``width`` free: the TDC start strobes in the
-    cycle of every rising edge of the laser, and only while the laser is on."""
+    """The laser trigger alone, with ``fire`` and ``width`` free. ``check``: ``"start"``, the
+    TDC start strobes in the cycle of every rising edge of the laser, and only while the laser is
+    on; ``"width"``, with ``fire`` only while the laser is off (the scheduler's part, proved on
+    the core by ``delay_core.pulses``), every pulse is exactly ``width`` cycles high (zero acting
+    as one)."""
 
     fire:  In(1)
     width: In(PULSE_WIDTH_WIDTH)
 
-    def __init__(self, trigger=LaserTrigger):
+    def __init__(self, trigger=LaserTrigger, check="start"):
         self._trigger = trigger
+        self._check = check
         super().__init__()
 
     def elaborate(self, platform):
         m = Module()
-        m.submodules.trigger = trigger = self._trigger(width_bits=PULSE_WIDTH_WIDTH)
+        trigger = self._trigger(width_bits=PULSE_WIDTH_WIDTH)
+        if self._check == "width" and self._trigger is LaserTrigger:
+            m.submodules.trigger, (remaining,) = internals(trigger, "remaining")
+        else:
+            remaining = None
+            m.submodules.trigger = trigger
         m.d.comb += [trigger.fire.eq(self.fire), trigger.width.eq(self.width)]
         m.d.comb += Assume(~ResetSignal())
-        rise = trigger.laser & ~_past(m, trigger.laser)
-        m.d.comb += [Assert(~rise | trigger.tdc_start), Assert(~trigger.tdc_start | trigger.laser),
-                     Cover(rise)]
+        laser_d = _past(m, trigger.laser)
+        rise = trigger.laser & ~laser_d
+        if self._check == "start":
+            m.d.comb += [Assert(~rise | trigger.tdc_start),
+                         Assert(~trigger.tdc_start | trigger.laser), Cover(rise)]
+            return m
+
+        m.d.comb += Assume(~self.fire | ~trigger.laser)
+        width = Signal(PULSE_WIDTH_WIDTH)       # width of the pulse on the laser
+        with m.If(self.fire):
+            m.d.sync += width.eq(Mux(self.width == 0, 1, self.width))
+        high = Signal(PULSE_WIDTH_WIDTH)        # cycles the laser has been high before this one
+        m.d.sync += high.eq(Mux(trigger.laser, high + 1, 0))
+        fall = ~trigger.laser & laser_d
+        m.d.comb += [Assert(~trigger.laser | (high < width)),
+                     Assert(~fall | (high == width)),
+                     Cover(fall & (high == 7)), Cover(fall & (high == 1))]
+        if remaining is not None:
+            m.d.comb += Assert(Mux(trigger.laser, remaining + high == width - 1, remaining == 0))
         return m
 
 
@@ -474,20 +349,26 @@ PROOFS = [
     Proof("delay_core.trigger_start", TriggerHarness, "prove", 2,
           "laser trigger: a TDC start in every rising edge's cycle, and only while the laser is on",
           mutant=lambda: TriggerHarness(_LateStartTrigger)),
-    _core("start", 30, "the laser's rising edge and the TDC start are always in the same cycle",
+    Proof("delay_core.trigger_width", lambda: TriggerHarness(check="width"), "prove", 2,
+          "laser trigger, fired only while the laser is off: every pulse exactly width cycles "
+          "high (zero acting as one)",
+          mutant=lambda: TriggerHarness(_RuntTrigger, check="width")),
+    _core("start", 40, "the laser's rising edge and the TDC start are always in the same cycle",
           {"LaserTrigger": _LateStartTrigger}),
-    _core("interval", 30, "interval mode: consecutive pulses exactly T + R apart, never closer "
+    _core("interval", 40, "interval mode: consecutive pulses exactly T + R apart, never closer "
           "than T", {"PulseScheduler": _NoDelayScheduler}, fixed=True),
-    _core("grid", 30, "grid mode: pulse k fires at k T + 1 + R[k] after the start, inside "
+    _core("grid", 32, "grid mode: pulse k fires at k T + 1 + R[k] after the start, inside "
           "slot k", {"PulseScheduler": _LongPeriodScheduler}, fixed=True),
-    _core("disabled", 30, "no pulse while disabled: no fire, no rising edge, the laser off "
-          "once the last pulse ends", {"PulseScheduler": _LateStopScheduler}),
-    _core("settings", 30, "settings (the pulse width) change only at a frame boundary, from "
+    _core("disabled", 10, "no pulse while disabled: no fire, no rising edge, the laser off "
+          "once the last pulse ends", {"PulseScheduler": _LateStopScheduler}, mode="prove",
+          cover_depth=30),
+    _core("settings", 40, "settings (the pulse width) change only at a frame boundary, from "
           "the first take after they are sampled", {"PulseScheduler": _EagerWidthScheduler}),
-    _core("pulses", 30, "no runt, merged or doubled pulse: each exactly pulse_width cycles "
+    _core("pulses", 40, "no runt, merged or doubled pulse: each exactly pulse_width cycles "
           "high, low at least one cycle between", {"LaserTrigger": _RuntTrigger}),
     Proof("delay_core.source_range", SourceHarness, "prove", 2,
-          "delay source: R within 0 … 2^L − 2 (mseq), 0 … 2^Wm − 1 (masked), 0 (off)",
+          "delay source: R within 0 … 2^L − 2 (mseq), 0 … 2^Wm − 1 (masked), 0 (off); "
+          "its registers never hold zero (L 2 … 32, Wm 1 … 16)",
           mutant=lambda: SourceHarness(_OffByOneSource)),
     Proof("delay_core.lfsr_fixed", lambda: LfsrHarness(length=5, steps=3), "prove", 1,
           "LFSR (L = 5, 3 steps per advance): never zero, nothing above bit L − 1",

@@ -25,10 +25,12 @@ from pathlib import Path
 from typing import Callable, Optional
 
 from amaranth.back import rtlil
+from amaranth.hdl import Fragment
+from amaranth.hdl._ast import Assign, Switch
 from amaranth.lib import wiring
 
 
-__all__ = ["Proof", "Check", "Result", "discover", "checks", "prepare", "run_check", "run_all", "warm_up", "main"]
+__all__ = ["Proof", "Check", "Result", "discover", "internals", "checks", "prepare", "run_check", "run_all", "warm_up", "main"]
 
 
 #: Where the proofs are built, from the repository root.
@@ -128,6 +130,28 @@ class Result:
         return self.status == "PASS"
 
 
+def internals(block, *names):
+    """Elaborate ``block`` and find the signals it assigns named ``names`` (its local registers),
+    for invariants about its state that a k-induction needs. Returns the fragment, to add as the
+    submodule in place of the block (``m.submodules.x, (a, b) = internals(x, "a", "b")``), and
+    the signals, in the order of ``names``; the first signal of each name is taken."""
+    fragment = Fragment.get(block, None)
+    found = {}
+
+    def walk(statements):
+        for statement in statements:
+            if isinstance(statement, Assign):
+                for signal in statement._lhs_signals():
+                    found.setdefault(signal.name, signal)
+            elif isinstance(statement, Switch):
+                for case in statement.cases:
+                    walk(case[1] if isinstance(case, tuple) else statement.cases[case])
+
+    for statements in fragment.statements.values():
+        walk(statements)
+    return fragment, [found[name] for name in names]
+
+
 def discover(package="fliss.formal"):
     """Every :class:`Proof` in the ``PROOFS`` lists of the harness modules, by name."""
     proofs = {}
@@ -144,15 +168,11 @@ def discover(package="fliss.formal"):
 
 
 def checks(proofs, *, cover=True, mutants=False):
-    """The checks to run for ``proofs``: each proof, its cover, its mutant."""
-    result = []
-    for proof in proofs:
-        result.append(Check(proof, "proof"))
-        if cover:
-            result.append(Check(proof, "cover"))
-        if mutants and proof.mutant is not None:
-            result.append(Check(proof, "mutant"))
-    return result
+    """The checks to run for ``proofs``: the proofs first (the long ones), then their covers,
+    then their mutants."""
+    kinds = ["proof"] + (["cover"] if cover else []) + (["mutant"] if mutants else [])
+    return [Check(proof, kind) for kind in kinds for proof in proofs
+            if kind != "mutant" or proof.mutant is not None]
 
 
 def _rtlil(design):
