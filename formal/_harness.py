@@ -69,3 +69,26 @@ def fsm(module, name="fsm"):
     machine = module._generated[name]
     return machine.state, lambda *states: machine.state.matches(
         *(machine.encoding[state] for state in states))
+
+
+def copy_of(module, source):
+    """The signal of ``module`` that a statement ``signal.eq(source)`` assigns (a pipeline
+    register after ``source``, however it is named)."""
+    module._flush()
+
+    def walk(statements):
+        for statement in statements:
+            if isinstance(statement, Assign) and statement.rhs is source:
+                return statement.lhs
+            if isinstance(statement, Switch):
+                for case in statement.cases:
+                    found = walk(case[1] if isinstance(case, tuple) else statement.cases[case])
+                    if found is not None:
+                        return found
+        return None
+
+    for statements in module._statements.values():
+        found = walk(statements)
+        if found is not None:
+            return found
+    raise KeyError(f"No copy of {source.name} in {type(module).__name__}")
