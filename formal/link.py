@@ -39,9 +39,9 @@ UART_IDLE_CYCLES = 39
 
 def _uart_break_stuck(block, module):
     # a framing error's wait for the line to go high never ends
-    state, = assigned(module, "fsm_state")
-    with module.If(state == 2):
-        module.d.sync += state.eq(2)
+    state, is_state = fsm(module)
+    with module.If(is_state("BREAK")):
+        module.d.sync += state.eq(state)
 
 
 class UartRxHarness(wiring.Component):
@@ -71,9 +71,9 @@ class UartRxHarness(wiring.Component):
         with m.Elif(high != UART_IDLE_CYCLES):
             m.d.sync += high.eq(high + 1)
 
-        state, cycle, edge, target, bit = assigned(module, "fsm_state", "cycle", "edge",
-                                                  "target", "bit")
-        idle, receive, wait_high = state == 0, state == 1, state == 2
+        state, is_state = fsm(module)
+        cycle, edge, target, bit = assigned(module, "cycle", "edge", "target", "bit")
+        idle, receive, wait_high = is_state("IDLE"), is_state("RECEIVE"), is_state("BREAK")
         step = dut.bit_cycles
         m.d.comb += Assert((high != UART_IDLE_CYCLES) | idle)
 
@@ -301,10 +301,10 @@ class CommandHarness(wiring.Component):
     ever changes a register).
     """
 
-    packets:     In(stream.Signature(PacketBeat))
+    packets:       In(stream.Signature(PacketBeat))
     replies_ready: In(1)
-    link_error:  In(1)
-    status_ready: In(1)
+    link_error:    In(1)
+    status_ready:  In(1)
 
     def __init__(self, check, *, patient=False, mutate=None):
         self.check, self.patient, self.mutate = check, patient, mutate
