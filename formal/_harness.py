@@ -4,6 +4,8 @@ and mutants made by overriding a block's own statements."""
 from amaranth.hdl import Module, Signal
 from amaranth.hdl._ast import Assign, Switch
 
+from .runner import assigned_signals
+
 
 def past(m, value, cycles=1, *, name="past"):
     """``value`` ``cycles`` cycles ago (its initial value before that)."""
@@ -18,19 +20,7 @@ def assigned(module, *names):
     """The signals named ``names`` that the elaborated ``module`` (a :class:`Module`, not yet a
     fragment) assigns, in that order; for invariants about its state and for mutants."""
     module._flush()         # (close the block's last `If` chain, or it is not in the list)
-    found = {}
-
-    def walk(statements):
-        for statement in statements:
-            if isinstance(statement, Assign):
-                for signal in statement._lhs_signals():
-                    found.setdefault(signal.name, signal)
-            elif isinstance(statement, Switch):
-                for case in statement.cases:
-                    walk(case[1] if isinstance(case, tuple) else statement.cases[case])
-
-    for statements in module._statements.values():
-        walk(statements)
+    found = assigned_signals(module._statements.values())
     for name, generated in module._generated.items():
         state = getattr(generated, "state", None)       # an FSM's state: `<name>_state`
         if state is not None:

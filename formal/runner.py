@@ -136,6 +136,13 @@ def internals(block, *names):
     submodule in place of the block (``m.submodules.x, (a, b) = internals(x, "a", "b")``), and
     the signals, in the order of ``names``; the first signal of each name is taken."""
     fragment = Fragment.get(block, None)
+    found = assigned_signals(fragment.statements.values())
+    return fragment, [found[name] for name in names]
+
+
+def assigned_signals(statement_lists):
+    """The signals the statements of ``statement_lists`` (an iterable of lists, one per domain)
+    assign, by name; the first signal of each name."""
     found = {}
 
     def walk(statements):
@@ -147,9 +154,9 @@ def internals(block, *names):
                 for case in statement.cases:
                     walk(case[1] if isinstance(case, tuple) else statement.cases[case])
 
-    for statements in fragment.statements.values():
+    for statements in statement_lists:
         walk(statements)
-    return fragment, [found[name] for name in names]
+    return found
 
 
 def discover(package="fliss.formal"):
