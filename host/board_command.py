@@ -41,6 +41,9 @@ def register(subparsers, formatter):
     parser.add_argument("--aggressor-signal", type=float, default=0.05, metavar="PHOTONS",
                         help="mean detected photons per aggressor pulse")
     parser.add_argument("--seed", type=int, default=None, help="seed of the photon statistics")
+    parser.add_argument("--reset-after", type=int, default=None, metavar="PACKETS",
+                        help="reset the gateware (a power cycle) once, after this many data "
+                             "packets to the host; SIGUSR1 to this process resets it too")
     add_line_arguments(parser)
     parser.set_defaults(run=run_board)
 
@@ -52,17 +55,25 @@ def run_board(args):
         faults = faults_from_args(args)
     except ValueError as error:
         raise UserError(str(error)) from None
+    if args.reset_after is not None and args.reset_after < 1:
+        raise UserError(f"--reset-after must be at least 1, not {args.reset_after}")
     board = VirtualBoard(args.sim, baud=baud, target_m=args.target_m, ambient_hz=ambient_hz,
                          signal=args.signal, aggressor_signal=args.aggressor_signal,
-                         seed=args.seed)
+                         seed=args.seed, reset_after=args.reset_after)
 
     def terminate(number, frame):
         raise KeyboardInterrupt
+
+    def reset(number, frame):
+        if board.running:
+            logger.warning("resetting the virtual board (SIGUSR1)")
+            board.reset()
 
     # `kill` (as a script does to a board in the background) and a closed terminal stop the
     # board as cleanly as Ctrl-C.
     signal.signal(signal.SIGTERM, terminate)
     signal.signal(signal.SIGHUP, terminate)
+    signal.signal(signal.SIGUSR1, reset)
     line = None
     try:
         path = board.start()

@@ -182,7 +182,8 @@ _instances = itertools.count()
 
 
 class VirtualBoard:
-    """One running virtual board: :meth:`start`, :attr:`path`, :meth:`stats`, :meth:`stop`.
+    """One running virtual board: :meth:`start`, :attr:`path`, :meth:`stats`, :meth:`reset`,
+    :meth:`stop`.
 
     Parameters
     ----------
@@ -202,13 +203,16 @@ class VirtualBoard:
         Time of flight from the aggressor to the pixel; ``None``: the victim's.
     seed : int or None
         Seed of the photon statistics.
+    reset_after : int or None
+        Reset the gateware (a power cycle in the middle of a run) once, after this many data
+        packets (HISTOGRAM, EVENTS) have gone to the host.
     root : path or None
         Build folder (default ``build/virtual-board``).
     """
 
     def __init__(self, sim="verilator", *, baud=VIRTUAL_BAUD, target_m=4.0, ambient_hz=1e5,
                  signal=0.05, aggressor_signal=0.05, aggressor_tof_s=None, seed=None,
-                 root=None):
+                 reset_after=None, root=None):
         self.sim = sim
         self.baud = baud
         self.root = Path(root or build_root())
@@ -229,7 +233,11 @@ class VirtualBoard:
             "FLISS_BOARD_PARENT_PID": str(os.getpid()),
             "FLISS_BOARD_PTY_FILE": str(self.folder / f"{self.name}.pty"),
             "FLISS_BOARD_STATS_FILE": str(self.folder / f"{self.name}.stats.json"),
+            "FLISS_BOARD_RESET_AFTER": "" if reset_after is None else str(int(reset_after)),
+            "FLISS_BOARD_RESET_FILE": str(self.folder / f"{self.name}.reset"),
         }
+        if reset_after is not None and not reset_after >= 1:
+            raise VirtualBoardError(f"reset_after must be at least 1, not {reset_after}")
         for name, value in (("target distance", target_m), ("ambient rate", ambient_hz),
                             ("signal", signal), ("aggressor signal", aggressor_signal)):
             if not value >= 0:
@@ -241,6 +249,7 @@ class VirtualBoard:
         pty_file = Path(self.env["FLISS_BOARD_PTY_FILE"])
         pty_file.unlink(missing_ok=True)
         Path(self.env["FLISS_BOARD_STATS_FILE"]).unlink(missing_ok=True)
+        Path(self.env["FLISS_BOARD_RESET_FILE"]).unlink(missing_ok=True)
         code = "import sys; from fliss.host.virtual import _simulate; _simulate(sys.argv[1])"
         arguments = json.dumps({"sim": self.sim, "folder": str(self.folder), "env": self.env,
                                 "name": self.name})
@@ -294,6 +303,12 @@ class VirtualBoard:
         except (OSError, ValueError):
             return {}
 
+    def reset(self):
+        """Reset the gateware (as its reset button would) within about a second."""
+        if not self.running:
+            raise VirtualBoardError("the virtual board is not running")
+        Path(self.env["FLISS_BOARD_RESET_FILE"]).touch()
+
     def stop(self, *, keep_logs=None):
         """Stop the simulation (its whole process group), remove the ``tty`` link and the files
         of this board; the logs stay if ``keep_logs``, by default if the simulation had
@@ -312,7 +327,7 @@ class VirtualBoard:
                 process.wait()
         if self.path is not None:
             self._unlink()
-        suffixes = [".pty", ".stats.json", ".results.xml"]
+        suffixes = [".pty", ".stats.json", ".results.xml", ".reset"]
         if not keep_logs:
             suffixes += [".log", ".launcher.log"]
         for suffix in suffixes:
@@ -332,7 +347,7 @@ def start_virtual_board(sim="verilator", **options):
     """Run a virtual board for the duration of a ``with`` block; yields the path of its pty.
 
     ``options`` are those of :class:`VirtualBoard` (``baud``, ``target_m``, ``ambient_hz``,
-    ``signal``, ``aggressor_signal``, ``aggressor_tof_s``, ``seed``, ``root``).
+    ``signal``, ``aggressor_signal``, ``aggressor_tof_s``, ``seed``, ``reset_after``, ``root``).
     """
     board = VirtualBoard(sim, **options)
     try:

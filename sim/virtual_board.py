@@ -18,6 +18,10 @@ This is the cocotb test module that :mod:`fliss.host.virtual` runs in Icarus or 
   sensor keeps the last photon of each TDC window and presents it on the bus as the sensor of
   the paper does, when its conversion range ends: bus first, then ``sensor_valid`` high for two
   clock cycles, at most one event per window;
+* resets the gateware (``rst`` high for :data:`RESET_CYCLES` cycles, as a power cycle or the
+  reset button would: registers, counters, sequence and histogram numbers back to reset) once
+  ``FLISS_BOARD_RESET_AFTER`` data packets (HISTOGRAM, EVENTS) have gone to the host, and each
+  time the file ``FLISS_BOARD_RESET_FILE`` appears (it is removed; checked once a second);
 * runs until the launcher (``FLISS_BOARD_PARENT_PID``) is gone, or until killed.
 
 Python work per laser cycle is one scene step and a few triggers, nothing per clock cycle.
@@ -52,10 +56,12 @@ from cocotb.triggers import ClockCycles, Event, RisingEdge, Timer
 
 from ..hdl import DEFAULT_CLOCK_HZ
 from . import scene as _scene
+from .codec import FrameDecoder, Packet
+from ..hdl.protocol import PacketType
 from .uart_bfm import UartSink, UartSource
 
 
-__all__ = ["POLL_US", "SensorModel", "PtyBridge", "virtual_board"]
+__all__ = ["POLL_US", "RESET_CYCLES", "SensorModel", "PtyBridge", "virtual_board"]
 
 
 #: Simulated time between two polls of the pseudo-terminal, in microseconds (6 bytes at 12 M
@@ -73,6 +79,12 @@ IDLE_WAIT_S = 0.1
 #: Largest backlog of bytes for the host before the oldest are dropped (a host that does not
 #: read loses data, as with a real USB UART).
 MAX_BACKLOG = 1 << 22
+
+#: Clock cycles ``rst`` is held high by a reset in the middle of a run.
+RESET_CYCLES = 4
+
+#: Packets that count as data for ``FLISS_BOARD_RESET_AFTER``.
+DATA_TYPES = frozenset({PacketType.HISTOGRAM, PacketType.EVENTS})
 
 CLOCK_PERIOD_PS = round(1e12 / DEFAULT_CLOCK_HZ)
 
@@ -206,10 +218,11 @@ class PtyBridge:
     """A pseudo-terminal carrying the UART pins of ``dut``.
 
     :meth:`poll` moves what the host wrote to the UART driver and what the UART monitor received
-    to the host, without blocking; it returns whether anything moved.
+    to the host, without blocking; it returns whether anything moved. With ``count_data`` it
+    also decodes what goes to the host and counts the data packets (:attr:`data_packets`).
     """
 
-    def __init__(self, dut, baud):
+    def __init__(self, dut, baud, *, count_data=False):
         self.master, self.slave = os.openpty()
         tty.setraw(self.slave)          # no echo, no line editing: bytes pass unchanged
         os.set_blocking(self.master, False)
@@ -222,6 +235,8 @@ class PtyBridge:
         self.bytes_to_board = 0
         self.bytes_to_host = 0
         self.dropped = 0
+        self.data_packets = 0
+        self._decoder = FrameDecoder(synced=True) if count_data else None
 
     def start(self):
         cocotb.start_soon(self._sender())
@@ -256,6 +271,10 @@ class PtyBridge:
         if received:
             self._to_host += received
             self.bytes_to_host += len(received)
+            if self._decoder is not None:
+                self.data_packets += sum(
+                    isinstance(item, Packet) and item.type in DATA_TYPES
+                    for item in self._decoder.feed(bytes(received)))
             del received[:]
             moved = True
         if len(self._to_host) > MAX_BACKLOG:
@@ -315,6 +334,23 @@ def _scene_from_environment():
         aggressors=(aggressor,))
 
 
+async def _reset(dut):
+    """The gateware's reset, as a power cycle or the reset button would do."""
+    dut.rst.value = 1
+    await ClockCycles(dut.clk, RESET_CYCLES)
+    dut.rst.value = 0
+
+
+def _reset_requested(path):
+    if not path:
+        return False
+    try:
+        os.unlink(path)
+    except FileNotFoundError:
+        return False
+    return True
+
+
 @cocotb.test()
 async def virtual_board(dut):
     """Serve the board on a pseudo-terminal until the launcher goes away."""
@@ -323,6 +359,9 @@ async def virtual_board(dut):
     parent = _env("FLISS_BOARD_PARENT_PID", None, int)
     pty_file = os.environ.get("FLISS_BOARD_PTY_FILE")
     stats_file = os.environ.get("FLISS_BOARD_STATS_FILE")
+    reset_after = _env("FLISS_BOARD_RESET_AFTER", None, int)
+    reset_file = os.environ.get("FLISS_BOARD_RESET_FILE")
+    resets = 0
 
     Clock(dut.clk, CLOCK_PERIOD_PS, unit="ps").start()
     dut.uart_rx.value = 1
@@ -332,7 +371,7 @@ async def virtual_board(dut):
     dut.rst.value = 0
     await ClockCycles(dut.clk, 4)
     sensor.start()
-    bridge = PtyBridge(dut, baud)
+    bridge = PtyBridge(dut, baud, count_data=reset_after is not None)
     bridge.start()
     if pty_file:
         _publish(pty_file, bridge.path + "\n")
@@ -349,9 +388,12 @@ async def virtual_board(dut):
             idle += 1
             if idle > IDLE_POLLS:
                 bridge.wait(IDLE_WAIT_S)
+        reset = (reset_after is not None and not resets
+                 and bridge.data_packets >= reset_after)
         now = time.monotonic()
         if now - last_check >= 1.0:
             last_check = now
+            reset = reset or _reset_requested(reset_file)
             if not _parent_alive(parent):
                 dut._log.info("launcher gone: stopping")
                 break
@@ -363,6 +405,11 @@ async def virtual_board(dut):
                     f'"bytes_to_host": {bridge.bytes_to_host}, "dropped": {bridge.dropped}, '
                     f'"tdc_starts": {sensor.starts}, "events": {sensor.events}, '
                     f'"late_windows": {sensor.late}, "busy_drops": {sensor.busy_drops}, '
-                    f'"scene_s": {sensor.python_s:.3f}}}\n'))
+                    f'"scene_s": {sensor.python_s:.3f}, "resets": {resets}}}\n'))
+        if reset:
+            resets += 1
+            dut._log.info("reset %d after %d data packets to the host", resets,
+                          bridge.data_packets)
+            await _reset(dut)
     os.close(bridge.master)
     os.close(bridge.slave)

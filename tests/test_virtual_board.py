@@ -19,6 +19,8 @@ from fliss.hdl.registers import BY_NAME, REGISTERS
 from fliss.sim import codec
 from fliss.host.virtual import SIMULATORS, VirtualBoard
 from fliss.host.cli import main
+from fliss.host.client import BoardClient
+from fliss.host.fileformat import read_capture
 from fliss.sim import scene
 from fliss.sim.cocotb_runner import simulator_available
 from fliss.sim.virtual_board import SensorModel
@@ -324,6 +326,48 @@ def test_virtual_board(sim):
               f"{stats['wall_s']:.1f} s, {stats['bytes_to_host']} bytes to the host")
     finally:
         board.stop()
+
+
+def _require_verilator():
+    if not simulator_available("verilator"):
+        message = "simulator verilator is not installed"
+        if os.environ.get("FLISS_REQUIRE_SIMULATORS"):
+            pytest.fail(message + " (FLISS_REQUIRE_SIMULATORS is set)")
+        pytest.skip(message)
+
+
+def test_reset_mid_capture(tmp_path, capsys):
+    """`fliss capture` against a virtual board whose gateware is reset after 8 histograms (one
+    chunk each): the capture ends with the one-line reset message, and the file keeps those 8
+    histograms, whole."""
+    _require_verilator()
+    reset_after = 8
+    output = tmp_path / "reset.h5"
+    board = VirtualBoard("verilator", baud=BAUD, target_m=TARGET_M, signal=0.1, seed=3,
+                         reset_after=reset_after)
+    path = board.start()
+    try:
+        with BoardClient(path, timeout_s=5.0) as client:
+            client.write_registers({"bin_shift": 6})        # 128 bins: one chunk
+        status = main(["-q", "capture", "--port", path, "--integration", "0.2ms",
+                       "--acquisitions", "40", "-o", str(output)])
+        err = capsys.readouterr().err
+        stats = board.stats()
+    finally:
+        board.stop()
+    assert status == 1
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, lines
+    assert lines[0].startswith(f"fliss: error: the board on {path} was reset during the "
+                               f"capture: its STATUS (sequence number "), lines
+    assert lines[0].endswith(f"; saved what was received ({reset_after} histograms) to "
+                             f"{output}"), lines
+    capture = read_capture(output)
+    assert capture.attrs["end_reason"].startswith("board reset: ")
+    assert not capture.attrs["complete"]
+    assert list(capture.frames) == list(range(reset_after)) and capture.complete.all()
+    assert capture.histograms.shape[1] == 128 and (capture.histograms.sum(axis=1) > 0).all()
+    assert stats["resets"] == 1
 
 
 def test_demo_runs_again(tmp_path, capsys):
