@@ -1,8 +1,9 @@
 """Formal harnesses of the histogram engine (``hdl/histogram.py`` with its frame sequencer,
 banks and readout), with small parameters: two bins (``bin_bits = 1``), 16-bit counts,
-dual-port or single-port banks, frames of one to :data:`MAX_INTEGRATION` cycles. Without a
-platform the single-port banks are the generic model of ``hdl/spram.py`` (a
-:class:`~amaranth.lib.memory.Memory`), not an ``SB_SPRAM256KA`` black box.
+dual-port or single-port banks, frames of one to :data:`MAX_INTEGRATION` cycles (the
+single-port accounting: :data:`SINGLE_INTEGRATION`). Without a platform the single-port banks
+are the generic model of ``hdl/spram.py`` (a :class:`~amaranth.lib.memory.Memory`), not an
+``SB_SPRAM256KA`` black box.
 
 Inputs are free in every cycle: events (any timestamp), ``enable``, the settings (within the
 register file's ranges) and the readout's backpressure; ``clear`` stays low (it resets the drop
