@@ -17,7 +17,8 @@ def test_link_and_histogram_proofs_are_listed():
     names = set(discover())
     assert {"link.uart_rx_idle", "link.decoder_resync", "link.decoder_checks",
             "link.command_one_reply", "link.command_answers", "link.command_writes",
-            "histogram.counted_once", "histogram.readout_bank"} <= names
+            "histogram.counted_once", "histogram.readout_bank",
+            "histogram.counted_once_single", "histogram.readout_bank_single"} <= names
 
 
 def test_decoder_resync_and_its_mutant(tmp_path):
