@@ -7,8 +7,8 @@ The core is proved with small settings, as the register file would accept them: 
 widths ``Wm`` up to :data:`MAX_WM`; in ``grid`` mode the largest delay plus the pulse width is
 below the period. ``enable`` and ``update`` are free in every cycle.
 
-Mutants swap a block of the core for a broken one (``formal/_mutants.py``) while the core
-elaborates (:class:`_ProbedCore`).
+Mutants swap a block of the core for a broken one (``formal/_mutants.py``, and those of the
+settings proofs below) while the core elaborates (:class:`_ProbedCore`).
 """
 
 from amaranth.hdl import Assert, Assume, Cat, Cover, Const, Module, Mux, ResetSignal, Signal, Value
