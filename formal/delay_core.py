@@ -7,11 +7,11 @@ The core is proved with small settings, as the register file would accept them: 
 widths ``Wm`` up to :data:`MAX_WM`; in ``grid`` mode the largest delay plus the pulse width is
 below the period. ``enable`` and ``update`` are free in every cycle.
 
-Mutants swap a block of the core for a broken one (``formal/_mutants.py``) while the core
-elaborates (:class:`_ProbedCore`).
+Mutants swap a block of the core for a broken one (``formal/_mutants.py``, and those of the
+settings proofs below) while the core elaborates (:class:`_ProbedCore`).
 """
 
-from amaranth.hdl import Assert, Assume, Cover, Const, Module, Mux, ResetSignal, Signal
+from amaranth.hdl import Assert, Assume, Cat, Cover, Const, Module, Mux, ResetSignal, Signal, Value
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In
 
@@ -21,10 +21,12 @@ from fliss.hdl.delay import DelayMode, DelaySource
 from fliss.hdl.laser import LaserTrigger
 from fliss.hdl.lfsr import POLYNOMIALS, Lfsr
 from fliss.hdl.registers import DelaySettings
+from fliss.hdl.scheduler import PulseScheduler, _Timer
 
+from ._harness import assigned
 from ._mutants import (_EagerWidthScheduler, _LateStartTrigger, _LateStopScheduler,
                        _LongPeriodScheduler, _NoDelayScheduler, _OffByOneSource, _RuntTrigger,
-                       _ZeroLoadingLfsr)
+                       _Wrapper, _ZeroLoadingLfsr)
 from .runner import Proof, internals
 
 
@@ -67,6 +69,7 @@ class _ProbedCore(DelayCore):
         self.swaps = swaps or {}
         self.take = Signal()
         self.fire_width = Signal(PULSE_WIDTH_WIDTH)
+        self.take_value = Signal(32)
 
     def elaborate(self, platform):
         saved = {name: getattr(core_module, name) for name in self.swaps}
@@ -79,7 +82,8 @@ class _ProbedCore(DelayCore):
                 setattr(core_module, name, block)
         scheduler = m.submodules.scheduler
         m.d.comb += [self.take.eq(scheduler.delays.ready),
-                     self.fire_width.eq(scheduler.fire_width)]
+                     self.fire_width.eq(scheduler.fire_width),
+                     self.take_value.eq(scheduler.delays.payload.value)]
         return m
 
 
@@ -165,6 +169,8 @@ class CoreHarness(wiring.Component):
                          Assert(core.fire_width == width),
                          Cover(self.update & core.running & (self.settings.pulse_width != width)
                                & fired & core.fire)]
+        elif self.check in ("settings_period", "settings_source"):
+            self._frames(m, core, enable_d)
         elif self.check == "pulses":
             fall = ~core.laser & laser_d
             m.d.comb += [Assert(~core.laser | (high < fire_width)),
@@ -174,6 +180,115 @@ class CoreHarness(wiring.Component):
         else:
             raise ValueError(f"Unknown check {self.check!r}")
         return m
+
+
+    def _frames(self, m, core, enable_d):
+        """Every other setting also applies from the first take after it is sampled: the
+        period and mode of a frame (``settings_period``: its length), and the delay source's
+        (``settings_source``: the frame's delay is the seed's if settings were sampled since the
+        take before, else within the range of the settings sampled last before its take; it
+        stays the frame's, and times its pulse)."""
+        settings = self.settings
+        sample = ~core.running | self.update
+        age = Signal(8)         # cycles since the last take of this run (0 before the first)
+        took = Signal()         # a take in this run
+        with m.If(~core.running):
+            m.d.sync += [age.eq(0), took.eq(0)]
+        with m.Else():
+            m.d.sync += [age.eq(Mux(core.take, 1, age + 1)), took.eq(took | core.take)]
+        # timed from the frame's own delay, whatever comes after its take
+        m.d.comb += Assert(~core.fire | (age == 1 + core.fire_delay))
+        if self.check == "settings_period":
+            pending, (period, grid) = _frame_settings(
+                m, core.take, sample, settings.period, settings.grid)
+            # a frame's length: T (grid) or T + R (interval) of the settings of its take
+            length = Mux(grid, period, period + core.fire_delay)
+            m.d.comb += Assert(~(core.take & took) | (age == length))
+            changed = Signal()      # an update in this frame to another period or mode
+            with m.If(core.take):
+                m.d.sync += changed.eq(0)
+            with m.Elif(self.update & core.running & ((settings.period != period)
+                                                      | (settings.grid != grid))):
+                m.d.sync += changed.eq(1)
+            m.d.comb += [Cover(core.take & took & changed & ~grid & (core.fire_delay > 0)),
+                         Cover(core.take & took & changed & grid)]
+            return
+        pending, (p_mode, p_length, p_mask_width, p_seed), (mode, length, mask_width, _) = \
+            _frame_settings(m, core.take, sample, settings.mode.as_value(), settings.length,
+                            settings.mask_width, settings.seed, pending_too=True)
+        new_mode = Mux(pending, p_mode, mode)
+        new_length = Mux(pending, p_length, length)
+        new_mask_width = Mux(pending, p_mask_width, mask_width)
+        # the first delay after a sample comes from the seed (`hdl/lfsr.py` `Lfsr`: the
+        # m-sequence register seeded with the seed's low L bits, zero standing for 1), the
+        # others are within the range of the frame's settings
+        first = Signal(32)
+        top = Signal(32)
+        with m.Switch(new_length):
+            for bits in range(2, MAX_L + 1):
+                with m.Case(bits):
+                    seeded = p_seed[:bits]
+                    with m.If(new_mode == DelayMode.MSEQ):
+                        m.d.comb += [first.eq(Mux(seeded == 0, 0, seeded - 1)),
+                                     top.eq((1 << bits) - 2)]
+        seeded_masked = Cat(p_seed[0] | (p_seed[1:] == 0), p_seed[1:MAX_WM])
+        with m.If(new_mode == DelayMode.MASKED):
+            with m.Switch(new_mask_width):
+                for bits in range(1, MAX_WM + 1):
+                    with m.Case(bits):
+                        m.d.comb += [first.eq(seeded_masked[:bits]), top.eq((1 << bits) - 1)]
+        expected_ok = Mux(pending, core.take_value == first, core.take_value <= top)
+        fire_delay_d = _past(m, core.fire_delay)
+        take_d = _past(m, core.take)
+        m.d.comb += [Assert(~core.take | expected_ok),
+                     Assert(take_d | (core.fire_delay == fire_delay_d))]
+        changed = Signal()      # an update in this frame to other source settings
+        with m.If(core.take):
+            m.d.sync += changed.eq(0)
+        with m.Elif(self.update & core.running & (settings.mode.as_value() != mode)):
+            m.d.sync += changed.eq(1)
+        m.d.comb += [Cover(core.fire & changed & (core.fire_delay > 0)),
+                     Cover(core.take & took & ~pending & (mode == DelayMode.MASKED)
+                           & (core.take_value > 0))]
+
+
+def _frame_settings(m, take, sample, *values, pending_too=False):
+    """The model of the contract: ``values`` sampled in a ``sample`` cycle apply from the first
+    take cycle after it. Returns ``pending`` (sampled since the last take) and the values of the
+    current frame (and, ``pending_too``, first the values sampled)."""
+    pending = Signal(name="model_pending")
+    sampled = [Signal(len(Value.cast(value)), name="model_sampled") for value in values]
+    active = [Signal(len(Value.cast(value)), name="model_active") for value in values]
+    with m.If(take):
+        m.d.sync += [a.eq(Mux(pending, s, a)) for a, s in zip(active, sampled)]
+        m.d.sync += pending.eq(0)
+    with m.If(sample):
+        m.d.sync += [pending.eq(1)] + [s.eq(v) for s, v in zip(sampled, values)]
+    if pending_too:
+        return pending, sampled, active
+    return pending, active
+
+
+class _MidFramePeriodScheduler(PulseScheduler):
+    """Loads a new period on ``update``, in the middle of a frame (not at the next take)."""
+
+    def elaborate(self, platform):
+        m = super().elaborate(platform)
+        period, flags = assigned(m, "active_period", "active_flags")
+        with m.If(self.update):
+            m.d.sync += [period.eq(self.settings.period),
+                         flags.eq(_Timer.flags(self.settings.period, target=2))]
+        return m
+
+
+class _LiveSettingsSource(_Wrapper):
+    """A delay source that samples the settings in every cycle, not only on ``load``."""
+
+    def __init__(self, **kwargs):
+        super().__init__(DelaySource(**kwargs))
+
+    def elaborate(self, platform):
+        return self.forward(Module(), load=Const(1))
 
 
 def _core(check, depth, doc, swaps, *, fixed=False, mode="bmc", cover_depth=None):
@@ -362,6 +477,13 @@ PROOFS = [
           cover_depth=30),
     _core("settings", 40, "settings (the pulse width) change only at a frame boundary, from "
           "the first take after they are sampled", {"PulseScheduler": _EagerWidthScheduler}),
+    _core("settings_period", 40, "the period and the mode change only at a frame boundary: a "
+          "frame lasts T (grid) or T + R (interval) of the settings sampled before its take, "
+          "and its pulse fires R + 1 after it", {"PulseScheduler": _MidFramePeriodScheduler}),
+    _core("settings_source", 30, "the delay source's settings (mode, L, Wm, seed) change only "
+          "at a frame boundary: a frame's delay is the seed's after a sample, else within the range "
+          "of the settings sampled before its take, and stays the frame's",
+          {"DelaySource": _LiveSettingsSource}),
     _core("pulses", 40, "no runt, merged or doubled pulse: each exactly pulse_width cycles "
           "high, low at least one cycle between", {"LaserTrigger": _RuntTrigger}),
     Proof("delay_core.source_range", SourceHarness, "prove", 2,
