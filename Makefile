@@ -53,8 +53,8 @@ program: $(BOARDS_STAMP)
 test-boards: $(BOARDS_STAMP)
 	FLISS_BUILD_BOARDS=1 $(PY) -m pytest tests/test_boards.py $(PYTEST_ARGS)
 
-# Formal proofs with SymbiYosys from PyPI: every proof, its covers and its mutant
-# (docs/verification.md). FORMAL_ARGS: e.g. `-j 1`, or proof names.
+# Formal proofs with SymbiYosys from PyPI: the runner's own tests (skipped by `make test`, which
+# lacks the formal extra), then every proof, its covers and its mutant (docs/verification.md). FORMAL_ARGS: e.g. `-j 1`, or proof names.
 FORMAL_STAMP := $(VENV)/.formal-stamp
 FORMAL_ARGS ?= -j 2
 
@@ -65,4 +65,5 @@ $(FORMAL_STAMP): pyproject.toml $(STAMP)
 	@touch $@
 
 formal: $(FORMAL_STAMP)
+	$(PY) -m pytest -n 0 tests/test_formal.py tests/test_formal_link.py $(PYTEST_ARGS)
 	$(PY) -m fliss.formal --mutants $(FORMAL_ARGS)
