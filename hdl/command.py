@@ -8,7 +8,8 @@ from . import DEFAULT_CLOCK_HZ
 from .buffer import StreamBuffer
 from .framing import PacketBeat
 from .protocol import (PROTOCOL_VERSION, GATEWARE_MAJOR, GATEWARE_MINOR, PacketType, NakCode,
-                       MAX_PAYLOAD, COUNTER_BITS, Identity, STATUS_FIELDS, READ_MAX, CONSISTENCY)
+                       MAX_PAYLOAD, COUNTER_BITS, Identity, Nak, STATUS_FIELDS, READ_MAX,
+                       CONSISTENCY)
 from .regfile import RegisterFile
 from .registers import REGISTERS, register_maxima
 
@@ -135,8 +136,7 @@ class CommandProcessor(wiring.Component):
         next_word = Signal(32)          # the register or counter at `next_pointer`
         is_status = Signal()            # the reply is a STATUS
         status_running = Signal()       # STATUS: `running` when it was asked for
-        nak = Signal(data.StructLayout({"seq": 8, "code": NakCode, "detail": 16}),
-                     init={"code": NakCode.BAD_CRC})
+        nak = Signal(Nak, init={"code": NakCode.BAD_CRC})
         link_pending = Signal()
         link_code = Signal(NakCode, init=NakCode.BAD_CRC)
 
