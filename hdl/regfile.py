@@ -56,7 +56,7 @@ class RegisterFile(wiring.Component):
         The register at ``read_address``, as a u32.
     settings : Out(settings_layout(maxima))
         Every register, each as wide as its maximum needs.
-    victim, aggressor, aggressor_delay, acquisition : Out(RegisterGroup.layout(maxima))
+    victim, aggressor, aggressor_delay, acquisition, gate, histogram : Out(group.layout(maxima))
         The registers of each group of :data:`~fliss.hdl.registers.GROUPS`, as its struct.
     """
 
