@@ -25,6 +25,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 from ..hdl.protocol import DEFAULT_BAUD
+from .pty_server import close_pty
 
 
 __all__ = ["LineFaults", "FaultCounts", "FaultInjector", "NoisyLine", "add_line_arguments",
@@ -188,12 +189,7 @@ class NoisyLine:
         self._stop.set()
         for thread in self._threads:
             thread.join(timeout=5)
-        for fd in (self._master, self._slave):
-            if fd is not None:
-                try:
-                    os.close(fd)
-                except OSError:
-                    pass
+        close_pty(self._master, self._slave)
         self._master = self._slave = None
         if self._serial is not None:
             self._serial.close()

@@ -27,7 +27,18 @@ import numpy as np
 from .codec import FrameDecoder, encode_frame
 
 
-__all__ = ["PtyServer"]
+__all__ = ["close_pty", "PtyServer"]
+
+
+def close_pty(*fds):
+    """Close the file descriptors of a pty (those that are not None), whatever state they are
+    in."""
+    for fd in fds:
+        if fd is not None:
+            try:
+                os.close(fd)
+            except OSError:
+                pass
 
 
 class PtyServer:
@@ -119,12 +130,7 @@ class PtyServer:
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout=5)
-        for fd in (self._master, self._slave):
-            if fd is not None:
-                try:
-                    os.close(fd)
-                except OSError:
-                    pass
+        close_pty(self._master, self._slave)
         self._master = self._slave = None
 
     def __enter__(self):
