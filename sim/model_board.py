@@ -196,6 +196,7 @@ class ModelBoard(PtyServer):
                           clock_hz=self.clock_hz)
         self.simulation = Simulation(scene, seed=self.seed_for(self.starts))
         self.starts += 1
+        self.status["pulses"] = 0       # the scheduler's pulse index restarts, as in the gateware
         self._t0 = now
         self._done_cycles = 0           # clock cycles simulated
         self._frame_counts = None
