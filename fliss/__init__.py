@@ -14,3 +14,22 @@ try:
     __version__ = _version("fliss")
 except Exception:  # pragma: no cover - running from a tree that was never installed
     __version__ = "0.0.0+unknown"
+
+#: The Python API (:mod:`fliss.host.board`), imported when first used: ``fliss.connect(port)``.
+_API = {"connect": "board", "Board": "board", "Histogram": "board", "Histograms": "board",
+        "Events": "board", "Settings": "settings", "BoardError": "errors", "BoardLost": "errors",
+        "BoardRefused": "errors", "PortError": "errors", "SettingsError": "errors"}
+
+__all__ = ["__version__", *_API]
+
+
+def __getattr__(name):
+    if name in _API:
+        import importlib
+
+        return getattr(importlib.import_module(f"fliss.host.{_API[name]}"), name)
+    raise AttributeError(f"module 'fliss' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted([*globals(), *_API])

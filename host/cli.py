@@ -45,21 +45,31 @@ def build_parser():
         prog="fliss", formatter_class=_Formatter,
         description="FLISS: LiDAR interference suppression by pseudorandom pulse delays.")
     parser.add_argument("--version", action="version", version=f"fliss {__version__}")
-    parser.add_argument("-v", "--verbose", action="count", default=0,
-                        help="more output (repeat for more)")
-    parser.add_argument("-q", "--quiet", action="count", default=0,
-                        help="less output (repeat for less)")
+    _add_global_options(parser, "")
     subparsers = parser.add_subparsers(metavar="COMMAND", dest="command")
     subparsers.required = True
     for name in COMMAND_MODULES:
         module = importlib.import_module(f"{__package__}.{name}")
         module.register(subparsers, _Formatter)
+    # The same options after the sub-command (`fliss capture -q`), counted with those before.
+    for command in set(subparsers.choices.values()):
+        _add_global_options(command, "command_")
     return parser
+
+
+def _add_global_options(parser, prefix):
+    group = parser.add_argument_group("output") if prefix else parser
+    group.add_argument("-v", "--verbose", dest=prefix + "verbose", action="count", default=0,
+                       help="more output (repeat for more)")
+    group.add_argument("-q", "--quiet", dest=prefix + "quiet", action="count", default=0,
+                       help="less output (repeat for less)")
 
 
 def main(argv=None):
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.verbose += getattr(args, "command_verbose", 0)
+    args.quiet += getattr(args, "command_quiet", 0)
     level = logging.WARNING - 10 * (args.verbose - args.quiet)
     logging.basicConfig(level=max(logging.DEBUG, min(logging.CRITICAL, level)),
                         format="fliss: %(message)s")

@@ -88,7 +88,8 @@ class BoardClient:
         self.decoder = BulkDecoder(synced=False)
         self.encoder = PacketEncoder()
         self.assembler = StreamAssembler()
-        self.identity = None
+        self._identity = None
+        self._answered = False      # any reply yet (a silent board is reported once)
         self.retransmissions = 0
         self.link_naks = 0
         self.stale_replies = 0
@@ -108,6 +109,14 @@ class BoardClient:
             self.close()
             raise
 
+    @property
+    def identity(self) -> IdentityInfo:
+        """The board's :class:`IdentityInfo`, read with :meth:`identify` the first time it is
+        needed."""
+        if self._identity is None:
+            self.identify()
+        return self._identity
+
     def _sync(self):
         """Get the decoder in step with the board's frames.
 
@@ -121,9 +130,19 @@ class BoardClient:
         while time.monotonic() < deadline:
             self.poll(0.02)
             if self.decoder.counters.resyncs or self.decoder.counters.packets:
+                self._answered = True
                 break
+        else:
+            self._not_answering("PING")
         self._replies.clear()
         self.reset_counters()
+
+    def _not_answering(self, what):
+        # Said once, at the first timeout, instead of minutes of nothing on screen.
+        if not self._answered:
+            self._answered = True
+            _logger.warning("the board on %s is not answering yet (no reply to %s in %g s); "
+                            "still trying", self.port_name, what, self.timeout_s)
 
     def reset_counters(self) -> None:
         """Count link and stream events from now on (the decoder keeps its totals)."""
@@ -239,6 +258,7 @@ class BoardClient:
         attempts = self.retries + 1
         for attempt in range(attempts):
             if attempt:
+                self._not_answering(what)
                 self.retransmissions += 1
                 _logger.info("no valid reply to %s (seq %d), re-sending (attempt %d of %d)",
                              what, seq, attempt + 1, attempts)
@@ -259,6 +279,7 @@ class BoardClient:
                             raise _refused(what, code, detail)
                         self.stale_replies += 1
                         continue
+                    self._answered = True
                     if reply.type == PacketType.ACK and len(reply.payload) == 1 \
                             and reply.payload[0] == seq:
                         return reply
@@ -287,7 +308,7 @@ class BoardClient:
                              f"{byte_size(Identity)}: is it a FLISS board?")
         fields = unpack(Identity, reply.payload)
         protocol, registers = fields["protocol"], fields["registers"]
-        self.identity = IdentityInfo(protocol,
+        self._identity = IdentityInfo(protocol,
                                      f"{fields['gateware_major']}.{fields['gateware_minor']}",
                                      registers, fields["clock_hz"], fields["baud"])
         if check and protocol != PROTOCOL_VERSION:
@@ -297,12 +318,11 @@ class BoardClient:
         if check and registers != len(REGISTERS):
             raise BoardMismatch(f"the board has {registers} registers, this fliss knows "
                              f"{len(REGISTERS)}: gateware and host tool do not match")
-        return self.identity
+        return self._identity
 
     @property
     def clock_hz(self) -> int:
-        if self.identity is None:
-            self.identify()
+        """The board's clock frequency in Hz (from its identity)."""
         return self.identity.clock_hz
 
     def read_registers(self, names: Optional[Iterable[str]] = None) -> Dict[str, int]:

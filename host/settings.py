@@ -1,0 +1,481 @@
+"""Board settings with units: ``{"integration": "10ms", "mode": "masked"}`` as register values.
+
+One table, :data:`OPTIONS`, says for each setting its name (a keyword of
+:meth:`fliss.host.board.Board.configure`, and with ``--`` and dashes the flag of ``fliss config``
+and ``fliss capture``), the register it sets and its :class:`Kind`: how a value with units
+becomes a register value for a given clock, and back. A new setting is one entry.
+
+The rules, the same in the library and on the command line:
+
+* A time takes a unit: ``"10ms"``, ``"75 ns"``, or whole clock cycles, ``"800cycles"`` (gate
+  times: TDC codes, ``"2000codes"``). A bare number is refused (``10`` could be cycles, seconds
+  or milliseconds). A frequency takes a unit (``"1MHz"``) or is a number of hertz.
+* A time or frequency that is not a whole number of clock cycles (codes) is rounded to the
+  nearest; :func:`convert` returns a note for each, one line with the value used
+  (``--aggressor-offset 80ns is 6.4 clock cycles of 12.5 ns: using 6 cycles, 75 ns``).
+* Refusals raise :exc:`~fliss.host.errors.SettingsError` naming the setting as the caller spells
+  it (``style="flag"``: ``--mask-width``; ``style="keyword"``: ``mask_width``), with units.
+"""
+
+import operator
+import re
+from dataclasses import dataclass, field
+from typing import Any, Callable, Dict, List, Mapping, Optional, Tuple
+
+import numpy as np
+
+from ..hdl.event import TDC_LSB_S, TIMESTAMP_BITS
+from ..hdl.registers import BY_NAME, AcquisitionMode, TdcSource, problems
+from ..hdl.settings import DelayMode
+from .errors import SettingsError
+from .units import format_frequency, format_time, parse_frequency, parse_time
+
+
+__all__ = ["Kind", "Option", "OPTIONS", "BY_OPTION", "Conversion", "Settings", "convert",
+           "describe", "exact_time", "exact_frequency", "code_s"]
+
+
+#: Relative difference below which a value counts as a whole number of cycles (no note).
+_EXACT = 1e-6
+
+
+@dataclass(frozen=True)
+class Kind:
+    """How a setting's value becomes register values, and back.
+
+    ``convert(option, value, context)`` returns ``{register: value}`` (several registers for a
+    setting wider than one); ``show(option, registers, clock_hz)`` gives the value in units.
+    """
+    convert: Callable[["Option", Any, "_Context"], Dict[str, int]]
+    show: Callable[["Option", Mapping[str, int], int], Any]
+
+
+@dataclass(frozen=True)
+class Option:
+    """One setting: a keyword, the register it sets, its :class:`Kind` and its help text.
+
+    ``choices`` maps the names a choice takes to register values. ``shown`` is False for an
+    alternative spelling of a register that another option shows (``period_cycles`` beside
+    ``prf``): :class:`Settings` has one key per register.
+    """
+    name: str
+    register: str
+    kind: Kind
+    help: str
+    metavar: Optional[str] = None
+    choices: Optional[Mapping[str, int]] = None
+    shown: bool = True
+
+    @property
+    def flag(self) -> str:
+        """The command-line flag: ``--mask-width``."""
+        return "--" + self.name.replace("_", "-")
+
+    def label(self, style: str) -> str:
+        return self.flag if style == "flag" else self.name
+
+
+@dataclass
+class _Context:
+    clock_hz: int
+    registers: Dict[str, int]      # the settings so far, changes applied
+    style: str
+    notes: List[str] = field(default_factory=list)
+
+
+def _said(option, value, context):
+    # How the caller wrote the setting: ``--integration 10ms`` or ``integration='10ms'``.
+    if context.style == "flag":
+        return f"{option.flag} {value}"
+    return f"{option.name}={value!r}"
+
+
+def _refuse(option, value, context, message):
+    raise SettingsError(f"{_said(option, value, context)}: {message}")
+
+
+def _in_range(option, value, context, number, shown=None):
+    # ``number`` if the register takes it; ``shown(n)`` writes a number with its units.
+    register = BY_NAME[option.register]
+    if not register.minimum <= number <= register.maximum:
+        if shown is None:
+            unit = f" {register.unit}" if register.unit else ""
+            message = f"takes values from {register.minimum} to {register.maximum}{unit}"
+            if str(number) != str(value).strip():
+                message += f", not {number}"
+        else:
+            message = (f"takes values from {shown(register.minimum)} to "
+                       f"{shown(register.maximum)}, not {shown(number)}")
+        _refuse(option, value, context, message)
+    return number
+
+
+# Kinds
+
+def _whole_number(option, value, context):
+    if isinstance(value, bool):
+        _refuse(option, value, context, "expected a whole number")
+    if isinstance(value, str):
+        try:
+            return int(value.strip(), 0)
+        except ValueError:
+            _refuse(option, value, context, "expected a whole number (0x for hex)")
+    try:
+        return operator.index(value)
+    except TypeError:
+        _refuse(option, value, context, "expected a whole number")
+
+
+def _convert_whole(option, value, context):
+    number = _whole_number(option, value, context)
+    return {option.register: _in_range(option, value, context, number)}
+
+
+def _convert_choice(option, value, context):
+    name = getattr(value, "name", value)        # an enum member: its name
+    if isinstance(name, str) and name.strip().lower() in option.choices:
+        return {option.register: option.choices[name.strip().lower()]}
+    _refuse(option, value, context, f"choose one of {', '.join(option.choices)}")
+
+
+def _show_choice(option, registers, clock_hz):
+    for name, number in option.choices.items():
+        if number == registers[option.register]:
+            return name
+    return registers[option.register]
+
+
+def _split_unit(value, unit):
+    # ``"800cycles"`` -> ``"800"``; None when ``value`` does not end in ``unit``.
+    if isinstance(value, str):
+        match = re.fullmatch(rf"\s*(\S+?)\s*{unit}s?\s*", value, flags=re.IGNORECASE)
+        if match:
+            return match.group(1)
+    return None
+
+
+def _seconds(text):
+    # parse_time, which also takes a zero time (a gate from 0 ns)
+    match = re.fullmatch(r"\s*[-+]?0*\.?0*(e[-+]?\d+)?\s*([a-zµ]+)\s*", text, flags=re.IGNORECASE)
+    if match and re.search(r"\d", text):
+        parse_time("1" + match.group(2))      # a unit of time
+        return 0.0
+    return parse_time(text)
+
+
+def _steps(option, value, context, step_s, step, example):
+    """Whole steps (clock cycles, TDC codes) of ``step_s`` seconds from a time with unit or a
+    number of steps (``"800cycles"``), with a note when rounded."""
+    words = "clock cycle" if step == "cycle" else step
+    count = _split_unit(value, step)
+    if count is not None:
+        return _whole_number(option, count, context)
+    if not isinstance(value, str):
+        _refuse(option, value, context, f"give a unit: {example}")
+    try:
+        seconds = _seconds(value)
+    except ValueError as error:
+        message = str(error)
+        if re.fullmatch(r"\s*[-+]?[\d.]+(e[-+]?\d+)?\s*", value, flags=re.IGNORECASE):
+            message = f"give a unit: {example}"
+        _refuse(option, value, context, message)
+    exact = seconds / step_s
+    steps = round(exact)
+    if steps < 1 and exact > 0 and option.register not in ("gate_start", "gate_end"):
+        _refuse(option, value, context, f"shorter than one clock cycle ({format_time(step_s)})")
+    if abs(steps - exact) > _EXACT * max(1.0, exact):
+        context.notes.append(f"{_said(option, value, context)} is {exact:.4g} {words}s of "
+                             f"{format_time(step_s)}: using {steps} {step}s, "
+                             f"{format_time(steps * step_s)}")
+    return steps
+
+
+def _cycles_shown(clock_hz):
+    return lambda n: f"{n} cycles ({format_time(n / clock_hz)})"
+
+
+def _convert_time(option, value, context):
+    cycles = _steps(option, value, context, 1 / context.clock_hz, "cycle", "10ms, or 800cycles")
+    return {option.register: _in_range(option, value, context, cycles,
+                                       _cycles_shown(context.clock_hz))}
+
+
+def _show_time(option, registers, clock_hz):
+    return exact_time(registers[option.register] / clock_hz)
+
+
+def _convert_frequency(option, value, context):
+    if isinstance(value, bool):
+        _refuse(option, value, context, "expected a frequency (1MHz)")
+    try:
+        hz = parse_frequency(value)
+    except ValueError as error:
+        _refuse(option, value, context, str(error))
+    exact = context.clock_hz / hz
+    cycles = round(exact)
+    if cycles < 2:
+        _refuse(option, value, context, f"too high for the board's "
+                f"{format_frequency(context.clock_hz)} clock: the period must be at least "
+                f"2 cycles")
+    if abs(cycles - exact) > _EXACT * exact:
+        context.notes.append(f"{_said(option, value, context)} is a period of {exact:.4g} clock "
+                             f"cycles: using {cycles} cycles, "
+                             f"{format_frequency(context.clock_hz / cycles)}")
+    return {option.register: _in_range(option, value, context, cycles,
+                                       _cycles_shown(context.clock_hz))}
+
+
+def _show_frequency(option, registers, clock_hz):
+    return exact_frequency(clock_hz / registers[option.register])
+
+
+def code_s(registers: Mapping[str, int], clock_hz: int) -> float:
+    """Seconds per timestamp code: the sensor TDC's LSB, or a clock cycle for the coarse
+    TDC."""
+    return 1 / clock_hz if registers["tdc_source"] == TdcSource.COARSE.value else TDC_LSB_S
+
+
+def _convert_gate(option, value, context):
+    step_s = code_s(context.registers, context.clock_hz)
+    codes = _steps(option, value, context, step_s, "code", "100ns, or 2000codes")
+    return {option.register: _in_range(option, value, context, codes,
+                                       lambda n: f"{n} codes ({format_time(n * step_s)})")}
+
+
+def _show_gate(option, registers, clock_hz):
+    return exact_time(registers[option.register] * code_s(registers, clock_hz))
+
+
+WHOLE = Kind(_convert_whole, lambda option, registers, clock_hz: registers[option.register])
+CHOICE = Kind(_convert_choice, _show_choice)
+TIME = Kind(_convert_time, _show_time)
+FREQUENCY = Kind(_convert_frequency, _show_frequency)
+GATE = Kind(_convert_gate, _show_gate)
+
+
+def _names(enum):
+    return {member.name.lower(): member.value for member in enum}
+
+
+_MODES = _names(DelayMode)
+_ON_OFF = {"off": 0, "on": 1}
+
+#: Every setting, in the order they are converted (``tdc`` before the gate, which depends on
+#: it) and shown.
+OPTIONS: Tuple[Option, ...] = (
+    Option("readout", "acquisition", CHOICE, "what the board sends: histograms made on the "
+           "board, or every event", choices=_names(AcquisitionMode)),
+    Option("mode", "delay_mode", CHOICE, "victim delay source", choices=_MODES),
+    Option("length", "length", WHOLE, "register length of the mseq source (bits)", "L"),
+    Option("mask_width", "mask_width", WHOLE, "mask width of the masked source (bits)", "WM"),
+    Option("seed", "seed", WHOLE, "non-zero seed of the victim delay source (0x for hex)", "S"),
+    Option("prf", "period", FREQUENCY, "nominal pulse repetition frequency (1MHz): sets the "
+           "period", "HZ"),
+    Option("period_cycles", "period", WHOLE, "nominal laser period in clock cycles", "N",
+           shown=False),
+    Option("scheduler", "grid", CHOICE, "interval: pulses T + R apart; grid: pulse k at k T + R",
+           choices={"interval": 0, "grid": 1}),
+    Option("pulse_width", "pulse_width", TIME, "laser trigger pulse width (25ns)", "TIME"),
+    Option("aggressor", "aggressor", CHOICE, "aggressor emitter", choices=_ON_OFF),
+    Option("aggressor_prf", "aggressor_period", FREQUENCY, "aggressor pulse repetition "
+           "frequency", "HZ"),
+    Option("aggressor_period_cycles", "aggressor_period", WHOLE, "aggressor period in clock "
+           "cycles", "N", shown=False),
+    Option("aggressor_offset", "aggressor_offset", TIME, "aggressor offset after the victim "
+           "(75ns)", "TIME"),
+    Option("aggressor_width", "aggressor_width", TIME, "aggressor trigger pulse width", "TIME"),
+    Option("aggressor_mode", "aggressor_delay_mode", CHOICE, "aggressor's own delay source",
+           choices=_MODES),
+    Option("aggressor_length", "aggressor_length", WHOLE, "aggressor mseq register length "
+           "(bits)", "L"),
+    Option("aggressor_mask_width", "aggressor_mask_width", WHOLE, "aggressor mask width (bits)",
+           "WM"),
+    Option("aggressor_seed", "aggressor_seed", WHOLE, "aggressor delay source seed", "S"),
+    Option("tdc", "tdc_source", CHOICE, "event source: the sensor's timestamp bus or the "
+           "built-in coarse TDC", choices=_names(TdcSource)),
+    Option("gate_start", "gate_start", GATE, "first timestamp accepted (time from the TDC "
+           "start: 100ns, or 2000codes)", "TIME"),
+    Option("gate_end", "gate_end", GATE, "last timestamp accepted (100ns, or 2000codes)",
+           "TIME"),
+    Option("bin_shift", "bin_shift", WHOLE, "histogram bins are 2**N codes wide", "N"),
+    Option("integration", "integration", TIME, "histogram integration time (10ms), and raw "
+           "block length", "TIME"),
+)
+
+#: The options by name.
+BY_OPTION = {option.name: option for option in OPTIONS}
+
+
+def exact_time(seconds: float) -> str:
+    """A time as text with an SI prefix and every digit that matters (``"154.3125 µs"``), so
+    that it reads back as the same number of clock cycles."""
+    for factor, prefix in ((1, ""), (1e-3, "m"), (1e-6, "µ"), (1e-9, "n")):
+        if abs(seconds) >= factor:
+            return f"{seconds / factor:.12g} {prefix}s"
+    return f"{seconds / 1e-12:.12g} ps" if seconds else "0 s"
+
+
+def exact_frequency(hz: float) -> str:
+    """A frequency as text with an SI prefix and every digit that matters."""
+    for factor, prefix in ((1e9, "G"), (1e6, "M"), (1e3, "k")):
+        if abs(hz) >= factor:
+            return f"{hz / factor:.12g} {prefix}Hz"
+    return f"{hz:.12g} Hz"
+
+
+@dataclass(frozen=True)
+class Conversion:
+    """What :func:`convert` made of some settings.
+
+    Attributes
+    ----------
+    changes : dict
+        Register values by register name, of the registers the settings set.
+    registers : dict
+        Every register: the current ones with ``changes`` applied (checked for consistency).
+    notes : list of str
+        One line for each value rounded to whole clock cycles (codes), with the value used.
+    """
+    changes: Dict[str, int]
+    registers: Dict[str, int]
+    notes: List[str]
+
+
+def convert(settings: Mapping[str, Any], clock_hz: int, current: Mapping[str, int], *,
+            style: str = "keyword") -> Conversion:
+    """Register values from settings with units.
+
+    Parameters
+    ----------
+    settings : mapping
+        Setting name (:data:`OPTIONS`) to value: a string with units (``"10ms"``,
+        ``"800cycles"``, ``"1MHz"``), a choice name (``"masked"``), a whole number, or None
+        (left as it is).
+    clock_hz : int
+        The board's clock frequency (its identity).
+    current : mapping
+        Every register's current value (``BoardClient.read_registers()``).
+    style : {"keyword", "flag"}
+        How refusals and notes name a setting: ``mask_width=17`` or ``--mask-width 17``.
+
+    Returns
+    -------
+    Conversion
+
+    Raises
+    ------
+    SettingsError
+        An unknown setting, a value that cannot be read or is out of range, two settings for
+        one register, or settings that are not consistent (the checks of the gateware).
+    """
+    context = _Context(int(clock_hz), dict(current), style)
+    unknown = [name for name in settings if name not in BY_OPTION]
+    if unknown:
+        raise SettingsError(f"no setting named {unknown[0]!r} (settings: "
+                            f"{', '.join(BY_OPTION)})")
+    given = {name: value for name, value in settings.items() if value is not None}
+    labels = {option.register: option.label(style) for option in OPTIONS if option.shown}
+    changes, by = {}, {}
+    for option in OPTIONS:
+        if option.name not in given:
+            continue
+        for register, value in option.kind.convert(option, given[option.name], context).items():
+            if register in by:
+                raise SettingsError(f"{by[register].label(style)} and {option.label(style)} "
+                                    f"both set {register}: give one of them")
+            by[register] = option
+            labels[register] = option.label(style)
+            changes[register] = value
+            context.registers[register] = value
+    found = _problems(context.registers, labels, context.clock_hz)
+    if found:
+        raise SettingsError("; ".join(found))
+    return Conversion(changes, context.registers, context.notes)
+
+
+def _problems(registers, labels, clock_hz):
+    # The gateware's consistency checks, naming settings as the caller does, with units.
+    found = []
+    if registers["gate_start"] > registers["gate_end"]:
+        step_s = code_s(registers, clock_hz)
+        found.append(f"{labels['gate_start']} ({format_time(registers['gate_start'] * step_s)}"
+                     f", {registers['gate_start']} codes) must not be after "
+                     f"{labels['gate_end']} ({format_time(registers['gate_end'] * step_s)}, "
+                     f"{registers['gate_end']} codes)")
+    names = "|".join(sorted(BY_NAME, key=len, reverse=True))
+
+    def named(match):
+        text = labels.get(match.group(1), match.group(1))
+        if match.group(2):
+            cycles = int(match.group(2))
+            text += f" ({format_time(cycles / clock_hz)}, {cycles} cycles)"
+        return text
+
+    for message in problems(registers):
+        if not message.startswith("gate_start "):
+            found.append(re.sub(rf"(?<![*\w])({names})\b(?: \((\d+) cycles\))?", named,
+                                message))
+    return found
+
+
+class Settings(Mapping):
+    """A board's settings in units, read-only: a mapping from setting name to value
+    (``"10 ms"``, ``"masked"``, ``6``), one per register, that :meth:`Board.configure` takes
+    back unchanged.
+
+    Attributes
+    ----------
+    registers : dict
+        The register values behind them.
+    clock_hz : int
+        The board's clock frequency.
+    """
+
+    def __init__(self, registers: Mapping[str, int], clock_hz: int) -> None:
+        self.registers = dict(registers)
+        self.clock_hz = int(clock_hz)
+        self._values = {option.name: option.kind.show(option, self.registers, self.clock_hz)
+                        for option in OPTIONS if option.shown}
+
+    def __getitem__(self, name):
+        return self._values[name]
+
+    def __iter__(self):
+        return iter(self._values)
+
+    def __len__(self):
+        return len(self._values)
+
+    def __repr__(self):
+        return "Settings(" + ", ".join(f"{name}={value!r}" for name, value in self.items()) + ")"
+
+    @property
+    def integration_s(self) -> float:
+        """Integration time of each histogram (each raw block), in seconds."""
+        return self.registers["integration"] / self.clock_hz
+
+    @property
+    def code_s(self) -> float:
+        """Seconds per timestamp code."""
+        return code_s(self.registers, self.clock_hz)
+
+    @property
+    def bins(self) -> int:
+        """Bins of a histogram."""
+        return (1 << TIMESTAMP_BITS) >> self.registers["bin_shift"]
+
+    @property
+    def bin_s(self) -> float:
+        """Width of a histogram bin, in seconds."""
+        return (1 << self.registers["bin_shift"]) * self.code_s
+
+    @property
+    def time_s(self) -> np.ndarray:
+        """Time of the centre of each histogram bin from the TDC start, in seconds."""
+        return (np.arange(self.bins) + 0.5) * self.bin_s
+
+
+def describe(registers: Mapping[str, int], clock_hz: int) -> Settings:
+    """The :class:`Settings` in units of register values ``registers``."""
+    return Settings(registers, clock_hz)
+
