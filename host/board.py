@@ -13,16 +13,19 @@
 cycles); :class:`Board` is the layer above the protocol client
 (:class:`~fliss.host.client.BoardClient`, at :attr:`Board.client`). Everything that goes wrong
 raises a :exc:`~fliss.host.errors.BoardError` (:exc:`~fliss.host.errors.SettingsError` for
-settings refused on the host); nothing is printed. Values rounded to whole clock cycles are
-returned by :meth:`Board.configure` as notes and logged as warnings (logger ``fliss.host``).
+settings refused on the host); nothing is printed (progress and trouble on the link go to
+the ``fliss.host`` loggers). Values rounded to whole clock cycles are returned by
+:meth:`Board.configure` as notes, and issued as :class:`~fliss.host.settings.RoundingWarning`
+(Python's :mod:`warnings`, which a notebook shows).
 The ``fliss`` command uses the same calls.
 """
 
 import logging
 import math
 import time
+import warnings
 from dataclasses import dataclass
-from typing import Any, Iterator, List, Mapping, Optional
+from typing import Any, Iterator, Mapping, Optional
 
 import numpy as np
 
@@ -31,7 +34,7 @@ from ..hdl.registers import AcquisitionMode
 from ..sim.event import EVENT_DTYPE
 from .client import BoardClient, IdentityInfo
 from .errors import BoardLost, SettingsError
-from .settings import Settings, convert, describe
+from .settings import Conversion, RoundingWarning, Settings, convert, describe
 from .stream import EventBatch, HistogramFrame
 from .units import parse_time
 
@@ -236,7 +239,7 @@ class Board:
         return describe(self.client.read_registers(), self.clock_hz)
 
     def configure(self, settings: Optional[Mapping[str, Any]] = None, /, *,
-                  style: str = "keyword", **more: Any) -> List[str]:
+                  style: str = "keyword", **more: Any) -> Conversion:
         """Change settings, given with units; the others keep their values.
 
         Parameters
@@ -253,9 +256,10 @@ class Board:
 
         Returns
         -------
-        list of str
-            A note for each value rounded to whole clock cycles, with the value used (each
-            also logged as a warning).
+        Conversion
+            ``changes``: the registers written; ``registers``: all of them now; ``notes``: a
+            line for each value rounded to whole clock cycles, with the value used (each also
+            issued as a :class:`~fliss.host.settings.RoundingWarning`).
 
         Raises
         ------
@@ -269,14 +273,14 @@ class Board:
         current = self.client.read_registers()
         conversion = convert(values, self.clock_hz, current, style=style)
         for note in conversion.notes:
-            _logger.warning("%s", note)
+            warnings.warn(note, RoundingWarning, stacklevel=2)
         if conversion.changes:
             self.client.write_registers(conversion.changes, current=current)
             kept = self.client.read_registers(list(conversion.changes))
             lost = [name for name, value in conversion.changes.items() if kept[name] != value]
             if lost:
                 raise BoardLost(f"the board on {self.port} did not keep {', '.join(lost)}")
-        return conversion.notes
+        return conversion
 
     # Acquiring
 

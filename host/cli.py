@@ -10,12 +10,14 @@ import argparse
 import importlib
 import logging
 import sys
+import warnings
 
 from .. import __version__
 from .errors import BoardError
+from .settings import RoundingWarning
 
 
-__all__ = ["UserError", "main"]
+__all__ = ["UserError", "build_parser", "parse_args", "main"]
 
 
 #: Modules of :mod:`fliss.host` that provide sub-commands, in the order of ``--help``.
@@ -65,16 +67,28 @@ def _add_global_options(parser, prefix):
                        help="less output (repeat for less)")
 
 
-def main(argv=None):
-    parser = build_parser()
-    args = parser.parse_args(argv)
+def parse_args(argv=None):
+    """The arguments of ``fliss``, with ``-v`` and ``-q`` counted before and after the
+    sub-command."""
+    args = build_parser().parse_args(argv)
     args.verbose += getattr(args, "command_verbose", 0)
     args.quiet += getattr(args, "command_quiet", 0)
+    return args
+
+
+def main(argv=None):
+    args = parse_args(argv)
     level = logging.WARNING - 10 * (args.verbose - args.quiet)
+    handler = logging.StreamHandler()
+    handler.setFormatter(_LogFormatter())
     logging.basicConfig(level=max(logging.DEBUG, min(logging.CRITICAL, level)),
-                        format="fliss: %(message)s")
+                        handlers=[handler])
     try:
-        return args.run(args) or 0
+        with warnings.catch_warnings():
+            # A setting rounded to whole clock cycles: one line, each time.
+            warnings.simplefilter("always", RoundingWarning)
+            warnings.showwarning = _show_warning
+            return args.run(args) or 0
     except (UserError, BoardError) as error:
         print(f"fliss: error: {error}", file=sys.stderr)
         return 1
@@ -83,3 +97,14 @@ def main(argv=None):
         return 130
     except BrokenPipeError:
         return 0
+
+
+class _LogFormatter(logging.Formatter):
+    # "fliss: warning: ..." for warnings and errors, "fliss: ..." for the rest
+    def format(self, record):
+        prefix = "warning: " if record.levelno >= logging.WARNING else ""
+        return f"fliss: {prefix}{record.getMessage()}"
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    print(f"fliss: warning: {message}", file=sys.stderr)

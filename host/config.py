@@ -62,10 +62,8 @@ def register(subparsers, formatter):
 def run(args):
     with connect(args) as board:
         clock_hz = board.clock_hz
-        before = board.registers
-        board.configure(settings_from_args(args), style="flag")
+        changes = board.configure(settings_from_args(args), style="flag").changes
         current = board.registers
-        changes = {name for name in current if current[name] != before[name]}
     identity = board.identity
     print(f"board on {args.port}: gateware {identity.gateware_version}, protocol "
           f"{identity.protocol}, clock {format_frequency(clock_hz)}, "

@@ -31,8 +31,12 @@ from .errors import SettingsError
 from .units import format_frequency, format_time, parse_frequency, parse_time
 
 
-__all__ = ["Kind", "Option", "OPTIONS", "BY_OPTION", "Conversion", "Settings", "convert",
+__all__ = ["RoundingWarning", "Kind", "Option", "OPTIONS", "BY_OPTION", "Conversion", "Settings", "convert",
            "describe", "exact_time", "exact_frequency", "code_s"]
+
+
+class RoundingWarning(UserWarning):
+    """A setting was rounded to whole clock cycles (TDC codes); the message says to what."""
 
 
 #: Relative difference below which a value counts as a whole number of cycles (no note).
