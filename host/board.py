@@ -20,6 +20,7 @@ the ``fliss.host`` loggers). Values rounded to whole clock cycles are returned b
 The ``fliss`` command uses the same calls.
 """
 
+import contextlib
 import logging
 import math
 import time
@@ -304,6 +305,28 @@ class Board:
         self.client.start()
         return describe(registers, self.clock_hz)
 
+    @contextlib.contextmanager
+    def _stopping(self, batches=None):
+        # Stop the board after an acquisition (and an interrupted one), unless it was lost;
+        # the event batches it still sends go to ``batches``.
+        try:
+            yield
+        except BoardLost:
+            raise
+        except BaseException:
+            self._stop_quietly()
+            raise
+        self.client.stop()
+        for item in self.client.settle():
+            if batches is not None and isinstance(item, EventBatch):
+                batches.append(item.events)
+
+    def _stop_quietly(self):
+        try:
+            self.client.stop()
+        except BoardLost:
+            pass
+
     def wait_s(self, settings: Optional[Settings] = None) -> float:
         """Seconds to wait for the next histogram before giving the board up: two integration
         times, the time the link takes to carry a histogram ten times over, and a reply
@@ -336,7 +359,7 @@ class Board:
         wait = self.wait_s(settings) if timeout_s is None else float(timeout_s)
         time_s = settings.time_s
         done = 0
-        try:
+        with self._stopping():
             for item in self.client.stream(idle_timeout_s=wait, data_timeout_s=wait):
                 if not isinstance(item, HistogramFrame):
                     continue
@@ -347,12 +370,6 @@ class Board:
                 done += 1
                 if n is not None and done >= n:
                     break
-        finally:
-            try:
-                self.client.stop()
-                self.client.settle()
-            except BoardLost:
-                pass
 
     def acquire(self, n: int = 1, *, timeout_s: Optional[float] = None) -> Histograms:
         """``n`` histograms, at the board's settings (see :meth:`configure`).
@@ -398,7 +415,7 @@ class Board:
         settings = self._start(AcquisitionMode.RAW)
         batches = []
         started = heartbeat = time.monotonic()
-        try:
+        with self._stopping(batches):
             # Raw readout sends nothing while no events come: the heartbeat finds a dead board.
             for item in self.client.stream(idle_timeout_s=math.inf):
                 if isinstance(item, EventBatch):
@@ -409,10 +426,7 @@ class Board:
                 if now - heartbeat >= HEARTBEAT_S:
                     heartbeat = now
                     self.client.status()
-        finally:
-            elapsed = time.monotonic() - started
-        self.client.stop()
-        batches += [item.events for item in self.client.settle() if isinstance(item, EventBatch)]
+        elapsed = time.monotonic() - started
         end = self.client.status()
         dropped = sum(end[name] - start[name] for name in ("dropped_fifo", "dropped_overrun"))
         events = np.concatenate(batches) if batches else np.zeros(0, EVENT_DTYPE)

@@ -1,6 +1,6 @@
 """Serial client of a FLISS board: commands, registers, and the data stream.
 
-:class:`Board` opens a port with :func:`serial.serial_for_url`, so a device path
+:class:`BoardClient` opens a port with :func:`serial.serial_for_url`, so a device path
 (``/dev/ttyUSB1``), a pty of a virtual board (``/dev/pts/7``), ``loop://`` and
 ``socket://host:port`` all work the same. Every byte received goes through one
 :class:`fliss.sim.codec.FrameDecoder`, which checks CRC and sequence numbers and counts what
@@ -14,7 +14,7 @@ time (``timeout_s``, ``retries``; by default :data:`~fliss.host.port.DEFAULT_TIM
 :data:`~fliss.host.port.PTY_TIMEOUT_S` on a pseudo-terminal, such as a virtual board's). A reply
 is matched by what it answers: an ACK or NAK by the sequence number in its payload, IDENTITY,
 REGISTERS and STATUS by their type (and address).
-
+The Python API, :mod:`fliss.host.board`, is the layer above: settings in units, numpy arrays.
 Everything that goes wrong raises a :exc:`~fliss.host.errors.BoardError` (the board is lost,
 refused a command, is of another protocol version; settings refused on the host) with one line
 that says what and what to do.
@@ -111,8 +111,7 @@ class BoardClient:
 
     @property
     def identity(self) -> IdentityInfo:
-        """The board's :class:`IdentityInfo`, read with :meth:`identify` the first time it is
-        needed."""
+        """The board's :class:`IdentityInfo` (:meth:`identify` reads it when first needed)."""
         if self._identity is None:
             self.identify()
         return self._identity
@@ -137,8 +136,7 @@ class BoardClient:
         self._replies.clear()
         self.reset_counters()
 
-    def _not_answering(self, what):
-        # Said once, at the first timeout, instead of minutes of nothing on screen.
+    def _not_answering(self, what):   # said once, at the first timeout, not minutes later
         if not self._answered:
             self._answered = True
             _logger.warning("the board on %s is not answering yet (no reply to %s in %g s); "
@@ -421,7 +419,8 @@ class BoardClient:
                ) -> Iterator[Union[HistogramFrame, EventBatch, None]]:
         """Yield :class:`HistogramFrame` and :class:`EventBatch` items as they arrive, forever;
         between items it yields ``None`` about every ``poll_s`` so a caller can update a
-        progress display or stop. Raises :exc:`BoardLost` when no byte arrives for
+        progress display or stop (:meth:`fliss.host.board.Board.stream` yields histograms
+        only). Raises :exc:`BoardLost` when no byte arrives for
         ``idle_timeout_s``, when no data packet arrives for ``data_timeout_s`` (a board that
         answers commands but has stopped acquiring), or when the port goes away."""
         self._last_rx = self._last_data = time.monotonic()

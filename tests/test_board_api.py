@@ -118,11 +118,17 @@ def test_acquire_matches_the_scene(model, board, capsys):
     assert capsys.readouterr() == ("", "")
 
 
-def test_stream_yields_only_histograms(board):
+def test_stream_yields_only_histograms(model, board):
     board.configure(integration="1ms")
     items = list(board.stream(5))
     assert len(items) == 5 and all(isinstance(item, Histogram) for item in items)
     assert [item.frame - items[0].frame for item in items] == [0, 1, 2, 3, 4]
+    assert not model.running
+    # An endless stream left early stops the board too.
+    stream = board.stream()
+    assert isinstance(next(stream), Histogram) and model.running
+    stream.close()
+    assert not model.running
 
 
 def test_acquire_raw_matches_the_scene(model, board, capsys):
