@@ -34,7 +34,7 @@ from ..hdl.protocol import DEFAULT_BAUD, HISTOGRAM_COUNT_BITS
 from ..hdl.registers import AcquisitionMode
 from ..sim.event import EVENT_DTYPE
 from .client import BoardClient, IdentityInfo
-from .errors import BoardLost, SettingsError
+from .errors import BoardLost, BoardMismatch, SettingsError
 from .settings import Conversion, RoundingWarning, Settings, convert, describe
 from .stream import EventBatch, HistogramFrame
 from .units import parse_time
@@ -280,7 +280,7 @@ class Board:
             kept = self.client.read_registers(list(conversion.changes))
             lost = [name for name, value in conversion.changes.items() if kept[name] != value]
             if lost:
-                raise BoardLost(f"the board on {self.port} did not keep {', '.join(lost)}")
+                raise BoardMismatch(f"the board on {self.port} did not keep {', '.join(lost)}")
         return conversion
 
     # Acquiring
