@@ -35,9 +35,8 @@ from ..hdl.registers import AcquisitionMode
 from ..sim.event import EVENT_DTYPE
 from .client import BoardClient, IdentityInfo
 from .errors import BoardLost, BoardMismatch, SettingsError
-from .settings import Conversion, RoundingWarning, Settings, convert, describe
+from .settings import Conversion, RoundingWarning, Settings, convert, describe, duration_s
 from .stream import EventBatch, HistogramFrame
-from .units import parse_time
 
 
 __all__ = ["connect", "Board", "Histogram", "Histograms", "Events"]
@@ -455,10 +454,4 @@ class Board:
 
 
 def _duration(value):
-    # Seconds from a time with a unit; a bare number is refused, as in the settings.
-    if not isinstance(value, str):
-        raise SettingsError(f"duration={value!r}: give a unit: 100ms")
-    try:
-        return parse_time(value)
-    except ValueError as error:
-        raise SettingsError(f"duration={value!r}: {error}") from None
+    return duration_s(value, f"duration={value!r}")

@@ -13,7 +13,7 @@ from .cli import UserError
 from .errors import BoardReset
 from .port_options import add_port_arguments, connect
 from .setting_options import add_setting_arguments, settings_from_args
-from .units import parse_time
+from .settings import duration_s
 
 
 __all__ = ["register", "run", "report", "Progress"]
@@ -100,15 +100,8 @@ def register(subparsers, formatter):
     parser.set_defaults(run=run)
 
 
-def _time(text, flag):
-    try:
-        return parse_time(text)
-    except ValueError as error:
-        raise UserError(f"{flag}: {error}") from None
-
-
 def run(args):
-    _time(args.duration, "--duration")
+    duration_s(args.duration, f"--duration {args.duration}")
     if args.acquisitions < 1:
         raise UserError(f"--acquisitions must be at least 1, not {args.acquisitions}")
     directory = os.path.dirname(os.path.abspath(args.output))
@@ -122,8 +115,7 @@ def run(args):
         if board.settings["readout"] == "histogram":
             bar = Progress(args.acquisitions, "histograms", enabled=not quiet)
         else:
-            bar = Progress(round(_time(args.duration, "--duration"), 1), "s",
-                           enabled=not quiet)
+            bar = Progress(round(duration_s(args.duration, ""), 1), "s", enabled=not quiet)
         result = board.capture(args.output, acquisitions=args.acquisitions,
                                duration=args.duration, progress=bar)
     return report(result, quiet=quiet)

@@ -32,7 +32,7 @@ from .units import format_frequency, format_time, parse_frequency, parse_time
 
 
 __all__ = ["RoundingWarning", "Kind", "Option", "OPTIONS", "BY_OPTION", "Conversion", "Settings", "convert",
-           "describe", "exact_time", "exact_frequency", "code_s"]
+           "describe", "duration_s", "exact_time", "exact_frequency", "code_s"]
 
 
 class RoundingWarning(UserWarning):
@@ -308,6 +308,19 @@ OPTIONS: Tuple[Option, ...] = (
 
 #: The options by name.
 BY_OPTION = {option.name: option for option in OPTIONS}
+
+
+def duration_s(value: Any, label: str) -> float:
+    """Seconds from a time with a unit (``"100ms"``) that is not a setting (how long to
+    capture); a bare number is refused here too. ``label`` names it in the
+    :exc:`~fliss.host.errors.SettingsError`: ``"--duration 1"`` or ``"duration=1"``."""
+    if isinstance(value, str) and not re.fullmatch(r"\s*[-+]?[\d.]+(e[-+]?\d+)?\s*", value,
+                                                   flags=re.IGNORECASE):
+        try:
+            return parse_time(value)
+        except ValueError as error:
+            raise SettingsError(f"{label}: {error}") from None
+    raise SettingsError(f"{label}: give a unit: 100ms, or 2s")
 
 
 def exact_time(seconds: float) -> str:

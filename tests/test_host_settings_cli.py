@@ -95,6 +95,17 @@ def test_rounding_is_said_in_one_line(model, capsys):
     assert lines["aggressor_offset"].split()[:3] == ["aggressor_offset", "*", "6"]   # set
 
 
+@pytest.mark.parametrize("duration, message", [
+    ("1", "--duration 1: give a unit: 100ms, or 2s"),
+    ("soon", "--duration soon: cannot read 'soon' as a time (for example 10ms or 75ns)"),
+])
+def test_capture_duration_takes_a_unit(model, capsys, tmp_path, duration, message):
+    status, out, err = fliss(capsys, "capture", "--port", model.path, "--duration", duration,
+                             "-o", str(tmp_path / "d.h5"))
+    assert (status, err) == (1, f"fliss: error: {message}\n")
+    assert not (tmp_path / "d.h5").exists()
+
+
 def test_grid_and_interval_are_short_for_scheduler(model, capsys):
     assert fliss(capsys, "config", "--port", model.path, "--grid")[0] == 0
     assert model.model.settings["grid"] == 1
