@@ -1,7 +1,7 @@
 """``fliss capture``: histograms or raw events from a board into an HDF5 file.
 
-The capture itself is :func:`fliss.host.acquisition.capture`; this module adds the command
-line, the progress bar and the report.
+The capture itself is :meth:`fliss.host.board.Board.capture` (at the board's settings, after
+those of the flags given); this module adds the command line, the progress bar and the report.
 """
 
 import argparse
@@ -9,11 +9,11 @@ import os
 import sys
 import time
 
-from .acquisition import capture
 from .cli import UserError
 from .errors import BoardReset
 from .port_options import add_port_arguments, connect
-from .units import parse_time
+from .setting_options import add_setting_arguments, settings_from_args
+from .settings import duration_s
 
 
 __all__ = ["register", "run", "report", "Progress"]
@@ -78,39 +78,31 @@ def register(subparsers, formatter):
     parser = subparsers.add_parser(
         "capture", formatter_class=formatter,
         help="capture histograms or raw events into an HDF5 file",
-        description="Sets the acquisition mode and integration time, starts the board, and "
-                    "writes what it sends to FILE as it arrives (schema: docs/file-format.md), "
-                    "with the board's configuration and identity and the link's counters. "
+        description="Captures at the board's settings (as `fliss config` left them), changed "
+                    "first by any setting flags given here: starts the board and writes what "
+                    "it sends to FILE as it arrives (schema: docs/file-format.md), with the "
+                    "board's registers as used, its identity and the link's counters. "
                     "Ctrl-C (or kill) stops the acquisition on the board and keeps what was "
                     "captured; a board that stops answering, or is reset, leaves a file with "
                     "everything received.")
     add_port_arguments(parser)
-    parser.add_argument("--mode", choices=["histogram", "raw"], default="histogram",
-                        help="histograms made on the board, or every event")
-    parser.add_argument("--integration", default="10ms", metavar="TIME",
-                        help="integration time of each histogram (and raw-mode block)")
     parser.add_argument("--acquisitions", type=int, default=10, metavar="N",
-                        help="histograms to capture (histogram mode)")
+                        help="histograms to capture (histogram readout)")
     parser.add_argument("--duration", default="1s", metavar="TIME",
-                        help="how long to capture (raw mode)")
+                        help="how long to capture (raw readout)")
     parser.add_argument("--output", "-o", required=True, metavar="FILE.h5",
                         default=argparse.SUPPRESS,
                         help="HDF5 file to write")
     parser.add_argument("--overwrite", action="store_true", help="replace an existing FILE")
+    add_setting_arguments(parser, "settings (as in `fliss config`; those not given keep the "
+                                  "board's values: --readout histogram|raw, --integration "
+                                  "TIME, --mode for the delay source, ...)")
     parser.set_defaults(run=run)
 
 
-def _time(text, flag):
-    try:
-        return parse_time(text)
-    except ValueError as error:
-        raise UserError(f"{flag}: {error}") from None
-
-
 def run(args):
-    integration_s = _time(args.integration, "--integration")
-    duration_s = _time(args.duration, "--duration") if args.mode == "raw" else None
-    if args.mode == "histogram" and args.acquisitions < 1:
+    duration_s(args.duration, f"--duration {args.duration}")
+    if args.acquisitions < 1:
         raise UserError(f"--acquisitions must be at least 1, not {args.acquisitions}")
     directory = os.path.dirname(os.path.abspath(args.output))
     if not os.path.isdir(directory):
@@ -118,14 +110,14 @@ def run(args):
     if os.path.exists(args.output) and not args.overwrite:
         raise UserError(f"{args.output} exists (use --overwrite to replace it)")
     quiet = getattr(args, "quiet", 0) > 0
-    if args.mode == "histogram":
-        bar = Progress(args.acquisitions, "histograms", enabled=not quiet)
-    else:
-        bar = Progress(round(duration_s, 1), "s", enabled=not quiet)
     with connect(args) as board:
-        result = capture(board, args.output, mode=args.mode, integration_s=integration_s,
-                         acquisitions=args.acquisitions, duration_s=duration_s, port=args.port,
-                         progress=bar)
+        board.configure(settings_from_args(args), style="flag")
+        if board.settings["readout"] == "histogram":
+            bar = Progress(args.acquisitions, "histograms", enabled=not quiet)
+        else:
+            bar = Progress(round(duration_s(args.duration, ""), 1), "s", enabled=not quiet)
+        result = board.capture(args.output, acquisitions=args.acquisitions,
+                               duration=args.duration, progress=bar)
     return report(result, quiet=quiet)
 
 

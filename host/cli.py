@@ -10,12 +10,14 @@ import argparse
 import importlib
 import logging
 import sys
+import warnings
 
 from .. import __version__
 from .errors import BoardError
+from .settings import RoundingWarning
 
 
-__all__ = ["UserError", "main"]
+__all__ = ["UserError", "build_parser", "parse_args", "main"]
 
 
 #: Modules of :mod:`fliss.host` that provide sub-commands, in the order of ``--help``.
@@ -45,26 +47,48 @@ def build_parser():
         prog="fliss", formatter_class=_Formatter,
         description="FLISS: LiDAR interference suppression by pseudorandom pulse delays.")
     parser.add_argument("--version", action="version", version=f"fliss {__version__}")
-    parser.add_argument("-v", "--verbose", action="count", default=0,
-                        help="more output (repeat for more)")
-    parser.add_argument("-q", "--quiet", action="count", default=0,
-                        help="less output (repeat for less)")
+    _add_global_options(parser, "")
     subparsers = parser.add_subparsers(metavar="COMMAND", dest="command")
     subparsers.required = True
     for name in COMMAND_MODULES:
         module = importlib.import_module(f"{__package__}.{name}")
         module.register(subparsers, _Formatter)
+    # The same options after the sub-command (`fliss capture -q`), counted with those before.
+    for command in set(subparsers.choices.values()):
+        _add_global_options(command, "command_")
     return parser
 
 
+def _add_global_options(parser, prefix):
+    group = parser.add_argument_group("output") if prefix else parser
+    group.add_argument("-v", "--verbose", dest=prefix + "verbose", action="count", default=0,
+                       help="more output (repeat for more)")
+    group.add_argument("-q", "--quiet", dest=prefix + "quiet", action="count", default=0,
+                       help="less output (repeat for less)")
+
+
+def parse_args(argv=None):
+    """The arguments of ``fliss``, with ``-v`` and ``-q`` counted before and after the
+    sub-command."""
+    args = build_parser().parse_args(argv)
+    args.verbose += getattr(args, "command_verbose", 0)
+    args.quiet += getattr(args, "command_quiet", 0)
+    return args
+
+
 def main(argv=None):
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parse_args(argv)
     level = logging.WARNING - 10 * (args.verbose - args.quiet)
+    handler = logging.StreamHandler()
+    handler.setFormatter(_LogFormatter())
     logging.basicConfig(level=max(logging.DEBUG, min(logging.CRITICAL, level)),
-                        format="fliss: %(message)s")
+                        handlers=[handler])
     try:
-        return args.run(args) or 0
+        with warnings.catch_warnings():
+            # A setting rounded to whole clock cycles: one line, each time.
+            warnings.simplefilter("always", RoundingWarning)
+            warnings.showwarning = _show_warning
+            return args.run(args) or 0
     except (UserError, BoardError) as error:
         print(f"fliss: error: {error}", file=sys.stderr)
         return 1
@@ -73,3 +97,14 @@ def main(argv=None):
         return 130
     except BrokenPipeError:
         return 0
+
+
+class _LogFormatter(logging.Formatter):
+    # "fliss: warning: ..." for warnings and errors, "fliss: ..." for the rest
+    def format(self, record):
+        prefix = "warning: " if record.levelno >= logging.WARNING else ""
+        return f"fliss: {prefix}{record.getMessage()}"
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    print(f"fliss: warning: {message}", file=sys.stderr)

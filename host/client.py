@@ -1,6 +1,6 @@
 """Serial client of a FLISS board: commands, registers, and the data stream.
 
-:class:`Board` opens a port with :func:`serial.serial_for_url`, so a device path
+:class:`BoardClient` opens a port with :func:`serial.serial_for_url`, so a device path
 (``/dev/ttyUSB1``), a pty of a virtual board (``/dev/pts/7``), ``loop://`` and
 ``socket://host:port`` all work the same. Every byte received goes through one
 :class:`fliss.sim.codec.FrameDecoder`, which checks CRC and sequence numbers and counts what
@@ -14,7 +14,7 @@ time (``timeout_s``, ``retries``; by default :data:`~fliss.host.port.DEFAULT_TIM
 :data:`~fliss.host.port.PTY_TIMEOUT_S` on a pseudo-terminal, such as a virtual board's). A reply
 is matched by what it answers: an ACK or NAK by the sequence number in its payload, IDENTITY,
 REGISTERS and STATUS by their type (and address).
-
+The Python API, :mod:`fliss.host.board`, is the layer above: settings in units, numpy arrays.
 Everything that goes wrong raises a :exc:`~fliss.host.errors.BoardError` (the board is lost,
 refused a command, is of another protocol version; settings refused on the host) with one line
 that says what and what to do.
@@ -88,7 +88,8 @@ class BoardClient:
         self.decoder = BulkDecoder(synced=False)
         self.encoder = PacketEncoder()
         self.assembler = StreamAssembler()
-        self.identity = None
+        self._identity = None
+        self._answered = False      # any reply yet (a silent board is reported once)
         self.retransmissions = 0
         self.link_naks = 0
         self.stale_replies = 0
@@ -108,6 +109,13 @@ class BoardClient:
             self.close()
             raise
 
+    @property
+    def identity(self) -> IdentityInfo:
+        """The board's :class:`IdentityInfo` (:meth:`identify` reads it when first needed)."""
+        if self._identity is None:
+            self.identify()
+        return self._identity
+
     def _sync(self):
         """Get the decoder in step with the board's frames.
 
@@ -121,9 +129,18 @@ class BoardClient:
         while time.monotonic() < deadline:
             self.poll(0.02)
             if self.decoder.counters.resyncs or self.decoder.counters.packets:
+                self._answered = True
                 break
+        else:
+            self._not_answering("PING")
         self._replies.clear()
         self.reset_counters()
+
+    def _not_answering(self, what):   # said once, at the first timeout, not minutes later
+        if not self._answered:
+            self._answered = True
+            _logger.warning("the board on %s is not answering yet (no reply to %s in %g s); "
+                            "still trying", self.port_name, what, self.timeout_s)
 
     def reset_counters(self) -> None:
         """Count link and stream events from now on (the decoder keeps its totals)."""
@@ -239,6 +256,7 @@ class BoardClient:
         attempts = self.retries + 1
         for attempt in range(attempts):
             if attempt:
+                self._not_answering(what)
                 self.retransmissions += 1
                 _logger.info("no valid reply to %s (seq %d), re-sending (attempt %d of %d)",
                              what, seq, attempt + 1, attempts)
@@ -259,6 +277,7 @@ class BoardClient:
                             raise _refused(what, code, detail)
                         self.stale_replies += 1
                         continue
+                    self._answered = True
                     if reply.type == PacketType.ACK and len(reply.payload) == 1 \
                             and reply.payload[0] == seq:
                         return reply
@@ -287,7 +306,7 @@ class BoardClient:
                              f"{byte_size(Identity)}: is it a FLISS board?")
         fields = unpack(Identity, reply.payload)
         protocol, registers = fields["protocol"], fields["registers"]
-        self.identity = IdentityInfo(protocol,
+        self._identity = IdentityInfo(protocol,
                                      f"{fields['gateware_major']}.{fields['gateware_minor']}",
                                      registers, fields["clock_hz"], fields["baud"])
         if check and protocol != PROTOCOL_VERSION:
@@ -297,12 +316,11 @@ class BoardClient:
         if check and registers != len(REGISTERS):
             raise BoardMismatch(f"the board has {registers} registers, this fliss knows "
                              f"{len(REGISTERS)}: gateware and host tool do not match")
-        return self.identity
+        return self._identity
 
     @property
     def clock_hz(self) -> int:
-        if self.identity is None:
-            self.identify()
+        """The board's clock frequency in Hz (from its identity)."""
         return self.identity.clock_hz
 
     def read_registers(self, names: Optional[Iterable[str]] = None) -> Dict[str, int]:
@@ -401,7 +419,8 @@ class BoardClient:
                ) -> Iterator[Union[HistogramFrame, EventBatch, None]]:
         """Yield :class:`HistogramFrame` and :class:`EventBatch` items as they arrive, forever;
         between items it yields ``None`` about every ``poll_s`` so a caller can update a
-        progress display or stop. Raises :exc:`BoardLost` when no byte arrives for
+        progress display or stop (:meth:`fliss.host.board.Board.stream` yields histograms
+        only). Raises :exc:`BoardLost` when no byte arrives for
         ``idle_timeout_s``, when no data packet arrives for ``data_timeout_s`` (a board that
         answers commands but has stopped acquiring), or when the port goes away."""
         self._last_rx = self._last_data = time.monotonic()

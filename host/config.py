@@ -1,156 +1,18 @@
 """``fliss config``: show the board's registers, or set them by name with units."""
 
-import argparse
-
-from ..hdl import period_cycles
 from ..hdl.delay import DelayMode
 from ..hdl.event import TDC_LSB_S
 from ..hdl.registers import REGISTERS, AcquisitionMode, TdcSource
-from .cli import UserError
 from .port_options import add_port_arguments, connect
-from .units import format_frequency, format_time, parse_frequency, parse_time
+from .setting_options import add_setting_arguments, settings_from_args
+from .units import format_frequency, format_time
 
 
-__all__ = ["register", "run", "changes_from_args", "describe"]
+__all__ = ["register", "run", "describe"]
 
-
-_MODES = [mode.name.lower() for mode in DelayMode]
-_ON_OFF = {"on": 1, "off": 0}
-
-
-def _number(text, what):
-    try:
-        return int(str(text), 0)
-    except ValueError:
-        raise UserError(f"{what}: expected a whole number, not {text!r}") from None
-
-
-def _frequency(text, what):
-    try:
-        return parse_frequency(text)
-    except ValueError as error:
-        raise UserError(f"{what}: {error}") from None
-
-
-def _cycles(text, clock_hz, what):
-    """Clock cycles from a time with unit (``25ns``) or a plain number of cycles."""
-    text = str(text).strip()
-    if text.lower().endswith("cycles"):
-        return _number(text[:-6].strip(), what)
-    try:
-        return int(text, 0)
-    except ValueError:
-        pass
-    try:
-        seconds = parse_time(text)
-    except ValueError as error:
-        raise UserError(f"{what}: {error}, or a number of clock cycles") from None
-    cycles = round(seconds * clock_hz)
-    if cycles < 1:
-        raise UserError(f"{what}: {text} is shorter than one clock cycle "
-                        f"({format_time(1 / clock_hz)})")
-    return cycles
-
-
-def _codes(text, code_s, what):
-    """Timestamp codes from a time with unit or a plain number of codes."""
-    text = str(text).strip()
-    try:
-        return int(text, 0)
-    except ValueError:
-        pass
-    try:
-        seconds = parse_time(text)
-    except ValueError as error:
-        raise UserError(f"{what}: {error}, or a number of TDC codes") from None
-    return int(seconds / code_s)
-
-
-def _period(text, clock_hz, what):
-    try:
-        return period_cycles(clock_hz, _frequency(text, what))
-    except ValueError as error:
-        raise UserError(f"{what}: {error}") from None
-
-
-#: Setting flags: (flag, register, metavar, help). ``how`` converts the text.
-def add_setting_arguments(parser):
-    group = parser.add_argument_group(
-        "settings (each changes one register; times take a unit, 25ns, or are clock cycles)")
-    def add(*names, **kw):
-        group.add_argument(*names, default=argparse.SUPPRESS, **kw)
-
-    add("--acquisition", choices=["histogram", "raw"], help="what the board sends")
-    add("--mode", choices=_MODES, help="victim delay source")
-    add("--length", metavar="L", help="register length of the mseq source (bits)")
-    add("--mask-width", metavar="WM", help="mask width of the masked source (bits)")
-    add("--seed", metavar="S", help="non-zero seed of the victim delay source (0x for hex)")
-    add("--prf", metavar="HZ", help="nominal pulse repetition frequency (1MHz): sets the period")
-    add("--period-cycles", metavar="N", help="nominal laser period in clock cycles")
-    grid = group.add_mutually_exclusive_group()
-    grid.add_argument("--grid", dest="grid", action="store_const", const=1,
-                      default=argparse.SUPPRESS, help="grid scheduler: pulse k at k T + R")
-    grid.add_argument("--interval", dest="grid", action="store_const", const=0,
-                      default=argparse.SUPPRESS, help="interval scheduler: pulses T + R apart")
-    add("--pulse-width", metavar="TIME", help="laser trigger pulse width (25ns)")
-    add("--aggressor", choices=["on", "off"], help="aggressor emitter")
-    add("--aggressor-prf", metavar="HZ", help="aggressor pulse repetition frequency")
-    add("--aggressor-period-cycles", metavar="N", help="aggressor period in clock cycles")
-    add("--aggressor-offset", metavar="TIME", help="aggressor offset after the victim (75ns)")
-    add("--aggressor-width", metavar="TIME", help="aggressor trigger pulse width")
-    add("--aggressor-mode", choices=_MODES, help="aggressor's own delay source")
-    add("--aggressor-length", metavar="L", help="aggressor mseq register length (bits)")
-    add("--aggressor-mask-width", metavar="WM", help="aggressor mask width (bits)")
-    add("--aggressor-seed", metavar="S", help="aggressor delay source seed")
-    add("--tdc", choices=["sensor", "coarse"],
-        help="event source: the sensor's timestamp bus or the built-in coarse TDC")
-    add("--gate-start", metavar="TIME",
-        help="first timestamp accepted (time from the TDC start, or codes)")
-    add("--gate-end", metavar="TIME", help="last timestamp accepted (time, or codes)")
-    add("--bin-shift", metavar="N", help="histogram bins are 2**N codes wide")
-    add("--integration", metavar="TIME", help="histogram integration time (10ms)")
-
-
-def changes_from_args(args, current, clock_hz):
-    """Register changes by name from the setting flags, converted with ``clock_hz``."""
-    def get(name):
-        return getattr(args, name, None)
-
-    changes = {}
-    if get("acquisition") is not None:
-        changes["acquisition"] = AcquisitionMode[args.acquisition.upper()].value
-    if get("mode") is not None:
-        changes["delay_mode"] = DelayMode[args.mode.upper()].value
-    for flag, name in (("length", "length"), ("mask_width", "mask_width"), ("seed", "seed"),
-                       ("aggressor_length", "aggressor_length"),
-                       ("aggressor_mask_width", "aggressor_mask_width"),
-                       ("aggressor_seed", "aggressor_seed"), ("bin_shift", "bin_shift"),
-                       ("period_cycles", "period"),
-                       ("aggressor_period_cycles", "aggressor_period")):
-        if get(flag) is not None:
-            changes[name] = _number(get(flag), "--" + flag.replace("_", "-"))
-    if get("prf") is not None:
-        changes["period"] = _period(args.prf, clock_hz, "--prf")
-    if get("aggressor_prf") is not None:
-        changes["aggressor_period"] = _period(args.aggressor_prf, clock_hz, "--aggressor-prf")
-    if get("grid") is not None:
-        changes["grid"] = args.grid
-    for flag, name in (("pulse_width", "pulse_width"), ("aggressor_offset", "aggressor_offset"),
-                       ("aggressor_width", "aggressor_width"), ("integration", "integration")):
-        if get(flag) is not None:
-            changes[name] = _cycles(get(flag), clock_hz, "--" + flag.replace("_", "-"))
-    if get("aggressor") is not None:
-        changes["aggressor"] = _ON_OFF[args.aggressor]
-    if get("aggressor_mode") is not None:
-        changes["aggressor_delay_mode"] = DelayMode[args.aggressor_mode.upper()].value
-    if get("tdc") is not None:
-        changes["tdc_source"] = TdcSource[args.tdc.upper()].value
-    source = changes.get("tdc_source", current["tdc_source"])
-    code_s = 1 / clock_hz if source == TdcSource.COARSE.value else TDC_LSB_S
-    for flag in ("gate_start", "gate_end"):
-        if get(flag) is not None:
-            changes[flag] = _codes(get(flag), code_s, "--" + flag.replace("_", "-"))
-    return changes
+#: Title of the setting flags in ``--help``.
+SETTINGS_TITLE = ("settings (each changes one register; times take a unit, 25ns, or are whole "
+                  "clock cycles, 2cycles; values are rounded to whole cycles, with a warning)")
 
 
 def describe(name, value, settings, clock_hz):
@@ -193,21 +55,15 @@ def register(subparsers, formatter):
                     "the registers read back. Times are converted to clock cycles with the "
                     "board's clock frequency from its identity.")
     add_port_arguments(parser)
-    add_setting_arguments(parser)
+    add_setting_arguments(parser, SETTINGS_TITLE)
     parser.set_defaults(run=run)
 
 
 def run(args):
     with connect(args) as board:
-        clock_hz = board.identity.clock_hz
-        current = board.read_registers()
-        changes = changes_from_args(args, current, clock_hz)
-        if changes:
-            board.write_registers(changes, current=current)
-            current = board.read_registers()
-            changed = [name for name in changes if current[name] != changes[name]]
-            if changed:
-                raise UserError(f"the board did not keep {', '.join(changed)}")
+        clock_hz = board.clock_hz
+        changes = board.configure(settings_from_args(args), style="flag").changes
+        current = board.registers
     identity = board.identity
     print(f"board on {args.port}: gateware {identity.gateware_version}, protocol "
           f"{identity.protocol}, clock {format_frequency(clock_hz)}, "

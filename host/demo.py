@@ -132,7 +132,7 @@ def run(args):
                              aggressor_signal=0.2, seed=1) as port:
         print(f"virtual board on {port}")
         common = ["--port", port]
-        capture = ["--mode", "histogram", "--integration", args.integration,
+        capture = ["--readout", "histogram", "--integration", args.integration,
                    "--acquisitions", str(args.acquisitions)]
         files = {}
         for label, mode, aggressor_period in (

@@ -1,12 +1,12 @@
 """Command-line options to reach a board (``--port``, ``--baud``, ``--timeout``, ``--retries``)
-and :func:`connect`, the identified :class:`~fliss.host.client.BoardClient` they describe."""
+and :func:`connect`, the :class:`~fliss.host.board.Board` they describe."""
 
 import argparse
 import os
 
 from ..hdl.protocol import DEFAULT_BAUD
+from .board import Board, connect as connect_board
 from .cli import UserError
-from .client import BoardClient
 from .port import DEFAULT_TIMEOUT_S, PTY_TIMEOUT_S
 
 
@@ -42,18 +42,13 @@ def _timeout(text):
         raise argparse.ArgumentTypeError(f"not a number of seconds or auto: {text!r}") from None
 
 
-def connect(args: argparse.Namespace) -> BoardClient:
-    """A :class:`~fliss.host.client.BoardClient` from the arguments of
-    :func:`add_port_arguments`, identified (so a board of another protocol version is refused
-    at once)."""
+def connect(args: argparse.Namespace) -> Board:
+    """The :class:`~fliss.host.board.Board` (:func:`fliss.host.board.connect`) of the arguments
+    of :func:`add_port_arguments`, identified (so a board of another protocol version is
+    refused at once)."""
     if args.timeout is not None and args.timeout <= 0:
         raise UserError(f"--timeout must be positive, not {args.timeout:g}")
     if args.retries < 0:
         raise UserError(f"--retries must not be negative, not {args.retries}")
-    board = BoardClient(args.port, baud=args.baud, timeout_s=args.timeout, retries=args.retries)
-    try:
-        board.identify()
-    except BaseException:
-        board.close()
-        raise
-    return board
+    return connect_board(args.port, baud=args.baud, timeout_s=args.timeout,
+                         retries=args.retries)

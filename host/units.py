@@ -55,6 +55,8 @@ def format_frequency(hz):
 
 def format_time(seconds):
     """``12.5 ns`` style: four significant figures and an SI prefix."""
+    if seconds == 0:
+        return "0 s"
     for factor, prefix in ((1, ""), (1e-3, "m"), (1e-6, "µ"), (1e-9, "n")):
         if abs(seconds) >= factor:
             return f"{seconds / factor:.4g} {prefix}s"

@@ -70,7 +70,7 @@ def test_config_round_trip(model, capsys):
                              "--mode", "masked", "--mask-width", "5", "--pulse-width", "25ns",
                              "--aggressor", "on", "--aggressor-offset", "100ns",
                              "--integration", "5ms", "--gate-end", "100ns", "--bin-shift", "2",
-                             "--acquisition", "raw", "--grid", "--seed", "0x2b")
+                             "--readout", "raw", "--grid", "--seed", "0x2b")
     assert status == 0, err
     expected = dict(defaults(CLOCK_HZ), period=160, delay_mode=2, mask_width=5, pulse_width=2,
                     aggressor=1, aggressor_offset=8, integration=400_000, gate_end=2000,
@@ -89,16 +89,24 @@ def test_config_round_trip(model, capsys):
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["--length", "40"], "Register length takes values from 2 to 32 bits, not 40"),
-    (["--mask-width", "17"], "Register mask_width takes values from 1 to 16 bits, not 17"),
-    (["--seed", "0"], "Register seed takes values from 1 to 4294967295, not 0"),
-    (["--pulse-width", "2us"], "pulse_width (160 cycles) must be shorter than period "
-                               "(80 cycles)"),
-    (["--prf", "fast"], "--prf: cannot read 'fast' as a frequency (for example 80MHz, 1kHz or "
-                        "1e6)"),
-    (["--integration", "1ps"], "--integration: 1ps is shorter than one clock cycle (12.5 ns)"),
+    (["--length", "40"], "--length 40: takes values from 2 to 32 bits"),
+    (["--mask-width", "17"], "--mask-width 17: takes values from 1 to 16 bits"),
+    (["--seed", "0"], "--seed 0: takes values from 1 to 4294967295"),
+    # 2 µs is 160 cycles of 12.5 ns; the default period is 80 cycles (1 MHz).
+    (["--pulse-width", "2us"], "--pulse-width (2 µs, 160 cycles) must be shorter than --prf "
+                               "(1 µs, 80 cycles)"),
+    (["--prf", "fast"], "--prf fast: cannot read 'fast' as a frequency (for example 80MHz, 1kHz "
+                        "or 1e6)"),
+    (["--integration", "1ps"], "--integration 1ps: shorter than one clock cycle (12.5 ns)"),
+    (["--integration", "10"], "--integration 10: give a unit: 10ms, or 800cycles"),
+    (["--mask-width", "six"], "--mask-width six: expected a whole number (0x for hex)"),
+    (["--prf", "1MHz", "--period-cycles", "80"],
+     "--prf and --period-cycles both set period: give one of them"),
+    # Sensor TDC codes of 50 ps: 200 ns is 4000 codes, 100 ns 2000.
     (["--gate-start", "200ns", "--gate-end", "100ns"],
-     "gate_start (4000) must not be after gate_end (2000)"),
+     "--gate-start (200 ns, 4000 codes) must not be after --gate-end (100 ns, 2000 codes)"),
+    (["--gate-end", "1us"], "--gate-end 1us: takes values from 0 codes (0 s) to 8191 codes "
+                            "(409.6 ns), not 20000 codes (1 µs)"),
 ])
 def test_config_user_errors(model, capsys, argv, message):
     status, out, err = fliss(capsys, "config", "--port", model.path, *argv)
@@ -187,7 +195,7 @@ def test_capture_raw_matches_the_scene(model, capsys, tmp_path):
     settings = _prepare(model, gate_start=200, gate_end=6000)
     seed = model.seed_for(model.starts)
     output = tmp_path / "r.h5"
-    status, out, err = fliss(capsys, "capture", "--port", model.path, "--mode", "raw",
+    status, out, err = fliss(capsys, "capture", "--port", model.path, "--readout", "raw",
                              "--integration", "2ms", "--duration", "0.3s", "-o", str(output))
     assert status == 0, err
     assert out.startswith("saved ") and " events in " in out
@@ -285,8 +293,8 @@ def test_capture_user_errors(model, capsys, tmp_path):
                                 f"it)\n")
     status, out, err = fliss(capsys, "capture", "--port", model.path, "--integration", "10",
                              "-o", str(tmp_path / "y.h5"))
-    assert (status, err) == (1, "fliss: error: --integration: cannot read '10' as a time (for "
-                                "example 10ms or 75ns)\n")
+    assert (status, err) == (1, "fliss: error: --integration 10: give a unit: 10ms, or "
+                                "800cycles\n")
     status, out, err = fliss(capsys, "capture", "--port", model.path, "--acquisitions", "0",
                              "-o", str(tmp_path / "y.h5"))
     assert (status, err) == (1, "fliss: error: --acquisitions must be at least 1, not 0\n")
@@ -322,7 +330,7 @@ def test_ctrl_c_stops_the_board_and_saves(tmp_path):
 def test_analyze_and_plot(model, capsys, tmp_path):
     _prepare(model, delay_mode=0)
     output = tmp_path / "a.h5"
-    status, out, err = fliss(capsys, "-q", "capture", "--port", model.path, "--mode", "raw",
+    status, out, err = fliss(capsys, "-q", "capture", "--port", model.path, "--readout", "raw",
                              "--integration", "10ms", "--duration", "0.5s", "-o", str(output))
     assert status == 0, err
     capture = read_capture(output)
@@ -356,7 +364,7 @@ def test_events_dropped_on_the_board_are_reported(capsys, tmp_path):
     # board's FIFO, counted there, and reported with the capture.
     with model_board(scene=SCENE, baud=115_200, line_limited=True) as model:
         output = tmp_path / "slow.h5"
-        status, out, err = fliss(capsys, "capture", "--port", model.path, "--mode", "raw",
+        status, out, err = fliss(capsys, "capture", "--port", model.path, "--readout", "raw",
                                  "--integration", "10ms", "--duration", "0.3s",
                                  "-o", str(output))
         dropped = model.status["dropped_fifo"]

@@ -1,0 +1,457 @@
+"""The Python API of a FLISS board: settings with units in, numpy arrays out.
+
+::
+
+    import fliss
+
+    with fliss.connect("/dev/ttyUSB1") as board:
+        board.configure(mode="masked", mask_width=6, integration="10ms")
+        result = board.acquire(20)          # result.counts (20, bins), result.time_s (bins,)
+        events = board.acquire_raw("100ms")  # a numpy structured array and its time axis
+
+:func:`connect` opens the port and reads the board's identity (its clock turns times into
+cycles); :class:`Board` is the layer above the protocol client
+(:class:`~fliss.host.client.BoardClient`, at :attr:`Board.client`). Everything that goes wrong
+raises a :exc:`~fliss.host.errors.BoardError` (:exc:`~fliss.host.errors.SettingsError` for
+settings refused on the host); nothing is printed (progress and trouble on the link go to
+the ``fliss.host`` loggers). Values rounded to whole clock cycles are returned by
+:meth:`Board.configure` as notes, and issued as :class:`~fliss.host.settings.RoundingWarning`
+(Python's :mod:`warnings`, which a notebook shows).
+The ``fliss`` command uses the same calls.
+"""
+
+import contextlib
+import logging
+import math
+import time
+import warnings
+from dataclasses import dataclass
+from typing import Any, Iterator, Mapping, Optional
+
+import numpy as np
+
+from ..hdl.protocol import DEFAULT_BAUD, HISTOGRAM_COUNT_BITS
+from ..hdl.registers import AcquisitionMode
+from ..sim.event import EVENT_DTYPE
+from .client import BoardClient, IdentityInfo
+from .errors import BoardLost, BoardMismatch, SettingsError
+from .settings import Conversion, RoundingWarning, Settings, convert, describe, duration_s
+from .stream import EventBatch, HistogramFrame
+
+
+__all__ = ["connect", "Board", "Histogram", "Histograms", "Events"]
+
+
+_logger = logging.getLogger(__name__)
+
+#: Seconds between STATUS requests while raw events are read (finds a board that went silent).
+HEARTBEAT_S = 1.0
+
+
+def connect(port: str, *, baud: int = DEFAULT_BAUD, timeout_s: Optional[float] = None,
+            retries: int = 3) -> "Board":
+    """Open the board on ``port`` and read its identity.
+
+    Parameters
+    ----------
+    port : str
+        Device (``/dev/ttyUSB1``, ``COM3``), pty of a virtual or model board (``/dev/pts/7``) or
+        pyserial URL (``socket://host:port``).
+    baud : int
+        Baud rate of the port (ignored by ptys and sockets).
+    timeout_s : float or None
+        Seconds to wait for each reply to a command; None: 0.5 s, or 5 s on a pty.
+    retries : int
+        Times a command is re-sent when no reply comes.
+
+    Returns
+    -------
+    Board
+        Use it in a ``with`` block, or call :meth:`Board.close`.
+
+    Raises
+    ------
+    PortError
+        The port cannot be opened.
+    BoardLost
+        Nothing answers on it.
+    BoardMismatch
+        The board speaks another protocol version.
+    """
+    if timeout_s is not None and not timeout_s > 0:
+        raise SettingsError(f"timeout_s must be positive, not {timeout_s!r}")
+    if retries < 0:
+        raise SettingsError(f"retries must not be negative, not {retries!r}")
+    return Board(BoardClient(port, baud=baud, timeout_s=timeout_s, retries=retries))
+
+
+@dataclass(frozen=True)
+class Histogram:
+    """One histogram.
+
+    Attributes
+    ----------
+    counts : numpy.ndarray
+        Counts per bin (uint32).
+    time_s : numpy.ndarray
+        Time of each bin's centre from the TDC start, in seconds.
+    frame : int
+        The board's histogram number.
+    complete : bool
+        False if part of it was lost on the link (those bins read 0).
+    """
+    counts: np.ndarray
+    time_s: np.ndarray
+    frame: int
+    complete: bool
+
+
+@dataclass(frozen=True)
+class Histograms:
+    """Histograms from :meth:`Board.acquire`.
+
+    Attributes
+    ----------
+    counts : numpy.ndarray
+        ``(n, bins)`` counts, one row per histogram (uint32).
+    time_s : numpy.ndarray
+        ``(bins,)`` time of each bin's centre from the TDC start, in seconds.
+    frames : numpy.ndarray
+        ``(n,)`` the board's histogram numbers (consecutive unless some were lost).
+    complete : numpy.ndarray
+        ``(n,)`` False for a histogram of which part was lost on the link.
+    settings : Settings
+        The board's settings during the acquisition.
+    """
+    counts: np.ndarray
+    time_s: np.ndarray
+    frames: np.ndarray
+    complete: np.ndarray
+    settings: Settings
+
+    @property
+    def bin_s(self) -> float:
+        """Width of a bin, in seconds."""
+        return self.settings.bin_s
+
+    @property
+    def total(self) -> np.ndarray:
+        """The sum of the histograms, ``(bins,)``."""
+        return self.counts.sum(axis=0, dtype=np.uint64)
+
+    @property
+    def lost(self) -> int:
+        """Histograms that never arrived between the first and the last (gaps in ``frames``)."""
+        if len(self.frames) < 2:
+            return 0
+        gaps = np.diff(self.frames.astype(np.int64)) % (1 << 32) - 1
+        return int(gaps.sum())
+
+
+@dataclass(frozen=True)
+class Events:
+    """Raw events from :meth:`Board.acquire_raw`.
+
+    Attributes
+    ----------
+    events : numpy.ndarray
+        A structured array (:data:`fliss.sim.event.EVENT_DTYPE`): ``timestamp`` (TDC codes),
+        ``address`` (pixel), ``collision``, ``pulse`` (laser cycle index).
+    duration_s : float
+        How long events were read, in seconds.
+    dropped : int
+        Events the board dropped (its raw FIFO full: the link was too slow).
+    settings : Settings
+        The board's settings during the acquisition.
+    """
+    events: np.ndarray
+    duration_s: float
+    dropped: int
+    settings: Settings
+
+    @property
+    def time_s(self) -> np.ndarray:
+        """Each event's timestamp in seconds from the TDC start."""
+        return self.events["timestamp"] * self.settings.code_s
+
+    def __len__(self):
+        return len(self.events)
+
+
+class Board:
+    """A FLISS board: settings with units, histograms and events as numpy arrays.
+
+    Made by :func:`connect` (or from an open :class:`~fliss.host.client.BoardClient`); closes
+    its port at the end of a ``with`` block.
+
+    Attributes
+    ----------
+    client : BoardClient
+        The protocol client underneath (registers in clock cycles, packets, counters).
+    identity : IdentityInfo
+        The board's identity: protocol and gateware version, clock, baud rate.
+    """
+
+    def __init__(self, client: BoardClient) -> None:
+        self.client = client
+        try:
+            self.identity: IdentityInfo = client.identify()
+        except BaseException:
+            client.close()
+            raise
+
+    # Port
+
+    @property
+    def port(self) -> str:
+        return self.client.port_name
+
+    @property
+    def clock_hz(self) -> int:
+        """The board's clock frequency, in Hz."""
+        return self.identity.clock_hz
+
+    def close(self) -> None:
+        """Close the port (the board keeps running if it was acquiring: see :meth:`stop`)."""
+        self.client.close()
+
+    def __enter__(self) -> "Board":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return (f"<Board on {self.port}: gateware {self.identity.gateware_version}, "
+                f"clock {self.clock_hz} Hz>")
+
+    # Settings
+
+    @property
+    def registers(self) -> dict:
+        """Every register's value, read from the board (clock cycles, codes, ...)."""
+        return self.client.read_registers()
+
+    @property
+    def settings(self) -> Settings:
+        """The board's settings in units, read from it: a read-only mapping
+        (``settings["integration"]`` is ``"10 ms"``) that :meth:`configure` takes back."""
+        return describe(self.client.read_registers(), self.clock_hz)
+
+    def configure(self, settings: Optional[Mapping[str, Any]] = None, /, *,
+                  style: str = "keyword", **more: Any) -> Conversion:
+        """Change settings, given with units; the others keep their values.
+
+        Parameters
+        ----------
+        settings : mapping, optional
+            Settings by name, as ``**more``.
+        style : {"keyword", "flag"}
+            How refusals and notes name a setting: ``mask_width=17`` or ``--mask-width 17``.
+        **more
+            Settings by name (:data:`fliss.host.settings.OPTIONS`): times with a unit
+            (``integration="10ms"``, or ``"800cycles"``; a bare number is refused), frequencies
+            (``prf="1MHz"``), choices (``mode="masked"``, ``readout="raw"``), whole numbers
+            (``mask_width=6``).
+
+        Returns
+        -------
+        Conversion
+            ``changes``: the registers written; ``registers``: all of them now; ``notes``: a
+            line for each value rounded to whole clock cycles, with the value used (each also
+            issued as a :class:`~fliss.host.settings.RoundingWarning`).
+
+        Raises
+        ------
+        SettingsError
+            A setting unknown, unreadable, out of range or inconsistent with the others:
+            nothing is written.
+        BoardRefused
+            The board's build does not take a value.
+        """
+        values = dict(settings or {}, **more)
+        current = self.client.read_registers()
+        conversion = convert(values, self.clock_hz, current, style=style)
+        for note in conversion.notes:
+            warnings.warn(note, RoundingWarning, stacklevel=2)
+        if conversion.changes:
+            self.client.write_registers(conversion.changes, current=current)
+            kept = self.client.read_registers(list(conversion.changes))
+            lost = [name for name, value in conversion.changes.items() if kept[name] != value]
+            if lost:
+                raise BoardMismatch(f"the board on {self.port} did not keep {', '.join(lost)}")
+        return conversion
+
+    # Acquiring
+
+    def status(self) -> dict:
+        """The board's counters (STATUS): events, drops, histograms, running."""
+        return self.client.status()
+
+    def stop(self) -> None:
+        """Stop acquiring and read what the board still sends."""
+        self.client.stop()
+        self.client.drain(quiet_s=0.1, limit_s=2.0)
+
+    def _start(self, readout: AcquisitionMode) -> Settings:
+        # Stop, switch to ``readout``, start; the settings acquired with.
+        self.stop()
+        registers = self.client.read_registers()
+        if registers["acquisition"] != readout.value:
+            registers = self.client.write_registers({"acquisition": readout.value},
+                                                    current=registers)
+        self.client.reset_counters()
+        self.client.start()
+        return describe(registers, self.clock_hz)
+
+    @contextlib.contextmanager
+    def _stopping(self, batches=None):
+        # Stop the board after an acquisition (and an interrupted one), unless it was lost;
+        # the event batches it still sends go to ``batches``.
+        try:
+            yield
+        except BoardLost:
+            raise
+        except BaseException:
+            self._stop_quietly()
+            raise
+        self.client.stop()
+        for item in self.client.settle():
+            if batches is not None and isinstance(item, EventBatch):
+                batches.append(item.events)
+
+    def _stop_quietly(self):
+        try:
+            self.client.stop()
+        except BoardLost:
+            pass
+
+    def wait_s(self, settings: Optional[Settings] = None) -> float:
+        """Seconds to wait for the next histogram before giving the board up: two integration
+        times, the time the link takes to carry a histogram ten times over, and a reply
+        timeout."""
+        settings = self.settings if settings is None else settings
+        link_bits = settings.bins * (HISTOGRAM_COUNT_BITS + 8) * 10 // 8
+        return 2 * settings.integration_s + 10 * link_bits / self.identity.baud + \
+            max(2.0, self.client.timeout_s)
+
+    def stream(self, n: Optional[int] = None, *,
+               timeout_s: Optional[float] = None) -> Iterator[Histogram]:
+        """Histograms as they arrive, ``n`` of them (None: until the loop stops); the board is
+        switched to histogram readout and started, and stopped at the end.
+
+        Parameters
+        ----------
+        n : int or None
+            Histograms to yield.
+        timeout_s : float or None
+            Seconds to wait for each histogram; None: :meth:`wait_s`, from the integration time.
+
+        Raises
+        ------
+        BoardLost
+            No histogram in ``timeout_s``, or the port went away.
+        """
+        if n is not None and n < 1:
+            raise SettingsError(f"n must be at least 1, not {n!r}")
+        settings = self._start(AcquisitionMode.HISTOGRAM)
+        wait = self.wait_s(settings) if timeout_s is None else float(timeout_s)
+        time_s = settings.time_s
+        done = 0
+        with self._stopping():
+            for item in self.client.stream(idle_timeout_s=wait, data_timeout_s=wait):
+                if not isinstance(item, HistogramFrame):
+                    continue
+                if not item.complete:
+                    _logger.warning("histogram %d arrived incomplete: %d bins lost on the link",
+                                    item.frame, item.missing_bins)
+                yield Histogram(item.counts, time_s, item.frame, item.complete)
+                done += 1
+                if n is not None and done >= n:
+                    break
+
+    def acquire(self, n: int = 1, *, timeout_s: Optional[float] = None) -> Histograms:
+        """``n`` histograms, at the board's settings (see :meth:`configure`).
+
+        Parameters
+        ----------
+        n : int
+            Histograms to acquire.
+        timeout_s : float or None
+            Seconds to wait for each histogram; None: :meth:`wait_s`.
+
+        Returns
+        -------
+        Histograms
+            ``counts`` ``(n, bins)`` and ``time_s`` ``(bins,)``, with frame numbers and the
+            settings used.
+        """
+        rows = list(self.stream(n, timeout_s=timeout_s))
+        settings = self.settings
+        result = Histograms(counts=np.stack([row.counts for row in rows]),
+                          time_s=settings.time_s,
+                          frames=np.array([row.frame for row in rows], dtype=np.uint32),
+                          complete=np.array([row.complete for row in rows]),
+                          settings=settings)
+        if result.lost:
+            _logger.warning("%d histograms were lost on the link between the first and the "
+                            "last of %d", result.lost, n)
+        return result
+
+    def acquire_raw(self, duration: str) -> Events:
+        """Every event for ``duration`` (with a unit: ``"100ms"``), in raw readout.
+
+        The board sends events in blocks of the integration time; a block in progress at the
+        end is sent when the board stops and is kept.
+
+        Returns
+        -------
+        Events
+            The events as a structured array, with their time axis and the board's drops.
+        """
+        duration_s = _duration(duration)
+        start = self.client.status()
+        settings = self._start(AcquisitionMode.RAW)
+        batches = []
+        started = heartbeat = time.monotonic()
+        with self._stopping(batches):
+            # Raw readout sends nothing while no events come: the heartbeat finds a dead board.
+            for item in self.client.stream(idle_timeout_s=math.inf):
+                if isinstance(item, EventBatch):
+                    batches.append(item.events)
+                now = time.monotonic()
+                if now - started >= duration_s:
+                    break
+                if now - heartbeat >= HEARTBEAT_S:
+                    heartbeat = now
+                    self.client.status()
+        elapsed = time.monotonic() - started
+        end = self.client.status()
+        dropped = sum(end[name] - start[name] for name in ("dropped_fifo", "dropped_overrun"))
+        events = np.concatenate(batches) if batches else np.zeros(0, EVENT_DTYPE)
+        return Events(events=events, duration_s=elapsed, dropped=int(dropped), settings=settings)
+
+    def capture(self, path: str, *, acquisitions: int = 10, duration: str = "1s",
+                progress=None):
+        """Capture into an HDF5 file (docs/file-format.md) at the board's settings: its
+        readout (``acquisitions`` histograms, or raw events for ``duration``), its integration
+        time; the file records the registers used. ``progress`` as in
+        :func:`fliss.host.acquisition.capture`.
+
+        Returns
+        -------
+        CaptureResult
+        """
+        from .acquisition import capture     # h5py, only when a file is written
+
+        duration_s = _duration(duration)
+        registers = self.client.read_registers()
+        readout = AcquisitionMode(registers["acquisition"]).name.lower()
+        return capture(self.client, path, mode=readout,
+                       integration_s=registers["integration"] / self.clock_hz,
+                       acquisitions=acquisitions, duration_s=duration_s, port=self.port,
+                       progress=progress)
+
+
+def _duration(value):
+    return duration_s(value, f"duration={value!r}")

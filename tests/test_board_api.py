@@ -1,0 +1,203 @@
+"""The Python API (host/board.py: ``fliss.connect``, ``Board``) against the model board."""
+
+import os
+import re
+import warnings
+
+import numpy as np
+import pytest
+
+import fliss
+from fliss.hdl.registers import defaults
+from fliss.host.acquisition import capture
+from fliss.host.board import Board, Events, Histogram, Histograms
+from fliss.host.cli import UserError
+from fliss.host.client import BoardClient
+from fliss.host.errors import BoardError, BoardLost, SettingsError
+from fliss.host.fileformat import read_capture
+from fliss.host.settings import RoundingWarning
+from fliss.sim.model_board import model_board, scene_for
+from fliss.sim.scene import Scene, Simulation
+
+
+CLOCK_HZ = 80_000_000
+SCENE = Scene(detections_per_pulse=0.1, background_hz=2e5)
+
+
+def reference_blocks(settings, seed, blocks):
+    """Events of each integration block straight from the scene simulator, gated (as
+    tests/test_host_cli.py does for the command line)."""
+    simulation = Simulation(scene_for(settings, SCENE, clock_hz=CLOCK_HZ), seed=seed)
+    out = []
+    for block in range(blocks):
+        end = (block + 1) * settings["integration"]
+        pieces = []
+        while simulation.next_start_cycle < end:
+            pieces.append(simulation.step(until_cycle=end).events)
+        events = np.concatenate(pieces)
+        stamps = events["timestamp"]
+        out.append(events[(stamps >= settings["gate_start"]) & (stamps <= settings["gate_end"])])
+    return out
+
+
+@pytest.fixture
+def model():
+    with model_board(scene=SCENE) as board:
+        yield board
+
+
+@pytest.fixture
+def board(model):
+    with fliss.connect(model.path, timeout_s=2.0) as board:
+        yield board
+
+
+def test_importable_from_fliss():
+    assert fliss.Board is Board and fliss.connect.__module__ == "fliss.host.board"
+    assert fliss.SettingsError is SettingsError and fliss.BoardError is BoardError
+    assert {"connect", "Board", "Histograms", "Events"} <= set(dir(fliss))
+
+
+def test_configure_with_units(model, board, capsys):
+    with pytest.warns(RoundingWarning) as caught:
+        result = board.configure(mode="masked", mask_width=6, integration="10ms",
+                                 aggressor_offset="80ns", prf="500kHz")
+    notes = result.notes
+    assert result.changes == {"delay_mode": 2, "mask_width": 6, "integration": 800_000,
+                              "aggressor_offset": 6, "period": 160}
+    # 80 ns is 6.4 cycles of 12.5 ns: 6 cycles, 75 ns; 500 kHz is 160 cycles exactly.
+    assert notes == ["aggressor_offset='80ns' is 6.4 clock cycles of 12.5 ns: using 6 cycles, "
+                     "75 ns"]
+    assert [str(w.message) for w in caught] == notes
+    assert model.model.settings == dict(defaults(CLOCK_HZ), delay_mode=2, mask_width=6,
+                                        integration=800_000, aggressor_offset=6, period=160)
+    settings = board.settings
+    assert (settings["mode"], settings["mask_width"], settings["integration"],
+            settings["aggressor_offset"], settings["prf"]) == ("masked", 6, "10 ms", "75 ns",
+                                                               "500 kHz")
+    # What it reads back, it takes back unchanged and without notes.
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert board.configure(settings).notes == []
+    assert model.model.settings["aggressor_offset"] == 6
+    assert capsys.readouterr() == ("", "")
+
+
+def test_refused_settings_write_nothing(model, board, capsys):
+    for settings, message in (
+            ({"integration": 10}, "integration=10: give a unit: 10ms, or 800cycles"),
+            ({"mask_width": 40}, "mask_width=40: takes values from 1 to 16 bits"),
+            ({"mode": "masked", "pulse_width": "2us"},
+             "pulse_width (2 µs, 160 cycles) must be shorter than prf (1 µs, 80 cycles)")):
+        with pytest.raises(SettingsError, match="^" + re.escape(message)) as info:
+            board.configure(**settings)
+        assert not isinstance(info.value, UserError)
+    assert model.model.settings == defaults(CLOCK_HZ)
+    assert model.model.refused == 0
+    assert capsys.readouterr() == ("", "")
+
+
+def test_acquire_matches_the_scene(model, board, capsys):
+    board.configure(mode="masked", mask_width=6, aggressor="on", integration="2ms", bin_shift=2)
+    settings = board.registers
+    seed = model.seed_for(model.starts)
+    result = board.acquire(4)
+    assert isinstance(result, Histograms)
+    assert result.counts.shape == (4, 2048) and result.time_s.shape == (2048,)
+    # Bins of 4 codes of 50 ps: 200 ps wide, centres at 100 ps, 300 ps, ...
+    np.testing.assert_allclose(result.time_s[:2], [100e-12, 300e-12])
+    assert result.bin_s == pytest.approx(200e-12)
+    assert result.complete.all() and result.lost == 0
+    assert list(np.diff(result.frames)) == [1, 1, 1]
+    expected = [np.bincount(events["timestamp"].astype(np.int64) >> 2, minlength=2048)
+                for events in reference_blocks(settings, seed, 4)]
+    assert np.sum(expected) > 500
+    np.testing.assert_array_equal(result.counts, expected)
+    assert result.settings["integration"] == "2 ms"
+    assert not model.running                    # stopped afterwards
+    assert capsys.readouterr() == ("", "")
+
+
+def test_stream_yields_only_histograms(model, board):
+    board.configure(integration="1ms")
+    items = list(board.stream(5))
+    assert len(items) == 5 and all(isinstance(item, Histogram) for item in items)
+    assert [item.frame - items[0].frame for item in items] == [0, 1, 2, 3, 4]
+    assert not model.running
+    # An endless stream left early stops the board too.
+    stream = board.stream()
+    assert isinstance(next(stream), Histogram) and model.running
+    stream.close()
+    assert not model.running
+
+
+def test_acquire_raw_matches_the_scene(model, board, capsys):
+    board.configure(integration="2ms", gate_start="10ns", gate_end="300ns")
+    settings = dict(board.registers, acquisition=1)
+    seed = model.seed_for(model.starts)
+    result = board.acquire_raw("200ms")
+    assert isinstance(result, Events)
+    assert result.events.dtype.names == ("timestamp", "address", "collision", "pulse")
+    expected = np.concatenate(reference_blocks(settings, seed, 200))
+    assert len(result) > 1000
+    np.testing.assert_array_equal(result.events, expected[:len(result)])
+    np.testing.assert_allclose(result.time_s, result.events["timestamp"] * 50e-12)
+    assert result.time_s.min() >= 10e-9 and result.time_s.max() <= 300e-9
+    assert result.dropped == 0 and result.duration_s >= 0.2
+    assert board.settings["readout"] == "raw"
+    with pytest.raises(SettingsError, match=r"^duration=0.2: give a unit: 100ms, or 2s$"):
+        board.acquire_raw(0.2)
+    assert capsys.readouterr() == ("", "")
+
+
+def test_timeouts_follow_the_integration_time(model, board):
+    # The protocol client's stream() gave up after 2 s of silence; a 3 s histogram arrives
+    # after 3 s: the wait is derived from the integration time.
+    model.template = Scene(detections_per_pulse=0.001, background_hz=1e3)
+    board.configure(integration="3s", bin_shift=4)
+    assert board.wait_s() >= 6.0
+    result = board.acquire(1)
+    assert result.counts.shape == (1, 512) and result.complete.all()
+    board.configure(integration="1ms")
+    assert board.wait_s() < 3.0
+
+
+def test_capture_needs_no_identify_and_uses_the_board_settings(model, tmp_path, capsys):
+    with BoardClient(model.path, timeout_s=2.0) as client:
+        client.write_registers({"integration": 80_000})        # 1 ms
+        result = capture(client, str(tmp_path / "a.h5"), acquisitions=2,
+                         integration_s=80_000 / CLOCK_HZ)
+    assert result.complete and result.histograms == 2
+    with fliss.connect(model.path, timeout_s=2.0) as board:
+        board.configure(integration="5ms")
+        result = board.capture(str(tmp_path / "b.h5"), acquisitions=2)
+    assert result.complete
+    saved = read_capture(tmp_path / "b.h5")
+    assert saved.configuration["integration"] == 400_000
+    assert saved.attrs["integration_s"] == pytest.approx(5e-3)
+    assert capsys.readouterr() == ("", "")
+
+
+def test_context_manager_closes_the_port(model):
+    with fliss.connect(model.path, timeout_s=2.0) as board:
+        assert board.client.serial.is_open
+    assert not board.client.serial.is_open
+
+
+def test_silent_port_is_said_at_its_first_timeout(caplog):
+    master, slave = os.openpty()
+    try:
+        path = os.ttyname(slave)
+        with pytest.raises(BoardLost, match="does not answer"):
+            fliss.connect(path, timeout_s=0.1, retries=2)
+    finally:
+        os.close(master)
+        os.close(slave)
+    said = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
+    assert said == [f"the board on {path} is not answering yet (no reply to PING in 0.1 s); "
+                    f"still trying"]
+
+
+def test_connect_refuses_bad_arguments():
+    with pytest.raises(SettingsError, match="^timeout_s must be positive, not 0$"):
+        fliss.connect("loop://", timeout_s=0)
