@@ -29,6 +29,7 @@ COMMAND_MODULES = [
     "plot_commands",
     "generate",
     "board_command",
+    "attack",
 ]
 
 
