@@ -134,9 +134,10 @@ def experiment(victims, *, pulses, scene_pulses, acquisition_pulses, observer, g
     for index, victim in enumerate(victims):
         key = (victim.period, victim.grid)
         if key not in attackers:
-            attackers[key] = (Attacker(victim.period, grid=victim.grid, clock_hz=clock_hz),
-                              Attacker(victim.period, grid=victim.grid, clock_hz=clock_hz,
-                                       known_taps=False) if unknown_taps else None)
+            common = dict(grid=victim.grid, clock_hz=clock_hz, jitter_s=observer.jitter_s)
+            attackers[key] = (Attacker(victim.period, **common),
+                              Attacker(victim.period, known_taps=False, **common)
+                              if unknown_taps else None)
         attacker, blind = attackers[key]
         started = time.monotonic()
         scene_count = min(pulses, scene_pulses)

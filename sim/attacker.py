@@ -21,7 +21,9 @@ locked, the attacker follows its predictions and checks each later observation a
 observation no prediction explains drops the lock and the search starts again from it.
 """
 
+import math
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 
@@ -145,10 +147,14 @@ class Attacker:
     prf_pulses : int
         Observed pulses from which the unlocked firing period is measured; the attacker starts
         firing at that observation.
+    jitter_s : float
+        RMS jitter of its own emission times: once locked, an observation within five
+        standard deviations of an interval (rounded up to whole cycles) of a predicted pulse
+        matches it.
     """
 
     def __init__(self, period, *, grid=False, clock_hz=DEFAULT_CLOCK_HZ, known_taps=True,
-                 unknown_taps=True, verify_bits=48, prf_pulses=16):
+                 unknown_taps=True, verify_bits=48, prf_pulses=16, jitter_s=100e-12):
         if isinstance(period, bool) or not isinstance(period, (int, np.integer)) or period < 2:
             raise ValueError(f"Period must be a whole number of at least 2 clock cycles, "
                              f"not {period!r}")
@@ -161,6 +167,8 @@ class Attacker:
             raise ValueError(f"PRF pulses must be an integer of at least 2, not {prf_pulses!r}")
         self.period, self.grid, self.clock_hz = int(period), bool(grid), clock_hz
         self.prf_pulses = int(prf_pulses)
+        check_number(jitter_s, "Attacker jitter (s)")
+        self.tolerance = int(math.floor(5 * math.sqrt(2) * jitter_s * clock_hz))
         self.hypotheses = hypotheses(known_taps=known_taps, unknown_taps=unknown_taps,
                                      verify_bits=int(verify_bits))
 
@@ -231,7 +239,7 @@ class Attacker:
             return hypothesis.predict(found, count + 1)
         return np.concatenate(([delays[base]], hypothesis.predict(found, count)))
 
-    def _track(self, cycles, index, base, lock, predicted_of):
+    def _track(self, cycles, base, lock, predicted_of):
         """Follow predictions from the lock; returns (lost observation or None, predicted
         delays from the base pulse, relative frames)."""
         rest = cycles[lock + 1:] - cycles[base]
@@ -243,10 +251,9 @@ class Attacker:
             if frames[-1] >= horizon or count > 4 * (horizon // self.period + 2):
                 break
             count *= 4
-        position = np.searchsorted(frames, rest)
-        inside = position < len(frames)
-        matched = inside.copy()
-        matched[inside] = frames[position[inside]] == rest[inside]
+        position = np.clip(np.searchsorted(frames, rest), 1, len(frames) - 1)
+        nearest = np.minimum(np.abs(frames[position] - rest), np.abs(frames[position - 1] - rest))
+        matched = nearest <= self.tolerance
         # A lock already checks the pulses between base and lock; later ones must match too.
         wrong = np.flatnonzero(~matched)
         lost = None if len(wrong) == 0 else lock + 1 + int(wrong[0])
@@ -268,11 +275,10 @@ class Attacker:
             if found is None:
                 break
             lock, base, hypothesis, state, reading = found
-            index, delays = reading[0], reading[1]
             lock, base = lock + position, base + position
             lost, predicted, frames = self._track(
-                cycles, None, base, lock,
-                lambda count: self._predict(hypothesis, state, delays, base - position, count))
+                cycles, base, lock,
+                partial(self._predict, hypothesis, state, reading[1], base - position))
             locks.append(Lock(lock, lost, hypothesis.name, base, predicted))
             end = cycles[lost] if lost is not None else cycles[-1] + 1
             starts = cycles[base] + frames

@@ -21,7 +21,6 @@ import math
 
 import numpy as np
 
-from ..hdl.lfsr import POLYNOMIALS
 from ..hdl.settings import MASKED_LENGTH, MASKED_STEPS, MAX_LENGTH, MAX_MASK_WIDTH, MIN_LENGTH
 from . import gf2
 from . import lfsr as _lfsr

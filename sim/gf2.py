@@ -71,7 +71,7 @@ def solve(rows, values, columns):
     if any(parity(combination & values) for combination in zeros):
         return None
     solution = 0
-    for column, (row, combination) in pivots.items():
+    for column, (_, combination) in pivots.items():
         # The row is e_column plus free columns only (reduced form); free unknowns are zero.
         solution |= parity(combination & values) << column
     return solution
