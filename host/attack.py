@@ -71,15 +71,19 @@ def _hex80(text, what):
 
 def theory(victim):
     """Pulses observed until lock in theory, known and unknown taps (``None`` where the source
-    is not a linear register), for a victim in interval mode: one pulse whose delay cannot be
-    read (no interval before it), the pulses that determine the register, the checked ones."""
+    is not a linear register): in interval mode one pulse whose delay cannot be read (no
+    interval before it; in grid mode the phase search reads it), then the pulses that determine
+    the register (1 for ``mseq``, ``ceil(32 / Wm)`` for ``masked``; ``2 L`` bits for
+    Berlekamp-Massey), then the checked ones."""
+    first = 0 if victim.grid else 1
     if victim.mode == "mseq":
         length = victim.length
-        return 1 + 1 + verify_pulses(length, 48), 1 + 2 * length + verify_pulses(length, 48)
+        return (first + 1 + verify_pulses(length, 48),
+                first + 2 * length + verify_pulses(length, 48))
     if victim.mode == "masked":
         width = victim.mask_width
-        return (1 + -(-32 // width) + verify_pulses(width, 48),
-                1 + 2 * 32 + verify_pulses(width, 48))
+        return (first + -(-32 // width) + verify_pulses(width, 48),
+                first + 2 * 32 + verify_pulses(width, 48))
     return None, None
 
 
@@ -172,6 +176,7 @@ def experiment(victims, *, pulses, scene_pulses, acquisition_pulses, observer, g
             "ghost_reported_fraction": float(reported[after].mean()) if after.any() else None,
             "s_db": [None if not math.isfinite(value) else round(float(value), 2)
                      for value in s_db],
+            "s_db_lower_bound": [bool(value) for value in limited],
             "time_s": [float(value) for value in histograms.end_s],
             "seconds": round(time.monotonic() - started, 2),
         })
@@ -196,15 +201,25 @@ def _figure(rows, path):
     left.set_xscale("symlog")
     left.set_xlabel("victim pulses observed until lock")
     left.invert_yaxis()
-    for row in rows:
+    colours = plt.get_cmap("tab20").colors
+    for number, row in enumerate(rows):
+        colour = colours[number % len(colours)]
         times = np.array(row["time_s"])
         values = np.array([math.nan if v is None else v for v in row["s_db"]])
+        bound = np.array(row["s_db_lower_bound"], dtype=bool)
         style = "-" if row["locked_after_pulses"] else "--"
-        right.plot(times * 1e3, values, style, marker=".", label=row["label"])
+        right.plot(times * 1e3, values, style, color=colour, label=row["label"])
+        right.plot(times[~bound] * 1e3, values[~bound], "o", color=colour, markersize=3)
+        right.plot(times[bound] * 1e3, values[bound], "^", color=colour, markersize=4,
+                   markerfacecolor="none")
+        if row["lock_time_s"] is not None:
+            right.plot([row["lock_time_s"] * 1e3], [0], "|", color=colour, markersize=14)
     right.axhline(0, color="grey", linewidth=0.5)
     right.set_xscale("log")
-    right.set_xlabel("time since the attack started (ms)")
-    right.set_ylabel("ghost S = 10 log10(Pv / P_ghost) (dB); dashed: never locked")
+    right.set_xlabel("time since the attack started (ms); |: lock")
+    right.set_ylabel("ghost S = 10 log10(Pv / P_ghost) (dB)")
+    right.set_title("solid: locked, dashed: never; open: lower bound (no ghost peak found)",
+                    fontsize=8)
     right.legend(fontsize=7, ncol=2)
     figure.tight_layout()
     figure.savefig(path, dpi=120)

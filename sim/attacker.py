@@ -227,12 +227,15 @@ class Attacker:
         return best
 
     def _bm_readings(self, readings):
-        # Berlekamp-Massey runs once a reading; in grid mode only on the phase that makes the
-        # smallest of the first offsets a zero delay (a linear source outputs zero now and then).
+        # Berlekamp-Massey runs once a reading. In grid mode, only on the phase that puts the
+        # largest circular gap between the first offsets just below delay 0: a source's delays
+        # fill an arc of the period shorter than the period.
         if len(readings) == 1:
             return readings
-        first = readings[0][1][:256]
-        return [readings[(-int(first.min())) % self.period]]
+        offsets = np.unique(readings[0][1][:256])
+        gaps = np.diff(np.concatenate((offsets, offsets[:1] + self.period)))
+        start = offsets[(int(np.argmax(gaps)) + 1) % len(offsets)]
+        return [readings[int(-start) % self.period]]
 
     def _predict(self, hypothesis, found, delays, base, count):
         if isinstance(hypothesis, KnownTaps):
@@ -271,7 +274,13 @@ class Attacker:
         locks, spans = [], []
         position = 0
         while len(cycles) - position >= 2:
-            found = self._search(cycles[position:] - cycles[position])
+            # Search a prefix first, then longer ones: a lock comes early or not at all.
+            span = 4096
+            while True:
+                found = self._search(cycles[position:position + span] - cycles[position])
+                if found is not None or position + span >= len(cycles):
+                    break
+                span *= 8
             if found is None:
                 break
             lock, base, hypothesis, state, reading = found
