@@ -151,7 +151,7 @@ def test_edges_follow_the_victim_after_lock(attacker):
     assert len(before) <= 1 + result.locked_after
 
 
-def test_large_jitter_delayslock_but_never_gives_wrong_predictions(attacker):
+def test_large_jitter_delays_lock_but_never_gives_wrong_predictions(attacker):
     victim = Victim("masked", mask_width=6, seed=21)
     quiet, _, _ = _attack(attacker, victim, 2000, Observer(seed=2))
     # 3 ns rms on each time: an interval rounds to the wrong cycle now and then
