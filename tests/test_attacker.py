@@ -9,6 +9,7 @@ import pytest
 from fliss.sim.attacker import Attacker, Observer
 from fliss.sim.attacker_models import KnownTaps
 from fliss.sim import delay as delay_model
+from fliss.sim import gf2
 from fliss.sim.attacker_scene import Victim
 
 
@@ -131,6 +132,16 @@ def test_never_locks_on_unpredictable_sources(attacker, victim):
     # It still fires: at the measured effective PRF, from its 16th observation on.
     mean = 80 + ((1 << victim.mask_width) - 1) / 2
     assert abs(result.prf_period_cycles - mean) < 0.5 * mean
+
+
+def test_linear_complexity_of_keyed_keeps_growing():
+    # A keystream bit stream behaves as random bits: linear complexity about n / 2 (a linear
+    # source stays at its register length: 32 for masked).
+    keyed = Victim("keyed", mask_width=6, key=1).delays(2000) & 1
+    masked = Victim("masked", mask_width=6, seed=0xACE1).delays(2000) & 1
+    for n in (100, 500, 2000):
+        assert abs(gf2.berlekamp_massey(keyed[:n])[0] - n / 2) <= 6
+        assert gf2.berlekamp_massey(masked[:n])[0] == 32
 
 
 def test_off_is_predicted_too(attacker):
