@@ -149,8 +149,8 @@ class Attacker:
         firing at that observation.
     jitter_s : float
         RMS jitter of its own emission times: once locked, an observation within five
-        standard deviations of an interval (rounded up to whole cycles) of a predicted pulse
-        matches it.
+        standard deviations of an interval (rounded down to whole cycles; 0 at 100 ps) of a
+        predicted pulse matches it.
     """
 
     def __init__(self, period, *, grid=False, clock_hz=DEFAULT_CLOCK_HZ, known_taps=True,
