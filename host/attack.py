@@ -112,6 +112,12 @@ def _victims(args):
     return victims
 
 
+def _median(values):
+    """Median of the finite values, or ``None`` (JSON has no NaN)."""
+    values = values[np.isfinite(values)]
+    return float(np.median(values)) if len(values) else None
+
+
 def _measure(histograms):
     """S of the ghost in each histogram, whether it is a lower bound, and whether the peak
     finder reports the ghost as a target."""
@@ -171,7 +177,7 @@ def experiment(victims, *, pulses, scene_pulses, acquisition_pulses, observer, g
             "locked_after_pulses_unknown_taps": None if blind_result is None else
             blind_result.locked_after,
             "theory_unknown_taps": unknown,
-            "ghost_s_db": float(np.nanmedian(s_db[after])) if after.any() else None,
+            "ghost_s_db": _median(s_db[after]),
             "ghost_s_lower_bound": bool(limited[after].all()) if after.any() else None,
             "ghost_reported_fraction": float(reported[after].mean()) if after.any() else None,
             "s_db": [None if not math.isfinite(value) else round(float(value), 2)

@@ -199,6 +199,13 @@ def test_grid_mode():
     result, seen, delays = _attack(Attacker(80, grid=True, known_taps=False), victim, 400)
     assert result.locked_after == 2 * 32 + _verify(5)
     _check_predictions(result, seen, delays)
+    # Misses are plain in grid mode (a pulse index skipped); a lock still needs a window free
+    # of them, and keeps going across them.
+    result, seen, delays = _attack(Attacker(80, grid=True), victim, 3000,
+                                   Observer(missed=0.05, seed=3))
+    assert result.locked_after >= _masked_solve_pulses(5) + _verify(5)
+    assert len(result.locks) == 1 and result.locks[0].lost is None
+    _check_predictions(result, seen, delays)
 
 
 def test_bad_settings():
