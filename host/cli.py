@@ -31,6 +31,7 @@ COMMAND_MODULES = [
     "plot_commands",
     "generate",
     "board_command",
+    "attack",
 ]
 
 

@@ -5,6 +5,8 @@ scene simulator feeds its sensor pins with the echo of a target 4 m away and wit
 an aggressor whose trigger is the gateware's own aggressor output, 75 ns after the victim. The
 demo then drives it with the ordinary commands (``config``, ``capture``, ``analyze``, ``plot``),
 first with FLISS off and then with the masked delay source (Wm = 6), and prints what changed.
+Last, ``fliss attack`` shows an attacker that predicts the ``mseq`` and ``masked`` delays and
+makes a ghost target, and fails against the ``keyed`` source.
 """
 
 import shlex
@@ -37,7 +39,7 @@ def register(subparsers, formatter):
                         help="simulator of the virtual board")
     parser.add_argument("--out", default="build/demo", metavar="DIR",
                         help="output folder; the demo replaces its own files there "
-                             "(fliss-off.h5, fliss-on.h5, demo.png)")
+                             "(fliss-off.h5, fliss-on.h5, demo.png, attack.txt, attack.png)")
     parser.add_argument("--acquisitions", type=int, default=2,
                         help="histograms per setting")
     parser.add_argument("--integration", default="2ms", metavar="TIME",
@@ -151,6 +153,12 @@ def run(args):
     _step("Peaks and suppression", ["analyze", *paths, "--victim-tof", f"{tof_s * 1e9:.3f}ns"])
     png = out / "demo.png"
     _step("Histograms", ["plot", *paths, "-o", str(png)])
+    # An attacker that predicts the delays (docs/security.md): a few seconds of model time.
+    _step("An attacker that predicts the delays (mseq, masked) and one it cannot (keyed)",
+          ["attack", "--sources", "off,mseq,masked,keyed", "--lengths", "8",
+           "--mask-widths", "6", "--pulses", "6000", "--scene-pulses", "6000",
+           "--acquisition-pulses", "3000", "--no-unknown-taps",
+           "--table", str(out / "attack.txt"), "--figure", str(out / "attack.png")])
 
     print("\n== Summary")
     for label, path in files.items():
