@@ -68,10 +68,11 @@ class Outcome:
 
 
 @contextlib.contextmanager
-def cluster(workers=2, *, processes=True, scheduler=None):
+def cluster(workers=2, *, processes=True, scheduler=None, timeout_s=10.0):
     """A ``dask.distributed.Client``: on ``scheduler`` (``"tcp://HOST:PORT"``) if given, else on
     a ``LocalCluster`` of ``workers`` single-threaded workers (processes, or threads of this
-    process), closed on exit, also after Ctrl-C. Dask's own log lines below errors are held
+    process), closed on exit, also after Ctrl-C; ``timeout_s`` bounds the wait for the
+    scheduler. Dask's own log lines below errors are held
     back meanwhile: the scheduler's chatter is not this program's output."""
     import distributed                      # noqa: F401  (sets up its loggers when imported)
 
@@ -79,19 +80,19 @@ def cluster(workers=2, *, processes=True, scheduler=None):
     level = logger.level
     logger.setLevel(max(level, logging.ERROR))
     try:
-        with _client(workers, processes, scheduler) as client:
+        with _client(workers, processes, scheduler, timeout_s) as client:
             yield client
     finally:
         logger.setLevel(level)
 
 
 @contextlib.contextmanager
-def _client(workers, processes, scheduler):
+def _client(workers, processes, scheduler, timeout_s):
     from dask.distributed import Client, LocalCluster
 
     if scheduler is not None:
         try:
-            client = Client(scheduler, timeout="10s")
+            client = Client(scheduler, timeout=f"{timeout_s}s")
         except (OSError, TimeoutError, ValueError) as error:
             raise SweepError(f"cannot reach the Dask scheduler at {scheduler}: {error}") from None
         try:
@@ -103,7 +104,7 @@ def _client(workers, processes, scheduler):
         raise SweepError(f"workers must be at least 1, not {workers}")
     with _workers_ignore_sigint():
         local = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
-                             dashboard_address=None, silence_logs=logging.CRITICAL)
+                             dashboard_address="127.0.0.1:0", silence_logs=logging.CRITICAL)
     try:
         client = Client(local)
         try:
