@@ -16,6 +16,7 @@ import math
 import os
 import signal
 import time
+import uuid
 from dataclasses import dataclass
 
 from .sweep_spec import canonical, load_model, point_key, point_seed
@@ -149,10 +150,12 @@ def compute(client, tasks, on_result):
     """
     from dask.distributed import as_completed
 
+    token = uuid.uuid4().hex                # Dask keys of this call only, on a shared scheduler
     futures = {}
     try:
         for key, (function, args) in tasks.items():
-            future = client.submit(_timed, function, *args, key=f"fliss-{key}", pure=False)
+            future = client.submit(_timed, function, *args, key=f"fliss-{key}-{token}",
+                                   pure=False)
             futures[future] = key
         for future in as_completed(futures):
             result, elapsed_s = future.result()
