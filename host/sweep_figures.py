@@ -5,23 +5,21 @@ is skipped and :func:`figures` says why. One line is drawn per combination of th
 parameters, labelled with them.
 """
 
+import json
 import math
 import os
-import re
 
 
-__all__ = ["figures", "SCHEME_COLUMNS", "POWER_COLUMNS", "FRAME_T_INT_S"]
+__all__ = ["figures", "POWER_COLUMNS", "CURVE_COLUMNS", "FRAME_T_INT_S"]
 
 
-#: Parameter naming the delay scheme, first found wins.
-SCHEME_COLUMNS = ("scheme", "mode")
 #: Parameter giving the aggressors' power, first found wins.
 POWER_COLUMNS = ("aggressor_power_db", "aggressor_power", "power_db", "power")
 #: The frame length of the P(wrong depth) figure: 10 ms.
 FRAME_T_INT_S = 10e-3
 
-_CURVE_Y = re.compile(r"^(?:curve_)?p_detect_(\d+)$")
-_CURVE_X = re.compile(r"^(?:curve_)?(?:false|ghost)s?_per_frame_(\d+)$")
+#: Detection curve of a point: JSON lists of equal length, P(detect) and false targets per frame.
+CURVE_COLUMNS = ("curve_p_detect", "curve_false_per_frame")
 
 
 def _first(columns, names):
@@ -83,29 +81,35 @@ def _wrong_depth(rows, varied, out_dir, plt):
     return _save(figure, out_dir, "p_wrong_depth_vs_aggressors.png"), None
 
 
+def _curve(row):
+    """``[(false per frame, P(detect)), ...]`` of a row, sorted, or empty."""
+    try:
+        ys, xs = (json.loads(row[name]) for name in CURVE_COLUMNS)
+    except (TypeError, ValueError):
+        return []
+    return sorted((x, y) for x, y in zip(xs, ys) if _number(x) and _number(y))
+
+
 def _detection_curves(rows, varied, out_dir, plt):
-    ys = {int(m.group(1)): name for name in rows[0] if (m := _CURVE_Y.match(name))}
-    xs = {int(m.group(1)): name for name in rows[0] if (m := _CURVE_X.match(name))}
-    steps = sorted(set(ys) & set(xs))
-    if not steps:
-        return None, "detection curves skipped: the table has no p_detect_K and " \
-                     "false_per_frame_K columns"
+    if not all(name in rows[0] for name in CURVE_COLUMNS):
+        return None, f"detection curves skipped: the table has no {' and '.join(CURVE_COLUMNS)}"
+    at = [row for row in rows if "t_int_s" not in row or
+          (_number(row["t_int_s"]) and math.isclose(row["t_int_s"], FRAME_T_INT_S, rel_tol=1e-6))]
+    at = at or rows
+    shown = at[:12]
     figure, axes = plt.subplots(figsize=(7, 4.5))
-    shown = rows[:12]
     for row in shown:
-        label = ", ".join(f"{name}={row.get(name)}" for name in varied) or "all points"
-        pairs = [(row[xs[k]], row[ys[k]]) for k in steps
-                 if _number(row[xs[k]]) and _number(row[ys[k]])]
+        pairs = _curve(row)
         if pairs:
-            pairs.sort()
+            label = ", ".join(f"{name}={row.get(name)}" for name in varied) or "all points"
             axes.plot([p[0] for p in pairs], [p[1] for p in pairs], marker=".", label=label)
     axes.set_xlabel("false targets per frame")
     axes.set_ylabel("P(detect)")
     axes.set_xscale("symlog", linthresh=1e-3)
     axes.grid(True, alpha=0.3)
     axes.legend(fontsize="x-small")
-    if len(rows) > len(shown):
-        axes.set_title(f"first {len(shown)} of {len(rows)} points", fontsize="small")
+    if len(at) > len(shown):
+        axes.set_title(f"first {len(shown)} of {len(at)} points", fontsize="small")
     return _save(figure, out_dir, "detection_curves.png"), None
 
 

@@ -122,18 +122,18 @@ def load_model(name):
     return function
 
 
-def _defaults(model):
-    """The model's parameter defaults (``PARAMETERS`` beside the function), or ``None``."""
-    module = importlib.import_module(model.partition(":")[0])
-    defaults = getattr(module, "PARAMETERS", None)
-    return dict(defaults) if isinstance(defaults, dict) else None
+def _beside(model, name):
+    """What the model's module defines as ``name`` (``PARAMETERS``, ``check_point``), or None."""
+    return getattr(importlib.import_module(model.partition(":")[0]), name, None)
 
 
 def parse(data, path="<spec>", *, defaults=None):
     """Check a spec given as the dict TOML gives; returns a :class:`Spec`.
 
     ``defaults`` overrides the model's ``PARAMETERS`` (which are looked up when it is ``None``
-    and the model can be imported); parameter names not among them are refused.
+    and the model can be imported); parameter names not among them are refused. When the
+    model's module also has ``check_point(point)``, every point is checked by it here, so that a
+    bad value is refused before any work starts.
     """
     for key in data:
         if key not in _TOP_KEYS:
@@ -188,15 +188,27 @@ def parse(data, path="<spec>", *, defaults=None):
             load_model(model)
         except SpecError as error:
             _fail(path, "model", str(error))
-        defaults = _defaults(model) or {}
+        defaults = _beside(model, "PARAMETERS")
+        defaults = dict(defaults) if isinstance(defaults, dict) else {}
+        check = _beside(model, "check_point")
+    else:
+        check = None
     if defaults:
         for name in sorted(names):
             if name not in defaults:
                 where = f"parameters.{name}" if name in parameters else "zip"
                 _fail(path, where, f"unknown parameter of {model} (known: "
                                    f"{', '.join(sorted(defaults))})")
-    return Spec(model=model, seed=seed, axes=axes, defaults=dict(defaults),
+    spec = Spec(model=model, seed=seed, axes=axes, defaults=dict(defaults),
                 description=description, path=str(path))
+    if callable(check):                     # the model checks its points before any work
+        for point in spec.points():
+            try:
+                check(point)
+            except ValueError as error:
+                given = {name: point[name] for name in sorted(names)}
+                raise SpecError(f"{path}: point {canonical(given)}: {error}") from None
+    return spec
 
 
 def load(path, *, defaults=None):

@@ -190,9 +190,18 @@ def test_a_point_function_is_injected(client, tmp_path):
                                    .generate_state(1)[0])
 
 
+def test_a_point_the_model_checks_is_refused_before_any_work():
+    with pytest.raises(SpecError) as caught:
+        grid(frames=[10, 0], aggressors=2)
+    assert str(caught.value) == 'grid.toml: point {"aggressors":2,"frames":0}: frames must be ' \
+                                'at least 1, not 0'
+
+
 def test_a_refused_point_stops_the_sweep_with_one_line(client, tmp_path):
+    spec = parse({"model": MODEL, "seed": 11, "parameters": {"frames": [10, 0]}}, "grid.toml",
+                 defaults=sweep_points.PARAMETERS)  # given defaults: no check beforehand
     with pytest.raises(SweepError) as caught:
-        run_sweep(grid(frames=[10, 0]), tmp_path, client)
+        run_sweep(spec, tmp_path, client)
     assert str(caught.value).startswith('point {"aggressor_power_db":0.0,"aggressors":1,'
                                         '"frames":0,')
     assert str(caught.value).endswith(": frames must be at least 1, not 0")
@@ -241,7 +250,7 @@ def test_table_merges_a_metric_equal_to_a_parameter(tmp_path):
 def write_spec(path, **extra):
     lines = [f'model = "{MODEL}"', "seed = 2", "frames = 50", "[parameters]",
              'scheme = ["off", "mseq"]', "aggressors = [1, 2, 4]",
-             "aggressor_power_db = [0.0, 6.0]", "t_int_s = 0.01"]
+             "aggressor_power_db = [0.0, 6.0]", "t_int_s = [0.01, 0.03]"]
     lines += [f"{key} = {value}" for key, value in extra.items()]
     path.write_text("\n".join(lines) + "\n")
     return path
@@ -252,11 +261,11 @@ def test_sweep_command_end_to_end(tmp_path, capsys):
     out = tmp_path / "out"
     assert main(["sweep", str(spec), "-o", str(out), "--workers", "2", "--threads"]) == 0
     captured = capsys.readouterr()
-    assert "12 points computed" in captured.err and "[12/12 points]" in captured.err
-    assert "detection curves skipped" in captured.err
+    assert "24 points computed" in captured.err and "[24/24 points]" in captured.err
     rows = table(out / "results.parquet")
-    assert len(rows) == 12 and rows[0]["s_db"] == 30.0 and rows[1]["s_db"] == 24.0
-    for name in ("p_wrong_depth_vs_aggressors.png", "s_vs_aggressor_power.png"):
+    assert len(rows) == 24 and rows[0]["s_db"] == 30.0 and rows[2]["s_db"] == 24.0
+    for name in ("p_wrong_depth_vs_aggressors.png", "detection_curves.png",
+                 "s_vs_aggressor_power.png"):
         assert (out / name).stat().st_size > 1000
         assert f"figure: {out / name}" in captured.out
     assert main(["sweep", str(spec), "-o", str(out), "--threads"]) == 0
@@ -304,10 +313,10 @@ def test_ctrl_c_stops_the_workers_and_keeps_the_finished_points(tmp_path):
     assert process.returncode == 130
     assert "Traceback" not in err
     last = err.strip().splitlines()[-1]
-    match = re.fullmatch(r"fliss: interrupted; (\d+) of 12 points finished and kept in .*; run "
+    match = re.fullmatch(r"fliss: interrupted; (\d+) of 24 points finished and kept in .*; run "
                          r"the same command again to compute the other (\d+)", last)
     assert match, last
     finished = int(match.group(1))
-    assert 1 <= finished < 12 and int(match.group(2)) == 12 - finished
+    assert 1 <= finished < 24 and int(match.group(2)) == 24 - finished
     assert len([n for n in os.listdir(out / "points") if n.endswith(".json")]) == finished
     assert len(table(out / "results.parquet")) == finished
