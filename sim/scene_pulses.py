@@ -17,10 +17,14 @@ __all__ = ["EdgeSchedule", "EdgeBuffer", "PulseTrain"]
 
 
 class EdgeSchedule:
-    """Laser rising edges (TDC starts) of a delay core, in clock cycles, block by block."""
+    """Laser rising edges (TDC starts) of a delay core, in clock cycles, block by block.
 
-    def __init__(self, settings, block):
+    With ``fine_step`` > 1 the delays count in steps of ``1 / fine_step`` cycle (a model
+    option) and the edges are ``float64``."""
+
+    def __init__(self, settings, block, fine_step=1):
         self._settings = settings
+        self._fine = fine_step
         self._delays = DelayStream(settings.mode, length=settings.length,
                                    mask_width=settings.mask_width, seed=settings.seed)
         self._take = 0
@@ -36,6 +40,12 @@ class EdgeSchedule:
 
     def _edges(self, delays):
         period, grid = self._settings.period, self._settings.grid
+        if self._fine != 1:
+            delays = delays / self._fine
+            if grid:
+                fires = (self._take + period * np.arange(len(delays))) + 1 + delays
+                self._take += period * len(delays)
+                return fires + _scheduler.LATENCY
         if grid:
             fires = _scheduler.fire_cycles(delays, period, grid=True, start=self._take)
             self._take += period * len(delays)
@@ -44,7 +54,7 @@ class EdgeSchedule:
         # start + sum(T + R[i], i < k), that is at start + cumsum(T + R)[k] - T + 1.
         ends = np.cumsum(delays + period)
         edges = ends + (self._take - period + 1 + _scheduler.LATENCY)
-        self._take += int(ends[-1]) if len(ends) else 0
+        self._take += ends[-1] if len(ends) else 0
         return edges
 
     def __call__(self):
