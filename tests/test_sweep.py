@@ -320,3 +320,28 @@ def test_ctrl_c_stops_the_workers_and_keeps_the_finished_points(tmp_path):
     assert 1 <= finished < 24 and int(match.group(2)) == 24 - finished
     assert len([n for n in os.listdir(out / "points") if n.endswith(".json")]) == finished
     assert len(table(out / "results.parquet")) == finished
+
+
+# With the interference model ------------------------------------------------------------------
+
+def test_the_example_spec_is_valid_for_the_interference_model():
+    pytest.importorskip("fliss.sim.interference")
+    spec = load(os.path.join(TESTS, "..", "examples", "sweep-quick.toml"))
+    assert spec.model == "fliss.sim.interference:evaluate"
+    assert len(spec.points()) == 3 * 4 * 3
+    assert set(spec.varied()) == {"scheme", "aggressors", "aggressor_power"}
+
+
+def test_a_tiny_interference_sweep_through_the_command(tmp_path, capsys):
+    pytest.importorskip("fliss.sim.interference")
+    spec = tmp_path / "tiny.toml"
+    spec.write_text('seed = 1\nframes = 2\n[parameters]\nscheme = ["off", "masked"]\n'
+                    'aggressors = [1, 2]\nframes_per_run = 2\n')
+    assert main(["-q", "sweep", str(spec), "-o", str(tmp_path / "out"), "--threads"]) == 0
+    rows = table(tmp_path / "out" / "results.parquet")
+    assert [(row["scheme"], row["aggressors"]) for row in rows] == \
+        [("off", 1), ("off", 2), ("masked", 1), ("masked", 2)]
+    for row in rows:
+        assert row["frames"] == 2 and 0.0 <= row["p_wrong_depth"] <= 1.0
+        assert row["p_wrong_depth_lo"] <= row["p_wrong_depth"] <= row["p_wrong_depth_hi"]
+    assert (tmp_path / "out" / "p_wrong_depth_vs_aggressors.png").exists()
