@@ -71,7 +71,7 @@ def measure(workers, processes, function, points):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--points", type=int, default=24)
-    parser.add_argument("--frames", type=int, default=4)
+    parser.add_argument("--frames", type=int, default=20)
     args = parser.parse_args()
     function, name, make = model(args.frames)
     points = [make(i) for i in range(args.points)]

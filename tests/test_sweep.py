@@ -7,6 +7,7 @@ import subprocess
 import sys
 import time
 
+import psutil
 import pyarrow.parquet as pq
 import pytest
 
@@ -293,7 +294,21 @@ def test_an_unreachable_scheduler_is_one_line():
             pass
 
 
-def test_ctrl_c_stops_the_workers_and_keeps_the_finished_points(tmp_path):
+def left_in_group(group):
+    """Live (not zombie) processes of a process group."""
+    alive = []
+    for process in psutil.process_iter(["pid", "status"]):
+        try:
+            if os.getpgid(process.pid) == group and process.status() != psutil.STATUS_ZOMBIE:
+                alive.append(process.pid)
+        except (ProcessLookupError, psutil.Error):
+            pass
+    return alive
+
+
+@pytest.mark.parametrize("whom, signum", [("group", signal.SIGINT), ("main", signal.SIGTERM)])
+def test_ctrl_c_stops_the_workers_and_keeps_the_finished_points(tmp_path, whom, signum):
+    """Ctrl-C at a terminal signals the whole process group; kill signals the command only."""
     spec = write_spec(tmp_path / "s.toml", sleep_s=0.4)
     out = tmp_path / "out"
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([TESTS, os.environ.get("PYTHONPATH", "")]))
@@ -305,7 +320,10 @@ def test_ctrl_c_stops_the_workers_and_keeps_the_finished_points(tmp_path):
         while not (out / "points").is_dir() or not os.listdir(out / "points"):
             assert process.poll() is None and time.monotonic() < deadline
             time.sleep(0.05)
-        os.killpg(process.pid, signal.SIGINT)       # as a terminal does: the whole group
+        if whom == "group":
+            os.killpg(process.pid, signum)
+        else:
+            process.send_signal(signum)
         _, err = process.communicate(timeout=60)
     finally:
         if process.poll() is None:
@@ -320,6 +338,10 @@ def test_ctrl_c_stops_the_workers_and_keeps_the_finished_points(tmp_path):
     assert 1 <= finished < 24 and int(match.group(2)) == 24 - finished
     assert len([n for n in os.listdir(out / "points") if n.endswith(".json")]) == finished
     assert len(table(out / "results.parquet")) == finished
+    deadline = time.monotonic() + 10
+    while left_in_group(process.pid) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert left_in_group(process.pid) == []
 
 
 # With the interference model ------------------------------------------------------------------
