@@ -73,8 +73,8 @@ def cluster(workers=2, *, processes=True, scheduler=None, timeout_s=10.0):
     """A ``dask.distributed.Client``: on ``scheduler`` (``"tcp://HOST:PORT"``) if given, else on
     a ``LocalCluster`` of ``workers`` single-threaded workers (processes, or threads of this
     process), closed on exit, also after Ctrl-C; ``timeout_s`` bounds the wait for the
-    scheduler. Dask's own log lines below errors are held
-    back meanwhile: the scheduler's chatter is not this program's output."""
+    scheduler. Dask's own log lines below errors are held back meanwhile: the scheduler's
+    chatter is not this program's output. :exc:`SweepError` if the scheduler is out of reach."""
     import distributed                      # noqa: F401  (sets up its loggers when imported)
 
     logger = logging.getLogger("distributed")
