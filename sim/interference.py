@@ -56,8 +56,9 @@ t_int_s [0.01]
 threshold_sigma [5.0]
     Detection threshold in noise deviations of the smoothed histogram (at least one count per
     code: :func:`fliss.sim.detection.threshold_height`).
-frames [1000], frames_per_run [10]
-    Frames of the point, and consecutive frames per run.
+frames [1000], frames_per_run [1]
+    Frames of the point, and consecutive frames per run (more per run is cheaper, fewer
+    independent draws of the aggressors).
 distance_m [4.0], detections_per_pulse [0.05], background_hz [1e5]
     Target distance, the victim's echo in detections per pulse, ambient rate at the pixel.
 
@@ -111,7 +112,7 @@ PARAMETERS = {
     "t_int_s": 0.01,
     "threshold_sigma": 5.0,
     "frames": 1000,
-    "frames_per_run": 10,
+    "frames_per_run": 1,
     "distance_m": 4.0,
     "detections_per_pulse": 0.05,
     "background_hz": 1e5,

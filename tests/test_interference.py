@@ -147,3 +147,44 @@ def test_every_parameter_has_a_default_that_evaluates():
                                "threshold_sigma", "frames", "distance_m", "background_hz"}
     with pytest.raises(ValueError, match="SeedSequence"):
         evaluate({}, 1)
+
+
+@pytest.mark.parametrize("fine_step", [1, 4, 16])
+def test_a_locked_aggressor_lands_on_the_comb_of_the_victim_delay_step(fine_step):
+    # Grid mode: the victim's start k is at k T + R[k] / n cycles, the locked aggressor at
+    # k T + offset, so its photons sit at offset - R[k] / n cycles: a comb of step 250 / n codes,
+    # every tooth (every value of R, 1 to 63 for mseq L = 6) equally often
+    victim = scheduler.Settings(mode=delay_model.DelayMode.MSEQ, length=6, period=80, grid=True)
+    aggressor = Aggressor(period_cycles=80, offset_s=300e-9, fwhm_s=0.1e-9,
+                          detections_per_pulse=0.5)
+    scene = Scene(victim=victim, detections_per_pulse=0.0, background_hz=0.0, dead_time_s=0.0,
+                  aggressors=(aggressor,), fine_step=fine_step, keep="first")
+    events = acquire(scene, 5e-3, 1, seed=4, keep_events=True).events[0]
+    step = 250 / fine_step
+    first = (300e-9 + scene.tof_s) / LSB_S           # the tooth of R = 0
+    teeth = (first - events["timestamp"] - 0.5) / step
+    residual = teeth - np.round(teeth)
+    assert np.std(residual) * step < 3.0           # photons spread by 2.6 codes RMS
+    occupied = np.unique(np.round(teeth))
+    # R = 0 … 62, those whose tooth falls in the window
+    assert occupied.min() == 0 and len(occupied) == min(63, int(first // step) + 1)
+
+
+def test_overwriting_by_aggressors_keeps_what_poisson_statistics_predict():
+    # The last-photon TDC keeps the echo when no photon is detected after it in the same
+    # window: after the dead time, until the end of the 409.6 ns window. Free-running
+    # aggressors at 1 MHz spread uniformly: each brings 0.05 / 1000 ns photons, background
+    # 1e5 / s; so P(kept) = exp(-(8 * 0.05e-3 + 1e-4) * (409.6 - 26.7 - 20))
+    expected = math.exp(-(8 * 0.05e-3 + 1e-4) * (409.6 - 26.7 - 20))
+    result = evaluate(dict(scheme="off", aggressors=8, frames=60, frames_per_run=6),
+                      np.random.SeedSequence(11))
+    # About 21000 echo photons: the kept fraction is known to 0.003
+    assert result["signal_recorded"] == pytest.approx(expected, abs=0.012)
+
+
+@pytest.mark.parametrize("seed", [1, 0x9E3779B9, (1 << 32) - 1])
+def test_masked_delays_for_many_seeds_are_the_gateware_sequence(seed):
+    from fliss.sim.scene_pulses import MaskedDelays
+    stream = MaskedDelays(5, seed, 700)
+    got = np.concatenate([stream.block() for _ in range(3)])
+    assert np.array_equal(got, delay_model.delays("masked", 2100, mask_width=5, seed=seed))
