@@ -201,7 +201,7 @@ class Store:
         path = self.path(key)
         temporary = f"{path}.{os.getpid()}.tmp"
         with open(temporary, "w") as file:
-            file.write(canonical(record))
+            json.dump(record, file, allow_nan=False)    # the model's order of metrics
         os.replace(temporary, path)
 
 
