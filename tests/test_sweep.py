@@ -367,3 +367,13 @@ def test_a_tiny_interference_sweep_through_the_command(tmp_path, capsys):
         assert row["frames"] == 2 and 0.0 <= row["p_wrong_depth"] <= 1.0
         assert row["p_wrong_depth_lo"] <= row["p_wrong_depth"] <= row["p_wrong_depth_hi"]
     assert (tmp_path / "out" / "p_wrong_depth_vs_aggressors.png").exists()
+
+
+def test_sweep_command_on_an_existing_scheduler(client, tmp_path, capsys):
+    spec = write_spec(tmp_path / "s.toml")
+    address = client.scheduler.address
+    assert main(["sweep", str(spec), "-o", str(tmp_path / "out"), "--scheduler", address,
+                 "--no-figures"]) == 0
+    assert f"24 points of {spec} on {address}" in capsys.readouterr().err
+    assert len(table(tmp_path / "out" / "results.parquet")) == 24
+    assert client.status == "running"         # the command closed its client, not the cluster
