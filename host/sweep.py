@@ -5,6 +5,7 @@ drawn by :mod:`~fliss.host.sweep_figures`; this module is the command line: the 
 Ctrl-C and SIGTERM, and the report. The format is in ``docs/sweeps.md``.
 """
 
+import argparse
 import contextlib
 import os
 import signal
@@ -30,7 +31,7 @@ def register(subparsers, formatter):
                     "keeps what is finished. Writes DIR/results.parquet (one row per point: "
                     "parameters, then metrics) and PNG figures.")
     parser.add_argument("spec", metavar="SPEC", help="sweep specification (TOML)")
-    parser.add_argument("-o", "--out", required=True, metavar="DIR",
+    parser.add_argument("-o", "--out", required=True, metavar="DIR", default=argparse.SUPPRESS,
                         help="output directory (created; reused to resume)")
     parser.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1), metavar="N",
                         help="workers of the LocalCluster, one point at a time each")
