@@ -188,3 +188,18 @@ def test_masked_delays_for_many_seeds_are_the_gateware_sequence(seed):
     stream = MaskedDelays(5, seed, 700)
     got = np.concatenate([stream.block() for _ in range(3)])
     assert np.array_equal(got, delay_model.delays("masked", 2100, mask_width=5, seed=seed))
+
+
+def test_detection_curve_falls_as_the_threshold_rises_and_no_aggressor_means_no_ghost():
+    import json
+    alone = evaluate(quick(aggressors=0), np.random.SeedSequence(2))
+    assert alone["ghost"] == 0 and alone["miss"] == 0 and alone["aggressor_counts_per_frame"] == 0
+    result = evaluate(quick(scheme="off", aggressors=4, aggressor_kind="locked"),
+                      np.random.SeedSequence(2))
+    thresholds = json.loads(result["curve_threshold"])
+    detect = json.loads(result["curve_p_detect"])
+    false = json.loads(result["curve_false_per_frame"])
+    assert len(thresholds) == len(detect) == len(false)
+    assert np.all(np.diff(thresholds) > 0)
+    assert np.all(np.diff(detect) <= 0) and np.all(np.diff(false) <= 0)
+    assert detect[0] == 1.0 and false[0] > 0
