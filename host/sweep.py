@@ -90,12 +90,11 @@ def sigterm_interrupts():
         signal.signal(signal.SIGTERM, previous)
 
 
-def run(args, *, function=None):
-    """The command; ``function`` replaces the spec's model (tests)."""
+def run(args):
     if args.workers < 1:
         raise UserError(f"--workers must be at least 1, not {args.workers}")
     try:
-        spec = load(args.spec, defaults={} if function is not None else None)
+        spec = load(args.spec)
     except SpecError as error:
         raise UserError(str(error)) from None
     if os.path.exists(args.out) and not os.path.isdir(args.out):
@@ -114,7 +113,7 @@ def run(args, *, function=None):
     try:
         with sigterm_interrupts(), cluster(args.workers, processes=not args.threads,
                                            scheduler=args.scheduler) as client:
-            outcome = run_sweep(spec, args.out, client, function=function, progress=update)
+            outcome = run_sweep(spec, args.out, client, progress=update)
     except SweepError as error:
         raise UserError(str(error)) from None
     finally:

@@ -262,7 +262,8 @@ def test_sweep_command_end_to_end(tmp_path, capsys):
     out = tmp_path / "out"
     assert main(["sweep", str(spec), "-o", str(out), "--workers", "2", "--threads"]) == 0
     captured = capsys.readouterr()
-    assert "24 points computed" in captured.err and "[24/24 points]" in captured.err
+    assert "24 points computed" in captured.err
+    assert re.search(r"^\[24/24 points\] [0-9.]+ points/s, ETA 0:00$", captured.err, re.MULTILINE)
     rows = table(out / "results.parquet")
     assert len(rows) == 24 and rows[0]["s_db"] == 30.0 and rows[2]["s_db"] == 24.0
     for name in ("p_wrong_depth_vs_aggressors.png", "detection_curves.png",
