@@ -60,7 +60,7 @@ def progress_bar(stream=None, enabled=True):
         bar = state.get("bar")
         if bar is None:
             bar = state["bar"] = Progress(total, "points", stream=stream, enabled=enabled)
-        extra = "starting"
+        extra = "finished already" if done == total else "starting"
         if computed and elapsed_s > 0:
             rate = computed / elapsed_s
             extra = f"{rate:.3g} points/s, ETA {_duration((total - done) / rate)}"
