@@ -378,3 +378,13 @@ def test_sweep_command_on_an_existing_scheduler(client, tmp_path, capsys):
     assert f"24 points of {spec} on {address}" in capsys.readouterr().err
     assert len(table(tmp_path / "out" / "results.parquet")) == 24
     assert client.status == "running"         # the command closed its client, not the cluster
+
+
+def test_the_spec_in_the_docs_gives_the_points_it_says(tmp_path):
+    pytest.importorskip("fliss.sim.interference")
+    text = open(os.path.join(TESTS, "..", "docs", "sweeps.md")).read()
+    block = text.split("```toml\n", 1)[1].split("```", 1)[0]
+    (tmp_path / "doc.toml").write_text(block)
+    spec = load(tmp_path / "doc.toml")
+    assert len(spec.points()) == 72 and "3 × 4 × 3 × 2 = 72" in text
+    assert {(p["length"], p["mask_width"]) for p in spec.points()} == {(3, 3), (6, 6)}
