@@ -25,6 +25,7 @@ COMMAND_MODULES = [
     "model_commands",
     "demo",
     "reproduce",
+    "sweep",
     "ports",
     "config",
     "capture",

@@ -15,21 +15,27 @@ from .cli import UserError
 from .reproduce_experiments import Config, ReproductionError, run_experiments
 from .reproduce_figures import figures as draw_figures
 from .reproduce_report import PAPER, rows as result_rows, s_text, write_csv, write_markdown
+from .sweep import sigterm_interrupts
+from .sweep_engine import SweepError
 from .units import parse_frequency, parse_time
 
 
 __all__ = ["PAPER", "Config", "ReproductionError", "register", "run", "reproduce"]
 
 
-def reproduce(config, out_dir, *, workers=1, figures=True, stream=sys.stderr):
+def reproduce(config, out_dir, *, workers=1, figures=True, stream=sys.stderr, scheduler=None):
     """Run the reproduction; write CSV, Markdown and PNG files into ``out_dir``.
+
+    The settings run on the sweep engine: ``workers`` local Dask workers, or the Dask
+    ``scheduler`` (``"tcp://HOST:PORT"``) given.
 
     Returns the list of result rows (dicts), one per setting. Raises
     :class:`~fliss.host.reproduce_experiments.ReproductionError` if the victim's peak is missing
     from a reference run.
     """
     config.check()
-    by_t, results, elapsed = run_experiments(config, workers=workers, stream=stream)
+    by_t, results, elapsed = run_experiments(config, workers=workers, stream=stream,
+                                             scheduler=scheduler)
     os.makedirs(out_dir, exist_ok=True)
     rows = result_rows(config, by_t, results)
     write_csv(os.path.join(out_dir, "results.csv"), rows)
@@ -78,7 +84,9 @@ def register(subparsers, formatter):
                              "or its nominal PRF")
     parser.add_argument("--seed", type=int, default=2019, help="seed of the photon statistics")
     parser.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1), metavar="N",
-                        help="worker processes")
+                        help="worker processes of the local Dask cluster")
+    parser.add_argument("--scheduler", metavar="tcp://HOST:PORT",
+                        help="run on an existing Dask scheduler instead (as fliss sweep does)")
     parser.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     parser.set_defaults(run=run)
 
@@ -114,12 +122,15 @@ def run(args):
     except ValueError as error:
         raise UserError(str(error)) from None
     if not args.quiet:
+        where = args.scheduler or f"{args.jobs} worker(s)"
         print(f"fliss reproduce: {config.acquisitions} acquisitions per setting, "
-              f"{args.jobs} worker(s), writing to {args.out}", file=sys.stderr)
+              f"on {where}, writing to {args.out}", file=sys.stderr)
     try:
-        rows = reproduce(config, args.out, workers=args.jobs, figures=not args.no_figures,
-                         stream=None if args.quiet else sys.stderr)
-    except ReproductionError as error:
+        with sigterm_interrupts():
+            rows = reproduce(config, args.out, workers=args.jobs, figures=not args.no_figures,
+                             stream=None if args.quiet else sys.stderr,
+                             scheduler=args.scheduler)
+    except (ReproductionError, SweepError) as error:
         raise UserError(str(error)) from None
     if not args.quiet:
         for row in rows:

@@ -17,7 +17,6 @@ peaks fall in each acquisition.
 import math
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,6 +26,7 @@ from ..sim import delay as delay_model
 from ..sim import scheduler as scheduler_model
 from ..sim.scene import Aggressor, Scene, acquire
 from . import analysis
+from .sweep_engine import cluster, compute
 
 
 __all__ = ["DISTANCE_M", "PULSE_FWHM_S", "AGGRESSOR_OFFSET_S", "Config", "Job", "ReproductionError",
@@ -248,25 +248,28 @@ class _Progress:
             self.stream.flush()
 
 
-def _execute(config, jobs, workers, progress):
-    results = []
-    if workers <= 1:
-        for job in jobs:
-            results.append(_run_job(config, job))
-            progress.advance(_weight(config, job), job.name)
-        return results
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        futures = {pool.submit(_run_job, config, job): job for job in jobs}
-        for future in as_completed(futures):
-            job = futures[future]
-            results.append(future.result())
-            progress.advance(_weight(config, job), job.name)
-    return sorted(results, key=lambda result: result["job"].index)
+def _execute(client, config, jobs, progress):
+    """Run ``jobs`` as points of the sweep engine; their results in job order. Ctrl-C cancels
+    what is left and raises :exc:`KeyboardInterrupt` once the workers have stopped."""
+    by_index = {job.index: job for job in jobs}
+    results = {}
+
+    def finished(index, result, elapsed_s):
+        results[index] = result
+        progress.advance(_weight(config, by_index[index]), by_index[index].name)
+
+    tasks = {job.index: (_run_job, (config, job)) for job in jobs}
+    if not compute(client, tasks, finished):
+        progress.close()
+        raise KeyboardInterrupt
+    return [results[index] for index in sorted(results)]
 
 
-
-def run_experiments(config, *, workers=1, stream=sys.stderr):
+def run_experiments(config, *, workers=1, stream=sys.stderr, scheduler=None):
     """Run every setting of ``config``, with a progress bar on ``stream`` (``None``: none).
+
+    The settings run on the sweep engine (:mod:`~fliss.host.sweep_engine`): a ``LocalCluster`` of
+    ``workers`` processes (one thread when ``workers`` is 1), or the Dask ``scheduler`` given.
 
     Returns ``(by_t, results, elapsed)``: the reference results by integration time, the results
     of the other settings in order, and the time taken in seconds. Raises
@@ -281,7 +284,12 @@ def run_experiments(config, *, workers=1, stream=sys.stderr):
         sum(_weight(config, Job(kind, setting, t, 0)) for kind, setting, t in others)
     progress = _Progress(total, stream)
     started = time.monotonic()
-    reference_results = _execute(config, references, workers, progress)
+    with cluster(workers, processes=workers > 1, scheduler=scheduler) as client:
+        return _run_all(client, config, references, others, progress, started)
+
+
+def _run_all(client, config, references, others, progress, started):
+    reference_results = _execute(client, config, references, progress)
     by_t = {}
     for result in reference_results:
         tof = analysis.mean_std(result["tof"])[0]
@@ -297,7 +305,7 @@ def run_experiments(config, *, workers=1, stream=sys.stderr):
 
     jobs = [Job(kind, setting, t, len(references) + index, victim_position(t))
             for index, (kind, setting, t) in enumerate(others)]
-    results = _execute(config, jobs, workers, progress)
+    results = _execute(client, config, jobs, progress)
     progress.close()
     elapsed = time.monotonic() - started
     return by_t, results, elapsed

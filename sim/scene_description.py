@@ -16,6 +16,7 @@ from . import scheduler as _scheduler
 
 
 __all__ = ["SPEED_OF_LIGHT", "TDC_CODES", "FWHM_PER_SIGMA", "TRUNCATION_SIGMAS", "COUNTERS",
+           "FINE_STEPS",
            "Aggressor", "Scene", "time_of_flight"]
 
 
@@ -30,6 +31,9 @@ FWHM_PER_SIGMA = 2.0 * math.sqrt(2.0 * math.log(2.0))
 
 #: Pulse shapes and jitter are Gaussians cut at this many standard deviations.
 TRUNCATION_SIGMAS = 8.0
+
+#: Sub-cycle delay steps the model offers (:attr:`Scene.fine_step`): steps per clock cycle.
+FINE_STEPS = (1, 2, 4, 8, 16)
 
 #: What happened to each photon, one counter per source (columns of the ``counts`` arrays).
 COUNTERS = ("generated", "outside", "dead", "overwritten", "recorded")
@@ -73,6 +77,14 @@ class Aggressor:
     mode, length, mask_width, seed, grid
         Its own FLISS delays (see :class:`fliss.sim.scheduler.Settings`); ``mode="off"`` (the
         default) fires on a fixed period. With delays the period must be a whole number of cycles.
+    ppm : float
+        Frequency offset of its own oscillator from the victim's, in parts per million: its
+        clock runs at ``clock_hz * (1 + ppm * 1e-6)``, so every time it sets in its own cycles
+        (period, delays, the start) is shorter by that factor in the victim's time. 0: locked to
+        the victim's clock, as on the paper's board.
+    jitter_s : float
+        RMS phase jitter of its oscillator: each of its pulses moves by an independent Gaussian
+        time of this standard deviation (all photons of a pulse together).
     """
 
     period_cycles: float
@@ -85,8 +97,16 @@ class Aggressor:
     mask_width: object = None
     seed: int = 1
     grid: bool = False
+    ppm: float = 0.0
+    jitter_s: float = 0.0
 
     def __post_init__(self):
+        if isinstance(self.ppm, bool) or not isinstance(self.ppm, (int, float, np.integer,
+                                                                     np.floating)) \
+                or not math.isfinite(self.ppm) or abs(self.ppm) >= 1e5:
+            raise ValueError(f"Aggressor frequency offset must be a finite number of ppm "
+                             f"below 1e5 in size, not {self.ppm!r}")
+        check_number(self.jitter_s, "Aggressor phase jitter (s RMS)")
         check_number(self.period_cycles, "Aggressor period (victim clock cycles)", positive=True)
         if isinstance(self.offset_s, bool) or \
                 not isinstance(self.offset_s, (int, float, np.integer, np.floating)) or \
@@ -146,6 +166,11 @@ class Scene:
         keeps in each laser cycle.
     address : int
         Pixel address written into the events.
+    fine_step : int
+        Modelled sub-cycle delay steps: the victim's delays ``R`` (the gateware's sequences,
+        bit-exact) count in steps of one clock cycle divided by ``fine_step`` (1, 2, 4, 8 or
+        16), so its pulses fire ``R / fine_step`` cycles late. A model option: no gateware has
+        it.
     """
 
     victim: _scheduler.Settings = _scheduler.Settings(period=80)
@@ -159,6 +184,7 @@ class Scene:
     jitter_fwhm_s: float = 100e-12
     keep: str = "last"
     address: int = 0
+    fine_step: int = 1
 
     def __post_init__(self):
         if not isinstance(self.victim, _scheduler.Settings):
@@ -178,6 +204,9 @@ class Scene:
                 or not 0 <= self.address < (1 << ADDRESS_BITS):
             raise ValueError(f"Pixel address must be an integer from 0 to "
                              f"{(1 << ADDRESS_BITS) - 1}, not {self.address!r}")
+        if isinstance(self.fine_step, bool) or self.fine_step not in FINE_STEPS:
+            raise ValueError(f"Fine delay step must be one of {', '.join(map(str, FINE_STEPS))} "
+                             f"(steps per clock cycle), not {self.fine_step!r}")
         object.__setattr__(self, "aggressors", tuple(self.aggressors))
         for aggressor in self.aggressors:
             if not isinstance(aggressor, Aggressor):

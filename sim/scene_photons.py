@@ -127,42 +127,48 @@ class Simulation:
         self._background = scene.background_hz * TDC_LSB_S
         jitter = scene.jitter_fwhm_s / FWHM_PER_SIGMA / TDC_LSB_S
         self.external_starts = bool(external_starts)
+        if self.external_starts and scene.fine_step != 1:
+            raise ValueError("Fed TDC starts are whole clock cycles: a scene with a fine delay "
+                             "step takes its starts from the scheduler model")
         self._starts = EdgeBuffer(None if self.external_starts else
-                               EdgeSchedule(scene.victim, self.chunk_cycles + 1))
-        # Pulsed sources: (pulses, mean detections, sigma in LSBs, margin in LSBs)
+                               EdgeSchedule(scene.victim, self.chunk_cycles + 1,
+                                            fine_step=scene.fine_step))
+        # Pulsed sources: (pulses, mean detections, sigma in LSBs, per-pulse jitter in LSBs)
         self._pulsed = []
         sigma = math.hypot(scene.fwhm_s / FWHM_PER_SIGMA / TDC_LSB_S, jitter)
         # Fed from outside, the victim fires with some of the starts only (see `feed`).
         self._fired = EdgeBuffer(None) if self.external_starts else self._starts
         self._signal = PulseTrain(self._fired, scale=lsb, shift=scene.tof_s / TDC_LSB_S,
                                guess=self.chunk_cycles + 2, trim=self.external_starts)
-        self._pulsed.append((self._signal,
-                             scene.detections_per_pulse, sigma))
+        self._pulsed.append((self._signal, scene.detections_per_pulse, sigma, 0.0))
         self.external_aggressors = bool(external_aggressors)
         self._aggressor_edges = []
         self._last_edges = [np.zeros(0, dtype=np.int64) for _ in scene.aggressors]
         for aggressor in scene.aggressors:
             tof = scene.tof_s if aggressor.tof_s is None else aggressor.tof_s
             shift = (aggressor.offset_s + tof) / TDC_LSB_S
+            # Its own oscillator: one of its cycles lasts 1 / (1 + ppm 1e-6) victim cycles
+            own = lsb / (1.0 + aggressor.ppm * 1e-6)
             if self.external_aggressors:
                 edges = EdgeBuffer(None)
                 self._aggressor_edges.append(edges)
-                pulses = PulseTrain(edges, scale=lsb, shift=shift, guess=64)
+                pulses = PulseTrain(edges, scale=own, shift=shift, guess=64)
             elif aggressor.has_delays:
                 pulses = PulseTrain(EdgeBuffer(EdgeSchedule(aggressor.settings(), self.chunk_cycles)),
-                                 scale=lsb, shift=shift, guess=self.chunk_cycles + 2)
+                                 scale=own, shift=shift, guess=self.chunk_cycles + 2)
             else:
-                pulses = PulseTrain(shift=shift + (1 + _scheduler.LATENCY) * lsb,
-                                 step=float(aggressor.period_cycles) * lsb)
+                pulses = PulseTrain(shift=shift + (1 + _scheduler.LATENCY) * own,
+                                 step=float(aggressor.period_cycles) * own)
             sigma = math.hypot(aggressor.fwhm_s / FWHM_PER_SIGMA / TDC_LSB_S, jitter)
-            self._pulsed.append((pulses, aggressor.detections_per_pulse, sigma))
+            self._pulsed.append((pulses, aggressor.detections_per_pulse, sigma,
+                                 aggressor.jitter_s / TDC_LSB_S))
         self._sources = len(scene.sources)
         # Windows and dead times of consecutive pulses never meet when the shortest time between
         # two TDC starts is longer than both: a faster path that needs no per-cycle arrays.
         victim = scene.victim
         shortest = victim.period - (_delay.max_delay(victim.mode, length=victim.length,
                                                      mask_width=victim.mask_width)
-                                    if victim.grid else 0)
+                                    / scene.fine_step if victim.grid else 0)
         self._separated = shortest * lsb > TDC_CODES + self._dead and not self.external_starts
         self.pulse = 0
         self._previous_end = -math.inf
@@ -174,9 +180,10 @@ class Simulation:
 
     @property
     def next_start_cycle(self):
-        """TDC start cycle of the next laser cycle to simulate (``None`` if not fed yet)."""
+        """TDC start cycle of the next laser cycle to simulate (``None`` if not fed yet); a
+        ``float`` with a fine delay step."""
         known = self._starts.get(self.pulse, self.pulse + 1)
-        return int(known[0]) if len(known) else None
+        return known[0].item() if len(known) else None
 
     def feed(self, start_cycles, *, fired=True):
         """Give the next TDC starts, in clock cycles, with ``external_starts``: integers,
@@ -239,11 +246,14 @@ class Simulation:
         # Photons: carried over, from each pulsed source, and background in the spans
         times = [self._carry_times]
         sources = [self._carry_sources]
-        for index, (pulses, mean, sigma) in enumerate(self._pulsed):
+        for index, (pulses, mean, sigma, wander) in enumerate(self._pulsed):
             index = index if index == 0 else index + 1
-            centres = pulses.until(boundary + TRUNCATION_SIGMAS * sigma + 1.0)
+            centres = pulses.until(boundary + TRUNCATION_SIGMAS * (sigma + wander) + 1.0)
             if mean == 0 or len(centres) == 0:
                 continue
+            if wander > 0:
+                centres = centres + wander * np.clip(rng.standard_normal(len(centres)),
+                                                     -TRUNCATION_SIGMAS, TRUNCATION_SIGMAS)
             number = rng.poisson(mean * len(centres))
             spread = np.clip(rng.standard_normal(number), -TRUNCATION_SIGMAS, TRUNCATION_SIGMAS)
             times.append(centres[rng.integers(0, len(centres), number)] + sigma * spread)

@@ -6,23 +6,67 @@ and :class:`PulseTrain` hands out the arrival times of one pulsed source in incr
 """
 
 import math
+from functools import lru_cache
 
 import numpy as np
 
+from ..hdl.settings import MASKED_LENGTH, MASKED_STEPS
+from . import lfsr as _lfsr
 from . import scheduler as _scheduler
-from .delay import DelayStream
+from .delay import DelayMode, DelayStream
 
 
-__all__ = ["EdgeSchedule", "EdgeBuffer", "PulseTrain"]
+__all__ = ["MaskedDelays", "EdgeSchedule", "EdgeBuffer", "PulseTrain"]
+
+
+@lru_cache(maxsize=4)
+def _basis_states(count):
+    """States ``0 … count - 1`` of the masked source's register loaded with each basis vector:
+    ``(MASKED_LENGTH, count)`` ``uint32``. The register is linear over GF(2), so the states after
+    any seed are the XOR of the rows of its set bits."""
+    return np.stack([_lfsr.states(MASKED_LENGTH, 1 << bit, count,
+                                  steps=MASKED_STEPS).astype(np.uint32)
+                     for bit in range(MASKED_LENGTH)])
+
+
+class MaskedDelays:
+    """The delays of the ``masked`` source, block after block, as
+    :class:`fliss.sim.delay.DelayStream` gives them (the same sequence), made cheaply for many
+    seeds: one set of basis states is computed per block length and process, and each block of
+    a seed is an XOR of its rows."""
+
+    table = None
+
+    def __init__(self, mask_width, seed, block):
+        self._mask = np.uint32((1 << mask_width) - 1)
+        self._basis = _basis_states(block)
+        self._state = _lfsr.load(seed, MASKED_LENGTH)
+
+    def block(self):
+        states = np.zeros(self._basis.shape[1], dtype=np.uint32)
+        for bit in range(MASKED_LENGTH):
+            if self._state >> bit & 1:
+                states ^= self._basis[bit]
+        # The next block starts one step of the source after the last state
+        self._state = int(_lfsr.states(MASKED_LENGTH, int(states[-1]), 2,
+                                       steps=MASKED_STEPS)[1])
+        return (states & self._mask).astype(np.int64)
 
 
 class EdgeSchedule:
-    """Laser rising edges (TDC starts) of a delay core, in clock cycles, block by block."""
+    """Laser rising edges (TDC starts) of a delay core, in clock cycles, block by block.
 
-    def __init__(self, settings, block):
+    With ``fine_step`` > 1 the delays count in steps of ``1 / fine_step`` cycle (a model
+    option) and the edges are ``float64``."""
+
+    def __init__(self, settings, block, fine_step=1):
         self._settings = settings
-        self._delays = DelayStream(settings.mode, length=settings.length,
-                                   mask_width=settings.mask_width, seed=settings.seed)
+        self._fine = fine_step
+        if settings.mode == DelayMode.MASKED:
+            self._delays = MaskedDelays(settings.mask_width, settings.seed, block)
+        else:
+            self._delays = DelayStream(settings.mode, length=settings.length,
+                                       mask_width=settings.mask_width, seed=settings.seed)
         self._take = 0
         self._block = block
         self._pattern = None
@@ -36,6 +80,12 @@ class EdgeSchedule:
 
     def _edges(self, delays):
         period, grid = self._settings.period, self._settings.grid
+        if self._fine != 1:
+            delays = delays / self._fine
+            if grid:
+                fires = (self._take + period * np.arange(len(delays))) + 1 + delays
+                self._take += period * len(delays)
+                return fires + _scheduler.LATENCY
         if grid:
             fires = _scheduler.fire_cycles(delays, period, grid=True, start=self._take)
             self._take += period * len(delays)
@@ -44,7 +94,7 @@ class EdgeSchedule:
         # start + sum(T + R[i], i < k), that is at start + cumsum(T + R)[k] - T + 1.
         ends = np.cumsum(delays + period)
         edges = ends + (self._take - period + 1 + _scheduler.LATENCY)
-        self._take += int(ends[-1]) if len(ends) else 0
+        self._take += ends[-1] if len(ends) else 0
         return edges
 
     def __call__(self):

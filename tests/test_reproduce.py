@@ -55,3 +55,11 @@ def test_suppression_grows_with_the_lfsr_length(tiny_run):
 def test_user_mistakes_give_one_line_and_exit_1(argv, message, capsys, tmp_path):
     assert main(["reproduce", "--out", str(tmp_path)] + argv) == 1
     assert capsys.readouterr().err.strip().splitlines()[-1] == f"fliss: error: {message}"
+
+
+def test_two_workers_on_the_sweep_engine_give_the_same_table(tiny_run, tmp_path):
+    _, out = tiny_run
+    code = main(["-q", "reproduce", "--acquisitions", "4", "--t-int", "20ms", "--lengths", "3",
+                 "6", "--mask-widths", "6", "--jobs", "2", "--no-figures", "--out", str(tmp_path)])
+    assert code == 0
+    assert (tmp_path / "results.csv").read_text() == (out / "results.csv").read_text()
