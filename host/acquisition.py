@@ -37,7 +37,8 @@ DATA_TIMEOUT_S = 30.0
 class CaptureResult:
     """What :func:`capture` did.
 
-    ``reason`` is ``"completed"``, ``"interrupted"`` or why the board was lost (``lost``, the
+    ``reason`` is ``"completed"``, ``"interrupted: SIGINT"`` (or ``SIGTERM``, ``SIGHUP``: the
+    signal that stopped it; ``"interrupted"`` alone when not known) or why the board was lost (``lost``, the
     :exc:`~fliss.host.errors.BoardLost`, a :exc:`~fliss.host.errors.BoardReset` for a board
     that was reset); ``complete`` is True when everything asked for was captured.
     ``histograms`` counts the rows saved, ``lost_histograms`` those of them that never arrived
@@ -60,7 +61,13 @@ class CaptureResult:
 
     @property
     def interrupted(self) -> bool:
-        return self.reason == "interrupted"
+        return self.reason.startswith("interrupted")
+
+    @property
+    def signal(self) -> Optional[signal.Signals]:
+        """The signal that interrupted the capture (None if none, or not known)."""
+        name = self.reason.partition(": ")[2] if self.interrupted else ""
+        return getattr(signal.Signals, name, None) if name.startswith("SIG") else None
 
     @property
     def what(self) -> str:
@@ -87,21 +94,26 @@ class _NoProgress:
 
 
 class _Interrupt:
-    """Ctrl-C (or ``kill``: SIGTERM) during a capture only sets a flag, checked between packets,
-    so that it never breaks into the middle of an HDF5 write (h5py holds a lock then) or of a
-    packet's decoding, and the board is stopped and the file closed. A second one interrupts
-    at once."""
+    """Ctrl-C (SIGINT), ``kill`` (SIGTERM) or a closed terminal (SIGHUP) during a capture only
+    sets a flag, checked between packets, so that it never breaks into the middle of an HDF5
+    write (h5py holds a lock then) or of a packet's decoding, and the board is stopped and the
+    file closed. A second one interrupts at once."""
 
-    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+    SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP")
+                    if hasattr(signal, name))
 
     def __init__(self):
-        self.requested = False
+        self.signal = None
         self._previous = {}
+
+    @property
+    def requested(self):
+        return self.signal is not None
 
     def _handler(self, signum, frame):
         if self.requested:
             raise KeyboardInterrupt
-        self.requested = True
+        self.signal = signal.Signals(signum)
 
     def install(self):
         try:
@@ -114,6 +126,11 @@ class _Interrupt:
         for number, previous in self._previous.items():
             signal.signal(number, previous)
         self._previous = {}
+
+
+def _interrupted(signum):
+    """``end_reason`` of a capture stopped by signal ``signum`` (None: not known)."""
+    return "interrupted" if signum is None else f"interrupted: {signal.Signals(signum).name}"
 
 
 def rate(events, seconds):
@@ -225,13 +242,13 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
     configuration = board.read_registers()
     status_start = board.status()
 
-    writer = CaptureWriter(path, mode=mode, identity=board.identity.as_dict(),
-                           configuration=configuration, port=port)
-    writer.file.attrs["integration_s"] = cycles / clock_hz
+    attrs = {"integration_s": cycles / clock_hz}
     if mode == "histogram":
-        writer.file.attrs["acquisitions_requested"] = acquisitions
+        attrs["acquisitions_requested"] = acquisitions
     else:
-        writer.file.attrs["duration_s_requested"] = duration_s
+        attrs["duration_s_requested"] = duration_s
+    writer = CaptureWriter(path, mode=mode, identity=board.identity.as_dict(),
+                           configuration=configuration, port=port, attrs=attrs)
     bar = progress if progress is not None else _NoProgress()
 
     state = {"events": 0, "discarded": 0}
@@ -288,7 +305,7 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
                 check_reset(board, status_last, status)
                 status_last = status
     except KeyboardInterrupt:
-        reason, complete = "interrupted", False
+        reason, complete = _interrupted(interrupt.signal), False
     except BoardReset as error:
         reason, complete, lost = f"board reset: {error}", False, error
     except BoardLost as error:
@@ -311,7 +328,7 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
         except BoardLost as error:
             reason, complete, lost = f"board lost while stopping: {error}", False, error
         except KeyboardInterrupt:
-            reason, complete = "interrupted", False
+            reason, complete = _interrupted(interrupt.signal), False
     if lost is not None:
         for item in board.take_data() + board.assembler.flush():
             store(item)

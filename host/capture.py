@@ -6,6 +6,7 @@ line, the progress bar and the report.
 
 import argparse
 import os
+import signal
 import sys
 import time
 
@@ -56,22 +57,26 @@ class Progress:
         if not self.interactive:
             line = f"[{shown} {self.unit}] {self._extra}".rstrip()
             if line != self._last:
-                self.stream.write(line + "\n")
-                self.stream.flush()
+                self._write(line + "\n")
                 self._last = line
             return
         fraction = min(max(done / self.total, 0.0), 1.0) if self.total else 0.0
         filled = int(round(fraction * self.width))
         line = f"[{'#' * filled}{'.' * (self.width - filled)}] {shown} {self.unit} {extra}"
         pad = max(self._length - len(line), 0)
-        self.stream.write("\r" + line + " " * pad)
-        self.stream.flush()
+        self._write("\r" + line + " " * pad)
         self._length = len(line)
+
+    def _write(self, text):
+        try:
+            self.stream.write(text)
+            self.stream.flush()
+        except OSError:     # the terminal is gone (a hangup): the capture goes on
+            self.enabled = False
 
     def close(self):
         if self.enabled and self.interactive and self._length:
-            self.stream.write("\n")
-            self.stream.flush()
+            self._write("\n")
 
 
 def register(subparsers, formatter):
@@ -126,12 +131,16 @@ def run(args):
         result = capture(board, args.output, mode=args.mode, integration_s=integration_s,
                          acquisitions=args.acquisitions, duration_s=duration_s, port=args.port,
                          progress=bar)
-    return report(result, quiet=quiet)
+    try:
+        return report(result, quiet=quiet)
+    except OSError:     # the terminal went away (SIGHUP); the file is saved all the same
+        return 128 + result.signal if result.signal else 1
 
 
 def report(result, *, quiet=False, out=None):
     """Print what :func:`~fliss.host.acquisition.capture` saved and warn about what was lost;
-    returns the exit status (130 when interrupted). Raises :exc:`UserError` when the board
+    returns the exit status (128 + the signal when interrupted: 130 for Ctrl-C, 143 for
+    SIGTERM, 129 for SIGHUP). Raises :exc:`UserError` when the board
     was lost."""
     out = sys.stdout if out is None else out
     link, stream, what, path = result.link, result.stream, result.what, result.path
@@ -164,6 +173,9 @@ def report(result, *, quiet=False, out=None):
     if result.lost is not None:
         raise UserError(f"{result.lost}; saved what was received ({what}) to {path}")
     if result.interrupted:
-        print("fliss: interrupted; acquisition stopped, capture saved", file=sys.stderr)
-        return 130
+        # The shell's status of a process killed by the signal: 130 Ctrl-C, 143 kill, 129 hangup.
+        signum = result.signal or signal.SIGINT
+        name = "" if signum == signal.SIGINT else f" by {signum.name}"
+        print(f"fliss: interrupted{name}; acquisition stopped, capture saved", file=sys.stderr)
+        return 128 + signum
     return 0

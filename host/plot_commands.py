@@ -2,6 +2,7 @@
 
 import argparse
 import os
+import sys
 
 import numpy as np
 
@@ -15,12 +16,14 @@ __all__ = ["register", "analyze", "run_analyze", "run_plot"]
 
 
 def _read(path):
-    if not os.path.exists(path):
-        raise UserError(f"no such file: {path}")
+    """The capture in ``path``; one warning line (stderr) for what of it could not be read."""
     try:
-        return read_capture(path)
+        capture = read_capture(path)
     except ValueError as error:
         raise UserError(str(error)) from None
+    if capture.problems:
+        print(f"fliss: warning: {path}: {'; '.join(capture.problems)}", file=sys.stderr)
+    return capture
 
 
 def _times(texts, flag):
