@@ -5,7 +5,6 @@ line, the progress bar and the report.
 """
 
 import argparse
-import os
 import signal
 import sys
 import time
@@ -13,6 +12,7 @@ import time
 from .acquisition import capture
 from .cli import UserError
 from .errors import BoardReset
+from .paths import check_output_path
 from .port_options import add_port_arguments, connect
 from .units import parse_time
 
@@ -117,11 +117,7 @@ def run(args):
     duration_s = _time(args.duration, "--duration") if args.mode == "raw" else None
     if args.mode == "histogram" and args.acquisitions < 1:
         raise UserError(f"--acquisitions must be at least 1, not {args.acquisitions}")
-    directory = os.path.dirname(os.path.abspath(args.output))
-    if not os.path.isdir(directory):
-        raise UserError(f"cannot write {args.output}: no directory {directory}")
-    if os.path.exists(args.output) and not args.overwrite:
-        raise UserError(f"{args.output} exists (use --overwrite to replace it)")
+    check_output_path(args.output, overwrite=args.overwrite)      # before the board
     quiet = getattr(args, "quiet", 0) > 0
     if args.mode == "histogram":
         bar = Progress(args.acquisitions, "histograms", enabled=not quiet)

@@ -12,7 +12,7 @@ import logging
 import sys
 
 from .. import __version__
-from .errors import BoardError
+from .errors import BoardError, PathError
 
 
 __all__ = ["UserError", "main"]
@@ -65,7 +65,7 @@ def main(argv=None):
                         format="fliss: %(message)s")
     try:
         return args.run(args) or 0
-    except (UserError, BoardError) as error:
+    except (UserError, BoardError, PathError) as error:
         print(f"fliss: error: {error}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
