@@ -22,7 +22,8 @@ from .stream import EventBatch, HistogramFrame
 from .units import format_time
 
 
-__all__ = ["HEARTBEAT_S", "DATA_TIMEOUT_S", "CaptureResult", "capture", "rate", "check_reset"]
+__all__ = ["HEARTBEAT_S", "DATA_TIMEOUT_S", "CaptureResult", "capture", "rate", "check_reset",
+           "left_running"]
 
 
 #: Seconds between STATUS requests during a capture (a heartbeat that finds a silent board).
@@ -131,6 +132,16 @@ class _Interrupt:
 def _interrupted(signum):
     """``end_reason`` of a capture stopped by signal ``signum`` (None: not known)."""
     return "interrupted" if signum is None else f"interrupted: {signal.Signals(signum).name}"
+
+
+def left_running(board: BoardClient, doing: str) -> Optional[str]:
+    """A one-line warning if the board is acquiring when a command starts, as a capture
+    killed with SIGKILL (which nothing can catch) leaves it, else None. ``doing`` says what
+    the command does about it (``"this capture stops it and starts again"``)."""
+    if not board.status()["running"]:
+        return None
+    return (f"the board on {board.port_name} is acquiring, and sending data that no one "
+            f"records (left running by a capture that was killed?); {doing}")
 
 
 def rate(events, seconds):

@@ -9,7 +9,7 @@ import signal
 import sys
 import time
 
-from .acquisition import capture
+from .acquisition import capture, left_running
 from .cli import UserError
 from .errors import BoardReset
 from .paths import check_output_path
@@ -124,6 +124,9 @@ def run(args):
     else:
         bar = Progress(round(duration_s, 1), "s", enabled=not quiet)
     with connect(args) as board:
+        warning = left_running(board, "this capture stops it and starts it again")
+        if warning:
+            print(f"fliss: warning: {warning}", file=sys.stderr)
         result = capture(board, args.output, mode=args.mode, integration_s=integration_s,
                          acquisitions=args.acquisitions, duration_s=duration_s, port=args.port,
                          progress=bar)

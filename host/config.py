@@ -1,6 +1,7 @@
 """``fliss config``: show the board's registers, or set them by name with units."""
 
 import argparse
+import sys
 
 from ..hdl import period_cycles
 from ..hdl.delay import DelayMode
@@ -197,8 +198,16 @@ def register(subparsers, formatter):
     parser.set_defaults(run=run)
 
 
+def _warn_if_running(board):
+    from .acquisition import left_running
+    warning = left_running(board, "`fliss capture` stops it (and starts it again)")
+    if warning:
+        print(f"fliss: warning: {warning}", file=sys.stderr)
+
+
 def run(args):
     with connect(args) as board:
+        _warn_if_running(board)
         clock_hz = board.identity.clock_hz
         current = board.read_registers()
         changes = changes_from_args(args, current, clock_hz)
