@@ -12,6 +12,7 @@ import re
 import sys
 
 from .cli import UserError
+from .paths import check_output_dir
 from .reproduce_experiments import Config, ReproductionError, run_experiments
 from .reproduce_figures import figures as draw_figures
 from .reproduce_report import PAPER, rows as result_rows, s_text, write_csv, write_markdown
@@ -113,6 +114,7 @@ def run(args):
         config.check()
     except ValueError as error:
         raise UserError(str(error)) from None
+    check_output_dir(args.out, flag="--out")        # before hours of work
     if not args.quiet:
         print(f"fliss reproduce: {config.acquisitions} acquisitions per setting, "
               f"{args.jobs} worker(s), writing to {args.out}", file=sys.stderr)
