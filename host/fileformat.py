@@ -355,6 +355,7 @@ def _read(path, f):
                      if key != "units"}
     group = _group(f, "histograms")
     if "counts" in group:
+        noted = len(problems)
         columns = {"counts": _rows(group["counts"], problems)}
         for name, _ in _ROW_DATASETS:
             columns[name] = _rows(group[name], problems) if name in group else None
@@ -362,7 +363,8 @@ def _read(path, f):
             if columns[name] is None:
                 raise ValueError(f"no /histograms/{name}")
         rows = min(len(column) for column in columns.values() if column is not None)
-        if any(len(column) > rows for column in columns.values() if column is not None):
+        if len(problems) == noted and any(len(column) > rows for column in columns.values()
+                                          if column is not None):
             problems.append(f"histograms after the first {rows} are incomplete on disk and "
                             f"left out")
         histograms = columns["counts"][:rows]
