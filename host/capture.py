@@ -86,9 +86,10 @@ def register(subparsers, formatter):
         description="Sets the acquisition mode and integration time, starts the board, and "
                     "writes what it sends to FILE as it arrives (schema: docs/file-format.md), "
                     "with the board's configuration and identity and the link's counters. "
-                    "Ctrl-C (or kill) stops the acquisition on the board and keeps what was "
-                    "captured; a board that stops answering, or is reset, leaves a file with "
-                    "everything received.")
+                    "Ctrl-C, kill (SIGTERM) or a closed terminal (SIGHUP) stops the "
+                    "acquisition on the board and keeps what was captured; a board that stops "
+                    "answering, or is reset, leaves a file with everything received; after "
+                    "kill -9 the file holds all but the last half second (docs/file-format.md).")
     add_port_arguments(parser)
     parser.add_argument("--mode", choices=["histogram", "raw"], default="histogram",
                         help="histograms made on the board, or every event")
