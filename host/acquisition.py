@@ -16,7 +16,7 @@ import numpy as np
 from ..hdl.event import TIMESTAMP_BITS
 from ..hdl.registers import AcquisitionMode
 from .client import BoardClient
-from .errors import BoardLost, BoardReset, SettingsError
+from .errors import BoardLost, BoardReset, PathError, SettingsError
 from .fileformat import CaptureWriter
 from .stream import EventBatch, HistogramFrame
 from .units import format_time
@@ -127,6 +127,10 @@ class _Interrupt:
         for number, previous in self._previous.items():
             signal.signal(number, previous)
         self._previous = {}
+
+
+def _strerror(error):
+    return (error.strerror or str(error)).lower() if isinstance(error, OSError) else str(error)
 
 
 def _interrupted(signum):
@@ -258,22 +262,30 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
         attrs["acquisitions_requested"] = acquisitions
     else:
         attrs["duration_s_requested"] = duration_s
-    writer = CaptureWriter(path, mode=mode, identity=board.identity.as_dict(),
-                           configuration=configuration, port=port, attrs=attrs)
+    try:
+        writer = CaptureWriter(path, mode=mode, identity=board.identity.as_dict(),
+                               configuration=configuration, port=port, attrs=attrs)
+    except OSError as error:
+        raise PathError(f"cannot write {path}: {_strerror(error)}") from None
     bar = progress if progress is not None else _NoProgress()
 
-    state = {"events": 0, "discarded": 0}
+    state = {"events": 0, "discarded": 0, "file_error": None}
     rows = _Rows(writer, acquisitions, status_start["frames"], configuration["bin_shift"])
 
     def store(item):
-        if isinstance(item, HistogramFrame):
-            if mode != "histogram":
-                state["discarded"] += 1
-            elif rows.add(item):
-                state["events"] += int(item.counts.sum())
-        elif isinstance(item, EventBatch):
-            writer.add_events(item)
-            state["events"] += len(item.events)
+        if state["file_error"] is not None:     # the file cannot take more (a full disk)
+            return
+        try:
+            if isinstance(item, HistogramFrame):
+                if mode != "histogram":
+                    state["discarded"] += 1
+                elif rows.add(item):
+                    state["events"] += int(item.counts.sum())
+            elif isinstance(item, EventBatch):
+                writer.add_events(item)
+                state["events"] += len(item.events)
+        except OSError as error:
+            state["file_error"] = error
 
     reason, complete, lost = "completed", True, None
     interrupt = _Interrupt()
@@ -297,6 +309,8 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
                 store(item)
             if interrupt.requested:
                 raise KeyboardInterrupt
+            if state["file_error"] is not None:
+                break
             now = time.monotonic()
             elapsed = now - started
             link = board.link_counters()
@@ -323,41 +337,58 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
         reason, complete, lost = f"board lost: {error}", False, error
     finally:
         interrupt.restore()
-    bar.update(rows.saved if mode == "histogram" else
-               min(time.monotonic() - started, duration_s), force=True)
-    bar.close()
+    interrupt.install()     # again: a signal while stopping and closing only sets the flag
+    try:
+        bar.update(rows.saved if mode == "histogram" else
+                   min(time.monotonic() - started, duration_s), force=True)
+        bar.close()
 
-    if lost is None:
-        try:
-            board.stop()
-            for item in board.settle():
+        if lost is None:
+            try:
+                board.stop()
+                for item in board.settle():
+                    store(item)
+                status_end = board.status()
+                # Histograms the board completed that never arrived, up to the last one asked
+                # for (rows of zeros, unless the file cannot take more).
+                if state["file_error"] is None:
+                    try:
+                        rows.lose_up_to((status_start["frames"] + min(
+                            status_end["frames"] - status_start["frames"], acquisitions))
+                                        % (1 << 32))
+                    except OSError as error:
+                        state["file_error"] = error
+            except BoardLost as error:
+                reason, complete, lost = f"board lost while stopping: {error}", False, error
+            except KeyboardInterrupt:
+                reason, complete = _interrupted(interrupt.signal), False
+        if lost is not None:
+            for item in board.take_data() + board.assembler.flush():
                 store(item)
-            status_end = board.status()
-            # Histograms the board completed that never arrived, up to the last one asked for.
-            rows.lose_up_to((status_start["frames"] + min(
-                status_end["frames"] - status_start["frames"], acquisitions)) % (1 << 32))
-        except BoardLost as error:
-            reason, complete, lost = f"board lost while stopping: {error}", False, error
-        except KeyboardInterrupt:
-            reason, complete = _interrupted(interrupt.signal), False
-    if lost is not None:
-        for item in board.take_data() + board.assembler.flush():
-            store(item)
 
-    link = board.link_counters()
-    stream = board.assembler.counters.as_dict()
-    stream["discarded_frames"] = state["discarded"] + rows.discarded
-    stream["lost_rows"] = rows.lost
-    stream["incomplete_rows"] = rows.incomplete
-    writer.set_counters("link", link)
-    writer.set_counters("stream", stream)
-    writer.set_counters("board_start", status_start)
-    if status_end is not None:
-        writer.set_counters("board_end", status_end)
-    writer.close(reason, complete=complete, capture_s=time.monotonic() - started)
-    return CaptureResult(
-        path=str(path), mode=mode, histograms=rows.saved,
-        lost_histograms=rows.lost, events=writer.events,
-        batches=writer.batches, reason=reason, complete=complete, lost=lost, link=link,
-        stream=stream, status_start=status_start, status_end=status_end)
-
+        link = board.link_counters()
+        stream = board.assembler.counters.as_dict()
+        stream["discarded_frames"] = state["discarded"] + rows.discarded
+        stream["lost_rows"] = rows.lost
+        stream["incomplete_rows"] = rows.incomplete
+        writer.set_counters("link", link)
+        writer.set_counters("stream", stream)
+        writer.set_counters("board_start", status_start)
+        if status_end is not None:
+            writer.set_counters("board_end", status_end)
+        if state["file_error"] is not None:
+            reason, complete = f"cannot write {path}: {_strerror(state['file_error'])}", False
+        try:
+            writer.close(reason, complete=complete, capture_s=time.monotonic() - started)
+        except OSError as error:
+            state["file_error"] = state["file_error"] or error
+        if state["file_error"] is not None:
+            raise PathError(f"cannot write {path}: {_strerror(state['file_error'])}; the board "
+                            f"was stopped, and the file holds what was written before")
+        return CaptureResult(
+            path=str(path), mode=mode, histograms=rows.saved,
+            lost_histograms=rows.lost, events=writer.events,
+            batches=writer.batches, reason=reason, complete=complete, lost=lost, link=link,
+            stream=stream, status_start=status_start, status_end=status_end)
+    finally:
+        interrupt.restore()

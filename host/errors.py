@@ -69,4 +69,5 @@ class PathError(ValueError):
     """A file or folder named by the user cannot be written (or read) as asked: a missing or
     read-only folder, a folder where a file is wanted, a device, a file that exists; the
     message is one line that says what and what to do. Raised before anything is started, by
-    :mod:`fliss.host.paths`."""
+    :mod:`fliss.host.paths`, or when a file stops taking data (a full disk) during a capture,
+    after the board is stopped and the file closed."""

@@ -2,6 +2,7 @@
 capture file is read as far as it can be: real ``fliss capture`` processes on a model board's
 pty, stopped by SIGINT, SIGTERM, SIGHUP and SIGKILL."""
 
+import errno
 import os
 import signal
 import subprocess
@@ -317,3 +318,31 @@ def test_unwritable_capture_outputs_are_refused_before_the_board(tmp_path, capsy
             assert err == f"fliss: error: {message}\n", extra
     # Nothing left behind by the checks.
     assert set(os.listdir(tmp_path)) == {"taken.h5"} | ({"locked"} if os.geteuid() else set())
+
+
+def test_a_full_disk_mid_capture_stops_the_board_and_keeps_the_rows(tmp_path, capsys,
+                                                                    monkeypatch):
+    output = tmp_path / "full.h5"
+    add_histogram = CaptureWriter.add_histogram
+
+    def full_after_three(self, frame):
+        if self.histograms == 3:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return add_histogram(self, frame)
+
+    monkeypatch.setattr(CaptureWriter, "add_histogram", full_after_three)
+    with model_board(scene=SCENE) as model:
+        with BoardClient(model.path, timeout_s=2.0) as board:
+            board.write_registers({"bin_shift": SHIFT})
+        status = main(["-q", "capture", "--port", model.path, "--timeout", "2",
+                       "--integration", "2ms", "--acquisitions", "100", "-o", str(output)])
+        assert not model.running
+        capture = read_capture(output)
+        check_rows(capture, model, 3)
+    assert status == 1
+    assert capsys.readouterr().err == (
+        f"fliss: error: cannot write {output}: no space left on device; the board was "
+        f"stopped, and the file holds what was written before\n")
+    assert len(capture.histograms) == 3
+    assert capture.attrs["end_reason"] == f"cannot write {output}: no space left on device"
+    assert capture.problems == []
