@@ -16,13 +16,14 @@ import numpy as np
 from ..hdl.event import TIMESTAMP_BITS
 from ..hdl.registers import AcquisitionMode
 from .client import BoardClient
-from .errors import BoardLost, BoardReset, SettingsError
+from .errors import BoardLost, BoardReset, PathError, SettingsError
 from .fileformat import CaptureWriter
 from .stream import EventBatch, HistogramFrame
 from .units import format_time
 
 
-__all__ = ["HEARTBEAT_S", "DATA_TIMEOUT_S", "CaptureResult", "capture", "rate", "check_reset"]
+__all__ = ["HEARTBEAT_S", "DATA_TIMEOUT_S", "CaptureResult", "capture", "rate", "check_reset",
+           "left_running"]
 
 
 #: Seconds between STATUS requests during a capture (a heartbeat that finds a silent board).
@@ -37,7 +38,8 @@ DATA_TIMEOUT_S = 30.0
 class CaptureResult:
     """What :func:`capture` did.
 
-    ``reason`` is ``"completed"``, ``"interrupted"`` or why the board was lost (``lost``, the
+    ``reason`` is ``"completed"``, ``"interrupted: SIGINT"`` (or ``SIGTERM``, ``SIGHUP``: the
+    signal that stopped it; ``"interrupted"`` alone when not known) or why the board was lost (``lost``, the
     :exc:`~fliss.host.errors.BoardLost`, a :exc:`~fliss.host.errors.BoardReset` for a board
     that was reset); ``complete`` is True when everything asked for was captured.
     ``histograms`` counts the rows saved, ``lost_histograms`` those of them that never arrived
@@ -60,7 +62,13 @@ class CaptureResult:
 
     @property
     def interrupted(self) -> bool:
-        return self.reason == "interrupted"
+        return self.reason.startswith("interrupted")
+
+    @property
+    def signal(self) -> Optional[signal.Signals]:
+        """The signal that interrupted the capture (None if none, or not known)."""
+        name = self.reason.partition(": ")[2] if self.interrupted else ""
+        return getattr(signal.Signals, name, None) if name.startswith("SIG") else None
 
     @property
     def what(self) -> str:
@@ -87,21 +95,26 @@ class _NoProgress:
 
 
 class _Interrupt:
-    """Ctrl-C (or ``kill``: SIGTERM) during a capture only sets a flag, checked between packets,
-    so that it never breaks into the middle of an HDF5 write (h5py holds a lock then) or of a
-    packet's decoding, and the board is stopped and the file closed. A second one interrupts
-    at once."""
+    """Ctrl-C (SIGINT), ``kill`` (SIGTERM) or a closed terminal (SIGHUP) during a capture only
+    sets a flag, checked between packets, so that it never breaks into the middle of an HDF5
+    write (h5py holds a lock then) or of a packet's decoding, and the board is stopped and the
+    file closed. A second one interrupts at once."""
 
-    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+    SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP")
+                    if hasattr(signal, name))
 
     def __init__(self):
-        self.requested = False
+        self.signal = None
         self._previous = {}
+
+    @property
+    def requested(self):
+        return self.signal is not None
 
     def _handler(self, signum, frame):
         if self.requested:
             raise KeyboardInterrupt
-        self.requested = True
+        self.signal = signal.Signals(signum)
 
     def install(self):
         try:
@@ -114,6 +127,25 @@ class _Interrupt:
         for number, previous in self._previous.items():
             signal.signal(number, previous)
         self._previous = {}
+
+
+def _strerror(error):
+    return (error.strerror or str(error)).lower() if isinstance(error, OSError) else str(error)
+
+
+def _interrupted(signum):
+    """``end_reason`` of a capture stopped by signal ``signum`` (None: not known)."""
+    return "interrupted" if signum is None else f"interrupted: {signal.Signals(signum).name}"
+
+
+def left_running(board: BoardClient, doing: str) -> Optional[str]:
+    """A one-line warning if the board is acquiring when a command starts, as a capture
+    killed with SIGKILL (which nothing can catch) leaves it, else None. ``doing`` says what
+    the command does about it (``"this capture stops it and starts again"``)."""
+    if not board.status()["running"]:
+        return None
+    return (f"the board on {board.port_name} is acquiring, and sending data that no one "
+            f"records (left running by a capture that was killed?); {doing}")
 
 
 def rate(events, seconds):
@@ -225,27 +257,35 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
     configuration = board.read_registers()
     status_start = board.status()
 
-    writer = CaptureWriter(path, mode=mode, identity=board.identity.as_dict(),
-                           configuration=configuration, port=port)
-    writer.file.attrs["integration_s"] = cycles / clock_hz
+    attrs = {"integration_s": cycles / clock_hz}
     if mode == "histogram":
-        writer.file.attrs["acquisitions_requested"] = acquisitions
+        attrs["acquisitions_requested"] = acquisitions
     else:
-        writer.file.attrs["duration_s_requested"] = duration_s
+        attrs["duration_s_requested"] = duration_s
+    try:
+        writer = CaptureWriter(path, mode=mode, identity=board.identity.as_dict(),
+                               configuration=configuration, port=port, attrs=attrs)
+    except OSError as error:
+        raise PathError(f"cannot write {path}: {_strerror(error)}") from None
     bar = progress if progress is not None else _NoProgress()
 
-    state = {"events": 0, "discarded": 0}
+    state = {"events": 0, "discarded": 0, "file_error": None}
     rows = _Rows(writer, acquisitions, status_start["frames"], configuration["bin_shift"])
 
     def store(item):
-        if isinstance(item, HistogramFrame):
-            if mode != "histogram":
-                state["discarded"] += 1
-            elif rows.add(item):
-                state["events"] += int(item.counts.sum())
-        elif isinstance(item, EventBatch):
-            writer.add_events(item)
-            state["events"] += len(item.events)
+        if state["file_error"] is not None:     # the file cannot take more (a full disk)
+            return
+        try:
+            if isinstance(item, HistogramFrame):
+                if mode != "histogram":
+                    state["discarded"] += 1
+                elif rows.add(item):
+                    state["events"] += int(item.counts.sum())
+            elif isinstance(item, EventBatch):
+                writer.add_events(item)
+                state["events"] += len(item.events)
+        except OSError as error:
+            state["file_error"] = error
 
     reason, complete, lost = "completed", True, None
     interrupt = _Interrupt()
@@ -269,6 +309,8 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
                 store(item)
             if interrupt.requested:
                 raise KeyboardInterrupt
+            if state["file_error"] is not None:
+                break
             now = time.monotonic()
             elapsed = now - started
             link = board.link_counters()
@@ -288,48 +330,65 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
                 check_reset(board, status_last, status)
                 status_last = status
     except KeyboardInterrupt:
-        reason, complete = "interrupted", False
+        reason, complete = _interrupted(interrupt.signal), False
     except BoardReset as error:
         reason, complete, lost = f"board reset: {error}", False, error
     except BoardLost as error:
         reason, complete, lost = f"board lost: {error}", False, error
     finally:
         interrupt.restore()
-    bar.update(rows.saved if mode == "histogram" else
-               min(time.monotonic() - started, duration_s), force=True)
-    bar.close()
+    interrupt.install()     # again: a signal while stopping and closing only sets the flag
+    try:
+        bar.update(rows.saved if mode == "histogram" else
+                   min(time.monotonic() - started, duration_s), force=True)
+        bar.close()
 
-    if lost is None:
-        try:
-            board.stop()
-            for item in board.settle():
+        if lost is None:
+            try:
+                board.stop()
+                for item in board.settle():
+                    store(item)
+                status_end = board.status()
+                # Histograms the board completed that never arrived, up to the last one asked
+                # for (rows of zeros, unless the file cannot take more).
+                if state["file_error"] is None:
+                    try:
+                        rows.lose_up_to((status_start["frames"] + min(
+                            status_end["frames"] - status_start["frames"], acquisitions))
+                                        % (1 << 32))
+                    except OSError as error:
+                        state["file_error"] = error
+            except BoardLost as error:
+                reason, complete, lost = f"board lost while stopping: {error}", False, error
+            except KeyboardInterrupt:
+                reason, complete = _interrupted(interrupt.signal), False
+        if lost is not None:
+            for item in board.take_data() + board.assembler.flush():
                 store(item)
-            status_end = board.status()
-            # Histograms the board completed that never arrived, up to the last one asked for.
-            rows.lose_up_to((status_start["frames"] + min(
-                status_end["frames"] - status_start["frames"], acquisitions)) % (1 << 32))
-        except BoardLost as error:
-            reason, complete, lost = f"board lost while stopping: {error}", False, error
-        except KeyboardInterrupt:
-            reason, complete = "interrupted", False
-    if lost is not None:
-        for item in board.take_data() + board.assembler.flush():
-            store(item)
 
-    link = board.link_counters()
-    stream = board.assembler.counters.as_dict()
-    stream["discarded_frames"] = state["discarded"] + rows.discarded
-    stream["lost_rows"] = rows.lost
-    stream["incomplete_rows"] = rows.incomplete
-    writer.set_counters("link", link)
-    writer.set_counters("stream", stream)
-    writer.set_counters("board_start", status_start)
-    if status_end is not None:
-        writer.set_counters("board_end", status_end)
-    writer.close(reason, complete=complete, capture_s=time.monotonic() - started)
-    return CaptureResult(
-        path=str(path), mode=mode, histograms=rows.saved,
-        lost_histograms=rows.lost, events=writer.events,
-        batches=writer.batches, reason=reason, complete=complete, lost=lost, link=link,
-        stream=stream, status_start=status_start, status_end=status_end)
-
+        link = board.link_counters()
+        stream = board.assembler.counters.as_dict()
+        stream["discarded_frames"] = state["discarded"] + rows.discarded
+        stream["lost_rows"] = rows.lost
+        stream["incomplete_rows"] = rows.incomplete
+        writer.set_counters("link", link)
+        writer.set_counters("stream", stream)
+        writer.set_counters("board_start", status_start)
+        if status_end is not None:
+            writer.set_counters("board_end", status_end)
+        if state["file_error"] is not None:
+            reason, complete = f"cannot write {path}: {_strerror(state['file_error'])}", False
+        try:
+            writer.close(reason, complete=complete, capture_s=time.monotonic() - started)
+        except OSError as error:
+            state["file_error"] = state["file_error"] or error
+        if state["file_error"] is not None:
+            raise PathError(f"cannot write {path}: {_strerror(state['file_error'])}; the board "
+                            f"was stopped, and the file holds what was written before")
+        return CaptureResult(
+            path=str(path), mode=mode, histograms=rows.saved,
+            lost_histograms=rows.lost, events=writer.events,
+            batches=writer.batches, reason=reason, complete=complete, lost=lost, link=link,
+            stream=stream, status_start=status_start, status_end=status_end)
+    finally:
+        interrupt.restore()

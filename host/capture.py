@@ -5,12 +5,14 @@ those of the flags given); this module adds the command line, the progress bar a
 """
 
 import argparse
-import os
+import signal
 import sys
 import time
 
+from .acquisition import left_running
 from .cli import UserError
 from .errors import BoardReset
+from .paths import check_output_path
 from .port_options import add_port_arguments, connect
 from .setting_options import add_setting_arguments, settings_from_args
 from .settings import duration_s
@@ -56,22 +58,26 @@ class Progress:
         if not self.interactive:
             line = f"[{shown} {self.unit}] {self._extra}".rstrip()
             if line != self._last:
-                self.stream.write(line + "\n")
-                self.stream.flush()
+                self._write(line + "\n")
                 self._last = line
             return
         fraction = min(max(done / self.total, 0.0), 1.0) if self.total else 0.0
         filled = int(round(fraction * self.width))
         line = f"[{'#' * filled}{'.' * (self.width - filled)}] {shown} {self.unit} {extra}"
         pad = max(self._length - len(line), 0)
-        self.stream.write("\r" + line + " " * pad)
-        self.stream.flush()
+        self._write("\r" + line + " " * pad)
         self._length = len(line)
+
+    def _write(self, text):
+        try:
+            self.stream.write(text)
+            self.stream.flush()
+        except OSError:     # the terminal is gone (a hangup): the capture goes on
+            self.enabled = False
 
     def close(self):
         if self.enabled and self.interactive and self._length:
-            self.stream.write("\n")
-            self.stream.flush()
+            self._write("\n")
 
 
 def register(subparsers, formatter):
@@ -82,9 +88,10 @@ def register(subparsers, formatter):
                     "first by any setting flags given here: starts the board and writes what "
                     "it sends to FILE as it arrives (schema: docs/file-format.md), with the "
                     "board's registers as used, its identity and the link's counters. "
-                    "Ctrl-C (or kill) stops the acquisition on the board and keeps what was "
-                    "captured; a board that stops answering, or is reset, leaves a file with "
-                    "everything received.")
+                    "Ctrl-C, kill (SIGTERM) or a closed terminal (SIGHUP) stops the acquisition "
+                    "on the board and keeps what was captured; a board that stops answering, "
+                    "or is reset, leaves a file with everything received; after kill -9 the "
+                    "file holds all but the last half second (docs/file-format.md).")
     add_port_arguments(parser)
     parser.add_argument("--acquisitions", type=int, default=10, metavar="N",
                         help="histograms to capture (histogram readout)")
@@ -104,13 +111,12 @@ def run(args):
     duration_s(args.duration, f"--duration {args.duration}")
     if args.acquisitions < 1:
         raise UserError(f"--acquisitions must be at least 1, not {args.acquisitions}")
-    directory = os.path.dirname(os.path.abspath(args.output))
-    if not os.path.isdir(directory):
-        raise UserError(f"cannot write {args.output}: no directory {directory}")
-    if os.path.exists(args.output) and not args.overwrite:
-        raise UserError(f"{args.output} exists (use --overwrite to replace it)")
+    check_output_path(args.output, overwrite=args.overwrite)      # before the board
     quiet = getattr(args, "quiet", 0) > 0
     with connect(args) as board:
+        warning = left_running(board, "this capture stops it and starts it again")
+        if warning:
+            print(f"fliss: warning: {warning}", file=sys.stderr)
         board.configure(settings_from_args(args), style="flag")
         if board.settings["readout"] == "histogram":
             bar = Progress(args.acquisitions, "histograms", enabled=not quiet)
@@ -118,12 +124,16 @@ def run(args):
             bar = Progress(round(duration_s(args.duration, ""), 1), "s", enabled=not quiet)
         result = board.capture(args.output, acquisitions=args.acquisitions,
                                duration=args.duration, progress=bar)
-    return report(result, quiet=quiet)
+    try:
+        return report(result, quiet=quiet)
+    except OSError:     # the terminal went away (SIGHUP); the file is saved all the same
+        return 128 + result.signal if result.signal else 1
 
 
 def report(result, *, quiet=False, out=None):
     """Print what :func:`~fliss.host.acquisition.capture` saved and warn about what was lost;
-    returns the exit status (130 when interrupted). Raises :exc:`UserError` when the board
+    returns the exit status (128 + the signal when interrupted: 130 for Ctrl-C, 143 for
+    SIGTERM, 129 for SIGHUP). Raises :exc:`UserError` when the board
     was lost."""
     out = sys.stdout if out is None else out
     link, stream, what, path = result.link, result.stream, result.what, result.path
@@ -156,6 +166,9 @@ def report(result, *, quiet=False, out=None):
     if result.lost is not None:
         raise UserError(f"{result.lost}; saved what was received ({what}) to {path}")
     if result.interrupted:
-        print("fliss: interrupted; acquisition stopped, capture saved", file=sys.stderr)
-        return 130
+        # The shell's status of a process killed by the signal: 130 Ctrl-C, 143 kill, 129 hangup.
+        signum = result.signal or signal.SIGINT
+        name = "" if signum == signal.SIGINT else f" by {signum.name}"
+        print(f"fliss: interrupted{name}; acquisition stopped, capture saved", file=sys.stderr)
+        return 128 + signum
     return 0

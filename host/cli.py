@@ -13,7 +13,7 @@ import sys
 import warnings
 
 from .. import __version__
-from .errors import BoardError
+from .errors import BoardError, PathError
 from .settings import RoundingWarning
 
 
@@ -91,7 +91,7 @@ def main(argv=None):
             warnings.simplefilter("always", RoundingWarning)
             warnings.showwarning = _show_warning
             return args.run(args) or 0
-    except (UserError, BoardError) as error:
+    except (UserError, BoardError, PathError) as error:
         print(f"fliss: error: {error}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:

@@ -1,5 +1,7 @@
 """``fliss config``: show the board's registers, or set them by name with units."""
 
+import sys
+
 from ..hdl.delay import DelayMode
 from ..hdl.event import TDC_LSB_S
 from ..hdl.registers import REGISTERS, AcquisitionMode, TdcSource
@@ -59,8 +61,16 @@ def register(subparsers, formatter):
     parser.set_defaults(run=run)
 
 
+def _warn_if_running(board):
+    from .acquisition import left_running
+    warning = left_running(board, "`fliss capture` stops it (and starts it again)")
+    if warning:
+        print(f"fliss: warning: {warning}", file=sys.stderr)
+
+
 def run(args):
     with connect(args) as board:
+        _warn_if_running(board)
         clock_hz = board.clock_hz
         changes = board.configure(settings_from_args(args), style="flag").changes
         current = board.registers

@@ -11,7 +11,6 @@ makes a ghost target, and fails against the ``keyed`` source.
 
 import shlex
 import time
-from pathlib import Path
 
 from amaranth.sim import Simulator
 
@@ -20,6 +19,7 @@ from ..hdl.core import DelayCore
 from ..sim.delay import DelayMode, mean_delay
 from ..sim import scheduler as scheduler_model
 from .cli import UserError
+from .paths import check_output_dir
 from .model_commands import prf_rows
 from .units import format_frequency
 
@@ -117,8 +117,7 @@ def run(args):
     clock_hz, prf_hz = DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ
     period = period_cycles(clock_hz, prf_hz)
     tof_s = 2 * args.target_m / C_M_S
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = check_output_dir(args.out, flag="--out")
     # As on the paper's bench, the aggressor runs at the victim's effective PRF.
     masked_period = round(period + mean_delay(DelayMode.MASKED, mask_width=6))
     print(f"FLISS demo: victim at {format_frequency(prf_hz)} ({period} cycles of "

@@ -6,7 +6,7 @@ The ``fliss`` command turns each into its one-line message (:func:`fliss.host.cl
 """
 
 __all__ = ["BoardError", "BoardLost", "BoardReset", "PortError", "BoardRefused", "BoardMismatch",
-           "SettingsError", "VirtualBoardError"]
+           "SettingsError", "VirtualBoardError", "PathError"]
 
 
 class BoardError(Exception):
@@ -63,3 +63,11 @@ class SettingsError(BoardError, ValueError):
 class VirtualBoardError(BoardError):
     """The virtual board (a simulation of the gateware) cannot be built or started, or it
     stopped."""
+
+
+class PathError(ValueError):
+    """A file or folder named by the user cannot be written (or read) as asked: a missing or
+    read-only folder, a folder where a file is wanted, a device, a file that exists; the
+    message is one line that says what and what to do. Raised before anything is started, by
+    :mod:`fliss.host.paths`, or when a file stops taking data (a full disk) during a capture,
+    after the board is stopped and the file closed."""

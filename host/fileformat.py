@@ -1,12 +1,16 @@
 """Capture files: HDF5 (h5py), schema in ``docs/file-format.md``.
 
-:class:`CaptureWriter` writes a capture as it arrives (histograms and events are appended and
-flushed, so a capture cut short by a dead board or a crash still leaves a readable file);
-:func:`read_capture` reads one back into a :class:`Capture`.
+:class:`CaptureWriter` writes a capture as it arrives, in HDF5's single-writer mode (SWMR), which
+keeps the file readable at every moment: a capture cut short by a dead board, a crash or
+``kill -9`` leaves a file with everything flushed before, at most :data:`FLUSH_S` of data lost.
+:func:`read_capture` reads one back into a :class:`Capture`, and reads what can be read of a file
+that was damaged (:attr:`Capture.problems`).
 """
 
 import datetime
 import json
+import os
+import time
 from dataclasses import dataclass, field
 
 import h5py
@@ -18,7 +22,8 @@ from ..hdl.registers import BY_NAME, REGISTERS, TdcSource
 from ..sim.event import EVENT_DTYPE
 
 
-__all__ = ["FORMAT", "FORMAT_VERSION", "CaptureWriter", "Capture", "read_capture"]
+__all__ = ["FORMAT", "FORMAT_VERSION", "FLUSH_S", "RUNNING", "CaptureWriter", "Capture",
+           "read_capture"]
 
 
 #: Value of the root attribute ``format``.
@@ -26,11 +31,24 @@ FORMAT = "fliss-capture"
 #: Version of this schema; readers refuse newer major versions.
 FORMAT_VERSION = 2
 
-_FLUSH_S = 1.0
+#: Most seconds between two flushes of a capture file: what a ``kill -9`` can cost.
+FLUSH_S = 0.5
+
+#: ``end_reason`` of a file that the writer never closed (still being written, or killed).
+RUNNING = "running"
+
+# Datasets of /histograms, one row per histogram; ``complete`` is False where never written.
+_ROW_DATASETS = (("frame", np.uint32), ("shift", np.uint8), ("time_s", np.float64),
+                 ("complete", np.bool_), ("missing_bins", np.uint32))
 
 
 class CaptureWriter:
     """Writes one capture file.
+
+    Every attribute and dataset is made when the file is opened; then the file goes into HDF5's
+    single-writer mode (SWMR), in which it is consistent on disk at every moment, and rows are
+    appended and flushed at least every :data:`FLUSH_S` seconds. :meth:`close` opens it again
+    normally to store the end: ``end_reason``, the counters of :meth:`set_counters`.
 
     Parameters
     ----------
@@ -41,13 +59,31 @@ class CaptureWriter:
         The board's identity (``protocol``, ``gateware_version``, ``registers``, ``clock_hz``,
         ``baud``).
     configuration : dict
-        Register values by name, as read from the board before the start.
+        Register values by name, as read from the board before the start; in histogram mode
+        its ``bin_shift`` sets the number of bins.
     port : str
+    attrs : dict, optional
+        More root attributes (``integration_s``, ``acquisitions_requested``, ...).
+    flush_s : float
+        Most seconds between flushes.
     """
 
-    def __init__(self, path, *, mode, identity, configuration, port=""):
+    def __init__(self, path, *, mode, identity, configuration, port="", attrs=None,
+                 flush_s=FLUSH_S):
         self.path = str(path)
-        self.file = h5py.File(self.path, "w")
+        self.flush_s = flush_s
+        self._counters = {}
+        self.file = h5py.File(self.path, "w", libver=("v110", "latest"))
+        try:
+            self._create(mode, identity, configuration, port, attrs or {})
+            self.file.swmr_mode = True
+        except BaseException:
+            self.file.close()
+            self.file = None
+            raise
+        self._flushed = time.monotonic()
+
+    def _create(self, mode, identity, configuration, port, attrs):
         f = self.file
         f.attrs["format"] = FORMAT
         f.attrs["format_version"] = FORMAT_VERSION
@@ -55,8 +91,10 @@ class CaptureWriter:
         f.attrs["created_utc"] = datetime.datetime.now(datetime.timezone.utc).isoformat()
         f.attrs["port"] = port
         f.attrs["mode"] = mode
-        f.attrs["end_reason"] = "running"
+        f.attrs["end_reason"] = RUNNING
         f.attrs["complete"] = False
+        for key, value in attrs.items():
+            f.attrs[key] = value
         group = f.create_group("identity")
         for name, value in identity.items():
             group.attrs[name] = value
@@ -66,6 +104,15 @@ class CaptureWriter:
         group.attrs["units"] = json.dumps({name: BY_NAME[name].unit for name in configuration})
         group = f.create_group("histograms")
         self._bins = None
+        if mode == "histogram":
+            self._bins = (1 << TIMESTAMP_BITS) >> int(configuration.get("bin_shift", 0))
+            group.create_dataset("counts", shape=(0, self._bins), maxshape=(None, self._bins),
+                                 dtype=np.uint32,
+                                 chunks=(max(1, min(64, (1 << 16) // self._bins)), self._bins),
+                                 compression="gzip", compression_opts=1)
+            for name, dtype in _ROW_DATASETS:
+                group.create_dataset(name, shape=(0,), maxshape=(None,), dtype=dtype,
+                                     chunks=(1024,))
         self.histograms = 0
         group = f.create_group("events")
         group.create_dataset("events", shape=(0,), maxshape=(None,), dtype=EVENT_DTYPE,
@@ -77,39 +124,26 @@ class CaptureWriter:
         self.events = 0
         self.batches = 0
         f.create_group("counters")
-        self._flushed = 0.0
-
-    def _histogram_datasets(self, bins):
-        group = self.file["histograms"]
-        group.create_dataset("counts", shape=(0, bins), maxshape=(None, bins), dtype=np.uint32,
-                             chunks=(max(1, min(64, (1 << 16) // bins)), bins),
-                             compression="gzip", compression_opts=1)
-        for name, dtype in (("frame", np.uint32), ("shift", np.uint8),
-                            ("time_s", np.float64), ("complete", np.bool_),
-                            ("missing_bins", np.uint32)):
-            group.create_dataset(name, shape=(0,), maxshape=(None,), dtype=dtype, chunks=(1024,))
-        self._bins = bins
 
     def add_histogram(self, frame):
         """Append a :class:`~fliss.host.stream.HistogramFrame`; returns False (and stores
-        nothing) if its bin count differs from the first one's."""
-        bins = len(frame.counts)
-        if self._bins is None:
-            self._histogram_datasets(bins)
-        if bins != self._bins:
+        nothing) if its bin count is not the configured one (or the capture is in raw mode)."""
+        if len(frame.counts) != self._bins:
             return False
         group = self.file["histograms"]
         index = self.histograms
-        for name in ("counts", "frame", "shift", "time_s", "complete", "missing_bins"):
+        # The row's data first, then ``complete`` (its fill value False marks a row whose
+        # data never reached the disk).
+        for name in ("counts",) + tuple(name for name, _ in _ROW_DATASETS):
             group[name].resize(index + 1, axis=0)
         group["counts"][index] = frame.counts
         group["frame"][index] = frame.frame
         group["shift"][index] = frame.shift
         group["time_s"][index] = frame.time_s
-        group["complete"][index] = frame.complete
         group["missing_bins"][index] = frame.missing_bins
+        group["complete"][index] = frame.complete
         self.histograms += 1
-        self._maybe_flush(frame.time_s)
+        self._maybe_flush()
         return True
 
     def add_events(self, batch):
@@ -124,29 +158,39 @@ class CaptureWriter:
         group["batch_time_s"][self.batches] = batch.time_s
         self.events += count
         self.batches += 1
-        self._maybe_flush(batch.time_s)
+        self._maybe_flush()
 
-    def _maybe_flush(self, now):
-        if now - self._flushed > _FLUSH_S:
-            self.file.flush()
-            self._flushed = now
+    def flush(self):
+        """Write everything appended so far to the disk."""
+        self.file.flush()
+        self._flushed = time.monotonic()
+
+    def _maybe_flush(self):
+        if time.monotonic() - self._flushed >= self.flush_s:
+            self.flush()
 
     def set_counters(self, name, counters):
-        """Store a dict of counters as the attributes of ``/counters/<name>``."""
-        group = self.file["counters"].require_group(name)
-        for key, value in counters.items():
-            group.attrs[key] = value
+        """Counters (a dict) to store as the attributes of ``/counters/<name>`` on
+        :meth:`close`."""
+        self._counters[name] = dict(counters)
 
     def close(self, end_reason="completed", *, complete=True, **attrs):
+        """Close the file, then open it again (out of single-writer mode) to store
+        ``end_reason``, ``complete``, ``closed_utc``, the counters and ``attrs``."""
         if self.file is None:
             return
-        self.file.attrs["end_reason"] = end_reason
-        self.file.attrs["complete"] = complete
-        self.file.attrs["closed_utc"] = datetime.datetime.now(datetime.timezone.utc).isoformat()
-        for key, value in attrs.items():
-            self.file.attrs[key] = value
         self.file.close()
         self.file = None
+        with h5py.File(self.path, "r+") as f:
+            for name, counters in self._counters.items():
+                group = f["counters"].require_group(name)
+                for key, value in counters.items():
+                    group.attrs[key] = value
+            f.attrs["end_reason"] = end_reason
+            f.attrs["complete"] = complete
+            f.attrs["closed_utc"] = datetime.datetime.now(datetime.timezone.utc).isoformat()
+            for key, value in attrs.items():
+                f.attrs[key] = value
 
     def __enter__(self):
         return self
@@ -163,7 +207,8 @@ class Capture:
     """A capture file read back.
 
     ``histograms`` is ``(N, bins)`` (``uint32``); ``events`` an ``EVENT_DTYPE`` array; the
-    counters are dicts by group name (``link``, ``stream``, ``board_start``, ``board_end``).
+    counters are dicts by group name (``link``, ``stream``, ``board_start``, ``board_end``);
+    ``problems`` says what of a file cut short could not be read (empty for a whole file).
     """
     path: str
     attrs: dict
@@ -177,6 +222,8 @@ class Capture:
     events: np.ndarray
     batch_times_s: np.ndarray
     counters: dict = field(default_factory=dict)
+    #: What could not be read, or why the file is not whole (one sentence each).
+    problems: list = field(default_factory=list)
 
     @property
     def mode(self):
@@ -215,38 +262,127 @@ class Capture:
 
 
 def read_capture(path):
-    """Read a capture file; raises :exc:`ValueError` for a file that is not one."""
-    try:
-        f = h5py.File(path, "r")
-    except (OSError, FileNotFoundError) as error:
-        raise ValueError(f"cannot read {path!r} as an HDF5 capture file ({error})") from None
+    """Read a capture file.
+
+    Raises :exc:`ValueError` with one line for what is not a capture file (missing, a folder,
+    empty, not HDF5, another format, a newer version, groups missing). Of a file cut short (the
+    writer was killed, or a file of an older fliss damaged by a crash) it returns every row that
+    can be read and says what it left out in :attr:`Capture.problems`.
+    """
+    path = str(path)
+    if not os.path.exists(path):
+        raise ValueError(f"no such file: {path}")
+    if os.path.isdir(path):
+        raise ValueError(f"{path} is a folder, not a capture file")
+    if not os.path.isfile(path):
+        raise ValueError(f"{path} is not a regular file (a device or a pipe?), not a capture "
+                         f"file")
+    if os.path.getsize(path) == 0:
+        raise ValueError(f"{path} is empty, not a capture file")
+    f = _open(path)
     with f:
-        if f.attrs.get("format") != FORMAT:
+        if _plain(f.attrs.get("format")) != FORMAT:
             raise ValueError(f"{path!r} is not a FLISS capture file")
-        if int(f.attrs.get("format_version", 0)) > FORMAT_VERSION:
-            raise ValueError(f"{path!r} has format version {f.attrs['format_version']}, newer "
-                             f"than this fliss reads ({FORMAT_VERSION})")
-        attrs = {key: _plain(value) for key, value in f.attrs.items()}
-        identity = {key: _plain(value) for key, value in f["identity"].attrs.items()}
-        configuration = {key: int(value) for key, value in f["configuration"].attrs.items()
-                         if key != "units"}
-        group = f["histograms"]
-        if "counts" in group:
-            histograms = group["counts"][()]
-            frames, shifts = group["frame"][()], group["shift"][()]
-            times, complete = group["time_s"][()], group["complete"][()]
-        else:
-            histograms = np.zeros((0, 0), dtype=np.uint32)
-            frames = np.zeros(0, dtype=np.uint32)
-            shifts = np.zeros(0, dtype=np.uint8)
-            times = np.zeros(0)
-            complete = np.zeros(0, dtype=bool)
-        events = f["events"]["events"][()]
-        batch_times = f["events"]["batch_time_s"][()]
-        counters = {name: {key: _plain(value) for key, value in group.attrs.items()}
-                    for name, group in f["counters"].items()}
-    return Capture(str(path), attrs, identity, configuration, histograms, frames, shifts,
-                   times, complete.astype(bool), events, batch_times, counters)
+        version = _plain(f.attrs.get("format_version", 0))
+        if not isinstance(version, int):
+            raise ValueError(f"{path!r} has format version {version!r}, not a number: it is "
+                             f"damaged or not written by fliss")
+        if version > FORMAT_VERSION:
+            raise ValueError(f"{path!r} has format version {version}, newer than this fliss "
+                             f"reads ({FORMAT_VERSION}); update fliss")
+        try:
+            return _read(path, f)
+        except (KeyError, TypeError, ValueError, AttributeError) as error:
+            detail = str(error).splitlines()[0] if str(error) else type(error).__name__
+            raise ValueError(f"{path!r} claims the FLISS capture format but is damaged or not "
+                             f"written by fliss ({detail})") from None
+
+
+def _open(path):
+    try:
+        return h5py.File(path, "r")
+    except OSError as error:
+        if "already open for write" not in str(error):
+            reason = str(error)
+            if "(" in reason:
+                reason = reason[reason.rindex("(") + 1:].rstrip(")")
+            what = "is not an HDF5 file" if "signature" in reason else \
+                "cannot be read as an HDF5 file"
+            raise ValueError(f"{path!r} {what} ({reason}), not a capture file") from None
+    # Marked open by a writer in single-writer mode: being written, or the writer was killed.
+    try:
+        return h5py.File(path, "r", swmr=True)
+    except OSError as error:
+        raise ValueError(f"cannot read {path!r}: {error}") from None
+
+
+def _group(f, name):
+    if not isinstance(f.get(name), h5py.Group):
+        raise ValueError(f"no /{name} group")
+    return f[name]
+
+
+def _rows(dataset, problems):
+    """The rows of ``dataset`` up to the first that cannot be read (a chunk that a killed writer
+    left unreadable), with a note in ``problems`` for those left out."""
+    try:
+        return dataset[()]
+    except OSError:
+        pass
+    step = dataset.chunks[0] if dataset.chunks else 1
+    pieces, start, total = [], 0, dataset.shape[0]
+    while start < total:
+        try:
+            pieces.append(dataset[start:start + step])
+        except OSError as error:
+            problems.append(f"rows {start} to {total - 1} of {dataset.name} cannot be read "
+                            f"({str(error).split('(')[-1].rstrip(')')}) and are left out")
+            break
+        start += step
+    if not pieces:
+        return dataset[0:0] if total else dataset[()]
+    return np.concatenate(pieces)
+
+
+def _read(path, f):
+    problems = []
+    attrs = {key: _plain(value) for key, value in f.attrs.items()}
+    if attrs.get("end_reason") == RUNNING:
+        problems.append("its writer never closed it (the capture was killed, or is still "
+                        "running): what was flushed is read, its counters are missing")
+    identity = {key: _plain(value) for key, value in _group(f, "identity").attrs.items()}
+    configuration = {key: int(value) for key, value in _group(f, "configuration").attrs.items()
+                     if key != "units"}
+    group = _group(f, "histograms")
+    if "counts" in group:
+        noted = len(problems)
+        columns = {"counts": _rows(group["counts"], problems)}
+        for name, _ in _ROW_DATASETS:
+            columns[name] = _rows(group[name], problems) if name in group else None
+        for name in ("frame", "shift", "time_s", "complete"):
+            if columns[name] is None:
+                raise ValueError(f"no /histograms/{name}")
+        rows = min(len(column) for column in columns.values() if column is not None)
+        if len(problems) == noted and any(len(column) > rows for column in columns.values()
+                                          if column is not None):
+            problems.append(f"histograms after the first {rows} are incomplete on disk and "
+                            f"left out")
+        histograms = columns["counts"][:rows]
+        frames, shifts = columns["frame"][:rows], columns["shift"][:rows]
+        times, complete = columns["time_s"][:rows], columns["complete"][:rows]
+    else:
+        histograms = np.zeros((0, 0), dtype=np.uint32)
+        frames = np.zeros(0, dtype=np.uint32)
+        shifts = np.zeros(0, dtype=np.uint8)
+        times = np.zeros(0)
+        complete = np.zeros(0, dtype=bool)
+    events_group = _group(f, "events")
+    events = _rows(events_group["events"], problems)
+    batch_times = _rows(events_group["batch_time_s"], problems)
+    counters = {name: {key: _plain(value) for key, value in group.attrs.items()}
+                for name, group in _group(f, "counters").items()}
+    return Capture(path, attrs, identity, configuration, histograms, frames, shifts,
+                   times, complete.astype(bool), events, batch_times, counters, problems)
 
 
 def _plain(value):

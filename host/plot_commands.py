@@ -2,12 +2,14 @@
 
 import argparse
 import os
+import sys
 
 import numpy as np
 
 from . import analysis
 from .cli import UserError
 from .fileformat import read_capture
+from .paths import check_output_path
 from .units import parse_time
 
 
@@ -15,12 +17,14 @@ __all__ = ["register", "analyze", "run_analyze", "run_plot"]
 
 
 def _read(path):
-    if not os.path.exists(path):
-        raise UserError(f"no such file: {path}")
+    """The capture in ``path``; one warning line (stderr) for what of it could not be read."""
     try:
-        return read_capture(path)
+        capture = read_capture(path)
     except ValueError as error:
         raise UserError(str(error)) from None
+    if capture.problems:
+        print(f"fliss: warning: {path}: {'; '.join(capture.problems)}", file=sys.stderr)
+    return capture
 
 
 def _times(texts, flag):
@@ -153,10 +157,14 @@ def run_plot(args):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    check_output_path(args.output, overwrite=None)
+    suffix = os.path.splitext(args.output)[1].lower().lstrip(".")
+    formats = plt.figure().canvas.get_supported_filetypes()
+    plt.close("all")
+    if suffix and suffix not in formats:
+        raise UserError(f"--output: cannot write a .{suffix} image; use one of "
+                        f"{', '.join('.' + name for name in sorted(formats))}")
     captures = [(path, _read(path)) for path in args.files]
-    directory = os.path.dirname(os.path.abspath(args.output))
-    if not os.path.isdir(directory):
-        raise UserError(f"cannot write {args.output}: no directory {directory}")
     window = _times(args.range, "--range") if args.range else None
     figure, axes = plt.subplots(figsize=(9, 4.5))
     for path, capture in captures:

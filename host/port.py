@@ -54,9 +54,17 @@ def default_timeout(port: str) -> float:
 
 
 def open_port(port: str, baud: int = DEFAULT_BAUD) -> serial.SerialBase:
-    """``serial_for_url(port)`` with one-line errors for what users get wrong."""
+    """``serial_for_url(port)`` with one-line errors for what users get wrong.
+
+    A device or a pty is opened for this program alone (on POSIX, pyserial's ``exclusive``: an
+    advisory ``flock`` that every fliss command takes), so that a second command on the same
+    port is refused ("busy") instead of stealing replies from the first. Windows opens serial
+    ports exclusively anyway; URLs (``socket://``, ``loop://``) have no such lock.
+    """
+    options = {"exclusive": True} if os.name == "posix" and "://" not in port else {}
     try:
-        return serial.serial_for_url(port, baudrate=baud, timeout=0.05, write_timeout=2.0)
+        return serial.serial_for_url(port, baudrate=baud, timeout=0.05, write_timeout=2.0,
+                                     **options)
     except serial.SerialException as error:
         code = getattr(error, "errno", None)
         text = str(error)
@@ -65,7 +73,7 @@ def open_port(port: str, baud: int = DEFAULT_BAUD) -> serial.SerialBase:
         if code == errno.EACCES or "Permission denied" in text:
             raise PortError(f"permission denied opening {port!r} (on Linux, add yourself to "
                             f"the dialout group and log in again)") from None
-        if code == errno.EBUSY or "busy" in text.lower():
+        if code in (errno.EBUSY, errno.EAGAIN, errno.EWOULDBLOCK) or "busy" in text.lower():
             raise PortError(f"serial port {port!r} is busy (is another program using it?)") \
                 from None
         raise PortError(f"cannot open serial port {port!r}: {text}") from None

@@ -12,6 +12,7 @@ import re
 import sys
 
 from .cli import UserError
+from .paths import check_output_dir
 from .reproduce_experiments import Config, ReproductionError, run_experiments
 from .reproduce_figures import figures as draw_figures
 from .reproduce_report import PAPER, rows as result_rows, s_text, write_csv, write_markdown
@@ -121,6 +122,7 @@ def run(args):
         config.check()
     except ValueError as error:
         raise UserError(str(error)) from None
+    check_output_dir(args.out, flag="--out")        # before hours of work
     if not args.quiet:
         where = args.scheduler or f"{args.jobs} worker(s)"
         print(f"fliss reproduce: {config.acquisitions} acquisitions per setting, "

@@ -4,6 +4,7 @@ accepted, a board reset in the middle of a capture, and the progress output of a
 
 import argparse
 import io
+import signal
 import subprocess
 import sys
 import time
@@ -285,9 +286,9 @@ def test_kill_stops_the_board_and_saves(tmp_path):
         process.terminate()
         out, err = process.communicate(timeout=15)
         assert not model.running
-    assert process.returncode == 130, err
+    assert process.returncode == 128 + signal.SIGTERM, err
     assert err.strip().splitlines()[-1] == \
-        "fliss: interrupted; acquisition stopped, capture saved"
+        "fliss: interrupted by SIGTERM; acquisition stopped, capture saved"
     capture_file = read_capture(output)
-    assert capture_file.attrs["end_reason"] == "interrupted"
+    assert capture_file.attrs["end_reason"] == "interrupted: SIGTERM"
     assert len(capture_file.histograms) >= 3
