@@ -114,7 +114,7 @@ def run(args):
     check_output_path(args.output, overwrite=args.overwrite)      # before the board
     quiet = getattr(args, "quiet", 0) > 0
     with connect(args) as board:
-        warning = left_running(board, "this capture stops it and starts it again")
+        warning = left_running(board.client, "this capture stops it and starts it again")
         if warning:
             print(f"fliss: warning: {warning}", file=sys.stderr)
         board.configure(settings_from_args(args), style="flag")

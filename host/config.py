@@ -63,7 +63,7 @@ def register(subparsers, formatter):
 
 def _warn_if_running(board):
     from .acquisition import left_running
-    warning = left_running(board, "`fliss capture` stops it (and starts it again)")
+    warning = left_running(board.client, "`fliss capture` stops it (and starts it again)")
     if warning:
         print(f"fliss: warning: {warning}", file=sys.stderr)
 
