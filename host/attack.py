@@ -23,6 +23,7 @@ from ..sim.attacker_models import verify_pulses
 from ..sim.attacker_scene import SOURCES, Victim, run as run_scene
 from . import analysis
 from .cli import UserError
+from .paths import check_output_path
 from .units import parse_time
 
 
@@ -337,6 +338,11 @@ def _arguments(args):
 
 def run(args):
     victims = _arguments(args)
+    # Outputs are checked before minutes of work; they are replaced as plot's are.
+    if args.table != "-":
+        check_output_path(args.table, overwrite=None, flag="--table")
+    if args.figure != "-":
+        check_output_path(args.figure, overwrite=None, flag="--figure")
     observer = Observer(jitter_s=args.jitter_s, missed=args.missed, seed=args.seed)
 
     def progress(row):

@@ -9,6 +9,7 @@ Last, ``fliss attack`` shows an attacker that predicts the ``mseq`` and ``masked
 makes a ghost target, and fails against the ``keyed`` source.
 """
 
+import math
 import shlex
 import time
 
@@ -20,6 +21,7 @@ from ..sim.delay import DelayMode, mean_delay
 from ..sim import scheduler as scheduler_model
 from .cli import UserError
 from .paths import check_output_dir
+from .settings import duration_s
 from .model_commands import prf_rows
 from .units import format_frequency
 
@@ -110,6 +112,10 @@ def run(args):
         return run_trace()
     if args.acquisitions < 1:
         raise UserError(f"--acquisitions must be at least 1, not {args.acquisitions}")
+    if not (math.isfinite(args.target_m) and args.target_m > 0):
+        raise UserError(f"--target-m must be a positive distance in metres, not {args.target_m:g}")
+    if duration_s(args.integration, f"--integration {args.integration}") <= 0:
+        raise UserError(f"--integration must be a positive time, not {args.integration}")
     from .virtual import start_virtual_board
     from .fileformat import read_capture
     from .plot_commands import analyze

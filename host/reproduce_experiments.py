@@ -70,6 +70,9 @@ class Config:
                              f"victim, not {self.aggressor_prf!r}")
         if not self.t_int_s:
             raise ValueError("Give at least one integration time")
+        for t_int_s in self.t_int_s:
+            if not (math.isfinite(t_int_s) and t_int_s > 0):
+                raise ValueError(f"--t-int must be a positive time (10ms), not {t_int_s:g} s")
         for length in self.lengths:
             if not 2 <= length <= 16:
                 raise ValueError(f"--lengths must be from 2 to 16 (complete sequences), "
