@@ -111,7 +111,8 @@ def draw(points, folder):
     from matplotlib import pyplot
 
     folder.mkdir(parents=True, exist_ok=True)
-    for key, label, name in (("p_wrong_depth", "P(wrong depth) per 10 ms frame", "p_wrong"),
+    for key, label, name in (("p_wrong_depth", "P(wrong depth) per frame (0 drawn at 1e-4)",
+                              "p_wrong"),
                              ("s_db", "S (dB)", "s_db")):
         figure, axes = pyplot.subplots(1, len(KINDS), figsize=(11, 4), sharey=True)
         for axis, kind in zip(axes, KINDS):
