@@ -12,14 +12,15 @@ __all__ = ["Keying", "KeyedStream"]
 
 
 class Keying(data.Struct):
-    """The key and IV of the ``keyed`` source, as the registers hold them: the 80-bit integers
-    their printed bytes spell, in 32-bit words, least significant first."""
-    key0: 32
-    key1: 32
-    key2: KEY_BITS - 64
+    """The key and IV of the ``keyed`` source, as the registers hold them (the fields of
+    :data:`~fliss.hdl.registers.KEYING`): the 80-bit integers their printed bytes spell, in
+    32-bit words, least significant first."""
     iv0:  32
     iv1:  32
     iv2:  IV_BITS - 64
+    key0: 32
+    key1: 32
+    key2: KEY_BITS - 64
 
 
 class KeyedStream(wiring.Component):

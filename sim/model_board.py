@@ -123,7 +123,7 @@ class ModelBoard(PtyServer):
         self.protocol_version = protocol_version
         self.line_limited = line_limited
         self.maxima = maxima
-        self.model = CommandModel(self.clock_hz, self.baud, maxima=maxima)
+        self.model = CommandModel(self.clock_hz, self.baud, maxima=maxima, keyed_source=True)
         self.status = dict.fromkeys(STATUS_FIELDS, 0)
         #: Acquisitions started so far (each START while stopped).
         self.starts = 0
@@ -157,7 +157,8 @@ class ModelBoard(PtyServer):
         self.model.running = False
 
     def _reset(self):
-        self.model = CommandModel(self.clock_hz, self.baud, maxima=self.maxima)
+        self.model = CommandModel(self.clock_hz, self.baud, maxima=self.maxima,
+                                  keyed_source=True)
         self.status = dict.fromkeys(STATUS_FIELDS, 0)
         self._frame = 0
         self._frame_counts = None

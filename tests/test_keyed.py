@@ -226,3 +226,50 @@ def test_delay_core_keyed_updates_against_model():
                                                      updates=updates, restarts=restarts)]
     assert pulses[:len(expected)] == expected
     assert len(expected) > 500, len(expected)
+
+
+def test_key_write_only_and_iv_rule(monkeypatch):
+    # The command processor with an IV in use of 0x1234 (from a keyed source): the key reads 0,
+    # the IV reads the IV in use; an IV written without the key must go above it; with a key,
+    # any IV goes. The model (and the Python rule) say the same.
+    import test_command
+    from fliss.hdl.command import CommandProcessor
+    from fliss.hdl.protocol import PacketType, ReadRequest, registers_layout
+    from fliss.hdl.registers import BY_NAME, iv_problem
+    from fliss.sim.codec import pack, unpack
+
+    in_use = 0x1234
+
+    class KeyedCommandProcessor(CommandProcessor):
+        def elaborate(self, platform):
+            m = super().elaborate(platform)
+            m.d.comb += self.registers.iv.eq(in_use)
+            return m
+
+    monkeypatch.setattr(test_command, "CommandProcessor", KeyedCommandProcessor)
+    iv0, key0 = BY_NAME["iv0"].address, BY_NAME["key0"].address
+    writes = [
+        (test_command._write(iv0, 0x1234, 0, 0), False),                    # = in use
+        (test_command._write(iv0, 0x1233, 0, 0), False),                    # below
+        (test_command._write(iv0, 0, 1, 0), True),                          # above
+        (test_command._write(iv0, 7, 0, 0, 0xDEAD, 0xBEEF, 0x80), True),    # with a key
+        (test_command._write(iv0 + 2, 0), False),                           # high word only
+        (test_command._write(key0 + 1, 5), True),                           # key alone
+    ]
+    packets = [(PacketType.WRITE.value, n, payload) for n, (payload, _) in enumerate(writes)]
+    packets.append((PacketType.READ.value, 9, pack(ReadRequest, address=iv0, count=6)))
+    replies, settings, _ = test_command.run_commands(packets)
+    assert [type == PacketType.ACK.value for type, _ in replies[:-1]] == \
+        [accepted for _, accepted in writes]
+    values = unpack(registers_layout(6), replies[-1][1])["values"]
+    assert values == [0x1234, 0, 0, 0, 0, 0]
+    assert [settings[-1][f"key{k}"] for k in range(3)] == [0xDEAD, 5, 0x80]
+    # The Python rule, on the same writes
+    names = [r.name for r in sorted(BY_NAME.values(), key=lambda r: r.address)]
+    for payload, accepted in writes:
+        decoded = unpack(registers_layout(0), payload[:2])
+        words = [int.from_bytes(payload[2 + 4 * k:6 + 4 * k], "little")
+                 for k in range((len(payload) - 2) // 4)]
+        written = names[decoded["address"]:decoded["address"] + len(words)]
+        values = {**dict.fromkeys(names, 0), **dict(zip(written, words))}
+        assert (iv_problem(written, values, in_use) is None) == accepted, written
