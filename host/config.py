@@ -1,17 +1,20 @@
 """``fliss config``: show the board's registers, or set them by name with units."""
 
 import argparse
+import secrets
 
 from ..hdl import period_cycles
 from ..hdl.delay import DelayMode
 from ..hdl.event import TDC_LSB_S
-from ..hdl.registers import REGISTERS, AcquisitionMode, TdcSource
+from ..sim.trivium import parse_hex
+from ..hdl.registers import (REGISTERS, BY_NAME, AcquisitionMode, TdcSource, iv_problem,
+                             value_of, words_of)
 from .cli import UserError
 from .port_options import add_port_arguments, connect
 from .units import format_frequency, format_time, parse_frequency, parse_time
 
 
-__all__ = ["register", "run", "changes_from_args", "describe"]
+__all__ = ["register", "run", "changes_from_args", "describe", "parse_key", "keyed_changes"]
 
 
 _MODES = [mode.name.lower() for mode in DelayMode]
@@ -109,6 +112,44 @@ def add_setting_arguments(parser):
     add("--gate-end", metavar="TIME", help="last timestamp accepted (time, or codes)")
     add("--bin-shift", metavar="N", help="histogram bins are 2**N codes wide")
     add("--integration", metavar="TIME", help="histogram integration time (10ms)")
+    _add_keyed_arguments(add)
+
+
+# Keyed source: key and IV flags and their conversion (one block, to move as a whole)
+
+def parse_key(text, what):
+    """An 80-bit key or IV from hex (:func:`fliss.sim.trivium.parse_hex`); one line if not."""
+    try:
+        return parse_hex(text, "key" if what == "--key" else "IV")
+    except ValueError as error:
+        raise UserError(f"{what}: {error}") from None
+
+
+def _add_keyed_arguments(add):
+    add("--key", metavar="HEX|random",
+        help="key of the keyed source: 20 hex digits, or 'random' (from the operating "
+             "system's generator, never printed unless --show-key); write-only on the board")
+    add("--iv", metavar="HEX", help="IV of the keyed source (20 hex digits); without --key it "
+                                    "must be above the IV in use")
+    add("--show-key", action="store_true", help="print the key written (with --key)")
+
+
+def keyed_changes(args, current):
+    """Register changes of ``--key`` and ``--iv``; a random key is left in ``args.key_value``
+    (for ``--show-key``), never printed here. Refuses an IV the board would refuse."""
+    changes = {}
+    key = getattr(args, "key", None)
+    if key is not None:
+        value = int.from_bytes(secrets.token_bytes(10), "big") if key == "random" \
+            else parse_key(key, "--key")
+        args.key_value = value
+        changes.update(words_of(value, "key"))
+    if getattr(args, "iv", None) is not None:
+        changes.update(words_of(parse_key(args.iv, "--iv"), "iv"))
+        problem = iv_problem(changes, {**current, **changes}, value_of(current, "iv"))
+        if problem:
+            raise UserError(f"--iv: {problem} (give a higher --iv or a new --key)")
+    return changes
 
 
 def changes_from_args(args, current, clock_hz):
@@ -150,6 +191,7 @@ def changes_from_args(args, current, clock_hz):
     for flag in ("gate_start", "gate_end"):
         if get(flag) is not None:
             changes[flag] = _codes(get(flag), code_s, "--" + flag.replace("_", "-"))
+    changes.update(keyed_changes(args, current))
     return changes
 
 
@@ -180,6 +222,10 @@ def describe(name, value, settings, clock_hz):
         return f"{1 << value} codes per bin"
     if name in ("seed", "aggressor_seed"):
         return f"{value:#x}"
+    if BY_NAME[name].write_only:
+        return "write-only"
+    if name == "iv0":
+        return f"IV in use {value_of(settings, 'iv'):#022x}"
     return ""
 
 
@@ -205,10 +251,13 @@ def run(args):
         if changes:
             board.write_registers(changes, current=current)
             current = board.read_registers()
-            changed = [name for name in changes if current[name] != changes[name]]
+            changed = [name for name in changes if current[name] != changes[name] and
+                       not BY_NAME[name].write_only and not BY_NAME[name].in_use]
             if changed:
                 raise UserError(f"the board did not keep {', '.join(changed)}")
     identity = board.identity
+    if getattr(args, "show_key", False) and hasattr(args, "key_value"):
+        print(f"key {args.key_value:#022x}")
     print(f"board on {args.port}: gateware {identity.gateware_version}, protocol "
           f"{identity.protocol}, clock {format_frequency(clock_hz)}, "
           f"{identity.baud} baud")
