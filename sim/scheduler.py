@@ -129,8 +129,10 @@ class _Keystream:
             restarts._used = False
         initialises = restarts.load()
         if initialises or self._stream is None:
+            # (a stream not initialised here was, before the run, with the IV in use)
             self._stream = _trivium.Trivium(restarts.key, restarts.iv)
             self._first_take = None
+        if initialises:
             self.ready_at = cycle + KEYED_START_CYCLES
         elif just_used:
             restarts._used = True
