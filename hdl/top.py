@@ -1,5 +1,5 @@
 from amaranth.hdl import Module, Mux
-from amaranth.lib import wiring
+from amaranth.lib import data, wiring
 from amaranth.lib.wiring import In, Out
 
 from . import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, period_cycles
@@ -11,6 +11,7 @@ from .core import DelayCore
 from .event import TIMESTAMP_BITS, ADDRESS_BITS
 from .framing import FrameDecoder, FrameEncoder
 from .histogram import Histogram, RAM_KINDS
+from .keyed import Keying
 from .packetizer import EventPacketizer, HistogramPacketizer
 from .protocol import DEFAULT_BAUD
 from .rawfifo import RawFifo
@@ -205,7 +206,8 @@ class FlissTop(wiring.Component):
         ]
         if self.keyed:
             m.d.comb += [
-                *(core.keying[name].eq(registers.keying[name]) for name, _ in core.keying.shape()),
+                *(core.keying[name].eq(registers.keying[name])
+                  for name, _ in data.Layout.cast(Keying)),
                 core.rekey.eq(registers.rekey),
                 registers.iv.eq(core.iv),
             ]

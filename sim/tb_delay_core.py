@@ -331,7 +331,7 @@ async def test_keyed(dut):
             dut.update.value = 0
         await ClockCycles(dut.clk, 500)
         dut.enable.value = 0
-        end = await tb.edge()
+        end = await tb.edge() - 1      # (low from the cycle this edge ends)
         expected += simulate(first, end, enable=enable, disable=end, updates=updates,
                              restarts=restarts)
         if current.keyed:       # stopped, the source loads again: the next IV if used
