@@ -132,6 +132,9 @@ class DelayStream:
 
     TABLE_LIMIT = 1 << 16
 
+    #: Delays of a :meth:`block` of the ``keyed`` source.
+    KEYED_BLOCK = 1 << 12
+
     def __init__(self, mode, *, length=None, mask_width=None, seed=1, block=1 << 16, key=None,
                  iv=None):
         self.mode = check_settings(mode, length=length, mask_width=mask_width, seed=seed,
@@ -209,7 +212,9 @@ class DelayStream:
     def block(self):
         """The delays from the current position to the end of the current block of register
         states (all of a block but the first time); the same sequence as :meth:`take`. Only for
-        sequences that are not tabulated."""
+        sequences that are not tabulated (``keyed``: the next ``KEYED_BLOCK`` delays)."""
+        if self.mode == DelayMode.KEYED:
+            return self.take(self.KEYED_BLOCK)
         if self._position == len(self._states):
             self._next_states()
             self._position = 0

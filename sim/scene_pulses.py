@@ -22,7 +22,8 @@ class EdgeSchedule:
     def __init__(self, settings, block):
         self._settings = settings
         self._delays = DelayStream(settings.mode, length=settings.length,
-                                   mask_width=settings.mask_width, seed=settings.seed)
+                                   mask_width=settings.mask_width, seed=settings.seed,
+                                   key=settings.key, iv=settings.iv)
         self._take = 0
         self._block = block
         self._pattern = None

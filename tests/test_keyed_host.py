@@ -76,3 +76,28 @@ def test_config_iv_must_go_up(model, capsys):
     status, out, err = fliss(capsys, "config", "--port", model.path, "--key", "zz")
     assert (status, err) == (1, "fliss: error: --key: A Trivium key is up to 20 hex digits "
                                 "(80 bits, as the test vectors print it), not 'zz'\n")
+
+
+def test_capture_keyed_on_the_model_board(tmp_path, capsys):
+    # A capture in keyed mode on the model board: the file records the IV in use, never the
+    # key, and the scene simulator fires the laser with the keyed delays of that IV.
+    from fliss.host.fileformat import read_capture
+    from fliss.sim import delay as model
+    from fliss.sim.scene import Scene
+    with model_board(scene=Scene(detections_per_pulse=0.1, background_hz=2e5)) as board:
+        status, out, err = fliss(capsys, "config", "--port", board.path, "--mode", "keyed",
+                                 "--mask-width", "4", "--key", "0x0123456789abcdef0123",
+                                 "--iv", "0x40")
+        assert status == 0, err
+        path = tmp_path / "keyed.h5"
+        status, out, err = fliss(capsys, "capture", "--port", board.path, "-o", str(path),
+                                 "--acquisitions", "2", "--integration", "1ms")
+        assert status == 0, err
+        schedule = board.simulation.scene.victim
+    capture = read_capture(path)
+    configuration = capture.configuration if hasattr(capture, "configuration") else \
+        capture["configuration"]
+    assert value_of(configuration, "iv") == 0x40
+    assert all(configuration.get(f"key{k}", 0) == 0 for k in range(3))
+    assert (schedule.mode, schedule.key, schedule.iv) == \
+        (model.DelayMode.KEYED, 0x0123456789ABCDEF0123, 0x40)
