@@ -67,10 +67,11 @@ class DelaySource(wiring.Component):
     rekey : In(1)
         The key or the IV was written (only if ``keyed``).
     busy : Out(1)
-        In ``KEYED`` mode (the mode being loaded, in a load's cycle), no delay is in hand yet:
-        the scheduler must not start. A load in ``KEYED`` mode after a key or IV write, or
-        after delays were taken, initialises Trivium again: ``busy`` from that load on, for
-        :data:`~fliss.hdl.settings.KEYED_START_CYCLES` cycles. Low if not ``keyed``.
+        In ``KEYED`` mode, no delay is in hand: the scheduler must not run (it stops, and
+        starts again once ``busy`` falls). A load in ``KEYED`` mode after a key or IV write, or
+        after delays were taken, initialises Trivium again: ``busy`` from the cycle after it
+        until :data:`~fliss.hdl.settings.KEYED_START_CYCLES` cycles after it (a transfer while
+        ``busy`` is ignored). From registers only. Low if not ``keyed``.
     iv : Out(80)
         The IV of the ``KEYED`` source in use (only if ``keyed``).
     """
@@ -201,8 +202,7 @@ class DelaySource(wiring.Component):
                 keyed.width.eq(keyed_width),
                 keyed_delay.eq(keyed.bits & keyed_mask),
                 self.iv.eq(keyed.iv),
-                self.busy.eq(keyed.busy &
-                             (Mux(self.load, settings.mode, mode) == DelayMode.KEYED)),
+                self.busy.eq(keyed.busy & (mode == DelayMode.KEYED)),
             ]
         narrow = masked_delay | keyed_delay
 

@@ -51,7 +51,9 @@ class KeyedStream(wiring.Component):
     bits : Out(MAX_MASK_WIDTH)
         The next keystream bits, the first at bit 0.
     busy : Out(1)
-        No delay in hand: initialising (from a load that initialises on), or not yet filled.
+        No delay in hand: from the cycle after a load that initialises until the buffer has
+        its first bits (a take then is ignored). Straight from a register's compare, for the
+        scheduler's enable.
     iv : Out(80)
         The IV of the keystream in use (or being initialised).
     """
@@ -74,6 +76,10 @@ class KeyedStream(wiring.Component):
 
         # When to initialise, and with which IV. `iv_next` follows `iv` a cycle late: bits are
         # taken only long after an initialisation.
+        # Bit buffer: `level` bits at the bottom of `buffer`, in keystream order
+        buffer = Signal(2 * MAX_MASK_WIDTH)
+        level = Signal(range(2 * MAX_MASK_WIDTH + 1))
+
         pending = Signal(init=1)    # key or IV written since the last initialisation
         used = Signal()             # bits taken since the last initialisation
         iv_next = Signal(IV_BITS)
@@ -87,7 +93,8 @@ class KeyedStream(wiring.Component):
             trivium.iv.eq(start_iv),
             trivium.load.eq(restart),
         ]
-        with m.If(self.take):
+        taking = self.take & (level != 0)
+        with m.If(taking):
             m.d.sync += used.eq(1)
         with m.If(restart):
             # (a take in this cycle is of the keystream before)
@@ -95,10 +102,7 @@ class KeyedStream(wiring.Component):
         with m.If(self.rekey):
             m.d.sync += pending.eq(1)
 
-        # Bit buffer: `level` bits at the bottom of `buffer`, in keystream order
-        buffer = Signal(2 * MAX_MASK_WIDTH)
-        level = Signal(range(2 * MAX_MASK_WIDTH + 1))
-        removed = Mux(self.take, self.width, 0)
+        removed = Mux(taking, self.width, 0)
         kept = Signal.like(level)
         m.d.comb += kept.eq(level - removed)
         fill = trivium.ready & (kept <= MAX_MASK_WIDTH)
@@ -112,7 +116,7 @@ class KeyedStream(wiring.Component):
             ]
         m.d.comb += [
             self.bits.eq(buffer[:MAX_MASK_WIDTH]),
-            self.busy.eq(restart | (level == 0)),
+            self.busy.eq(level == 0),
         ]
 
         return m

@@ -57,7 +57,8 @@ class RegisterFile(wiring.Component):
         value in use for the IV (``iv``).
     iv : In(80)
         The IV in use by the keyed source, read as the IV registers; a WRITE of the IV without
-        the key must put it above this (:func:`~fliss.hdl.registers.iv_problem`).
+        the key must put it above this (:func:`~fliss.hdl.registers.iv_problem`), unless the
+        maxima hold the key and IV at 0 (a build without the keyed source).
     rekey : Out(1)
         A commit writes the key or the IV (to the keyed source).
     settings : Out(settings_layout(maxima))
@@ -69,6 +70,8 @@ class RegisterFile(wiring.Component):
     def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, maxima=None):
         self.clock_hz = int(clock_hz)
         self.maxima = register_maxima(maxima, self.clock_hz)
+        # Without the keyed source (key and IV held at 0), no IV rule and no `rekey`
+        self._keyed = any(self.maxima[r.name] for r in KEYING.members)
         super().__init__({
             "begin":         In(1),
             "start":         In(1),
@@ -182,9 +185,10 @@ class RegisterFile(wiring.Component):
         with m.If(self.begin):
             m.d.sync += [self.error.eq(0), written.eq(0)]
 
-        # Commit
-        m.d.comb += self.rekey.eq(self.commit & Cat(written[r.address]
-                                                    for r in KEYING.members).any())
+        # Commit (a build without the keyed source has no key or IV: nothing to tell it)
+        if self._keyed:
+            m.d.comb += self.rekey.eq(self.commit & Cat(written[r.address]
+                                                        for r in KEYING.members).any())
         with m.If(self.commit):
             for register in REGISTERS:
                 with m.If(written[register.address]):
@@ -241,7 +245,8 @@ class RegisterFile(wiring.Component):
 
         seeds = []                                  # in the second step
         grids = []                                  # in the third step
-        seeds.append(iv_written & ~key_written & ~iv_above)
+        if self._keyed:
+            seeds.append(iv_written & ~key_written & ~iv_above)
         for group in GROUPS:
             if group.settings is not DELAY_SETTINGS:
                 continue

@@ -113,7 +113,9 @@ class CommandModel:
                     return self._nak(seq, NakCode.OUT_OF_RANGE, register.address)
                 candidate[register.name] = value
                 written.append(register.name)
-            if problems(candidate) or iv_problem(written, candidate, self.iv_in_use):
+            keyed = any(self.maxima[r.name] for r in KEYING.members)    # (else no IV rule)
+            if problems(candidate) or \
+                    keyed and iv_problem(written, candidate, self.iv_in_use):
                 return self._nak(seq, NakCode.OUT_OF_RANGE, CONSISTENCY)
             self.settings = candidate
             if {r.name for r in KEYING.members} & set(written):

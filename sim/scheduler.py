@@ -168,9 +168,9 @@ def simulate(settings, until, *, updates=(), enable=0, disable=None, restarts=No
     cycle ``enable`` on; if they initialise the source, the run starts
     :data:`~fliss.hdl.settings.KEYED_START_CYCLES` later. An update presenting ``keyed``
     settings while the source is not ready (it initialises now or did recently) stops the run
-    in its cycle (no pulse fires from then on); it starts again once the source is ready, or
-    from an update presenting another mode (and once the laser is off), its pulses counted
-    from 0.
+    in the next cycle (no pulse fires after the update's cycle); it starts again once the
+    source is ready, or a cycle after an update presenting another mode (and once the laser is
+    off), its pulses counted from 0.
 
     Parameters
     ----------
@@ -207,7 +207,7 @@ def simulate(settings, until, *, updates=(), enable=0, disable=None, restarts=No
             cycle, current = updates[next_update]
             next_update += 1
             if not current.keyed:
-                return cycle
+                return cycle + 1        # (the source's mode changes a cycle after the load)
             keystream.load(current, cycle)
             start = keystream.ready_at
         return start
@@ -231,7 +231,7 @@ def simulate(settings, until, *, updates=(), enable=0, disable=None, restarts=No
                 continue
             # The run stops, and starts again once the keystream is ready, or on settings of
             # another mode (the scheduler samples them while stopped).
-            pulses = [pulse for pulse in pulses if pulse[0] < cycle]
+            pulses = [pulse for pulse in pulses if pulse[0] <= cycle]
             first = len(pulses)
             take = start_cycle(stopped(keystream.ready_at), pulses) + 1
         if take >= stop:

@@ -115,13 +115,13 @@ def test_keyed_source_against_model():
             for _ in range(2 if case % 4 == 1 else 1):  # (a second load finds it fresh)
                 ctx.set(dut.load, 1)
                 initialises = restarts.load()
-                busy = 0
+                await ctx.tick()
+                ctx.set(dut.load, 0)
+                busy = 0            # cycles from the load to the first not busy
                 while ctx.get(dut.busy):
                     busy += 1
                     await ctx.tick()
-                if not busy:
-                    await ctx.tick()
-                ctx.set(dut.load, 0)
+                busy += busy > 0
                 waits.append(busy)
                 if initialises != (busy > 0):
                     errors.append(("busy", case, busy))
