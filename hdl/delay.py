@@ -125,16 +125,16 @@ class DelaySource(wiring.Component):
                     taps_in.eq(POLYNOMIALS[MAX_LENGTH] >> 1),
                 ]
         keyed_mask = Signal(MAX_MASK_WIDTH)
-        keyed_width = Signal(range(MAX_MASK_WIDTH + 1))
+        keyed_width = Signal(range(MAX_MASK_WIDTH + 1))     # (sampled by the keyed stream)
+        m.d.comb += keyed_width.eq(Mux((settings.mask_width >= 1) &
+                                       (settings.mask_width <= MAX_MASK_WIDTH),
+                                       settings.mask_width, MAX_MASK_WIDTH))
         with m.If(self.load):
             m.d.sync += [
                 mode.eq(settings.mode),
                 # zero unless masked (keyed): `narrow` is zero then (see the scheduler)
                 mask.eq(Mux(settings.mode == DelayMode.MASKED, mask_in, 0)),
                 keyed_mask.eq(Mux(settings.mode == DelayMode.KEYED, mask_in, 0)),
-                keyed_width.eq(Mux((settings.mask_width >= 1) &
-                                   (settings.mask_width <= MAX_MASK_WIDTH),
-                                   settings.mask_width, MAX_MASK_WIDTH)),
                 taps.eq(taps_in),
             ]
 

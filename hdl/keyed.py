@@ -47,7 +47,8 @@ class KeyedStream(wiring.Component):
         A load of the delay source; ``keyed``: its mode is ``keyed``.
     take : In(1)
     width : In(range(MAX_MASK_WIDTH + 1))
-        Remove ``width`` bits (a delay's worth) from the buffer.
+        Remove ``width`` bits (a delay's worth) from the buffer; ``width`` is sampled on
+        ``load``.
     bits : Out(MAX_MASK_WIDTH)
         The next keystream bits, the first at bit 0.
     busy : Out(1)
@@ -74,12 +75,18 @@ class KeyedStream(wiring.Component):
 
         m.submodules.trivium = trivium = TriviumCore(rounds=KEYED_ROUNDS)
 
-        # When to initialise, and with which IV. `iv_next` follows `iv` a cycle late: bits are
-        # taken only long after an initialisation.
-        # Bit buffer: `level` bits at the bottom of `buffer`, in keystream order
+        # Bit buffer: `level` bits at the bottom of `buffer`, in keystream order. `width` is
+        # sampled on load; `level_w` (`level - width`, the level after a take) and `has_bits`
+        # (`level != 0`) are kept in registers beside `level`, so that a take only selects
+        # between two next states computed from registers.
         buffer = Signal(2 * MAX_MASK_WIDTH)
         level = Signal(range(2 * MAX_MASK_WIDTH + 1))
+        width = Signal.like(self.width)
+        level_w = Signal.like(level)
+        has_bits = Signal()
 
+        # When to initialise, and with which IV. `iv_next` follows `iv` a cycle late: bits are
+        # taken only long after an initialisation.
         pending = Signal(init=1)    # key or IV written since the last initialisation
         used = Signal()             # bits taken since the last initialisation
         iv_next = Signal(IV_BITS)
@@ -93,7 +100,7 @@ class KeyedStream(wiring.Component):
             trivium.iv.eq(start_iv),
             trivium.load.eq(restart),
         ]
-        taking = self.take & (level != 0)
+        taking = self.take & has_bits
         with m.If(taking):
             m.d.sync += used.eq(1)
         with m.If(restart):
@@ -102,21 +109,29 @@ class KeyedStream(wiring.Component):
         with m.If(self.rekey):
             m.d.sync += pending.eq(1)
 
-        removed = Mux(taking, self.width, 0)
-        kept = Signal.like(level)
-        m.d.comb += kept.eq(level - removed)
-        fill = trivium.ready & (kept <= MAX_MASK_WIDTH)
-        m.d.comb += trivium.next.eq(fill)
-        with m.If(restart):
-            m.d.sync += [buffer.eq(0), level.eq(0)]
-        with m.Else():
-            m.d.sync += [
-                buffer.eq((buffer >> removed) | Mux(fill, trivium.z << kept, 0)),
-                level.eq(kept + Mux(fill, KEYED_ROUNDS, 0)),
-            ]
+        width_next = Mux(self.load, self.width, width)
+        m.d.sync += width.eq(width_next)
+        # Next states with and without a take; Trivium fills when 16 bits or fewer would stay
+        fill_t = trivium.ready & (level_w <= MAX_MASK_WIDTH)
+        fill_n = trivium.ready & (level <= MAX_MASK_WIDTH)
+        buffer_t = (buffer >> width) | Mux(fill_t, trivium.z << level_w, 0)
+        buffer_n = buffer | Mux(fill_n, trivium.z << level, 0)
+        level_t = level_w + Mux(fill_t, KEYED_ROUNDS, 0)
+        level_n = level + Mux(fill_n, KEYED_ROUNDS, 0)
+        level_next = Signal.like(level)
+        m.d.comb += [
+            level_next.eq(Mux(restart, 0, Mux(taking, level_t, level_n))),
+            trivium.next.eq(Mux(taking, fill_t, fill_n)),
+        ]
+        m.d.sync += [
+            buffer.eq(Mux(restart, 0, Mux(taking, buffer_t, buffer_n))),
+            level.eq(level_next),
+            level_w.eq(level_next - width_next),
+            has_bits.eq(level_next != 0),
+        ]
         m.d.comb += [
             self.bits.eq(buffer[:MAX_MASK_WIDTH]),
-            self.busy.eq(level == 0),
+            self.busy.eq(~has_bits),
         ]
 
         return m
