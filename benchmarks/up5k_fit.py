@@ -30,6 +30,7 @@ DESIGNS = [
     (DelayCoreProbe,                 "baseline: the delay core alone"),
     ("fliss.boards:fliss_top_spram", "FlissTop, histogram in SPRAM"),
     ("fliss.boards:fliss_top_up5k",  "FlissTop, the iCEBreaker build (SMALL)"),
+    ("fliss.boards:fliss_top_up5k_keyed", "SMALL with the keyed delay source"),
 ]
 
 

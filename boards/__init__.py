@@ -224,6 +224,13 @@ def fliss_top_up5k(clock_hz):
     return FlissTop(clock_hz=clock_hz, **SMALL)
 
 
+def fliss_top_up5k_keyed(clock_hz):
+    """:func:`fliss_top_up5k` with the keyed delay source, to measure whether it fits (it does
+    not: see ``docs/boards.md``)."""
+    from ..hdl.top import FlissTop, SMALL
+    return FlissTop(clock_hz=clock_hz, **{**SMALL, "keyed": True})
+
+
 class PllClocking(Elaboratable):
     """Shared tail of the board clocking: drives the ``sync`` domain (defined by
     :class:`BoardTop`) from the PLL output, and holds its reset until the PLL locks.

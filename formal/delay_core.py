@@ -317,8 +317,8 @@ class SourceHarness(wiring.Component):
         source = self._source(layout=SETTINGS)
         invariants = self._source is DelaySource
         if invariants:
-            m.submodules.source, (s_mode, s_mask, s_taps, s_mseq, s_masked) = internals(
-                source, "mode", "mask", "taps", "mseq", "masked")
+            m.submodules.source, (s_mode, s_mask, s_keyed_mask, s_taps, s_mseq, s_masked) = \
+                internals(source, "mode", "mask", "keyed_mask", "taps", "mseq", "masked")
         else:
             m.submodules.source = source
         m.d.comb += [source.load.eq(self.load), source.settings.eq(self.settings),
@@ -351,6 +351,7 @@ class SourceHarness(wiring.Component):
             # the source's registers agree with the settings of the last load
             m.d.comb += [Assert(s_mode == mode.as_value()), Assert(s_taps == taps),
                          Assert(s_mask == Mux(mode == DelayMode.MASKED, top, 0)),
+                         Assert(s_keyed_mask == 0),     # (the keyed mode is assumed off)
                          Assert(s_mseq <= Mux(mode == DelayMode.MSEQ, top + 1, 1)),
                          # the masked register never holds zero (the m-sequence one holds zero
                          # only standing for 1: `value <= top` below shows it is never 0 - 1)

@@ -94,7 +94,7 @@ class Aggressor(wiring.Component):
     def elaborate(self, platform):
         m = Module()
 
-        m.submodules.core = core = DelayCore(period_width=self.period_width,
+        m.submodules.core = core = DelayCore(keyed=False, period_width=self.period_width,
                                              pulse_width_width=self.pulse_width_width)
 
         # Start offset: a countdown loaded with `offset` while off. `arrived` is registered,

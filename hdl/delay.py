@@ -2,10 +2,11 @@ from amaranth.hdl import Cat, Module, Mux, Signal
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
+from .keyed import Keying, KeyedStream
 from .lfsr import POLYNOMIALS, _galois_step, _galois_steps
 from .registers import DelaySettings
-from .settings import (DelayMode, MAX_LENGTH, MAX_MASK_WIDTH, DELAY_WIDTH, MASKED_LENGTH,
-                       MASKED_STEPS)
+from .settings import (DelayMode, IV_BITS, MAX_LENGTH, MAX_MASK_WIDTH, DELAY_WIDTH,
+                       MASKED_LENGTH, MASKED_STEPS)
 
 
 __all__ = ["DelayMode", "MAX_MASK_WIDTH", "MASKED_LENGTH", "MASKED_STEPS", "DELAY_WIDTH",
@@ -30,7 +31,7 @@ class Delay(data.Struct):
     zero_late: 1
     #: The m-sequence state ``R + 1`` (zero standing for 1), or zero in another mode.
     wide:      DELAY_WIDTH
-    #: The masked delay ``R``, or zero in another mode.
+    #: The masked or keyed delay ``R``, or zero in another mode.
     narrow:    MAX_MASK_WIDTH
 
 
@@ -44,6 +45,9 @@ class DelaySource(wiring.Component):
     ----------
     layout : DelaySettings
         Layout of ``settings`` (that of the delay core around the source).
+    keyed : bool
+        Build the ``KEYED`` source (:class:`~fliss.hdl.keyed.KeyedStream`). Without it, a
+        ``KEYED`` mode gives zero delays (the register file refuses it).
 
     Members
     -------
@@ -58,15 +62,34 @@ class DelaySource(wiring.Component):
     delays : Out(stream.Signature(Delay, always_valid=True))
         Delays in clock cycles, with hints for the scheduler (:class:`Delay`); each transfer
         moves to the next delay.
+    keying : In(Keying)
+        Key and IV of the ``KEYED`` source (only if ``keyed``).
+    rekey : In(1)
+        The key or the IV was written (only if ``keyed``).
+    busy : Out(1)
+        In ``KEYED`` mode, no delay is in hand: the scheduler must not run (it stops, and
+        starts again once ``busy`` falls). A load in ``KEYED`` mode after a key or IV write, or
+        after delays were taken, initialises Trivium again: ``busy`` from the cycle after it
+        until :data:`~fliss.hdl.settings.KEYED_START_CYCLES` cycles after it (a transfer while
+        ``busy`` is ignored). From registers only. Low if not ``keyed``.
+    iv : Out(80)
+        The IV of the ``KEYED`` source in use (only if ``keyed``).
     """
 
-    def __init__(self, *, layout=None):
+    def __init__(self, *, layout=None, keyed=True):
+        if not isinstance(keyed, bool):
+            raise TypeError(f"keyed must be True or False, not {keyed!r}")
         self.layout = DelaySettings() if layout is None else layout
-        super().__init__({
+        self.keyed = keyed
+        ports = {
             "settings": In(self.layout),
             "load":     In(1),
             "delays":   Out(stream.Signature(Delay, always_valid=True)),
-        })
+            "busy":     Out(1),
+        }
+        if keyed:
+            ports.update(keying=In(Keying), rekey=In(1), iv=Out(IV_BITS))
+        super().__init__(ports)
 
     def elaborate(self, platform):
         m = Module()
@@ -101,11 +124,17 @@ class DelaySource(wiring.Component):
                     length_mask_in.eq((1 << MAX_LENGTH) - 1),
                     taps_in.eq(POLYNOMIALS[MAX_LENGTH] >> 1),
                 ]
+        keyed_mask = Signal(MAX_MASK_WIDTH)
+        keyed_width = Signal(range(MAX_MASK_WIDTH + 1))     # (sampled by the keyed stream)
+        m.d.comb += keyed_width.eq(Mux((settings.mask_width >= 1) &
+                                       (settings.mask_width <= MAX_MASK_WIDTH),
+                                       settings.mask_width, MAX_MASK_WIDTH))
         with m.If(self.load):
             m.d.sync += [
                 mode.eq(settings.mode),
-                # zero unless masked: `narrow` is zero then (see the scheduler)
+                # zero unless masked (keyed): `narrow` is zero then (see the scheduler)
                 mask.eq(Mux(settings.mode == DelayMode.MASKED, mask_in, 0)),
+                keyed_mask.eq(Mux(settings.mode == DelayMode.KEYED, mask_in, 0)),
                 taps.eq(taps_in),
             ]
 
@@ -160,6 +189,23 @@ class DelaySource(wiring.Component):
             m.d.sync += masked.eq(masked_next)
         masked_delay = masked[:MAX_MASK_WIDTH] & mask
 
+        # Keyed source: `keyed_width` keystream bits per delay
+        keyed_delay = Signal(MAX_MASK_WIDTH)
+        if self.keyed:
+            m.submodules.keyed = keyed = KeyedStream()
+            m.d.comb += [
+                keyed.keying.eq(self.keying),
+                keyed.rekey.eq(self.rekey),
+                keyed.load.eq(self.load),
+                keyed.keyed.eq(settings.mode == DelayMode.KEYED),
+                keyed.take.eq(advance == DelayMode.KEYED),
+                keyed.width.eq(keyed_width),
+                keyed_delay.eq(keyed.bits & keyed_mask),
+                self.iv.eq(keyed.iv),
+                self.busy.eq(keyed.busy & (mode == DelayMode.KEYED)),
+            ]
+        narrow = masked_delay | keyed_delay
+
         # The register of the other mode is zero (its mask is zero), so that `R == 0` is when
         # both registers read zero.
         mseq_zero_lo = Signal()
@@ -169,8 +215,8 @@ class DelaySource(wiring.Component):
         m.d.sync += [
             mseq_zero_lo.eq((mseq[1:16] == 0) & ~fixing),
             mseq_zero_hi.eq(mseq[16:] == 0),
-            masked_zero.eq(masked_delay == 0),
-            zero_late.eq((mseq[1:] == 0) & (masked_delay == 0) & fresh & self.delays.ready),
+            masked_zero.eq(narrow == 0),
+            zero_late.eq((mseq[1:] == 0) & (narrow == 0) & fresh & self.delays.ready),
         ]
         zero = mseq_zero_lo & mseq_zero_hi & masked_zero & ~fresh
 
@@ -179,14 +225,14 @@ class DelaySource(wiring.Component):
         with m.Switch(mode):
             with m.Case(DelayMode.MSEQ):
                 m.d.comb += delay.value.eq(mseq_state - 1)
-            with m.Case(DelayMode.MASKED):
-                m.d.comb += delay.value.eq(masked_delay)
+            with m.Case(DelayMode.MASKED, DelayMode.KEYED):
+                m.d.comb += delay.value.eq(narrow)
         m.d.comb += [
             delay.kind.eq(mode.as_value()),
             delay.zero.eq(zero),
             delay.zero_late.eq(zero_late),
             delay.wide.eq(mseq),
-            delay.narrow.eq(masked_delay),
+            delay.narrow.eq(narrow),
         ]
 
         return m

@@ -6,9 +6,9 @@ from amaranth.lib.wiring import In, Out
 
 from . import DEFAULT_CLOCK_HZ, lookup
 from .protocol import NakCode
-from .registers import (REGISTERS, GROUPS, DELAY_SETTINGS, settings_layout, defaults,
+from .registers import (REGISTERS, GROUPS, DELAY_SETTINGS, KEYING, settings_layout, defaults,
                         register_maxima)
-from .settings import DelayMode
+from .settings import DelayMode, IV_BITS
 
 
 __all__ = ["RegisterFile"]
@@ -53,7 +53,14 @@ class RegisterFile(wiring.Component):
         Apply the values written.
     read_address : In(range(len(REGISTERS) + 2))
     read_data : Out(32)
-        The register at ``read_address``, as a u32.
+        The register at ``read_address``, as a u32: 0 for a write-only register (the key), the
+        value in use for the IV (``iv``).
+    iv : In(80)
+        The IV in use by the keyed source, read as the IV registers; a WRITE of the IV without
+        the key must put it above this (:func:`~fliss.hdl.registers.iv_problem`), unless the
+        maxima hold the key and IV at 0 (a build without the keyed source).
+    rekey : Out(1)
+        A commit writes the key or the IV (to the keyed source).
     settings : Out(settings_layout(maxima))
         Every register, each as wide as its maximum needs.
     victim, aggressor, aggressor_delay, acquisition, gate, histogram : Out(group.layout(maxima))
@@ -63,6 +70,8 @@ class RegisterFile(wiring.Component):
     def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, maxima=None):
         self.clock_hz = int(clock_hz)
         self.maxima = register_maxima(maxima, self.clock_hz)
+        # Without the keyed source (key and IV held at 0), no IV rule and no `rekey`
+        self._keyed = any(self.maxima[r.name] for r in KEYING.members)
         super().__init__({
             "begin":         In(1),
             "start":         In(1),
@@ -76,6 +85,8 @@ class RegisterFile(wiring.Component):
             "commit":        In(1),
             "read_address":  In(range(len(REGISTERS) + 2)),
             "read_data":     Out(32),
+            "iv":            In(IV_BITS),
+            "rekey":         Out(1),
             "settings":      Out(settings_layout(self.maxima), init=defaults(self.clock_hz)),
             **{group.name: Out(group.layout(self.maxima)) for group in GROUPS},
         })
@@ -96,7 +107,13 @@ class RegisterFile(wiring.Component):
         # Registers as u32 words, in address order
         words = Array(Signal(32, name=f"reg_{r.name}") for r in REGISTERS)
         for register, word in zip(REGISTERS, words):
-            m.d.comb += word.eq(settings[register.name])
+            if register.write_only:
+                continue        # (reads 0)
+            if register.in_use:
+                index = int(register.field[-1])
+                m.d.comb += word.eq(self.iv[32 * index:32 * index + register.width])
+            else:
+                m.d.comb += word.eq(settings[register.name])
         m.d.comb += self.read_data.eq(words[self.read_address])
 
         # A WRITE puts its values in `candidate` and marks them in `written`; the registers it
@@ -168,7 +185,10 @@ class RegisterFile(wiring.Component):
         with m.If(self.begin):
             m.d.sync += [self.error.eq(0), written.eq(0)]
 
-        # Commit
+        # Commit (a build without the keyed source has no key or IV: nothing to tell it)
+        if self._keyed:
+            m.d.comb += self.rekey.eq(self.commit & Cat(written[r.address]
+                                                        for r in KEYING.members).any())
         with m.If(self.commit):
             for register in REGISTERS:
                 with m.If(written[register.address]):
@@ -180,11 +200,11 @@ class RegisterFile(wiring.Component):
             m.d.comb += c[register.name].eq(Mux(written[register.address],
                                                 candidate[register.name],
                                                 settings[register.name]))
-        self._consistency(m, c)
+        self._consistency(m, c, written)
 
         return m
 
-    def _consistency(self, m, c):
+    def _consistency(self, m, c, written):
         # Consistency of the candidate settings `c`, in three registered steps (the largest
         # delays and the seeds' high bits, then the sum for the grid condition); it is needed
         # three cycles after the candidate is complete. The checks of each delay core's group
@@ -202,7 +222,8 @@ class RegisterFile(wiring.Component):
             zero = length == 0
             mseq = Cat(zero, below(length, 34)[1:] | zero.replicate(33))
             return Mux(mode == DelayMode.MSEQ, mseq,
-                       Mux(mode == DelayMode.MASKED, below(mask_width, 31), 0))
+                       Mux((mode == DelayMode.MASKED) | (mode == DelayMode.KEYED),
+                           below(mask_width, 31), 0))
 
         def narrow_less(a, b):
             # `a < b` for a narrower `a`: the high bits of `b` need no carry chain
@@ -215,8 +236,17 @@ class RegisterFile(wiring.Component):
             return Cat(high[k:k + 4].any() for k in range(0, len(high), 4))
 
         simple = [c.gate_start <= c.gate_end]       # in the first step
+        # The IV rule: an IV written without a key goes above the IV in use
+        keying = {r.field: r for r in KEYING.members}
+        iv_written = Cat(written[keying[f"iv{k}"].address] for k in range(3)).any()
+        key_written = Cat(written[keying[f"key{k}"].address] for k in range(3)).any()
+        iv_above = Signal()
+        m.d.sync += iv_above.eq(Cat(c.iv0, c.iv1, c.iv2) > self.iv)
+
         seeds = []                                  # in the second step
         grids = []                                  # in the third step
+        if self._keyed:
+            seeds.append(iv_written & ~key_written & ~iv_above)
         for group in GROUPS:
             if group.settings is not DELAY_SETTINGS:
                 continue

@@ -10,7 +10,8 @@ Registers come in groups (:class:`RegisterGroup`, :data:`GROUPS`) that travel to
 struct to the block that uses them: the victim's and the aggressor's delay cores (both from one
 definition, :data:`DELAY_SETTINGS`, whose layout is :class:`DelaySettings`), the aggressor
 emitter's own settings, the event filter's gate, the histogram's frames, and the top level's
-own choices (acquisition). The link has no settings. A new field of a group is
+own choices (acquisition), and the key and IV of the victim's keyed delay source (keying).
+The link has no settings. A new field of a group is
 added here and used in its block; the register file, its checks and the top level follow.
 
 A definitions module: it imports no gateware (the limits come from :mod:`.settings`).
@@ -22,15 +23,16 @@ from amaranth.lib import data, enum
 
 from . import DEFAULT_PRF_HZ, period_cycles
 from .event import TIMESTAMP_BITS
-from .settings import (DelayMode, MIN_LENGTH, MAX_LENGTH, MAX_MASK_WIDTH, PERIOD_WIDTH,
-                       PULSE_WIDTH_WIDTH)
+from .settings import (DelayMode, IV_BITS, KEY_BITS, MIN_LENGTH, MAX_LENGTH, MAX_MASK_WIDTH,
+                       PERIOD_WIDTH, PULSE_WIDTH_WIDTH)
 
 
 __all__ = ["AcquisitionMode", "TdcSource", "Register", "Setting", "RegisterGroup",
            "DELAY_SETTINGS", "VICTIM", "AGGRESSOR", "AGGRESSOR_DELAY", "ACQUISITION", "GATE",
-           "HISTOGRAM", "GROUPS",
-           "REGISTERS", "BY_NAME", "BY_ADDRESS", "DelaySettings", "settings_layout",
-           "register_maxima", "defaults", "problems", "max_delay"]
+           "HISTOGRAM", "KEYING", "GROUPS",
+           "REGISTERS", "BY_NAME", "BY_ADDRESS", "RECORDED", "DelaySettings", "settings_layout",
+           "register_maxima", "defaults", "problems", "max_delay", "words_of", "value_of",
+           "iv_problem"]
 
 
 class AcquisitionMode(enum.Enum, shape=1):
@@ -55,6 +57,8 @@ class Register:
 
     ``reset`` is a number, or a function of the clock frequency in Hz. ``group`` and ``field``
     place it in a :class:`RegisterGroup`: the register is field ``field`` of the group's struct.
+    ``write_only``: a READ gives 0, and no file records it (the key). ``in_use``: a READ gives
+    the value the board uses, which it may have moved on from the value written (the IV).
     """
     name: str
     address: int
@@ -66,6 +70,8 @@ class Register:
     doc: str
     group: str = ""
     field: str = ""
+    write_only: bool = False
+    in_use: bool = False
 
     def reset_value(self, clock_hz):
         return self.reset(clock_hz) if callable(self.reset) else self.reset
@@ -95,13 +101,18 @@ class RegisterGroup:
 
     ``settings`` are the struct's fields, in order; ``registers`` gives the register that holds
     each field as ``field -> (name, address, reset, doc)``. A field without a register
-    (``fixed``: field -> value) reads as that constant. The register file exposes the group as
-    one port of :meth:`layout`, named ``name``.
+    (``fixed``: field -> value) reads as that constant. ``limits`` lowers the largest value of
+    some fields' registers (field -> maximum); ``write_only`` and ``in_use`` name fields whose
+    registers are so (:class:`Register`). The register file exposes the group as one port of
+    :meth:`layout`, named ``name``.
     """
     name: str
     settings: tuple
     registers: dict
     fixed: dict = field(default_factory=dict)
+    limits: dict = field(default_factory=dict)
+    write_only: frozenset = frozenset()
+    in_use: frozenset = frozenset()
 
     def __post_init__(self):
         names = {setting.name for setting in self.settings}
@@ -112,8 +123,10 @@ class RegisterGroup:
     def members(self):
         """The group's registers, in field order."""
         return tuple(
-            Register(name, address, setting.width, setting.minimum, setting.maximum, reset,
-                     setting.unit, doc, self.name, setting.name)
+            Register(name, address, setting.width, setting.minimum,
+                     self.limits.get(setting.name, setting.maximum), reset, setting.unit, doc,
+                     self.name, setting.name, setting.name in self.write_only,
+                     setting.name in self.in_use)
             for setting in self.settings if setting.name in self.registers
             for name, address, reset, doc in [self.registers[setting.name]])
 
@@ -157,7 +170,7 @@ DELAY_SETTINGS = (
 #: The victim's delay core.
 VICTIM = RegisterGroup("victim", DELAY_SETTINGS, {
     "mode":        ("delay_mode", 0x01, DelayMode.MSEQ.value,
-                    "victim delay source: 0 off, 1 mseq, 2 masked"),
+                    "victim delay source: 0 off, 1 mseq, 2 masked, 3 keyed"),
     "length":      ("length", 0x02, 6, "register length L of the mseq source"),
     "mask_width":  ("mask_width", 0x03, 6, "mask width Wm of the masked source"),
     "seed":        ("seed", 0x04, 1, "seed of the victim delay source (below 2**L for mseq)"),
@@ -167,18 +180,20 @@ VICTIM = RegisterGroup("victim", DELAY_SETTINGS, {
     "pulse_width": ("pulse_width", 0x07, 1, "laser trigger pulse width, shorter than the period"),
 })
 
-#: The aggressor's delay core: the victim's settings, without grid mode.
+#: The aggressor's delay core: the victim's settings, without grid mode, and without the keyed
+#: source (a second Trivium and key would cost as much again for an emulated aggressor, whose
+#: delays need not be secret).
 AGGRESSOR_DELAY = RegisterGroup("aggressor_delay", DELAY_SETTINGS, {
     "period":      ("aggressor_period", 0x09, _period, "aggressor period"),
     "pulse_width": ("aggressor_width", 0x0b, 1,
                     "aggressor trigger pulse width, shorter than its period"),
     "mode":        ("aggressor_delay_mode", 0x0c, DelayMode.OFF.value,
-                    "aggressor's own delay source: 0 off, 1 mseq, 2 masked"),
+                    "aggressor's own delay source: 0 off, 1 mseq, 2 masked (not keyed)"),
     "length":      ("aggressor_length", 0x0d, 6, "register length of the aggressor's mseq source"),
     "mask_width":  ("aggressor_mask_width", 0x0e, 6,
                     "mask width of the aggressor's masked source"),
     "seed":        ("aggressor_seed", 0x0f, 0xACE1, "seed of the aggressor's delay source"),
-}, fixed={"grid": 0})
+}, fixed={"grid": 0}, limits={"mode": DelayMode.MASKED.value})
 
 #: The aggressor emitter's own settings (:class:`~fliss.hdl.aggressor.Aggressor`).
 AGGRESSOR = RegisterGroup("aggressor", (
@@ -219,8 +234,31 @@ HISTOGRAM = RegisterGroup("histogram", (
                     "histogram integration time (10 ms by default)"),
 })
 
+#: Key and IV of the victim's ``keyed`` source (:class:`~fliss.hdl.keyed.KeyedStream`): the
+#: 80-bit integers their printed bytes spell (:mod:`fliss.sim.trivium`), in 32-bit words, least
+#: significant first. The key is write-only. The IV reads as the IV in use (or, stopped, of the
+#: next run); a WRITE of the IV that writes no key must put it above the IV in use, so that
+#: under one key no IV (and so no keystream) is used twice. The IV registers come before the
+#: key's, last in the map: a WRITE of a range of registers that ends below them (any other
+#: setting, or the IV) never rewrites the key with what a READ gave.
+KEYING = RegisterGroup("keying", (
+    Setting("iv0",  32,           0, _U32),
+    Setting("iv1",  32,           0, _U32),
+    Setting("iv2",  IV_BITS - 64, 0, (1 << (IV_BITS - 64)) - 1),
+    Setting("key0", 32,           0, _U32),
+    Setting("key1", 32,           0, _U32),
+    Setting("key2", KEY_BITS - 64, 0, (1 << (KEY_BITS - 64)) - 1),
+), {
+    "iv0":  ("iv0", 0x15, 0, "IV of the keyed source, bits 0-31 (reads: the IV in use)"),
+    "iv1":  ("iv1", 0x16, 0, "IV of the keyed source, bits 32-63"),
+    "iv2":  ("iv2", 0x17, 0, "IV of the keyed source, bits 64-79"),
+    "key0": ("key0", 0x18, 0, "key of the keyed source, bits 0-31 (write-only: reads 0)"),
+    "key1": ("key1", 0x19, 0, "key of the keyed source, bits 32-63 (write-only)"),
+    "key2": ("key2", 0x1a, 0, "key of the keyed source, bits 64-79 (write-only)"),
+}, write_only=frozenset({"key0", "key1", "key2"}), in_use=frozenset({"iv0", "iv1", "iv2"}))
+
 #: Every group; the link has no settings, so it has no group.
-GROUPS = (VICTIM, AGGRESSOR, AGGRESSOR_DELAY, ACQUISITION, GATE, HISTOGRAM)
+GROUPS = (VICTIM, AGGRESSOR, AGGRESSOR_DELAY, ACQUISITION, GATE, HISTOGRAM, KEYING)
 
 #: The registers, in address order.
 REGISTERS = tuple(sorted((r for group in GROUPS for r in group.members),
@@ -228,6 +266,9 @@ REGISTERS = tuple(sorted((r for group in GROUPS for r in group.members),
 
 BY_NAME = {register.name: register for register in REGISTERS}
 BY_ADDRESS = {register.address: register for register in REGISTERS}
+
+#: The registers a file records: all but the write-only ones (the key).
+RECORDED = tuple(register for register in REGISTERS if not register.write_only)
 
 assert [register.address for register in REGISTERS] == list(range(len(REGISTERS)))
 assert AcquisitionMode.HISTOGRAM.value == BY_NAME["acquisition"].reset
@@ -293,11 +334,34 @@ def defaults(clock_hz):
     return {register.name: register.reset_value(clock_hz) for register in REGISTERS}
 
 
+def words_of(value, prefix):
+    """The registers (``prefix`` 0, 1, 2: ``"key"`` or ``"iv"``) of an 80-bit key or IV."""
+    return {f"{prefix}{k}": (value >> (32 * k)) & _U32 for k in range(3)}
+
+
+def value_of(values, prefix):
+    """The 80-bit key or IV of its registers (``prefix`` ``"key"`` or ``"iv"``) in ``values``."""
+    return sum(values[f"{prefix}{k}"] << (32 * k) for k in range(3))
+
+
+def iv_problem(written, values, iv_in_use):
+    """The IV rule, as a message or None: a WRITE of the registers named in ``written`` that
+    writes the IV (to ``values``) and no key must put the IV above ``iv_in_use``."""
+    writes = set(written)
+    if not writes & {"iv0", "iv1", "iv2"} or writes & {"key0", "key1", "key2"}:
+        return None
+    iv = value_of(values, "iv")
+    if iv > iv_in_use:
+        return None
+    return (f"the IV ({iv:#022x}) must be above the IV in use ({iv_in_use:#022x}) unless a "
+            f"new key is written with it: under one key no IV is used twice")
+
+
 def max_delay(mode, length, mask_width):
     """Largest delay of a delay source, in cycles (as the gateware computes it)."""
     if mode == DelayMode.MSEQ.value:
         return (1 << length) - 2
-    if mode == DelayMode.MASKED.value:
+    if mode in (DelayMode.MASKED.value, DelayMode.KEYED.value):
         return (1 << mask_width) - 1
     return 0
 

@@ -9,6 +9,7 @@ from amaranth.lib import enum
 
 
 __all__ = ["MIN_LENGTH", "MAX_LENGTH", "MAX_MASK_WIDTH", "MASKED_LENGTH", "MASKED_STEPS",
+           "KEY_BITS", "IV_BITS", "KEYED_ROUNDS", "KEYED_INIT_CYCLES", "KEYED_START_CYCLES",
            "DELAY_WIDTH", "PERIOD_WIDTH",
            "PULSE_WIDTH_WIDTH", "DelayMode", "check_widths"]
 
@@ -27,6 +28,24 @@ MASKED_LENGTH = 32
 #: consecutive delays are taken from fresh register bits rather than from shifted copies of the
 #: previous delay; 16 is coprime with ``2**32 - 1``, so the sequence still has the full period.
 MASKED_STEPS = 16
+
+#: Key and IV of the ``keyed`` source (Trivium), in bits.
+KEY_BITS = 80
+IV_BITS = 80
+
+#: Trivium rounds per clock cycle of the ``keyed`` source: keystream bits made per cycle. Pulses
+#: are at least two cycles apart and take at most ``MAX_MASK_WIDTH`` bits, so 8 would do; 16
+#: keeps a full delay in hand at every rate.
+KEYED_ROUNDS = 16
+
+#: Cycles of the 1152 initialisation rounds (4 x 288) at ``KEYED_ROUNDS`` a cycle.
+KEYED_INIT_CYCLES = 4 * 288 // KEYED_ROUNDS
+
+#: Longest wait of a run start for the keyed source, in cycles: from the cycle of the load that
+#: (re)keys it to the first cycle in which the scheduler may run (load, initialisation, first
+#: 16 keystream bits). The first pulse comes at most this many cycles later than it would in
+#: another mode (measured in ``tests/test_keyed.py``).
+KEYED_START_CYCLES = KEYED_INIT_CYCLES + 2
 
 #: Width of a delay, in bits.
 DELAY_WIDTH = MAX_LENGTH
@@ -48,6 +67,10 @@ class DelayMode(enum.Enum, shape=2):
     #: The ``Wm`` least significant bits of a 32-bit register that takes ``MASKED_STEPS`` steps per
     #: pulse; delay from ``0`` to ``2**Wm - 1``.
     MASKED = 2
+    #: The Trivium keystream of an 80-bit key and IV (:mod:`fliss.sim.trivium`): pulse ``k``'s
+    #: delay is the ``Wm``-bit integer whose bit ``j`` is keystream bit ``z(k Wm + j + 1)``;
+    #: delay from ``0`` to ``2**Wm - 1``, as ``MASKED``.
+    KEYED  = 3
 
 
 def check_widths(period_width, pulse_width_width):

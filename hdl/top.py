@@ -1,5 +1,5 @@
 from amaranth.hdl import Module, Mux
-from amaranth.lib import wiring
+from amaranth.lib import data, wiring
 from amaranth.lib.wiring import In, Out
 
 from . import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, period_cycles
@@ -11,11 +11,13 @@ from .core import DelayCore
 from .event import TIMESTAMP_BITS, ADDRESS_BITS
 from .framing import FrameDecoder, FrameEncoder
 from .histogram import Histogram, RAM_KINDS
+from .keyed import Keying
 from .packetizer import EventPacketizer, HistogramPacketizer
 from .protocol import DEFAULT_BAUD
 from .rawfifo import RawFifo
-from .registers import VICTIM, AGGRESSOR, AGGRESSOR_DELAY, AcquisitionMode, TdcSource
-from .settings import PERIOD_WIDTH, PULSE_WIDTH_WIDTH, check_widths
+from .registers import (VICTIM, AGGRESSOR, AGGRESSOR_DELAY, KEYING, AcquisitionMode,
+                        TdcSource)
+from .settings import DelayMode, PERIOD_WIDTH, PULSE_WIDTH_WIDTH, check_widths
 from .status import StatusCounters, LINK_FIELDS
 from .tdc import EventFilter, TdcInterface, CoarseTdc
 from .uart import UartRx, UartTx, bit_cycles
@@ -25,10 +27,11 @@ __all__ = ["DEFAULT_BAUD", "SMALL", "FlissTop"]
 
 
 #: Options of :class:`FlissTop` for the smallest build, which fits an iCE40UP5K (the
-#: iCEBreaker's FPGA): histograms only, in single-port RAM; no aggressor emitter; periods up to
-#: 2**24 - 1 cycles (0.47 s at 36 MHz, the iCEBreaker's clock) and pulses up to 255 cycles.
-SMALL = dict(histogram_ram="single", aggressor=False, raw_events=False, period_width=24,
-             pulse_width_width=8)
+#: iCEBreaker's FPGA): histograms only, in single-port RAM; no aggressor emitter; no keyed
+#: delay source; periods up to 2**24 - 1 cycles (0.47 s at 36 MHz, the iCEBreaker's clock) and
+#: pulses up to 255 cycles.
+SMALL = dict(histogram_ram="single", aggressor=False, raw_events=False, keyed=False,
+             period_width=24, pulse_width_width=8)
 
 
 class FlissTop(wiring.Component):
@@ -63,6 +66,10 @@ class FlissTop(wiring.Component):
     raw_events : bool
         Build raw-event mode (the event FIFO and the EVENTS packetizer). Without it, a write of
         ``acquisition`` other than 0 (histograms) is refused as out of range.
+    keyed : bool
+        Build the victim's keyed delay source (Trivium, :class:`~fliss.hdl.keyed.KeyedStream`).
+        Without it, a write of ``delay_mode`` 3 (keyed), or of a key or IV other than 0, is
+        refused as out of range.
 
     Smaller builds answer every command as the full one does, except for the refusals above:
     the host finds what is missing from a NAK ``OUT_OF_RANGE`` with the register's address.
@@ -102,7 +109,7 @@ class FlissTop(wiring.Component):
 
     def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, baud=DEFAULT_BAUD, raw_depth=512,
                  histogram_ram="dual", aggressor_delays=True, aggressor=True,
-                 raw_events=True, period_width=PERIOD_WIDTH,
+                 raw_events=True, keyed=True, period_width=PERIOD_WIDTH,
                  pulse_width_width=PULSE_WIDTH_WIDTH):
         self.clock_hz = clock_hz
         self.baud = baud
@@ -113,12 +120,13 @@ class FlissTop(wiring.Component):
             raise ValueError(f"Histogram RAM must be one of {', '.join(map(repr, RAM_KINDS))}, "
                              f"not {histogram_ram!r}")
         for name, value in (("aggressor_delays", aggressor_delays), ("aggressor", aggressor),
-                            ("raw_events", raw_events)):
+                            ("raw_events", raw_events), ("keyed", keyed)):
             if not isinstance(value, bool):
                 raise TypeError(f"{name} must be True or False, not {value!r}")
         self.aggressor = aggressor
         self.aggressor_delays = aggressor_delays and aggressor
         self.raw_events = raw_events
+        self.keyed = keyed
         check_widths(period_width, pulse_width_width)
         self.period_width = period_width
         self.pulse_width_width = pulse_width_width
@@ -145,6 +153,10 @@ class FlissTop(wiring.Component):
             maxima[AGGRESSOR_DELAY.register("mode").name] = 0
         if not self.raw_events:
             maxima["acquisition"] = AcquisitionMode.HISTOGRAM.value
+        if not self.keyed:
+            maxima[VICTIM.register("mode").name] = DelayMode.MASKED.value
+            for register in KEYING.members:
+                maxima[register.name] = 0
         return maxima
 
     def elaborate(self, platform):
@@ -183,7 +195,8 @@ class FlissTop(wiring.Component):
         # Victim: delay source, scheduler, laser trigger and TDC start
         m.submodules.core = core = DelayCore(clock_hz=self.clock_hz,
                                              period_width=self.period_width,
-                                             pulse_width_width=self.pulse_width_width)
+                                             pulse_width_width=self.pulse_width_width,
+                                             keyed=self.keyed)
         m.d.comb += [
             core.enable.eq(running),
             core.update.eq(command.update),
@@ -191,6 +204,13 @@ class FlissTop(wiring.Component):
             self.laser.eq(core.laser),
             self.tdc_start.eq(core.tdc_start),
         ]
+        if self.keyed:
+            m.d.comb += [
+                *(core.keying[name].eq(registers.keying[name])
+                  for name, _ in data.Layout.cast(Keying)),
+                core.rekey.eq(registers.rekey),
+                registers.iv.eq(core.iv),
+            ]
 
         # Aggressor
         if self.aggressor:

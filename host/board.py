@@ -31,7 +31,7 @@ from typing import Any, Iterator, Mapping, Optional
 import numpy as np
 
 from ..hdl.protocol import DEFAULT_BAUD, HISTOGRAM_COUNT_BITS
-from ..hdl.registers import AcquisitionMode
+from ..hdl.registers import BY_NAME, AcquisitionMode
 from ..sim.event import EVENT_DTYPE
 from .client import BoardClient, IdentityInfo
 from .errors import BoardLost, BoardMismatch, SettingsError
@@ -277,7 +277,9 @@ class Board:
         if conversion.changes:
             self.client.write_registers(conversion.changes, current=current)
             kept = self.client.read_registers(list(conversion.changes))
-            lost = [name for name, value in conversion.changes.items() if kept[name] != value]
+            # The key reads 0 (write-only) and the IV reads as the IV in use.
+            lost = [name for name, value in conversion.changes.items() if kept[name] != value
+                    and not BY_NAME[name].write_only and not BY_NAME[name].in_use]
             if lost:
                 raise BoardMismatch(f"the board on {self.port} did not keep {', '.join(lost)}")
         return conversion

@@ -4,7 +4,7 @@ import sys
 
 from ..hdl.delay import DelayMode
 from ..hdl.event import TDC_LSB_S
-from ..hdl.registers import REGISTERS, AcquisitionMode, TdcSource
+from ..hdl.registers import REGISTERS, BY_NAME, AcquisitionMode, TdcSource, value_of
 from .port_options import add_port_arguments, connect
 from .setting_options import add_setting_arguments, settings_from_args
 from .units import format_frequency, format_time
@@ -44,6 +44,10 @@ def describe(name, value, settings, clock_hz):
         return f"{1 << value} codes per bin"
     if name in ("seed", "aggressor_seed"):
         return f"{value:#x}"
+    if BY_NAME[name].write_only:
+        return "write-only"
+    if name == "iv0":
+        return f"IV in use {value_of(settings, 'iv'):#022x}"
     return ""
 
 
@@ -58,6 +62,9 @@ def register(subparsers, formatter):
                     "board's clock frequency from its identity.")
     add_port_arguments(parser)
     add_setting_arguments(parser, SETTINGS_TITLE)
+    parser.add_argument("--show-key", action="store_true",
+                        help="print the key written by --key (a random one is otherwise never "
+                             "shown)")
     parser.set_defaults(run=run)
 
 
@@ -72,9 +79,11 @@ def run(args):
     with connect(args) as board:
         _warn_if_running(board)
         clock_hz = board.clock_hz
-        changes = board.configure(settings_from_args(args), style="flag").changes
-        current = board.registers
+        conversion = board.configure(settings_from_args(args), style="flag")
+        changes, current = conversion.changes, board.registers
     identity = board.identity
+    if args.show_key and "key0" in changes:
+        print(f"key {value_of(changes, 'key'):020x}")
     print(f"board on {args.port}: gateware {identity.gateware_version}, protocol "
           f"{identity.protocol}, clock {format_frequency(clock_hz)}, "
           f"{identity.baud} baud")

@@ -7,6 +7,7 @@ import numpy as np
 from ..hdl import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, period_cycles
 from ..sim import delay as delay_model
 from ..sim import scheduler as scheduler_model
+from ..sim import trivium
 from .cli import UserError
 from .units import parse_frequency, format_frequency
 
@@ -61,12 +62,17 @@ def register(subparsers, formatter):
         description="One delay in clock cycles per line, exactly as the gateware produces them "
                     "after a start; with --times, the cycle of each laser rising edge counted "
                     "from the first frame.")
-    parser.add_argument("--mode", default="mseq", choices=["off", "mseq", "masked"],
+    parser.add_argument("--mode", default="mseq", choices=["off", "mseq", "masked", "keyed"],
                         help="delay source")
     parser.add_argument("--length", type=int, default=6, metavar="L",
                         help="register length of the mseq source, 2 to 32")
     parser.add_argument("--mask-width", type=int, default=6, metavar="W",
-                        help="mask width of the masked source, 1 to 16")
+                        help="mask width of the masked or keyed source, 1 to 16")
+    parser.add_argument("--key", metavar="HEX",
+                        help="key of the keyed source (20 hex digits, as the test vectors print "
+                             "it)")
+    parser.add_argument("--iv", metavar="HEX",
+                        help="IV of the keyed source: the IV in use, as the board reads it")
     parser.add_argument("--seed", type=lambda text: int(text, 0), default=1, metavar="S",
                         help="non-zero register seed (decimal or 0x hex)")
     parser.add_argument("--count", type=int, default=16, metavar="N", help="number of pulses")
@@ -124,10 +130,16 @@ def run_sequence(args):
     if args.count < 0:
         raise UserError(f"--count must not be negative, not {args.count}")
     try:
+        keyed = {}
+        if args.mode == "keyed":
+            if args.key is None or args.iv is None:
+                raise ValueError("--mode keyed needs --key and --iv")
+            keyed = dict(key=trivium.parse_hex(args.key, "key"),
+                         iv=trivium.parse_hex(args.iv, "IV"))
         settings = scheduler_model.Settings(
             mode=delay_model.parse_mode(args.mode), length=args.length,
             mask_width=args.mask_width, seed=args.seed, period=period, grid=args.grid,
-            pulse_width=args.pulse_width).check()
+            pulse_width=args.pulse_width, **keyed).check()
         delays = settings.delays(args.count)
     except ValueError as error:
         raise UserError(str(error)) from None

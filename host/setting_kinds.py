@@ -10,17 +10,19 @@ caller spelled it.
 
 import operator
 import re
+import secrets
 from dataclasses import dataclass, field
 from typing import Any, Callable, Dict, List, Mapping
 
 from ..hdl.event import TDC_LSB_S
-from ..hdl.registers import BY_NAME, TdcSource
+from ..hdl.registers import BY_NAME, TdcSource, value_of, words_of
+from ..sim.trivium import as_int, parse_hex
 from .errors import SettingsError
 from .units import format_frequency, format_time, parse_frequency, parse_time
 
 
-__all__ = ["Kind", "Context", "WHOLE", "CHOICE", "TIME", "FREQUENCY", "GATE", "refuse", "code_s",
-           "exact_time", "exact_frequency"]
+__all__ = ["Kind", "Context", "WHOLE", "CHOICE", "TIME", "FREQUENCY", "GATE", "KEY", "IV",
+           "refuse", "code_s", "exact_time", "exact_frequency"]
 
 #: Relative difference below which a value counts as a whole number of cycles (no note).
 _EXACT = 1e-6
@@ -213,11 +215,49 @@ def _show_gate(option, registers, clock_hz):
     return exact_time(registers[option.register] * code_s(registers, clock_hz))
 
 
+def _eighty_bits(option, value, context, what):
+    # A key or IV: hex text as the test vectors print it, 10 bytes, or an 80-bit integer.
+    try:
+        if isinstance(value, str):
+            return parse_hex(value, what)
+        return as_int(value, what)
+    except ValueError as error:
+        refuse(option, value, context, str(error))
+
+
+def _convert_key(option, value, context):
+    """The key registers (write-only); ``"random"`` draws the key from the operating system's
+    generator (:mod:`secrets`). The key is never shown; the caller finds it in the changes."""
+    if isinstance(value, str) and value.strip().lower() == "random":
+        key = int.from_bytes(secrets.token_bytes(10), "big")
+    else:
+        key = _eighty_bits(option, value, context, "key")
+    return words_of(key, "key")
+
+
+def _convert_iv(option, value, context):
+    """The IV registers. Writing the IV in use again changes nothing (so that a board's
+    settings go back unchanged); another IV must be above it unless a key is written too
+    (the register file refuses it otherwise: under one key no IV is used twice)."""
+    iv = _eighty_bits(option, value, context, "IV")
+    if iv == value_of(context.registers, "iv"):
+        return {}
+    return words_of(iv, "iv")
+
+
+def _show_iv(option, registers, clock_hz):
+    return f"{value_of(registers, 'iv'):020x}"
+
+
 WHOLE = Kind(_convert_whole, lambda option, registers, clock_hz: registers[option.register])
 CHOICE = Kind(_convert_choice, _show_choice)
 TIME = Kind(_convert_time, _show_time)
 FREQUENCY = Kind(_convert_frequency, _show_frequency)
 GATE = Kind(_convert_gate, _show_gate)
+#: 80 bits in three registers, never shown (write-only).
+KEY = Kind(_convert_key, lambda option, registers, clock_hz: None)
+#: 80 bits in three registers; shows the IV in use.
+IV = Kind(_convert_iv, _show_iv)
 
 def exact_time(seconds: float) -> str:
     """A time as text with an SI prefix and every digit that matters (``"154.3125 µs"``), so

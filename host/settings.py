@@ -26,11 +26,11 @@ from typing import Any, Dict, List, Mapping, Optional, Tuple
 import numpy as np
 
 from ..hdl.event import TIMESTAMP_BITS
-from ..hdl.registers import BY_NAME, AcquisitionMode, TdcSource, problems
+from ..hdl.registers import BY_NAME, AcquisitionMode, TdcSource, iv_problem, problems, value_of
 from ..hdl.settings import DelayMode
 from .errors import SettingsError
-from .setting_kinds import (CHOICE, FREQUENCY, GATE, TIME, WHOLE, Context, Kind, code_s,
-                            exact_frequency, exact_time)
+from .setting_kinds import (CHOICE, FREQUENCY, GATE, IV, KEY, TIME, WHOLE, Context, Kind,
+                            code_s, exact_frequency, exact_time)
 from .units import format_time, parse_time
 
 
@@ -116,6 +116,11 @@ OPTIONS: Tuple[Option, ...] = (
     Option("bin_shift", "bin_shift", WHOLE, "histogram bins are 2**N codes wide", "N"),
     Option("integration", "integration", TIME, "histogram integration time (10ms), and raw "
            "block length", "TIME"),
+    Option("key", "key0", KEY, "key of the keyed source: 20 hex digits as the test vectors print "
+           "it, or random (from the operating system's generator); write-only on the board, "
+           "never shown", "HEX|random", shown=False),
+    Option("iv", "iv0", IV, "IV of the keyed source (20 hex digits); reads as the IV in use, "
+           "and a new IV must be above it unless a new key is given too", "HEX"),
 )
 
 #: The options by name.
@@ -200,6 +205,9 @@ def convert(settings: Mapping[str, Any], clock_hz: int, current: Mapping[str, in
             changes[register] = value
             context.registers[register] = value
     found = _problems(context.registers, labels, context.clock_hz)
+    iv = iv_problem(changes, context.registers, value_of(current, "iv"))
+    if iv:
+        found.append(f"{BY_OPTION['iv'].label(style)}: {iv} (give a higher IV or a new key)")
     if found:
         raise SettingsError("; ".join(found))
     return Conversion(changes, context.registers, context.notes)

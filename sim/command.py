@@ -3,8 +3,11 @@
 from ..hdl.protocol import (PROTOCOL_VERSION, GATEWARE_MAJOR, GATEWARE_MINOR, PacketType,
                             NakCode, Identity, Nak, ReadRequest, Status, STATUS_FIELDS,
                             READ_MAX, CONSISTENCY, REGISTER_BYTES, registers_layout)
-from ..hdl.registers import REGISTERS, BY_ADDRESS, defaults, problems, register_maxima
+from ..hdl.registers import (REGISTERS, BY_ADDRESS, KEYING, defaults, problems,
+                             register_maxima, iv_problem, value_of, words_of)
+from ..hdl.settings import DelayMode
 from .codec import pack, unpack, byte_size, unpack_words
+from .delay import KeyedRestarts
 
 
 __all__ = ["CommandModel", "identity_bytes"]
@@ -22,15 +25,40 @@ class CommandModel:
     :meth:`command` takes a packet ``(type, seq, payload)`` and returns the reply
     ``(type, payload)``; :meth:`link_error` the reply to a dropped frame. ``maxima`` lowers
     register maxima as in :class:`~fliss.hdl.command.CommandProcessor`.
+
+    ``keyed_source``: the board has a delay core with the keyed source (a whole board; not the
+    command side alone, whose IV in use stays 0). The IV registers read its IV in use
+    (:attr:`restarts`, :class:`~fliss.sim.delay.KeyedRestarts`); a run in keyed mode is taken
+    to use its keystream (commands take far longer than a start).
     """
 
-    def __init__(self, clock_hz, baud, maxima=None):
+    def __init__(self, clock_hz, baud, maxima=None, keyed_source=False):
         self.clock_hz, self.baud = clock_hz, baud
         self.maxima = register_maxima(maxima, clock_hz)
         self.settings = defaults(clock_hz)
         self.running = False
         self.commands = 0
         self.refused = 0
+        self.keyed_source = keyed_source
+        self.restarts = KeyedRestarts()
+
+    @property
+    def iv_in_use(self):
+        return self.restarts.iv if self.keyed_source else 0
+
+    def _keyed_load(self):
+        # A load of the delay source (every cycle while stopped, on update while running)
+        if self.keyed_source and self.settings["delay_mode"] == DelayMode.KEYED.value:
+            self.restarts.load()
+            if self.running:
+                self.restarts.take()
+
+    def _read(self, register):
+        if register.write_only:
+            return 0
+        if register.in_use:
+            return words_of(self.iv_in_use, "iv")[register.name]
+        return self.settings[register.name]
 
     def _nak(self, seq, code, detail=0):
         self.refused += 1
@@ -51,6 +79,7 @@ class CommandModel:
             return PacketType.IDENTITY, identity_bytes(self.clock_hz, self.baud)
         if type in (PacketType.START.value, PacketType.STOP.value):
             self.running = type == PacketType.START.value
+            self._keyed_load()
             return PacketType.ACK, bytes([seq])
         if type == PacketType.GET_STATUS.value:
             counters = dict.fromkeys(STATUS_FIELDS, 0)
@@ -65,7 +94,7 @@ class CommandModel:
             address, count = request["address"], request["count"]
             if count == 0 or count > READ_MAX or address + count > len(REGISTERS):
                 return self._nak(seq, NakCode.BAD_ADDRESS, address)
-            values = [self.settings[REGISTERS[address + k].name] for k in range(count)]
+            values = [self._read(REGISTERS[address + k]) for k in range(count)]
             return PacketType.REGISTERS, pack(registers_layout(count), address=address,
                                               values=values)
         if type == PacketType.WRITE.value:
@@ -75,6 +104,7 @@ class CommandModel:
             address = unpack(registers_layout(0), payload[:start])["address"]
             values = unpack_words(payload, offset=start)
             candidate = dict(self.settings)
+            written = []
             for offset, value in enumerate(values):
                 register = BY_ADDRESS.get((address + offset) & 0xffff)
                 if register is None:
@@ -82,8 +112,14 @@ class CommandModel:
                 if not register.minimum <= value <= self.maxima[register.name]:
                     return self._nak(seq, NakCode.OUT_OF_RANGE, register.address)
                 candidate[register.name] = value
-            if problems(candidate):
+                written.append(register.name)
+            keyed = any(self.maxima[r.name] for r in KEYING.members)    # (else no IV rule)
+            if problems(candidate) or \
+                    keyed and iv_problem(written, candidate, self.iv_in_use):
                 return self._nak(seq, NakCode.OUT_OF_RANGE, CONSISTENCY)
             self.settings = candidate
+            if {r.name for r in KEYING.members} & set(written):
+                self.restarts.write(key=value_of(candidate, "key"), iv=value_of(candidate, "iv"))
+            self._keyed_load()
             return PacketType.ACK, bytes([seq])
         return self._nak(seq, NakCode.UNKNOWN_TYPE, type)

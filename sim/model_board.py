@@ -35,7 +35,7 @@ from ..hdl.event import TIMESTAMP_BITS
 from ..hdl.protocol import (HISTOGRAM_COUNT_BITS, CHUNK_BINS, DEFAULT_BAUD, PacketType,
                             HistogramChunk, STATUS_FIELDS, LINK_COUNTERS, MAX_EVENTS_PER_PACKET,
                             EVENT_BYTES)
-from ..hdl.registers import AcquisitionMode, TdcSource
+from ..hdl.registers import AcquisitionMode, TdcSource, value_of, words_of
 from .codec import LinkError, Packet, encode_frame, pack, pack_events, pack_words
 from . import scheduler as _scheduler
 from .command import CommandModel
@@ -63,7 +63,8 @@ def scene_for(settings, template=None, *, aggressor_detections_per_pulse=0.05, c
     s = settings
     victim = _scheduler.Settings(mode=DelayMode(s["delay_mode"]), length=s["length"],
                                  mask_width=s["mask_width"], seed=s["seed"], period=s["period"],
-                                 grid=bool(s["grid"]), pulse_width=s["pulse_width"])
+                                 grid=bool(s["grid"]), pulse_width=s["pulse_width"],
+                                 key=value_of(s, "key"), iv=value_of(s, "iv"))
     aggressors = ()
     if s["aggressor"]:
         mode = DelayMode(s["aggressor_delay_mode"])
@@ -123,7 +124,7 @@ class ModelBoard(PtyServer):
         self.protocol_version = protocol_version
         self.line_limited = line_limited
         self.maxima = maxima
-        self.model = CommandModel(self.clock_hz, self.baud, maxima=maxima)
+        self.model = CommandModel(self.clock_hz, self.baud, maxima=maxima, keyed_source=True)
         self.status = dict.fromkeys(STATUS_FIELDS, 0)
         #: Acquisitions started so far (each START while stopped).
         self.starts = 0
@@ -157,7 +158,8 @@ class ModelBoard(PtyServer):
         self.model.running = False
 
     def _reset(self):
-        self.model = CommandModel(self.clock_hz, self.baud, maxima=self.maxima)
+        self.model = CommandModel(self.clock_hz, self.baud, maxima=self.maxima,
+                                  keyed_source=True)
         self.status = dict.fromkeys(STATUS_FIELDS, 0)
         self._frame = 0
         self._frame_counts = None
@@ -189,7 +191,8 @@ class ModelBoard(PtyServer):
     # Acquisition
 
     def _begin(self, now):
-        settings = self.model.settings
+        # (the keyed source runs with the IV in use)
+        settings = {**self.model.settings, **words_of(self.model.iv_in_use, "iv")}
         self.settings = dict(settings)
         scene = scene_for(settings, self.template,
                           aggressor_detections_per_pulse=self.aggressor_detections_per_pulse,

@@ -66,7 +66,8 @@ class EdgeSchedule:
             self._delays = MaskedDelays(settings.mask_width, settings.seed, block)
         else:
             self._delays = DelayStream(settings.mode, length=settings.length,
-                                       mask_width=settings.mask_width, seed=settings.seed)
+                                       mask_width=settings.mask_width, seed=settings.seed,
+                                       key=settings.key, iv=settings.iv)
         self._take = 0
         self._block = block
         self._pattern = None

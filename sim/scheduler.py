@@ -12,8 +12,9 @@ from fractions import Fraction
 import numpy as np
 
 from ..hdl.laser import LATENCY
-from ..hdl.settings import PERIOD_WIDTH, PULSE_WIDTH_WIDTH
+from ..hdl.settings import KEYED_START_CYCLES, PERIOD_WIDTH, PULSE_WIDTH_WIDTH
 from . import delay as _delay
+from . import trivium as _trivium
 
 
 __all__ = ["LATENCY", "Settings", "check_schedule", "frame_lengths", "fire_cycles",
@@ -84,19 +85,68 @@ class Settings:
     period: int = 80
     grid: bool = False
     pulse_width: int = 1
+    #: Key and IV of the ``keyed`` source (80-bit integers), as written.
+    key: int = 0
+    iv: int = 0
 
     def check(self):
         """Raise :exc:`ValueError` unless the settings are valid together."""
         mode = _delay.check_settings(self.mode, length=self.length, mask_width=self.mask_width,
-                                     seed=self.seed)
+                                     seed=self.seed, key=self.key, iv=self.iv)
         check_schedule(self.period, self.pulse_width, grid=self.grid,
                        max_delay=_delay.max_delay(mode, length=self.length,
                                                   mask_width=self.mask_width))
         return self
 
+    @property
+    def keyed(self):
+        return _delay.parse_mode(self.mode) == _delay.DelayMode.KEYED
+
     def delays(self, count):
         return _delay.delays(self.mode, count, length=self.length, mask_width=self.mask_width,
-                             seed=self.seed)
+                             seed=self.seed, key=self.key, iv=self.iv)
+
+
+class _Keystream:
+    """The ``keyed`` source's keystream as the gateware keeps it across loads: delays of any
+    width from one Trivium stream, restarted by :class:`~fliss.sim.delay.KeyedRestarts`."""
+
+    def __init__(self, restarts):
+        self.restarts = restarts
+        self._stream = None
+        self._first_take = None     # cycle of the first take since the initialisation
+        #: First cycle in which the scheduler may run with the keystream (not busy).
+        self.ready_at = None
+
+    def load(self, settings, cycle):
+        """A load in ``keyed`` mode with ``settings`` in ``cycle``; True if it initialises."""
+        restarts = self.restarts
+        if (settings.key, settings.iv) != (restarts.key, restarts.written_iv):
+            restarts.write(key=settings.key, iv=settings.iv)
+        # (a take in the load's cycle is not yet a use: the gateware's flag is a register)
+        just_used = self._first_take == cycle
+        if just_used:
+            restarts._used = False
+        initialises = restarts.load()
+        if initialises or self._stream is None:
+            # (a stream not initialised here was, before the run, with the IV in use)
+            self._stream = _trivium.Trivium(restarts.key, restarts.iv)
+            self._first_take = None
+        if initialises:
+            self.ready_at = cycle + KEYED_START_CYCLES
+        elif just_used:
+            restarts._used = True
+        return initialises
+
+    def take(self, width, cycle):
+        if not self.restarts._used:
+            self._first_take = cycle
+        self.restarts.take()
+        bits = self._stream.bits(width)
+        return int((bits.astype(np.int64) << np.arange(width)).sum())
+
+    def busy(self, cycle):
+        return self.ready_at is not None and cycle < self.ready_at
 
 
 def start_cycle(enable, pulses):
@@ -109,8 +159,18 @@ def start_cycle(enable, pulses):
     return max(enable, laser_off)
 
 
-def simulate(settings, until, *, updates=(), enable=0, disable=None):
+def simulate(settings, until, *, updates=(), enable=0, disable=None, restarts=None):
     """Pulses of the delay core, cycle by cycle, with reconfiguration.
+
+    ``keyed`` settings (``restarts``, a :class:`~fliss.sim.delay.KeyedRestarts`: the state of
+    the source before the run; its key and IV are written when the settings' differ): a run's
+    keystream is that of the IV in use. First settings that are ``keyed`` must be presented from
+    cycle ``enable`` on; if they initialise the source, the run starts
+    :data:`~fliss.hdl.settings.KEYED_START_CYCLES` later. An update presenting ``keyed``
+    settings while the source is not ready (it initialises now or did recently) stops the run
+    in the next cycle (no pulse fires after the update's cycle); it starts again once the
+    source is ready, or a cycle after an update presenting another mode (and once the laser is
+    off), its pulses counted from 0.
 
     Parameters
     ----------
@@ -130,29 +190,65 @@ def simulate(settings, until, *, updates=(), enable=0, disable=None):
     list of (fire_cycle, delay, pulse_width, pulse_index)
     """
     updates = sorted(updates, key=lambda update: update[0])
+    keystream = _Keystream(_delay.KeyedRestarts() if restarts is None else restarts)
     pulses = []
-    take = enable + 1
+    first = 0               # index in `pulses` of the run's first pulse
     current = settings
     sequence = iter(())
     restart = True
     next_update = 0
+
+    def stopped(start):
+        # While the keystream is not ready, the scheduler stays stopped, sampling the settings
+        # presented: until `start` (moved by settings that initialise it again), or until
+        # settings of another mode. The start cycle, before the laser is checked.
+        nonlocal current, next_update
+        while next_update < len(updates) and updates[next_update][0] < start:
+            cycle, current = updates[next_update]
+            next_update += 1
+            if not current.keyed:
+                return cycle + 1        # (the source's mode changes a cycle after the load)
+            keystream.load(current, cycle)
+            start = keystream.ready_at
+        return start
+
+    if current.keyed:
+        keystream.load(current, enable)
+        if keystream.busy(enable):
+            enable = stopped(keystream.ready_at)
+    take = enable + 1
     stop = until + 1 if disable is None else min(until + 1, disable)
     while take < stop:
         # Settings presented on update strictly before this take apply to this frame.
         while next_update < len(updates) and updates[next_update][0] < take:
-            current = updates[next_update][1]
+            cycle, current = updates[next_update]
             restart = True
             next_update += 1
-        if restart:
-            sequence = iter(current.delays(_SEQUENCE_CHUNK))
-            restart = False
-        try:
-            delay = int(next(sequence))
-        except StopIteration:  # pragma: no cover - chunk sized to outlast any simulation
-            raise RuntimeError("delay sequence exhausted") from None
+            if not current.keyed:
+                continue
+            keystream.load(current, cycle)
+            if not keystream.busy(cycle):
+                continue
+            # The run stops, and starts again once the keystream is ready, or on settings of
+            # another mode (the scheduler samples them while stopped).
+            pulses = [pulse for pulse in pulses if pulse[0] <= cycle]
+            first = len(pulses)
+            take = start_cycle(stopped(keystream.ready_at), pulses) + 1
+        if take >= stop:
+            break
+        if current.keyed:
+            delay = keystream.take(current.mask_width, take)
+        else:
+            if restart:
+                sequence = iter(current.delays(_SEQUENCE_CHUNK))
+            try:
+                delay = int(next(sequence))
+            except StopIteration:  # pragma: no cover - chunk sized to outlast any simulation
+                raise RuntimeError("delay sequence exhausted") from None
+        restart = False
         fire = take + 1 + delay
         if fire < stop:
-            pulses.append((fire, delay, current.pulse_width, len(pulses)))
+            pulses.append((fire, delay, current.pulse_width, len(pulses) - first))
         take += current.period + (0 if current.grid else delay)
     return pulses
 

@@ -6,6 +6,7 @@ every pulse bit for bit: the cycle of each laser rising edge and TDC start, the 
 index and the laser pulse width.
 """
 
+import os
 import random
 
 import cocotb
@@ -15,13 +16,18 @@ from cocotb.triggers import ClockCycles, FallingEdge, ReadOnly, RisingEdge
 
 from ..hdl import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, period_cycles
 from ..hdl.settings import DelayMode
-from ..hdl.registers import DelaySettings
+from ..hdl.keyed import Keying
+from ..hdl.registers import DelaySettings, words_of
+from .delay import KeyedRestarts
 from .scheduler import LATENCY, Settings, simulate
 
 
 CLOCK_PERIOD_PS = round(1e12 / DEFAULT_CLOCK_HZ)
 PERIOD = period_cycles(DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ)
 RUN_CYCLES = 100_000
+
+#: Pulses of the keyed test (at least 100 000 by default).
+KEYED_PULSES = int(os.environ.get("FLISS_TB_KEYED_PULSES", "100000"))
 
 #: Paper, Table 2: effective PRF at 80 MHz and 1 MHz nominal, in Hz, to the digits printed there.
 TABLE_2 = {3: 963.9e3, 4: 919.5e3, 5: 842.1e3, 6: 720.7e3, 8: 386.5e3}
@@ -45,6 +51,7 @@ class DelayCoreTB:
         self.dut.rst.value = 1
         self.dut.enable.value = 0
         self.dut.update.value = 0
+        self.dut.rekey.value = 0
         await ClockCycles(self.dut.clk, 2)
         self.dut.rst.value = 0
         for monitor in (self._monitor_fire, self._monitor_start, self._monitor_laser):
@@ -59,6 +66,10 @@ class DelayCoreTB:
         self.dut.settings.value = DelaySettings().const(
             {name: getattr(settings, name) for name, _ in DelaySettings()}).as_value().value
 
+    def drive_keying(self, key, iv):
+        self.dut.keying.value = Keying.const(
+            {**words_of(key, "key"), **words_of(iv, "iv")}).as_value().value
+
     async def edge(self):
         """Wait for the next rising clock edge; return its number."""
         await RisingEdge(self.dut.clk)
@@ -68,6 +79,10 @@ class DelayCoreTB:
         while True:
             await RisingEdge(self.dut.fire)
             await ReadOnly()
+            if not self.dut.fire.value:
+                # (a glitch: `fire` is combinational from `update`, which this testbench
+                # writes in the same time step as the clock edge)
+                continue
             self.fires.append((self.cycle(), int(self.dut.fire_delay.value),
                                int(self.dut.pulse_index.value)))
 
@@ -206,7 +221,7 @@ async def test_reconfigure(dut):
     updates = []
     for _ in range(40):
         await ClockCycles(dut.clk, rng.randrange(1, 400))
-        mode = rng.choice(list(DelayMode))
+        mode = rng.choice([DelayMode.OFF, DelayMode.MSEQ, DelayMode.MASKED])
         length, mask_width = rng.choice([3, 4, 5, 6]), rng.randrange(1, 7)
         grid = rng.random() < 0.3
         period = rng.randrange(70, 160) if not grid else 160
@@ -253,3 +268,83 @@ async def test_reset_and_restart(dut):
     offsets = [f - e[0] for (f, *_), e in zip(tb.fires, expected)]
     assert set(offsets) == {0}, offsets[:10]
     assert len(expected) > 100
+
+
+@cocotb.test()
+async def test_keyed(dut):
+    """Keyed delays and fire times against the model for ``KEYED_PULSES`` pulses, over runs
+    with stops and starts and updates in the middle: new keys and IVs (written, ``rekey``, in
+    the cycle before the update), settings alone (the IV moves on by one), other modes and
+    back. Each run's IV in use is checked on ``iv``."""
+    rng = random.Random(0x7121)
+    tb = DelayCoreTB(dut)
+    await tb.start()
+    restarts = KeyedRestarts()
+    expected = []
+    ivs = []
+    key, iv = rng.getrandbits(80), rng.getrandbits(79)
+
+    def keyed(**kw):
+        values = dict(mode=DelayMode.KEYED, mask_width=rng.randrange(1, 4),
+                      period=rng.randrange(2, 5), pulse_width=1, key=key, iv=iv)
+        values.update(kw)
+        return Settings(**values).check()
+
+    run = 0
+    while len(expected) < KEYED_PULSES:
+        # Stopped: write a new key and IV and wait for the keystream (the model's load of it)
+        key, iv = rng.getrandbits(80), rng.getrandbits(79)
+        first = keyed()
+        tb.drive(first)
+        tb.drive_keying(key, iv)
+        dut.rekey.value = 1
+        await tb.edge()
+        dut.rekey.value = 0
+        await ClockCycles(dut.clk, 100)
+        restarts.write(key=key, iv=iv)
+        restarts.load()
+        ivs.append((int(dut.iv.value), restarts.iv))
+        enable = await tb.edge()
+        dut.enable.value = 1
+        updates = []
+        current = first
+        for _ in range(12):
+            await ClockCycles(dut.clk, rng.randrange(200, 3000))
+            choice = rng.random()
+            if choice < 0.3:
+                key, iv = rng.getrandbits(80), rng.getrandbits(79)
+                tb.drive_keying(key, iv)
+                dut.rekey.value = 1
+                await tb.edge()
+                dut.rekey.value = 0
+                current = keyed()
+            elif choice < 0.8:
+                current = keyed()
+            else:
+                current = Settings(mode=rng.choice([DelayMode.OFF, DelayMode.MASKED]),
+                                   mask_width=3, seed=rng.randrange(1, 1 << 32), period=4,
+                                   pulse_width=1, key=key, iv=iv).check()
+            tb.drive(current)
+            dut.update.value = 1
+            # (high in the cycle that this edge ends, as the model counts)
+            updates.append((await tb.edge() - 1, current))
+            dut.update.value = 0
+        await ClockCycles(dut.clk, 500)
+        dut.enable.value = 0
+        end = await tb.edge() - 1      # (low from the cycle this edge ends)
+        expected += simulate(first, end, enable=enable, disable=end, updates=updates,
+                             restarts=restarts)
+        if current.keyed:       # stopped, the source loads again: the next IV if used
+            restarts.load()
+        await ClockCycles(dut.clk, 100)
+        ivs.append((int(dut.iv.value), restarts.iv))
+        run += 1
+    tb.stop_monitors()
+    got = [(f, d, i) for f, d, i in tb.fires]
+    want = [(f, d, i) for f, d, _, i in expected]
+    mismatches = [(k, g, w) for k, (g, w) in enumerate(zip(got, want)) if g != w]
+    assert not mismatches, f"{len(mismatches)} mismatches, first {mismatches[:3]}"
+    assert len(got) == len(want), (len(got), len(want))
+    assert all(a == b for a, b in ivs), ivs
+    dut._log.info("%d keyed pulses compared over %d runs", len(want), run)
+    assert len(want) >= KEYED_PULSES

@@ -52,7 +52,7 @@ class TopTB:
         self.dut = dut
         self.encoder = codec.PacketEncoder()
         self.decoder = codec.FrameDecoder(synced=True)
-        self.model = CommandModel(DEFAULT_CLOCK_HZ, BAUD, maxima=MAXIMA)
+        self.model = CommandModel(DEFAULT_CLOCK_HZ, BAUD, maxima=MAXIMA, keyed_source=True)
         self.packets = []
         self.link_reports = []
         self.sensor_events = []

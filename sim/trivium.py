@@ -18,8 +18,8 @@ The model runs 64 rounds in one step: no tap is nearer than 66 rounds to a regis
 import numpy as np
 
 
-__all__ = ["KEY_BYTES", "IV_BYTES", "INIT_ROUNDS", "as_int", "Trivium", "keystream",
-           "keystream_bytes", "keyed_delays"]
+__all__ = ["KEY_BYTES", "IV_BYTES", "INIT_ROUNDS", "as_int", "parse_hex", "Trivium",
+           "keystream", "keystream_bytes", "keyed_delays"]
 
 
 #: Key and IV length in bytes (80 bits each).
@@ -47,6 +47,20 @@ def as_int(value, what="key"):
         raise ValueError(f"A Trivium {what} must be an 80-bit integer (0 to 2**80 - 1), "
                          f"not {value:#x}")
     return int(value)
+
+
+def parse_hex(text, what="key"):
+    """The 80-bit integer of a key or IV written in hex as the test vectors print it: up to 20
+    hex digits, spaces, ``_`` and a leading ``0x`` allowed (``80 00 00 00 00 00 00 00 00 00`` is
+    ``0x80000000000000000000``); ``ValueError`` with one line for anything else."""
+    digits = str(text).replace(" ", "").replace("_", "")
+    if digits[:2].lower() == "0x":
+        digits = digits[2:]
+    if not 1 <= len(digits) <= 2 * KEY_BYTES or \
+            any(c not in "0123456789abcdefABCDEF" for c in digits):
+        raise ValueError(f"A Trivium {what} is up to 20 hex digits (80 bits, as the test vectors "
+                         f"print it), not {text!r}")
+    return int(digits, 16)
 
 
 def _reversed_bytes(value):

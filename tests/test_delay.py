@@ -90,7 +90,7 @@ def test_masked_delays_are_not_shifted_copies():
      r"^Seed must be an integer from 1 to 15 \(a non-zero 4-bit register state\), not 0$"),
     (dict(mode="mseq", length=4, seed=16),
      r"^Seed must be an integer from 1 to 15 \(a non-zero 4-bit register state\), not 16$"),
-    (dict(mode="random"), r"^Delay mode must be one of off, mseq, masked, not 'random'$"),
+    (dict(mode="random"), r"^Delay mode must be one of off, mseq, masked, keyed, not 'random'$"),
 ])
 def test_bad_settings(kwargs, message):
     with pytest.raises(ValueError, match=message):

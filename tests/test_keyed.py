@@ -1,0 +1,275 @@
+"""The keyed delay source: Trivium in gateware against the published vectors and the model, the
+keyed delays bit for bit, the start bound and the IV rule."""
+
+import numpy as np
+import pytest
+
+from fliss.hdl.delay import DelayMode, DelaySource
+from fliss.hdl.settings import KEYED_START_CYCLES
+from fliss.hdl.trivium import TriviumCore
+from fliss.sim import delay as model
+from fliss.sim import trivium
+from simulation import simulate
+
+
+#: eSTREAM Trivium test vectors, set 1 vector 0 (key 80 00 … 00, IV 0): keystream bytes 0 to 15.
+SET_1_VECTOR_0 = bytes.fromhex("38EB86FF730D7A9CAF8DF13A4420540D")
+
+
+def keying(key, iv):
+    words = {}
+    for name, value in (("key", key), ("iv", iv)):
+        for k in range(3):
+            words[f"{name}{k}"] = (value >> (32 * k)) & 0xFFFFFFFF
+    return words
+
+
+async def load_trivium(ctx, dut, key, iv):
+    ctx.set(dut.key, key)
+    ctx.set(dut.iv, iv)
+    ctx.set(dut.load, 1)
+    await ctx.tick()
+    ctx.set(dut.load, 0)
+    cycles = 0
+    while not ctx.get(dut.ready):
+        await ctx.tick()
+        cycles += 1
+    return cycles
+
+
+@pytest.mark.parametrize("rounds", [1, 16, 64])
+def test_trivium_core_published_vector(rounds):
+    dut = TriviumCore(rounds=rounds)
+    bits, waits = [], []
+
+    async def testbench(ctx):
+        waits.append(await load_trivium(ctx, dut, 0x80000000000000000000, 0))
+        ctx.set(dut.next, 1)
+        for _ in range(8 * len(SET_1_VECTOR_0) // rounds):
+            z = ctx.get(dut.z)
+            bits.extend((z >> i) & 1 for i in range(rounds))
+            await ctx.tick()
+
+    simulate(dut, testbench)
+    assert np.packbits(bits, bitorder="little").tobytes() == SET_1_VECTOR_0
+    assert waits == [1152 // rounds]
+
+
+def test_trivium_core_against_model_with_pauses():
+    # Random keys and IVs, `next` from a PRBS, a reload in the middle of a stream.
+    dut = TriviumCore(rounds=16)
+    rng = np.random.default_rng(14)
+    errors, compared = [], [0]
+
+    async def testbench(ctx):
+        for _ in range(4):
+            key, iv = (int.from_bytes(rng.bytes(10), "big") for _ in range(2))
+            await load_trivium(ctx, dut, key, iv)
+            expected = trivium.Trivium(key, iv)
+            for _ in range(40):
+                step = bool(rng.integers(0, 2))
+                ctx.set(dut.next, step)
+                if step:
+                    z = ctx.get(dut.z)
+                    want = expected.bits(16)
+                    compared[0] += 16
+                    if [(z >> i) & 1 for i in range(16)] != want.tolist():
+                        errors.append((key, iv))
+                await ctx.tick()
+            ctx.set(dut.next, 0)
+
+    simulate(dut, testbench)
+    assert errors == [] and compared[0] > 1000
+
+
+@pytest.mark.filterwarnings("ignore::amaranth.hdl.UnusedElaboratable")
+def test_trivium_core_bad_rounds():
+    with pytest.raises(ValueError, match=r"^Trivium rounds per cycle must be a divisor of 1152 "
+                                         r"from 1 to 64, not 5$"):
+        TriviumCore(rounds=5)
+
+
+def test_keyed_source_against_model():
+    # Every mask width; transfers as close as the scheduler makes them (every other cycle) or
+    # from a PRBS; a key or IV write (`rekey`) or a used stream makes a load initialise again
+    # with the IV the model's restart rule gives, and `busy` is high for the bound and no more.
+    dut = DelaySource()
+    rng = np.random.default_rng(0x14)
+    restarts = model.KeyedRestarts()
+    errors, compared, waits = [], [0], []
+
+    async def testbench(ctx):
+        key, iv = 0x80000000000000000000, 0
+        for case in range(24):
+            width = case % 16 + 1
+            if case % 3 == 0:
+                key, iv = (int.from_bytes(rng.bytes(10), "big") for _ in range(2))
+                for name, value in keying(key, iv).items():
+                    ctx.set(dut.keying[name], value)
+                ctx.set(dut.rekey, 1)
+                await ctx.tick()
+                ctx.set(dut.rekey, 0)
+                restarts.write(key=key, iv=iv)
+            ctx.set(dut.settings.mode, DelayMode.KEYED)
+            ctx.set(dut.settings.mask_width, width)
+            for _ in range(2 if case % 4 == 1 else 1):  # (a second load finds it fresh)
+                ctx.set(dut.load, 1)
+                initialises = restarts.load()
+                await ctx.tick()
+                ctx.set(dut.load, 0)
+                busy = 0            # cycles from the load to the first not busy
+                while ctx.get(dut.busy):
+                    busy += 1
+                    await ctx.tick()
+                busy += busy > 0
+                waits.append(busy)
+                if initialises != (busy > 0):
+                    errors.append(("busy", case, busy))
+            if ctx.get(dut.iv) != restarts.iv:
+                errors.append(("iv", case, ctx.get(dut.iv), restarts.iv))
+            expected = model.delays("keyed", 300, mask_width=width, key=key, iv=restarts.iv)
+            dense = case % 2 == 0
+            await ctx.tick()
+            for index in range(300):
+                if ctx.get(dut.busy) or ctx.get(dut.delays.payload.value) != expected[index]:
+                    errors.append(("delay", case, index))
+                zero = ctx.get(dut.delays.payload.zero)
+                if index and zero != (expected[index] == 0):
+                    errors.append(("zero", case, index))
+                compared[0] += 1
+                ctx.set(dut.delays.ready, 1)
+                await ctx.tick()
+                ctx.set(dut.delays.ready, 0)
+                await ctx.tick()
+                if not dense:
+                    for _ in range(int(rng.integers(0, 3))):
+                        await ctx.tick()
+            restarts.take(300)
+
+    simulate(dut, testbench, clock_hz=100e6)
+    assert errors == []
+    assert compared[0] == 24 * 300
+    # The load that initialises and the `KEYED_START_CYCLES - 1` after it; none without one.
+    assert sorted(set(waits)) == [0, KEYED_START_CYCLES]
+
+
+def test_keyed_mode_name():
+    assert model.parse_mode("keyed") == DelayMode.KEYED
+    with pytest.raises(ValueError, match=r"^The keyed delay source needs a key and an IV$"):
+        model.check_settings("keyed", mask_width=4)
+    with pytest.raises(ValueError, match=r"^A Trivium key must be an 80-bit integer "
+                                         r"\(0 to 2\*\*80 - 1\), not 0x100000000000000000000$"):
+        model.check_settings("keyed", mask_width=4, key=1 << 80, iv=0)
+
+
+def test_delay_core_keyed_updates_against_model():
+    # Random updates, half of them keyed, some with a new key or IV (written, `rekey`, in the
+    # cycle before the update): every pulse's fire cycle, delay and index against the model,
+    # which stops a run while the keystream initialises and starts it again.
+    import random
+    from fliss.hdl.core import DelayCore
+    from fliss.sim.scheduler import LATENCY, Settings, simulate as schedule
+    fields = ("mode", "length", "mask_width", "seed", "period", "grid", "pulse_width")
+    rng = random.Random(1414)
+    key, iv = 0x0123456789ABCDEF0123, 0x00000000000000000007
+    first = Settings(mode=DelayMode.KEYED, mask_width=4, period=12, pulse_width=2, key=key,
+                     iv=iv).check()
+    updates, cycle = [], 0
+    for _ in range(60):
+        cycle += rng.randrange(2, 600)
+        mode = rng.choice([DelayMode.KEYED] * 3 + [DelayMode.OFF, DelayMode.MSEQ,
+                                                   DelayMode.MASKED])
+        if rng.random() < 0.3:
+            key, iv = rng.getrandbits(80), rng.getrandbits(80)
+        updates.append((cycle, Settings(
+            mode=mode, length=rng.choice([3, 4]), mask_width=rng.randrange(1, 8),
+            seed=rng.randrange(1, 8), period=rng.randrange(2, 40), grid=False,
+            pulse_width=1, key=key, iv=iv).check()))
+    cycles = cycle + 400
+    dut = DelayCore()
+    pulses = []
+
+    def present(ctx, settings):
+        for name in fields:
+            ctx.set(dut.settings[name], getattr(settings, name))
+        for name, value in keying(settings.key, settings.iv).items():
+            ctx.set(dut.keying[name], value)
+
+    async def testbench(ctx):
+        present(ctx, first)
+        ctx.set(dut.rekey, 1)
+        await ctx.tick()
+        ctx.set(dut.rekey, 0)
+        by_cycle = dict(updates)
+        current = first
+        for cycle in range(cycles):
+            ctx.set(dut.enable, 1)
+            ctx.set(dut.update, cycle in by_cycle)
+            ctx.set(dut.rekey, 0)
+            if cycle in by_cycle:
+                present(ctx, by_cycle[cycle])
+            if cycle + 1 in by_cycle:
+                new = by_cycle[cycle + 1]
+                if (new.key, new.iv) != (current.key, current.iv):
+                    for name, value in keying(new.key, new.iv).items():
+                        ctx.set(dut.keying[name], value)
+                    ctx.set(dut.rekey, 1)
+                current = new
+            if ctx.get(dut.fire):
+                pulses.append((cycle, ctx.get(dut.fire_delay), ctx.get(dut.pulse_index)))
+            await ctx.tick()
+
+    simulate(dut, testbench, clock_hz=80e6)
+    restarts = model.KeyedRestarts()
+    restarts.write(key=first.key, iv=first.iv)
+    expected = [(f, d, i) for f, d, _, i in schedule(first, cycles - 1 - LATENCY, enable=0,
+                                                     updates=updates, restarts=restarts)]
+    assert pulses[:len(expected)] == expected
+    assert len(expected) > 500, len(expected)
+
+
+def test_key_write_only_and_iv_rule(monkeypatch):
+    # The command processor with an IV in use of 0x1234 (from a keyed source): the key reads 0,
+    # the IV reads the IV in use; an IV written without the key must go above it; with a key,
+    # any IV goes. The model (and the Python rule) say the same.
+    import test_command
+    from fliss.hdl.command import CommandProcessor
+    from fliss.hdl.protocol import PacketType, ReadRequest, registers_layout
+    from fliss.hdl.registers import BY_NAME, iv_problem
+    from fliss.sim.codec import pack, unpack
+
+    in_use = 0x1234
+
+    class KeyedCommandProcessor(CommandProcessor):
+        def elaborate(self, platform):
+            m = super().elaborate(platform)
+            m.d.comb += self.registers.iv.eq(in_use)
+            return m
+
+    monkeypatch.setattr(test_command, "CommandProcessor", KeyedCommandProcessor)
+    iv0, key0 = BY_NAME["iv0"].address, BY_NAME["key0"].address
+    writes = [
+        (test_command._write(iv0, 0x1234, 0, 0), False),                    # = in use
+        (test_command._write(iv0, 0x1233, 0, 0), False),                    # below
+        (test_command._write(iv0, 0, 1, 0), True),                          # above
+        (test_command._write(iv0, 7, 0, 0, 0xDEAD, 0xBEEF, 0x80), True),    # with a key
+        (test_command._write(iv0 + 2, 0), False),                           # high word only
+        (test_command._write(key0 + 1, 5), True),                           # key alone
+    ]
+    packets = [(PacketType.WRITE.value, n, payload) for n, (payload, _) in enumerate(writes)]
+    packets.append((PacketType.READ.value, 9, pack(ReadRequest, address=iv0, count=6)))
+    replies, settings, _ = test_command.run_commands(packets)
+    assert [type == PacketType.ACK.value for type, _ in replies[:-1]] == \
+        [accepted for _, accepted in writes]
+    values = unpack(registers_layout(6), replies[-1][1])["values"]
+    assert values == [0x1234, 0, 0, 0, 0, 0]
+    assert [settings[-1][f"key{k}"] for k in range(3)] == [0xDEAD, 5, 0x80]
+    # The Python rule, on the same writes
+    names = [r.name for r in sorted(BY_NAME.values(), key=lambda r: r.address)]
+    for payload, accepted in writes:
+        decoded = unpack(registers_layout(0), payload[:2])
+        words = [int.from_bytes(payload[2 + 4 * k:6 + 4 * k], "little")
+                 for k in range((len(payload) - 2) // 4)]
+        written = names[decoded["address"]:decoded["address"] + len(words)]
+        values = {**dict.fromkeys(names, 0), **dict(zip(written, words))}
+        assert (iv_problem(written, values, in_use) is None) == accepted, written

@@ -1,0 +1,103 @@
+"""Host side of the keyed source: ``fliss config --key/--iv`` against the model board, and
+``fliss sequence --mode keyed`` against the published Trivium vector."""
+
+import pytest
+
+from fliss.hdl.registers import value_of
+from fliss.host.client import BoardClient
+from fliss.sim.model_board import model_board
+from test_host_cli import fliss
+
+
+#: eSTREAM set 1 vector 0 (key 80 00 … 00, IV 0): keystream bytes 38 EB 86 FF, least
+#: significant bit first: 4-bit delays 8, 3, 11, 14, 6, 8, 15, 15.
+VECTOR_NIBBLES = [0x8, 0x3, 0xB, 0xE, 0x6, 0x8, 0xF, 0xF]
+
+
+@pytest.fixture
+def model():
+    with model_board() as board:
+        yield board
+
+
+def test_sequence_keyed_published_vector(capsys):
+    status, out, err = fliss(capsys, "sequence", "--mode", "keyed", "--key",
+                             "80 00 00 00 00 00 00 00 00 00", "--iv", "0", "--mask-width", "4",
+                             "--count", "8")
+    assert status == 0, err
+    assert [int(line) for line in out.split()] == VECTOR_NIBBLES
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--key", "12345678901234567890a", "--iv", "0"],
+     "A Trivium key is up to 20 hex digits (80 bits, as the test vectors print it), not "
+     "'12345678901234567890a'"),
+    (["--key", "0", "--iv", "0xg"],
+     "A Trivium IV is up to 20 hex digits (80 bits, as the test vectors print it), not '0xg'"),
+    (["--iv", "0"], "--mode keyed needs --key and --iv"),
+    (["--key", "1", "--iv", "0", "--mask-width", "17"],
+     "Mask width must be an integer from 1 to 16, not 17"),
+])
+def test_sequence_keyed_refusals(capsys, argv, message):
+    status, out, err = fliss(capsys, "sequence", "--mode", "keyed", *argv)
+    assert (status, out, err) == (1, "", f"fliss: error: {message}\n")
+
+
+def test_config_random_key_is_not_shown_and_reads_zero(model, capsys):
+    status, out, err = fliss(capsys, "config", "--port", model.path, "--mode", "keyed",
+                             "--mask-width", "5", "--key", "random", "--iv", "0x10")
+    assert status == 0, err
+    key = value_of(model.model.settings, "key")
+    assert key != 0
+    for text in (f"{key:x}", f"{key & 0xFFFFFFFF}", f"{key & 0xFFFFFFFF:x}"):
+        assert text not in out + err
+    with BoardClient(model.path, timeout_s=2.0) as board:
+        values = board.read_registers()
+    assert [values[f"key{k}"] for k in range(3)] == [0, 0, 0]
+    assert value_of(values, "iv") == 0x10        # the IV in use (stopped: the next run's)
+    # Asked for, the key is printed
+    status, out, err = fliss(capsys, "config", "--port", model.path, "--key",
+                             "0x0123456789abcdef0123", "--show-key")
+    assert status == 0, err
+    assert out.splitlines()[0] == "key 0x0123456789abcdef0123"
+
+
+def test_config_iv_must_go_up(model, capsys):
+    status, out, err = fliss(capsys, "config", "--port", model.path, "--mode", "keyed",
+                             "--key", "1", "--iv", "0x20")
+    assert status == 0, err
+    status, out, err = fliss(capsys, "config", "--port", model.path, "--iv", "0x20")
+    assert status == 1
+    assert err == ("fliss: error: --iv: the IV (0x00000000000000000020) must be above the IV "
+                   "in use (0x00000000000000000020) unless a new key is written with it: under "
+                   "one key no IV is used twice (give a higher --iv or a new --key)\n")
+    status, out, err = fliss(capsys, "config", "--port", model.path, "--iv", "0x21")
+    assert status == 0, err
+    status, out, err = fliss(capsys, "config", "--port", model.path, "--key", "zz")
+    assert (status, err) == (1, "fliss: error: --key: A Trivium key is up to 20 hex digits "
+                                "(80 bits, as the test vectors print it), not 'zz'\n")
+
+
+def test_capture_keyed_on_the_model_board(tmp_path, capsys):
+    # A capture in keyed mode on the model board: the file records the IV in use, never the
+    # key, and the scene simulator fires the laser with the keyed delays of that IV.
+    from fliss.host.fileformat import read_capture
+    from fliss.sim import delay as model
+    from fliss.sim.scene import Scene
+    with model_board(scene=Scene(detections_per_pulse=0.1, background_hz=2e5)) as board:
+        status, out, err = fliss(capsys, "config", "--port", board.path, "--mode", "keyed",
+                                 "--mask-width", "4", "--key", "0x0123456789abcdef0123",
+                                 "--iv", "0x40")
+        assert status == 0, err
+        path = tmp_path / "keyed.h5"
+        status, out, err = fliss(capsys, "capture", "--port", board.path, "-o", str(path),
+                                 "--acquisitions", "2", "--integration", "1ms")
+        assert status == 0, err
+        schedule = board.simulation.scene.victim
+    capture = read_capture(path)
+    configuration = capture.configuration if hasattr(capture, "configuration") else \
+        capture["configuration"]
+    assert value_of(configuration, "iv") == 0x40
+    assert all(configuration.get(f"key{k}", 0) == 0 for k in range(3))
+    assert (schedule.mode, schedule.key, schedule.iv) == \
+        (model.DelayMode.KEYED, 0x0123456789ABCDEF0123, 0x40)
