@@ -83,7 +83,7 @@ def run(args):
         changes, current = conversion.changes, board.registers
     identity = board.identity
     if args.show_key and "key0" in changes:
-        print(f"key {value_of(changes, 'key'):020x}")
+        print(f"key {value_of(changes, 'key'):#022x}")
     print(f"board on {args.port}: gateware {identity.gateware_version}, protocol "
           f"{identity.protocol}, clock {format_frequency(clock_hz)}, "
           f"{identity.baud} baud")

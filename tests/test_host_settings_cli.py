@@ -72,7 +72,7 @@ def test_readout_set_by_config_is_captured(model, capsys, tmp_path):
 def test_mode_is_the_delay_source_in_capture_too(capsys):
     with pytest.raises(SystemExit):
         parse_args(["capture", "--port", "x", "--mode", "raw", "-o", "x.h5"])
-    assert "argument --mode: invalid choice: 'raw' (choose from 'off', 'mseq', 'masked')" in \
+    assert "argument --mode: invalid choice: 'raw' (choose from 'off', 'mseq', 'masked', 'keyed')" in \
         capsys.readouterr().err
 
 

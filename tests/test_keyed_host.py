@@ -66,15 +66,18 @@ def test_config_iv_must_go_up(model, capsys):
     status, out, err = fliss(capsys, "config", "--port", model.path, "--mode", "keyed",
                              "--key", "1", "--iv", "0x20")
     assert status == 0, err
+    # The IV in use again: nothing to write (the settings read back go back unchanged)
     status, out, err = fliss(capsys, "config", "--port", model.path, "--iv", "0x20")
+    assert status == 0, err
+    status, out, err = fliss(capsys, "config", "--port", model.path, "--iv", "0x1f")
     assert status == 1
-    assert err == ("fliss: error: --iv: the IV (0x00000000000000000020) must be above the IV "
+    assert err == ("fliss: error: --iv: the IV (0x0000000000000000001f) must be above the IV "
                    "in use (0x00000000000000000020) unless a new key is written with it: under "
-                   "one key no IV is used twice (give a higher --iv or a new --key)\n")
+                   "one key no IV is used twice (give a higher IV or a new key)\n")
     status, out, err = fliss(capsys, "config", "--port", model.path, "--iv", "0x21")
     assert status == 0, err
     status, out, err = fliss(capsys, "config", "--port", model.path, "--key", "zz")
-    assert (status, err) == (1, "fliss: error: --key: A Trivium key is up to 20 hex digits "
+    assert (status, err) == (1, "fliss: error: --key zz: A Trivium key is up to 20 hex digits "
                                 "(80 bits, as the test vectors print it), not 'zz'\n")
 
 

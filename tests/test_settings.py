@@ -137,7 +137,10 @@ def test_settings_read_back_in_units():
     assert shown["gate_end"] == "100 ns"
     assert shown["scheduler"] == "grid"
     assert set(shown) == {option.name for option in OPTIONS if option.shown}
-    assert len(shown) == len(REGISTERS)
+    # One setting per register, but the key (write-only, never shown) and the IV (one setting
+    # for its three registers).
+    assert len(shown) == len([register for register in REGISTERS if not register.write_only
+                              and register.name not in ("iv1", "iv2")])
     # bin_shift 2: bins of 4 codes of 50 ps, centres at 100 ps, 300 ps, ...
     assert shown.bins == 2048 and shown.bin_s == pytest.approx(200e-12)
     np.testing.assert_allclose(shown.time_s[:3], [100e-12, 300e-12, 500e-12])
@@ -159,3 +162,23 @@ def test_settings_convert_back_to_the_same_registers(clock_hz):
         result = convert(describe(registers, clock_hz), clock_hz, defaults(clock_hz))
         assert result.notes == []
         assert result.registers == registers
+
+
+def test_key_and_iv_are_one_setting_each():
+    current = defaults(CLOCK_HZ)
+    result = convert({"key": "80 00 00 00 00 00 00 00 00 00", "iv": "0x1_0000_0005"}, CLOCK_HZ,
+                     current)
+    # 80-bit values in 32-bit words, least significant first
+    assert result.changes == {"key0": 0, "key1": 0, "key2": 0x8000, "iv0": 5, "iv1": 1, "iv2": 0}
+    randoms = [convert({"key": "random"}, CLOCK_HZ, current).changes for _ in range(2)]
+    assert randoms[0] != randoms[1] and set(randoms[0]) == {"key0", "key1", "key2"}
+    with pytest.raises(SettingsError, match=r"^key='zz': A Trivium key is up to 20 hex digits"):
+        convert({"key": "zz"}, CLOCK_HZ, current)
+    # Under one key the IV only goes up; the IV in use again writes nothing.
+    in_use = dict(current, iv0=7)
+    assert convert({"iv": "7"}, CLOCK_HZ, in_use).changes == {}
+    with pytest.raises(SettingsError, match=r"^iv: the IV \(0x00000000000000000006\) must be "
+                                            r"above the IV in use"):
+        convert({"iv": "6"}, CLOCK_HZ, in_use)
+    assert convert({"iv": "6", "key": "1"}, CLOCK_HZ, in_use).changes["iv0"] == 6
+    assert "key" not in describe(dict(current, key0=1), CLOCK_HZ)
