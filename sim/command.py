@@ -53,7 +53,8 @@ class CommandModel:
             if self.running:
                 self.restarts.take()
 
-    def _read(self, register):
+    def read_value(self, register):
+        """What a READ of ``register`` gives: 0 for the key, the IV in use for the IV."""
         if register.write_only:
             return 0
         if register.in_use:
@@ -94,7 +95,7 @@ class CommandModel:
             address, count = request["address"], request["count"]
             if count == 0 or count > READ_MAX or address + count > len(REGISTERS):
                 return self._nak(seq, NakCode.BAD_ADDRESS, address)
-            values = [self._read(REGISTERS[address + k]) for k in range(count)]
+            values = [self.read_value(REGISTERS[address + k]) for k in range(count)]
             return PacketType.REGISTERS, pack(registers_layout(count), address=address,
                                               values=values)
         if type == PacketType.WRITE.value:
