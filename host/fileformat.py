@@ -18,7 +18,7 @@ import numpy as np
 
 from .. import __version__
 from ..hdl.event import TDC_LSB_S, TIMESTAMP_BITS
-from ..hdl.registers import BY_NAME, REGISTERS, TdcSource
+from ..hdl.registers import BY_NAME, RECORDED, TdcSource
 from ..sim.event import EVENT_DTYPE
 
 
@@ -99,6 +99,9 @@ class CaptureWriter:
         for name, value in identity.items():
             group.attrs[name] = value
         group = f.create_group("configuration")
+        # Never the key: write-only registers (they read 0 anyway) are left out.
+        configuration = {name: value for name, value in configuration.items()
+                         if not BY_NAME[name].write_only}
         for name, value in configuration.items():
             group.attrs[name] = np.uint32(value)
         group.attrs["units"] = json.dumps({name: BY_NAME[name].unit for name in configuration})
@@ -393,5 +396,6 @@ def _plain(value):
     return value
 
 
-# Registers that are in every file, in address order (for readers without the map).
-REGISTER_NAMES = tuple(register.name for register in REGISTERS)
+# Registers that are in every file, in address order (for readers without the map): all but
+# the write-only key.
+REGISTER_NAMES = tuple(register.name for register in RECORDED)
