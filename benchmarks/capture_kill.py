@@ -21,28 +21,10 @@ from pathlib import Path
 
 import numpy as np
 
-from fliss.hdl.protocol import HISTOGRAM_COUNT_BITS, HistogramChunk, PacketType
 from fliss.host.client import BoardClient
 from fliss.host.fileformat import FLUSH_S, read_capture
 from fliss.host.units import parse_time
-from fliss.sim.codec import byte_size, unpack_from, unpack_words
 from fliss.sim.model_board import model_board
-
-
-def sent_frames(model, bins):
-    """Histograms the board sent whole (their last chunk sent), by frame number."""
-    sent, ended = {}, set()
-    for type, _seq, payload in list(model.sent):
-        if type != PacketType.HISTOGRAM:
-            continue
-        chunk = unpack_from(HistogramChunk, payload)
-        counts = unpack_words(payload, HISTOGRAM_COUNT_BITS, offset=byte_size(HistogramChunk))
-        first = chunk["first_bin"]
-        sent.setdefault(chunk["frame"], np.zeros(bins, np.int64))[first:first + len(counts)] = \
-            counts
-        if chunk["last"]:
-            ended.add(chunk["frame"])
-    return {frame: counts for frame, counts in sent.items() if frame in ended}
 
 
 def one_kill(folder, index, after_s, integration, shift):
@@ -62,7 +44,7 @@ def one_kill(folder, index, after_s, integration, shift):
         process.send_signal(signal.SIGKILL)
         killed = time.time()
         process.wait()
-        sent = sent_frames(model, bins)
+        sent = model.sent_histograms(bins, whole=True)
     capture = read_capture(output)
     wrong = sum(not np.array_equal(row, sent.get(int(frame), -1))
                 for row, frame in zip(capture.histograms, capture.frames))

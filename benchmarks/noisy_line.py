@@ -19,24 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
-from fliss.hdl.protocol import HISTOGRAM_COUNT_BITS, HistogramChunk
 from fliss.host.acquisition import capture
 from fliss.host.client import BoardClient
 from fliss.host.fileformat import read_capture
-from fliss.sim.codec import byte_size, unpack_from, unpack_words
 from fliss.sim.model_board import model_board
 from fliss.sim.noisy_line import LineFaults, NoisyLine
-
-
-def sent_histograms(model, bins):
-    sent = {}
-    for _type, _seq, payload in model.sent:
-        chunk = unpack_from(HistogramChunk, payload)
-        counts = unpack_words(payload, HISTOGRAM_COUNT_BITS, offset=byte_size(HistogramChunk))
-        first = chunk["first_bin"]
-        sent.setdefault(chunk["frame"], np.zeros(bins, np.int64))[first:first + len(counts)] = \
-            counts
-    return sent
 
 
 def frames_damaged(model, injector):
@@ -65,7 +52,7 @@ def run(ber, seed, acquisitions, shift, folder):
             total = {"retransmissions": board.retransmissions, "link_naks": board.link_naks,
                      "dropped_frames": counters.dropped_frames,
                      "missing_packets": counters.missing_packets}
-        sent = sent_histograms(model, bins)
+        sent = model.sent_histograms(bins)
         damaged = frames_damaged(model, line.to_host)
         counts = line.counts()
         board_link = sum(model.status[name] for name in ("bad_crc", "truncated", "oversize",

@@ -36,7 +36,8 @@ from ..hdl.protocol import (HISTOGRAM_COUNT_BITS, CHUNK_BINS, DEFAULT_BAUD, Pack
                             HistogramChunk, STATUS_FIELDS, LINK_COUNTERS, MAX_EVENTS_PER_PACKET,
                             EVENT_BYTES)
 from ..hdl.registers import AcquisitionMode, TdcSource, value_of, words_of
-from .codec import LinkError, Packet, encode_frame, pack, pack_events, pack_words
+from .codec import (LinkError, Packet, byte_size, encode_frame, pack, pack_events, pack_words,
+                    unpack_from, unpack_words)
 from . import scheduler as _scheduler
 from .command import CommandModel
 from .delay import DelayMode
@@ -129,6 +130,23 @@ class ModelBoard(PtyServer):
         #: Acquisitions started so far (each START while stopped).
         self.starts = 0
         self._frame = 0          # histogram number since reset
+
+    def sent_histograms(self, bins, *, whole=False):
+        """The histograms sent so far, from this board's own record (``sent``): counts of
+        ``bins`` bins by frame number; with ``whole``, only those whose last chunk was sent."""
+        sent, ended = {}, set()
+        for type_value, _seq, payload in list(self.sent):
+            if type_value != PacketType.HISTOGRAM:
+                continue
+            chunk = unpack_from(HistogramChunk, payload)
+            counts = unpack_words(payload, HISTOGRAM_COUNT_BITS,
+                                  offset=byte_size(HistogramChunk))
+            first = chunk["first_bin"]
+            sent.setdefault(chunk["frame"], np.zeros(bins, np.int64))[
+                first:first + len(counts)] = counts
+            if chunk["last"]:
+                ended.add(chunk["frame"])
+        return {frame: counts for frame, counts in sent.items() if not whole or frame in ended}
 
     def seed_for(self, acquisition):
         """Seed of the photon statistics of acquisition ``acquisition`` (0 for the first START)."""

@@ -16,28 +16,20 @@ from fliss.host.client import BoardClient
 from fliss.host.errors import BoardError, BoardLost, SettingsError
 from fliss.host.fileformat import read_capture
 from fliss.host.settings import RoundingWarning
-from fliss.sim.model_board import model_board, scene_for
-from fliss.sim.scene import Scene, Simulation
+from fliss.sim.model_board import model_board
+from fliss.sim.scene import Scene
+
+import test_host_cli as host_cli
 
 
 CLOCK_HZ = 80_000_000
-SCENE = Scene(detections_per_pulse=0.1, background_hz=2e5)
+SCENE = host_cli.SCENE         # the scene of the reference blocks
 
 
 def reference_blocks(settings, seed, blocks):
-    """Events of each integration block straight from the scene simulator, gated (as
-    tests/test_host_cli.py does for the command line)."""
-    simulation = Simulation(scene_for(settings, SCENE, clock_hz=CLOCK_HZ), seed=seed)
-    out = []
-    for block in range(blocks):
-        end = (block + 1) * settings["integration"]
-        pieces = []
-        while simulation.next_start_cycle < end:
-            pieces.append(simulation.step(until_cycle=end).events)
-        events = np.concatenate(pieces)
-        stamps = events["timestamp"]
-        out.append(events[(stamps >= settings["gate_start"]) & (stamps <= settings["gate_end"])])
-    return out
+    """Events of each integration block straight from the scene simulator, gated (the command
+    line's reference, tests/test_host_cli.py, with the same scene)."""
+    return host_cli.reference_blocks(settings, seed, blocks, integration=settings["integration"])
 
 
 @pytest.fixture

@@ -12,13 +12,13 @@ import time
 import numpy as np
 import pytest
 
-from fliss.hdl.protocol import HISTOGRAM_COUNT_BITS, HistogramChunk, PacketType
+from fliss.hdl.protocol import HistogramChunk, PacketType
 from fliss.host.acquisition import capture
 from fliss.host.capture import Progress
 from fliss.host.cli import main
 from fliss.host.client import BoardClient
 from fliss.host.fileformat import read_capture
-from fliss.sim.codec import byte_size, unpack_from, unpack_words
+from fliss.sim.codec import unpack_from
 from fliss.sim.model_board import model_board
 from fliss.sim.noisy_line import (FaultInjector, LineFaults, NoisyLine, add_line_arguments,
                                   faults_from_args)
@@ -120,18 +120,6 @@ def test_bad_rates_are_refused_with_one_line(capsys):
 
 # The host on a noisy line
 
-def _sent_histograms(model):
-    """The histograms the model board sent, from its own record, by frame number."""
-    sent = {}
-    for _type, _seq, payload in model.sent:
-        chunk = unpack_from(HistogramChunk, payload)
-        first = chunk["first_bin"]
-        counts = unpack_words(payload, HISTOGRAM_COUNT_BITS, offset=byte_size(HistogramChunk))
-        sent.setdefault(chunk["frame"], np.zeros(BINS, np.int64))[first:first + len(counts)] = \
-            counts
-    return sent
-
-
 def _damaged_frames(model, injector):
     """Frame numbers of the HISTOGRAM chunks the line damaged on the way to the host."""
     ends = np.array([end for _type, _seq, end in model.frames_out])
@@ -161,7 +149,7 @@ def test_capture_at_1e4_both_ways_accepts_nothing_wrong(tmp_path):
             decoder = board.decoder.counters
         counts = line.counts()
         damaged = _damaged_frames(model, line.to_host)
-        sent = _sent_histograms(model)
+        sent = model.sent_histograms(BINS)
     assert result.reason == "completed" and result.complete
     capture_file = read_capture(tmp_path / "noisy.h5")
     link = capture_file.counters["link"]
@@ -212,7 +200,7 @@ def test_board_reset_mid_capture_is_reported_and_data_kept(tmp_path, capsys):
         status = main(["-q", "capture", "--port", model.path, "--timeout", "2",
                        "--integration", "1ms", "--acquisitions", "100", "-o", str(output)])
         out, err = capsys.readouterr()
-        sent = _sent_histograms(model)
+        sent = model.sent_histograms(BINS)
         assert model.resets == 1 and not model.running
     assert status == 1
     lines = err.strip().splitlines()

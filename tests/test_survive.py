@@ -13,13 +13,11 @@ import h5py
 import numpy as np
 import pytest
 
-from fliss.hdl.protocol import HISTOGRAM_COUNT_BITS, HistogramChunk, PacketType
 from fliss.hdl.registers import defaults
 from fliss.host.cli import main
 from fliss.host.client import BoardClient
 from fliss.host.fileformat import RUNNING, CaptureWriter, read_capture
 from fliss.host.stream import HistogramFrame
-from fliss.sim.codec import byte_size, unpack_from, unpack_words
 from fliss.sim.model_board import model_board
 from fliss.sim.scene import Scene
 
@@ -57,27 +55,13 @@ def wait_for_rows(output, process, rows=3, limit_s=60.0):
     pytest.fail(f"the capture wrote fewer than {rows} histograms in {limit_s} s")
 
 
-def sent_histograms(model):
-    """The histograms the model board sent, from its own record, by frame number."""
-    sent = {}
-    for type, _seq, payload in model.sent:
-        if type != PacketType.HISTOGRAM:
-            continue
-        chunk = unpack_from(HistogramChunk, payload)
-        counts = unpack_words(payload, HISTOGRAM_COUNT_BITS, offset=byte_size(HistogramChunk))
-        first = chunk["first_bin"]
-        sent.setdefault(chunk["frame"], np.zeros(BINS, np.int64))[first:first + len(counts)] = \
-            counts
-    return sent
-
-
 def check_rows(capture, model, at_least):
     """Every row is a histogram the board sent, bin for bin, in order, none missing."""
     assert len(capture.histograms) >= at_least
     assert capture.complete.all()
     frames = capture.frames.astype(np.int64)
     assert np.array_equal(frames, frames[0] + np.arange(len(frames)))
-    sent = sent_histograms(model)
+    sent = model.sent_histograms(BINS)
     for row, frame in zip(capture.histograms, frames):
         assert np.array_equal(row, sent[frame]), frame
 
