@@ -34,7 +34,7 @@ from ..hdl.protocol import DEFAULT_BAUD, HISTOGRAM_COUNT_BITS
 from ..hdl.registers import BY_NAME, AcquisitionMode
 from ..sim.event import EVENT_DTYPE
 from .client import BoardClient, IdentityInfo
-from .errors import BoardLost, BoardMismatch, SettingsError
+from .errors import BoardLost, BoardMismatch, BoardRefused, SettingsError
 from .settings import Conversion, RoundingWarning, Settings, convert, describe, duration_s
 from .stream import EventBatch, HistogramFrame
 
@@ -275,7 +275,18 @@ class Board:
         for note in conversion.notes:
             warnings.warn(note, RoundingWarning, stacklevel=2)
         if conversion.changes:
-            self.client.write_registers(conversion.changes, current=current)
+            try:
+                self.client.write_registers(conversion.changes, current=current)
+            except BoardRefused as error:
+                # A smaller build's maximum: say which setting, as the caller wrote it.
+                name = error.register.name if error.register is not None else None
+                if name not in conversion.said:
+                    raise
+                raise BoardRefused(
+                    f"{conversion.said[name]}: the board's build does not take it (a smaller "
+                    f"build, such as the iCEBreaker's, leaves out some features and narrows some "
+                    f"ranges: see docs/boards.md)", command=error.command, code=error.code,
+                    detail=error.detail, register=error.register) from None
             kept = self.client.read_registers(list(conversion.changes))
             # The key reads 0 (write-only) and the IV reads as the IV in use.
             lost = [name for name, value in conversion.changes.items() if kept[name] != value

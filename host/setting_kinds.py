@@ -21,7 +21,7 @@ from .errors import SettingsError
 from .units import format_frequency, format_time, parse_frequency, parse_time
 
 
-__all__ = ["Kind", "Context", "WHOLE", "CHOICE", "TIME", "FREQUENCY", "GATE", "KEY", "IV",
+__all__ = ["Kind", "Context", "said", "WHOLE", "CHOICE", "TIME", "FREQUENCY", "GATE", "KEY", "IV",
            "refuse", "code_s", "exact_time", "exact_frequency"]
 
 #: Relative difference below which a value counts as a whole number of cycles (no note).
@@ -49,7 +49,7 @@ class Context:
     notes: List[str] = field(default_factory=list)
 
 
-def _said(option, value, context):
+def said(option, value, context):
     # How the caller wrote the setting: ``--integration 10ms`` or ``integration='10ms'``.
     if context.style == "flag":
         return f"{option.flag} {value}"
@@ -60,7 +60,7 @@ def refuse(option, value, context, message):
     """Raise the :exc:`~fliss.host.errors.SettingsError` for ``value`` of ``option``: the
     setting as the caller wrote it (``--mask-width 17``, ``mask_width=17``), then
     ``message``."""
-    raise SettingsError(f"{_said(option, value, context)}: {message}")
+    raise SettingsError(f"{said(option, value, context)}: {message}")
 
 
 def _in_range(option, value, context, number, shown=None):
@@ -153,7 +153,7 @@ def _steps(option, value, context, step_s, step, example):
     if steps < 1 and exact > 0 and option.register not in ("gate_start", "gate_end"):
         refuse(option, value, context, f"shorter than one clock cycle ({format_time(step_s)})")
     if abs(steps - exact) > _EXACT * max(1.0, exact):
-        context.notes.append(f"{_said(option, value, context)} is {exact:.4g} {words}s of "
+        context.notes.append(f"{said(option, value, context)} is {exact:.4g} {words}s of "
                              f"{format_time(step_s)}: using {steps} {step}s, "
                              f"{format_time(steps * step_s)}")
     return steps
@@ -187,7 +187,7 @@ def _convert_frequency(option, value, context):
                 f"{format_frequency(context.clock_hz)} clock: the period must be at least "
                 f"2 cycles")
     if abs(cycles - exact) > _EXACT * exact:
-        context.notes.append(f"{_said(option, value, context)} is a period of {exact:.4g} clock "
+        context.notes.append(f"{said(option, value, context)} is a period of {exact:.4g} clock "
                              f"cycles: using {cycles} cycles, "
                              f"{format_frequency(context.clock_hz / cycles)}")
     return {option.register: _in_range(option, value, context, cycles,

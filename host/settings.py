@@ -20,7 +20,7 @@ The rules, the same in the library and on the command line:
 """
 
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Dict, List, Mapping, Optional, Tuple
 
 import numpy as np
@@ -30,7 +30,7 @@ from ..hdl.registers import BY_NAME, AcquisitionMode, TdcSource, iv_problem, pro
 from ..hdl.settings import DelayMode
 from .errors import SettingsError
 from .setting_kinds import (CHOICE, FREQUENCY, GATE, IV, KEY, TIME, WHOLE, Context, Kind,
-                            code_s, exact_frequency, exact_time)
+                            code_s, exact_frequency, exact_time, said)
 from .units import format_time, parse_time
 
 
@@ -156,6 +156,8 @@ class Conversion:
     changes: Dict[str, int]
     registers: Dict[str, int]
     notes: List[str]
+    #: How the caller wrote the setting behind each changed register (``--mode keyed``).
+    said: Dict[str, str] = field(default_factory=dict)
 
 
 def convert(settings: Mapping[str, Any], clock_hz: int, current: Mapping[str, int], *,
@@ -192,7 +194,7 @@ def convert(settings: Mapping[str, Any], clock_hz: int, current: Mapping[str, in
                             f"{', '.join(BY_OPTION)})")
     given = {name: value for name, value in settings.items() if value is not None}
     labels = {option.register: option.label(style) for option in OPTIONS if option.shown}
-    changes, by = {}, {}
+    changes, by, written = {}, {}, {}
     for option in OPTIONS:
         if option.name not in given:
             continue
@@ -203,6 +205,7 @@ def convert(settings: Mapping[str, Any], clock_hz: int, current: Mapping[str, in
             by[register] = option
             labels[register] = option.label(style)
             changes[register] = value
+            written[register] = said(option, given[option.name], context)
             context.registers[register] = value
     found = _problems(context.registers, labels, context.clock_hz)
     iv = iv_problem(changes, context.registers, value_of(current, "iv"))
@@ -210,7 +213,7 @@ def convert(settings: Mapping[str, Any], clock_hz: int, current: Mapping[str, in
         found.append(f"{BY_OPTION['iv'].label(style)}: {iv} (give a higher IV or a new key)")
     if found:
         raise SettingsError("; ".join(found))
-    return Conversion(changes, context.registers, context.notes)
+    return Conversion(changes, context.registers, context.notes, written)
 
 
 def _problems(registers, labels, clock_hz):

@@ -193,3 +193,19 @@ def test_silent_port_is_said_at_its_first_timeout(caplog):
 def test_connect_refuses_bad_arguments():
     with pytest.raises(SettingsError, match="^timeout_s must be positive, not 0$"):
         fliss.connect("loop://", timeout_s=0)
+
+
+def test_smaller_build_refusal_names_the_setting():
+    # A board whose build has no keyed source (the iCEBreaker's maxima): the refusal names the
+    # setting as the caller wrote it, in the API and on the command line.
+    maxima = {"delay_mode": 2, "key0": 0, "key1": 0, "key2": 0, "iv0": 0, "iv1": 0, "iv2": 0}
+    with model_board(maxima=maxima) as model:
+        with fliss.connect(model.path) as board:
+            before = board.registers
+            with pytest.raises(BoardError, match=r"^mode='keyed': the board's build does not "
+                                                 r"take it \(a smaller build"):
+                board.configure(mode="keyed")
+            with pytest.raises(BoardError, match=r"^--iv 0x5: the board's build does not take "
+                                                 r"it"):
+                board.configure({"iv": "0x5"}, style="flag")
+            assert board.registers == before           # nothing written
