@@ -49,7 +49,8 @@ aggressor_kind ["free"]
     :mod:`fliss.sim.interference_attack`): it watches the victim's laser, fires at the measured
     effective PRF until it predicts the victim's delays, then so that its pulse arrives the time
     of flight of ``ghost_m`` after each TDC start. One attack per run serves all of them (they
-    see the same victim), so they fire together. Not with ``fine_step`` > 1 (the attacker reads
+    see the same victim), so they fire together; their unlocked train starts ``offset_ns``
+    late (drawn per run, uniform over one victim period, if negative), in whole cycles. Not with ``fine_step`` > 1 (the attacker reads
     whole clock cycles).
 ghost_m [10.0]
     Distance of the ghost a locked predicting aggressor injects.
@@ -60,7 +61,7 @@ jitter_ps [0.0]
     RMS phase jitter of each aggressor pulse, ps.
 offset_ns [-1.0]
     Start of every aggressor after the victim's first edge, ns; negative: drawn per aggressor and
-    run, uniform over one victim period (not for ``predicting``).
+    run, uniform over one victim period (``predicting``: the delay of the unlocked train).
 t_int_s [0.01]
     Integration time of a frame.
 threshold_sigma [5.0]
@@ -340,7 +341,11 @@ def evaluate(point, seed):
         edges = None
         if predicting:
             end = number * int(round(point["t_int_s"] * DEFAULT_CLOCK_HZ))
-            triggers, after = attack_edges(scene.victim, end, seed=_child(seed, run, 2))
+            period = point["period_cycles"]
+            phase = int(round(point["offset_ns"] * 1e-9 * DEFAULT_CLOCK_HZ)) \
+                if point["offset_ns"] >= 0 else int(rng.integers(0, period))
+            triggers, after = attack_edges(scene.victim, end, phase_cycles=phase,
+                                           seed=_child(seed, run, 2))
             edges = [triggers] * point["aggressors"]
             if after is not None:
                 locked_after.append(after)

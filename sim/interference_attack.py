@@ -9,6 +9,13 @@ returns the attacker's laser triggers: at the victim's effective PRF until the l
 predicted TDC start. The aggressor's pulse reaches the victim's pixel the ghost's time of flight
 after each trigger.
 
+The attacker of :mod:`fliss.sim.attacker` starts its unlocked train on an observed pulse, so its
+first pulses land at the ghost's delay after the victim's starts, and the train walks away from
+there. Each run of the study starts the attacker afresh, so that alignment would come back with
+every run; :func:`attack_edges` moves the unlocked train by ``phase_cycles`` instead (drawn per
+run, uniform over one period, as the locked aggressor's offset is): before its lock the
+predicting aggressor is the paper's locked aggressor at the PRF it measured.
+
 One attack serves every predicting aggressor of a run: they all watch the same victim, and with
 100 ps of jitter (a rounding error needs 6.25 ns, 62 standard deviations) and nothing missed
 every observer records the same whole cycles, so every attack would return the same triggers.
@@ -46,7 +53,7 @@ def victim_starts(settings, end_cycle, *, block=4096):
     return starts[:int(np.searchsorted(starts, end_cycle, side="left")) + 1]
 
 
-def attack_edges(settings, end_cycle, *, seed=None, clock_hz=DEFAULT_CLOCK_HZ):
+def attack_edges(settings, end_cycle, *, phase_cycles=0, seed=None, clock_hz=DEFAULT_CLOCK_HZ):
     """The predicting attacker's triggers against a victim for one run.
 
     Parameters
@@ -55,6 +62,8 @@ def attack_edges(settings, end_cycle, *, seed=None, clock_hz=DEFAULT_CLOCK_HZ):
         The victim's delay settings.
     end_cycle : int
         The run lasts until this clock cycle of the victim.
+    phase_cycles : int
+        Delay of the unlocked train (before the first lock and after a lost one), clock cycles.
     seed : numpy.random.SeedSequence or int or None
         Seed of the observer's jitter.
 
@@ -68,4 +77,18 @@ def attack_edges(settings, end_cycle, *, seed=None, clock_hz=DEFAULT_CLOCK_HZ):
     starts = victim_starts(settings, end_cycle)
     times, _ = Observer(clock_hz=clock_hz, seed=seed).observe(starts)
     result = _attacker(int(settings.period), bool(settings.grid)).attack(times)
-    return result.edges, result.locked_after
+    edges = result.edges
+    if phase_cycles and len(edges):
+        # The spans of the locks, as Attacker._edges cut them: (lock cycle, end cycle)
+        cycles = np.rint(times * clock_hz).astype(np.int64)
+        inside = np.zeros(len(edges), dtype=bool)
+        spans = [(cycles[lock.observation],
+                  cycles[lock.lost] if lock.lost is not None else cycles[-1] + 1)
+                 for lock in result.locks]
+        for begin, end in spans:
+            inside |= (edges > begin) & (edges < end)
+        train = edges[~inside] + int(phase_cycles)
+        for begin, end in spans:
+            train = train[~((train > begin) & (train < end))]
+        edges = np.unique(np.concatenate((train, edges[inside])))
+    return edges, result.locked_after
