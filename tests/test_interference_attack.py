@@ -5,7 +5,6 @@ import math
 import numpy as np
 import pytest
 
-from fliss.sim import delay as delay_model
 from fliss.sim.attacker_scene import Victim
 from fliss.sim.interference import evaluate, scene_of, check_point
 from fliss.sim.interference_attack import attack_edges, victim_starts
@@ -109,5 +108,10 @@ def test_bad_predicting_points_are_refused_with_one_line(point, message):
     assert "\n" not in str(error.value)
 
 
-def test_the_keyed_mean_delay_sets_the_locked_period():
-    assert delay_model.mean_delay("keyed", mask_width=6) == 31.5
+def test_a_locked_aggressor_runs_at_the_keyed_victim_s_effective_prf():
+    # Uniform 6-bit delays average 63 / 2 cycles: T + E(R) = 111.5 cycles
+    point = check_point({"scheme": "keyed", "mask_width": 6, "aggressor_kind": "locked"})
+    assert scene_of(point, np.random.default_rng(0)).aggressors[0].period_cycles == 111.5
+    own = check_point({"scheme": "keyed", "mask_width": 5, "aggressor_kind": "fliss"})
+    aggressor = scene_of(own, np.random.default_rng(0)).aggressors[0]
+    assert aggressor.settings().keyed and aggressor.mask_width == 5 and aggressor.key >= 1
