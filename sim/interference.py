@@ -22,15 +22,17 @@ make them; runs are independent. The confidence intervals treat frames as indepe
 Point parameters (:data:`PARAMETERS`, defaults in brackets)
 -----------------------------------------------------------
 scheme ["mseq"]
-    The victim's delay source: ``"off"``, ``"mseq"`` or ``"masked"``.
+    The victim's delay source: ``"off"``, ``"mseq"``, ``"masked"`` or ``"keyed"`` (Trivium,
+    :mod:`fliss.sim.trivium`: ``Wm``-bit delays from the keystream of an 80-bit key drawn per
+    run from the point's seed, or ``victim_seed`` if not 0, and IV 0).
 grid [False]
     Grid scheduler (pulse ``k`` fires ``R[k]`` after ``k T``) instead of interval mode.
 length [6], mask_width [6]
-    ``L`` of ``mseq`` and ``Wm`` of ``masked``.
+    ``L`` of ``mseq`` and ``Wm`` of ``masked`` and ``keyed``.
 period_cycles [80]
     The victim's period ``T`` in clock cycles (80: 1 MHz at 80 MHz).
 victim_seed [0]
-    The victim's delay seed; 0 draws one per run.
+    The victim's delay seed (the key of ``keyed``); 0 draws one per run.
 fine_step [1]
     Modelled sub-cycle delay steps: the victim's delays in steps of one cycle / 1, 2, 4, 8 or 16
     (:attr:`fliss.sim.scene.Scene.fine_step`).
@@ -43,14 +45,23 @@ aggressor_kind ["free"]
     oscillator. ``"fliss"``: the same, running the victim's scheme (mode, L, Wm, grid) with its
     own random seed. ``"locked"``: the paper's worst case, FLISS off, locked to the victim's clock
     (no ppm) at the victim's effective PRF (``T + E(R) / fine_step`` cycles, ``T`` in grid mode).
+    ``"predicting"``: the attacker of :mod:`fliss.sim.attacker` (see
+    :mod:`fliss.sim.interference_attack`): it watches the victim's laser, fires at the measured
+    effective PRF until it predicts the victim's delays, then so that its pulse arrives the time
+    of flight of ``ghost_m`` after each TDC start. One attack per run serves all of them (they
+    see the same victim), so they fire together; their unlocked train starts ``offset_ns``
+    late (drawn per run, uniform over one victim period, if negative), in whole cycles. Not with ``fine_step`` > 1 (the attacker reads
+    whole clock cycles).
+ghost_m [10.0]
+    Distance of the ghost a locked predicting aggressor injects.
 ppm_spread [50.0]
     Half-width in ppm of the uniform spread of the aggressors' frequency offsets (not for
-    ``locked``).
+    ``locked`` and ``predicting``).
 jitter_ps [0.0]
     RMS phase jitter of each aggressor pulse, ps.
 offset_ns [-1.0]
     Start of every aggressor after the victim's first edge, ns; negative: drawn per aggressor and
-    run, uniform over one victim period.
+    run, uniform over one victim period (``predicting``: the delay of the unlocked train).
 t_int_s [0.01]
     Integration time of a frame.
 threshold_sigma [5.0]
@@ -71,7 +82,9 @@ if none does); ``s_db``: 10 log10 of the mean height of the target's peak over t
 the highest point outside the target's window (both above the background, whether detected or
 not); ``signal_recorded``: fraction of the victim's detected photons the TDC kept (pile-up and
 overwriting lower it); ``aggressor_counts_per_frame``: the aggressors' recorded photons per
-frame; and the detection curve as three JSON lists of equal length: ``curve_threshold`` (noise
+frame; ``attack_locked_runs``: runs in which the predicting attacker locked, and
+``attack_locked_after_mean``: its mean observed pulses until the first lock over those runs
+(``None`` for other kinds, or without a lock); and the detection curve as three JSON lists of equal length: ``curve_threshold`` (noise
 deviations), ``curve_p_detect`` and ``curve_false_per_frame``.
 """
 
@@ -85,6 +98,7 @@ from ..hdl.event import TDC_LSB_S
 from . import delay as _delay
 from . import scheduler as _scheduler
 from .detection import classify, detection_curve, wilson
+from .interference_attack import attack_edges
 from .scene_acquisition import acquire
 from .scene_description import (COUNTERS, FINE_STEPS, SPEED_OF_LIGHT, TDC_CODES, Aggressor,
                                 Scene, time_of_flight)
@@ -106,6 +120,7 @@ PARAMETERS = {
     "aggressors": 1,
     "aggressor_power": 1.0,
     "aggressor_kind": "free",
+    "ghost_m": 10.0,
     "ppm_spread": 50.0,
     "jitter_ps": 0.0,
     "offset_ns": -1.0,
@@ -119,10 +134,10 @@ PARAMETERS = {
 }
 
 #: Victim delay sources.
-SCHEMES = ("off", "mseq", "masked")
+SCHEMES = ("off", "mseq", "masked", "keyed")
 
 #: Aggressor kinds.
-KINDS = ("free", "fliss", "locked")
+KINDS = ("free", "fliss", "locked", "predicting")
 
 #: Thresholds of the detection curve, noise deviations of the smoothed histogram.
 CURVE_THRESHOLDS = tuple(float(x) for x in np.round(np.geomspace(3.0, 3000.0, 16), 2))
@@ -191,14 +206,25 @@ def check_point(point):
     full["frames_per_run"] = _integer(full, "frames_per_run", 1, 1 << 24)
     window_m = TDC_CODES * TDC_LSB_S * SPEED_OF_LIGHT / 2
     full["distance_m"] = _real(full, "distance_m", 0.0, window_m * 0.9)
+    full["ghost_m"] = _real(full, "ghost_m", 0.0, window_m * 0.9)
+    if full["aggressor_kind"] == "predicting" and full["fine_step"] != 1:
+        raise ValueError(f"The predicting aggressor reads whole clock cycles: it needs "
+                         f"fine_step 1, not {full['fine_step']!r}")
     # The victim's settings must hold together (seed range, grid room for the delays)
     _victim(full, 1)
     return full
 
 
+def _keyed(point):
+    return _delay.parse_mode(point["scheme"]) == _delay.DelayMode.KEYED
+
+
 def _victim(point, seed):
+    # keyed: the seed is the key, the IV 0
+    keyed = _keyed(point)
     settings = _scheduler.Settings(mode=_delay.parse_mode(point["scheme"]), length=point["length"],
-                                   mask_width=point["mask_width"], seed=seed,
+                                   mask_width=point["mask_width"], seed=1 if keyed else seed,
+                                   key=seed if keyed else 0, iv=0,
                                    period=point["period_cycles"], grid=bool(point["grid"]))
     try:
         return settings.check()
@@ -208,7 +234,17 @@ def _victim(point, seed):
 
 def _seed_bits(point):
     mode = _delay.parse_mode(point["scheme"])
-    return point["length"] if mode == _delay.DelayMode.MSEQ else 32
+    return {_delay.DelayMode.MSEQ: point["length"], _delay.DelayMode.KEYED: 80}.get(mode, 32)
+
+
+def _draw_seed(rng, bits):
+    """A non-zero seed (key) of ``bits`` bits."""
+    if bits <= 32:
+        return int(rng.integers(1, 1 << bits))
+    while True:
+        value = int.from_bytes(rng.bytes((bits + 7) // 8), "little") & ((1 << bits) - 1)
+        if value:
+            return value
 
 
 def _effective_period(point):
@@ -223,26 +259,34 @@ def _effective_period(point):
 def scene_of(point, rng):
     """The scene of one run of a checked point, its random choices drawn from ``rng``."""
     bits = _seed_bits(point)
-    victim = _victim(point, point["victim_seed"] or int(rng.integers(1, 1 << bits)))
+    victim = _victim(point, point["victim_seed"] or _draw_seed(rng, bits))
     period_s = point["period_cycles"] / DEFAULT_CLOCK_HZ
     kind = point["aggressor_kind"]
     aggressors = []
     for _ in range(point["aggressors"]):
         offset = point["offset_ns"] * 1e-9 if point["offset_ns"] >= 0 else \
             float(rng.uniform(0.0, period_s))
-        ppm = 0.0 if kind == "locked" else float(rng.uniform(-1.0, 1.0) * point["ppm_spread"])
-        seed = int(rng.integers(1, 1 << bits))
+        ppm = 0.0 if kind in ("locked", "predicting") else \
+            float(rng.uniform(-1.0, 1.0) * point["ppm_spread"])
+        seed = _draw_seed(rng, bits)
         common = dict(offset_s=offset, ppm=ppm, jitter_s=point["jitter_ps"] * 1e-12,
                       detections_per_pulse=point["detections_per_pulse"] *
                       point["aggressor_power"], fwhm_s=_FWHM_S)
         if kind == "locked":
             aggressors.append(Aggressor(period_cycles=_effective_period(point), **common))
+        elif kind == "predicting":
+            # Fired on the attack's triggers: its pulse arrives the ghost's time of flight after
+            common.update(offset_s=0.0)
+            aggressors.append(Aggressor(period_cycles=point["period_cycles"],
+                                        tof_s=time_of_flight(point["ghost_m"]), **common))
         elif kind == "free" or point["scheme"] == "off":
             aggressors.append(Aggressor(period_cycles=point["period_cycles"], **common))
         else:
             aggressors.append(Aggressor(period_cycles=point["period_cycles"],
                                         mode=point["scheme"], length=point["length"],
-                                        mask_width=point["mask_width"], seed=seed,
+                                        mask_width=point["mask_width"],
+                                        seed=1 if _keyed(point) else seed,
+                                        key=seed if _keyed(point) else 0,
                                         grid=bool(point["grid"]), **common))
     return Scene(victim=victim, distance_m=point["distance_m"],
                  detections_per_pulse=point["detections_per_pulse"], fwhm_s=_FWHM_S,
@@ -288,12 +332,25 @@ def evaluate(point, seed):
     judged, errors = [], []
     counts = np.zeros((1 + point["aggressors"], len(COUNTERS)), dtype=np.int64)
     runs = -(-frames // per_run)
+    predicting = point["aggressor_kind"] == "predicting" and point["aggressors"] > 0
+    locked_after = []
     for run in range(runs):
         rng = np.random.default_rng(_child(seed, run, 0))
         scene = scene_of(point, rng)
         number = min(per_run, frames - run * per_run)
+        edges = None
+        if predicting:
+            end = number * int(round(point["t_int_s"] * DEFAULT_CLOCK_HZ))
+            period = point["period_cycles"]
+            phase = int(round(point["offset_ns"] * 1e-9 * DEFAULT_CLOCK_HZ)) \
+                if point["offset_ns"] >= 0 else int(rng.integers(0, period))
+            triggers, after = attack_edges(scene.victim, end, phase_cycles=phase,
+                                           seed=_child(seed, run, 2))
+            edges = [triggers] * point["aggressors"]
+            if after is not None:
+                locked_after.append(after)
         acquisitions = acquire(scene, point["t_int_s"], number, seed=_child(seed, run, 1),
-                               chunk_cycles=1 << 14)
+                               chunk_cycles=1 << 14, aggressor_edges=edges)
         source_counts = acquisitions.counts.sum(axis=0)
         counts[0] += source_counts[0]
         counts[1:] += source_counts[2:]
@@ -318,6 +375,8 @@ def evaluate(point, seed):
         counts[0, COUNTERS.index("dead")]
     result["signal_recorded"] = float(counts[0, recorded] / detected) if detected else None
     result["aggressor_counts_per_frame"] = float(counts[1:, recorded].sum() / frames)
+    result["attack_locked_runs"] = len(locked_after) if predicting else None
+    result["attack_locked_after_mean"] = float(np.mean(locked_after)) if locked_after else None
     detect, false = detection_curve(judged, CURVE_THRESHOLDS)
     result["curve_threshold"] = json.dumps(list(CURVE_THRESHOLDS))
     result["curve_p_detect"] = json.dumps([round(float(x), 6) for x in detect])

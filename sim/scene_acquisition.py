@@ -47,13 +47,15 @@ class Acquisitions:
 
 
 def acquire(scene, t_int_s, acquisitions, *, seed=None, chunk_cycles=1 << 16, keep_events=False,
-            progress=None):
+            progress=None, aggressor_edges=None):
     """Run the scene for ``acquisitions`` consecutive integration times of ``t_int_s`` each.
 
     Acquisition ``a`` holds the laser cycles whose TDC start falls in clock cycles
     ``[a * T, (a + 1) * T)``, ``T = round(t_int_s * clock_hz)``, as the histogram engine
     integrates over a time set in clock cycles; the delay sequences run on across acquisitions.
     ``progress``, if given, is called with the number of laser cycles after each chunk.
+    ``aggressor_edges``, if given, holds the laser triggers of each aggressor in the victim's
+    clock cycles (:meth:`Simulation.feed_aggressor`), instead of their own schedules.
     """
     check_number(t_int_s, "Integration time (s)", positive=True)
     if isinstance(acquisitions, bool) or not isinstance(acquisitions, (int, np.integer)) \
@@ -63,7 +65,14 @@ def acquire(scene, t_int_s, acquisitions, *, seed=None, chunk_cycles=1 << 16, ke
     t_int_cycles = int(round(t_int_s * scene.clock_hz))
     if t_int_cycles < 1:
         raise ValueError(f"Integration time {t_int_s!r} s is shorter than one clock cycle")
-    simulation = Simulation(scene, seed=seed, chunk_cycles=chunk_cycles)
+    simulation = Simulation(scene, seed=seed, chunk_cycles=chunk_cycles,
+                            external_aggressors=aggressor_edges is not None)
+    if aggressor_edges is not None:
+        if len(aggressor_edges) != len(scene.aggressors):
+            raise ValueError(f"Give the triggers of each of the {len(scene.aggressors)} "
+                             f"aggressors, not of {len(aggressor_edges)}")
+        for index, edges in enumerate(aggressor_edges):
+            simulation.feed_aggressor(index, edges)
     histograms = np.zeros((acquisitions, TDC_CODES), dtype=np.int64)
     counts = np.zeros((acquisitions, len(scene.sources), len(COUNTERS)), dtype=np.int64)
     cycles = np.zeros(acquisitions, dtype=np.int64)

@@ -74,7 +74,7 @@ class Aggressor:
     tof_s : float or None
         Time of flight from the aggressor over the target to the victim's pixel; ``None`` takes the
         victim's own round trip (both emitters next to each other, as on the paper's board).
-    mode, length, mask_width, seed, grid
+    mode, length, mask_width, seed, grid, key, iv
         Its own FLISS delays (see :class:`fliss.sim.scheduler.Settings`); ``mode="off"`` (the
         default) fires on a fixed period. With delays the period must be a whole number of cycles.
     ppm : float
@@ -99,6 +99,8 @@ class Aggressor:
     grid: bool = False
     ppm: float = 0.0
     jitter_s: float = 0.0
+    key: int = 0
+    iv: int = 0
 
     def __post_init__(self):
         if isinstance(self.ppm, bool) or not isinstance(self.ppm, (int, float, np.integer,
@@ -118,7 +120,7 @@ class Aggressor:
         if self.tof_s is not None:
             check_number(self.tof_s, "Aggressor time of flight (s)")
         mode = _delay.check_settings(self.mode, length=self.length, mask_width=self.mask_width,
-                                     seed=self.seed)
+                                     seed=self.seed, key=self.key, iv=self.iv)
         if mode != _delay.DelayMode.OFF:
             if float(self.period_cycles) != int(self.period_cycles) or self.period_cycles < 2:
                 raise ValueError(f"An aggressor with its own delays needs a whole number of clock "
@@ -130,7 +132,7 @@ class Aggressor:
         return _scheduler.Settings(
             mode=_delay.parse_mode(self.mode), length=self.length or 8,
             mask_width=self.mask_width or 6, seed=self.seed,
-            period=int(self.period_cycles), grid=self.grid)
+            period=int(self.period_cycles), grid=self.grid, key=self.key, iv=self.iv)
 
     @property
     def has_delays(self):

@@ -388,3 +388,17 @@ def test_the_spec_in_the_docs_gives_the_points_it_says(tmp_path):
     spec = load(tmp_path / "doc.toml")
     assert len(spec.points()) == 72 and "3 × 4 × 3 × 2 = 72" in text
     assert {(p["length"], p["mask_width"]) for p in spec.points()} == {(3, 3), (6, 6)}
+
+
+def test_a_sweep_with_the_keyed_victim_and_the_predicting_aggressor(tmp_path, capsys):
+    pytest.importorskip("fliss.sim.interference")
+    spec = tmp_path / "attack.toml"
+    spec.write_text('seed = 1\nframes = 2\n[parameters]\nscheme = ["mseq", "keyed"]\n'
+                    'aggressor_kind = ["locked", "predicting"]\nt_int_s = 0.002\n')
+    assert main(["-q", "sweep", str(spec), "-o", str(tmp_path / "out"), "--threads",
+                 "--no-figures"]) == 0
+    rows = table(tmp_path / "out" / "results.parquet")
+    assert [(row["scheme"], row["aggressor_kind"], row["attack_locked_runs"]) for row in rows] \
+        == [("mseq", "locked", None), ("mseq", "predicting", 2), ("keyed", "locked", None),
+            ("keyed", "predicting", 0)]
+    assert rows[1]["ghost"] == 2 and rows[1]["ghost_m"] == 10.0
