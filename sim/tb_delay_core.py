@@ -230,7 +230,9 @@ async def test_reconfigure(dut):
                            pulse_width=rng.randrange(1, 6)).check()
         tb.drive(current)
         dut.update.value = 1
-        updates.append((await tb.edge(), current))
+        # (high in the cycle that this edge ends: the cycle numbers the model counts, as
+        # `enable` above and test_keyed's updates)
+        updates.append((await tb.edge() - 1, current))
         dut.update.value = 0
     await ClockCycles(dut.clk, 500)
     last = tb.cycle()
