@@ -7,21 +7,10 @@ import pytest
 
 from fliss.sim import detection
 
+from test_analysis import FWHM_S, expected_histogram     # the analysis tests' histograms
 
-BIN_S = 50e-12
-CODES = 8192
-FWHM_S = 2.1e-9
-SIGMA_BINS = FWHM_S / BIN_S / (2 * math.sqrt(2 * math.log(2)))
+
 TOF_S = 26.7e-9
-
-
-def histogram(level, peaks):
-    """Mean counts per code: a flat level plus Gaussians given as (position_s, height)."""
-    centres = np.arange(CODES) + 0.5
-    mean = np.full(CODES, float(level))
-    for position_s, height in peaks:
-        mean += height * np.exp(-0.5 * ((centres - position_s / BIN_S) / SIGMA_BINS) ** 2)
-    return mean
 
 
 def judge(mean, seed=None, **options):
@@ -31,7 +20,7 @@ def judge(mean, seed=None, **options):
 
 def test_target_alone_is_found_at_its_depth():
     for seed in range(5):
-        frame = judge(histogram(0.05, [(TOF_S, 10.0)]), seed)
+        frame = judge(expected_histogram(0.05, [(TOF_S, 10.0)]), seed)
         assert not frame.miss and not frame.ghost and not frame.wrong_depth
         # The maximum of the smoothed peak stays within a third of the FWHM (0.7 ns, 10 cm)
         assert abs(frame.depth_error_m) < 0.1
@@ -39,38 +28,38 @@ def test_target_alone_is_found_at_its_depth():
 
 def test_depth_error_is_the_distance_of_a_shifted_peak():
     # A noiseless peak 1 ns late: 15 cm of depth (c t / 2)
-    frame = judge(histogram(0.0, [(TOF_S + 1e-9, 10.0)]))
+    frame = judge(expected_histogram(0.0, [(TOF_S + 1e-9, 10.0)]))
     assert frame.depth_error_m == pytest.approx(0.5 * 299_792_458 * 1e-9, abs=0.004)
 
 
 def test_a_stronger_peak_elsewhere_is_a_wrong_depth_and_a_ghost():
-    frame = judge(histogram(0.05, [(TOF_S, 10.0), (150e-9, 20.0)]), 1)
+    frame = judge(expected_histogram(0.05, [(TOF_S, 10.0), (150e-9, 20.0)]), 1)
     assert frame.ghost and frame.wrong_depth and not frame.miss
     assert 10 * math.log10(frame.target_height / frame.other_height) == \
         pytest.approx(10 * math.log10(0.5), abs=0.3)
 
 
 def test_a_weaker_peak_elsewhere_is_a_ghost_only():
-    frame = judge(histogram(0.05, [(TOF_S, 10.0), (150e-9, 4.0)]), 2)
+    frame = judge(expected_histogram(0.05, [(TOF_S, 10.0), (150e-9, 4.0)]), 2)
     assert frame.ghost and not frame.wrong_depth and not frame.miss
 
 
 def test_a_peak_beyond_three_fwhm_is_not_the_target():
     # 3 FWHM is 6.3 ns: a peak 8 ns away is a miss and a wrong depth, one 5 ns away is a hit
-    assert judge(histogram(0.0, [(TOF_S + 8e-9, 10.0)])).wrong_depth
-    assert judge(histogram(0.0, [(TOF_S + 8e-9, 10.0)])).miss
-    assert not judge(histogram(0.0, [(TOF_S + 5e-9, 10.0)])).miss
+    assert judge(expected_histogram(0.0, [(TOF_S + 8e-9, 10.0)])).wrong_depth
+    assert judge(expected_histogram(0.0, [(TOF_S + 8e-9, 10.0)])).miss
+    assert not judge(expected_histogram(0.0, [(TOF_S + 5e-9, 10.0)])).miss
 
 
 def test_nothing_above_the_threshold_is_a_miss_but_no_wrong_depth():
-    frame = judge(histogram(0.05, []), 3)
+    frame = judge(expected_histogram(0.05, []), 3)
     assert frame.miss and not frame.ghost and not frame.wrong_depth
     assert math.isnan(frame.depth_error_m)
 
 
 def test_the_threshold_decides_what_is_detected():
     # Smoothed height about 3 counts: detected at 5 sigma (the 1-count floor) ...
-    mean = histogram(1.0, [(TOF_S, 3.0)])
+    mean = expected_histogram(1.0, [(TOF_S, 3.0)])
     assert not judge(mean, threshold_sigma=5.0).miss
     # ... not when the threshold asks for more noise deviations than the peak has
     sigma = detection.noise_sigma(1.0)
@@ -106,7 +95,7 @@ def test_detection_curve_counts_targets_and_false_peaks_by_score():
 def test_curve_scores_agree_with_the_threshold_decision():
     # Detected at threshold k exactly when the score is above k
     for seed in range(4):
-        mean = histogram(0.3, [(TOF_S, 2.0 + seed), (120e-9, 1.5 + seed)])
+        mean = expected_histogram(0.3, [(TOF_S, 2.0 + seed), (120e-9, 1.5 + seed)])
         counts = np.random.default_rng(seed).poisson(mean)
         scored = detection.classify(counts, TOF_S, FWHM_S, floor_sigma=1.0)
         for k in (3.0, 6.0, 10.0, 20.0):
