@@ -117,7 +117,7 @@ OPTIONS: Tuple[Option, ...] = (
     Option("integration", "integration", TIME, "histogram integration time (10ms), and raw "
            "block length", "TIME"),
     Option("key", "key0", KEY, "key of the keyed source: 20 hex digits as the test vectors print "
-           "it, or random (from the operating system's generator); write-only on the board, "
+           "it, or random (from the operating system's generator); write-only: the board never "
            "reads it back", "HEX|random", shown=False),
     Option("iv", "iv0", IV, "IV of the keyed source (20 hex digits); reads as the IV in use, "
            "and a new IV must be above it unless a new key is given too", "HEX"),
