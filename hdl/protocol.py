@@ -29,7 +29,7 @@ __all__ = [
     "MAX_FRAME", "NakCode", "Ack", "Nak", "Identity", "ReadRequest", "REGISTER_BITS",
     "REGISTER_BYTES", "registers_layout", "READ_MAX", "CONSISTENCY", "COUNTER_BITS", "Status",
     "STATUS_FIELDS", "LINK_COUNTERS", "LINK_FIELDS", "LINK_ERRORS", "HistogramChunk",
-    "HISTOGRAM_COUNT_BITS", "CHUNK_BINS",
+    "HISTOGRAM_COUNT_BITS", "CHUNK_BINS", "HistogramCompact", "COMPACT_BYTES",
     "EVENT_BYTES", "MAX_EVENTS_PER_PACKET", "DIRECTION_BIT",
 ]
 
@@ -110,6 +110,9 @@ class PacketType(enum.Enum, shape=8):
     EVENTS    = 0x85
     #: Histogram chunk: a :class:`HistogramChunk`, then up to :data:`CHUNK_BINS` counts.
     HISTOGRAM = 0x86
+    #: Compact histogram chunk: a :class:`HistogramCompact`, then up to :data:`COMPACT_BYTES`
+    #: bytes of tokens (runs of empty bins and counts, see :class:`HistogramCompact`).
+    HISTOGRAM_COMPACT = 0x88
 
 
 class Header(data.Struct):
@@ -278,11 +281,37 @@ LINK_ERRORS = frozenset(LINK_COUNTERS) | {NakCode.UART_FRAMING}
 
 class HistogramChunk(data.Struct):
     """Start of a HISTOGRAM payload; up to :data:`CHUNK_BINS` counts of
-    :data:`HISTOGRAM_COUNT_BITS` bits follow, in bin order."""
-    frame:     32   # histogram number since reset
-    first_bin: 16   # bin of the first count in this chunk
-    shift:     8    # bins are 2**shift timestamp codes wide
-    last:      8    # 1 in the last chunk of a frame
+    :data:`HISTOGRAM_COUNT_BITS` bits follow, in bin order.
+
+    A frame holds ``2**pixel_bits`` pixels (addresses ``first_pixel …``) of ``2**(13 - shift)``
+    bins each; its bins are numbered by the flat index ``pixel << (13 - shift) | bin``, and
+    ``first_bin`` is the flat index of the chunk's first count.
+    """
+    frame:       32   # histogram number since reset
+    first_bin:   16   # flat index of the first count in this chunk
+    first_pixel: 8    # address of the frame's pixel 0
+    shift:       4    # bins are 2**shift timestamp codes wide
+    pixel_bits:  3    # the frame holds 2**pixel_bits pixels
+    last:        1    # 1 in the last chunk of a frame
+
+
+class HistogramCompact(data.Struct):
+    """Start of a HISTOGRAM_COMPACT payload: the chunk covers the flat indices ``first_bin`` to
+    ``last_bin`` (both included) of its frame; fields otherwise as in :class:`HistogramChunk`.
+
+    Up to :data:`COMPACT_BYTES` bytes of *tokens* follow. A token is an unsigned LEB128 number
+    ``v`` (7 bits a byte, least significant group first, bit 7 set in every byte but the
+    last; at most 3 bytes): an even ``v = 2 c`` (``c`` from 1 to 65535) is one bin of count
+    ``c``; an odd ``v = 2 r + 1`` (``r`` from 1 to 65535) is ``r`` empty bins. Tokens fill the
+    chunk's bins from ``first_bin`` on; bins after the last token up to ``last_bin`` are empty.
+    """
+    frame:       32
+    first_bin:   16
+    last_bin:    16
+    first_pixel: 8
+    shift:       4
+    pixel_bits:  3
+    last:        1
 
 
 #: Width of each bin count in a HISTOGRAM payload, in bits (little-endian words).
@@ -294,6 +323,13 @@ CHUNK_BINS = 128
 
 assert (data.Layout.cast(HistogramChunk).size + CHUNK_BINS * HISTOGRAM_COUNT_BITS) // 8 \
     <= MAX_PAYLOAD
+
+#: Most token bytes in one HISTOGRAM_COMPACT chunk: a full compact chunk is as long as a full
+#: HISTOGRAM chunk of :data:`CHUNK_BINS` bins.
+COMPACT_BYTES = (data.Layout.cast(HistogramChunk).size - data.Layout.cast(HistogramCompact).size
+                 + CHUNK_BINS * HISTOGRAM_COUNT_BITS) // 8
+
+assert data.Layout.cast(HistogramCompact).size // 8 + COMPACT_BYTES <= MAX_PAYLOAD
 
 #: Bytes per event in an EVENTS packet: the :class:`~fliss.hdl.event.Event` struct, as a
 #: little-endian integer, padded to whole bytes.
