@@ -254,13 +254,18 @@ class FlissTop(wiring.Component):
         # Histogram mode
         raw_mode = acquisition.mode == AcquisitionMode.RAW
         m.submodules.histogram = histogram = Histogram(ram=self.histogram_ram)
-        m.submodules.histogram_packets = histogram_packets = HistogramPacketizer()
+        m.submodules.histogram_packets = histogram_packets = \
+            HistogramPacketizer(index_bits=histogram.bin_bits)
         m.d.comb += [
             histogram.enable.eq(running & ~raw_mode),
             histogram.settings.eq(registers.histogram),
             histogram.events.valid.eq(events_valid & ~raw_mode),
             histogram.events.payload.eq(events),
             histogram_packets.shift.eq(histogram.readout_shift),
+            # (the frame's pixel split: 0, one pixel, until the histogram presents it)
+            histogram_packets.pixel_bits.eq(0),
+            histogram_packets.first_pixel.eq(0),
+            histogram_packets.full_readout.eq(registers.histogram.full_readout),
         ]
         wiring.connect(m, histogram.readout, histogram_packets.readout)
         wiring.connect(m, histogram_packets.packets, arbiter.i[1])
