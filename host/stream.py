@@ -1,4 +1,5 @@
-"""Stream assembly: whole histograms from HISTOGRAM chunks, event arrays from EVENTS packets.
+"""Stream assembly: whole histograms from HISTOGRAM and HISTOGRAM_COMPACT chunks, event arrays
+from EVENTS packets.
 
 :class:`StreamAssembler` takes the data packets a board sends, in order of arrival, and returns
 :class:`HistogramFrame` and :class:`EventBatch` items; it counts what is incomplete, lost or
@@ -12,28 +13,26 @@ from typing import Dict, List, Optional, Union
 import numpy as np
 from amaranth.lib import data
 
-from ..hdl.event import Event, TIMESTAMP_BITS
-from ..hdl.histogram import MAX_SHIFT
-from ..hdl.protocol import HISTOGRAM_COUNT_BITS, PacketType, EVENT_BYTES, HistogramChunk
-from ..sim.codec import Packet, byte_size, unpack_from, word_dtype
+from ..hdl.event import Event
+from ..hdl.protocol import PacketType, EVENT_BYTES
+from ..sim.codec import Packet
 from ..sim.event import EVENT_DTYPE
+from ..sim.histogram_packets import HISTOGRAM_TYPES, MalformedChunk, decode_chunk
 
 
 __all__ = ["HistogramFrame", "EventBatch", "StreamCounters", "StreamAssembler",
            "unpack_event_payload"]
 
 
-_CHUNK_BYTES = byte_size(HistogramChunk)
-_COUNT_DTYPE = word_dtype(HISTOGRAM_COUNT_BITS)
-
-
 @dataclass
 class HistogramFrame:
     """One histogram as read out by the board.
 
-    ``counts`` has ``2**13 >> shift`` bins; bins of chunks that never arrived are 0 and
-    ``complete`` is False. ``time_s`` is the host's receive time (``time.time()``) of its last
-    chunk.
+    The frame holds ``P = 2**pixel_bits`` pixels (addresses ``first_pixel …``) of
+    ``N = 2**13 >> shift`` bins each; ``counts`` has the ``P * N`` bins, pixel after pixel
+    (:attr:`image` is the same as a ``(P, N)`` array). Bins of chunks that never arrived are 0
+    and ``complete`` is False. ``time_s`` is the host's receive time (``time.time()``) of its
+    last chunk.
     """
     frame: int
     shift: int
@@ -41,6 +40,13 @@ class HistogramFrame:
     complete: bool
     missing_bins: int
     time_s: float
+    pixel_bits: int = 0
+    first_pixel: int = 0
+
+    @property
+    def image(self) -> np.ndarray:
+        """``counts`` as ``(pixels, bins)``."""
+        return self.counts.reshape(1 << self.pixel_bits, -1)
 
 
 @dataclass
@@ -92,7 +98,9 @@ class StreamAssembler:
     """Whole histograms from HISTOGRAM chunks, event arrays from EVENTS packets.
 
     Feed it data packets in order of arrival with :meth:`add`; it returns what is complete.
-    A frame is finished by its ``last`` chunk or by the first chunk of another frame; a frame
+    Both forms of a chunk (HISTOGRAM and HISTOGRAM_COMPACT) fill the same frame. A frame is
+    finished by its ``last`` chunk or by the first chunk of another frame (or of other
+    settings: bin shift, pixel split); a frame
     that misses chunks is still returned, with ``complete`` False, and a jump in frame numbers
     counts the frames lost in between. Nothing malformed is accepted: a chunk that does not fit
     its frame is counted in ``malformed`` and dropped.
@@ -101,7 +109,7 @@ class StreamAssembler:
     def __init__(self):
         self.counters = StreamCounters()
         self._frame = None
-        self._shift = None
+        self._settings = None
         self._counts = None
         self._filled = None
         self._next_frame = None
@@ -112,8 +120,8 @@ class StreamAssembler:
     def add(self, packet: Packet, time_s: Optional[float] = None
             ) -> List[Union[HistogramFrame, EventBatch]]:
         time_s = time.time() if time_s is None else time_s
-        if packet.type == PacketType.HISTOGRAM:
-            return self._chunk(packet.payload, time_s)
+        if packet.type in HISTOGRAM_TYPES:
+            return self._chunk(packet.type, packet.payload, time_s)
         if packet.type == PacketType.EVENTS:
             try:
                 events = unpack_event_payload(packet.payload)
@@ -132,40 +140,36 @@ class StreamAssembler:
         self.counters.events += len(events)
         return [EventBatch(events, time.time() if time_s is None else time_s)]
 
-    def _chunk(self, payload, time_s):
+    def _chunk(self, type, payload, time_s):
         out = []
-        if len(payload) < _CHUNK_BYTES or (len(payload) - _CHUNK_BYTES) % _COUNT_DTYPE.itemsize:
+        try:
+            chunk = decode_chunk(type, payload)
+        except MalformedChunk:
             self.counters.malformed += 1
             return out
-        chunk = unpack_from(HistogramChunk, payload)
-        frame, first, shift, last = (chunk["frame"], chunk["first_bin"], chunk["shift"],
-                                     chunk["last"])
-        counts = np.frombuffer(payload, dtype=_COUNT_DTYPE, offset=_CHUNK_BYTES)
-        bins = (1 << TIMESTAMP_BITS) >> shift if shift <= MAX_SHIFT else 0
-        if shift > MAX_SHIFT or first + len(counts) > bins or last > 1:
-            self.counters.malformed += 1
-            return out
+        frame, first, counts = chunk.frame, chunk.first_bin, chunk.counts
+        settings = (chunk.shift, chunk.pixel_bits, chunk.first_pixel)
         self.counters.histogram_chunks += 1
-        if self._frame is not None and (frame != self._frame or shift != self._shift):
+        if self._frame is not None and (frame != self._frame or settings != self._settings):
             out.append(self._finish(time_s))
         if self._frame is None:
             if self._next_frame is not None and frame != self._next_frame:
                 self.counters.lost_frames += (frame - self._next_frame) % (1 << 32)
-            self._frame, self._shift = frame, shift
-            self._counts = np.zeros(bins, dtype=np.uint32)
-            self._filled = np.zeros(bins, dtype=bool)
+            self._frame, self._settings = frame, settings
+            self._counts = np.zeros(chunk.bins, dtype=np.uint32)
+            self._filled = np.zeros(chunk.bins, dtype=bool)
         self._counts[first:first + len(counts)] = counts
         self._filled[first:first + len(counts)] = True
-        if last:
+        if chunk.last:
             self.frames_ended = (frame + 1) % (1 << 32)
-        if last:
             out.append(self._finish(time_s))
         return out
 
     def _finish(self, time_s):
         missing = int(np.count_nonzero(~self._filled))
-        result = HistogramFrame(self._frame, self._shift, self._counts, missing == 0, missing,
-                                time_s)
+        shift, pixel_bits, first_pixel = self._settings
+        result = HistogramFrame(self._frame, shift, self._counts, missing == 0, missing,
+                                time_s, pixel_bits, first_pixel)
         self.counters.frames += 1
         if missing:
             self.counters.incomplete_frames += 1

@@ -32,14 +32,13 @@ import numpy as np
 
 from ..hdl import DEFAULT_CLOCK_HZ
 from ..hdl.event import TIMESTAMP_BITS
-from ..hdl.protocol import (HISTOGRAM_COUNT_BITS, CHUNK_BINS, DEFAULT_BAUD, PacketType,
-                            HistogramChunk, STATUS_FIELDS, LINK_COUNTERS, MAX_EVENTS_PER_PACKET,
-                            EVENT_BYTES)
+from ..hdl.protocol import (DEFAULT_BAUD, PacketType, STATUS_FIELDS, LINK_COUNTERS,
+                            MAX_EVENTS_PER_PACKET, EVENT_BYTES)
 from ..hdl.registers import AcquisitionMode, TdcSource, value_of, words_of
-from .codec import (LinkError, Packet, byte_size, encode_frame, pack, pack_events, pack_words,
-                    unpack_from, unpack_words)
+from .codec import LinkError, Packet, encode_frame, pack_events, packet_type
 from . import scheduler as _scheduler
 from .command import CommandModel
+from .histogram_packets import HISTOGRAM_TYPES, decode_chunk, encode_histogram, frame_bins
 from .delay import DelayMode
 from .noisy_line import NoisyLine, add_line_arguments, describe, faults_from_args
 from .pty_server import PtyServer
@@ -133,19 +132,18 @@ class ModelBoard(PtyServer):
 
     def sent_histograms(self, bins, *, whole=False):
         """The histograms sent so far, from this board's own record (``sent``): counts of
-        ``bins`` bins by frame number; with ``whole``, only those whose last chunk was sent."""
+        ``bins`` bins by frame number, from both chunk forms; with ``whole``, only those whose
+        last chunk was sent."""
         sent, ended = {}, set()
         for type_value, _seq, payload in list(self.sent):
-            if type_value != PacketType.HISTOGRAM:
+            if packet_type(type_value) not in HISTOGRAM_TYPES:
                 continue
-            chunk = unpack_from(HistogramChunk, payload)
-            counts = unpack_words(payload, HISTOGRAM_COUNT_BITS,
-                                  offset=byte_size(HistogramChunk))
-            first = chunk["first_bin"]
-            sent.setdefault(chunk["frame"], np.zeros(bins, np.int64))[
-                first:first + len(counts)] = counts
-            if chunk["last"]:
-                ended.add(chunk["frame"])
+            chunk = decode_chunk(packet_type(type_value), payload)
+            first = chunk.first_bin
+            sent.setdefault(chunk.frame, np.zeros(bins, np.int64))[
+                first:first + len(chunk.counts)] = chunk.counts
+            if chunk.last:
+                ended.add(chunk.frame)
         return {frame: counts for frame, counts in sent.items() if not whole or frame in ended}
 
     def seed_for(self, acquisition):
@@ -308,18 +306,16 @@ class ModelBoard(PtyServer):
                                               minlength=bins)[:bins]
 
     def _send_histogram(self):
-        shift = self.settings["bin_shift"]
-        bins = (1 << TIMESTAMP_BITS) >> shift
+        # The frame's packets as the gateware's packetizer makes them (full or compact chunks).
+        s = self.settings
+        shift, pixel_bits = s["bin_shift"], s.get("pixel_bits", 0)
         counts = self._frame_counts if self._frame_counts is not None else \
-            np.zeros(bins, dtype=np.int64)
-        counts = np.minimum(counts, (1 << HISTOGRAM_COUNT_BITS) - 1)
-        step = min(CHUNK_BINS, bins)
-        for first in range(0, bins, step):
-            last = int(first + step >= bins)
-            payload = pack(HistogramChunk, frame=self._frame & 0xffffffff, first_bin=first,
-                           shift=shift, last=last) + \
-                pack_words(counts[first:first + step], HISTOGRAM_COUNT_BITS)
-            self._send(PacketType.HISTOGRAM, payload, data=True)
+            np.zeros(frame_bins(shift, pixel_bits), dtype=np.int64)
+        for type, payload in encode_histogram(counts, frame=self._frame, shift=shift,
+                                              pixel_bits=pixel_bits,
+                                              first_pixel=s.get("first_pixel", 0),
+                                              full_readout=s.get("full_readout", 0)):
+            self._send(type, payload, data=True)
         self._frame += 1
         self.status["frames"] += 1
         self._frame_counts = None

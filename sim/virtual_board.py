@@ -84,7 +84,7 @@ MAX_BACKLOG = 1 << 22
 RESET_CYCLES = 4
 
 #: Packets that count as data for ``FLISS_BOARD_RESET_AFTER``.
-DATA_TYPES = frozenset({PacketType.HISTOGRAM, PacketType.EVENTS})
+DATA_TYPES = frozenset({PacketType.HISTOGRAM, PacketType.HISTOGRAM_COMPACT, PacketType.EVENTS})
 
 CLOCK_PERIOD_PS = round(1e12 / DEFAULT_CLOCK_HZ)
 

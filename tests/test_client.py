@@ -240,7 +240,8 @@ def test_event_payload_matches_codec():
 def test_stream_corruption_is_counted_and_never_accepted():
     with model_board(corrupt_every=5, corrupt_types={PacketType.HISTOGRAM}) as model:
         with BoardClient(model.path, timeout_s=2.0) as board:
-            board.write_registers({"integration": 80_000, "bin_shift": 2})
+            # (full chunks of 128 bins: each lost chunk is 128 missing bins)
+            board.write_registers({"integration": 80_000, "bin_shift": 2, "full_readout": 1})
             board.reset_counters()
             board.start()
             frames = []

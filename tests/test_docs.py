@@ -8,8 +8,9 @@ from amaranth.lib import data
 
 from fliss.hdl.event import Event
 from fliss.hdl.protocol import (GATEWARE_VERSION, CHUNK_BINS, Header, Ack, Nak, Identity,
-                                ReadRequest, Status, HistogramChunk, registers_layout, READ_MAX,
-                                CONSISTENCY, EVENT_BYTES)
+                                ReadRequest, Status, HistogramChunk, HistogramCompact,
+                                registers_layout, READ_MAX, CONSISTENCY, EVENT_BYTES,
+                                COMPACT_BYTES)
 from fliss.hdl.registers import REGISTERS
 
 
@@ -40,11 +41,13 @@ def _payload_tables():
 def test_payload_tables_match_the_layouts():
     layouts = {"Ack": Ack, "Nak": Nak, "Identity": Identity, "ReadRequest": ReadRequest,
                "registers_layout(n)": registers_layout(1), "Status": Status,
-               "HistogramChunk": HistogramChunk, "Event": Event}
+               "HistogramChunk": HistogramChunk, "HistogramCompact": HistogramCompact,
+               "Event": Event}
     tables = _payload_tables()
     assert sorted(tables) == sorted(layouts)
     for name, layout in layouts.items():
-        unit = 1 if name == "Event" else 8      # the Event table counts bits, the others bytes
+        # (the Event and histogram chunk tables count bits, the others bytes)
+        unit = 1 if name in ("Event", "HistogramChunk", "HistogramCompact") else 8
         defined = [(field.offset // unit, field.width // unit, field_name)
                    for field_name, field in data.Layout.cast(layout)]
         assert all(field.offset % unit == 0 and field.width % unit == 0
@@ -57,6 +60,7 @@ def test_payload_limits_in_the_text():
     assert f"`READ_MAX = {READ_MAX}`" in text
     assert f"`EVENT_BYTES = {EVENT_BYTES}`" in text
     assert f"`CHUNK_BINS` = {CHUNK_BINS}" in text
+    assert f"`COMPACT_BYTES` = {COMPACT_BYTES}" in text
     assert f"`CONSISTENCY = {CONSISTENCY:#06x}`" in text
 
 

@@ -12,13 +12,12 @@ import time
 import numpy as np
 import pytest
 
-from fliss.hdl.protocol import HistogramChunk, PacketType
+from fliss.sim.histogram_packets import HISTOGRAM_TYPES, decode_chunk
 from fliss.host.acquisition import capture
 from fliss.host.capture import Progress
 from fliss.host.cli import main
 from fliss.host.client import BoardClient
 from fliss.host.fileformat import read_capture
-from fliss.sim.codec import unpack_from
 from fliss.sim.model_board import model_board
 from fliss.sim.noisy_line import (FaultInjector, LineFaults, NoisyLine, add_line_arguments,
                                   faults_from_args)
@@ -127,10 +126,10 @@ def _damaged_frames(model, injector):
     chunks = iter(model.sent)
     out = []
     for index, (type, _seq, _end) in enumerate(model.frames_out):
-        if type == PacketType.HISTOGRAM:
+        if type in HISTOGRAM_TYPES:
             payload = next(chunks)[2]
             if index in hit:
-                out.append(unpack_from(HistogramChunk, payload)["frame"])
+                out.append(decode_chunk(type, payload).frame)
     return out
 
 
@@ -140,7 +139,8 @@ def test_capture_at_1e4_both_ways_accepts_nothing_wrong(tmp_path):
             NoisyLine(model.path, to_host=faults, to_board=faults, seed=2) as line:
         with BoardClient(line.path, timeout_s=0.5) as board:
             board.identify()
-            board.write_registers({"bin_shift": SHIFT})
+            # (full chunks: as many bytes, so as many bit errors, as the statistics below expect)
+            board.write_registers({"bin_shift": SHIFT, "full_readout": 1})
             result = capture(board, tmp_path / "noisy.h5", integration_s=1e-3,
                              acquisitions=100)
             # The line clean again, every frame the board sent is accounted for by the host.
