@@ -12,9 +12,8 @@ import numpy as np
 import pytest
 
 from fliss.hdl import DEFAULT_CLOCK_HZ
-from fliss.hdl.protocol import (HISTOGRAM_COUNT_BITS, EVENT_BYTES, PROTOCOL_VERSION, NakCode,
-                                PacketType, Identity, ReadRequest, Status, HistogramChunk,
-                                registers_layout)
+from fliss.hdl.protocol import (EVENT_BYTES, PROTOCOL_VERSION, NakCode,
+                                PacketType, Identity, ReadRequest, Status, registers_layout)
 from fliss.hdl.registers import BY_NAME, REGISTERS
 from fliss.sim import codec
 from fliss.host.virtual import SIMULATORS, VirtualBoard
@@ -23,6 +22,7 @@ from fliss.host.client import BoardClient
 from fliss.host.fileformat import read_capture
 from fliss.sim import scene
 from fliss.sim.cocotb_runner import simulator_available
+from fliss.sim.histogram_packets import HISTOGRAM_TYPES, decode_chunk
 from fliss.sim.virtual_board import SensorModel
 
 
@@ -206,15 +206,14 @@ def _frame(link, number, timeout_s):
     chunks = {}
     deadline = time.monotonic() + timeout_s
     while True:
-        packet = link.next({PacketType.HISTOGRAM}, timeout_s=max(deadline - time.monotonic(), 0))
-        chunk = codec.unpack_from(HistogramChunk, packet.payload)
-        frame, first_bin, shift, last = (chunk["frame"], chunk["first_bin"], chunk["shift"],
-                                         chunk["last"])
+        packet = link.next(HISTOGRAM_TYPES, timeout_s=max(deadline - time.monotonic(), 0))
+        # (a full or a compact chunk, whichever the board found shorter)
+        chunk = decode_chunk(packet.type, packet.payload)
+        frame, first_bin, shift, last = chunk.frame, chunk.first_bin, chunk.shift, chunk.last
         if frame < number:
             continue
         assert frame == number, (frame, number)
-        chunks[first_bin] = np.array(codec.unpack_words(
-            packet.payload, HISTOGRAM_COUNT_BITS, offset=codec.byte_size(HistogramChunk)))
+        chunks[first_bin] = chunk.counts.astype(np.int64)
         if last:
             break
     bins = np.concatenate([chunks[first] for first in sorted(chunks)])
