@@ -215,7 +215,7 @@ def test_capture_raw_matches_the_scene(model, capsys, tmp_path):
 def test_killed_board_leaves_what_was_received(capsys, tmp_path):
     chunks = 8192 >> SHIFT >> 7
     with model_board(scene=SCENE, kill_after=3 * chunks + 2) as model:
-        settings = _prepare(model)
+        settings = _prepare(model, full_readout=1)     # (chunks of 128 bins, counted above)
         seed = model.seed_for(model.starts)
         output = tmp_path / "k.h5"
         status, out, err = fliss(capsys, "-q", "capture", "--port", model.path,
@@ -258,7 +258,7 @@ def test_hung_board_is_detected(capsys, tmp_path):
 def test_corruption_is_detected_and_counted(capsys, tmp_path):
     with model_board(scene=SCENE, corrupt_every=7, corrupt_types={PacketType.HISTOGRAM}) \
             as model:
-        settings = _prepare(model)
+        settings = _prepare(model, full_readout=1)     # (full chunks: many to corrupt)
         seed = model.seed_for(model.starts)
         first_frame = model.next_frame
         output = tmp_path / "c.h5"
