@@ -8,8 +8,8 @@ from amaranth.lib.wiring import In, Out
 from .event import ADDRESS_BITS
 from .framing import PacketBeat
 from .histogram_layout import BIN_BITS, COUNT_WIDTH, MAX_SHIFT, readout_layout
-from .protocol import (CHUNK_BINS, COMPACT_BYTES, HISTOGRAM_COUNT_BITS, HistogramChunk,
-                       HistogramCompact, PacketType)
+from .protocol import (CHUNK_BINS, COMPACT_BYTES, HISTOGRAM_COUNT_BITS, MAX_FRAME_BITS,
+                       HistogramChunk, HistogramCompact, PacketType)
 
 
 __all__ = ["HistogramPacketizer"]
@@ -21,7 +21,7 @@ _COUNT_BYTES = HISTOGRAM_COUNT_BITS // 8
 assert COUNT_WIDTH == HISTOGRAM_COUNT_BITS, "the readout's counts go out as they are"
 #: Most token bytes one window can make (two 3-byte tokens a bin), and the widest run.
 _WINDOW_TOKENS = 6 * CHUNK_BINS
-_RUN_BITS = 16
+_RUN_BITS = MAX_FRAME_BITS
 
 
 def _token_length(value):

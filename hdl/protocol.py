@@ -30,6 +30,7 @@ __all__ = [
     "REGISTER_BYTES", "registers_layout", "READ_MAX", "CONSISTENCY", "COUNTER_BITS", "Status",
     "STATUS_FIELDS", "LINK_COUNTERS", "LINK_FIELDS", "LINK_ERRORS", "HistogramChunk",
     "HISTOGRAM_COUNT_BITS", "CHUNK_BINS", "HistogramCompact", "COMPACT_BYTES",
+    "MAX_FRAME_BITS",
     "EVENT_BYTES", "MAX_EVENTS_PER_PACKET", "DIRECTION_BIT",
 ]
 
@@ -319,6 +320,9 @@ HISTOGRAM_COUNT_BITS = 16
 
 #: Most bins in one HISTOGRAM chunk.
 CHUNK_BINS = 128
+
+#: A frame holds at most ``2**MAX_FRAME_BITS`` bins: flat indices are 16 bits.
+MAX_FRAME_BITS = 16
 
 
 assert (data.Layout.cast(HistogramChunk).size + CHUNK_BINS * HISTOGRAM_COUNT_BITS) // 8 \

@@ -27,21 +27,18 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..hdl.event import ADDRESS_BITS, TIMESTAMP_BITS
-from ..hdl.protocol import (CHUNK_BINS, COMPACT_BYTES, HISTOGRAM_COUNT_BITS, HistogramChunk,
-                            HistogramCompact, PacketType)
+from ..hdl.protocol import (CHUNK_BINS, COMPACT_BYTES, HISTOGRAM_COUNT_BITS, MAX_FRAME_BITS,
+                            HistogramChunk, HistogramCompact, PacketType)
 from .codec import byte_size, pack, packet_type, unpack_from, word_dtype
 
 
-__all__ = ["HISTOGRAM_TYPES", "MAX_FRAME_BITS", "FULL_HEADER_BYTES", "COMPACT_HEADER_BYTES",
+__all__ = ["HISTOGRAM_TYPES", "FULL_HEADER_BYTES", "COMPACT_HEADER_BYTES",
            "MalformedChunk", "Chunk", "frame_bins", "token_length", "tokens", "window_is_compact",
            "encode_histogram", "decode_chunk", "assemble"]
 
 
 #: The packet types that carry histogram chunks.
 HISTOGRAM_TYPES = frozenset({PacketType.HISTOGRAM, PacketType.HISTOGRAM_COMPACT})
-
-#: Flat indices are 16 bits: a frame holds at most ``2**16`` bins.
-MAX_FRAME_BITS = 16
 
 #: Bytes of the headers of the two payloads.
 FULL_HEADER_BYTES = byte_size(HistogramChunk)

@@ -7,16 +7,17 @@ import numpy as np
 import pytest
 
 from fliss.hdl.histogram_packetizer import HistogramPacketizer
+from fliss.hdl.packetizer import FullHistogramPacketizer
 from fliss.hdl.protocol import PacketType
 from fliss.sim.histogram_packets import assemble, encode_histogram, frame_bins
 from simulation import simulate
 
 
-def packetize(frames, *, index_bits=16, seed=0, gaps=True):
+def packetize(frames, *, index_bits=16, seed=0, gaps=True, block=HistogramPacketizer):
     """Feed ``frames`` (``(counts, settings)`` with settings a dict of shift, pixel_bits,
-    first_pixel, full_readout) through the packetizer; return its packets as (type, length,
-    payload bytes)."""
-    dut = HistogramPacketizer(index_bits=index_bits)
+    first_pixel, full_readout) through the packetizer ``block``; return its packets as (type,
+    length, payload bytes)."""
+    dut = block(index_bits=index_bits)
     rng = random.Random(seed)
     packets = []
     done = []
@@ -59,9 +60,10 @@ def packetize(frames, *, index_bits=16, seed=0, gaps=True):
     return packets
 
 
-def model(frames):
+def model(frames, full=False):
     want = []
     for number, (counts, settings) in enumerate(frames):
+        settings = dict(settings, full_readout=settings["full_readout"] or full)
         for type, payload in encode_histogram(counts, frame=number, **settings):
             want.append((type.value, len(payload), payload))
     return want
@@ -148,6 +150,19 @@ def test_compact_chunk_fills_to_the_byte(lead, chunks):
         assert got[0][1] == 10 + 254
 
 
-def test_index_width_is_checked(construction_error):
-    assert construction_error(lambda: HistogramPacketizer(index_bits=17)) == \
+@pytest.mark.parametrize("shift,pixel_bits", [(0, 0), (5, 0), (7, 2), (12, 0), (13, 0), (9, 3)])
+def test_full_packetizer_sends_full_chunks(shift, pixel_bits):
+    # The small builds' packetizer: every frame as HISTOGRAM chunks of 128 bins at most, as the
+    # model sends them with full_readout, whatever full_readout says.
+    rng = np.random.default_rng(shift)
+    bins = frame_bins(shift, pixel_bits)
+    frames = [(random_frame(rng, shift, pixel_bits, density), settings(shift, pixel_bits, 3))
+              for density in ((0.5,) if bins > 1024 else (0.01, 1))]
+    got = packetize(frames, seed=shift, block=FullHistogramPacketizer)
+    assert got == model(frames, full=True)
+
+
+@pytest.mark.parametrize("block", [HistogramPacketizer, FullHistogramPacketizer])
+def test_index_width_is_checked(construction_error, block):
+    assert construction_error(lambda: block(index_bits=17)) == \
         "Index width must be an integer from 1 to 16 bits, not 17"
