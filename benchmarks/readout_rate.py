@@ -22,7 +22,9 @@ Frames follow each other as in :class:`fliss.hdl.histogram_frames.FrameSequencer
 arbiter, frame encoder) in Amaranth's simulator with the readout at 4 cycles a bin and a
 12 Mbaud UART's pace on its output, and prints its bank and busy times beside this model's.
 
-Usage: python benchmarks/readout_rate.py [--frames N] [--seed S] [--no-cross-check]
+``--shift`` takes wider bins (``8192 >> shift`` bins of ``2**shift`` codes).
+
+Usage: python benchmarks/readout_rate.py [--frames N] [--seed S] [--shift B] [--no-cross-check]
 """
 
 import argparse
@@ -111,7 +113,7 @@ def steady_state(frames, t_int_s):
     return 1 / period, dropped / len(frames)
 
 
-def cross_check(counts, baud):
+def cross_check(counts, baud, shift):
     """Bank and busy time of ``counts`` (one frame) through the gateware in Amaranth's
     simulator, readout at 4 cycles a bin, output at the UART's pace."""
     from amaranth.sim import Simulator
@@ -122,7 +124,7 @@ def cross_check(counts, baud):
     result = {}
 
     async def bench(ctx):
-        ctx.set(dut.shift, 0)
+        ctx.set(dut.shift, shift)
         cycle, position, wait, out, idle = 0, 0, 0, 0, 0
         while True:
             if position < len(counts) and wait == 0:
@@ -164,6 +166,8 @@ def main():
                                      formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     parser.add_argument("--frames", type=int, default=12, help="acquisitions per integration")
     parser.add_argument("--seed", type=int, default=1, help="seed of the photon statistics")
+    parser.add_argument("--shift", type=int, default=0, choices=range(14),
+                        help="bin shift: bins of 2**shift TDC codes")
     parser.add_argument("--no-cross-check", dest="cross_check", action="store_false",
                         help="skip the gateware simulation of one frame")
     args = parser.parse_args()
@@ -171,7 +175,8 @@ def main():
     scene = paper_scene()
     started = time.perf_counter()
     print(f"Histogram readout, the paper's bench (victim 4 m, FLISS masked Wm = 6, aggressor, "
-          f"background {scene.background_hz:.0e} Hz), {BINS} bins, {args.frames} frames each, "
+          f"background {scene.background_hz:.0e} Hz), {BINS >> args.shift} bins, "
+          f"{args.frames} frames each, "
           f"packetizer at {CLOCK_HZ / 1e6:.0f} MHz, 8N1")
     print(f"{'T_int':>6} {'baud':>5} {'events':>7} {'form':>8} {'bytes/hist':>10} "
           f"{'link ms':>8} {'busy ms':>8} {'hist/s':>7} {'dropped/hist':>13} {'dropped %':>9}")
@@ -182,6 +187,7 @@ def main():
         histograms = [np.bincount(events["timestamp"].astype(np.int64), minlength=BINS)
                       for events in run.events]
         assert all(np.array_equal(h, g) for h, g in zip(histograms, run.histograms))
+        histograms = [h.reshape(-1, 1 << args.shift).sum(axis=1) for h in histograms]
         events = [len(e) for e in run.events]
         if first_frame is None:
             first_frame = histograms[0]
@@ -189,7 +195,8 @@ def main():
             for form, full in (("full", True), ("compact", False)):
                 frames, sizes, links = [], [], []
                 for number, counts in enumerate(histograms):
-                    packets = encode_histogram(counts, frame=number, shift=0, full_readout=full)
+                    packets = encode_histogram(counts, frame=number, shift=args.shift,
+                                               full_readout=full)
                     size = sum(wire_bytes(packets))
                     bank_s, busy_s = frame_timing(counts, packets, baud)
                     frames.append((events[number], bank_s, busy_s))
@@ -211,10 +218,10 @@ def main():
 
     if args.cross_check:
         baud = 12_000_000
-        packets = encode_histogram(first_frame, frame=0, shift=0)
+        packets = encode_histogram(first_frame, frame=0, shift=args.shift)
         bank_s, busy_s = frame_timing(first_frame, packets, baud)
         started = time.perf_counter()
-        sim_bank, sim_busy, sim_bytes = cross_check(first_frame, baud)
+        sim_bank, sim_busy, sim_bytes = cross_check(first_frame, baud, args.shift)
         print(f"cross-check, one 1 ms frame, compact, 12 Mbaud: gateware {sim_bytes} bytes, "
               f"bank free after {sim_bank * 1e3:.3f} ms, last byte out after "
               f"{sim_busy * 1e3:.3f} ms; model {sum(wire_bytes(packets))} bytes, "
