@@ -12,7 +12,7 @@ Link time comes from the exact wire bytes of those packets (header, payload, CRC
 delimiter: :func:`fliss.sim.codec.encode_frame`) at 10 bits a byte. The packetizer's time per
 frame follows :class:`fliss.hdl.histogram_packetizer.HistogramPacketizer` at 80 MHz: each
 window of 128 bins is taken at the readout's 4 cycles a bin, a compact window is then encoded
-(2 cycles a bin and one a token byte), and a packet the window sends occupies the packetizer
+(2 cycles an empty bin, 3 a bin with a count, one a token byte), and a packet the window sends occupies the packetizer
 until it is on the wire (conservative: the frame encoder's buffer is not counted). The bank is
 free when the last bin is taken; the histogram engine then starts the next frame, or, if the
 other bank is still being read out, waits and drops the events meanwhile (``dropped_histogram``).
@@ -90,7 +90,8 @@ def frame_timing(counts, packets, baud):
         bank = t
         if index in compact_windows:
             part = counts[index * window:(index + 1) * window]
-            t += (2 * window + len(tokens(part)[0])) / CLOCK_HZ
+            # (two cycles an empty bin, three and one a token byte for a count)
+            t += (2 * window + np.count_nonzero(part) + len(tokens(part)[0])) / CLOCK_HZ
         t += sent_after[index]
     return bank, t
 

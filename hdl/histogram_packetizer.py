@@ -109,11 +109,13 @@ class HistogramPacketizer(wiring.Component):
         run = Signal(_RUN_BITS + 1)
         value = Signal(_RUN_BITS + 2)
         pending_count = Signal(COUNT_WIDTH)
+        word = Signal(COUNT_WIDTH)      # the buffer's word, registered as it leaves the RAM
+        prefetch = Signal()
         full_header = Signal(HistogramChunk)
         compact_header = Signal(HistogramCompact)
 
         m.d.comb += [
-            count_read.addr.eq(step),
+            count_read.addr.eq(Mux(prefetch, step + 1, step)),
             token_read.addr.eq(step),
             token_write.addr.eq(open_bytes),
             token_write.data.eq(Cat(value[:7], value >= 0x80)),
@@ -144,43 +146,55 @@ class HistogramPacketizer(wiring.Component):
             (fresh_bytes + _COMPACT_HEADER < _FULL_HEADER + _COUNT_BYTES * window_bins)
         fits = open_bytes + carried_bytes <= COMPACT_BYTES
 
+        # Stage 1 (SCAN): a beat of the readout into registers. Stage 2, the next cycle: its
+        # count into the buffer, its tokens counted.
+        beat_valid = Signal()
+        beat = Signal.like(self.readout.p)
+        taken = Signal(range(CHUNK_BINS + 1))
+        m.d.sync += beat_valid.eq(0)
+        with m.If(beat_valid):
+            m.d.comb += [
+                count_write.addr.eq(window_bins),
+                count_write.data.eq(beat.count),
+                count_write.en.eq(1),
+            ]
+            with m.If(window_bins == 0):
+                m.d.sync += [
+                    window_first.eq(beat.index),
+                    split.frame.eq(frame),
+                    split.first_pixel.eq(self.first_pixel),
+                    split.shift.eq(self.shift),
+                    split.pixel_bits.eq(self.pixel_bits),
+                ]
+                with m.If(frame_start):
+                    m.d.sync += full_readout.eq(self.full_readout), frame_start.eq(0)
+                # (the tallies start here: nothing before the window, or the open chunk's run)
+                with m.If(beat.count != 0):
+                    m.d.sync += [
+                        fresh_bytes.eq(_token_length(beat.count)), fresh_run.eq(0),
+                        carried_bytes.eq(Mux(open_run == 0, 0, _token_length(open_run)) +
+                                         _token_length(beat.count)),
+                        carried_run.eq(0),
+                    ]
+                with m.Else():
+                    m.d.sync += [
+                        fresh_bytes.eq(0), fresh_run.eq(1),
+                        carried_bytes.eq(0), carried_run.eq(open_run + 1),
+                    ]
+            with m.Else():
+                tally(fresh_bytes, fresh_run, beat.count)
+                tally(carried_bytes, carried_run, beat.count)
+            m.d.sync += window_bins.eq(window_bins + 1), window_last.eq(beat.last)
+
         with m.FSM():
             with m.State("SCAN"):
-                beat = self.readout.p
-                m.d.comb += [
-                    self.readout.ready.eq(1),
-                    count_write.addr.eq(window_bins),
-                    count_write.data.eq(beat.count),
-                    count_write.en.eq(self.readout.valid),
-                ]
+                m.d.comb += self.readout.ready.eq(1)
                 with m.If(self.readout.valid):
-                    with m.If(window_bins == 0):
-                        m.d.sync += [
-                            window_first.eq(beat.index),
-                            split.frame.eq(frame),
-                            split.first_pixel.eq(self.first_pixel),
-                            split.shift.eq(self.shift),
-                            split.pixel_bits.eq(self.pixel_bits),
-                            fresh_bytes.eq(0), fresh_run.eq(0),
-                            carried_bytes.eq(0), carried_run.eq(open_run),
-                        ]
-                        with m.If(frame_start):
-                            m.d.sync += full_readout.eq(self.full_readout), frame_start.eq(0)
-                    with m.If(window_bins == 0):
-                        # (the tallies start from the values just set)
-                        with m.If(beat.count != 0):
-                            m.d.sync += fresh_bytes.eq(_token_length(beat.count)),
-                            m.d.sync += carried_bytes.eq(
-                                Mux(open_run == 0, 0, _token_length(open_run)) +
-                                _token_length(beat.count)), carried_run.eq(0)
-                        with m.Else():
-                            m.d.sync += fresh_run.eq(1), carried_run.eq(open_run + 1)
-                    with m.Else():
-                        tally(fresh_bytes, fresh_run, beat.count)
-                        tally(carried_bytes, carried_run, beat.count)
-                    m.d.sync += window_bins.eq(window_bins + 1), window_last.eq(beat.last)
-                    with m.If(beat.last | (window_bins == CHUNK_BINS - 1)):
-                        m.next = "DECIDE"
+                    m.d.sync += beat_valid.eq(1), beat.eq(self.readout.p), taken.eq(taken + 1)
+                    with m.If(self.readout.p.last | (taken == CHUNK_BINS - 1)):
+                        m.next = "SCAN_END"
+            with m.State("SCAN_END"):       # (stage 2 of the window's last beat)
+                m.next = "DECIDE"
 
             with m.State("DECIDE"):
                 m.d.sync += step.eq(0), byte.eq(0)
@@ -223,6 +237,9 @@ class HistogramPacketizer(wiring.Component):
                         m.d.sync += step.eq(0)
                         m.next = "FULL_LOAD"
             with m.State("FULL_LOAD"):      # (the buffer's word for `step` comes next cycle)
+                m.next = "FULL_FETCH"
+            with m.State("FULL_FETCH"):
+                m.d.sync += word.eq(count_read.data)
                 m.next = "FULL_COUNT"
             with m.State("FULL_COUNT"):
                 final = byte & (step == window_bins - 1)
@@ -230,7 +247,7 @@ class HistogramPacketizer(wiring.Component):
                     self.packets.valid.eq(1),
                     self.packets.p.header.type.eq(PacketType.HISTOGRAM),
                     self.packets.p.header.length.eq(_FULL_HEADER + _COUNT_BYTES * window_bins),
-                    self.packets.p.data.eq(count_read.data.word_select(byte, 8)),
+                    self.packets.p.data.eq(word.word_select(byte, 8)),
                     self.packets.p.last.eq(final),
                 ]
                 with m.If(self.packets.ready):
@@ -255,21 +272,27 @@ class HistogramPacketizer(wiring.Component):
                         m.d.sync += close_last.eq(1), step.eq(0)
                         m.next = "CLOSE"
                     with m.Else():
-                        m.d.sync += window_bins.eq(0)
+                        m.d.sync += window_bins.eq(0), taken.eq(0)
                         m.next = "SCAN"
                 with m.Else():
-                    m.next = "ENCODE_BIN"
+                    m.next = "ENCODE_FETCH"
+            with m.State("ENCODE_FETCH"):
+                m.d.sync += word.eq(count_read.data)
+                m.next = "ENCODE_BIN"
             with m.State("ENCODE_BIN"):
-                count = count_read.data
                 m.d.sync += step.eq(step + 1)
-                with m.If(count == 0):
+                with m.If(word == 0):
                     m.d.sync += run.eq(run + 1)
-                    m.next = "ENCODE_LOAD"
+                    # (the next bin's address now, so its word is there in ENCODE_FETCH)
+                    m.d.comb += prefetch.eq(1)
+                    m.next = "ENCODE_FETCH"
+                    with m.If(step + 1 == window_bins):
+                        m.next = "ENCODE_LOAD"
                 with m.Elif(run != 0):
-                    m.d.sync += value.eq(Cat(Const(1, 1), run)), pending_count.eq(count)
+                    m.d.sync += value.eq(Cat(Const(1, 1), run)), pending_count.eq(word)
                     m.next = "ENCODE_TOKEN"
                 with m.Else():
-                    m.d.sync += value.eq(Cat(Const(0, 1), count)), pending_count.eq(0)
+                    m.d.sync += value.eq(Cat(Const(0, 1), word)), pending_count.eq(0)
                     m.next = "ENCODE_TOKEN"
             with m.State("ENCODE_TOKEN"):
                 m.d.comb += token_write.en.eq(1)
@@ -311,6 +334,9 @@ class HistogramPacketizer(wiring.Component):
                         m.d.sync += step.eq(0)
                         m.next = "CLOSE_LOAD"
             with m.State("CLOSE_LOAD"):
+                m.next = "CLOSE_FETCH"
+            with m.State("CLOSE_FETCH"):
+                m.d.sync += word.eq(token_read.data)
                 m.next = "CLOSE_TOKEN"
             with m.State("CLOSE_TOKEN"):
                 final = step == open_bytes - 1
@@ -318,7 +344,7 @@ class HistogramPacketizer(wiring.Component):
                     self.packets.valid.eq(1),
                     self.packets.p.header.type.eq(PacketType.HISTOGRAM_COMPACT),
                     self.packets.p.header.length.eq(compact_length),
-                    self.packets.p.data.eq(token_read.data),
+                    self.packets.p.data.eq(word[:8]),
                     self.packets.p.last.eq(final),
                 ]
                 with m.If(self.packets.ready):
@@ -337,7 +363,7 @@ class HistogramPacketizer(wiring.Component):
 
             # The window is done: the next one, or the next frame
             with m.State("NEXT"):
-                m.d.sync += window_bins.eq(0)
+                m.d.sync += window_bins.eq(0), taken.eq(0)
                 with m.If(window_last):
                     m.d.sync += frame.eq(frame + 1), frame_start.eq(1), close_last.eq(0)
                 m.next = "SCAN"
