@@ -150,6 +150,8 @@ class HistogramPacketizer(wiring.Component):
         # count into the buffer, its tokens counted.
         beat_valid = Signal()
         beat = Signal.like(self.readout.p)
+        beat_settings = Signal(data.StructLayout({      # (the settings as the beat came)
+            "first_pixel": ADDRESS_BITS, "shift": 4, "pixel_bits": 3, "full_readout": 1}))
         taken = Signal(range(CHUNK_BINS + 1))
         m.d.sync += beat_valid.eq(0)
         with m.If(beat_valid):
@@ -162,12 +164,12 @@ class HistogramPacketizer(wiring.Component):
                 m.d.sync += [
                     window_first.eq(beat.index),
                     split.frame.eq(frame),
-                    split.first_pixel.eq(self.first_pixel),
-                    split.shift.eq(self.shift),
-                    split.pixel_bits.eq(self.pixel_bits),
+                    split.first_pixel.eq(beat_settings.first_pixel),
+                    split.shift.eq(beat_settings.shift),
+                    split.pixel_bits.eq(beat_settings.pixel_bits),
                 ]
                 with m.If(frame_start):
-                    m.d.sync += full_readout.eq(self.full_readout), frame_start.eq(0)
+                    m.d.sync += full_readout.eq(beat_settings.full_readout), frame_start.eq(0)
                 # (the tallies start here: nothing before the window, or the open chunk's run)
                 with m.If(beat.count != 0):
                     m.d.sync += [
@@ -190,7 +192,13 @@ class HistogramPacketizer(wiring.Component):
             with m.State("SCAN"):
                 m.d.comb += self.readout.ready.eq(1)
                 with m.If(self.readout.valid):
-                    m.d.sync += beat_valid.eq(1), beat.eq(self.readout.p), taken.eq(taken + 1)
+                    m.d.sync += [
+                        beat_valid.eq(1), beat.eq(self.readout.p), taken.eq(taken + 1),
+                        beat_settings.first_pixel.eq(self.first_pixel),
+                        beat_settings.shift.eq(self.shift),
+                        beat_settings.pixel_bits.eq(self.pixel_bits),
+                        beat_settings.full_readout.eq(self.full_readout),
+                    ]
                     with m.If(self.readout.p.last | (taken == CHUNK_BINS - 1)):
                         m.next = "SCAN_END"
             with m.State("SCAN_END"):       # (stage 2 of the window's last beat)

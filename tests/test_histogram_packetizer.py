@@ -166,3 +166,16 @@ def test_full_packetizer_sends_full_chunks(shift, pixel_bits):
 def test_index_width_is_checked(construction_error, block):
     assert construction_error(lambda: block(index_bits=17)) == \
         "Index width must be an integer from 1 to 16 bits, not 17"
+
+
+def test_settings_change_right_after_a_frame():
+    # Frames of one bin and frames of other splits back to back, without gaps: each chunk
+    # carries its own frame's settings, although they change as soon as its bin is taken.
+    rng = np.random.default_rng(8)
+    frames = [(np.array([5]), settings(13)),
+              (random_frame(rng, 10, 6, 0.05), settings(10, 6)),
+              (np.array([7]), settings(13, 0, 9)),
+              (np.array([0, 3]), settings(12, 0, 1, full_readout=1)),
+              (random_frame(rng, 12, 1, 0.5), settings(12, 1, 62))]
+    got = packetize(frames, seed=8, gaps=False)
+    assert got == model(frames)
