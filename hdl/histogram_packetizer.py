@@ -39,7 +39,15 @@ class HistogramPacketizer(wiring.Component):
     then the window is either sent as a HISTOGRAM chunk from the buffer (FULL), or its tokens
     are appended to the compact chunk in progress (ENCODE), which is sent (CLOSE) when the next
     window does not fit in it, a window goes full, or the frame ends. The rule is that of
-    :mod:`fliss.sim.histogram_packets`; ``full_readout`` is sampled at a frame's first bin.
+    :mod:`fliss.sim.histogram_packets`. The settings are taken with each bin (a chunk carries
+    those of its first bin; ``full_readout`` those of the frame's first bin).
+
+    Cycles: SCAN takes a bin in every cycle the readout offers one (the readout offers one
+    every 4 cycles); ENCODE takes 2 cycles an empty bin, 3 a bin with a count and one a token
+    byte; FULL and CLOSE send a byte every 2 cycles at most, far faster than a UART. Readout
+    beats and RAM words are registered before any logic uses them. Cost: some 740 LUTs, 400
+    flip-flops and two block RAMs on an iCE40 (the full-only
+    :class:`~fliss.hdl.packetizer.FullHistogramPacketizer`: 175 LUTs, no RAM).
 
     Parameters
     ----------
@@ -151,7 +159,8 @@ class HistogramPacketizer(wiring.Component):
         beat_valid = Signal()
         beat = Signal.like(self.readout.p)
         beat_settings = Signal(data.StructLayout({      # (the settings as the beat came)
-            "first_pixel": ADDRESS_BITS, "shift": 4, "pixel_bits": 3, "full_readout": 1}))
+            "first_pixel": ADDRESS_BITS, "shift": range(MAX_SHIFT + 1),
+            "pixel_bits": range(ADDRESS_BITS + 1), "full_readout": 1}))
         taken = Signal(range(CHUNK_BINS + 1))
         m.d.sync += beat_valid.eq(0)
         with m.If(beat_valid):
