@@ -351,6 +351,10 @@ def test_reset_mid_capture(tmp_path, capsys):
         status = main(["-q", "capture", "--port", path, "--integration", "0.2ms",
                        "--acquisitions", "40", "-o", str(output)])
         err = capsys.readouterr().err
+        # (the board reports its stats about once a second: wait for the report after the reset)
+        deadline = time.monotonic() + 3
+        while board.stats().get("resets", 0) < 1 and time.monotonic() < deadline:
+            time.sleep(0.1)
         stats = board.stats()
     finally:
         board.stop()
