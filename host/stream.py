@@ -95,7 +95,8 @@ def unpack_event_payload(payload: bytes) -> np.ndarray:
 
 
 class StreamAssembler:
-    """Whole histograms from HISTOGRAM chunks, event arrays from EVENTS packets.
+    """Whole histograms from HISTOGRAM and HISTOGRAM_COMPACT chunks, event arrays from EVENTS
+    packets.
 
     Feed it data packets in order of arrival with :meth:`add`; it returns what is complete.
     Both forms of a chunk (HISTOGRAM and HISTOGRAM_COMPACT) fill the same frame. A frame is
