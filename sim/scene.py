@@ -54,12 +54,13 @@ from .scene_description import (COUNTERS, FWHM_PER_SIGMA, SPEED_OF_LIGHT, TDC_CO
                                 TRUNCATION_SIGMAS, Aggressor, Scene, time_of_flight)
 from .scene_array import PixelChunk, PixelSimulation, simulation_for
 from .scene_photons import Chunk, Simulation
-from .scene_pixels import (COLLISION_WINDOW_S, LINE_PIXELS, REFERENCE_DISTANCE_M, SENSOR_KINDS,
-                           PixelArray, line_pixels)
+from .scene_pixels import (COLLISION_WINDOW_S, LINE_PIXELS, REFERENCE_DISTANCE_M, SCENE_NAMES,
+                           SENSOR_KINDS, PixelArray, line_pixels, pixels_named)
 
 
 __all__ = ["SPEED_OF_LIGHT", "TDC_CODES", "FWHM_PER_SIGMA", "TRUNCATION_SIGMAS", "COUNTERS",
            "Aggressor", "Scene", "Chunk", "Simulation", "Acquisitions",
            "acquire", "histogram", "time_of_flight",
            "SENSOR_KINDS", "COLLISION_WINDOW_S", "REFERENCE_DISTANCE_M", "LINE_PIXELS",
-           "PixelArray", "line_pixels", "PixelChunk", "PixelSimulation", "simulation_for"]
+           "SCENE_NAMES", "PixelArray", "line_pixels", "pixels_named", "PixelChunk",
+           "PixelSimulation", "simulation_for"]

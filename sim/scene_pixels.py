@@ -47,7 +47,7 @@ from .scene_description import check_number
 
 
 __all__ = ["SENSOR_KINDS", "COLLISION_WINDOW_S", "REFERENCE_DISTANCE_M", "LINE_PIXELS",
-           "PixelArray", "line_pixels"]
+           "SCENE_NAMES", "PixelArray", "line_pixels", "pixels_named"]
 
 
 #: The sensor kinds a :class:`PixelArray` can have.
@@ -168,3 +168,21 @@ def line_pixels(*, pixels=LINE_PIXELS, wall_m=4.0, object_m=2.5, object_pixels=(
     return PixelArray(distance_m=distance, reflectivity=reflectivity, sensor=sensor,
                       first_address=first_address)
 
+
+
+#: Scenes a board model can be started with by name (:func:`pixels_named`).
+SCENE_NAMES = ("single", "line")
+
+
+def pixels_named(name, *, sensor="column", wall_m=4.0, object_m=2.5):
+    """The pixels of the scene called ``name``: ``None`` for ``"single"`` (one pixel, the
+    single-pixel scene), :func:`line_pixels` with a wall ``wall_m`` and an object ``object_m``
+    away for ``"line"``."""
+    if name not in SCENE_NAMES:
+        raise ValueError(f"Scene must be one of {', '.join(SCENE_NAMES)}, not {name!r}")
+    if sensor not in SENSOR_KINDS:
+        raise ValueError(f"Sensor kind must be one of {', '.join(SENSOR_KINDS)}, "
+                         f"not {sensor!r}")
+    if name == "single":
+        return None
+    return line_pixels(wall_m=wall_m, object_m=object_m, sensor=sensor)
