@@ -53,8 +53,8 @@ a readout buffer and shifts the buffer out on the bus, event after event: up to 
 window from the column, up to one per pixel that fired from a per-pixel sensor. The next
 window's copy overwrites the buffer: the events not shifted out by then are lost and counted
 (``busy_drops`` in the statistics file; ``SensorModel.busy_drops``). At the paper's 1 MHz PRF
-(80 cycles) a window's events start 35 cycles after its TDC start and may take until the
-next window's 35th cycle: 13 events per window fit.
+(80 cycles) a window is read out 34 cycles after its TDC start and its events may start
+until the next window's readout, 80 cycles later: 14 events per window fit (one every 6 cycles).
 
 The built-in coarse TDC (``tdc_source = 1``, pin ``photon_hit``) gets no photons: this model
 learns the photons of a window only once the window is over.
@@ -122,7 +122,8 @@ class SensorModel:
     (:func:`~fliss.sim.scene_array.simulation_for`: one pixel, or a pixel array) in closed
     loop: its TDC starts and aggressor triggers are those the gateware emits. With ``record``,
     :attr:`fed` holds every event the scene gave, :attr:`presented` every event put on the bus
-    (both as ``(timestamp, address, collision)``)."""
+    (both as ``(timestamp, address, collision)``), :attr:`fed_windows` the number of events of
+    each window read out."""
 
     def __init__(self, dut, scene, *, seed=None, record=False):
         self.dut = dut
@@ -138,6 +139,7 @@ class SensorModel:
         self.python_s = 0.0      # real time spent in the scene simulator
         self.fed = [] if record else None
         self.presented = [] if record else None
+        self.fed_windows = [] if record else None
         self._open = None        # cycle of the last start whose window is not closed yet
         self._closing = set()    # closing starts fed and not simulated yet
         self._queue = deque()    # windows read out, each a list of events
@@ -220,6 +222,7 @@ class SensorModel:
             self._queue.append(windows[index])
             if self.fed is not None:
                 self.fed.extend(windows[index])
+                self.fed_windows.append(len(windows[index]))
         if self._queue:
             self._wake.set()
 
