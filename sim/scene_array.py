@@ -95,6 +95,8 @@ class PixelSimulation(Simulation):
         for aggressor in scene.aggressors:
             self._means.append(np.full(count, float(aggressor.detections_per_pulse)))
             self._extra.append(own if aggressor.tof_s is None else np.zeros(count))
+        self._lowest = [float(extra.min()) for extra in self._extra]
+        self._lit = [bool(means.any()) for means in self._means]
         self._last_detections = np.full(count, -np.inf)
         self._carry_pixels = np.zeros(0, dtype=np.int16)
         self.pixel_counts = np.zeros((count, self._sources, len(COUNTERS)), dtype=np.int64)
@@ -109,8 +111,8 @@ class PixelSimulation(Simulation):
             means, extra = self._means[index], self._extra[index]
             source = index if index == 0 else index + 1
             centres = pulses.until(boundary + TRUNCATION_SIGMAS * (sigma + wander) + 1.0
-                                   - float(extra.min()))
-            if not means.any() or len(centres) == 0:
+                                   - self._lowest[index])
+            if not self._lit[index] or len(centres) == 0:
                 continue
             if wander > 0:
                 centres = centres + wander * np.clip(rng.standard_normal(len(centres)),
@@ -216,21 +218,17 @@ class PixelSimulation(Simulation):
         window = in_window[spanned]
         fires = spanned[window & detected]          # time order
         recorded, collision = self._tdc(fires, span, pixel, times)
-        overwritten = np.setdiff1d(fires, recorded, assume_unique=True)
 
-        sources_n = self._sources
-        pixels_n = self._count
-
-        def tally(indices):
-            key = pixel[indices].astype(np.int64) * sources_n + sources[indices]
-            return np.bincount(key, minlength=pixels_n * sources_n).reshape(pixels_n, sources_n)
-
-        pixel_counts = np.zeros_like(self.pixel_counts)
-        pixel_counts[:, :, _GENERATED] = tally(np.arange(len(times)))
-        pixel_counts[:, :, _OUTSIDE] = tally(np.flatnonzero(~in_window))
-        pixel_counts[:, :, _DEAD] = tally(spanned[window & ~detected])
-        pixel_counts[:, :, _OVERWRITTEN] = tally(overwritten)
-        pixel_counts[:, :, _RECORDED] = tally(recorded)
+        # Photon counters: one bincount over (pixel, source, counter)
+        what = np.full(len(times), _OUTSIDE, dtype=np.int64)
+        what[spanned[window & ~detected]] = _DEAD
+        what[fires] = _OVERWRITTEN
+        what[recorded] = _RECORDED
+        counters = len(COUNTERS)
+        key = (pixel.astype(np.int64) * self._sources + sources) * counters + what
+        pixel_counts = np.bincount(key, minlength=self.pixel_counts.size).reshape(
+            self.pixel_counts.shape)
+        pixel_counts[:, :, _GENERATED] = pixel_counts.sum(axis=2)
         counts = pixel_counts.sum(axis=0)
 
         events = np.zeros(len(recorded), dtype=EVENT_DTYPE)
