@@ -56,6 +56,8 @@ def acquire(scene, t_int_s, acquisitions, *, seed=None, chunk_cycles=1 << 16, ke
     ``progress``, if given, is called with the number of laser cycles after each chunk.
     ``aggressor_edges``, if given, holds the laser triggers of each aggressor in the victim's
     clock cycles (:meth:`Simulation.feed_aggressor`), instead of their own schedules.
+    With a pixel array (``scene.pixels``) the histograms hold the events of every pixel
+    together; ``keep_events`` keeps each event's pixel address and collision flag.
     """
     check_number(t_int_s, "Integration time (s)", positive=True)
     if isinstance(acquisitions, bool) or not isinstance(acquisitions, (int, np.integer)) \

@@ -3,11 +3,12 @@
 import time
 
 import numpy as np
+import pytest
 
 from fliss.host.client import BoardClient
 from fliss.host.stream import EventBatch
 from fliss.sim.command import CommandModel
-from fliss.sim.model_board import model_board, scene_for
+from fliss.sim.model_board import main, model_board, scene_for
 from fliss.sim.scene import Scene, line_pixels
 
 
@@ -55,3 +56,12 @@ def test_scene_for_keeps_the_pixel_array():
     scene = scene_for(settings, Scene(pixels=pixels))
     assert scene.pixels is pixels and len(scene.aggressors) == 1
     assert scene_for(settings).pixels is None
+
+
+def test_command_line_refuses_a_bad_scene(capsys):
+    with pytest.raises(SystemExit) as exit:
+        main(["--scene", "line", "--object-m", "0"])
+    assert exit.value.code == 2
+    assert capsys.readouterr().err.splitlines()[-1] == (
+        "python -m fliss.sim.model_board: error: Object distance (m) must be a finite positive "
+        "number, not 0.0")

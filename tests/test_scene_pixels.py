@@ -12,7 +12,7 @@ import pytest
 
 from fliss.sim import scheduler
 from fliss.sim.scene import (COUNTERS, Aggressor, PixelArray, PixelSimulation, Scene, Simulation,
-                             acquire, line_pixels, simulation_for)
+                             acquire, line_pixels, pixels_named, simulation_for)
 from fliss.sim.scheduler import Settings
 
 
@@ -151,13 +151,14 @@ def test_column_last_pixel_to_fire_wins():
     assert len(np.unique(events["pulse"])) == len(events)
 
 
-def test_column_collision_of_two_pixels_at_one_distance():
+@pytest.mark.parametrize("keep", ["last", "first"])
+def test_column_collision_of_two_pixels_at_one_distance(keep):
     # Two pixels at 4 m, m photons each per pulse: each pixel's first photon of a pulse (its
     # dead time blocks the rest) has the density m phi(t) exp(-m Phi(t)) / (1 - exp(-m)). When
-    # both fire, the later one wins, and the flag is set when the other fired less than 32 codes
-    # before: P(|T1 - T2| < 32).
+    # both fire, the later one wins (the earlier, keeping the first), and the flag is set when
+    # the other fired less than 32 codes before (after): P(|T1 - T2| < 32).
     m = 0.5
-    scene = echo_scene([4.0, 4.0], 1.0, "column", detections_per_pulse=m)
+    scene = echo_scene([4.0, 4.0], 1.0, "column", detections_per_pulse=m, keep=keep)
     cycles = 40_000
     events, _ = run(scene, cycles)
     t, step, density = first_photon(m, sigma_codes())
@@ -287,3 +288,9 @@ def test_bad_pixel_arrays_are_refused(options, message):
         Scene(pixels=3)
     with pytest.raises(ValueError, match=r"^The object covers pixels from 0 to 60, not \(50, 70\)$"):
         line_pixels(object_pixels=(50, 70))
+    with pytest.raises(ValueError, match=r"^Scene must be one of single, line, not 'grid'$"):
+        pixels_named("grid")
+    with pytest.raises(ValueError, match=r"^Sensor kind must be one of column, per_pixel, not "
+                                         r"'row'$"):
+        pixels_named("line", sensor="row")
+    assert pixels_named("single") is None and len(pixels_named("line", wall_m=5.0)) == 60
