@@ -7,6 +7,7 @@ import sys
 import time
 
 from ..sim.noisy_line import NoisyLine, add_line_arguments, describe, faults_from_args
+from ..sim.scene_pixels import SCENE_NAMES, SENSOR_KINDS
 from .cli import UserError
 from .units import parse_baud, parse_frequency
 from .virtual import SIMULATORS, VirtualBoard
@@ -41,6 +42,16 @@ def register(subparsers, formatter):
     parser.add_argument("--aggressor-signal", type=float, default=0.05, metavar="PHOTONS",
                         help="mean detected photons per aggressor pulse")
     parser.add_argument("--seed", type=int, default=None, help="seed of the photon statistics")
+    parser.add_argument("--scene", choices=SCENE_NAMES, default="single",
+                        help="single: one pixel looking at the target (the paper's bench); "
+                             "line: a column of 60 pixels looking at a wall --target-m away "
+                             "with an object --object-m away before pixels 20 to 39")
+    parser.add_argument("--sensor", choices=SENSOR_KINDS, default="column",
+                        help="sensor of the line scene: column (the paper's: one event per "
+                             "laser cycle, from the pixel that fired last, with a collision "
+                             "flag) or per_pixel (one TDC per pixel)")
+    parser.add_argument("--object-m", type=float, default=2.5, metavar="M",
+                        help="distance of the line scene's object, metres")
     parser.add_argument("--reset-after", type=int, default=None, metavar="PACKETS",
                         help="reset the gateware (a power cycle) once, after this many data "
                              "packets to the host; SIGUSR1 to this process resets it too")
@@ -59,7 +70,8 @@ def run_board(args):
         raise UserError(f"--reset-after must be at least 1, not {args.reset_after}")
     board = VirtualBoard(args.sim, baud=baud, target_m=args.target_m, ambient_hz=ambient_hz,
                          signal=args.signal, aggressor_signal=args.aggressor_signal,
-                         seed=args.seed, reset_after=args.reset_after)
+                         seed=args.seed, scene=args.scene, sensor=args.sensor,
+                         object_m=args.object_m, reset_after=args.reset_after)
 
     def terminate(number, frame):
         raise KeyboardInterrupt

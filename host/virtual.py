@@ -203,6 +203,16 @@ class VirtualBoard:
         Time of flight from the aggressor to the pixel; ``None``: the victim's.
     seed : int or None
         Seed of the photon statistics.
+    scene : str
+        ``"single"``: one pixel looking at a target ``target_m`` away (the paper's bench);
+        ``"line"``: the paper's column of 60 pixels looking at a wall ``target_m`` away with an
+        object ``object_m`` away before pixels 20 to 39
+        (:func:`fliss.sim.scene_pixels.line_pixels`).
+    sensor : str
+        With the line scene: ``"column"`` (the paper's sensor: one event per laser cycle, the
+        pixel that fired last, the collision flag) or ``"per_pixel"`` (one TDC per pixel).
+    object_m : float
+        Distance of the line scene's object, in metres.
     reset_after : int or None
         Reset the gateware (a power cycle in the middle of a run) once, after this many data
         packets (HISTOGRAM, EVENTS) have gone to the host.
@@ -212,7 +222,14 @@ class VirtualBoard:
 
     def __init__(self, sim="verilator", *, baud=VIRTUAL_BAUD, target_m=4.0, ambient_hz=1e5,
                  signal=0.05, aggressor_signal=0.05, aggressor_tof_s=None, seed=None,
-                 reset_after=None, root=None):
+                 scene="single", sensor="column", object_m=2.5, reset_after=None, root=None):
+        from ..sim.scene_pixels import SCENE_NAMES, SENSOR_KINDS
+        if scene not in SCENE_NAMES:
+            raise VirtualBoardError(f"unknown scene {scene!r}: choose one of "
+                                    f"{', '.join(SCENE_NAMES)}")
+        if sensor not in SENSOR_KINDS:
+            raise VirtualBoardError(f"unknown sensor kind {sensor!r}: choose one of "
+                                    f"{', '.join(SENSOR_KINDS)}")
         self.sim = sim
         self.baud = baud
         self.root = Path(root or build_root())
@@ -230,6 +247,9 @@ class VirtualBoard:
             "FLISS_BOARD_AGGRESSOR_TOF_S": "" if aggressor_tof_s is None
             else repr(float(aggressor_tof_s)),
             "FLISS_BOARD_SEED": "" if seed is None else str(int(seed)),
+            "FLISS_BOARD_SCENE": scene,
+            "FLISS_BOARD_SENSOR": sensor,
+            "FLISS_BOARD_OBJECT_M": repr(float(object_m)),
             "FLISS_BOARD_PARENT_PID": str(os.getpid()),
             "FLISS_BOARD_PTY_FILE": str(self.folder / f"{self.name}.pty"),
             "FLISS_BOARD_STATS_FILE": str(self.folder / f"{self.name}.stats.json"),
@@ -238,10 +258,14 @@ class VirtualBoard:
         }
         if reset_after is not None and not reset_after >= 1:
             raise VirtualBoardError(f"reset_after must be at least 1, not {reset_after}")
-        for name, value in (("target distance", target_m), ("ambient rate", ambient_hz),
+        for name, value in (("target distance", target_m), ("object distance", object_m),
+                            ("ambient rate", ambient_hz),
                             ("signal", signal), ("aggressor signal", aggressor_signal)):
             if not value >= 0:
                 raise VirtualBoardError(f"{name} must not be negative, not {value!r}")
+        if scene == "line" and not (target_m > 0 and object_m > 0):
+            raise VirtualBoardError(f"the line scene needs positive distances, not a wall at "
+                                    f"{target_m!r} m and an object at {object_m!r} m")
 
     def start(self, *, timeout_s=STARTUP_TIMEOUT_S):
         """Build if needed, start the simulation and wait for its pty; returns the pty path."""
@@ -347,7 +371,8 @@ def start_virtual_board(sim="verilator", **options):
     """Run a virtual board for the duration of a ``with`` block; yields the path of its pty.
 
     ``options`` are those of :class:`VirtualBoard` (``baud``, ``target_m``, ``ambient_hz``,
-    ``signal``, ``aggressor_signal``, ``aggressor_tof_s``, ``seed``, ``reset_after``, ``root``).
+    ``signal``, ``aggressor_signal``, ``aggressor_tof_s``, ``seed``, ``scene``, ``sensor``,
+    ``object_m``, ``reset_after``, ``root``).
     """
     board = VirtualBoard(sim, **options)
     try:

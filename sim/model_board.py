@@ -42,7 +42,7 @@ from .histogram_packets import HISTOGRAM_TYPES, decode_chunk, encode_histogram, 
 from .delay import DelayMode
 from .noisy_line import NoisyLine, add_line_arguments, describe, faults_from_args
 from .pty_server import PtyServer
-from .scene import Aggressor, Scene, Simulation
+from .scene import SCENE_NAMES, SENSOR_KINDS, Aggressor, Scene, pixels_named, simulation_for
 
 
 __all__ = ["DEFAULT_BAUD", "BACKLOG_BYTES", "ModelBoard", "scene_for", "model_board", "main"]
@@ -57,7 +57,9 @@ BACKLOG_BYTES = 32 * 1024
 
 def scene_for(settings, template=None, *, aggressor_detections_per_pulse=0.05, clock_hz=None):
     """The scene a board with register ``settings`` (by name) sees: ``template`` (a
-    :class:`Scene`, for the physics) with the victim and aggressor taken from the registers."""
+    :class:`Scene`, for the physics, and its pixel array if it has one: then the events carry
+    the pixels' addresses and collision flags) with the victim and aggressor taken from the
+    registers. The aggressor lights every pixel (a flash)."""
     template = Scene() if template is None else template
     clock_hz = template.clock_hz if clock_hz is None else clock_hz
     s = settings
@@ -213,7 +215,7 @@ class ModelBoard(PtyServer):
         scene = scene_for(settings, self.template,
                           aggressor_detections_per_pulse=self.aggressor_detections_per_pulse,
                           clock_hz=self.clock_hz)
-        self.simulation = Simulation(scene, seed=self.seed_for(self.starts))
+        self.simulation = simulation_for(scene, seed=self.seed_for(self.starts))
         self.starts += 1
         self.status["pulses"] = 0       # the scheduler's pulse index restarts, as in the gateware
         self._t0 = now
@@ -357,6 +359,15 @@ def main(argv=None):
                         help="aggressor detections per pulse")
     parser.add_argument("--background-hz", type=float, default=1e5, help="background rate")
     parser.add_argument("--seed", type=int, default=0, help="photon statistics seed")
+    parser.add_argument("--scene", choices=SCENE_NAMES, default="single",
+                        help="single: one pixel at --distance-m; line: 60 pixels looking at a "
+                             "wall --distance-m away, an object --object-m away before pixels "
+                             "20 to 39")
+    parser.add_argument("--sensor", choices=SENSOR_KINDS, default="column",
+                        help="sensor of the line scene: one TDC for the column, or one per "
+                             "pixel")
+    parser.add_argument("--object-m", type=float, default=2.5,
+                        help="distance of the line scene's object")
     parser.add_argument("--reset-after", type=int, default=None, metavar="PACKETS",
                         help="reset the board (a power cycle) after this many data packets")
     add_line_arguments(parser)
@@ -368,8 +379,13 @@ def main(argv=None):
     if args.reset_after is not None and args.reset_after < 1:
         parser.exit(2, f"{parser.prog}: error: --reset-after must be at least 1, not "
                        f"{args.reset_after}\n")
-    scene = Scene(distance_m=args.distance_m, detections_per_pulse=args.signal,
-                  background_hz=args.background_hz)
+    try:
+        pixels = pixels_named(args.scene, sensor=args.sensor, wall_m=args.distance_m,
+                              object_m=args.object_m)
+        scene = Scene(distance_m=args.distance_m, detections_per_pulse=args.signal,
+                      background_hz=args.background_hz, pixels=pixels)
+    except ValueError as error:
+        parser.exit(2, f"{parser.prog}: error: {error}\n")
     signal.signal(signal.SIGTERM, _terminate)
     line = None
     with model_board(scene=scene, aggressor_detections_per_pulse=args.aggressor_signal,

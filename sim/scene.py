@@ -37,6 +37,11 @@ reference scheduler, or, in closed loop with a simulated gateware, from :meth:`S
 :func:`acquire` cuts one continuous run into acquisitions of a given integration time and returns
 their histograms (``TDC_CODES`` bins, as the histogram engine delivers them).
 
+A pixel array (an imager: a depth map, shared background and flash aggressors, a column
+sensor with one TDC bank or one TDC per pixel) is a :class:`Scene` with ``pixels``
+(:class:`PixelArray`, :func:`line_pixels`; model in :mod:`~fliss.sim.scene_pixels`), simulated
+by :class:`PixelSimulation`; :func:`simulation_for` picks the simulation a scene needs.
+
 This module gathers the simulator's public names; the parts live in
 :mod:`~fliss.sim.scene_description` (the scene and its constants), :mod:`~fliss.sim.scene_pulses`
 (laser edges and pulse trains), :mod:`~fliss.sim.scene_photons` (photon generation and
@@ -47,9 +52,15 @@ sequences come from :class:`fliss.sim.delay.DelayStream`.
 from .scene_acquisition import Acquisitions, acquire, histogram
 from .scene_description import (COUNTERS, FWHM_PER_SIGMA, SPEED_OF_LIGHT, TDC_CODES,
                                 TRUNCATION_SIGMAS, Aggressor, Scene, time_of_flight)
+from .scene_array import PixelChunk, PixelSimulation, simulation_for
 from .scene_photons import Chunk, Simulation
+from .scene_pixels import (COLLISION_WINDOW_S, LINE_PIXELS, REFERENCE_DISTANCE_M, SCENE_NAMES,
+                           SENSOR_KINDS, PixelArray, line_pixels, pixels_named)
 
 
 __all__ = ["SPEED_OF_LIGHT", "TDC_CODES", "FWHM_PER_SIGMA", "TRUNCATION_SIGMAS", "COUNTERS",
            "Aggressor", "Scene", "Chunk", "Simulation", "Acquisitions",
-           "acquire", "histogram", "time_of_flight"]
+           "acquire", "histogram", "time_of_flight",
+           "SENSOR_KINDS", "COLLISION_WINDOW_S", "REFERENCE_DISTANCE_M", "LINE_PIXELS",
+           "SCENE_NAMES", "PixelArray", "line_pixels", "pixels_named", "PixelChunk",
+           "PixelSimulation", "simulation_for"]

@@ -10,7 +10,7 @@ import numpy as np
 
 from .event import EVENT_DTYPE
 from .scene_description import COUNTERS, TDC_CODES, check_number
-from .scene_photons import Simulation
+from .scene_array import simulation_for
 
 
 __all__ = ["Acquisitions", "acquire", "histogram"]
@@ -56,6 +56,8 @@ def acquire(scene, t_int_s, acquisitions, *, seed=None, chunk_cycles=1 << 16, ke
     ``progress``, if given, is called with the number of laser cycles after each chunk.
     ``aggressor_edges``, if given, holds the laser triggers of each aggressor in the victim's
     clock cycles (:meth:`Simulation.feed_aggressor`), instead of their own schedules.
+    With a pixel array (``scene.pixels``) the histograms hold the events of every pixel
+    together; ``keep_events`` keeps each event's pixel address and collision flag.
     """
     check_number(t_int_s, "Integration time (s)", positive=True)
     if isinstance(acquisitions, bool) or not isinstance(acquisitions, (int, np.integer)) \
@@ -65,7 +67,7 @@ def acquire(scene, t_int_s, acquisitions, *, seed=None, chunk_cycles=1 << 16, ke
     t_int_cycles = int(round(t_int_s * scene.clock_hz))
     if t_int_cycles < 1:
         raise ValueError(f"Integration time {t_int_s!r} s is shorter than one clock cycle")
-    simulation = Simulation(scene, seed=seed, chunk_cycles=chunk_cycles,
+    simulation = simulation_for(scene, seed=seed, chunk_cycles=chunk_cycles,
                             external_aggressors=aggressor_edges is not None)
     if aggressor_edges is not None:
         if len(aggressor_edges) != len(scene.aggressors):

@@ -173,6 +173,12 @@ class Scene:
         bit-exact) count in steps of one clock cycle divided by ``fine_step`` (1, 2, 4, 8 or
         16), so its pulses fire ``R / fine_step`` cycles late. A model option: no gateware has
         it.
+    pixels : PixelArray or None
+        ``None``: one pixel (this class's ``distance_m`` and ``address``). A
+        :class:`~fliss.sim.scene_pixels.PixelArray`: an imager, each pixel with its own target
+        distance and reflectivity (``distance_m`` and ``address`` are then not used), simulated
+        by :class:`~fliss.sim.scene_array.PixelSimulation` (:func:`~fliss.sim.scene_array.simulation_for`
+        picks the simulation for a scene).
     """
 
     victim: _scheduler.Settings = _scheduler.Settings(period=80)
@@ -187,6 +193,7 @@ class Scene:
     keep: str = "last"
     address: int = 0
     fine_step: int = 1
+    pixels: object = None
 
     def __post_init__(self):
         if not isinstance(self.victim, _scheduler.Settings):
@@ -209,6 +216,11 @@ class Scene:
         if isinstance(self.fine_step, bool) or self.fine_step not in FINE_STEPS:
             raise ValueError(f"Fine delay step must be one of {', '.join(map(str, FINE_STEPS))} "
                              f"(steps per clock cycle), not {self.fine_step!r}")
+        if self.pixels is not None:
+            from .scene_pixels import PixelArray
+            if not isinstance(self.pixels, PixelArray):
+                raise ValueError(f"Scene pixels must be a PixelArray or None, not "
+                                 f"{self.pixels!r}")
         object.__setattr__(self, "aggressors", tuple(self.aggressors))
         for aggressor in self.aggressors:
             if not isinstance(aggressor, Aggressor):

@@ -17,7 +17,12 @@ This is the cocotb test module that :mod:`fliss.host.virtual` runs in Icarus or 
   ``FLISS_BOARD_AGGRESSOR_TOF_S`` says otherwise), background light and SPAD dead time. The
   sensor keeps the last photon of each TDC window and presents it on the bus as the sensor of
   the paper does, when its conversion range ends: bus first, then ``sensor_valid`` high for two
-  clock cycles, at most one event per window;
+  clock cycles, at most one event per window. With ``FLISS_BOARD_SCENE=line`` the scene is a
+  pixel array (:func:`~fliss.sim.scene_pixels.line_pixels`: a wall ``FLISS_BOARD_TARGET_M``
+  away, an object ``FLISS_BOARD_OBJECT_M`` away before pixels 20 to 39) seen by the sensor
+  ``FLISS_BOARD_SENSOR``: ``column`` (the paper's: one event per window, the address of the
+  pixel that fired last, the collision flag) or ``per_pixel`` (one TDC per pixel: a window's
+  events one after the other, in address order; see *Bus timing*);
 * resets the gateware (``rst`` high for :data:`RESET_CYCLES` cycles, as a power cycle or the
   reset button would: registers, counters, sequence and histogram numbers back to reset) once
   ``FLISS_BOARD_RESET_AFTER`` data packets (HISTOGRAM, EVENTS) have gone to the host, and each
@@ -39,12 +44,25 @@ and is captured 2 cycles later. A start less than 33 cycles after the previous o
 window short, as in the scene model; with starts less than 38 cycles apart (PRFs above about
 2 MHz) an event arrives after the next start and raw events carry that cycle's index.
 
+Bus timing
+----------
+Each event takes :data:`EVENT_BUS_CYCLES` clock cycles on the bus: address, collision flag and
+timestamp set, ``sensor_valid`` high one cycle later for two cycles, the bus held three cycles
+more (the strobe low meanwhile). When its conversion range ends the sensor copies its TDCs into
+a readout buffer and shifts the buffer out on the bus, event after event: up to one event per
+window from the column, up to one per pixel that fired from a per-pixel sensor. The next
+window's copy overwrites the buffer: the events not shifted out by then are lost and counted
+(``busy_drops`` in the statistics file; ``SensorModel.busy_drops``). At the paper's 1 MHz PRF
+(80 cycles) a window is read out 34 cycles after its TDC start and its events may start
+until the next window's readout, 80 cycles later: 14 events per window fit (one every 6 cycles).
+
 The built-in coarse TDC (``tdc_source = 1``, pin ``photon_hit``) gets no photons: this model
 learns the photons of a window only once the window is over.
 """
 
 import math
 import os
+from collections import deque
 import select
 import time
 import tty
@@ -61,7 +79,8 @@ from ..hdl.protocol import PacketType
 from .uart_bfm import UartSink, UartSource
 
 
-__all__ = ["POLL_US", "RESET_CYCLES", "SensorModel", "PtyBridge", "virtual_board"]
+__all__ = ["POLL_US", "RESET_CYCLES", "EVENT_BUS_CYCLES", "SensorModel", "PtyBridge",
+           "virtual_board"]
 
 
 #: Simulated time between two polls of the pseudo-terminal, in microseconds (6 bytes at 12 M
@@ -86,6 +105,10 @@ RESET_CYCLES = 4
 #: Packets that count as data for ``FLISS_BOARD_RESET_AFTER``.
 DATA_TYPES = frozenset({PacketType.HISTOGRAM, PacketType.HISTOGRAM_COMPACT, PacketType.EVENTS})
 
+#: Clock cycles one event takes on the sensor bus (bus set, strobe one cycle later for two
+#: cycles, bus held three more).
+EVENT_BUS_CYCLES = 6
+
 CLOCK_PERIOD_PS = round(1e12 / DEFAULT_CLOCK_HZ)
 
 
@@ -95,24 +118,31 @@ def _env(name, default, convert=float):
 
 
 class SensorModel:
-    """Drives the sensor bus of ``dut`` from a :class:`~fliss.sim.scene.Simulation` in closed
-    loop: its TDC starts and aggressor triggers are those the gateware emits."""
+    """Drives the sensor bus of ``dut`` from a simulation of the scene
+    (:func:`~fliss.sim.scene_array.simulation_for`: one pixel, or a pixel array) in closed
+    loop: its TDC starts and aggressor triggers are those the gateware emits. With ``record``,
+    :attr:`fed` holds every event the scene gave, :attr:`presented` every event put on the bus
+    (both as ``(timestamp, address, collision)``), :attr:`fed_windows` the number of events of
+    each window read out."""
 
-    def __init__(self, dut, scene, *, seed=None):
+    def __init__(self, dut, scene, *, seed=None, record=False):
         self.dut = dut
         self.scene = scene
-        self.simulation = _scene.Simulation(scene, seed=seed, chunk_cycles=64,
-                                            external_starts=True, external_aggressors=True)
+        self.simulation = _scene.simulation_for(scene, seed=seed, chunk_cycles=64,
+                                                external_starts=True, external_aggressors=True)
         # Cycles after a TDC start when the sensor's conversion range is over.
         self.window_cycles = math.ceil(_scene.TDC_CODES / scene.lsb_per_cycle)
         self.starts = 0          # real TDC starts seen
         self.events = 0          # events put on the bus
         self.late = 0            # windows cut short by the next start
-        self.busy_drops = 0      # events dropped because the bus was still busy
+        self.busy_drops = 0      # events overwritten in the readout buffer, not on the bus
         self.python_s = 0.0      # real time spent in the scene simulator
+        self.fed = [] if record else None
+        self.presented = [] if record else None
+        self.fed_windows = [] if record else None
         self._open = None        # cycle of the last start whose window is not closed yet
         self._closing = set()    # closing starts fed and not simulated yet
-        self._queue = []
+        self._queue = deque()    # windows read out, each a list of events
         self._wake = Event()
         for name in ("sensor_valid", "sensor_timestamp", "sensor_address", "sensor_collision",
                      "photon_hit"):
@@ -180,13 +210,19 @@ class SensorModel:
         self._open = None
         closing = self._closing
         starts = [int(cycle) for cycle in chunk.start_cycles]
+        windows = {}
         for event in chunk.events:
             index = (int(event["pulse"]) - chunk.first_pulse) & 0xffffffff
             # Events of closing windows are photons between TDC windows: nobody records them.
             if starts[index] not in closing:
-                self._queue.append((int(event["timestamp"]), int(event["address"]),
-                                    int(event["collision"])))
+                windows.setdefault(index, []).append(
+                    (int(event["timestamp"]), int(event["address"]), int(event["collision"])))
         closing.difference_update(starts)
+        for index in sorted(windows):
+            self._queue.append(windows[index])
+            if self.fed is not None:
+                self.fed.extend(windows[index])
+                self.fed_windows.append(len(windows[index]))
         if self._queue:
             self._wake.set()
 
@@ -197,21 +233,24 @@ class SensorModel:
                 self._wake.clear()
                 await self._wake.wait()
                 continue
-            timestamp, address, collision = self._queue.pop(0)
-            if self._queue:
-                # At most one event per window: a backlog means the windows are too short.
-                self.busy_drops += len(self._queue)
-                self._queue.clear()
-            dut.sensor_timestamp.value = timestamp
-            dut.sensor_address.value = address
-            dut.sensor_collision.value = collision
-            await Timer(CLOCK_PERIOD_PS, unit="ps")
-            dut.sensor_valid.value = 1
-            await Timer(2 * CLOCK_PERIOD_PS, unit="ps")
-            dut.sensor_valid.value = 0
-            self.events += 1
-            # Hold the bus past the capture, and the strobe low for two cycles.
-            await Timer(3 * CLOCK_PERIOD_PS, unit="ps")
+            window = self._queue.popleft()
+            for position, (timestamp, address, collision) in enumerate(window):
+                if self._queue:
+                    # The next window's readout has overwritten the buffer.
+                    self.busy_drops += len(window) - position
+                    break
+                dut.sensor_timestamp.value = timestamp
+                dut.sensor_address.value = address
+                dut.sensor_collision.value = collision
+                await Timer(CLOCK_PERIOD_PS, unit="ps")
+                dut.sensor_valid.value = 1
+                await Timer(2 * CLOCK_PERIOD_PS, unit="ps")
+                dut.sensor_valid.value = 0
+                self.events += 1
+                if self.presented is not None:
+                    self.presented.append((timestamp, address, collision))
+                # Hold the bus past the capture, and the strobe low for two cycles.
+                await Timer((EVENT_BUS_CYCLES - 3) * CLOCK_PERIOD_PS, unit="ps")
 
 
 class PtyBridge:
@@ -327,11 +366,14 @@ def _scene_from_environment():
         period_cycles=80, offset_s=0.0,
         detections_per_pulse=_env("FLISS_BOARD_AGGRESSOR_SIGNAL", 0.05),
         tof_s=None if aggressor_tof in (None, "") else float(aggressor_tof))
+    pixels = _scene.pixels_named(os.environ.get("FLISS_BOARD_SCENE") or "single",
+                                 sensor=os.environ.get("FLISS_BOARD_SENSOR") or "column",
+                                 wall_m=target_m, object_m=_env("FLISS_BOARD_OBJECT_M", 2.5))
     return _scene.Scene(
         distance_m=target_m,
         detections_per_pulse=_env("FLISS_BOARD_SIGNAL", 0.05),
         background_hz=_env("FLISS_BOARD_AMBIENT_HZ", 1e5),
-        aggressors=(aggressor,))
+        aggressors=(aggressor,), pixels=pixels)
 
 
 async def _reset(dut):

@@ -2,8 +2,14 @@
 
 import time
 
+import numpy as np
+import pytest
+
 from fliss.host.client import BoardClient
-from fliss.sim.model_board import model_board
+from fliss.host.stream import EventBatch
+from fliss.sim.command import CommandModel
+from fliss.sim.model_board import main, model_board, scene_for
+from fliss.sim.scene import Scene, line_pixels
 
 
 def test_pulse_count_restarts_with_each_start():
@@ -19,3 +25,43 @@ def test_pulse_count_restarts_with_each_start():
         board.stop()
     assert first > 0
     assert again < first
+
+
+def test_line_scene_events_carry_the_pixels():
+    # The model board with the line scene: raw events from the column of 60 pixels, each
+    # pixel's echo at its own time of flight (object 2.5 m before pixels 20-39, wall 4 m).
+    pixels = line_pixels(sensor="per_pixel")
+    scene = Scene(detections_per_pulse=0.05, background_hz=1e4, pixels=pixels)
+    with model_board(scene=scene, time_scale=0.05) as model, \
+            BoardClient(model.path, timeout_s=2.0) as board:
+        board.write_registers({"acquisition": 1, "integration": 80_000})
+        board.start()
+        time.sleep(0.6)
+        board.stop()
+        time.sleep(0.2)
+        data = board.take_data()
+    events = np.concatenate([item.events for item in data if isinstance(item, EventBatch)])
+    assert len(events) > 500 and not events["collision"].any()
+    addresses = events["address"].astype(int)
+    assert set(addresses) <= set(range(60)) and len(set(addresses)) > 50
+    for low, high, distance_m in ((0, 20, 4.0), (20, 40, 2.5), (40, 60, 4.0)):
+        chosen = (addresses >= low) & (addresses < high)
+        tof_codes = 2 * distance_m / 299_792_458.0 / 50e-12
+        assert abs(np.median(events["timestamp"][chosen]) - tof_codes) < 15
+
+
+def test_scene_for_keeps_the_pixel_array():
+    pixels = line_pixels()
+    settings = dict(CommandModel(80_000_000, 12_000_000).settings, aggressor=1)
+    scene = scene_for(settings, Scene(pixels=pixels))
+    assert scene.pixels is pixels and len(scene.aggressors) == 1
+    assert scene_for(settings).pixels is None
+
+
+def test_command_line_refuses_a_bad_scene(capsys):
+    with pytest.raises(SystemExit) as exit:
+        main(["--scene", "line", "--object-m", "0"])
+    assert exit.value.code == 2
+    assert capsys.readouterr().err.splitlines()[-1] == (
+        "python -m fliss.sim.model_board: error: Object distance (m) must be a finite positive "
+        "number, not 0.0")

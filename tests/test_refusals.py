@@ -61,7 +61,8 @@ CASES = {
     "sweep": ["{d}/file.txt -o {d}/out", "{d}/nothing.toml -o {d}/out", "{d}/file.txt -o /proc/x",
               "{d}/file.txt -o {d}/file.txt"],
     "board": ["--baud 0", "--target-m -1", "--ambient x", "--signal -1", "--reset-after -1",
-              "--line-errors 2", "--line-stall-s -1"],
+              "--line-errors 2", "--line-stall-s -1", "--scene square", "--sensor row",
+              "--object-m -1", "--scene line --object-m 0", "--scene line --target-m 0"],
 }
 
 

@@ -68,7 +68,7 @@ def _sensor(period, aggressor_cycles, starts, **scene_options):
         happenings.append((cycle + sensor.window_cycles + 1, 2, sensor.on_window_end, cycle))
     for _, _, handler, cycle in sorted(happenings, key=lambda item: item[:2]):
         handler(cycle)
-    return sensor, np.array([event[0] for event in sensor._queue])
+    return sensor, np.array([event[0] for window in sensor._queue for event in window])
 
 
 def test_sensor_model_peaks():
@@ -96,6 +96,47 @@ def test_sensor_model_records_only_windows():
     assert len(stamps) > 10 and sensor.late == 0
     sensor, stamps = _sensor(20, None, 500, background_hz=0.0)
     assert sensor.late == 499 and len(stamps) > 10 and np.all(stamps < 20 * 250)
+
+
+def _line_sensor(sensor_kind, starts=3000, **options):
+    """The sensor model of the line scene (a wall at 4 m, an object at 2.5 m before pixels 20
+    to 39) driven by hand, a start every 80 cycles; returns the model and its windows."""
+    pixels = scene.line_pixels(sensor=sensor_kind)
+    settings = dict(detections_per_pulse=0.05, background_hz=1e4, pixels=pixels,
+                    aggressors=(scene.Aggressor(period_cycles=80, offset_s=0.0,
+                                                detections_per_pulse=0.0),))
+    settings.update(options)
+    sensor = SensorModel(_Pins(), scene.Scene(**settings), seed=7, record=True)
+    for index in range(starts):
+        cycle = 100 + index * 80
+        sensor.on_start(cycle)
+        sensor.on_window_end(cycle)
+    return sensor, list(sensor._queue)
+
+
+@pytest.mark.parametrize("sensor_kind", ["column", "per_pixel"])
+def test_sensor_model_of_the_line_scene(sensor_kind):
+    """Without a simulator: the events the model reads out carry each pixel's address, at its
+    own time of flight (object 2.5 m, wall 4 m); the column gives at most one per window, the
+    per-pixel sensor one per pixel that fired, in address order, never a collision."""
+    sensor, windows = _line_sensor(sensor_kind)
+    events = [event for window in windows for event in window]
+    assert events == sensor.fed
+    stamps, addresses, collisions = (np.array(column) for column in zip(*events))
+    assert set(addresses) <= set(range(60))
+    for low, high, distance in ((20, 40, 2.5), (0, 20, 4.0), (40, 60, 4.0)):
+        chosen = (addresses >= low) & (addresses < high)
+        tof_codes = 2 * distance / SPEED_OF_LIGHT_M_S / TDC_LSB_S
+        assert chosen.sum() > 100
+        # The peak (the column also records late background: the last photon wins)
+        peak = np.argmax(np.bincount(stamps[chosen] >> 4)) * 16 + 8
+        assert abs(peak - tof_codes) <= 24, (low, peak, tof_codes)
+    if sensor_kind == "column":
+        assert max(len(window) for window in windows) == 1
+        assert collisions.sum() > 0
+    else:
+        assert max(len(window) for window in windows) > 3 and not collisions.any()
+        assert all(np.all(np.diff([event[1] for event in window]) > 0) for window in windows)
 
 
 def test_missing_simulator(monkeypatch, tmp_path, capsys):
@@ -389,3 +430,34 @@ def test_demo_runs_again(tmp_path, capsys):
         summary = capsys.readouterr().out.split("== Summary")[-1]
         assert summary.count("victim peak") == 2, summary
     assert all(written[1][name] > written[0][name] for name in written[0])
+
+
+def test_line_scene_through_the_launcher():
+    """`VirtualBoard(scene="line", sensor="per_pixel")` reaches the simulation: raw events come
+    from the 60 pixels, the object's (pixels 20 to 39) at 2.5 m and the wall's at 4 m."""
+    _require_verilator()
+    board = VirtualBoard("verilator", baud=BAUD, target_m=4.0, ambient_hz=1e4, signal=0.05,
+                         seed=5, scene="line", sensor="per_pixel", object_m=2.5)
+    path = board.start()
+    try:
+        with BoardClient(path, timeout_s=5.0) as client:
+            client.write_registers({"acquisition": 1, "period": 2400})
+            client.start()
+            events = []
+            deadline = time.monotonic() + 60
+            while sum(map(len, events)) < 300 and time.monotonic() < deadline:
+                client.poll(0.5)
+                events += [item.events for item in client.take_data()
+                           if hasattr(item, "events")]
+            client.stop()
+        stats = board.stats()
+    finally:
+        board.stop()
+    events = np.concatenate(events)
+    addresses = events["address"].astype(int)
+    assert len(events) >= 300 and len(set(addresses)) > 40 and not events["collision"].any()
+    for low, high, distance in ((20, 40, 2.5), (0, 20, 4.0), (40, 60, 4.0)):
+        chosen = (addresses >= low) & (addresses < high)
+        tof_codes = 2 * distance / SPEED_OF_LIGHT_M_S / TDC_LSB_S
+        assert abs(np.median(events["timestamp"][chosen]) - tof_codes) < 40, (low, distance)
+    assert stats.get("busy_drops", 0) == 0

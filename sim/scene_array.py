@@ -1,0 +1,283 @@
+"""Photon generation and detection for a pixel array, all pixels at once (numpy, no loop over
+pixels).
+
+:class:`PixelSimulation` simulates a :class:`~fliss.sim.scene_description.Scene` whose
+``pixels`` is a :class:`~fliss.sim.scene_pixels.PixelArray` (the model is in
+:mod:`fliss.sim.scene_pixels`); it has the interface of
+:class:`~fliss.sim.scene_photons.Simulation` (``step``, ``chunks``, ``feed``,
+``feed_aggressor``, ``counts``) and gives :class:`PixelChunk` s, whose events carry each
+pixel's address and the collision flag. :func:`simulation_for` picks the simulation a scene
+needs.
+
+The laser cycles, TDC windows, dead-time spans and the background drawn only where it can
+matter are those of the single-pixel simulation. The SPADs are resolved all together: the
+photons of each pixel, in time order, are laid one after the other on one time axis, each
+pixel's block starting with its last detection so far and separated from the previous block by
+more than a dead time, so one pass of the non-paralysable detector serves every pixel.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..hdl.event import PULSE_BITS, TDC_LSB_S
+from .event import EVENT_DTYPE
+from .scene_description import COUNTERS, SPEED_OF_LIGHT, TDC_CODES, TRUNCATION_SIGMAS
+from .scene_photons import Chunk, Simulation, _non_paralysable
+
+
+__all__ = ["PixelChunk", "PixelSimulation", "simulation_for"]
+
+
+_GENERATED, _OUTSIDE, _DEAD, _OVERWRITTEN, _RECORDED = range(len(COUNTERS))
+
+
+@dataclass
+class PixelChunk(Chunk):
+    """A :class:`~fliss.sim.scene_photons.Chunk` of a pixel array.
+
+    Attributes
+    ----------
+    pixel_counts : numpy.ndarray
+        ``(pixels, sources, len(COUNTERS))`` photon counters of each pixel (``counts`` is
+        their sum). With the column sensor a photon that a SPAD detected in a window and
+        another pixel's later detection overwrote counts as ``overwritten`` of its own pixel.
+    """
+
+    pixel_counts: np.ndarray = None
+
+
+def simulation_for(scene, **options):
+    """The simulation of ``scene``: a :class:`PixelSimulation` when it has ``pixels``, else a
+    :class:`~fliss.sim.scene_photons.Simulation`; ``options`` are theirs."""
+    if scene.pixels is None:
+        return Simulation(scene, **options)
+    return PixelSimulation(scene, **options)
+
+
+def _previous_other(pixel):
+    """For each position of ``pixel`` (a sequence in time order), the position of the latest
+    earlier entry of another pixel, ``-1`` if none."""
+    count = len(pixel)
+    change = np.ones(count, dtype=bool)
+    change[1:] = pixel[1:] != pixel[:-1]
+    run_start = np.maximum.accumulate(np.where(change, np.arange(count), 0))
+    return run_start - 1
+
+
+class PixelSimulation(Simulation):
+    """A pixel array, laser cycle after laser cycle, in chunks (see
+    :class:`~fliss.sim.scene_photons.Simulation` for the parameters).
+
+    Attributes
+    ----------
+    pixel_counts : numpy.ndarray
+        ``(pixels, sources, len(COUNTERS))`` photon counters since the start.
+    """
+
+    def __init__(self, scene, **options):
+        super().__init__(scene, **options)
+        pixels = scene.pixels
+        if pixels is None:
+            raise ValueError("A PixelSimulation needs a scene with pixels (a PixelArray)")
+        self.pixels = pixels
+        count = len(pixels)
+        self._count = count
+        self._addresses = pixels.addresses
+        self._column = pixels.sensor == "column"
+        self._collision = pixels.collision_window_s / TDC_LSB_S
+        # Per pulsed source: mean detections of each pixel, and each pixel's arrival time after
+        # the base time the source's pulse train gives (the single pixel's time of flight).
+        tof = 2.0 * pixels.distance_m / SPEED_OF_LIGHT / TDC_LSB_S
+        own = tof - scene.tof_s / TDC_LSB_S
+        self._means = [pixels.echo(scene.detections_per_pulse)]
+        self._extra = [own]
+        for aggressor in scene.aggressors:
+            self._means.append(np.full(count, float(aggressor.detections_per_pulse)))
+            self._extra.append(own if aggressor.tof_s is None else np.zeros(count))
+        self._lowest = [float(extra.min()) for extra in self._extra]
+        self._lit = [bool(means.any()) for means in self._means]
+        self._last_detections = np.full(count, -np.inf)
+        self._carry_pixels = np.zeros(0, dtype=np.int16)
+        self.pixel_counts = np.zeros((count, self._sources, len(COUNTERS)), dtype=np.int64)
+
+    def _photons(self, boundary, count, starts, span_starts, ends):
+        """Photons up to ``boundary``: carried over, from each pulsed source, background in the
+        spans; ``(times, sources, pixels)``, not sorted."""
+        rng = self._rng
+        pixels = self._count
+        times, sources, owners = [self._carry_times], [self._carry_sources], [self._carry_pixels]
+        for index, (pulses, _mean, sigma, wander) in enumerate(self._pulsed):
+            means, extra = self._means[index], self._extra[index]
+            source = index if index == 0 else index + 1
+            centres = pulses.until(boundary + TRUNCATION_SIGMAS * (sigma + wander) + 1.0
+                                   - self._lowest[index])
+            if not self._lit[index] or len(centres) == 0:
+                continue
+            if wander > 0:
+                centres = centres + wander * np.clip(rng.standard_normal(len(centres)),
+                                                     -TRUNCATION_SIGMAS, TRUNCATION_SIGMAS)
+            numbers = rng.poisson(means * len(centres))
+            pixel = np.repeat(np.arange(pixels, dtype=np.int16), numbers)
+            spread = np.clip(rng.standard_normal(len(pixel)), -TRUNCATION_SIGMAS,
+                             TRUNCATION_SIGMAS)
+            times.append(centres[rng.integers(0, len(centres), len(pixel))] + extra[pixel]
+                         + sigma * spread)
+            sources.append(np.full(len(pixel), source, dtype=np.int8))
+            owners.append(pixel)
+        if self._background > 0:
+            if self._separated:
+                longest = TDC_CODES + self._dead
+            else:
+                lengths = ends - span_starts
+                longest = float(lengths.max())
+            number = rng.poisson(self._background * longest * count * pixels)
+            span = rng.integers(0, count, number)
+            offset = rng.uniform(0.0, longest, number)
+            pixel = rng.integers(0, pixels, number).astype(np.int16)
+            if self._separated:
+                times.append(starts[span] + (offset - self._dead))
+            else:
+                inside = offset < lengths[span]
+                times.append(span_starts[span[inside]] + offset[inside])
+                pixel = pixel[inside]
+            sources.append(np.full(len(pixel), 1, dtype=np.int8))
+            owners.append(pixel)
+        return np.concatenate(times), np.concatenate(sources), np.concatenate(owners)
+
+    def _detect(self, times, pixel):
+        """Which photons (``times`` in time order, of ``pixel``) the pixels' SPADs detect."""
+        count = len(times)
+        if count == 0 or self._dead <= 0:
+            return np.ones(count, dtype=bool)
+        dead = self._dead
+        origin = float(times[0])
+        local = times - origin
+        stride = float(local[-1]) + 4.0 * dead + 1.0
+        # One block per pixel: its last detection (if it still matters), then its photons.
+        previous = np.maximum(self._last_detections - origin, -2.0 * dead)
+        order = np.lexsort((local, pixel))
+        keyed = np.concatenate((previous + np.arange(self._count) * stride,
+                                local[order] + pixel[order] * stride))
+        owner = np.concatenate((np.arange(self._count), pixel[order]))
+        sentinel = np.concatenate((np.ones(self._count, dtype=bool), np.zeros(count, dtype=bool)))
+        block = np.lexsort((keyed, owner))
+        result = _non_paralysable(keyed[block], dead, -np.inf)
+        detected = np.empty(count, dtype=bool)
+        detected[order] = result[~sentinel[block]]
+        return detected
+
+    def step(self, max_cycles=None, *, until_cycle=None):
+        """Simulate the next laser cycles (as :meth:`Simulation.step`); returns a
+        :class:`PixelChunk`."""
+        max_cycles = self.chunk_cycles if max_cycles is None else int(max_cycles)
+        cycles = self._starts.get(self.pulse, self.pulse + max_cycles + 1)
+        count = max(min(max_cycles, len(cycles) - 1), 0)
+        if until_cycle is not None:
+            count = int(np.searchsorted(cycles[:count], until_cycle, side="left"))
+        if count == 0:
+            return PixelChunk(self.pulse, cycles[:0].copy(), np.zeros(0, dtype=EVENT_DTYPE),
+                              np.zeros_like(self.counts), np.zeros_like(self.pixel_counts))
+        edges = cycles[:count + 1] * self._lsb
+        starts = edges[:-1]
+        ends = span_starts = None
+        if self._separated:
+            boundary = edges[-1] - self._dead
+        else:
+            ends = np.minimum(starts + TDC_CODES, edges[1:])
+            span_starts = np.maximum(starts - self._dead,
+                                     np.concatenate(([self._previous_end], ends[:-1])))
+            boundary = max(edges[-1] - self._dead, ends[-1])
+
+        times, sources, pixel = self._photons(boundary, count, starts, span_starts, ends)
+        later = times >= boundary
+        self._carry_times, self._carry_sources = times[later], sources[later]
+        self._carry_pixels = pixel[later]
+        now = ~later
+        order = np.argsort(times[now], kind="stable")
+        times, sources, pixel = times[now][order], sources[now][order], pixel[now][order]
+
+        # Which span each photon is in: the TDC window of `span`, or the dead time before it
+        if self._separated:
+            span = np.searchsorted(starts, times + self._dead, side="right") - 1
+            offset = times - starts[np.maximum(span, 0)]
+            in_span = (span >= 0) & (offset < TDC_CODES)
+            in_window = in_span & (offset >= 0)
+        else:
+            span = np.searchsorted(span_starts, times, side="right") - 1
+            clipped = np.maximum(span, 0)
+            in_span = (span >= 0) & (times < ends[clipped])
+            in_window = in_span & (times >= starts[clipped])
+
+        # Detection: each pixel's dead time, then the sensor's TDCs
+        spanned = np.flatnonzero(in_span)
+        detected = self._detect(times[spanned], pixel[spanned])
+        hits = spanned[detected]
+        if len(hits):
+            np.maximum.at(self._last_detections, pixel[hits], times[hits])
+        window = in_window[spanned]
+        fires = spanned[window & detected]          # time order
+        recorded, collision = self._tdc(fires, span, pixel, times)
+
+        # Photon counters: one bincount over (pixel, source, counter)
+        what = np.full(len(times), _OUTSIDE, dtype=np.int64)
+        what[spanned[window & ~detected]] = _DEAD
+        what[fires] = _OVERWRITTEN
+        what[recorded] = _RECORDED
+        counters = len(COUNTERS)
+        key = (pixel.astype(np.int64) * self._sources + sources) * counters + what
+        pixel_counts = np.bincount(key, minlength=self.pixel_counts.size).reshape(
+            self.pixel_counts.shape)
+        pixel_counts[:, :, _GENERATED] = pixel_counts.sum(axis=2)
+        counts = pixel_counts.sum(axis=0)
+
+        events = np.zeros(len(recorded), dtype=EVENT_DTYPE)
+        cycle = span[recorded]
+        stamps = np.floor(times[recorded] - starts[cycle]).astype(np.int64)
+        events["timestamp"] = np.minimum(stamps, TDC_CODES - 1)
+        events["address"] = self._addresses[pixel[recorded]]
+        events["collision"] = collision
+        events["pulse"] = (self.pulse + cycle) & ((1 << PULSE_BITS) - 1)
+
+        chunk = PixelChunk(self.pulse, cycles[:count].copy(), events, counts, pixel_counts)
+        self.pulse += count
+        self._starts.trim(self.pulse if self.external_starts else
+                          min(self.pulse, self._signal.next_index))
+        self._previous_end = float(starts[-1] + TDC_CODES if self._separated else ends[-1])
+        self.counts += counts
+        self.pixel_counts += pixel_counts
+        return chunk
+
+    def _tdc(self, fires, span, pixel, times):
+        """The detections the sensor's TDCs keep, of ``fires`` (indices in time order): the
+        recorded indices, in event order, and their collision flags."""
+        cycle = span[fires]
+        last = self.scene.keep == "last"
+        if not self._column:
+            # One TDC per pixel: per (cycle, pixel) the last (first) detection, in address order
+            order = np.lexsort((np.arange(len(fires)), pixel[fires], cycle))
+            group = cycle[order] * self._count + pixel[fires][order]
+            keep = np.ones(len(order), dtype=bool)
+            if last:
+                keep[:-1] = group[1:] != group[:-1]
+            else:
+                keep[1:] = group[1:] != group[:-1]
+            recorded = fires[order[keep]]
+            return recorded, np.zeros(len(recorded), dtype=np.uint8)
+        # One TDC for the column: per cycle the last (first) detection of any pixel
+        keep = np.ones(len(fires), dtype=bool)
+        if last:
+            keep[:-1] = cycle[1:] != cycle[:-1]
+        else:
+            keep[1:] = cycle[1:] != cycle[:-1]
+        winners = np.flatnonzero(keep)
+        # Collision: another pixel fired within the window before (after) the winner
+        sequence = fires if last else fires[::-1]
+        position = winners if last else len(fires) - 1 - winners
+        other = _previous_other(pixel[sequence])[position]
+        near = np.zeros(len(winners), dtype=bool)
+        has = other >= 0
+        neighbour = sequence[other[has]]
+        near[has] = (span[neighbour] == cycle[winners[has]]) & \
+            (np.abs(times[fires[winners[has]]] - times[neighbour]) < self._collision)
+        return fires[winners], near.astype(np.uint8)
