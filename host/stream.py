@@ -19,7 +19,7 @@ from ..sim.codec import Packet, byte_size, unpack_from, word_dtype
 from ..sim.event import EVENT_DTYPE
 
 
-__all__ = ["HistogramFrame", "EventBatch", "StreamCounters", "StreamAssembler",
+__all__ = ["HistogramFrame", "DepthFrame", "EventBatch", "StreamCounters", "StreamAssembler",
            "unpack_event_payload"]
 
 
@@ -31,15 +31,41 @@ _COUNT_DTYPE = word_dtype(HISTOGRAM_COUNT_BITS)
 class HistogramFrame:
     """One histogram as read out by the board.
 
-    ``counts`` has ``2**13 >> shift`` bins; bins of chunks that never arrived are 0 and
-    ``complete`` is False. ``time_s`` is the host's receive time (``time.time()``) of its last
-    chunk.
+    ``counts`` has ``2**pixel_bits`` pixels of ``2**13 >> shift`` bins each, pixel-major (flat);
+    bins of chunks that never arrived are 0 and ``complete`` is False. ``time_s`` is the host's
+    receive time (``time.time()``) of its last chunk. The pixels are the addresses
+    ``first_pixel … first_pixel + 2**pixel_bits - 1``.
     """
     frame: int
     shift: int
     counts: np.ndarray
     complete: bool
     missing_bins: int
+    time_s: float
+    pixel_bits: int = 0
+    first_pixel: int = 0
+
+    @property
+    def image(self) -> np.ndarray:
+        """``counts`` as ``(pixels, bins)``."""
+        return self.counts.reshape(1 << self.pixel_bits, -1)
+
+
+@dataclass
+class DepthFrame:
+    """One depth frame (DEPTH packet): per pixel, its strongest peak after the matched filter.
+
+    ``position`` is in bins (float, NaN where nothing cleared the threshold); ``height`` and
+    ``background`` in counts; ``detected`` is a bool array; the pixels are the addresses
+    ``first_pixel …``; ``shift`` is the frame's bin shift; ``time_s`` the host's receive time.
+    """
+    frame: int
+    first_pixel: int
+    shift: int
+    position: np.ndarray
+    height: np.ndarray
+    background: np.ndarray
+    detected: np.ndarray
     time_s: float
 
 
