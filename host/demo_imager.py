@@ -58,7 +58,7 @@ class Comparison:
 def depth_array(frames) -> np.ndarray:
     """``(n, P)`` depths in metres (NaN where nothing was detected) of depth frames given as
     :class:`~fliss.host.imager.DepthFrames`, a depth capture, or an array."""
-    if hasattr(frames, "depth") and isinstance(getattr(frames, "depth"), dict):
+    if hasattr(frames, "depth") and isinstance(frames.depth, dict):
         return np.asarray(frames.depth["depth_m"], dtype=float)[frames.complete]
     values = getattr(frames, "depth_m", frames)
     values = np.asarray(values, dtype=float)
