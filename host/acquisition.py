@@ -226,7 +226,7 @@ class _Rows:
             self.discarded += 1
         elif self.writer.add_frame(item):
             self.saved += 1
-            self.incomplete += not item.complete
+            self.incomplete += not getattr(item, "complete", True)
             self.next = (item.frame + 1) % (1 << 32)
         else:
             self.discarded += 1

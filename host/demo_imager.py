@@ -70,8 +70,8 @@ def profile(frames, truth_m, tolerance_m: float = DEFAULT_TOLERANCE_M) -> Profil
     per_frame = depth_array(frames)
     truth = np.asarray(truth_m, dtype=float)
     if per_frame.shape[1:] != truth.shape:
-        raise ValueError(f"depth frames of {per_frame.shape[1:]} pixels against a true "
-                         f"profile of {truth.shape}")
+        raise ValueError(f"depth frames of {per_frame.shape[1]} pixels against a true "
+                         f"profile of {truth.size}")
     found = np.isfinite(per_frame)
     missing = ~found.any(axis=0)
     with np.errstate(all="ignore"):
