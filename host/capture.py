@@ -128,7 +128,9 @@ def run(args):
         readout = board.settings["readout"]
         image = True if settings.get("readout") == "image" else None
         if readout in ("histogram", "depth"):
-            bar = Progress(args.acquisitions, "frames", enabled=not quiet)
+            unit = "depth frames" if readout == "depth" else \
+                "images" if image or board.settings["pixels"] > 1 else "histograms"
+            bar = Progress(args.acquisitions, unit, enabled=not quiet)
         else:
             bar = Progress(round(duration_s(args.duration, ""), 1), "s", enabled=not quiet)
         result = board.capture(args.output, acquisitions=args.acquisitions,

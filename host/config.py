@@ -109,10 +109,10 @@ def run(args):
     print(f"board on {args.port}: gateware {identity.gateware_version}, protocol "
           f"{identity.protocol}, clock {format_frequency(clock_hz)}, "
           f"{identity.baud} baud")
-    print(f"{'register':<22} {'value':>10} {'unit':<7} {'':<22} meaning")
+    print(f"{'register':<22} {'value':>10} {'unit':<7} {'':<30} meaning")
     for register in REGISTERS:
         value = current[register.name]
         mark = "*" if register.name in changes else " "
         print(f"{register.name:<22}{mark}{value:>10} {register.unit:<7} "
-              f"{describe(register.name, value, current, clock_hz):<22} {register.doc}")
+              f"{describe(register.name, value, current, clock_hz):<30} {register.doc}")
     return 0

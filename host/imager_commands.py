@@ -18,8 +18,9 @@ __all__ = ["table_lines", "table_record", "parse_shape", "plot_imager"]
 def table_lines(capture, rows):
     """The per-pixel table of ``capture`` as lines of text."""
     depth = capture.mode == "depth"
-    lines = [f"{capture.path}: {capture.mode} capture, {len(capture.pixels)} pixels "
-             f"({capture.pixels[0]} to {capture.pixels[-1]}), "
+    pixels = (f"{len(capture.pixels)} pixels ({capture.pixels[0]} to {capture.pixels[-1]})"
+              if len(capture.pixels) > 1 else f"pixel {capture.pixels[0]}")
+    lines = [f"{capture.path}: {capture.mode} capture, {pixels}, "
              f"{int(capture.complete.sum())} complete frames of {len(capture.complete)}, bins of "
              f"{capture.bin_s * 1e12:g} ps, ended: {capture.attrs.get('end_reason', '?')}"]
     link = capture.counters.get("link", {})
