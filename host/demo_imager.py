@@ -14,11 +14,16 @@ from dataclasses import dataclass
 import numpy as np
 
 
-__all__ = ["DEFAULT_TOLERANCE_M", "ProfileResult", "Comparison", "depth_array", "profile",
-           "compare_profiles", "summary_lines", "draw_profiles"]
+__all__ = ["DEFAULT_TOLERANCE_M", "FLISS_OFF", "FLISS_ON", "ProfileResult", "Comparison",
+           "depth_array", "profile", "compare_profiles", "summary_lines", "draw_profiles",
+           "run_on_board"]
 
 #: How far from the truth a depth may be and still count as right, in metres.
 DEFAULT_TOLERANCE_M = 0.15
+
+#: Settings of the two runs (as :meth:`fliss.host.board.Board.configure` takes them).
+FLISS_OFF = {"mode": "off"}
+FLISS_ON = {"mode": "masked", "mask_width": 6}
 
 
 @dataclass(frozen=True)
@@ -142,3 +147,22 @@ def draw_profiles(comparison: Comparison, output: str, *, title: str = "") -> No
         figure.savefig(output, dpi=110)
     finally:
         plt.close(figure)
+
+
+def run_on_board(board, truth_m, output: str, *, frames: int = 20, settings=None,
+                 off=FLISS_OFF, on=FLISS_ON, tolerance_m: float = DEFAULT_TOLERANCE_M,
+                 title: str = ""):
+    """The whole comparison on ``board`` (a :class:`~fliss.host.board.Board`, the virtual one
+    in ``fliss demo``): ``settings`` first (the pixel split, the aggressor, ...), then
+    ``frames`` depth frames with ``off`` and with ``on``, drawn into ``output`` beside
+    ``truth_m`` ``(P,)``. Returns the :class:`Comparison`; :func:`summary_lines` says it."""
+    if settings:
+        board.configure(settings)
+    board.configure(off)
+    depth_off = board.acquire_depth(frames)
+    board.configure(on)
+    depth_on = board.acquire_depth(frames)
+    comparison = compare_profiles(depth_off, depth_on, truth_m, depth_off.pixels,
+                                  tolerance_m=tolerance_m)
+    draw_profiles(comparison, output, title=title)
+    return comparison

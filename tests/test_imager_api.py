@@ -7,7 +7,8 @@ import pytest
 import fliss
 from fliss.host.board import Board
 from fliss.host.cli import main
-from fliss.host.demo_imager import compare_profiles, draw_profiles, summary_lines
+from fliss.host.demo_imager import (compare_profiles, draw_profiles, run_on_board,
+                                    summary_lines)
 from fliss.host.errors import SettingsError
 from fliss.host.fileformat import read_capture
 from fliss.host.imager import DepthFrames, Images
@@ -111,3 +112,16 @@ def test_demo_comparison_takes_depth_frames_and_refuses_a_wrong_truth():
     assert comparison.on.depth_m == pytest.approx(TRUTH_M, abs=1e-6)
     with pytest.raises(ValueError, match="^depth frames of 8 pixels against a true profile of 4$"):
         compare_profiles(depth, depth, TRUTH_M[:4])
+
+
+def test_demo_runs_on_a_board(tmp_path):
+    off = _depths(TRUTH_M, {4: 11.2}, frames=5)
+    on = _depths(TRUTH_M, {}, frames=5, seed=3)
+    frames = scene.depth_frames(np.concatenate([off, on]))
+    board = Board(FakeClient(frames, scene.configuration()))
+    comparison = run_on_board(board, TRUTH_M, str(tmp_path / "demo.png"), frames=5,
+                              settings={"pixels": 8, "first_pixel": FIRST, "bin_shift": 3})
+    writes = board.client.written
+    assert {"delay_mode": 0} in writes and {"delay_mode": 2, "mask_width": 6} in writes
+    assert list(np.flatnonzero(comparison.off.wrong)) == [4] and not comparison.on.wrong.any()
+    assert (tmp_path / "demo.png").exists()

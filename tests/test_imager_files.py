@@ -4,6 +4,9 @@ whose depths are known (tests/imager_frames.py)."""
 
 import json
 import math
+import subprocess
+import sys
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -191,3 +194,38 @@ def test_a_damaged_image_file_is_refused_in_one_line(tmp_path, capsys):
     status, out, err = fliss(capsys, "analyze", tmp_path / "a.h5")
     assert status == 1 and len(err.splitlines()) == 1
     assert "damaged or not written by fliss (no /image/frame)" in err
+
+
+@pytest.mark.parametrize("mode", ["image", "depth"])
+def test_a_killed_writer_leaves_every_flushed_frame(tmp_path, mode):
+    # A writer killed (os._exit: no close, as SIGKILL) after a flush: the frames flushed are
+    # read back whole, with the SWMR warning, and the axes are there.
+    path = tmp_path / f"{mode}.h5"
+    script = f"""
+import os, sys
+sys.path.insert(0, {str(Path(__file__).parent)!r})
+import numpy as np
+import imager_frames as scene
+from fliss.host.fileformat import CaptureWriter
+writer = CaptureWriter({str(path)!r}, mode={mode!r}, identity=scene.identity(),
+                       configuration=scene.configuration())
+frames = scene.histogram_frames(4) if {mode!r} == "image" else \\
+    scene.depth_frames(np.tile(scene.TRUTH_M, (4, 1)))
+for frame in frames[:3]:
+    writer.add_frame(frame)
+writer.flush()
+writer.add_frame(frames[3])
+os._exit(9)
+"""
+    process = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                             timeout=120)
+    assert process.returncode == 9, process.stderr
+    saved = read_capture(path)
+    assert saved.mode == mode and len(saved.frames) >= 3
+    assert saved.problems and "never closed it" in saved.problems[0]
+    assert list(saved.pixels) == list(PIXELS)
+    if mode == "image":
+        assert np.array_equal(saved.histograms[:3].reshape(3, -1),
+                              [frame.counts for frame in scene.histogram_frames(3)])
+    else:
+        assert np.allclose(saved.depth["depth_m"][:3], np.tile(TRUTH_M, (3, 1)))
