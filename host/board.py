@@ -286,6 +286,10 @@ class Board:
         """
         if n is not None and n < 1:
             raise SettingsError(f"n must be at least 1, not {n!r}")
+        pixels = self.settings.pixels
+        if pixels > 1:
+            raise SettingsError(f"the board histograms {pixels} pixels a frame: use "
+                                f"acquire_image(n), or configure(pixels=1)")
         settings = self._start(AcquisitionMode.HISTOGRAM)
         wait = self.wait_s(settings) if timeout_s is None else float(timeout_s)
         time_s = settings.time_s

@@ -179,19 +179,35 @@ def depth_from_frames(frames: Sequence[DepthFrame], settings: Settings) -> Depth
                        settings=settings)
 
 
+def _split_of(item):
+    # (pixels, first pixel, bin shift) of a frame
+    if isinstance(item, HistogramFrame):
+        return 1 << item.pixel_bits, item.first_pixel, item.shift
+    return len(item.position), item.first_pixel, item.shift
+
+
 def _collect(board, n, kind, mode, timeout_s):
-    # ``n`` items of type ``kind`` from the board in readout ``mode``; stops the board after.
+    # ``n`` items of type ``kind`` from the board in readout ``mode``, of the split set when
+    # it started (others, sent before the start, are left out and logged); stops the board.
     if n < 1:
         raise SettingsError(f"n must be at least 1, not {n!r}")
     settings = board._start(mode)
+    split = (settings.pixels, settings.registers["first_pixel"], settings.registers["bin_shift"])
     wait = board.wait_s(settings) if timeout_s is None else float(timeout_s)
-    items = []
+    items, other = [], 0
     with board._stopping():
         for item in board.client.stream(idle_timeout_s=wait, data_timeout_s=wait):
-            if isinstance(item, kind):
-                items.append(item)
-                if len(items) >= n:
-                    break
+            if not isinstance(item, kind):
+                continue
+            if _split_of(item) != split:
+                other += 1
+                continue
+            items.append(item)
+            if len(items) >= n:
+                break
+    if other:
+        _logger.warning("%d frames of another pixel split than the settings' were left out",
+                        other)
     return items, settings
 
 

@@ -125,3 +125,14 @@ def test_demo_runs_on_a_board(tmp_path):
     assert {"delay_mode": 0} in writes and {"delay_mode": 2, "mask_width": 6} in writes
     assert list(np.flatnonzero(comparison.off.wrong)) == [4] and not comparison.on.wrong.any()
     assert (tmp_path / "demo.png").exists()
+
+
+def test_frames_of_another_split_are_left_out_and_acquire_refuses_pixels():
+    stale = scene.histogram_frames(1, first=0)             # sent before the settings changed
+    frames = stale + scene.histogram_frames(2, start=1)
+    board = Board(FakeClient(frames, scene.configuration()))
+    images = board.acquire_image(2)
+    assert list(images.frames) == [1, 2] and list(images.pixels) == list(FIRST + np.arange(8))
+    with pytest.raises(SettingsError, match=r"^the board histograms 8 pixels a frame: use "
+                                            r"acquire_image\(n\), or configure\(pixels=1\)$"):
+        board.acquire(1)

@@ -229,3 +229,16 @@ os._exit(9)
                               [frame.counts for frame in scene.histogram_frames(3)])
     else:
         assert np.allclose(saved.depth["depth_m"][:3], np.tile(TRUTH_M, (3, 1)))
+
+
+def test_analyze_json_of_a_histogram_capture(tmp_path, capsys):
+    # One pixel's histogram of the scene at 4 m (ToF 26.69 ns), as a plain histogram capture.
+    frame = scene.histogram_frames(1, truth_m=TRUTH_M[:1])[0]
+    with CaptureWriter(str(tmp_path / "h.h5"), mode="histogram", identity=scene.identity(),
+                       configuration=scene.configuration(pixel_bits=0)) as writer:
+        assert writer.add_histogram(frame)
+    status, out, err = fliss(capsys, "analyze", "--json", tmp_path / "h.h5")
+    assert (status, err) == (0, "")
+    record, = json.loads(out)
+    assert record["mode"] == "histogram" and record["counts"] == int(frame.counts.sum())
+    assert record["peaks"][0]["tof_s"] == pytest.approx(2 * 4.0 / C, abs=0.2e-9)
