@@ -256,8 +256,9 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
             progress=None) -> CaptureResult:
     """Capture into ``path`` from an identified :class:`~fliss.host.client.BoardClient`.
 
-    ``mode`` is ``"histogram"`` (``acquisitions`` histograms), ``"image"`` (``acquisitions``
-    frames of per-pixel histograms), ``"depth"`` (``acquisitions`` depth frames) or ``"raw"``
+    ``mode`` is ``"histogram"`` (``acquisitions`` histograms; saved as ``"image"`` when the
+    board's frames hold several pixels), ``"image"`` (``acquisitions`` frames of per-pixel
+    histograms), ``"depth"`` (``acquisitions`` depth frames) or ``"raw"``
     (events for ``duration_s``); each frame (and raw-mode block) integrates for
     ``integration_s``.
     ``progress``, if given, has ``update(done, extra="", force=False)`` and ``close()`` (as
@@ -279,6 +280,8 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
     board.write_registers({"acquisition": readout.value,
                            "integration": cycles}, current=current)
     configuration = board.read_registers()
+    if mode == "histogram" and configuration.get("pixel_bits", 0):
+        mode = "image"          # several pixels a frame: saved per pixel
     status_start = board.status()
 
     attrs = {"integration_s": cycles / clock_hz}

@@ -242,3 +242,10 @@ def test_analyze_json_of_a_histogram_capture(tmp_path, capsys):
     record, = json.loads(out)
     assert record["mode"] == "histogram" and record["counts"] == int(frame.counts.sum())
     assert record["peaks"][0]["tof_s"] == pytest.approx(2 * 4.0 / C, abs=0.2e-9)
+
+
+def test_a_histogram_capture_of_several_pixels_is_saved_per_pixel(tmp_path):
+    client = FakeClient(scene.histogram_frames(2), scene.configuration())
+    result = capture(client, str(tmp_path / "h.h5"), mode="histogram", acquisitions=2)
+    assert result.mode == "image" and result.what == "2 images"
+    assert read_capture(tmp_path / "h.h5").histograms.shape == (2, 8, 1024)
