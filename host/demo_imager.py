@@ -135,7 +135,8 @@ def draw_profiles(comparison: Comparison, output: str, *, title: str = "") -> No
                   else "tab:blue", markersize=4, label="measured (median)")
         axis.plot(pixels[result.wrong], result.depth_m[result.wrong], "x", color="tab:red",
                   markersize=9, label="wrong depth")
-        axis.set_title(f"{name}: {int(result.wrong.sum())} pixels wrong", fontsize="small")
+        axis.set_title(f"{name}: {int(result.wrong.sum())} pixels at a wrong depth "
+                       f"({result.wrong_frames:.0%} of single-frame depths)", fontsize="small")
         axis.set_xlabel("pixel address")
         axis.set_ylim(0, (top if np.isfinite(top) else 1.0) * 1.1)
     axes[0].set_ylabel("depth (m)")
