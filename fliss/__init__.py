@@ -20,7 +20,8 @@ except Exception:  # pragma: no cover - running from a tree that was never insta
 
 #: The Python API (:mod:`fliss.host.board`), imported when first used: ``fliss.connect(port)``.
 _API = {"connect": "board", "Board": "board", "Histogram": "board", "Histograms": "board",
-        "Events": "board", "Settings": "settings", "RoundingWarning": "settings",
+        "Events": "board", "Images": "board", "DepthFrames": "board",
+        "Settings": "settings", "RoundingWarning": "settings",
         "BoardError": "errors", "BoardLost": "errors",
         "BoardRefused": "errors", "PortError": "errors", "SettingsError": "errors"}
 

@@ -18,7 +18,8 @@ from ..hdl.registers import AcquisitionMode
 from .client import BoardClient
 from .errors import BoardLost, BoardReset, PathError, SettingsError
 from .fileformat import CaptureWriter
-from .stream import EventBatch, HistogramFrame
+from .fileformat_imager import blank_frame
+from .stream import DepthFrame, EventBatch, HistogramFrame
 from .units import format_time
 
 
@@ -73,9 +74,19 @@ class CaptureResult:
     @property
     def what(self) -> str:
         """What was saved, as text: ``"10 histograms"``, ``"1234 events in 40 packets"``."""
-        if self.mode == "histogram":
-            return f"{self.histograms} histograms"
+        if self.mode in _FRAMED:
+            return f"{self.histograms} {_FRAMED[self.mode]}"
         return f"{self.events} events in {self.batches} packets"
+
+    @property
+    def board_deliberate(self) -> dict:
+        """Events the board dropped as its settings asked, by counter: ``dropped_collision``
+        (``--collisions drop``), ``dropped_pixel`` (addresses outside the frame's pixels);
+        counters the board does not report are left out."""
+        if self.status_end is None:
+            return {}
+        return {name: self.status_end[name] - self.status_start.get(name, 0)
+                for name in ("dropped_collision", "dropped_pixel") if name in self.status_end}
 
     @property
     def board_dropped(self) -> int:
@@ -179,13 +190,19 @@ def check_reset(board: BoardClient, before: dict, now: dict) -> None:
                      f"reads protocol {identity.protocol}, gateware {identity.gateware_version}")
 
 
-class _Rows:
-    """The histogram rows of a capture: ``acquisitions`` consecutive frame numbers from the
-    first one, with a row of zeros marked incomplete for each that never arrived."""
+#: Capture modes that save frames (one row each), and what a row is called.
+_FRAMED = {"histogram": "histograms", "image": "images", "depth": "depth frames"}
 
-    def __init__(self, writer, acquisitions, first_expected, shift):
+
+class _Rows:
+    """The frame rows of a capture: ``acquisitions`` consecutive frame numbers from the
+    first one, with a row marked incomplete (zeros; nothing detected) for each that never
+    arrived."""
+
+    def __init__(self, writer, acquisitions, first_expected, configuration, mode):
         self.writer, self.acquisitions = writer, acquisitions
-        self.first_expected, self.shift = first_expected, shift
+        self.first_expected, self.shift = first_expected, configuration["bin_shift"]
+        self.configuration, self.mode = configuration, mode
         self.next = None        # frame number of the next row
         self.saved = self.lost = self.incomplete = self.discarded = 0
 
@@ -207,9 +224,9 @@ class _Rows:
         self.lose_up_to(item.frame)
         if self.done:
             self.discarded += 1
-        elif self.writer.add_histogram(item):
+        elif self.writer.add_frame(item):
             self.saved += 1
-            self.incomplete += not item.complete
+            self.incomplete += not getattr(item, "complete", True)
             self.next = (item.frame + 1) % (1 << 32)
         else:
             self.discarded += 1
@@ -221,9 +238,13 @@ class _Rows:
             return
         bins = (1 << TIMESTAMP_BITS) >> self.shift
         while self.next != frame and not self.done:
-            self.writer.add_histogram(HistogramFrame(self.next, self.shift,
-                                                     np.zeros(bins, np.uint32), False, bins,
-                                                     math.nan))
+            if self.mode == "histogram":
+                self.writer.add_histogram(HistogramFrame(self.next, self.shift,
+                                                         np.zeros(bins, np.uint32), False, bins,
+                                                         math.nan))
+            else:
+                self.writer.add_frame(blank_frame(self.mode, self.next, self.configuration),
+                                      complete=False)
             self.saved += 1
             self.lost += 1
             self.next = (self.next + 1) % (1 << 32)
@@ -235,8 +256,11 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
             progress=None) -> CaptureResult:
     """Capture into ``path`` from an identified :class:`~fliss.host.client.BoardClient`.
 
-    ``mode`` is ``"histogram"`` (``acquisitions`` histograms) or ``"raw"`` (events for
-    ``duration_s``); each histogram (and raw-mode block) integrates for ``integration_s``.
+    ``mode`` is ``"histogram"`` (``acquisitions`` histograms; saved as ``"image"`` when the
+    board's frames hold several pixels), ``"image"`` (``acquisitions`` frames of per-pixel
+    histograms), ``"depth"`` (``acquisitions`` depth frames) or ``"raw"``
+    (events for ``duration_s``); each frame (and raw-mode block) integrates for
+    ``integration_s``.
     ``progress``, if given, has ``update(done, extra="", force=False)`` and ``close()`` (as
     :class:`fliss.host.capture.Progress`). Ctrl-C stops the acquisition and keeps what was
     captured; a board lost mid-capture leaves a file with everything received. Both are told
@@ -252,13 +276,16 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
     board.stop()
     board.drain(quiet_s=0.1, limit_s=2.0)
     current = board.read_registers()
-    board.write_registers({"acquisition": AcquisitionMode[mode.upper()].value,
+    readout = AcquisitionMode.HISTOGRAM if mode == "image" else AcquisitionMode[mode.upper()]
+    board.write_registers({"acquisition": readout.value,
                            "integration": cycles}, current=current)
     configuration = board.read_registers()
+    if mode == "histogram" and configuration.get("pixel_bits", 0):
+        mode = "image"          # several pixels a frame: saved per pixel
     status_start = board.status()
 
     attrs = {"integration_s": cycles / clock_hz}
-    if mode == "histogram":
+    if mode in _FRAMED:
         attrs["acquisitions_requested"] = acquisitions
     else:
         attrs["duration_s_requested"] = duration_s
@@ -270,16 +297,17 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
     bar = progress if progress is not None else _NoProgress()
 
     state = {"events": 0, "discarded": 0, "file_error": None}
-    rows = _Rows(writer, acquisitions, status_start["frames"], configuration["bin_shift"])
+    rows = _Rows(writer, acquisitions, status_start["frames"], configuration, mode)
+    wanted = DepthFrame if mode == "depth" else HistogramFrame
 
     def store(item):
         if state["file_error"] is not None:     # the file cannot take more (a full disk)
             return
         try:
-            if isinstance(item, HistogramFrame):
-                if mode != "histogram":
+            if isinstance(item, (HistogramFrame, DepthFrame)):
+                if mode not in _FRAMED or not isinstance(item, wanted):
                     state["discarded"] += 1
-                elif rows.add(item):
+                elif rows.add(item) and mode != "depth":
                     state["events"] += int(item.counts.sum())
             elif isinstance(item, EventBatch):
                 writer.add_events(item)
@@ -295,7 +323,7 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
     status_end = None
     idle_timeout_s = max(3.0, 3 * cycles / clock_hz + 1.0)
     # Heartbeat replies keep the line busy: a board that stopped acquiring shows as no data.
-    data_timeout_s = max(DATA_TIMEOUT_S, 10 * cycles / clock_hz) if mode == "histogram" \
+    data_timeout_s = max(DATA_TIMEOUT_S, 10 * cycles / clock_hz) if mode in _FRAMED \
         else math.inf
     try:
         interrupt.install()
@@ -303,7 +331,7 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
         # The pulse count starts again at START: compared between heartbeats only.
         status_last = dict(status_start, pulses=None)
         started = heartbeat = time.monotonic()
-        for item in board.stream(idle_timeout_s=idle_timeout_s if mode == "histogram"
+        for item in board.stream(idle_timeout_s=idle_timeout_s if mode in _FRAMED
                                  else math.inf, data_timeout_s=data_timeout_s):
             if item is not None:
                 store(item)
@@ -315,7 +343,7 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
             elapsed = now - started
             link = board.link_counters()
             damaged = f"{link['dropped_frames']} corrupt, {link['missing_packets']} lost"
-            if mode == "histogram":
+            if mode in _FRAMED:
                 bar.update(rows.saved, f"{rate(state['events'], elapsed)}  link: {damaged}")
                 if rows.done:
                     break
@@ -339,7 +367,7 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
         interrupt.restore()
     interrupt.install()     # again: a signal while stopping and closing only sets the flag
     try:
-        bar.update(rows.saved if mode == "histogram" else
+        bar.update(rows.saved if mode in _FRAMED else
                    min(time.monotonic() - started, duration_s), force=True)
         bar.close()
 

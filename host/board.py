@@ -8,6 +8,9 @@
         board.configure(mode="masked", mask_width=6, integration="10ms")
         result = board.acquire(20)          # result.counts (20, bins), result.time_s (bins,)
         events = board.acquire_raw("100ms")  # a numpy structured array and its time axis
+        board.configure(pixels=64, bin_shift=3)
+        images = board.acquire_image(10)    # images.counts (10, 64, 1024), images.pixels (64,)
+        depth = board.acquire_depth(100)    # depth.depth_m (100, 64), depth.detected, ...
 
 :func:`connect` opens the port and reads the board's identity (its clock turns times into
 cycles); :class:`Board` is the layer above the protocol client
@@ -25,7 +28,6 @@ import logging
 import math
 import time
 import warnings
-from dataclasses import dataclass
 from typing import Any, Iterator, Mapping, Optional
 
 import numpy as np
@@ -35,11 +37,14 @@ from ..hdl.registers import BY_NAME, AcquisitionMode
 from ..sim.event import EVENT_DTYPE
 from .client import BoardClient, IdentityInfo
 from .errors import BoardLost, BoardMismatch, BoardRefused, SettingsError
-from .settings import Conversion, RoundingWarning, Settings, convert, describe, duration_s
+from .imager import DepthFrames, Images, acquire_depth, acquire_image
+from .results import Events, Histogram, Histograms
+from .settings import (DEFAULT_BANK_BITS, Conversion, RoundingWarning, Settings, convert,
+                       describe, duration_s)
 from .stream import EventBatch, HistogramFrame
 
 
-__all__ = ["connect", "Board", "Histogram", "Histograms", "Events"]
+__all__ = ["connect", "Board", "Histogram", "Histograms", "Events", "Images", "DepthFrames"]
 
 
 _logger = logging.getLogger(__name__)
@@ -85,99 +90,6 @@ def connect(port: str, *, baud: int = DEFAULT_BAUD, timeout_s: Optional[float] =
     return Board(BoardClient(port, baud=baud, timeout_s=timeout_s, retries=retries))
 
 
-@dataclass(frozen=True)
-class Histogram:
-    """One histogram.
-
-    Attributes
-    ----------
-    counts : numpy.ndarray
-        Counts per bin (uint32).
-    time_s : numpy.ndarray
-        Time of each bin's centre from the TDC start, in seconds.
-    frame : int
-        The board's histogram number.
-    complete : bool
-        False if part of it was lost on the link (those bins read 0).
-    """
-    counts: np.ndarray
-    time_s: np.ndarray
-    frame: int
-    complete: bool
-
-
-@dataclass(frozen=True)
-class Histograms:
-    """Histograms from :meth:`Board.acquire`.
-
-    Attributes
-    ----------
-    counts : numpy.ndarray
-        ``(n, bins)`` counts, one row per histogram (uint32).
-    time_s : numpy.ndarray
-        ``(bins,)`` time of each bin's centre from the TDC start, in seconds.
-    frames : numpy.ndarray
-        ``(n,)`` the board's histogram numbers (consecutive unless some were lost).
-    complete : numpy.ndarray
-        ``(n,)`` False for a histogram of which part was lost on the link.
-    settings : Settings
-        The board's settings during the acquisition.
-    """
-    counts: np.ndarray
-    time_s: np.ndarray
-    frames: np.ndarray
-    complete: np.ndarray
-    settings: Settings
-
-    @property
-    def bin_s(self) -> float:
-        """Width of a bin, in seconds."""
-        return self.settings.bin_s
-
-    @property
-    def total(self) -> np.ndarray:
-        """The sum of the histograms, ``(bins,)``."""
-        return self.counts.sum(axis=0, dtype=np.uint64)
-
-    @property
-    def lost(self) -> int:
-        """Histograms that never arrived between the first and the last (gaps in ``frames``)."""
-        if len(self.frames) < 2:
-            return 0
-        gaps = np.diff(self.frames.astype(np.int64)) % (1 << 32) - 1
-        return int(gaps.sum())
-
-
-@dataclass(frozen=True)
-class Events:
-    """Raw events from :meth:`Board.acquire_raw`.
-
-    Attributes
-    ----------
-    events : numpy.ndarray
-        A structured array (:data:`fliss.sim.event.EVENT_DTYPE`): ``timestamp`` (TDC codes),
-        ``address`` (pixel), ``collision``, ``pulse`` (laser cycle index).
-    duration_s : float
-        How long events were read, in seconds.
-    dropped : int
-        Events the board dropped (its raw FIFO full: the link was too slow).
-    settings : Settings
-        The board's settings during the acquisition.
-    """
-    events: np.ndarray
-    duration_s: float
-    dropped: int
-    settings: Settings
-
-    @property
-    def time_s(self) -> np.ndarray:
-        """Each event's timestamp in seconds from the TDC start."""
-        return self.events["timestamp"] * self.settings.code_s
-
-    def __len__(self):
-        return len(self.events)
-
-
 class Board:
     """A FLISS board: settings with units, histograms and events as numpy arrays.
 
@@ -210,6 +122,12 @@ class Board:
     def clock_hz(self) -> int:
         """The board's clock frequency, in Hz."""
         return self.identity.clock_hz
+
+    @property
+    def bank_bits(self) -> int:
+        """Address bits of the histogram bank (all pixels' bins): the board's, or
+        :data:`~fliss.host.settings.DEFAULT_BANK_BITS` if its identity does not say."""
+        return int(getattr(self.identity, "bank_bits", 0) or DEFAULT_BANK_BITS)
 
     def close(self) -> None:
         """Close the port (the board keeps running if it was acquiring: see :meth:`stop`)."""
@@ -271,7 +189,8 @@ class Board:
         """
         values = dict(settings or {}, **more)
         current = self.client.read_registers()
-        conversion = convert(values, self.clock_hz, current, style=style)
+        conversion = convert(values, self.clock_hz, current, style=style,
+                             bank_bits=self.bank_bits)
         for note in conversion.notes:
             warnings.warn(note, RoundingWarning, stacklevel=2)
         if conversion.changes:
@@ -344,7 +263,7 @@ class Board:
         times, the time the link takes to carry a histogram ten times over, and a reply
         timeout."""
         settings = self.settings if settings is None else settings
-        link_bits = settings.bins * (HISTOGRAM_COUNT_BITS + 8) * 10 // 8
+        link_bits = settings.pixels * settings.bins * (HISTOGRAM_COUNT_BITS + 8) * 10 // 8
         return 2 * settings.integration_s + 10 * link_bits / self.identity.baud + \
             max(2.0, self.client.timeout_s)
 
@@ -367,6 +286,10 @@ class Board:
         """
         if n is not None and n < 1:
             raise SettingsError(f"n must be at least 1, not {n!r}")
+        pixels = self.settings.pixels
+        if pixels > 1:
+            raise SettingsError(f"the board histograms {pixels} pixels a frame: use "
+                                f"acquire_image(n), or configure(pixels=1)")
         settings = self._start(AcquisitionMode.HISTOGRAM)
         wait = self.wait_s(settings) if timeout_s is None else float(timeout_s)
         time_s = settings.time_s
@@ -411,6 +334,30 @@ class Board:
                             "last of %d", result.lost, n)
         return result
 
+    def acquire_image(self, n: int = 1, *, timeout_s: Optional[float] = None) -> Images:
+        """``n`` frames of per-pixel histograms at the board's settings (``pixels``,
+        ``first_pixel``, ``bin_shift``: see :meth:`configure`), in histogram readout.
+
+        Returns
+        -------
+        Images
+            ``counts`` ``(n, P, N)``, ``pixels`` (addresses), ``time_s`` ``(N,)``, ``frames``,
+            ``complete`` and the settings used.
+        """
+        return acquire_image(self, n, timeout_s=timeout_s)
+
+    def acquire_depth(self, n: int = 1, *, timeout_s: Optional[float] = None) -> DepthFrames:
+        """``n`` depth frames at the board's settings (``depth_filter``, ``depth_threshold``),
+        in depth readout.
+
+        Returns
+        -------
+        DepthFrames
+            ``depth_m``, ``height``, ``background``, ``detected`` ``(n, P)``, ``pixels``,
+            ``frames`` and the settings used.
+        """
+        return acquire_depth(self, n, timeout_s=timeout_s)
+
     def acquire_raw(self, duration: str) -> Events:
         """Every event for ``duration`` (with a unit: ``"100ms"``), in raw readout.
 
@@ -445,11 +392,12 @@ class Board:
         return Events(events=events, duration_s=elapsed, dropped=int(dropped), settings=settings)
 
     def capture(self, path: str, *, acquisitions: int = 10, duration: str = "1s",
-                progress=None):
+                progress=None, image: Optional[bool] = None):
         """Capture into an HDF5 file (docs/file-format.md) at the board's settings: its
-        readout (``acquisitions`` histograms, or raw events for ``duration``), its integration
-        time; the file records the registers used. ``progress`` as in
-        :func:`fliss.host.acquisition.capture`.
+        readout (``acquisitions`` histograms or depth frames, or raw events for ``duration``),
+        its integration time; the file records the registers used. Histograms are saved per
+        pixel (``image``) when ``image`` is True, or None and a frame has several pixels.
+        ``progress`` as in :func:`fliss.host.acquisition.capture`.
 
         Returns
         -------
@@ -460,6 +408,8 @@ class Board:
         duration_s = _duration(duration)
         registers = self.client.read_registers()
         readout = AcquisitionMode(registers["acquisition"]).name.lower()
+        if readout == "histogram" and (image or (image is None and registers["pixel_bits"])):
+            readout = "image"
         return capture(self.client, path, mode=readout,
                        integration_s=registers["integration"] / self.clock_hz,
                        acquisitions=acquisitions, duration_s=duration_s, port=self.port,

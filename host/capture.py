@@ -1,4 +1,5 @@
-"""``fliss capture``: histograms or raw events from a board into an HDF5 file.
+"""``fliss capture``: histograms, per-pixel histograms (images), depth frames or raw events
+from a board into an HDF5 file.
 
 The capture itself is :meth:`fliss.host.board.Board.capture` (at the board's settings, after
 those of the flags given); this module adds the command line, the progress bar and the report.
@@ -15,7 +16,7 @@ from .errors import BoardReset
 from .paths import check_output_path
 from .port_options import add_port_arguments, connect
 from .setting_options import add_setting_arguments, settings_from_args
-from .settings import duration_s
+from .settings import check_offline, duration_s
 
 
 __all__ = ["register", "run", "report", "Progress"]
@@ -83,7 +84,7 @@ class Progress:
 def register(subparsers, formatter):
     parser = subparsers.add_parser(
         "capture", formatter_class=formatter,
-        help="capture histograms or raw events into an HDF5 file",
+        help="capture histograms, images, depth frames or raw events into an HDF5 file",
         description="Captures at the board's settings (as `fliss config` left them), changed "
                     "first by any setting flags given here: starts the board and writes what "
                     "it sends to FILE as it arrives (schema: docs/file-format.md), with the "
@@ -91,10 +92,13 @@ def register(subparsers, formatter):
                     "Ctrl-C, kill (SIGTERM) or a closed terminal (SIGHUP) stops the acquisition "
                     "on the board and keeps what was captured; a board that stops answering, "
                     "or is reset, leaves a file with everything received; after kill -9 the "
-                    "file holds all but the last half second (docs/file-format.md).")
+                    "file holds all but the last half second (docs/file-format.md). "
+                    "--readout image saves per-pixel histograms (frame, pixel, bin) and "
+                    "--readout depth the board's depth frames (frame, pixel); the readout "
+                    "is --readout, as --mode is the victim's delay source.")
     add_port_arguments(parser)
     parser.add_argument("--acquisitions", type=int, default=10, metavar="N",
-                        help="histograms to capture (histogram readout)")
+                        help="frames to capture (histogram, image and depth readouts)")
     parser.add_argument("--duration", default="1s", metavar="TIME",
                         help="how long to capture (raw readout)")
     parser.add_argument("--output", "-o", required=True, metavar="FILE.h5",
@@ -102,12 +106,15 @@ def register(subparsers, formatter):
                         help="HDF5 file to write")
     parser.add_argument("--overwrite", action="store_true", help="replace an existing FILE")
     add_setting_arguments(parser, "settings (as in `fliss config`; those not given keep the "
-                                  "board's values: --readout histogram|raw, --integration "
-                                  "TIME, --mode for the delay source, ...)")
+                                  "board's values: --readout histogram|image|depth|raw, "
+                                  "--pixels N, --integration TIME, --mode for the delay "
+                                  "source, ...)")
     parser.set_defaults(run=run)
 
 
 def run(args):
+    settings = settings_from_args(args)
+    check_offline(settings)         # before the board: wrong on any board
     duration_s(args.duration, f"--duration {args.duration}")
     if args.acquisitions < 1:
         raise UserError(f"--acquisitions must be at least 1, not {args.acquisitions}")
@@ -117,13 +124,17 @@ def run(args):
         warning = left_running(board.client, "this capture stops it and starts it again")
         if warning:
             print(f"fliss: warning: {warning}", file=sys.stderr)
-        board.configure(settings_from_args(args), style="flag")
-        if board.settings["readout"] == "histogram":
-            bar = Progress(args.acquisitions, "histograms", enabled=not quiet)
+        board.configure(settings, style="flag")
+        readout = board.settings["readout"]
+        image = True if settings.get("readout") == "image" else None
+        if readout in ("histogram", "depth"):
+            unit = "depth frames" if readout == "depth" else \
+                "images" if image or board.settings["pixels"] > 1 else "histograms"
+            bar = Progress(args.acquisitions, unit, enabled=not quiet)
         else:
             bar = Progress(round(duration_s(args.duration, ""), 1), "s", enabled=not quiet)
         result = board.capture(args.output, acquisitions=args.acquisitions,
-                               duration=args.duration, progress=bar)
+                               duration=args.duration, progress=bar, image=image)
     try:
         return report(result, quiet=quiet)
     except OSError:     # the terminal went away (SIGHUP); the file is saved all the same
@@ -150,7 +161,13 @@ def report(result, *, quiet=False, out=None):
         if status_end is not None:
             print(f"board: {status_end['events'] - status_start['events']} events accepted, "
                   f"{board_dropped} dropped on the board, "
-                  f"{status_end['frames'] - status_start['frames']} histograms", file=out)
+                  f"{status_end['frames'] - status_start['frames']} "
+                  f"{'histograms' if result.mode != 'depth' else 'frames'}", file=out)
+        deliberate = result.board_deliberate
+        if any(deliberate.values()):
+            print(f"board: {deliberate.get('dropped_collision', 0)} events flagged as "
+                  f"collisions dropped (--collisions drop), {deliberate.get('dropped_pixel', 0)}"
+                  f" events of pixels outside the frame dropped (counted in the file)", file=out)
     if damaged and not isinstance(result.lost, BoardReset):
         print(f"fliss: warning: {link['dropped_frames']} corrupt frames and "
               f"{link['missing_packets']} missing packets on the link (counted in the file)",

@@ -3,10 +3,11 @@
 import sys
 
 from ..hdl.delay import DelayMode
-from ..hdl.event import TDC_LSB_S
+from ..hdl.event import TDC_LSB_S, TIMESTAMP_BITS
 from ..hdl.registers import REGISTERS, BY_NAME, AcquisitionMode, TdcSource, value_of
 from .port_options import add_port_arguments, connect
 from .setting_options import add_setting_arguments, settings_from_args
+from .settings import check_offline
 from .units import format_frequency, format_time
 
 
@@ -30,7 +31,8 @@ def describe(name, value, settings, clock_hz):
         except ValueError:
             return "?"
     if name == "acquisition":
-        return AcquisitionMode(value).name.lower() if value in (0, 1) else "?"
+        modes = {mode.value: mode.name.lower() for mode in AcquisitionMode}
+        return modes.get(value, "?")
     if name == "tdc_source":
         return TdcSource(value).name.lower() if value in (0, 1) else "?"
     if name in ("grid",):
@@ -38,10 +40,24 @@ def describe(name, value, settings, clock_hz):
     if name == "aggressor":
         return "on" if value else "off"
     if name in ("gate_start", "gate_end"):
-        code_s = cycle_s if settings.get("tdc_source") == TdcSource.COARSE.value else TDC_LSB_S
-        return format_time(value * code_s) if value else "0 s"
+        return format_time(value * _code_s(settings, clock_hz)) if value else "0 s"
     if name == "bin_shift":
-        return f"{1 << value} codes per bin"
+        bins = (1 << TIMESTAMP_BITS) >> value
+        return f"bins of {format_time((1 << value) * _code_s(settings, clock_hz))}, {bins} per pixel"
+    if name == "pixel_bits":
+        return f"{1 << value} pixel{'s' if value else ''} per frame"
+    if name == "first_pixel":
+        last = value + (1 << settings.get("pixel_bits", 0)) - 1
+        return f"pixels {value} to {last}" if last != value else f"pixel {value}"
+    if name == "collisions":
+        return "drop (counted)" if value else "keep"
+    if name == "full_readout":
+        return "full" if value else "compact"
+    if name == "depth_filter":
+        bin_s = (1 << settings.get("bin_shift", 0)) * _code_s(settings, clock_hz)
+        return f"{value} bins, {format_time(value * bin_s)}"
+    if name == "depth_threshold":
+        return f"{value} counts"
     if name in ("seed", "aggressor_seed"):
         return f"{value:#x}"
     if BY_NAME[name].write_only:
@@ -49,6 +65,11 @@ def describe(name, value, settings, clock_hz):
     if name == "iv0":
         return f"IV in use {value_of(settings, 'iv'):#022x}"
     return ""
+
+
+def _code_s(settings, clock_hz):
+    # Seconds per timestamp code: a clock cycle with the coarse TDC, else the sensor's LSB.
+    return 1 / clock_hz if settings.get("tdc_source") == TdcSource.COARSE.value else TDC_LSB_S
 
 
 def register(subparsers, formatter):
@@ -76,6 +97,7 @@ def _warn_if_running(board):
 
 
 def run(args):
+    check_offline(settings_from_args(args))     # before the board: wrong on any board
     with connect(args) as board:
         _warn_if_running(board)
         clock_hz = board.clock_hz
@@ -87,10 +109,10 @@ def run(args):
     print(f"board on {args.port}: gateware {identity.gateware_version}, protocol "
           f"{identity.protocol}, clock {format_frequency(clock_hz)}, "
           f"{identity.baud} baud")
-    print(f"{'register':<22} {'value':>10} {'unit':<7} {'':<22} meaning")
+    print(f"{'register':<22} {'value':>10} {'unit':<7} {'':<30} meaning")
     for register in REGISTERS:
         value = current[register.name]
         mark = "*" if register.name in changes else " "
         print(f"{register.name:<22}{mark}{value:>10} {register.unit:<7} "
-              f"{describe(register.name, value, current, clock_hz):<22} {register.doc}")
+              f"{describe(register.name, value, current, clock_hz):<30} {register.doc}")
     return 0

@@ -12,6 +12,7 @@ import json
 import os
 import time
 from dataclasses import dataclass, field
+from typing import Optional
 
 import h5py
 import numpy as np
@@ -20,6 +21,8 @@ from .. import __version__
 from ..hdl.event import TDC_LSB_S, TIMESTAMP_BITS
 from ..hdl.registers import BY_NAME, RECORDED, TdcSource
 from ..sim.event import EVENT_DTYPE
+from .fileformat_imager import (IMAGE_MODES, append_depth, append_image, create_depth,
+                                create_image, read_imager)
 
 
 __all__ = ["FORMAT", "FORMAT_VERSION", "FLUSH_S", "RUNNING", "CaptureWriter", "Capture",
@@ -28,8 +31,12 @@ __all__ = ["FORMAT", "FORMAT_VERSION", "FLUSH_S", "RUNNING", "CaptureWriter", "C
 
 #: Value of the root attribute ``format``.
 FORMAT = "fliss-capture"
-#: Version of this schema; readers refuse newer major versions.
-FORMAT_VERSION = 2
+#: Version of this schema; readers refuse newer major versions. Histogram and raw files are
+#: still written as version 2 (unchanged), which older readers take; image and depth files
+#: (the imager's groups) are version 3.
+FORMAT_VERSION = 3
+#: Version written for histogram and raw captures.
+_PLAIN_VERSION = 2
 
 #: Most seconds between two flushes of a capture file: what a ``kill -9`` can cost.
 FLUSH_S = 0.5
@@ -54,7 +61,8 @@ class CaptureWriter:
     ----------
     path : str
     mode : str
-        ``"histogram"`` or ``"raw"``.
+        ``"histogram"``, ``"raw"``, ``"image"`` (per-pixel histograms, ``/image``) or
+        ``"depth"`` (depth frames, ``/depth``).
     identity : dict
         The board's identity (``protocol``, ``gateware_version``, ``registers``, ``clock_hz``,
         ``baud``).
@@ -86,7 +94,7 @@ class CaptureWriter:
     def _create(self, mode, identity, configuration, port, attrs):
         f = self.file
         f.attrs["format"] = FORMAT
-        f.attrs["format_version"] = FORMAT_VERSION
+        f.attrs["format_version"] = FORMAT_VERSION if mode in IMAGE_MODES else _PLAIN_VERSION
         f.attrs["host_version"] = __version__
         f.attrs["created_utc"] = datetime.datetime.now(datetime.timezone.utc).isoformat()
         f.attrs["port"] = port
@@ -117,6 +125,13 @@ class CaptureWriter:
                 group.create_dataset(name, shape=(0,), maxshape=(None,), dtype=dtype,
                                      chunks=(1024,))
         self.histograms = 0
+        self.mode, self._pixels = mode, None
+        code_s = (1 / identity["clock_hz"] if configuration.get("tdc_source") ==
+                  TdcSource.COARSE.value and identity.get("clock_hz") else TDC_LSB_S)
+        if mode == "image":
+            self._bins = create_image(f, configuration, code_s)
+        elif mode == "depth":
+            self._pixels = create_depth(f, configuration, code_s)
         group = f.create_group("events")
         group.create_dataset("events", shape=(0,), maxshape=(None,), dtype=EVENT_DTYPE,
                              chunks=(1 << 14,))
@@ -128,10 +143,33 @@ class CaptureWriter:
         self.batches = 0
         f.create_group("counters")
 
+    def add_frame(self, frame, *, complete=True):
+        """Append a frame: a :class:`~fliss.host.stream.HistogramFrame` (histogram and image
+        modes) or a :class:`~fliss.host.stream.DepthFrame` (depth mode); returns False (and
+        stores nothing) if it does not fit the capture (another split, another mode).
+        ``complete`` False marks a depth frame that never arrived (a histogram says it
+        itself)."""
+        if self.mode == "image":
+            done = append_image(self.file, self.histograms, frame, *self._image_split)
+        elif self.mode == "depth":
+            done = append_depth(self.file, self.histograms, frame, self._pixels, complete)
+        else:
+            return self.add_histogram(frame)
+        self.histograms += done
+        self._maybe_flush()
+        return done
+
+    @property
+    def _image_split(self):
+        pixels = len(self.file["image/pixel"])
+        return pixels, self._bins // pixels
+
     def add_histogram(self, frame):
         """Append a :class:`~fliss.host.stream.HistogramFrame`; returns False (and stores
         nothing) if its bin count is not the configured one (or the capture is in raw mode)."""
-        if len(frame.counts) != self._bins:
+        if self.mode in IMAGE_MODES:
+            return self.add_frame(frame)
+        if not hasattr(frame, "counts") or len(frame.counts) != self._bins:
             return False
         group = self.file["histograms"]
         index = self.histograms
@@ -209,7 +247,10 @@ class CaptureWriter:
 class Capture:
     """A capture file read back.
 
-    ``histograms`` is ``(N, bins)`` (``uint32``); ``events`` an ``EVENT_DTYPE`` array; the
+    ``histograms`` is ``(N, bins)`` (``uint32``), ``(N, pixels, bins)`` in image mode;
+    ``pixels`` the pixel addresses (image and depth modes); ``depth`` the depth frames' arrays
+    by name (``position``, ``depth_m``, ``height``, ``background``, ``detected``, each
+    ``(N, pixels)``; depth mode, else None); ``events`` an ``EVENT_DTYPE`` array; the
     counters are dicts by group name (``link``, ``stream``, ``board_start``, ``board_end``);
     ``problems`` says what of a file cut short could not be read (empty for a whole file).
     """
@@ -227,6 +268,10 @@ class Capture:
     counters: dict = field(default_factory=dict)
     #: What could not be read, or why the file is not whole (one sentence each).
     problems: list = field(default_factory=list)
+    #: Pixel addresses (image and depth captures).
+    pixels: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    #: Depth frames' arrays by name (depth captures).
+    depth: Optional[dict] = None
 
     @property
     def mode(self):
@@ -357,7 +402,18 @@ def _read(path, f):
     configuration = {key: int(value) for key, value in _group(f, "configuration").attrs.items()
                      if key != "units"}
     group = _group(f, "histograms")
-    if "counts" in group:
+    imager, depth, pixels = None, None, np.zeros(0, dtype=np.int64)
+    if attrs.get("mode") in IMAGE_MODES:
+        imager = read_imager(_group(f, attrs["mode"]), attrs["mode"], _rows, problems)
+        pixels = imager["pixel"]
+    if imager is not None:
+        histograms = imager.get("counts", np.zeros((0, 0, 0), dtype=np.uint32))
+        frames, shifts = imager["frame"], imager["shift"]
+        times, complete = imager["time_s"], imager["complete"]
+        if attrs["mode"] == "depth":
+            depth = {name: imager[name] for name in ("position", "depth_m", "height",
+                                                     "background", "detected")}
+    elif "counts" in group:
         noted = len(problems)
         columns = {"counts": _rows(group["counts"], problems)}
         for name, _ in _ROW_DATASETS:
@@ -385,7 +441,8 @@ def _read(path, f):
     counters = {name: {key: _plain(value) for key, value in group.attrs.items()}
                 for name, group in _group(f, "counters").items()}
     return Capture(path, attrs, identity, configuration, histograms, frames, shifts,
-                   times, complete.astype(bool), events, batch_times, counters, problems)
+                   times, complete.astype(bool), events, batch_times, counters, problems,
+                   pixels, depth)
 
 
 def _plain(value):

@@ -1,6 +1,7 @@
 """``fliss analyze FILE`` and ``fliss plot FILE``: capture files read back."""
 
 import argparse
+import json
 import os
 import sys
 
@@ -9,6 +10,8 @@ import numpy as np
 from . import analysis
 from .cli import UserError
 from .fileformat import read_capture
+from .imager_analysis import capture_table
+from .imager_commands import plot_imager, table_lines, table_record
 from .paths import check_output_path
 from .units import parse_time
 
@@ -36,13 +39,19 @@ def _times(texts, flag):
 
 def register(subparsers, formatter):
     parser = subparsers.add_parser(
-        "analyze", formatter_class=formatter, help="peak table and suppression of a capture",
+        "analyze", formatter_class=formatter,
+        help="peak table and suppression of a capture; per-pixel table of an image or depth "
+             "capture",
         description="Sums the complete histograms of a capture (or histograms the events of a "
                     "raw capture) and prints the background and the peaks: time of flight, "
                     "FWHM and height. The suppression S = 10 log10(Pv/Pa) (equation 10 of the "
                     "paper) is printed when the victim's and the aggressors' peaks can be told "
                     "apart: by --victim-tof/--aggressor-tof, or else, when the capture had the "
-                    "aggressor on or shows several peaks, the victim's peak is the tallest.")
+                    "aggressor on or shows several peaks, the victim's peak is the tallest. "
+                    "Of an image capture (--readout image) it prints a table per pixel: the "
+                    "depth and ToF of the tallest peak of the pixel's summed histogram, its "
+                    "height, the background, detected or not; of a depth capture (--readout "
+                    "depth) the median over the frames and the detection rate.")
     parser.add_argument("files", nargs="+", metavar="FILE", help="capture files (HDF5)")
     parser.add_argument("--victim-tof", metavar="TIME",
                         help="position of the victim's peak (e.g. 26.7ns)")
@@ -52,12 +61,19 @@ def register(subparsers, formatter):
                         help="how far a peak may be from a given position")
     parser.add_argument("--per-acquisition", action="store_true",
                         help="also analyse each histogram on its own")
+    parser.add_argument("--json", action="store_true",
+                        help="print the results as JSON (a list, one object per file)")
     parser.set_defaults(run=run_analyze)
 
     parser = subparsers.add_parser(
-        "plot", formatter_class=formatter, help="PNG of the histograms of captures",
+        "plot", formatter_class=formatter, help="PNG of the histograms of captures, or the "
+                                                "depth and intensity of an image or depth "
+                                                "capture",
         description="Plots the summed histogram of each capture file (one curve per file) "
-                    "against the time from the TDC start.")
+                    "against the time from the TDC start. Of one image or depth capture it "
+                    "draws the depth against the pixel (a line sensor's profile; an image with "
+                    "--shape) and the intensity, for all frames together, a grid of frames, "
+                    "or an animated GIF of them (--frames).")
     parser.add_argument("files", nargs="+", metavar="FILE", help="capture files (HDF5)")
     parser.add_argument("-o", "--output", required=True, metavar="PNG",
                         default=argparse.SUPPRESS, help="image to write")
@@ -65,6 +81,12 @@ def register(subparsers, formatter):
     parser.add_argument("--range", nargs=2, metavar=("START", "END"),
                         help="time range shown (e.g. 0ns 200ns)")
     parser.add_argument("--title", default=None, help="figure title")
+    parser.add_argument("--frames", choices=["summary", "grid", "animation"],
+                        default="summary", help="image and depth captures: all frames "
+                        "together, one panel per frame, or a GIF (needs pillow)")
+    parser.add_argument("--shape", metavar="ROWSxCOLUMNS", default=None,
+                        help="image and depth captures: draw the depth as an image of this "
+                             "shape (8x8 for 64 pixels) instead of a profile")
     parser.set_defaults(run=run_plot)
 
 
@@ -99,8 +121,19 @@ def run_analyze(args):
     victim = _times([args.victim_tof], "--victim-tof")[0] if args.victim_tof else None
     aggressors = _times(args.aggressor_tof, "--aggressor-tof")
     tolerance = _times([args.tolerance], "--tolerance")[0]
+    records = []
     for path in args.files:
         capture = _read(path)
+        if capture.mode in ("image", "depth"):
+            rows = capture_table(capture)
+            if args.json:
+                records.append(table_record(capture, rows))
+            else:
+                print("\n".join(table_lines(capture, rows)))
+            continue
+        if args.json:
+            records.append(_histogram_record(capture, victim, aggressors, tolerance))
+            continue
         histogram = capture.total_histogram()
         complete = int(capture.complete.sum()) if capture.mode == "histogram" else None
         print(f"{path}: {capture.mode} capture, "
@@ -123,7 +156,28 @@ def run_analyze(args):
                       f"{'' if capture.complete[index] else ', incomplete'}):")
                 _print_analysis(row.astype(np.int64), capture, victim, aggressors, tolerance,
                                 aggressor_on, indent="    ")
+    if args.json:
+        print(json.dumps(records, indent=1))
     return 0
+
+
+def _histogram_record(capture, victim, aggressors, tolerance):
+    # The analysis of a histogram or raw capture for --json.
+    histogram = capture.total_histogram()
+    record = {"file": capture.path, "mode": capture.mode, "bin_s": capture.bin_s,
+              "counts": int(histogram.sum()), "end_reason": capture.attrs.get("end_reason"),
+              "background": None, "peaks": [], "suppression_db": None}
+    if histogram.sum():
+        level, peaks, result, _ = analyze(
+            histogram, capture.bin_s, victim_s=victim, aggressors_s=aggressors,
+            tolerance_s=tolerance, aggressor_on=bool(capture.configuration.get("aggressor")),
+            shift=capture.shift)
+        record["background"] = level
+        record["peaks"] = [{"tof_s": peak.position_s, "fwhm_s": peak.fwhm_s,
+                            "height": peak.height} for peak in peaks]
+        if result is not None:
+            record["suppression_db"] = result.s_db
+    return record
 
 
 def _print_analysis(histogram, capture, victim, aggressors, tolerance, aggressor_on,
@@ -161,10 +215,22 @@ def run_plot(args):
     suffix = os.path.splitext(args.output)[1].lower().lstrip(".")
     formats = plt.figure().canvas.get_supported_filetypes()
     plt.close("all")
-    if suffix and suffix not in formats:
+    if suffix and suffix not in formats and not (suffix == "gif" and
+                                                  args.frames == "animation"):
         raise UserError(f"--output: cannot write a .{suffix} image; use one of "
                         f"{', '.join('.' + name for name in sorted(formats))}")
     captures = [(path, _read(path)) for path in args.files]
+    imager = [path for path, capture in captures if capture.mode in ("image", "depth")]
+    if imager and len(captures) > 1:
+        raise UserError(f"{imager[0]} is an {captures[args.files.index(imager[0])][1].mode} "
+                        f"capture: plot one image or depth capture at a time")
+    if imager:
+        plot_imager(captures[0][1], args.output, frames=args.frames, shape=args.shape,
+                    title=args.title, quiet=getattr(args, "quiet", 0) > 0)
+        return 0
+    if args.frames != "summary" or args.shape:
+        raise UserError("--frames and --shape are for image and depth captures (--readout "
+                        "image or depth)")
     window = _times(args.range, "--range") if args.range else None
     figure, axes = plt.subplots(figsize=(9, 4.5))
     for path, capture in captures:

@@ -22,7 +22,7 @@ from .units import format_frequency, format_time, parse_frequency, parse_time
 
 
 __all__ = ["Kind", "Context", "said", "WHOLE", "CHOICE", "TIME", "FREQUENCY", "GATE", "KEY", "IV",
-           "refuse", "code_s", "exact_time", "exact_frequency"]
+           "PIXELS", "PIXEL", "MAX_PIXELS", "refuse", "code_s", "exact_time", "exact_frequency"]
 
 #: Relative difference below which a value counts as a whole number of cycles (no note).
 _EXACT = 1e-6
@@ -249,6 +249,39 @@ def _show_iv(option, registers, clock_hz):
     return f"{value_of(registers, 'iv'):020x}"
 
 
+#: Pixel addresses of the sensor (6 bits): a frame holds at most this many pixels.
+MAX_PIXELS = 1 << BY_NAME["pixel_bits"].maximum
+
+
+def _nearest_power(number):
+    # The power of two from 1 to MAX_PIXELS nearest ``number``, as text ("32 or 64" on a tie).
+    powers = [1 << bits for bits in range(BY_NAME["pixel_bits"].maximum + 1)]
+    best = min(abs(power - number) for power in powers)
+    return " or ".join(str(power) for power in powers if abs(power - number) == best)
+
+
+def _convert_pixels(option, value, context):
+    """Pixels per frame, a power of two from 1 to 64, as ``pixel_bits``."""
+    number = _whole_number(option, value, context)
+    if number < 1 or number > MAX_PIXELS or number & (number - 1):
+        refuse(option, value, context, f"takes a power of two from 1 to {MAX_PIXELS}; the "
+                                       f"nearest is {_nearest_power(number)}")
+    return {option.register: number.bit_length() - 1}
+
+
+def _convert_pixel(option, value, context):
+    """One pixel, at address ``value``: ``pixel_bits`` 0 and ``first_pixel`` the address (the
+    single-pixel bench of the paper)."""
+    number = _whole_number(option, value, context)
+    if not 0 <= number < MAX_PIXELS:
+        refuse(option, value, context, f"takes a pixel address from 0 to {MAX_PIXELS - 1}")
+    return {"pixel_bits": 0, "first_pixel": number}
+
+
+def _show_pixel(option, registers, clock_hz):
+    return registers["first_pixel"] if registers["pixel_bits"] == 0 else None
+
+
 WHOLE = Kind(_convert_whole, lambda option, registers, clock_hz: registers[option.register])
 CHOICE = Kind(_convert_choice, _show_choice)
 TIME = Kind(_convert_time, _show_time)
@@ -258,6 +291,10 @@ GATE = Kind(_convert_gate, _show_gate)
 KEY = Kind(_convert_key, lambda option, registers, clock_hz: None)
 #: 80 bits in three registers; shows the IV in use.
 IV = Kind(_convert_iv, _show_iv)
+#: Pixels per frame (a power of two) as ``pixel_bits``; shows the number of pixels.
+PIXELS = Kind(_convert_pixels, lambda option, registers, clock_hz: 1 << registers["pixel_bits"])
+#: One pixel by its address: ``pixel_bits`` 0 and ``first_pixel``.
+PIXEL = Kind(_convert_pixel, _show_pixel)
 
 def exact_time(seconds: float) -> str:
     """A time as text with an SI prefix and every digit that matters (``"154.3125 µs"``), so

@@ -26,16 +26,19 @@ from typing import Any, Dict, List, Mapping, Optional, Tuple
 import numpy as np
 
 from ..hdl.event import TIMESTAMP_BITS
-from ..hdl.registers import BY_NAME, AcquisitionMode, TdcSource, iv_problem, problems, value_of
+from ..hdl import DEFAULT_CLOCK_HZ
+from ..hdl.registers import (BY_NAME, AcquisitionMode, TdcSource, defaults, iv_problem, problems,
+                             value_of)
 from ..hdl.settings import DelayMode
 from .errors import SettingsError
-from .setting_kinds import (CHOICE, FREQUENCY, GATE, IV, KEY, TIME, WHOLE, Context, Kind,
-                            code_s, exact_frequency, exact_time, said)
+from .setting_kinds import (CHOICE, FREQUENCY, GATE, IV, KEY, MAX_PIXELS, PIXEL, PIXELS, TIME,
+                            WHOLE, Context, Kind, code_s, exact_frequency, exact_time, said)
 from .units import format_time, parse_time
 
 
 __all__ = ["RoundingWarning", "Kind", "Option", "OPTIONS", "BY_OPTION", "Conversion",
-           "Settings", "convert", "describe", "duration_s", "exact_time", "exact_frequency",
+           "DEFAULT_BANK_BITS", "Settings", "convert", "check_offline", "split_problem",
+           "describe", "duration_s", "exact_time", "exact_frequency",
            "code_s"]
 
 
@@ -80,7 +83,8 @@ _ON_OFF = {"off": 0, "on": 1}
 #: it) and shown.
 OPTIONS: Tuple[Option, ...] = (
     Option("readout", "acquisition", CHOICE, "what the board sends: histograms made on the "
-           "board, or every event", choices=_names(AcquisitionMode)),
+           "board (image: the same, saved per pixel), every event (raw), or depth frames",
+           choices={**_names(AcquisitionMode), "image": AcquisitionMode.HISTOGRAM.value}),
     Option("mode", "delay_mode", CHOICE, "victim delay source", choices=_MODES),
     Option("length", "length", WHOLE, "register length of the mseq source (bits)", "L"),
     Option("mask_width", "mask_width", WHOLE, "mask width of the masked source (bits)", "WM"),
@@ -118,9 +122,14 @@ OPTIONS: Tuple[Option, ...] = (
            "block length", "TIME"),
     Option("collisions", "collisions", CHOICE, "events the sensor flags as collisions: kept, "
            "or dropped and counted", choices={"keep": 0, "drop": 1}),
-    Option("pixel_bits", "pixel_bits", WHOLE, "histograms of 2**N pixels", "N"),
+    Option("pixels", "pixel_bits", PIXELS, f"pixels per frame, a power of two from 1 to "
+           f"{MAX_PIXELS} (the addresses --first-pixel ...); the bank holds 2**16 bins (2**14 on "
+           f"the iCEBreaker) shared among them", "N"),
+    Option("pixel_bits", "pixel_bits", WHOLE, "frames of 2**N pixels", "N", shown=False),
     Option("first_pixel", "first_pixel", WHOLE, "address of the first pixel histogrammed",
            "ADDRESS"),
+    Option("pixel", "first_pixel", PIXEL, "the single-pixel bench: only the pixel at ADDRESS "
+           "(--pixels 1 --first-pixel ADDRESS)", "ADDRESS", shown=False),
     Option("histogram_format", "full_readout", CHOICE, "histogram readout: compact when "
            "shorter, or always full", choices={"compact": 0, "full": 1}),
     Option("depth_filter", "depth_filter", WHOLE, "width of the depth engine's matched filter "
@@ -171,8 +180,13 @@ class Conversion:
     said: Dict[str, str] = field(default_factory=dict)
 
 
+#: Address bits of the histogram bank (bins of all pixels of a frame) until the board reports
+#: its own: 16 on the ULX3S and the virtual board (64 pixels of 1024 bins), 14 on the iCEBreaker.
+DEFAULT_BANK_BITS = 16
+
+
 def convert(settings: Mapping[str, Any], clock_hz: int, current: Mapping[str, int], *,
-            style: str = "keyword") -> Conversion:
+            style: str = "keyword", bank_bits: int = DEFAULT_BANK_BITS) -> Conversion:
     """Register values from settings with units.
 
     Parameters
@@ -187,6 +201,9 @@ def convert(settings: Mapping[str, Any], clock_hz: int, current: Mapping[str, in
         Every register's current value (``BoardClient.read_registers()``).
     style : {"keyword", "flag"}
         How refusals and notes name a setting: ``mask_width=17`` or ``--mask-width 17``.
+    bank_bits : int
+        Address bits of the board's histogram bank: a split of ``2**pixel_bits`` pixels of
+        ``2**(13 - bin_shift)`` bins fits when ``pixel_bits + 13 - bin_shift <= bank_bits``.
 
     Returns
     -------
@@ -218,6 +235,9 @@ def convert(settings: Mapping[str, Any], clock_hz: int, current: Mapping[str, in
             changes[register] = value
             written[register] = said(option, given[option.name], context)
             context.registers[register] = value
+    split = split_problem(context.registers, bank_bits, style, labels)
+    if split:
+        raise SettingsError(split)
     found = _problems(context.registers, labels, context.clock_hz)
     iv = iv_problem(changes, context.registers, value_of(current, "iv"))
     if iv:
@@ -225,6 +245,61 @@ def convert(settings: Mapping[str, Any], clock_hz: int, current: Mapping[str, in
     if found:
         raise SettingsError("; ".join(found))
     return Conversion(changes, context.registers, context.notes, written)
+
+
+def split_problem(registers: Mapping[str, int], bank_bits: int = DEFAULT_BANK_BITS,
+                  style: str = "flag", labels: Optional[Mapping[str, str]] = None
+                  ) -> Optional[str]:
+    """One line saying why the pixel split of ``registers`` does not fit the histogram bank of
+    ``bank_bits`` address bits, or the pixels go beyond the sensor's addresses, and what would
+    fit; None when it fits."""
+    def setting(name, value):
+        return f"--{name.replace('_', '-')} {value}" if style == "flag" else f"{name}={value}"
+
+    def codes(count):
+        return f"{count} code{'s' if count != 1 else ''}"
+
+    pixel_bits, shift = registers["pixel_bits"], registers["bin_shift"]
+    pixels, bins = 1 << pixel_bits, (1 << TIMESTAMP_BITS) >> shift
+    first = registers["first_pixel"]
+    by_bits = labels is not None and labels.get("pixel_bits") in ("--pixel-bits", "pixel_bits")
+    if pixel_bits + TIMESTAMP_BITS - shift > bank_bits:
+        need = pixel_bits + TIMESTAMP_BITS - bank_bits
+        most = min(1 << max(0, bank_bits - TIMESTAMP_BITS + shift), MAX_PIXELS)
+        given = setting("pixel_bits", pixel_bits) if by_bits else setting("pixels", pixels)
+        return (f"{given} with {setting('bin_shift', shift)} ({bins} bins of "
+                f"{codes(1 << shift)} per pixel) does not fit the board's histogram memory of "
+                f"{1 << bank_bits} bins: {pixels} pixels need bins of at least "
+                f"{codes(1 << need)} ({setting('bin_shift', need)}); bins of "
+                f"{codes(1 << shift)} fit at most {most} pixels ({setting('pixels', most)})")
+    if first + pixels > MAX_PIXELS:
+        return (f"{setting('first_pixel', first)} with {pixels} pixels reaches "
+                f"address {first + pixels - 1}, beyond the sensor's last ({MAX_PIXELS - 1}): "
+                f"use {setting('first_pixel', MAX_PIXELS - pixels)} or lower")
+    return None
+
+
+#: Kinds that need neither the board's clock nor its other registers.
+_OFFLINE = (WHOLE, CHOICE, PIXELS, PIXEL)
+
+
+def check_offline(settings: Mapping[str, Any], *, style: str = "flag") -> None:
+    """Refuse, before a board is opened, the settings that are wrong whatever the board: a
+    value out of range, not a choice, ``--pixels`` not a power of two, or ``--pixels`` with
+    ``--bin-shift`` (both given) that fit no board (judged against :data:`DEFAULT_BANK_BITS`, the
+    largest bank). Raises :exc:`~fliss.host.errors.SettingsError`; what depends on the board is
+    checked by :func:`convert`."""
+    context = Context(DEFAULT_CLOCK_HZ, defaults(DEFAULT_CLOCK_HZ), style)
+    given = {}
+    for name, value in settings.items():
+        option = BY_OPTION.get(name)
+        if option is None or value is None or option.kind not in _OFFLINE:
+            continue
+        given.update(option.kind.convert(option, value, context))
+    if "pixel_bits" in given and "bin_shift" in given:
+        split = split_problem({**context.registers, **given}, DEFAULT_BANK_BITS, style)
+        if split:
+            raise SettingsError(split)
 
 
 def _problems(registers, labels, clock_hz):
@@ -294,8 +369,18 @@ class Settings(Mapping):
         return code_s(self.registers, self.clock_hz)
 
     @property
+    def pixels(self) -> int:
+        """Pixels of a frame."""
+        return 1 << self.registers["pixel_bits"]
+
+    @property
+    def addresses(self) -> np.ndarray:
+        """The pixel addresses of a frame, ``(pixels,)``."""
+        return self.registers["first_pixel"] + np.arange(self.pixels)
+
+    @property
     def bins(self) -> int:
-        """Bins of a histogram."""
+        """Bins of a histogram (of each pixel's)."""
         return (1 << TIMESTAMP_BITS) >> self.registers["bin_shift"]
 
     @property

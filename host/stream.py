@@ -20,7 +20,7 @@ from ..sim.event import EVENT_DTYPE
 from ..sim.histogram_packets import HISTOGRAM_TYPES, MalformedChunk, decode_chunk
 
 
-__all__ = ["HistogramFrame", "EventBatch", "StreamCounters", "StreamAssembler",
+__all__ = ["HistogramFrame", "DepthFrame", "EventBatch", "StreamCounters", "StreamAssembler",
            "unpack_event_payload"]
 
 
@@ -47,6 +47,24 @@ class HistogramFrame:
     def image(self) -> np.ndarray:
         """``counts`` as ``(pixels, bins)``."""
         return self.counts.reshape(1 << self.pixel_bits, -1)
+
+
+@dataclass
+class DepthFrame:
+    """One depth frame (DEPTH packet): per pixel, its strongest peak after the matched filter.
+
+    ``position`` is in bins (float, NaN where nothing cleared the threshold); ``height`` and
+    ``background`` in counts; ``detected`` is a bool array; the pixels are the addresses
+    ``first_pixel …``; ``shift`` is the frame's bin shift; ``time_s`` the host's receive time.
+    """
+    frame: int
+    first_pixel: int
+    shift: int
+    position: np.ndarray
+    height: np.ndarray
+    background: np.ndarray
+    detected: np.ndarray
+    time_s: float
 
 
 @dataclass

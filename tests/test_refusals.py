@@ -24,11 +24,19 @@ def files(tmp_path):
     with h5py.File(tmp_path / "claims.h5", "w") as f:
         f.attrs["format"] = "fliss-capture"
         f.attrs["format_version"] = 2
+    with h5py.File(tmp_path / "image.h5", "w") as f:         # an image capture without /image
+        f.attrs["format"] = "fliss-capture"
+        f.attrs["format_version"] = 3
+        f.attrs["mode"] = "image"
+        for name in ("identity", "configuration", "histograms", "events", "counters"):
+            f.create_group(name)
     return tmp_path
 
 
-#: Bad arguments of each command; ``{d}`` is a folder holding file.txt, empty.h5 and claims.h5
-#: (a file that claims the capture format but lacks its groups), and no-port (nothing).
+#: Bad arguments of each command; ``{d}`` is a folder holding file.txt, empty.h5, claims.h5
+#: (a file that claims the capture format but lacks its groups), image.h5 (an image capture
+#: without its /image group), and no-port (nothing). The imager's settings are refused before
+#: the port is opened.
 CASES = {
     "prf-table": ["--clock 0", "--clock abc", "--prf 0", "--prf 100MHz", "--lengths 1",
                   "--lengths 99", "--mask-widths 40", "--clock inf"],
@@ -42,18 +50,29 @@ CASES = {
     "ports": ["--bogus"],
     "config": ["--port {d}/no-port", "--port {d}", "--port {d}/file.txt", "--port /dev/null",
                "--port {d}/no-port --timeout 0", "--port {d}/no-port --retries -1",
-               "--port loop:// --baud -5"],
+               "--port loop:// --baud -5", "--port {d}/no-port --pixels 60",
+               "--port {d}/no-port --pixels 64 --bin-shift 0", "--port {d}/no-port --pixel 64",
+               "--port {d}/no-port --pixels 2 --pixel 3", "--port {d}/no-port --first-pixel 64",
+               "--port {d}/no-port --collisions maybe", "--port {d}/no-port --depth-filter x",
+               "--port {d}/no-port --histogram-format tiny", "--port {d}/no-port --readout x",
+               "--port {d}/no-port --depth-threshold -1"],
     "capture": ["--port {d}/no-port -o /proc/x.h5", "--port {d}/no-port -o {d}",
                 "--port {d}/no-port -o {d} --overwrite", "--port {d}/no-port -o /dev/null",
                 "--port {d}/no-port -o {d}/file.txt", "--port {d}/no-port -o {d}/none/x.h5",
                 "--port {d}/no-port -o {d}/x.h5 --acquisitions 0",
                 "--port {d}/no-port -o {d}/x.h5 --integration 0s",
                 "--port {d}/no-port -o {d}/x.h5 --readout raw --duration x",
-                "--port {d}/file.txt -o {d}/x.h5"],
+                "--port {d}/file.txt -o {d}/x.h5",
+                "--port {d}/no-port -o {d}/x.h5 --readout image --pixels 3",
+                "--port {d}/no-port -o {d}/x.h5 --readout depth --pixels 64 --bin-shift 1",
+                "--port {d}/no-port -o {d}/x.h5 --readout movie"],
     "analyze": ["{d}/nothing.h5", "{d}", "{d}/empty.h5", "{d}/file.txt", "{d}/claims.h5",
-                "/dev/null", "{d}/claims.h5 --tolerance x"],
+                "/dev/null", "{d}/claims.h5 --tolerance x", "{d}/image.h5", "{d}/image.h5 --json",
+                "{d}/claims.h5 --json"],
     "plot": ["{d}/claims.h5 -o {d}/a.png", "{d}/file.txt -o {d}/a.png",
-             "{d}/nothing.h5 -o /proc/a.png", "{d}/empty.h5 -o {d}", "{d}/claims.h5 -o x.h5"],
+             "{d}/nothing.h5 -o /proc/a.png", "{d}/empty.h5 -o {d}", "{d}/claims.h5 -o x.h5",
+             "{d}/image.h5 -o {d}/a.png", "{d}/image.h5 -o {d}/a.gif --frames animation",
+             "{d}/claims.h5 -o {d}/a.png --frames grid", "{d}/image.h5 -o {d}/a.png --shape 2"],
     "generate": ["--clock 0", "--baud 0", "--clock abc", "--name 1bad", "--name a/b",
                  "--name module", "-o {d}/file.txt", "-o /proc/fliss"],
     "attack": ["--pulses 0", "--missed 1", "--jitter x", "--sources bogus", "--ghost-m -3",

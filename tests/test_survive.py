@@ -247,7 +247,7 @@ def _bad_files(tmp_path):
                           "written by fliss",
         "bad-config.h5": "'{}' claims the FLISS capture format but is damaged or not written "
                          "by fliss (invalid literal for int() with base 10: 'eighty')",
-        "newer.h5": "'{}' has format version 9, newer than this fliss reads (2); update fliss",
+        "newer.h5": "'{}' has format version 9, newer than this fliss reads (3); update fliss",
         "other.h5": "'{}' is not a FLISS capture file",
     }
 
