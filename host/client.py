@@ -188,7 +188,7 @@ class BoardClient:
             decoded = self.decoder.feed_events(data)
             for item in decoded.items:
                 if isinstance(item, Packet):
-                    if item.type in (PacketType.HISTOGRAM, PacketType.EVENTS):
+                    if item.type in (PacketType.HISTOGRAM, PacketType.EVENTS, PacketType.DEPTH):
                         self._last_data = self._last_rx
                         self._data.extend(self.assembler.add(item, now))
                     else:
