@@ -9,7 +9,8 @@ from amaranth.lib import data
 from fliss.hdl.event import Event
 from fliss.hdl.protocol import (GATEWARE_VERSION, CHUNK_BINS, Header, Ack, Nak, Identity,
                                 ReadRequest, Status, HistogramChunk, registers_layout, READ_MAX,
-                                CONSISTENCY, EVENT_BYTES)
+                                CONSISTENCY, EVENT_BYTES, DepthHeader, DepthRecord,
+                                DEPTH_HEADER_BYTES, DEPTH_RECORD_BYTES, MAX_PAYLOAD)
 from fliss.hdl.registers import REGISTERS
 
 
@@ -40,11 +41,12 @@ def _payload_tables():
 def test_payload_tables_match_the_layouts():
     layouts = {"Ack": Ack, "Nak": Nak, "Identity": Identity, "ReadRequest": ReadRequest,
                "registers_layout(n)": registers_layout(1), "Status": Status,
-               "HistogramChunk": HistogramChunk, "Event": Event}
+               "HistogramChunk": HistogramChunk, "Event": Event,
+               "DepthHeader": DepthHeader, "DepthRecord": DepthRecord}
     tables = _payload_tables()
     assert sorted(tables) == sorted(layouts)
     for name, layout in layouts.items():
-        unit = 1 if name == "Event" else 8      # the Event table counts bits, the others bytes
+        unit = 1 if name in ("Event", "DepthRecord") else 8   # these count bits, others bytes
         defined = [(field.offset // unit, field.width // unit, field_name)
                    for field_name, field in data.Layout.cast(layout)]
         assert all(field.offset % unit == 0 and field.width % unit == 0
@@ -58,6 +60,9 @@ def test_payload_limits_in_the_text():
     assert f"`EVENT_BYTES = {EVENT_BYTES}`" in text
     assert f"`CHUNK_BINS` = {CHUNK_BINS}" in text
     assert f"`CONSISTENCY = {CONSISTENCY:#06x}`" in text
+    assert f"`MAX_PAYLOAD = {MAX_PAYLOAD}`" in text
+    assert f"`DEPTH_HEADER_BYTES = {DEPTH_HEADER_BYTES}`" in text
+    assert f"`DEPTH_RECORD_BYTES = {DEPTH_RECORD_BYTES}`" in text
 
 
 def test_packet_header_table_matches_the_header():
