@@ -151,8 +151,8 @@ class StreamAssembler:
         self._counts = None
         self._filled = None
         self._next_frame = None
-        #: One more than the frame number of the last chunk that ended a frame: the board's
-        #: STATUS ``frames`` once every histogram it made has arrived.
+        #: One more than the frame number of the last chunk (or DEPTH packet) that ended a
+        #: frame: the board's STATUS ``frames`` once every histogram it made has arrived.
         self.frames_ended = None
         #: Why the last malformed packet was dropped (one line), or None.
         self.last_malformed = None
@@ -192,7 +192,7 @@ class StreamAssembler:
             return []
         if self._next_depth is not None and frame.frame != self._next_depth:
             self.counters.lost_depth_frames += (frame.frame - self._next_depth) % (1 << 32)
-        self._next_depth = (frame.frame + 1) % (1 << 32)
+        self._next_depth = self.frames_ended = (frame.frame + 1) % (1 << 32)
         self.counters.depth_frames += 1
         return [frame]
 

@@ -45,6 +45,7 @@ def test_assembler_counts_lost_and_malformed_depth_frames():
     assert len(assembler.add(depth_packet(records, 3, shift=10), 0.0)) == 1
     assert len(assembler.add(depth_packet(records, 6, shift=10), 0.0)) == 1
     assert assembler.counters.lost_depth_frames == 2
+    assert assembler.frames_ended == 7
     bad = Packet(PacketType.DEPTH, 0, pack(DepthHeader, pixel_bits=1) + bytes(9))
     assert assembler.add(bad, 0.0) == []
     assert assembler.counters.malformed == 1
