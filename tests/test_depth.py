@@ -1,16 +1,22 @@
 """The depth engine in Amaranth's simulator against its model (bit for bit), and the model
 against the physics of synthetic histograms (peaks at known positions, known background)."""
 
+import gc
 import random
+import warnings
 
 import numpy as np
 import pytest
+from amaranth.hdl import UnusedElaboratable
 
 from fliss.hdl.depth import DepthEngine
 from fliss.hdl.divider import SerialDivider
 from fliss.hdl.protocol import (PacketType, DepthHeader, DepthRecord, DEPTH_HEADER_BYTES,
-                                DEPTH_RECORD_BYTES, MAX_PAYLOAD)
-from fliss.sim.codec import pack, unpack_from
+                                DEPTH_RECORD_BYTES, MAX_PAYLOAD, Nak, NakCode, registers_layout)
+from fliss.hdl.registers import BY_NAME
+from fliss.hdl.top import FlissTop, SMALL
+from fliss.sim.codec import pack, unpack, unpack_from
+from fliss.sim.command import CommandModel
 from fliss.sim.depth import (BACKGROUND_MAX, depth_frame, depth_payload, unpack_depth,
                              check_depth_settings)
 from simulation import simulate
@@ -169,12 +175,11 @@ def test_engine_one_pixel_many_bins_and_back_to_back():
     assert cycles[1] >= 64 * 16 + 64 * 7
 
 
-def test_engine_refuses_bad_index_width():
-    with pytest.raises(ValueError, match="Index width must be an integer from 13 to 32 bits, "
-                                         "not 12"):
-        DepthEngine(index_bits=12)
-    with pytest.raises(ValueError, match="Divisor width must be a positive integer, not 0"):
-        SerialDivider(8, 0, 4)
+def test_engine_refuses_bad_parameters(construction_error):
+    assert construction_error(lambda: DepthEngine(index_bits=12)) == \
+        "Index width must be an integer from 13 to 32 bits, not 12"
+    assert construction_error(lambda: SerialDivider(8, 0, 4)) == \
+        "Divisor width must be a positive integer, not 0"
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -304,3 +309,23 @@ def test_payload_packs_with_the_layouts_and_fits():
 def test_unpack_refuses_malformed(payload, message):
     with pytest.raises(ValueError, match=message):
         unpack_depth(payload)
+
+
+def test_builds_without_the_engine_refuse_depth_mode(construction_error):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnusedElaboratable)     # built, never elaborated
+        assert "acquisition" not in FlissTop().register_maxima()
+        maxima = FlissTop(depth=False).register_maxima()
+        small = FlissTop(**SMALL).register_maxima()
+        gc.collect()
+    assert maxima == {"acquisition": 1}
+    assert small["acquisition"] == 0
+    assert construction_error(lambda: FlissTop(depth="yes"), TypeError) == \
+        "depth must be True or False, not 'yes'"
+    # the command processor's model (held to the gateware by its tests) refuses mode 2
+    model = CommandModel(80_000_000, 3_000_000, maxima=maxima)
+    address = BY_NAME["acquisition"].address
+    reply = model.command(PacketType.WRITE.value, 4,
+                          pack(registers_layout(1), address=address, values=[2]), None)
+    assert reply[0] == PacketType.NAK
+    assert unpack(Nak, reply[1]) == dict(seq=4, code=NakCode.OUT_OF_RANGE.value, detail=address)
