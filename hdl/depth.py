@@ -124,7 +124,7 @@ class DepthEngine(wiring.Component):
             peak.bin.eq(bin),
             peak.pixel_last.eq(pixel_last),
             peak.frame_last.eq(readout.p.last),
-            peak.width.eq(Mux(first_of_frame, width_now, width)),
+            peak.width.eq(width),               # (taken a cycle after the bin)
         ]
 
         # Each pixel's record, then the packet

@@ -25,10 +25,12 @@ class PeakFinder(wiring.Component):
     Takes a bin in any cycle (``valid``), with its index in the pixel (``bin``, from 0),
     ``pixel_last`` on the pixel's last bin and the filter width ``width`` (1 to
     :data:`MAX_FILTER`, at most the pixel's bins; constant over a pixel). Window ``k`` sums bins
-    ``k - W + 1 … k`` of the pixel (``k >= W - 1``). A four-stage pipeline: counts in and the
-    count leaving the window (a 16-deep delay line) out; their difference; the running window sum
-    and total; the comparison with the best window so far, which keeps the first of equal sums,
-    the sums of the windows before and after it, and whether they exist.
+    ``k - W + 1 … k`` of the pixel (``k >= W - 1``). A five-stage pipeline: the bin in; the
+    count leaving the window (a 15-deep delay line with a registered tap); their difference; the
+    running window sum and total; the comparison with the best window so far, which keeps the
+    first of equal sums, the sums of the windows before and after it, and whether they exist.
+    ``width`` is taken a cycle after the bin, so it may be set in the cycle of a frame's first
+    bin.
 
     Members
     -------
@@ -40,7 +42,7 @@ class PeakFinder(wiring.Component):
         The pixel's last bin is the frame's last.
     width : In(range(17))
     done : Out(1)
-        High for one cycle when the pixel's results below are complete (three cycles after its
+        High for one cycle when the pixel's results below are complete (five cycles after its
         last bin); they hold until the next pixel's bins reach them.
     best : Out(WINDOW_BITS)
         The largest window sum ``F``; ``best_bin`` its window's last bin ``k``.
@@ -76,27 +78,59 @@ class PeakFinder(wiring.Component):
     def elaborate(self, platform):
         m = Module()
 
-        # Stage 1: the bin, and the counts before it (delay[j] = count of bin - 1 - j)
-        v1 = Signal()
-        count1 = Signal(COUNT_WIDTH)
-        bin1 = Signal(TIMESTAMP_BITS)
-        width1 = Signal.like(self.width)
-        plast1 = Signal()
-        flast1 = Signal()
-        delay = Array(Signal(COUNT_WIDTH, name=f"delay{j}") for j in range(MAX_FILTER))
-        m.d.sync += v1.eq(self.valid)
+        # Stage 0: the bin, registered (``width`` may be set in the cycle of the first bin)
+        v0 = Signal()
+        count0 = Signal(COUNT_WIDTH)
+        bin0 = Signal(TIMESTAMP_BITS)
+        plast0 = Signal()
+        flast0 = Signal()
+        m.d.sync += v0.eq(self.valid)
         with m.If(self.valid):
             m.d.sync += [
-                count1.eq(self.count),
-                bin1.eq(self.bin),
-                width1.eq(self.width),
-                plast1.eq(self.pixel_last),
-                flast1.eq(self.frame_last),
-                delay[0].eq(count1),
-                *(delay[j].eq(delay[j - 1]) for j in range(1, MAX_FILTER)),
+                count0.eq(self.count),
+                bin0.eq(self.bin),
+                plast0.eq(self.pixel_last),
+                flast0.eq(self.frame_last),
             ]
 
-        # Stage 2: count in less count out (the bin W before, in the same pixel)
+        # Stage 1: the count in, the count leaving the window (of bin - W, from a delay line of
+        # the counts before: delay[j] holds the count of bin - 2 - j before the shift) and
+        # whether it is in the same pixel. The delay line's tap is registered: its one cycle of
+        # lag after ``width`` changes falls on the frame's first bin, which takes nothing out.
+        v1 = Signal()
+        count1 = Signal(COUNT_WIDTH)
+        leaving1 = Signal(COUNT_WIDTH)
+        inside1 = Signal()
+        first1 = Signal()
+        window1 = Signal()
+        first_window1 = Signal()
+        plast1 = Signal()
+        flast1 = Signal()
+        bin1 = Signal(TIMESTAMP_BITS)
+        delay = Array(Signal(COUNT_WIDTH, name=f"delay{j}") for j in range(MAX_FILTER - 1))
+        tap = Signal(range(MAX_FILTER - 1))
+        tap_count = Signal()                            # W = 1: the previous count leaves
+        m.d.sync += [
+            tap.eq(self.width - 2),
+            tap_count.eq(self.width == 1),
+            v1.eq(v0),
+        ]
+        with m.If(v0):
+            m.d.sync += [
+                count1.eq(count0),
+                leaving1.eq(Mux(tap_count, count1, delay[tap])),
+                delay[0].eq(count1),
+                *(delay[j].eq(delay[j - 1]) for j in range(1, MAX_FILTER - 1)),
+                inside1.eq(bin0 >= self.width),
+                first1.eq(bin0 == 0),
+                window1.eq(bin0 + 1 >= self.width),
+                first_window1.eq(bin0 + 1 == self.width),
+                bin1.eq(bin0),
+                plast1.eq(plast0),
+                flast1.eq(flast0),
+            ]
+
+        # Stage 2: count in less count out
         v2 = Signal()
         diff2 = Signal(signed(COUNT_WIDTH + 1))
         count2 = Signal(COUNT_WIDTH)
@@ -106,14 +140,13 @@ class PeakFinder(wiring.Component):
         bin2 = Signal(TIMESTAMP_BITS)
         plast2 = Signal()
         flast2 = Signal()
-        leaving = Mux(bin1 >= width1, delay[width1 - 1], 0)
         m.d.sync += [
             v2.eq(v1),
-            diff2.eq(count1 - leaving),
+            diff2.eq(count1 - Mux(inside1, leaving1, 0)),
             count2.eq(count1),
-            first2.eq(bin1 == 0),
-            window2.eq(bin1 + 1 >= width1),
-            first_window2.eq(bin1 + 1 == width1),
+            first2.eq(first1),
+            window2.eq(window1),
+            first_window2.eq(first_window1),
             bin2.eq(bin1),
             plast2.eq(plast1),
             flast2.eq(flast1),

@@ -78,6 +78,10 @@ class RecordMaker(wiring.Component):
         a = Signal(WINDOW_BITS)                     # F - f[k - 1]
         b = Signal(WINDOW_BITS)                     # F - f[k + 1]
         interpolate = Signal()
+        centre = Signal(TIMESTAMP_BITS + DEPTH_FRACTION_BITS + 1)   # 16 (k + 1) - 8 W
+        distance = Signal(WINDOW_BITS)              # |a - b|
+        spread = Signal(WINDOW_BITS + 1)            # a + b
+        later = Signal()                            # a > b: the peak lies after the window's centre
         product = Signal(TOTAL_BITS + 4)            # W R
         steps = Signal(range(MAX_FILTER + 1))
         height = Signal(signed(WINDOW_BITS + 2))
@@ -100,9 +104,17 @@ class RecordMaker(wiring.Component):
                     ]
                     m.next = "MULTIPLY"
 
-            # W R, by W additions
+            # W R, by W additions; the operands of the position
             with m.State("MULTIPLY"):
-                m.d.sync += [product.eq(product + rest), steps.eq(steps - 1)]
+                m.d.sync += [
+                    product.eq(product + rest),
+                    steps.eq(steps - 1),
+                    centre.eq(((peak_bin + 1) << DEPTH_FRACTION_BITS) -
+                              (width << (DEPTH_FRACTION_BITS - 1))),
+                    distance.eq(Mux(a > b, a - b, b - a)),
+                    spread.eq(a + b),
+                    later.eq(a > b),
+                ]
                 with m.If(steps == 1):
                     m.next = "HEIGHT"
 
@@ -134,17 +146,17 @@ class RecordMaker(wiring.Component):
                         record.detected.eq((height >= 0) & (height >= threshold)),
                     ]
                     m.d.comb += [divider.start.eq(1),
-                                 divider.dividend.eq(Mux(a > b, a - b, b - a) << 3),
-                                 divider.divisor.eq(a + b)]
+                                 divider.dividend.eq(distance << 3),
+                                 divider.divisor.eq(spread)]
                     m.next = "POSITION"
 
             # Position: the window's centre, 16 (k + 1) - 8 W, plus the vertex
             with m.State("POSITION"):
                 with m.If(~divider.busy):
-                    step = Mux(interpolate, Mux(a > b, divider.quotient, -divider.quotient), 0)
-                    centre = ((peak_bin + 1) << DEPTH_FRACTION_BITS) - \
-                        (width << (DEPTH_FRACTION_BITS - 1))
-                    m.d.sync += [record.position.eq(centre + step), self.done.eq(1)]
+                    position = Mux(~interpolate, centre,
+                                   Mux(later, centre + divider.quotient,
+                                       centre - divider.quotient))
+                    m.d.sync += [record.position.eq(position), self.done.eq(1)]
                     m.next = "IDLE"
 
         with m.If(self.done):
