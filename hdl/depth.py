@@ -35,7 +35,7 @@ class DepthEngine(wiring.Component):
     After each pixel's last bin the engine holds ``readout`` (``ready`` low) while a
     :class:`~fliss.hdl.depth_record.RecordMaker` works out the pixel's record (three serial
     divisions of :data:`QUOTIENT_BITS` cycles and ``W`` cycles of multiplication: about
-    ``W + 70`` cycles with the pipeline) and a :class:`~fliss.hdl.depth_packet.DepthPacketizer`
+    ``W + 67`` cycles with the pipeline) and a :class:`~fliss.hdl.depth_packet.DepthPacketizer`
     stores it; after the frame's last pixel the packetizer sends the DEPTH packet (a
     :class:`~fliss.hdl.protocol.DepthHeader`, then a :class:`~fliss.hdl.protocol.DepthRecord`
     per pixel) and only then does the engine take the next frame. The records are those of
