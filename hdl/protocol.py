@@ -30,7 +30,8 @@ __all__ = [
     "REGISTER_BYTES", "registers_layout", "READ_MAX", "CONSISTENCY", "COUNTER_BITS", "Status",
     "STATUS_FIELDS", "LINK_COUNTERS", "LINK_FIELDS", "LINK_ERRORS", "HistogramChunk",
     "HISTOGRAM_COUNT_BITS", "CHUNK_BINS", "HistogramCompact", "COMPACT_BYTES",
-    "MAX_FRAME_BITS",
+    "MAX_FRAME_BITS", "DepthHeader", "DepthRecord", "DEPTH_HEADER_BYTES",
+    "DEPTH_RECORD_BYTES", "DEPTH_PIXELS", "DEPTH_FRACTION_BITS", "DEPTH_BACKGROUND_FRACTION_BITS",
     "EVENT_BYTES", "MAX_EVENTS_PER_PACKET", "DIRECTION_BIT",
 ]
 
@@ -111,6 +112,8 @@ class PacketType(enum.Enum, shape=8):
     EVENTS    = 0x85
     #: Histogram chunk: a :class:`HistogramChunk`, then up to :data:`CHUNK_BINS` counts.
     HISTOGRAM = 0x86
+    #: Depth frame: a :class:`DepthHeader`, then one :class:`DepthRecord` per pixel.
+    DEPTH     = 0x87
     #: Compact histogram chunk: a :class:`HistogramCompact`, then up to :data:`COMPACT_BYTES`
     #: bytes of tokens (runs of empty bins and counts, see :class:`HistogramCompact`).
     HISTOGRAM_COMPACT = 0x88
@@ -131,9 +134,51 @@ class Header(data.Struct):
 #: Bytes in the header.
 HEADER_BYTES = data.Layout.cast(Header).size // 8
 
-#: Largest payload, in bytes: a histogram chunk of 128 16-bit bins or 64 32-bit bins (plus a
-#: few bytes of position) fits; a receiver needs a buffer of this size.
-MAX_PAYLOAD = 264
+#: Most pixels in a frame (the sensor's 6-bit pixel address), and so in one DEPTH packet.
+DEPTH_PIXELS = 64
+
+#: Fraction bits of a :class:`DepthRecord` ``position`` (1/16 bin).
+DEPTH_FRACTION_BITS = 4
+#: Fraction bits of a :class:`DepthRecord` ``background`` (1/16 count per bin).
+DEPTH_BACKGROUND_FRACTION_BITS = 4
+
+
+class DepthHeader(data.Struct):
+    """Start of a DEPTH payload (one per frame); ``2**pixel_bits`` :class:`DepthRecord` values
+    follow, pixel ``first_pixel`` first."""
+    frame:       32   # depth frame number since reset
+    first_pixel: 8    # sensor address of the first pixel
+    pixel_bits:  8    # the frame holds 2**pixel_bits pixels
+    shift:       8    # bins are 2**shift timestamp codes wide; 2**(13 - shift) bins per pixel
+    filter:      8    # matched filter width W in bins, as set (the engine uses min(W, bins))
+    threshold:   16   # least height for ``detected``, in counts
+
+
+class DepthRecord(data.Struct):
+    """One pixel of a DEPTH payload: 56 bits, 7 bytes (little-endian, first field lowest).
+
+    ``position`` is the peak's centre in 1/16 bin (:data:`DEPTH_FRACTION_BITS`) from the start
+    of the pixel's bin 0 (bin ``j`` spans ``16 j … 16 j + 16``); ``height`` the filtered peak
+    above background, in counts (sum over the filter window less ``W`` times the background,
+    rounded down, at least 0); ``background`` the mean count per bin outside the peak window, in
+    1/16 count (:data:`DEPTH_BACKGROUND_FRACTION_BITS`), rounded down, saturating at
+    ``2**18 - 1``; ``detected`` is 1 when ``height`` reaches the frame's ``threshold``
+    (``docs/depth.md``).
+    """
+    position:   17
+    detected:   1
+    height:     20
+    background: 18
+
+
+#: Bytes of a :class:`DepthHeader` and of a :class:`DepthRecord`.
+DEPTH_HEADER_BYTES = data.Layout.cast(DepthHeader).size // 8
+DEPTH_RECORD_BYTES = data.Layout.cast(DepthRecord).size // 8
+
+#: Largest payload, in bytes: a DEPTH packet of :data:`DEPTH_PIXELS` pixels (458 bytes); a
+#: histogram chunk of 128 16-bit bins fits too. A receiver needs a buffer of this size (one
+#: 512-byte block RAM in the gateware's frame decoder).
+MAX_PAYLOAD = DEPTH_HEADER_BYTES + DEPTH_PIXELS * DEPTH_RECORD_BYTES
 
 #: Largest packet (header, payload, CRC), in bytes, before COBS encoding.
 MAX_PACKET = HEADER_BYTES + MAX_PAYLOAD + CRC_BYTES

@@ -1,4 +1,4 @@
-from amaranth.hdl import Module, Mux
+from amaranth.hdl import Module, Mux, Signal
 from amaranth.lib import data, wiring
 from amaranth.lib.wiring import In, Out
 
@@ -8,6 +8,7 @@ from .arbiter import PacketArbiter
 from .buffer import StreamBuffer
 from .command import CommandProcessor
 from .core import DelayCore
+from .depth import DepthEngine
 from .event import TIMESTAMP_BITS, ADDRESS_BITS
 from .framing import FrameDecoder, FrameEncoder
 from .histogram import Histogram, RAM_KINDS
@@ -28,10 +29,10 @@ __all__ = ["DEFAULT_BAUD", "SMALL", "FlissTop"]
 
 #: Options of :class:`FlissTop` for the smallest build, which fits an iCE40UP5K (the
 #: iCEBreaker's FPGA): histograms only, in single-port RAM; no aggressor emitter; no keyed
-#: delay source; periods up to 2**24 - 1 cycles (0.47 s at 36 MHz, the iCEBreaker's clock) and
-#: pulses up to 255 cycles.
+#: delay source; no depth engine; periods up to 2**24 - 1 cycles (0.47 s at 36 MHz, the
+#: iCEBreaker's clock) and pulses up to 255 cycles.
 SMALL = dict(histogram_ram="single", aggressor=False, raw_events=False, keyed=False,
-             period_width=24, pulse_width_width=8, compact_readout=False)
+             depth=False, period_width=24, pulse_width_width=8, compact_readout=False)
 
 
 class FlissTop(wiring.Component):
@@ -70,6 +71,10 @@ class FlissTop(wiring.Component):
         Build the victim's keyed delay source (Trivium, :class:`~fliss.hdl.keyed.KeyedStream`).
         Without it, a write of ``delay_mode`` 3 (keyed), or of a key or IV other than 0, is
         refused as out of range.
+    depth : bool
+        Build the depth engine (:class:`~fliss.hdl.depth.DepthEngine`), which turns each
+        histogram into a DEPTH packet in acquisition mode 2 (depth). Without it, a write of
+        ``acquisition`` 2 is refused as out of range.
 
     compact_readout : bool
         Build the histogram packetizer that sends compact chunks where shorter
@@ -116,7 +121,7 @@ class FlissTop(wiring.Component):
 
     def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, baud=DEFAULT_BAUD, raw_depth=512,
                  histogram_ram="dual", aggressor_delays=True, aggressor=True,
-                 raw_events=True, keyed=True, period_width=PERIOD_WIDTH,
+                 raw_events=True, keyed=True, depth=True, period_width=PERIOD_WIDTH,
                  pulse_width_width=PULSE_WIDTH_WIDTH, compact_readout=True):
         self.clock_hz = clock_hz
         self.baud = baud
@@ -127,7 +132,7 @@ class FlissTop(wiring.Component):
             raise ValueError(f"Histogram RAM must be one of {', '.join(map(repr, RAM_KINDS))}, "
                              f"not {histogram_ram!r}")
         for name, value in (("aggressor_delays", aggressor_delays), ("aggressor", aggressor),
-                            ("raw_events", raw_events), ("keyed", keyed),
+                            ("raw_events", raw_events), ("keyed", keyed), ("depth", depth),
                             ("compact_readout", compact_readout)):
             if not isinstance(value, bool):
                 raise TypeError(f"{name} must be True or False, not {value!r}")
@@ -136,6 +141,7 @@ class FlissTop(wiring.Component):
         self.raw_events = raw_events
         self.keyed = keyed
         self.compact_readout = compact_readout
+        self.depth = depth
         check_widths(period_width, pulse_width_width)
         self.period_width = period_width
         self.pulse_width_width = pulse_width_width
@@ -160,6 +166,8 @@ class FlissTop(wiring.Component):
             maxima[AGGRESSOR.register("enable").name] = 0
         if not self.aggressor_delays:
             maxima[AGGRESSOR_DELAY.register("mode").name] = 0
+        if not self.depth:
+            maxima["acquisition"] = AcquisitionMode.RAW.value
         if not self.raw_events:
             maxima["acquisition"] = AcquisitionMode.HISTOGRAM.value
         if not self.keyed:
@@ -178,7 +186,7 @@ class FlissTop(wiring.Component):
         m.submodules.encoder = encoder = FrameEncoder()
         m.submodules.command = command = CommandProcessor(
             clock_hz=self.clock_hz, baud=self.baud, maxima=self.register_maxima())
-        m.submodules.arbiter = arbiter = PacketArbiter(3 if self.raw_events else 2)
+        m.submodules.arbiter = arbiter = PacketArbiter(2 + self.raw_events + self.depth)
         m.d.comb += [
             uart_rx.rx.eq(self.uart_rx),
             self.uart_tx.eq(uart_tx.tx),
@@ -277,7 +285,34 @@ class FlissTop(wiring.Component):
             histogram_packets.first_pixel.eq(0),
             histogram_packets.full_readout.eq(registers.histogram.full_readout),
         ]
-        wiring.connect(m, histogram.readout, histogram_packets.readout)
+        if self.depth:
+            # Depth mode: the readout goes to the depth engine instead, a frame at a time (the
+            # mode is taken at a frame's first bin)
+            m.submodules.depth = depth = DepthEngine(index_bits=len(histogram.readout.p.index))
+            in_frame = Signal()
+            to_depth = Signal()
+            depth_mode = Mux(in_frame, to_depth,
+                             acquisition.mode == AcquisitionMode.DEPTH)
+            readout = histogram.readout
+            with m.If(readout.valid & readout.ready):
+                m.d.sync += [in_frame.eq(~readout.p.last), to_depth.eq(depth_mode)]
+            for consumer, selected in ((histogram_packets.readout, ~depth_mode),
+                                       (depth.readout, depth_mode)):
+                m.d.comb += [consumer.valid.eq(readout.valid & selected),
+                             consumer.payload.eq(readout.payload)]
+            m.d.comb += [
+                readout.ready.eq(Mux(depth_mode, depth.readout.ready,
+                                     histogram_packets.readout.ready)),
+                depth.shift.eq(histogram.readout_shift),
+                # (one pixel until the histogram presents its frame's pixel_bits and first_pixel
+                # as readout_pixel_bits and readout_first_pixel: wire them here then)
+                depth.pixel_bits.eq(0),
+                depth.first_pixel.eq(0),
+                depth.settings.eq(registers.depth),
+            ]
+            wiring.connect(m, depth.packets, arbiter.i[2 + self.raw_events])
+        else:
+            wiring.connect(m, histogram.readout, histogram_packets.readout)
         wiring.connect(m, histogram_packets.packets, arbiter.i[1])
 
         # Raw mode

@@ -189,7 +189,7 @@ class BoardClient:
             for item in decoded.items:
                 if isinstance(item, Packet):
                     if item.type in (PacketType.HISTOGRAM, PacketType.HISTOGRAM_COMPACT,
-                                     PacketType.EVENTS):
+                                     PacketType.EVENTS, PacketType.DEPTH):
                         self._last_data = self._last_rx
                         self._data.extend(self.assembler.add(item, now))
                     else:

@@ -35,9 +35,10 @@ C_M_S = 299_792_458.0
 
 
 def tof_s(position_bins, bin_s: float) -> np.ndarray:
-    """Time of flight in seconds of a peak at ``position_bins`` (bins, fractional; NaN stays
-    NaN) with bins of ``bin_s`` seconds."""
-    return (np.asarray(position_bins, dtype=float) + 0.5) * bin_s
+    """Time of flight in seconds of a peak at ``position_bins`` (bins, fractional, from the
+    start of bin 0, as DEPTH packets give it: bin ``j`` spans ``j … j + 1``; NaN stays NaN)
+    with bins of ``bin_s`` seconds."""
+    return np.asarray(position_bins, dtype=float) * bin_s
 
 
 def depth_m(time_of_flight_s) -> np.ndarray:

@@ -1,9 +1,9 @@
 """Stream assembly: whole histograms from HISTOGRAM and HISTOGRAM_COMPACT chunks, event arrays
-from EVENTS packets.
+from EVENTS packets, depth frames from DEPTH packets.
 
 :class:`StreamAssembler` takes the data packets a board sends, in order of arrival, and returns
-:class:`HistogramFrame` and :class:`EventBatch` items; it counts what is incomplete, lost or
-malformed (:class:`StreamCounters`).
+:class:`HistogramFrame`, :class:`EventBatch` and :class:`DepthFrame` items; it counts what is
+incomplete, lost or malformed (:class:`StreamCounters`).
 """
 
 import time
@@ -14,14 +14,16 @@ import numpy as np
 from amaranth.lib import data
 
 from ..hdl.event import Event
-from ..hdl.protocol import PacketType, EVENT_BYTES
+from ..hdl.protocol import (PacketType, EVENT_BYTES, DEPTH_FRACTION_BITS,
+                            DEPTH_BACKGROUND_FRACTION_BITS)
 from ..sim.codec import Packet
+from ..sim.depth import unpack_depth
 from ..sim.event import EVENT_DTYPE
 from ..sim.histogram_packets import HISTOGRAM_TYPES, MalformedChunk, decode_chunk
 
 
-__all__ = ["HistogramFrame", "DepthFrame", "EventBatch", "StreamCounters", "StreamAssembler",
-           "unpack_event_payload"]
+__all__ = ["HistogramFrame", "EventBatch", "DepthFrame", "StreamCounters", "StreamAssembler",
+           "unpack_event_payload", "depth_frame_of"]
 
 
 @dataclass
@@ -50,12 +52,23 @@ class HistogramFrame:
 
 
 @dataclass
-class DepthFrame:
-    """One depth frame (DEPTH packet): per pixel, its strongest peak after the matched filter.
+class EventBatch:
+    """The events of one EVENTS packet (``EVENT_DTYPE``) and the host's receive time."""
+    events: np.ndarray
+    time_s: float
 
-    ``position`` is in bins (float, NaN where nothing cleared the threshold); ``height`` and
-    ``background`` in counts; ``detected`` is a bool array; the pixels are the addresses
-    ``first_pixel …``; ``shift`` is the frame's bin shift; ``time_s`` the host's receive time.
+
+@dataclass
+class DepthFrame:
+    """One depth frame (a DEPTH packet): per pixel, its strongest peak.
+
+    Pixel ``p`` of the arrays is the sensor's address ``first_pixel + p``. ``position`` is the
+    peak's centre in bins of ``2**shift`` timestamp codes from the start of bin 0 (bin ``j``
+    spans ``j … j + 1``), NaN where ``detected`` is False; ``height`` the filtered peak above
+    background, in counts; ``background`` the mean count per bin outside the peak window.
+    ``records`` holds the packet's integers as sent (``position`` in 1/16 bin, also where not
+    detected; ``background`` in 1/16 count), ``filter`` and ``threshold`` the settings it was
+    made with. ``time_s`` is the host's receive time.
     """
     frame: int
     first_pixel: int
@@ -65,13 +78,23 @@ class DepthFrame:
     background: np.ndarray
     detected: np.ndarray
     time_s: float
+    pixel_bits: int = 0
+    filter: int = 0
+    threshold: int = 0
+    records: Optional[np.ndarray] = None
 
 
-@dataclass
-class EventBatch:
-    """The events of one EVENTS packet (``EVENT_DTYPE``) and the host's receive time."""
-    events: np.ndarray
-    time_s: float
+def depth_frame_of(payload: bytes, time_s: float) -> DepthFrame:
+    """The :class:`DepthFrame` of a DEPTH payload; raises :exc:`ValueError` with one line for
+    a malformed one."""
+    head, records = unpack_depth(payload)
+    detected = records["detected"].copy()
+    position = records["position"] / (1 << DEPTH_FRACTION_BITS)
+    position[~detected] = np.nan
+    return DepthFrame(head["frame"], head["first_pixel"], head["shift"], position,
+                      records["height"].copy(),
+                      records["background"] / (1 << DEPTH_BACKGROUND_FRACTION_BITS), detected,
+                      time_s, head["pixel_bits"], head["filter"], head["threshold"], records)
 
 
 @dataclass
@@ -86,6 +109,8 @@ class StreamCounters:
     events: int = 0
     malformed: int = 0
     unexpected: int = 0
+    depth_frames: int = 0
+    lost_depth_frames: int = 0
 
     def as_dict(self) -> Dict[str, int]:
         return dict(self.__dict__)
@@ -114,7 +139,7 @@ def unpack_event_payload(payload: bytes) -> np.ndarray:
 
 class StreamAssembler:
     """Whole histograms from HISTOGRAM and HISTOGRAM_COMPACT chunks, event arrays from EVENTS
-    packets.
+    packets, depth frames from DEPTH packets.
 
     Feed it data packets in order of arrival with :meth:`add`; it returns what is complete.
     Both forms of a chunk (HISTOGRAM and HISTOGRAM_COMPACT) fill the same frame. A frame is
@@ -122,7 +147,8 @@ class StreamAssembler:
     settings: bin shift, pixel split); a frame
     that misses chunks is still returned, with ``complete`` False, and a jump in frame numbers
     counts the frames lost in between. Nothing malformed is accepted: a chunk that does not fit
-    its frame is counted in ``malformed`` and dropped.
+    its frame is counted in ``malformed`` and dropped, and :attr:`last_malformed` says why.
+    A jump in depth frame numbers counts the depth frames lost in ``lost_depth_frames``.
     """
 
     def __init__(self):
@@ -132,9 +158,12 @@ class StreamAssembler:
         self._counts = None
         self._filled = None
         self._next_frame = None
-        #: One more than the frame number of the last chunk that ended a frame: the board's
-        #: STATUS ``frames`` once every histogram it made has arrived.
+        #: One more than the frame number of the last chunk (or DEPTH packet) that ended a
+        #: frame: the board's STATUS ``frames`` once every histogram it made has arrived.
         self.frames_ended = None
+        #: Why the last malformed packet was dropped (one line), or None.
+        self.last_malformed = None
+        self._next_depth = None
 
     def add(self, packet: Packet, time_s: Optional[float] = None
             ) -> List[Union[HistogramFrame, EventBatch]]:
@@ -148,6 +177,8 @@ class StreamAssembler:
                 self.counters.malformed += 1
                 return []
             return self.add_events(events, time_s)
+        if packet.type == PacketType.DEPTH:
+            return self._depth(packet.payload, time_s)
         self.counters.unexpected += 1
         return []
 
@@ -158,6 +189,19 @@ class StreamAssembler:
         self.counters.event_packets += 1
         self.counters.events += len(events)
         return [EventBatch(events, time.time() if time_s is None else time_s)]
+
+    def _depth(self, payload, time_s):
+        try:
+            frame = depth_frame_of(payload, time_s)
+        except ValueError as error:
+            self.counters.malformed += 1
+            self.last_malformed = str(error)
+            return []
+        if self._next_depth is not None and frame.frame != self._next_depth:
+            self.counters.lost_depth_frames += (frame.frame - self._next_depth) % (1 << 32)
+        self._next_depth = self.frames_ended = (frame.frame + 1) % (1 << 32)
+        self.counters.depth_frames += 1
+        return [frame]
 
     def _chunk(self, type, payload, time_s):
         out = []

@@ -40,6 +40,7 @@ from . import scheduler as _scheduler
 from .command import CommandModel
 from .histogram_packets import HISTOGRAM_TYPES, decode_chunk, encode_histogram, frame_bins
 from .delay import DelayMode
+from .depth import depth_frame, depth_payload
 from .noisy_line import NoisyLine, add_line_arguments, describe, faults_from_args
 from .pty_server import PtyServer
 from .scene import SCENE_NAMES, SENSOR_KINDS, Aggressor, Scene, pixels_named, simulation_for
@@ -131,6 +132,7 @@ class ModelBoard(PtyServer):
         #: Acquisitions started so far (each START while stopped).
         self.starts = 0
         self._frame = 0          # histogram number since reset
+        self._depth_frame = 0    # depth frame number since reset
 
     def sent_histograms(self, bins, *, whole=False):
         """The histograms sent so far, from this board's own record (``sent``): counts of
@@ -180,6 +182,7 @@ class ModelBoard(PtyServer):
                                   keyed_source=True)
         self.status = dict.fromkeys(STATUS_FIELDS, 0)
         self._frame = 0
+        self._depth_frame = 0
         self._frame_counts = None
         self._pending_events = []
 
@@ -223,6 +226,7 @@ class ModelBoard(PtyServer):
         self._frame_counts = None
         self._pending_events = []
         self._raw = settings["acquisition"] == AcquisitionMode.RAW.value
+        self._depth = settings["acquisition"] == AcquisitionMode.DEPTH.value
 
     def _cycles_at(self, now):
         return int((now - self._t0) * self.time_scale * self.clock_hz)
@@ -255,7 +259,10 @@ class ModelBoard(PtyServer):
         self._done_cycles = end
         if not self._raw:
             self._accumulate(events)
-            self._send_histogram()
+            if self._depth:
+                self._send_depth()
+            else:
+                self._send_histogram()
 
     def _simulate(self, end):
         simulation = self.simulation
@@ -319,6 +326,26 @@ class ModelBoard(PtyServer):
                                               full_readout=s.get("full_readout", 0)):
             self._send(type, payload, data=True)
         self._frame += 1
+        self.status["frames"] += 1
+        self._frame_counts = None
+
+    def _send_depth(self):
+        """The frame as the depth engine sends it: one DEPTH packet (:mod:`fliss.sim.depth`)."""
+        s = self.settings
+        bins = (1 << TIMESTAMP_BITS) >> s["bin_shift"]
+        counts = self._frame_counts if self._frame_counts is not None else \
+            np.zeros(bins, dtype=np.int64)
+        counts = np.minimum(counts, (1 << HISTOGRAM_COUNT_BITS) - 1).reshape(-1, bins)
+        pixel_bits = len(counts).bit_length() - 1
+        # (a histogram of one pixel, until the model board splits its frames by pixel)
+        first_pixel = s["first_pixel"] if pixel_bits == s["pixel_bits"] else 0
+        records = depth_frame(counts, shift=s["bin_shift"], filter=s["depth_filter"],
+                              threshold=s["depth_threshold"])
+        self._send(PacketType.DEPTH, depth_payload(
+            records, frame=self._depth_frame, first_pixel=first_pixel, pixel_bits=pixel_bits,
+            shift=s["bin_shift"], filter=s["depth_filter"], threshold=s["depth_threshold"]),
+            data=True)
+        self._depth_frame = (self._depth_frame + 1) & 0xffffffff
         self.status["frames"] += 1
         self._frame_counts = None
 

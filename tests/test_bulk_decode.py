@@ -13,7 +13,8 @@ from amaranth.lib import data
 
 from fliss.hdl.event import Event
 from fliss.hdl.protocol import (HISTOGRAM_COUNT_BITS, PacketType, NakCode, MAX_EVENTS_PER_PACKET,
-                                MAX_ENCODED, HistogramChunk)
+                                MAX_ENCODED, HistogramChunk, HEADER_BYTES, CRC_BYTES,
+                                EVENT_BYTES)
 from fliss.host import bulk
 from fliss.host.stream import EventBatch, StreamAssembler
 from fliss.sim.codec import (FrameDecoder, Packet, LinkError, cobs_encode, crc16,
@@ -194,7 +195,7 @@ def test_clean_event_stream():
     decoded, counters = bulk.decode_stream(stream)
     assert np.array_equal(decoded.events, events)           # against the source, not a decoder
     assert decoded.items == []
-    assert counters.packets == len(decoded.event_counts) == 82
+    assert counters.packets == len(decoded.event_counts) == -(-3000 // MAX_EVENTS_PER_PACKET)
     assert counters.dropped_frames == counters.missing_packets == 0
     assert counters.bytes == len(stream)
     check_same(stream)
@@ -240,7 +241,9 @@ def test_every_kind_of_damage_is_found():
     # Faults made on purpose, one kind at a time, in groups large enough for the bulk path.
     rng = np.random.default_rng(4)
     frames, _ = mixed_frames(rng, packets=400)
-    full = [i for i, frame in enumerate(frames) if len(frame) == 267]
+    # full EVENTS frames: packet, one COBS code byte (zeros break the runs), delimiter
+    full_length = HEADER_BYTES + MAX_EVENTS_PER_PACKET * EVENT_BYTES + CRC_BYTES + 2
+    full = [i for i, frame in enumerate(frames) if len(frame) == full_length]
     frames = list(frames)
     for i in full[0:40:4]:              # a byte changed, not to zero: BAD_CRC (mostly)
         frames[i] = frames[i][:100] + bytes([frames[i][100] % 255 + 1]) + frames[i][101:]

@@ -10,7 +10,8 @@ from fliss.hdl.event import Event
 from fliss.hdl.protocol import (GATEWARE_VERSION, CHUNK_BINS, Header, Ack, Nak, Identity,
                                 ReadRequest, Status, HistogramChunk, HistogramCompact,
                                 registers_layout, READ_MAX, CONSISTENCY, EVENT_BYTES,
-                                COMPACT_BYTES)
+                                COMPACT_BYTES, DepthHeader, DepthRecord, DEPTH_HEADER_BYTES,
+                                DEPTH_RECORD_BYTES, MAX_PAYLOAD)
 from fliss.hdl.registers import REGISTERS
 
 
@@ -42,12 +43,12 @@ def test_payload_tables_match_the_layouts():
     layouts = {"Ack": Ack, "Nak": Nak, "Identity": Identity, "ReadRequest": ReadRequest,
                "registers_layout(n)": registers_layout(1), "Status": Status,
                "HistogramChunk": HistogramChunk, "HistogramCompact": HistogramCompact,
-               "Event": Event}
+               "Event": Event, "DepthHeader": DepthHeader, "DepthRecord": DepthRecord}
     tables = _payload_tables()
     assert sorted(tables) == sorted(layouts)
     for name, layout in layouts.items():
-        # (the Event and histogram chunk tables count bits, the others bytes)
-        unit = 1 if name in ("Event", "HistogramChunk", "HistogramCompact") else 8
+        # (these tables count bits, the others bytes)
+        unit = 1 if name in ("Event", "HistogramChunk", "HistogramCompact", "DepthRecord") else 8
         defined = [(field.offset // unit, field.width // unit, field_name)
                    for field_name, field in data.Layout.cast(layout)]
         assert all(field.offset % unit == 0 and field.width % unit == 0
@@ -62,6 +63,9 @@ def test_payload_limits_in_the_text():
     assert f"`CHUNK_BINS` = {CHUNK_BINS}" in text
     assert f"`COMPACT_BYTES` = {COMPACT_BYTES}" in text
     assert f"`CONSISTENCY = {CONSISTENCY:#06x}`" in text
+    assert f"`MAX_PAYLOAD = {MAX_PAYLOAD}`" in text
+    assert f"`DEPTH_HEADER_BYTES = {DEPTH_HEADER_BYTES}`" in text
+    assert f"`DEPTH_RECORD_BYTES = {DEPTH_RECORD_BYTES}`" in text
 
 
 def test_packet_header_table_matches_the_header():
