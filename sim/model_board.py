@@ -32,8 +32,8 @@ import numpy as np
 
 from ..hdl import DEFAULT_CLOCK_HZ
 from ..hdl.event import TIMESTAMP_BITS
-from ..hdl.protocol import (DEFAULT_BAUD, PacketType, STATUS_FIELDS, LINK_COUNTERS,
-                            MAX_EVENTS_PER_PACKET, EVENT_BYTES)
+from ..hdl.protocol import (DEFAULT_BAUD, HISTOGRAM_COUNT_BITS, PacketType, STATUS_FIELDS,
+                            LINK_COUNTERS, MAX_EVENTS_PER_PACKET, EVENT_BYTES)
 from ..hdl.registers import AcquisitionMode, TdcSource, value_of, words_of
 from .codec import LinkError, Packet, encode_frame, pack_events, packet_type
 from . import scheduler as _scheduler
@@ -332,13 +332,11 @@ class ModelBoard(PtyServer):
     def _send_depth(self):
         """The frame as the depth engine sends it: one DEPTH packet (:mod:`fliss.sim.depth`)."""
         s = self.settings
-        bins = (1 << TIMESTAMP_BITS) >> s["bin_shift"]
+        shift, pixel_bits = s["bin_shift"], s["pixel_bits"]
         counts = self._frame_counts if self._frame_counts is not None else \
-            np.zeros(bins, dtype=np.int64)
-        counts = np.minimum(counts, (1 << HISTOGRAM_COUNT_BITS) - 1).reshape(-1, bins)
-        pixel_bits = len(counts).bit_length() - 1
-        # (a histogram of one pixel, until the model board splits its frames by pixel)
-        first_pixel = s["first_pixel"] if pixel_bits == s["pixel_bits"] else 0
+            np.zeros(frame_bins(shift, pixel_bits), dtype=np.int64)
+        counts = np.minimum(counts, (1 << HISTOGRAM_COUNT_BITS) - 1).reshape(1 << pixel_bits, -1)
+        first_pixel = s["first_pixel"]
         records = depth_frame(counts, shift=s["bin_shift"], filter=s["depth_filter"],
                               threshold=s["depth_threshold"])
         self._send(PacketType.DEPTH, depth_payload(

@@ -7,8 +7,8 @@ from pathlib import Path
 from amaranth.lib import data
 
 from fliss.hdl.event import Event
-from fliss.hdl.protocol import (GATEWARE_VERSION, CHUNK_BINS, Header, Ack, Nak, Identity,
-                                ReadRequest, Status, HistogramChunk, HistogramCompact,
+from fliss.hdl.protocol import (GATEWARE_VERSION, PROTOCOL_VERSION, CHUNK_BINS, Header, Ack,
+                                Nak, Identity, ReadRequest, Status, HistogramChunk, HistogramCompact,
                                 registers_layout, READ_MAX, CONSISTENCY, EVENT_BYTES,
                                 COMPACT_BYTES, DepthHeader, DepthRecord, DEPTH_HEADER_BYTES,
                                 DEPTH_RECORD_BYTES, MAX_PAYLOAD)
@@ -60,6 +60,7 @@ def test_payload_limits_in_the_text():
     text = DOC.read_text()
     assert f"`READ_MAX = {READ_MAX}`" in text
     assert f"`EVENT_BYTES = {EVENT_BYTES}`" in text
+    assert f"`PROTOCOL_VERSION = {PROTOCOL_VERSION}`" in text
     assert f"`CHUNK_BINS` = {CHUNK_BINS}" in text
     assert f"`COMPACT_BYTES` = {COMPACT_BYTES}" in text
     assert f"`CONSISTENCY = {CONSISTENCY:#06x}`" in text
