@@ -32,13 +32,13 @@ def _increment(m, value, width, name):
     return Mux(total[-1], (1 << width) - 1, total[:width])
 
 
-def _members(bin_bits, count_width, *, initialising):
+def _members(bank_bits, count_width, *, initialising):
     return {
         "valid":         In(1),
-        "bin":           In(bin_bits),
+        "bin":           In(bank_bits),
         "bank":          In(1),
         "readout_bank":  In(1),
-        "readout_index": In(bin_bits),
+        "readout_index": In(bank_bits),
         "readout_read":  In(1),
         "readout_clear": In(1),
         "word":          Out(count_width),
@@ -49,8 +49,8 @@ def _members(bin_bits, count_width, *, initialising):
 _MEMBERS_DOC = """
     Parameters
     ----------
-    bin_bits : int
-        Width of the bin index: ``2**bin_bits`` bins per bank.
+    bank_bits : int
+        Width of a bank's word address: ``2**bank_bits`` bins per bank.
     count_width : int
         Width of a bin count.
 
@@ -58,13 +58,13 @@ _MEMBERS_DOC = """
     -------
     valid : In(1)
         An event's bin is in ``bin`` (the histogram's stage 2).
-    bin : In(bin_bits)
-        Its bin.
+    bin : In(bank_bits)
+        Its flat bin index (``pixel << b | bin``).
     bank : In(1)
         The bank it counts in.
     readout_bank : In(1)
         The bank being read out.
-    readout_index : In(bin_bits)
+    readout_index : In(bank_bits)
         The bin the readout reads or clears.
     readout_read : In(1)
         The readout reads ``readout_index`` (set up in this cycle).
@@ -95,13 +95,13 @@ class DualPortBanks(wiring.Component):
     readout's CAPTURE until its next read.
 """ + _MEMBERS_DOC
 
-    def __init__(self, bin_bits, count_width):
-        self.bin_bits = bin_bits
+    def __init__(self, bank_bits, count_width):
+        self.bank_bits = bank_bits
         self.count_width = count_width
         self.latency = LATENCY
         self.init_cycles = 0
-        super().__init__(_members(bin_bits, count_width, initialising=False))
-        self.banks = tuple(Memory(shape=count_width, depth=1 << bin_bits, init=[])
+        super().__init__(_members(bank_bits, count_width, initialising=False))
+        self.banks = tuple(Memory(shape=count_width, depth=1 << bank_bits, init=[])
                            for _ in range(2))
 
     def elaborate(self, platform):
@@ -114,7 +114,7 @@ class DualPortBanks(wiring.Component):
         # Stage R: the bin (fine shift) is registered here and in the read address register of
         # its bank: the block RAM samples it at the end of this cycle.
         valid_r = Signal()
-        bin_r = Signal(self.bin_bits)
+        bin_r = Signal(self.bank_bits)
         bank_r = Signal()
         m.d.sync += [
             valid_r.eq(self.valid),
@@ -125,11 +125,11 @@ class DualPortBanks(wiring.Component):
         # A read misses the writes of the four events ahead of it (they are written in its own
         # cycle or later). Their bins are compared with its own in stage D, the outcome
         # registered for stage Q.
-        valid_d, bin_d, bank_d = Signal(), Signal(self.bin_bits), Signal()
-        valid_q, bin_q, bank_q = Signal(), Signal(self.bin_bits), Signal()
-        valid_e, bin_e, bank_e = Signal(), Signal(self.bin_bits), Signal()
-        valid_w, bin_w, bank_w = Signal(), Signal(self.bin_bits), Signal()
-        valid_x, bin_x, bank_x = Signal(), Signal(self.bin_bits), Signal()  # written last cycle
+        valid_d, bin_d, bank_d = Signal(), Signal(self.bank_bits), Signal()
+        valid_q, bin_q, bank_q = Signal(), Signal(self.bank_bits), Signal()
+        valid_e, bin_e, bank_e = Signal(), Signal(self.bank_bits), Signal()
+        valid_w, bin_w, bank_w = Signal(), Signal(self.bank_bits), Signal()
+        valid_x, bin_x, bank_x = Signal(), Signal(self.bank_bits), Signal()  # written last cycle
         hit1_q = Signal()   # the event one ahead has the same bin
         hit2_q = Signal()   # ... two ahead
         hit3_q = Signal()   # ... three ahead
@@ -195,9 +195,9 @@ class DualPortBanks(wiring.Component):
         # RAM ports, driven from registers: the pipeline uses the bank its event was tagged
         # with, the readout the other one.
         for k, (read_port, write_port) in enumerate(ports):
-            read_address = Signal(self.bin_bits, name=f"read_address{k}")
+            read_address = Signal(self.bank_bits, name=f"read_address{k}")
             read_enable = Signal(name=f"read_enable{k}")
-            write_address = Signal(self.bin_bits, name=f"write_address{k}")
+            write_address = Signal(self.bank_bits, name=f"write_address{k}")
             write_enable = Signal(name=f"write_enable{k}")
             write_zero = Signal(name=f"write_zero{k}")
             with m.If(self.valid & (self.bank == k)):
@@ -235,17 +235,17 @@ class SinglePortBanks(wiring.Component):
     Accesses alternate between read slots and write slots. The bin waits for a read slot (R),
     the RAM reads it (A), its word comes out (D) and is registered (Q), incremented (saturating,
     with forwarding from the event ahead) and written back (W). After reset both banks are
-    cleared, ``2**bin_bits`` cycles, while ``initialising`` is high. ``word`` is the readout
+    cleared, ``2**bank_bits`` cycles, while ``initialising`` is high. ``word`` is the readout
     bank's RAM output.
 """ + _MEMBERS_DOC
 
-    def __init__(self, bin_bits, count_width):
-        self.bin_bits = bin_bits
+    def __init__(self, bank_bits, count_width):
+        self.bank_bits = bank_bits
         self.count_width = count_width
         self.latency = SINGLE_LATENCY
-        self.init_cycles = 1 << bin_bits
-        super().__init__(_members(bin_bits, count_width, initialising=True))
-        self.banks = tuple(SinglePortRam(depth=1 << bin_bits, width=count_width)
+        self.init_cycles = 1 << bank_bits
+        super().__init__(_members(bank_bits, count_width, initialising=True))
+        self.banks = tuple(SinglePortRam(depth=1 << bank_bits, width=count_width)
                            for _ in range(2))
 
     def elaborate(self, platform):
@@ -257,10 +257,10 @@ class SinglePortBanks(wiring.Component):
 
         # Single-port banks start undefined: clear both after reset, before the first frame.
         initialising = self.initialising
-        init_index = Signal(self.bin_bits)
+        init_index = Signal(self.bank_bits)
         with m.If(initialising):
             m.d.sync += init_index.eq(init_index + 1)
-            with m.If(init_index == (1 << self.bin_bits) - 1):
+            with m.If(init_index == (1 << self.bank_bits) - 1):
                 m.d.sync += initialising.eq(0)
 
         # Accesses of a bank alternate: `read_slot` high means the access of the next cycle
@@ -271,7 +271,7 @@ class SinglePortBanks(wiring.Component):
         # Stage R: the bin (fine shift) is registered and held until a read slot: at most one
         # cycle, and the next event (two cycles behind) replaces it in the cycle it leaves.
         valid_r = Signal()
-        bin_r = Signal(self.bin_bits)
+        bin_r = Signal(self.bank_bits)
         bank_r = Signal()
         issue = Signal()    # the read of the event in stage R is set up in this cycle
         m.d.comb += issue.eq(valid_r & read_slot)
@@ -283,9 +283,9 @@ class SinglePortBanks(wiring.Component):
         # Stage A: the RAM reads the bin (cycle r). The event that read in cycle r - 2 is in
         # stage Q and writes in cycle r + 1: this read misses it. Events read at least two
         # cycles apart, so every other event ahead has written already. Compare the bins now.
-        valid_a, bin_a, bank_a = Signal(), Signal(self.bin_bits), Signal()
-        valid_d, bin_d, bank_d, hit_d = Signal(), Signal(self.bin_bits), Signal(), Signal()
-        valid_q, bin_q, bank_q, hit_q = Signal(), Signal(self.bin_bits), Signal(), Signal()
+        valid_a, bin_a, bank_a = Signal(), Signal(self.bank_bits), Signal()
+        valid_d, bin_d, bank_d, hit_d = Signal(), Signal(self.bank_bits), Signal(), Signal()
+        valid_q, bin_q, bank_q, hit_q = Signal(), Signal(self.bank_bits), Signal(), Signal()
         m.d.sync += [
             valid_a.eq(issue),
             bin_a.eq(bin_r),
@@ -330,7 +330,7 @@ class SinglePortBanks(wiring.Component):
         # bank (the pipeline has left it: the readout waits for the drain). The data registers
         # load 0 (clear) or the new count, nothing else: a register with a synchronous reset.
         for k, bank in enumerate(self.banks):
-            address = Signal(self.bin_bits, name=f"address{k}")
+            address = Signal(self.bank_bits, name=f"address{k}")
             write = Signal(name=f"write{k}")
             data = Signal(self.count_width, name=f"data{k}")
             pipeline_write = valid_q & (bank_q == k)

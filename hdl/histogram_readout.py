@@ -15,7 +15,8 @@ READOUT_CYCLES_PER_BIN = 4
 
 
 class BankReadout(wiring.Component):
-    """Reads the full bank of :class:`~fliss.hdl.histogram.Histogram` out in bin order.
+    """Reads the full bank of :class:`~fliss.hdl.histogram.Histogram` out in flat index order
+    (pixel after pixel, bin after bin), up to the frame's ``last`` index.
 
     After a swap it waits ``latency`` cycles for the last events of the frame to leave the
     pipeline, then for each bin sets the bank's read address (ADDRESS), sets a clearing write
@@ -24,8 +25,8 @@ class BankReadout(wiring.Component):
 
     Parameters
     ----------
-    bin_bits : int
-        Width of the bin index.
+    bank_bits : int
+        Width of a bank's word address (the flat index).
     count_width : int
         Width of a bin count.
     latency : int
@@ -40,35 +41,35 @@ class BankReadout(wiring.Component):
         The banks swap in this cycle.
     full : In(1)
         The read bank holds a completed frame.
-    last : In(bin_bits)
-        Last bin of the read bank's readout.
+    last : In(bank_bits)
+        Last flat index of the read bank's readout.
     word : In(count_width)
         The word the read bank gives for the bin read.
-    index : Out(bin_bits)
-        Bin being read out.
+    index : Out(bank_bits)
+        Flat index being read out.
     address : Out(1)
         The read bank reads ``index`` (set up in this cycle).
     clear : Out(1)
         The read bank writes zero to ``index`` (set up in this cycle).
     done : Out(1)
         The last bin is transferred: the read bank is free.
-    readout : Out(stream.Signature(readout_layout(bin_bits, count_width)))
+    readout : Out(stream.Signature(readout_layout(bank_bits, count_width)))
         Bins of the frame: ``index``, ``count``, ``last``.
     """
 
-    def __init__(self, bin_bits, count_width, *, latency, capture):
+    def __init__(self, bank_bits, count_width, *, latency, capture):
         self.latency = latency
         self.capture = capture
         super().__init__({
             "swap":    In(1),
             "full":    In(1),
-            "last":    In(bin_bits),
+            "last":    In(bank_bits),
             "word":    In(count_width),
-            "index":   Out(bin_bits),
+            "index":   Out(bank_bits),
             "address": Out(1),
             "clear":   Out(1),
             "done":    Out(1),
-            "readout": Out(stream.Signature(readout_layout(bin_bits, count_width))),
+            "readout": Out(stream.Signature(readout_layout(bank_bits, count_width))),
         })
 
     def elaborate(self, platform):
