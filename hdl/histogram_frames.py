@@ -145,7 +145,8 @@ class FrameSequencer(wiring.Component):
                         m.d.comb += [
                             new["q"].eq(q),
                             new["last"].eq((1 << (q + b)) - 1),
-                            new["mask"].eq(((1 << TIMESTAMP_BITS) - 1) & ~((1 << (b + shift)) - 1)),
+                            new["mask"].eq(((1 << TIMESTAMP_BITS) - 1) &
+                                           ~((1 << (b + shift)) - 1)),
                             new["pixels"].eq(((1 << PIXEL_BITS) - 1) & ~((1 << q) - 1)),
                             new["position"].eq(b),
                         ]
