@@ -32,8 +32,8 @@ import serial
 from ..hdl.protocol import (PROTOCOL_VERSION, DEFAULT_BAUD, PacketType, NakCode, DELIMITER,
                             Identity, Nak, ReadRequest, Status, READ_MAX, CONSISTENCY,
                             LINK_ERRORS, registers_layout)
-from ..hdl.registers import REGISTERS, BY_NAME, BY_ADDRESS, problems
-from ..hdl.settings import BANK_BITS
+from ..hdl.registers import REGISTERS, BY_NAME, BY_ADDRESS, problems, split_problems
+from ..hdl.settings import BANK_BITS, MAX_BANK_BITS
 from ..sim.codec import LinkCounters, Packet, PacketEncoder, byte_size, pack, unpack
 from .bulk import BulkDecoder
 from .errors import BoardLost, BoardMismatch, BoardRefused, SettingsError
@@ -368,7 +368,10 @@ class BoardClient:
             except ValueError as error:
                 raise SettingsError(str(error)) from None
             candidate[name] = value
-        found = problems(candidate, self.identity.bank_bits)
+        # (the board's histogram bank from its identity, asked for only when the split changes)
+        found = problems(candidate, MAX_BANK_BITS)
+        if not found and {"pixel_bits", "bin_shift"} & set(changes):
+            found = split_problems(candidate, self.identity.bank_bits)
         if found:
             raise SettingsError("; ".join(found))
         return candidate

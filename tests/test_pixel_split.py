@@ -88,3 +88,29 @@ def test_bank_too_small_for_the_reset_split(bank_bits, construction_error):
                f"not {bank_bits!r}")
     assert construction_error(lambda: FlissTop(bank_bits=bank_bits)) == message
     assert construction_error(lambda: RegisterFile(bank_bits=bank_bits)) == message
+
+
+def test_host_checks_the_split_with_the_boards_bank():
+    # The host learns the bank from IDENTITY and refuses, before sending, a split the board
+    # would refuse; a WRITE that fits the ULX3S bank but not the iCEBreaker's is refused there
+    # (here a model board told it has 14 bits).
+    from fliss.host.client import BoardClient
+    from fliss.host.errors import SettingsError
+    from fliss.sim.model_board import model_board
+
+    with model_board() as model, BoardClient(model.path, timeout_s=2.0) as board:
+        assert board.identify().bank_bits == 16
+        current = board.read_registers()
+        before = model.model.commands
+        with pytest.raises(SettingsError, match=r"^pixel_bits \(6\) and bin_shift \(0\) ask for "
+                                                r"64 pixels of 8192 bins, .*bank_bits 16\)"):
+            board.write_registers({"pixel_bits": 6}, current=current)
+        assert model.model.commands == before       # nothing sent
+        written = board.write_registers({"pixel_bits": 2, "bin_shift": 0}, current=current)
+        assert board.read_registers(["pixel_bits"]) == {"pixel_bits": 2}
+        model.model.bank_bits = 14
+        assert board.identify().bank_bits == 14
+        with pytest.raises(SettingsError, match=r"must be at most 14$"):
+            board.write_registers({"pixel_bits": 2, "bin_shift": 0}, current=written)
+        board.write_registers({"pixel_bits": 1}, current=written)
+        assert board.read_registers(["pixel_bits"]) == {"pixel_bits": 1}
