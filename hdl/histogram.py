@@ -10,7 +10,8 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from .event import Event, TIMESTAMP_BITS
-from .histogram_banks import LATENCY, SINGLE_LATENCY, DualPortBanks, SinglePortBanks
+from .histogram_banks import SINGLE_LATENCY, SinglePortBanks
+from .histogram_dual import LATENCY, DualPortBanks
 from .histogram_frames import FrameSequencer
 from .histogram_layout import (BANK_BITS, BIN_BITS, COUNT_WIDTH, INTEGRATION_WIDTH,
                                MAX_BANK_BITS, MAX_COUNT_WIDTH, MAX_SHIFT, MIN_COUNT_WIDTH,

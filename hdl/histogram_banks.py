@@ -1,25 +1,21 @@
 """Bank storage of the histogram engine: two banks of RAM and the pipeline that counts events.
 
-:class:`DualPortBanks` keeps the banks in block RAM with a read and a write port and counts an
-event in every cycle; :class:`SinglePortBanks` keeps them in single-port RAM (iCE40 SPRAM) and
-counts an event at most every other cycle. Both present the same ports to
+:class:`~fliss.hdl.histogram_dual.DualPortBanks` keeps the banks in block RAM with a read and a
+write port and counts an event in every cycle; :class:`SinglePortBanks` keeps them in single-port
+RAM (iCE40 SPRAM) and counts an event at most every other cycle. Both present the same ports to
 :class:`~fliss.hdl.histogram.Histogram`.
 """
 
 from amaranth.hdl import Module, Mux, Signal
 from amaranth.lib import wiring
-from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
 from .spram import SinglePortRam
 
 
-__all__ = ["LATENCY", "SINGLE_LATENCY", "DualPortBanks", "SinglePortBanks"]
+__all__ = ["SINGLE_LATENCY", "SinglePortBanks"]
 
 
-#: Cycles from an event's transfer on ``events`` to the block RAM write of its bin
-#: (``ram="dual"``).
-LATENCY = 7
 #: Most cycles from an event's transfer on ``events`` to the RAM write of its bin, with
 #: ``ram="single"``.
 SINGLE_LATENCY = 8
@@ -84,148 +80,6 @@ _MEMBERS_DOC = """
     init_cycles : int
         Cycles after reset before the banks may be used.
 """
-
-
-class DualPortBanks(wiring.Component):
-    __doc__ = """Two banks in block RAM (:class:`amaranth.lib.memory.Memory`), one event per cycle.
-
-    The pipeline from the bin on: register the read address (R), RAM data out (D), RAM word
-    registered (Q), saturating increment with forwarding from the four events ahead (E), RAM
-    write (W). ``word`` is the registered RAM word of the readout bank; it holds from the
-    readout's CAPTURE until its next read.
-""" + _MEMBERS_DOC
-
-    def __init__(self, bank_bits, count_width):
-        self.bank_bits = bank_bits
-        self.count_width = count_width
-        self.latency = LATENCY
-        self.init_cycles = 0
-        super().__init__(_members(bank_bits, count_width, initialising=False))
-        self.banks = tuple(Memory(shape=count_width, depth=1 << bank_bits, init=[])
-                           for _ in range(2))
-
-    def elaborate(self, platform):
-        m = Module()
-
-        for k, bank in enumerate(self.banks):
-            m.submodules[f"bank{k}"] = bank
-        ports = [(memory.read_port(), memory.write_port()) for memory in self.banks]
-
-        # Stage R: the bin (fine shift) is registered here and in the read address register of
-        # its bank: the block RAM samples it at the end of this cycle.
-        valid_r = Signal()
-        bin_r = Signal(self.bank_bits)
-        bank_r = Signal()
-        m.d.sync += [
-            valid_r.eq(self.valid),
-            bin_r.eq(self.bin),
-            bank_r.eq(self.bank),
-        ]
-
-        # A read misses the writes of the four events ahead of it (they are written in its own
-        # cycle or later). Their bins are compared with its own in stage D, the outcome
-        # registered for stage Q.
-        valid_d, bin_d, bank_d = Signal(), Signal(self.bank_bits), Signal()
-        valid_q, bin_q, bank_q = Signal(), Signal(self.bank_bits), Signal()
-        valid_e, bin_e, bank_e = Signal(), Signal(self.bank_bits), Signal()
-        valid_w, bin_w, bank_w = Signal(), Signal(self.bank_bits), Signal()
-        valid_x, bin_x, bank_x = Signal(), Signal(self.bank_bits), Signal()  # written last cycle
-        hit1_q = Signal()   # the event one ahead has the same bin
-        hit2_q = Signal()   # ... two ahead
-        hit3_q = Signal()   # ... three ahead
-        hit4_q = Signal()   # ... four ahead
-        def same(valid, bin, bank):
-            return valid_d & valid & (bin_d == bin) & (bank_d == bank)
-        m.d.sync += [
-            valid_d.eq(valid_r),
-            bin_d.eq(bin_r),
-            bank_d.eq(bank_r),
-            valid_q.eq(valid_d),
-            bin_q.eq(bin_d),
-            bank_q.eq(bank_d),
-            hit1_q.eq(same(valid_q, bin_q, bank_q)),
-            hit2_q.eq(same(valid_e, bin_e, bank_e)),
-            hit3_q.eq(same(valid_w, bin_w, bank_w)),
-            hit4_q.eq(same(valid_x, bin_x, bank_x)),
-            valid_x.eq(valid_w),
-            bin_x.eq(bin_w),
-            bank_x.eq(bank_w),
-        ]
-
-        # Stage D: RAM data out, registered as it is (the block RAM's slow output drives nothing
-        # else of the pipeline).
-        # Stage Q: the registered RAM word. `written` holds the count of the event two ahead,
-        # `written_before` that of the event three ahead, `written_before2` four ahead: on a
-        # match they replace the stale RAM word.
-        stored = [Signal(self.count_width, name=f"stored{k}") for k in range(2)]
-        m.d.sync += [stored[k].eq(ports[k][0].data) for k in range(2)]
-        written = Signal(self.count_width)
-        written_before = Signal(self.count_width)
-        written_before2 = Signal(self.count_width)
-        base_e = Signal(self.count_width)
-        hit1_e = Signal()
-        m.d.sync += [
-            valid_e.eq(valid_q),
-            bin_e.eq(bin_q),
-            bank_e.eq(bank_q),
-            base_e.eq(Mux(hit2_q, written,
-                          Mux(hit3_q, written_before,
-                              Mux(hit4_q, written_before2,
-                                  Mux(bank_q, stored[1], stored[0]))))),
-            hit1_e.eq(hit1_q),
-        ]
-
-        # Stage E: increment, saturating. `written` now holds the count of the event one ahead.
-        # Both candidates are incremented side by side and the forwarding choice comes last, so
-        # the loop through `written` is one increment and one LUT.
-        new = Signal(self.count_width)
-        m.d.comb += new.eq(Mux(hit1_e, _increment(m, written, self.count_width, "written"),
-                               _increment(m, base_e, self.count_width, "base")))
-        m.d.sync += [
-            written.eq(new),
-            written_before.eq(written),
-            written_before2.eq(written_before),
-            valid_w.eq(valid_e),
-            bin_w.eq(bin_e),
-            bank_w.eq(bank_e),
-        ]
-
-        # Stage W: the RAM write, from registers (`written` is the data).
-
-        # RAM ports, driven from registers: the pipeline uses the bank its event was tagged
-        # with, the readout the other one.
-        for k, (read_port, write_port) in enumerate(ports):
-            read_address = Signal(self.bank_bits, name=f"read_address{k}")
-            read_enable = Signal(name=f"read_enable{k}")
-            write_address = Signal(self.bank_bits, name=f"write_address{k}")
-            write_enable = Signal(name=f"write_enable{k}")
-            write_zero = Signal(name=f"write_zero{k}")
-            with m.If(self.valid & (self.bank == k)):
-                m.d.sync += read_address.eq(self.bin), read_enable.eq(1)
-            with m.Elif(self.readout_read & (self.readout_bank == k)):
-                m.d.sync += read_address.eq(self.readout_index), read_enable.eq(1)
-            with m.Else():
-                m.d.sync += read_enable.eq(0)
-            with m.If(valid_e & (bank_e == k)):
-                m.d.sync += write_address.eq(bin_e), write_enable.eq(1), write_zero.eq(0)
-            with m.Elif(self.readout_clear & (self.readout_bank == k)):
-                m.d.sync += [write_address.eq(self.readout_index), write_enable.eq(1),
-                             write_zero.eq(1)]
-            with m.Else():
-                m.d.sync += write_enable.eq(0)
-            m.d.comb += [
-                read_port.addr.eq(read_address),
-                read_port.en.eq(read_enable),
-                write_port.addr.eq(write_address),
-                write_port.en.eq(write_enable),
-                write_port.data.eq(Mux(write_zero, 0, written)),
-            ]
-
-        # The block RAM's output is slow: the readout takes the word where the pipeline
-        # registers it.
-        m.d.comb += self.word.eq(Mux(self.readout_bank, stored[1], stored[0]))
-
-        return m
 
 
 class SinglePortBanks(wiring.Component):

@@ -4,14 +4,17 @@ from amaranth.hdl import Module, Signal
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
+from .histogram_dual import READ_STAGES
 from .histogram_layout import readout_layout
 
 
-__all__ = ["READOUT_CYCLES_PER_BIN", "BankReadout"]
+__all__ = ["SETTLE", "READOUT_CYCLES_PER_BIN", "BankReadout"]
 
 
+#: Cycles the readout waits after a read for the word (the dual-port banks' read stages).
+SETTLE = READ_STAGES
 #: Clock cycles per bin on ``readout`` when its consumer is always ready (both RAM kinds).
-READOUT_CYCLES_PER_BIN = 4
+READOUT_CYCLES_PER_BIN = 4 + SETTLE
 
 
 class BankReadout(wiring.Component):
@@ -20,7 +23,8 @@ class BankReadout(wiring.Component):
 
     After a swap it waits ``latency`` cycles for the last events of the frame to leave the
     pipeline, then for each bin sets the bank's read address (ADDRESS), sets a clearing write
-    (READ), takes the word (CAPTURE) and presents it on ``readout`` (PRESENT) until transferred:
+    (READ), takes the word (CAPTURE, :data:`SETTLE` + 1 cycles: the dual-port banks' word comes
+    through their read stages) and presents it on ``readout`` (PRESENT) until transferred:
     :data:`READOUT_CYCLES_PER_BIN` cycles per bin.
 
     Parameters
@@ -32,8 +36,9 @@ class BankReadout(wiring.Component):
     latency : int
         Most cycles from an event's arrival to the RAM write of its bin.
     capture : bool
-        Register ``word`` in CAPTURE (single-port banks, whose output after a write cycle is not
-        the word read); otherwise ``word`` holds from CAPTURE until the next read of the bank.
+        Register ``word`` in the first cycle of CAPTURE (single-port banks, whose output after a
+        write cycle is not the word read); otherwise ``word`` holds from the last cycle of
+        CAPTURE until the next read of the bank.
 
     Members
     -------
@@ -77,6 +82,7 @@ class BankReadout(wiring.Component):
 
         read_index = self.index
         read_last = Signal()
+        settle = Signal(range(SETTLE + 1))
         if self.capture:
             present_count = Signal.like(self.word, name="read_count")
         else:
@@ -104,10 +110,15 @@ class BankReadout(wiring.Component):
                 m.d.comb += self.clear.eq(1)
                 m.next = "CAPTURE"
             with m.State("CAPTURE"):
-                # the word read in READ (with single-port banks: never the output after a write)
+                # the word read in READ (with single-port banks: never the output after a
+                # write), then SETTLE cycles more (with dual-port banks: the word on its way)
                 if self.capture:
-                    m.d.sync += present_count.eq(self.word)
-                m.next = "PRESENT"
+                    with m.If(settle == 0):
+                        m.d.sync += present_count.eq(self.word)
+                m.d.sync += settle.eq(settle + 1)
+                with m.If(settle >= SETTLE):
+                    m.d.sync += settle.eq(0)
+                    m.next = "PRESENT"
             with m.State("PRESENT"):
                 m.d.comb += [
                     self.readout.valid.eq(1),

@@ -189,9 +189,9 @@ def hits(valid, timestamps, shift, apart):
 
 
 def test_one_event_per_clock_matches_model():
-    # 8192 bins in RAM, shift 5: 256 bins read out per frame, 768 cycles of readout per frame.
+    # 8192 bins in RAM, shift 5: 256 bins read out per frame, 1536 cycles of readout per frame.
     rng = np.random.default_rng(2019)
-    cycles, integration, shift = 6_000, 1_500, 5
+    cycles, integration, shift = 6_000, 1_800, 5
     valid, timestamps = hazard_stimulus(rng, cycles, bins=256, shift=shift, gaps=False)
     dut = Histogram(bank_bits=BANK_BITS)
     frames, result = run_histogram(dut, valid, timestamps, integration=integration, shift=shift)
@@ -207,7 +207,7 @@ def test_single_port_every_other_clock_matches_model():
     # Single-port banks, 8192 bins, shift 5, events two to six cycles apart (mostly two): same
     # bin back to back (forwarded or from the RAM, depending on the read slots), A,B,A, runs.
     rng = np.random.default_rng(2020)
-    integration, shift = 1_500, 5
+    integration, shift = 1_800, 5
     valid, timestamps = hazard_stimulus(rng, 3_000, bins=256, shift=shift, gaps=False)
     valid, timestamps = spaced(rng, valid, timestamps)
     dut = Histogram(bank_bits=BANK_BITS, ram="single")
@@ -247,7 +247,7 @@ def test_gaps_overflow_and_slow_reader(ram):
 def test_disable_on_frame_boundary(ram):
     # enable falls exactly where a frame starts: that frame is read out empty, in the model too
     rng = np.random.default_rng(5)
-    cycles, integration, shift = 1 + 3 * 600, 600, 6
+    cycles, integration, shift = 1 + 3 * 900, 900, 6
     valid, timestamps = hazard_stimulus(rng, cycles, bins=128, shift=shift, gaps=False)
     if ram == "single":
         valid, timestamps = spaced(rng, valid, timestamps, length=cycles)
@@ -296,7 +296,7 @@ def test_counts_saturate(ram):
         ctx.set(dut.enable, 0)
         ctx.set(dut.readout.ready, 1)
         counts = []
-        for _ in range(100):
+        for _ in range(200):
             _, _, got, count, last = await ctx.tick().sample(
                 dut.readout.valid, dut.readout.payload.count, dut.readout.payload.last)
             if got:
@@ -321,7 +321,7 @@ def test_busy_reader_drops_are_counted(ram):
     # drops and counts the events that arrive meanwhile, and every frame holds exactly the
     # events of its own fill window.
     rng = np.random.default_rng(3)
-    cycles, integration, shift = 3_000, 600, 6
+    cycles, integration, shift = 4_200, 900, 6
     valid, timestamps = hazard_stimulus(rng, cycles, bins=128, shift=shift, gaps=False)
     if ram == "single":
         valid, timestamps = spaced(rng, valid, timestamps, length=cycles)
@@ -339,7 +339,7 @@ def test_busy_reader_drops_are_counted(ram):
 
     def stall_at(cycle):
         cycle -= dut.init_cycles
-        return not (700 <= cycle < 1_000 or 1_500 <= cycle < 1_800)
+        return not (700 <= cycle < 1_200 or 2_800 <= cycle < 3_200)
 
     frames, result = run_histogram(dut, valid, timestamps, integration=integration, shift=shift,
                                    ready=stall_at, probe=probe)
@@ -359,7 +359,7 @@ def test_busy_reader_drops_are_counted(ram):
         np.testing.assert_array_equal(counts, want.ravel())
     counted = sum(int(f.sum()) for f, _ in frames)
     expected_drops = int(np.count_nonzero(valid & ~filling[:cycles]))
-    assert result["dropped"] == expected_drops > (300 if ram == "dual" else 150)
+    assert result["dropped"] == expected_drops > (300 if ram == "dual" else 100)
     assert result["dropped_busy"] == 0
     assert counted + result["dropped"] == int(valid.sum())
 
@@ -369,7 +369,7 @@ def test_single_port_events_too_close_are_counted():
     # the engine takes an event unless it took one in the cycle before; the others are counted
     # in `dropped_busy` and `dropped`. The frames hold exactly the events taken.
     rng = np.random.default_rng(11)
-    cycles, integration, shift, bank_bits = 3_000, 700, 0, 7
+    cycles, integration, shift, bank_bits = 3_000, 900, 0, 7
     _, timestamps = hazard_stimulus(rng, cycles, bins=128, shift=shift, gaps=False)
     valid = rng.random(cycles) < 0.6            # many events one cycle apart, runs of them too
     valid[rng.integers(cycles, size=20)] = False
@@ -399,7 +399,7 @@ def test_single_port_clears_banks_after_reset():
     # `enable` high from reset: the first frame starts once the banks are cleared, as if
     # `enable` rose in cycle `init_cycles`; events before are dropped; no garbage is read out.
     rng = np.random.default_rng(13)
-    integration, shift, bank_bits = 600, 0, 7
+    integration, shift, bank_bits = 900, 0, 7
     dut = Histogram(bank_bits=bank_bits, ram="single")
     start = dut.init_cycles
     assert start == 128

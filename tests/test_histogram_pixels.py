@@ -44,13 +44,13 @@ def pixel_stimulus(rng, cycles, *, shift, pixel_bits, first_pixel, outside=0.15,
 
 
 SPLITS = [
-    # bank_bits, pixel_bits, first_pixel, shift, integration (the readout of a frame, 4
+    # bank_bits, pixel_bits, first_pixel, shift, integration (the readout of a frame, 6
     # cycles a bin, ends before the next frame does)
-    (16, 6, 0, 10, 2_200),     # 64 pixels of 8 bins: the whole sensor
+    (16, 6, 0, 10, 3_300),     # 64 pixels of 8 bins: the whole sensor
     (16, 2, 7, 8, 1_000),      # 4 pixels of 32 bins from address 7
     (16, 0, 37, 7, 800),       # one pixel of 64 bins: the paper's bench
     (14, 3, 56, 9, 900),       # the last 8 addresses (the iCEBreaker's bank)
-    (9, 4, 20, 8, 2_200),      # 16 pixels of 32 bins: a 9-bit bank, full
+    (9, 4, 20, 8, 3_300),      # 16 pixels of 32 bins: a 9-bit bank, full
 ]
 
 
@@ -91,7 +91,7 @@ def test_split_that_does_not_fit(ram, bank_bits, pixel_bits, shift):
     # A split too large for the bank (the register file refuses it; the engine is defined
     # anyway): 2**q pixels of 2**b bins, the rest counted in overflow and dropped_pixel.
     rng = np.random.default_rng(bank_bits)
-    integration = 1_200
+    integration = 1_700
     valid, timestamps, addresses = pixel_stimulus(rng, 3 * integration, shift=shift,
                                                   pixel_bits=pixel_bits, first_pixel=0,
                                                   ram=ram)
