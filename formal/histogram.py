@@ -186,12 +186,13 @@ class HistogramHarness(wiring.Component):
         stages = [assigned(module, "valid1", "bank1"), assigned(module, "valid2", "bank2")]
         valid, bank = assigned(banks, "valid_r", "bank_r")
         stages.append((valid, bank))
-        for _ in "dqew":    # (stages D, Q, E, W: registered copies of R's)
-            valid, bank = copy_of(banks, valid), copy_of(banks, bank)
+        while len(stages) < dut.latency:    # (stages D, the read stages, Q, E, W: registered
+            valid, bank = copy_of(banks, valid), copy_of(banks, bank)   # copies of R's)
             stages.append((valid, bank))
         if self.mutate is None:
             for age, (valid, bank) in enumerate(stages, start=1):
-                m.d.comb += Assert(~(valid & (bank == read_bank)) | (drain >= 8 - age))
+                m.d.comb += Assert(~(valid & (bank == read_bank)) |
+                                   (drain >= dut.latency + 1 - age))
             m.d.comb += [
                 Assert(reader_state < 5),
                 Assert(is_reading("IDLE") | ((drain == 0) & dut.pending)),
@@ -244,20 +245,21 @@ class HistogramHarness(wiring.Component):
 
 
 PROOFS = [
-    Proof("histogram.counted_once", lambda: HistogramHarness("count"), "bmc", 30,
-          "histogram: every event counted once, in a bin read out, dropped or overflow",
-          mutant=lambda: HistogramHarness("count", _counted_twice), mutant_depth=20),
+    Proof("histogram.counted_once", lambda: HistogramHarness("count"), "bmc", 40,
+          "histogram: every event counted once, in a bin read out, dropped, dropped_pixel or "
+          "overflow",
+          mutant=lambda: HistogramHarness("count", _counted_twice), mutant_depth=26),
     Proof("histogram.readout_bank", lambda: HistogramHarness("bank"), "prove", 4,
           "histogram: no event is counted into the bank being read out",
           mutant=lambda: HistogramHarness("bank", _count_into_readout), cover_depth=24),
     Proof("histogram.counted_once_single",
           lambda: HistogramHarness("count", ram="single", max_integration=SINGLE_INTEGRATION),
-          "bmc", 34,
+          "bmc", 42,
           "histogram, single-port banks: every event counted once, in a bin read out, "
-          "overflow, dropped_busy or dropped",
+          "overflow, dropped_pixel, dropped_busy or dropped",
           mutant=lambda: HistogramHarness("count", _single_counted_twice, ram="single",
                                          max_integration=SINGLE_INTEGRATION),
-          mutant_depth=20),
+          mutant_depth=26),
     Proof("histogram.readout_bank_single", lambda: HistogramHarness("bank", ram="single"),
           "prove", 4,
           "histogram, single-port banks: no event is counted into the bank being read out",

@@ -49,15 +49,17 @@ class Histogram(wiring.Component):
 
     Dual-port banks (``ram="dual"``)
     ~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~
-    Each bank is an :class:`amaranth.lib.memory.Memory` with a read port and a write port (block
-    RAM). ``events`` is always ready: the engine takes one event in every clock cycle, also when
-    consecutive events hit the same bin. Each event goes through a pipeline of :data:`LATENCY`
-    stages, each with little logic, for timing on small FPGAs: pixel offset, range and window
-    checks with the coarse shift and the pixel's place in the bank, fine shift to the flat index, block RAM read, RAM word registered as it leaves the block RAM,
-    forwarding, saturating increment, block RAM write (every RAM input comes from a register).
-    A read misses the writes of the four events ahead of it, so their bins are compared with its
-    own; on a match the event takes the newest of their counts (forwarding) instead of the stale
-    RAM word.
+    Each bank is blocks of 1024 words, :class:`amaranth.lib.memory.Memory` with a read port and
+    a write port (block RAM; :class:`~fliss.hdl.histogram_dual.DualPortBanks`). ``events`` is
+    always ready: the engine takes one event in every clock cycle, also when consecutive events
+    hit the same bin. Each event goes through a pipeline of :data:`LATENCY` stages, each with
+    little logic, for timing: pixel offset; range and window checks with the coarse shift and
+    the pixel's place in the bank; fine shift to the flat index; block RAM read; each block's
+    word registered as it leaves its block RAM, then OR-ed in a registered tree (a bank of 64
+    blocks spans the chip); forwarding; saturating increment; block RAM write (every RAM input
+    comes from a register). A read misses the writes of the six events ahead of it, so their
+    bins are compared with its own; on a match the event takes the newest of their counts
+    (forwarding) instead of the stale RAM word.
 
     Single-port banks (``ram="single"``)
     ~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~~
@@ -107,12 +109,13 @@ class Histogram(wiring.Component):
     ~~~~~~~
     A full bank is read out in flat index order, ``0 … P N - 1`` (pixel after pixel, each
     bin after bin); ``last`` marks the frame's final bin. ``readout_shift``,
-    ``readout_pixel_bits`` and ``readout_first_pixel`` give the frame's settings meanwhile. Each bin is cleared as it is transferred, so the
-    bank is empty when it fills again. The readout starts once the last events of the frame have
-    left the pipeline and takes at least :data:`READOUT_CYCLES_PER_BIN` cycles per bin (both RAM
-    kinds: one read and one clearing write per bin), so frames follow each other without dead
-    time if ``integration`` is at least ``4 P N +`` :attr:`latency` ``+ 3`` cycles plus the
-    time the consumer holds ``ready`` low.
+    ``readout_pixel_bits`` and ``readout_first_pixel`` give the frame's settings meanwhile.
+    Each bin is cleared as it is transferred, so the bank is empty when it fills again. The
+    readout starts once the last events of the frame have left the pipeline and takes at least
+    :data:`READOUT_CYCLES_PER_BIN` (6) cycles per bin (both RAM kinds: one read, one clearing
+    write and the word's way through the read stages per bin), so frames follow each other
+    without dead time if ``integration`` is at least ``6 P N +`` :attr:`latency` ``+ 3`` cycles
+    plus the time the consumer holds ``ready`` low.
 
     Parameters
     ----------

@@ -530,7 +530,7 @@ def test_model_by_hand():
 @pytest.mark.parametrize("ram", ["dual", "single"])
 def test_shortest_frame_without_dead_time(ram):
     # With a reader that is always ready, frames follow each other without dead time if
-    # `integration` is at least 4 n + latency + 3 cycles (n bins read out), and not with one
+    # `integration` is at least 6 n + latency + 3 cycles (n bins read out), and not with one
     # cycle less: `latency` and `readout_cycles_per_bin` are what the gateware does.
     dut = Histogram(bank_bits=4, ram=ram)
     shortest = dut.readout_cycles_per_bin * 16 + dut.latency + 3
