@@ -1,12 +1,13 @@
 """Formal harnesses of the histogram engine (``hdl/histogram.py`` with its frame sequencer,
-banks and readout), with small parameters: two bins (``bin_bits = 1``), 16-bit counts,
+banks and readout), with small parameters: two bins (``bank_bits = 1``), 16-bit counts,
 dual-port or single-port banks, frames of one to :data:`MAX_INTEGRATION` cycles (the
 single-port accounting: :data:`SINGLE_INTEGRATION`). Without a platform the single-port banks
 are the generic model of ``hdl/spram.py`` (a :class:`~amaranth.lib.memory.Memory`), not an
 ``SB_SPRAM256KA`` black box.
 
-Inputs are free in every cycle: events (any timestamp), ``enable``, the settings (within the
-register file's ranges) and the readout's backpressure; ``clear`` stays low (it resets the drop
+Inputs are free in every cycle: events (any timestamp and address), ``enable``, the settings
+(within the register file's ranges: any pixel split, fitting the bank or not) and the readout's
+backpressure; ``clear`` stays low (it resets the drop
 counters, which the accounting reads). Mutants override a block's own statements
 (:func:`._harness.open_block`).
 """
@@ -16,7 +17,7 @@ from amaranth.lib import wiring
 from amaranth.lib.wiring import In
 
 from fliss.hdl.histogram import Histogram
-from fliss.hdl.histogram_layout import MAX_SHIFT, HistogramSettings
+from fliss.hdl.histogram_layout import MAX_SHIFT, PIXEL_BITS, HistogramSettings
 
 from ._harness import assigned, copy_of, fsm, open_block, open_submodule, past
 from .runner import Proof
@@ -31,6 +32,9 @@ SINGLE_INTEGRATION = 3
 
 #: Timestamp width of the harness: enough for both bins and overflow above them.
 TIMESTAMP_BITS = 3
+
+#: Address width of the harness: pixels 0 … 3 (a frame of the 1-bit bank holds at most two).
+ADDRESS_BITS = 2
 
 #: Width of the harness's event accounting (no wrap within the BMC depth).
 TALLY_WIDTH = 6
@@ -77,16 +81,19 @@ class HistogramHarness(wiring.Component):
     """The histogram engine on free inputs.
 
     ``check`` is ``"count"``: whenever the engine is at rest (no frame filling or waiting to be
-    read out, for a cycle), the events that arrived equal the counts read out plus ``dropped``
-    and ``overflow``: every event is counted exactly once; or ``"bank"``: no event is ever
+    read out, for a cycle), the events that arrived equal the counts read out plus ``dropped``,
+    ``dropped_pixel`` and ``overflow``: every event is counted exactly once; or ``"bank"``: no event is ever
     counted into the bank being read out. ``ram`` is the banks' kind (``Histogram``'s
     parameter); with ``"single"`` the accounting splits the events by whether a frame was
     filling when they arrived (those counted in a bin, in ``overflow`` or in ``dropped_busy``,
-    the others in the rest of ``dropped``), one cycle late (the drop counters are).
+    the others in the rest of ``dropped``), one cycle late (the drop counters are). Pixel
+    addresses are narrowed to :data:`ADDRESS_BITS` (below and at the bank's pixels, and past
+    them; the first pixel is free too).
     """
 
     events_valid: In(1)
     timestamp:    In(13)
+    address:      In(PIXEL_BITS)
     enable:       In(1)
     settings:     In(HistogramSettings)
     ready:        In(1)
@@ -98,13 +105,14 @@ class HistogramHarness(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
-        dut = Histogram(bin_bits=1, count_width=16, ram=self.ram)
+        dut = Histogram(bank_bits=1, count_width=16, ram=self.ram)
         m.submodules.dut = module = open_block(dut, platform=platform)
         storage, banks = open_submodule(module, "storage", self.mutate, platform)
         reader, readout = open_submodule(module, "reader", platform=platform)
         m.d.comb += [
             dut.events.valid.eq(self.events_valid),
             dut.events.payload.timestamp.eq(self.timestamp),
+            dut.events.payload.address.eq(self.address),
             dut.enable.eq(self.enable),
             dut.settings.eq(self.settings),
             dut.readout.ready.eq(self.ready),
@@ -113,6 +121,9 @@ class HistogramHarness(wiring.Component):
             Assume(self.settings.integration <= self.max_integration),
             Assume(self.settings.bin_shift <= MAX_SHIFT),
             Assume(self.timestamp < (1 << TIMESTAMP_BITS)),
+            Assume(self.address < (1 << ADDRESS_BITS)),
+            Assume(self.settings.first_pixel < (1 << ADDRESS_BITS)),
+            Assume(self.settings.pixel_bits <= PIXEL_BITS),
         ]
 
         if self.check == "count":
@@ -137,13 +148,15 @@ class HistogramHarness(wiring.Component):
             Cover(rest & (read == 2)),          # two events in one frame, read out
             Cover(rest & (dut.overflow != 0)),
             Cover(rest & (dut.dropped != 0)),
+            Cover(rest & (dut.dropped_pixel != 0)),
+            Cover(rest & (read == 2) & (self.settings.pixel_bits == 1)),   # two pixels
         ]
         if self.ram == "dual":
             arrived = Signal(TALLY_WIDTH)
             with m.If(dut.events.valid):
                 m.d.sync += arrived.eq(arrived + 1)
             balance = Signal(TALLY_WIDTH)
-            m.d.comb += balance.eq(read + dut.dropped + dut.overflow)
+            m.d.comb += balance.eq(read + dut.dropped + dut.dropped_pixel + dut.overflow)
             m.d.comb += Assert(~rest | (arrived == balance))
             return
         # single-port banks: the drop counters count an event one cycle after its arrival
@@ -157,7 +170,7 @@ class HistogramHarness(wiring.Component):
             m.d.sync += arrived_idle.eq(arrived_idle + 1)
         counted, idle = Signal(TALLY_WIDTH), Signal(TALLY_WIDTH)
         m.d.comb += [
-            counted.eq(read + dut.overflow + dut.dropped_busy),
+            counted.eq(read + dut.overflow + dut.dropped_pixel + dut.dropped_busy),
             idle.eq(dut.dropped - dut.dropped_busy),
             Assert(dut.dropped_busy <= dut.dropped),
             Assert(~rest | ((arrived_filling == counted) & (arrived_idle == idle))),
@@ -173,12 +186,13 @@ class HistogramHarness(wiring.Component):
         stages = [assigned(module, "valid1", "bank1"), assigned(module, "valid2", "bank2")]
         valid, bank = assigned(banks, "valid_r", "bank_r")
         stages.append((valid, bank))
-        for _ in "dqew":    # (stages D, Q, E, W: registered copies of R's)
-            valid, bank = copy_of(banks, valid), copy_of(banks, bank)
+        while len(stages) < dut.latency:    # (stages D, the read stages, Q, E, W: registered
+            valid, bank = copy_of(banks, valid), copy_of(banks, bank)   # copies of R's)
             stages.append((valid, bank))
         if self.mutate is None:
             for age, (valid, bank) in enumerate(stages, start=1):
-                m.d.comb += Assert(~(valid & (bank == read_bank)) | (drain >= 8 - age))
+                m.d.comb += Assert(~(valid & (bank == read_bank)) |
+                                   (drain >= dut.latency + 1 - age))
             m.d.comb += [
                 Assert(reader_state < 5),
                 Assert(is_reading("IDLE") | ((drain == 0) & dut.pending)),
@@ -231,20 +245,21 @@ class HistogramHarness(wiring.Component):
 
 
 PROOFS = [
-    Proof("histogram.counted_once", lambda: HistogramHarness("count"), "bmc", 30,
-          "histogram: every event counted once, in a bin read out, dropped or overflow",
-          mutant=lambda: HistogramHarness("count", _counted_twice), mutant_depth=20),
+    Proof("histogram.counted_once", lambda: HistogramHarness("count"), "bmc", 40,
+          "histogram: every event counted once, in a bin read out, dropped, dropped_pixel or "
+          "overflow",
+          mutant=lambda: HistogramHarness("count", _counted_twice), mutant_depth=26),
     Proof("histogram.readout_bank", lambda: HistogramHarness("bank"), "prove", 4,
           "histogram: no event is counted into the bank being read out",
           mutant=lambda: HistogramHarness("bank", _count_into_readout), cover_depth=24),
     Proof("histogram.counted_once_single",
           lambda: HistogramHarness("count", ram="single", max_integration=SINGLE_INTEGRATION),
-          "bmc", 34,
+          "bmc", 42,
           "histogram, single-port banks: every event counted once, in a bin read out, "
-          "overflow, dropped_busy or dropped",
+          "overflow, dropped_pixel, dropped_busy or dropped",
           mutant=lambda: HistogramHarness("count", _single_counted_twice, ram="single",
                                          max_integration=SINGLE_INTEGRATION),
-          mutant_depth=20),
+          mutant_depth=26),
     Proof("histogram.readout_bank_single", lambda: HistogramHarness("bank", ram="single"),
           "prove", 4,
           "histogram, single-port banks: no event is counted into the bank being read out",

@@ -12,6 +12,7 @@ from .protocol import (PROTOCOL_VERSION, GATEWARE_MAJOR, GATEWARE_MINOR, PacketT
                        CONSISTENCY)
 from .regfile import RegisterFile
 from .registers import REGISTERS, register_maxima
+from .settings import BANK_BITS
 
 
 __all__ = ["StatusSignature", "CommandProcessor"]
@@ -53,6 +54,9 @@ class CommandProcessor(wiring.Component):
         Register name -> a lower maximum than the register map's, for a build that lacks a
         feature (``{"aggressor_delay_mode": 0}`` without the aggressor's delay source). A value
         above it is refused as out of range.
+    bank_bits : int
+        Width of the histogram bank's address, for the pixel split check (a split that does
+        not fit is refused as inconsistent) and the identity.
 
     Members
     -------
@@ -76,12 +80,15 @@ class CommandProcessor(wiring.Component):
         refused with a NAK.
     """
 
-    def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, baud=115_200, maxima=None):
+    def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, baud=115_200, maxima=None,
+                 bank_bits=BANK_BITS):
         self.clock_hz = int(clock_hz)
         self.baud = int(baud)
         self.maxima = register_maxima(maxima, self.clock_hz)
         #: The register file (:class:`~fliss.hdl.regfile.RegisterFile`), a submodule.
-        self.registers = RegisterFile(clock_hz=self.clock_hz, maxima=self.maxima)
+        self.registers = RegisterFile(clock_hz=self.clock_hz, maxima=self.maxima,
+                                      bank_bits=bank_bits)
+        self.bank_bits = self.registers.bank_bits
         super().__init__({
             "packets":         In(stream.Signature(PacketBeat)),
             "replies":         Out(stream.Signature(PacketBeat)),
@@ -347,7 +354,8 @@ class CommandProcessor(wiring.Component):
         major, minor = GATEWARE_MAJOR, GATEWARE_MINOR
         identity = Const({"protocol": PROTOCOL_VERSION, "gateware_major": major,
                           "gateware_minor": minor, "registers": len(REGISTERS),
-                          "clock_hz": self.clock_hz, "baud": self.baud}, Identity)
+                          "clock_hz": self.clock_hz, "baud": self.baud,
+                          "bank_bits": self.bank_bits}, Identity)
         m.d.comb += [
             replies.p.header.type.eq(reply_type),
             replies.p.header.length.eq(reply_length),

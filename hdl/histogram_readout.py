@@ -4,35 +4,41 @@ from amaranth.hdl import Module, Signal
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
+from .histogram_dual import READ_STAGES
 from .histogram_layout import readout_layout
 
 
-__all__ = ["READOUT_CYCLES_PER_BIN", "BankReadout"]
+__all__ = ["SETTLE", "READOUT_CYCLES_PER_BIN", "BankReadout"]
 
 
+#: Cycles the readout waits after a read for the word (the dual-port banks' read stages).
+SETTLE = READ_STAGES
 #: Clock cycles per bin on ``readout`` when its consumer is always ready (both RAM kinds).
-READOUT_CYCLES_PER_BIN = 4
+READOUT_CYCLES_PER_BIN = 4 + SETTLE
 
 
 class BankReadout(wiring.Component):
-    """Reads the full bank of :class:`~fliss.hdl.histogram.Histogram` out in bin order.
+    """Reads the full bank of :class:`~fliss.hdl.histogram.Histogram` out in flat index order
+    (pixel after pixel, bin after bin), up to the frame's ``last`` index.
 
     After a swap it waits ``latency`` cycles for the last events of the frame to leave the
     pipeline, then for each bin sets the bank's read address (ADDRESS), sets a clearing write
-    (READ), takes the word (CAPTURE) and presents it on ``readout`` (PRESENT) until transferred:
+    (READ), takes the word (CAPTURE, :data:`SETTLE` + 1 cycles: the dual-port banks' word comes
+    through their read stages) and presents it on ``readout`` (PRESENT) until transferred:
     :data:`READOUT_CYCLES_PER_BIN` cycles per bin.
 
     Parameters
     ----------
-    bin_bits : int
-        Width of the bin index.
+    bank_bits : int
+        Width of a bank's word address (the flat index).
     count_width : int
         Width of a bin count.
     latency : int
         Most cycles from an event's arrival to the RAM write of its bin.
     capture : bool
-        Register ``word`` in CAPTURE (single-port banks, whose output after a write cycle is not
-        the word read); otherwise ``word`` holds from CAPTURE until the next read of the bank.
+        Register ``word`` in the first cycle of CAPTURE (single-port banks, whose output after a
+        write cycle is not the word read); otherwise ``word`` holds from the last cycle of
+        CAPTURE until the next read of the bank.
 
     Members
     -------
@@ -40,35 +46,35 @@ class BankReadout(wiring.Component):
         The banks swap in this cycle.
     full : In(1)
         The read bank holds a completed frame.
-    last : In(bin_bits)
-        Last bin of the read bank's readout.
+    last : In(bank_bits)
+        Last flat index of the read bank's readout.
     word : In(count_width)
         The word the read bank gives for the bin read.
-    index : Out(bin_bits)
-        Bin being read out.
+    index : Out(bank_bits)
+        Flat index being read out.
     address : Out(1)
         The read bank reads ``index`` (set up in this cycle).
     clear : Out(1)
         The read bank writes zero to ``index`` (set up in this cycle).
     done : Out(1)
         The last bin is transferred: the read bank is free.
-    readout : Out(stream.Signature(readout_layout(bin_bits, count_width)))
+    readout : Out(stream.Signature(readout_layout(bank_bits, count_width)))
         Bins of the frame: ``index``, ``count``, ``last``.
     """
 
-    def __init__(self, bin_bits, count_width, *, latency, capture):
+    def __init__(self, bank_bits, count_width, *, latency, capture):
         self.latency = latency
         self.capture = capture
         super().__init__({
             "swap":    In(1),
             "full":    In(1),
-            "last":    In(bin_bits),
+            "last":    In(bank_bits),
             "word":    In(count_width),
-            "index":   Out(bin_bits),
+            "index":   Out(bank_bits),
             "address": Out(1),
             "clear":   Out(1),
             "done":    Out(1),
-            "readout": Out(stream.Signature(readout_layout(bin_bits, count_width))),
+            "readout": Out(stream.Signature(readout_layout(bank_bits, count_width))),
         })
 
     def elaborate(self, platform):
@@ -76,6 +82,7 @@ class BankReadout(wiring.Component):
 
         read_index = self.index
         read_last = Signal()
+        settle = Signal(range(SETTLE + 1))
         if self.capture:
             present_count = Signal.like(self.word, name="read_count")
         else:
@@ -103,10 +110,15 @@ class BankReadout(wiring.Component):
                 m.d.comb += self.clear.eq(1)
                 m.next = "CAPTURE"
             with m.State("CAPTURE"):
-                # the word read in READ (with single-port banks: never the output after a write)
+                # the word read in READ (with single-port banks: never the output after a
+                # write), then SETTLE cycles more (with dual-port banks: the word on its way)
                 if self.capture:
-                    m.d.sync += present_count.eq(self.word)
-                m.next = "PRESENT"
+                    with m.If(settle == 0):
+                        m.d.sync += present_count.eq(self.word)
+                m.d.sync += settle.eq(settle + 1)
+                with m.If(settle >= SETTLE):
+                    m.d.sync += settle.eq(0)
+                    m.next = "PRESENT"
             with m.State("PRESENT"):
                 m.d.comb += [
                     self.readout.valid.eq(1),

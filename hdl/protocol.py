@@ -239,13 +239,16 @@ class Nak(data.Struct):
 
 class Identity(data.Struct):
     """Payload of an IDENTITY packet: protocol version, gateware version, number of registers,
-    clock frequency in Hz and baud rate of the board."""
+    clock frequency in Hz and baud rate of the board, and the width of its histogram bank's
+    address, ``bank_bits``: a bank holds ``2**bank_bits`` bins, and a pixel split fits it when
+    ``pixel_bits + 13 - bin_shift <= bank_bits`` (:func:`fliss.hdl.registers.split_problems`)."""
     protocol:       8
     gateware_major: 8
     gateware_minor: 8
     registers:      8
     clock_hz:       32
     baud:           32
+    bank_bits:      8
 
 
 class ReadRequest(data.Struct):
@@ -290,10 +293,12 @@ class Status(data.Struct):
     events:              COUNTER_BITS   # events accepted from the TDC
     dropped_stopped:     COUNTER_BITS   # events while stopped
     dropped_gate:        COUNTER_BITS   # events outside the gate
+    dropped_collision:   COUNTER_BITS   # events flagged as collisions, dropped by the setting
     dropped_overflow:    COUNTER_BITS   # coarse TDC: photon beyond the timestamp range
     dropped_overrun:     COUNTER_BITS   # events faster than the interface can take
     dropped_fifo:        COUNTER_BITS   # raw mode: events dropped at the full FIFO
     dropped_histogram:   COUNTER_BITS   # histogram mode: events while no frame was filling
+    dropped_pixel:       COUNTER_BITS   # histogram mode: events of an address outside the frame
     histogram_overflow:  COUNTER_BITS   # histogram mode: events beyond the last bin
     uart_framing_errors: COUNTER_BITS   # bytes with a bad stop bit
     uart_overruns:       COUNTER_BITS   # bytes lost because the receiver was full

@@ -8,7 +8,8 @@ from . import DEFAULT_CLOCK_HZ, lookup
 from .protocol import NakCode
 from .registers import (REGISTERS, GROUPS, DELAY_SETTINGS, KEYING, settings_layout, defaults,
                         register_maxima)
-from .settings import DelayMode, IV_BITS
+from .event import ADDRESS_BITS, TIMESTAMP_BITS
+from .settings import BANK_BITS, MAX_BANK_BITS, MIN_BANK_BITS, DelayMode, IV_BITS
 
 
 __all__ = ["RegisterFile"]
@@ -29,6 +30,10 @@ class RegisterFile(wiring.Component):
     maxima : dict
         Register name -> a lower maximum than the register map's
         (:func:`~fliss.hdl.registers.register_maxima`).
+    bank_bits : int
+        Width of the histogram bank's address, from 13 (the reset split, one pixel of 8192
+        bins, must fit) to 19: a split with ``pixel_bits + 13 - bin_shift > bank_bits`` is
+        inconsistent (:func:`~fliss.hdl.registers.split_problems`).
 
     Members
     -------
@@ -67,7 +72,11 @@ class RegisterFile(wiring.Component):
         The registers of each group of :data:`~fliss.hdl.registers.GROUPS`, as its struct.
     """
 
-    def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, maxima=None):
+    def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, maxima=None, bank_bits=BANK_BITS):
+        if not isinstance(bank_bits, int) or not MIN_BANK_BITS <= bank_bits <= MAX_BANK_BITS:
+            raise ValueError(f"Histogram bank address width must be an integer from "
+                             f"{MIN_BANK_BITS} to {MAX_BANK_BITS} bits, not {bank_bits!r}")
+        self.bank_bits = bank_bits
         self.clock_hz = int(clock_hz)
         self.maxima = register_maxima(maxima, self.clock_hz)
         # Without the keyed source (key and IV held at 0), no IV rule and no `rekey`
@@ -236,6 +245,12 @@ class RegisterFile(wiring.Component):
             return Cat(high[k:k + 4].any() for k in range(0, len(high), 4))
 
         simple = [c.gate_start <= c.gate_end]       # in the first step
+        # The histogram's pixel split: it fits the bank (pixel_bits + 13 - bin_shift <=
+        # bank_bits), and its pixels are addresses of the sensor (first_pixel + 2**pixel_bits
+        # <= 64; the power of two out of a table)
+        pixels = lookup([1 << k for k in range(1 << len(c.pixel_bits))], c.pixel_bits)
+        simple += [c.pixel_bits + TIMESTAMP_BITS <= c.bin_shift + self.bank_bits,
+                   c.first_pixel + pixels <= (1 << ADDRESS_BITS)]
         # The IV rule: an IV written without a key goes above the IV in use
         keying = {r.field: r for r in KEYING.members}
         iv_written = Cat(written[keying[f"iv{k}"].address] for k in range(3)).any()

@@ -23,7 +23,7 @@ from amaranth.lib import data, enum
 
 from . import DEFAULT_PRF_HZ, period_cycles
 from .event import ADDRESS_BITS, TIMESTAMP_BITS
-from .settings import (DelayMode, IV_BITS, KEY_BITS, MIN_LENGTH, MAX_LENGTH, MAX_MASK_WIDTH,
+from .settings import (BANK_BITS, DelayMode, IV_BITS, KEY_BITS, MIN_LENGTH, MAX_LENGTH, MAX_MASK_WIDTH,
                        PERIOD_WIDTH, PULSE_WIDTH_WIDTH)
 
 
@@ -31,7 +31,7 @@ __all__ = ["AcquisitionMode", "TdcSource", "Register", "Setting", "RegisterGroup
            "DELAY_SETTINGS", "VICTIM", "AGGRESSOR", "AGGRESSOR_DELAY", "ACQUISITION", "GATE",
            "HISTOGRAM", "DEPTH", "KEYING", "GROUPS",
            "REGISTERS", "BY_NAME", "BY_ADDRESS", "RECORDED", "DelaySettings", "settings_layout",
-           "register_maxima", "defaults", "problems", "max_delay", "words_of", "value_of",
+           "register_maxima", "defaults", "problems", "split_problems", "max_delay", "words_of", "value_of",
            "iv_problem"]
 
 
@@ -417,8 +417,30 @@ def _delay_problems(group, values):
     return found
 
 
-def problems(values):
-    """Inconsistencies between settings (each register already in range), as messages.
+def split_problems(values, bank_bits=BANK_BITS):
+    """The histogram's pixel split against a bank of ``2**bank_bits`` bins (the build's,
+    :attr:`~fliss.hdl.protocol.Identity` ``bank_bits``), as messages: ``2**pixel_bits`` pixels of
+    ``2**(13 - bin_shift)`` bins must fit the bank, and the pixels ``first_pixel …
+    first_pixel + 2**pixel_bits - 1`` must be addresses of the sensor (below 64)."""
+    pixel_bits, shift, first = values["pixel_bits"], values["bin_shift"], values["first_pixel"]
+    bin_bits = TIMESTAMP_BITS - shift
+    found = []
+    if pixel_bits + bin_bits > bank_bits:
+        found.append(f"pixel_bits ({pixel_bits}) and bin_shift ({shift}) ask for "
+                     f"{1 << pixel_bits} pixels of {1 << bin_bits} bins, more than this "
+                     f"board's histogram bank holds ({1 << bank_bits} bins, bank_bits "
+                     f"{bank_bits}): pixel_bits + 13 - bin_shift must be at most {bank_bits}")
+    pixels = 1 << ADDRESS_BITS
+    if first + (1 << pixel_bits) > pixels:
+        found.append(f"first_pixel ({first}) plus {1 << pixel_bits} pixels (pixel_bits "
+                     f"{pixel_bits}) goes past the last pixel address ({pixels - 1}): "
+                     f"first_pixel + 2**pixel_bits must be at most {pixels}")
+    return found
+
+
+def problems(values, bank_bits=BANK_BITS):
+    """Inconsistencies between settings (each register already in range), as messages;
+    ``bank_bits`` is the build's histogram bank (:func:`split_problems`).
 
     The gateware refuses a write that would leave any of these.
     """
@@ -429,4 +451,5 @@ def problems(values):
     if values["gate_start"] > values["gate_end"]:
         found.append(f"gate_start ({values['gate_start']}) must not be after gate_end "
                      f"({values['gate_end']})")
+    found += split_problems(values, bank_bits)
     return found

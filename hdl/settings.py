@@ -11,7 +11,8 @@ from amaranth.lib import enum
 __all__ = ["MIN_LENGTH", "MAX_LENGTH", "MAX_MASK_WIDTH", "MASKED_LENGTH", "MASKED_STEPS",
            "KEY_BITS", "IV_BITS", "KEYED_ROUNDS", "KEYED_INIT_CYCLES", "KEYED_START_CYCLES",
            "DELAY_WIDTH", "PERIOD_WIDTH",
-           "PULSE_WIDTH_WIDTH", "DelayMode", "check_widths"]
+           "PULSE_WIDTH_WIDTH", "BANK_BITS", "MIN_BANK_BITS", "MAX_BANK_BITS", "DelayMode",
+           "check_widths"]
 
 
 #: Shortest and longest supported register of the m-sequence source, in bits.
@@ -55,6 +56,19 @@ PERIOD_WIDTH = 32
 
 #: Width of the laser pulse width setting, in bits.
 PULSE_WIDTH_WIDTH = 16
+
+
+#: Default width of a histogram bank's word address, ``bank_bits``: a bank of ``2**16`` bins,
+#: 64 pixels of 1024 bins or one of 8192 (the ULX3S build, in block RAM; the iCEBreaker's holds
+#: ``2**14``, one SPRAM per bank). A pixel split fits when ``pixel_bits + 13 - bin_shift <=
+#: bank_bits``.
+BANK_BITS = 16
+
+#: Narrowest bank of a whole board: one pixel of 8192 bins (the registers' reset values).
+MIN_BANK_BITS = 13
+
+#: Widest bank: 64 pixels of 8192 bins.
+MAX_BANK_BITS = 19
 
 
 class DelayMode(enum.Enum, shape=2):

@@ -13,7 +13,7 @@ from .registers import GATE
 
 
 __all__ = ["SYNC_STAGES", "COUNTER_WIDTH", "CAPTURE_LATENCY", "FILTER_LATENCY", "OUTPUT_LATENCY",
-           "MAX_TIMESTAMP",
+           "MAX_TIMESTAMP", "FILTER_COUNTERS",
            "count_event", "Gate", "Capture", "EventFilter", "TdcInterface", "CoarseTdc"]
 
 
@@ -30,9 +30,12 @@ FILTER_LATENCY = 2
 OUTPUT_LATENCY = CAPTURE_LATENCY + 1 + FILTER_LATENCY
 #: Largest timestamp code.
 MAX_TIMESTAMP = (1 << TIMESTAMP_BITS) - 1
+#: The counters of an :class:`EventFilter`, in its order of precedence (``accepted`` first).
+FILTER_COUNTERS = ("accepted", "dropped_stopped", "dropped_overflow", "dropped_collision",
+                   "dropped_gate", "dropped_overrun")
 
-#: The gate of an :class:`EventFilter`: ``start`` and ``end`` in timestamp codes, inclusive
-#: (the register group :data:`~fliss.hdl.registers.GATE`).
+#: The gate of an :class:`EventFilter`: ``start`` and ``end`` in timestamp codes, inclusive, and
+#: ``drop_collisions`` (the register group :data:`~fliss.hdl.registers.GATE`).
 Gate = GATE.layout()
 
 
@@ -83,6 +86,9 @@ class EventFilter(wiring.Component):
 
     * ``dropped_stopped`` if ``captures.enabled`` is low (acquisition stopped);
     * ``dropped_overflow`` if ``captures.overflow`` is high (timestamp beyond 13 bits);
+    * ``dropped_collision`` if ``gate.drop_collisions`` is set and the event's ``collision``
+      flag is (the sensor flags an event whose timestamp it cannot trust: it is dropped for
+      that before its timestamp is compared with the gate);
     * ``dropped_gate`` if its timestamp is outside ``gate.start … gate.end`` (inclusive);
     * ``dropped_overrun`` if the previous event still waits on ``events``;
 
@@ -98,31 +104,32 @@ class EventFilter(wiring.Component):
         An event (``valid``: in this cycle), whether its timestamp overflowed, and whether
         acquisition is running.
     gate : In(Gate)
-        Gate in timestamp codes, ``start … end`` inclusive; by default ``0 … 8191`` (all codes).
-        The layout of the register group :data:`~fliss.hdl.registers.GATE`.
+        Gate in timestamp codes, ``start … end`` inclusive; by default ``0 … 8191`` (all codes);
+        ``drop_collisions``: drop the events flagged as collisions (by default kept). The
+        layout of the register group :data:`~fliss.hdl.registers.GATE`.
     clear : In(1)
         Reset the counters.
     events : Out(stream.Signature(Event))
         Accepted events.
-    accepted, dropped_stopped, dropped_overflow, dropped_gate, dropped_overrun : Out(32)
+    accepted, dropped_stopped, dropped_overflow : Out(32)
+    dropped_collision, dropped_gate, dropped_overrun : Out(32)
         Event counters.
     tally : Out(data.StructLayout)
         One strobe per counter, same names: high in each cycle the counter counts (and when it
         is full), for counters elsewhere.
     """
 
-    captures:         In(Capture)
-    gate:             In(Gate, init={"end": MAX_TIMESTAMP})
-    clear:            In(1)
-    events:           Out(stream.Signature(Event))
-    accepted:         Out(COUNTER_WIDTH)
-    dropped_stopped:  Out(COUNTER_WIDTH)
-    dropped_overflow: Out(COUNTER_WIDTH)
-    dropped_gate:     Out(COUNTER_WIDTH)
-    dropped_overrun:  Out(COUNTER_WIDTH)
-    tally:            Out(data.StructLayout({name: 1 for name in (
-                          "accepted", "dropped_stopped", "dropped_overflow", "dropped_gate",
-                          "dropped_overrun")}))
+    captures:          In(Capture)
+    gate:              In(Gate, init={"end": MAX_TIMESTAMP})
+    clear:             In(1)
+    events:            Out(stream.Signature(Event))
+    accepted:          Out(COUNTER_WIDTH)
+    dropped_stopped:   Out(COUNTER_WIDTH)
+    dropped_overflow:  Out(COUNTER_WIDTH)
+    dropped_collision: Out(COUNTER_WIDTH)
+    dropped_gate:      Out(COUNTER_WIDTH)
+    dropped_overrun:   Out(COUNTER_WIDTH)
+    tally:             Out(data.StructLayout({name: 1 for name in FILTER_COUNTERS}))
 
     def elaborate(self, platform):
         m = Module()
@@ -133,12 +140,14 @@ class EventFilter(wiring.Component):
         event = Signal(Event)
         stopped = Signal()
         overflow = Signal()
+        collision = Signal()
         outside = Signal()
         m.d.sync += [
             captured.eq(self.captures.valid),
             event.eq(self.captures.event),
             stopped.eq(~self.captures.enabled),
             overflow.eq(self.captures.overflow),
+            collision.eq(self.captures.event.collision & self.gate.drop_collisions),
             outside.eq((timestamp < self.gate.start) | (timestamp > self.gate.end)),
         ]
 
@@ -148,7 +157,7 @@ class EventFilter(wiring.Component):
         accept = Signal()
         busy = self.events.valid & ~self.events.ready
         m.d.comb += [
-            in_gate.eq(captured & ~stopped & ~overflow & ~outside),
+            in_gate.eq(captured & ~stopped & ~overflow & ~collision & ~outside),
             overrun.eq(in_gate & busy),
             accept.eq(in_gate & ~busy),
         ]
@@ -157,8 +166,10 @@ class EventFilter(wiring.Component):
         count_event(m, self.dropped_stopped, captured & stopped, self.clear, t.dropped_stopped)
         count_event(m, self.dropped_overflow, captured & ~stopped & overflow, self.clear,
                     t.dropped_overflow)
-        count_event(m, self.dropped_gate, captured & ~stopped & ~overflow & outside, self.clear,
-                    t.dropped_gate)
+        count_event(m, self.dropped_collision, captured & ~stopped & ~overflow & collision,
+                    self.clear, t.dropped_collision)
+        count_event(m, self.dropped_gate, captured & ~stopped & ~overflow & ~collision & outside,
+                    self.clear, t.dropped_gate)
         count_event(m, self.dropped_overrun, overrun, self.clear, t.dropped_overrun)
 
         with m.If(self.events.ready):
@@ -180,6 +191,7 @@ def _filter_ports(component, event_filter):
         component.accepted.eq(event_filter.accepted),
         component.dropped_stopped.eq(event_filter.dropped_stopped),
         component.dropped_overflow.eq(event_filter.dropped_overflow),
+        component.dropped_collision.eq(event_filter.dropped_collision),
         component.dropped_gate.eq(event_filter.dropped_gate),
         component.dropped_overrun.eq(event_filter.dropped_overrun),
     ]
@@ -197,6 +209,7 @@ def _capture_members(filtered, members):
             "accepted":         Out(COUNTER_WIDTH),
             "dropped_stopped":  Out(COUNTER_WIDTH),
             "dropped_overflow": Out(COUNTER_WIDTH),
+            "dropped_collision": Out(COUNTER_WIDTH),
             "dropped_gate":     Out(COUNTER_WIDTH),
             "dropped_overrun":  Out(COUNTER_WIDTH),
         })
@@ -268,7 +281,8 @@ class TdcInterface(wiring.Component):
         Reset the counters.
     events : Out(stream.Signature(Event))
         Accepted events.
-    accepted, dropped_stopped, dropped_overflow, dropped_gate, dropped_overrun : Out(32)
+    accepted, dropped_stopped, dropped_overflow : Out(32)
+    dropped_collision, dropped_gate, dropped_overrun : Out(32)
         Event counters (:class:`EventFilter`); ``dropped_overflow`` stays zero here.
     captures : Out(Capture)
         Only with ``filtered=False``: what would go into the filter, in the cycle it would
@@ -341,8 +355,9 @@ class CoarseTdc(wiring.Component):
         Pixel address given to the events.
     enable, gate, clear, events
         As in :class:`TdcInterface`.
-    accepted, dropped_stopped, dropped_overflow, dropped_gate, dropped_overrun : Out(32)
-        Event counters (:class:`EventFilter`).
+    accepted, dropped_stopped, dropped_overflow : Out(32)
+    dropped_collision, dropped_gate, dropped_overrun : Out(32)
+        Event counters (:class:`EventFilter`); ``dropped_collision`` stays zero here.
     captures : Out(Capture)
         Only with ``filtered=False``, as in :class:`TdcInterface`.
     """

@@ -18,21 +18,29 @@ from .protocol import DEFAULT_BAUD
 from .rawfifo import RawFifo
 from .registers import (VICTIM, AGGRESSOR, AGGRESSOR_DELAY, KEYING, AcquisitionMode,
                         TdcSource)
-from .settings import DelayMode, PERIOD_WIDTH, PULSE_WIDTH_WIDTH, check_widths
+from .settings import (BANK_BITS, MAX_BANK_BITS, MIN_BANK_BITS, DelayMode, PERIOD_WIDTH,
+                       PULSE_WIDTH_WIDTH, check_widths)
+from .spram import SPRAM_DEPTH
 from .status import StatusCounters, LINK_FIELDS
 from .tdc import EventFilter, TdcInterface, CoarseTdc
 from .uart import UartRx, UartTx, bit_cycles
 
 
-__all__ = ["DEFAULT_BAUD", "SMALL", "FlissTop"]
+__all__ = ["DEFAULT_BAUD", "SPRAM_BANK_BITS", "SMALL", "FlissTop"]
+
+
+#: ``bank_bits`` of single-port banks on an iCE40 UltraPlus: one ``SB_SPRAM256KA`` per bank.
+SPRAM_BANK_BITS = SPRAM_DEPTH.bit_length() - 1
 
 
 #: Options of :class:`FlissTop` for the smallest build, which fits an iCE40UP5K (the
-#: iCEBreaker's FPGA): histograms only, in single-port RAM; no aggressor emitter; no keyed
-#: delay source; no depth engine; periods up to 2**24 - 1 cycles (0.47 s at 36 MHz, the
-#: iCEBreaker's clock) and pulses up to 255 cycles.
-SMALL = dict(histogram_ram="single", aggressor=False, raw_events=False, keyed=False,
-             depth=False, period_width=24, pulse_width_width=8, compact_readout=False)
+#: iCEBreaker's FPGA): histograms only, in single-port RAM (one SPRAM per bank: 16384 bins,
+#: ``bank_bits`` 14); no aggressor emitter; no keyed delay source; no depth engine; full
+#: histogram chunks only; periods up to 2**24 - 1 cycles (0.47 s at 36 MHz, the iCEBreaker's
+#: clock) and pulses up to 255 cycles.
+SMALL = dict(histogram_ram="single", bank_bits=SPRAM_BANK_BITS, aggressor=False,
+             raw_events=False, keyed=False, depth=False, period_width=24, pulse_width_width=8,
+             compact_readout=False)
 
 
 class FlissTop(wiring.Component):
@@ -53,6 +61,10 @@ class FlissTop(wiring.Component):
     histogram_ram : str
         Storage of the histogram banks (:class:`~fliss.hdl.histogram.Histogram` ``ram``):
         ``"dual"`` (block RAM) or ``"single"`` (single-port RAM: the SPRAM of an iCE40UP5K).
+    bank_bits : int or None
+        Each histogram bank holds ``2**bank_bits`` bins, from 13 to 19 (``None``: 16 with
+        ``"dual"``, 64 pixels of 1024 bins; 14 with ``"single"``, one SPRAM). The register file
+        refuses a pixel split that does not fit, and IDENTITY reports it.
     aggressor_delays : bool
         Give the aggressor emitter a delay source of its own. Without it (a smaller build, for
         the iCE40UP5K), the aggressor fires on its nominal schedule only, and a write of
@@ -120,7 +132,7 @@ class FlissTop(wiring.Component):
     running:          Out(1)
 
     def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, baud=DEFAULT_BAUD, raw_depth=512,
-                 histogram_ram="dual", aggressor_delays=True, aggressor=True,
+                 histogram_ram="dual", bank_bits=None, aggressor_delays=True, aggressor=True,
                  raw_events=True, keyed=True, depth=True, period_width=PERIOD_WIDTH,
                  pulse_width_width=PULSE_WIDTH_WIDTH, compact_readout=True):
         self.clock_hz = clock_hz
@@ -131,6 +143,12 @@ class FlissTop(wiring.Component):
         if histogram_ram not in RAM_KINDS:
             raise ValueError(f"Histogram RAM must be one of {', '.join(map(repr, RAM_KINDS))}, "
                              f"not {histogram_ram!r}")
+        if bank_bits is None:
+            bank_bits = BANK_BITS if histogram_ram == "dual" else SPRAM_BANK_BITS
+        if not isinstance(bank_bits, int) or not MIN_BANK_BITS <= bank_bits <= MAX_BANK_BITS:
+            raise ValueError(f"Histogram bank address width must be an integer from "
+                             f"{MIN_BANK_BITS} to {MAX_BANK_BITS} bits, not {bank_bits!r}")
+        self.bank_bits = bank_bits
         for name, value in (("aggressor_delays", aggressor_delays), ("aggressor", aggressor),
                             ("raw_events", raw_events), ("keyed", keyed), ("depth", depth),
                             ("compact_readout", compact_readout)):
@@ -185,7 +203,8 @@ class FlissTop(wiring.Component):
         m.submodules.decoder = decoder = FrameDecoder()
         m.submodules.encoder = encoder = FrameEncoder()
         m.submodules.command = command = CommandProcessor(
-            clock_hz=self.clock_hz, baud=self.baud, maxima=self.register_maxima())
+            clock_hz=self.clock_hz, baud=self.baud, maxima=self.register_maxima(),
+            bank_bits=self.bank_bits)
         m.submodules.arbiter = arbiter = PacketArbiter(2 + self.raw_events + self.depth)
         m.d.comb += [
             uart_rx.rx.eq(self.uart_rx),
@@ -270,19 +289,21 @@ class FlissTop(wiring.Component):
 
         # Histogram mode
         raw_mode = acquisition.mode == AcquisitionMode.RAW
-        m.submodules.histogram = histogram = Histogram(ram=self.histogram_ram)
+        m.submodules.histogram = histogram = Histogram(bank_bits=self.bank_bits,
+                                                       ram=self.histogram_ram)
         packetizer = HistogramPacketizer if self.compact_readout else FullHistogramPacketizer
         m.submodules.histogram_packets = histogram_packets = \
             packetizer(index_bits=histogram.bin_bits)
         m.d.comb += [
             histogram.enable.eq(running & ~raw_mode),
-            histogram.settings.eq(registers.histogram),
+            # (field by field: a build's maxima may narrow some)
+            *(histogram.settings[name].eq(registers.histogram[name])
+              for name, _ in data.Layout.cast(registers.histogram.shape())),
             histogram.events.valid.eq(events_valid & ~raw_mode),
             histogram.events.payload.eq(events),
             histogram_packets.shift.eq(histogram.readout_shift),
-            # (the frame's pixel split: 0, one pixel, until the histogram presents it)
-            histogram_packets.pixel_bits.eq(0),
-            histogram_packets.first_pixel.eq(0),
+            histogram_packets.pixel_bits.eq(histogram.readout_pixel_bits),
+            histogram_packets.first_pixel.eq(histogram.readout_first_pixel),
             histogram_packets.full_readout.eq(registers.histogram.full_readout),
         ]
         if self.depth:
@@ -304,10 +325,8 @@ class FlissTop(wiring.Component):
                 readout.ready.eq(Mux(depth_mode, depth.readout.ready,
                                      histogram_packets.readout.ready)),
                 depth.shift.eq(histogram.readout_shift),
-                # (one pixel until the histogram presents its frame's pixel_bits and first_pixel
-                # as readout_pixel_bits and readout_first_pixel: wire them here then)
-                depth.pixel_bits.eq(0),
-                depth.first_pixel.eq(0),
+                depth.pixel_bits.eq(histogram.readout_pixel_bits),
+                depth.first_pixel.eq(histogram.readout_first_pixel),
                 depth.settings.eq(registers.depth),
             ]
             wiring.connect(m, depth.packets, arbiter.i[2 + self.raw_events])
@@ -338,9 +357,11 @@ class FlissTop(wiring.Component):
             strobes.events.eq(event_filter.tally.accepted),
             strobes.dropped_stopped.eq(event_filter.tally.dropped_stopped),
             strobes.dropped_gate.eq(event_filter.tally.dropped_gate),
+            strobes.dropped_collision.eq(event_filter.tally.dropped_collision),
             strobes.dropped_overflow.eq(event_filter.tally.dropped_overflow),
             strobes.dropped_overrun.eq(event_filter.tally.dropped_overrun),
             strobes.dropped_histogram.eq(histogram.tally.dropped),
+            strobes.dropped_pixel.eq(histogram.tally.dropped_pixel),
             strobes.histogram_overflow.eq(histogram.tally.overflow),
             strobes.uart_framing_errors.eq(uart_rx.framing_error),
             strobes.uart_overruns.eq(uart_rx.overrun),

@@ -32,7 +32,8 @@ import serial
 from ..hdl.protocol import (PROTOCOL_VERSION, DEFAULT_BAUD, PacketType, NakCode, DELIMITER,
                             Identity, Nak, ReadRequest, Status, READ_MAX, CONSISTENCY,
                             LINK_ERRORS, registers_layout)
-from ..hdl.registers import REGISTERS, BY_NAME, BY_ADDRESS, problems
+from ..hdl.registers import REGISTERS, BY_NAME, BY_ADDRESS, problems, split_problems
+from ..hdl.settings import BANK_BITS, MAX_BANK_BITS
 from ..sim.codec import LinkCounters, Packet, PacketEncoder, byte_size, pack, unpack
 from .bulk import BulkDecoder
 from .errors import BoardLost, BoardMismatch, BoardRefused, SettingsError
@@ -56,10 +57,13 @@ class IdentityInfo:
     registers: int
     clock_hz: int
     baud: int
+    #: The histogram bank holds ``2**bank_bits`` bins (the pixel split must fit it).
+    bank_bits: int = BANK_BITS
 
     def as_dict(self) -> Dict[str, Any]:
         return {"protocol": self.protocol, "gateware_version": self.gateware_version,
-                "registers": self.registers, "clock_hz": self.clock_hz, "baud": self.baud}
+                "registers": self.registers, "clock_hz": self.clock_hz, "baud": self.baud,
+                "bank_bits": self.bank_bits}
 
 
 class BoardClient:
@@ -309,7 +313,8 @@ class BoardClient:
         protocol, registers = fields["protocol"], fields["registers"]
         self._identity = IdentityInfo(protocol,
                                      f"{fields['gateware_major']}.{fields['gateware_minor']}",
-                                     registers, fields["clock_hz"], fields["baud"])
+                                     registers, fields["clock_hz"], fields["baud"],
+                                     fields["bank_bits"])
         if check and protocol != PROTOCOL_VERSION:
             raise BoardMismatch(f"the board speaks protocol version {protocol}, this fliss speaks "
                              f"version {PROTOCOL_VERSION}: update the "
@@ -353,8 +358,8 @@ class BoardClient:
     def check_settings(self, current: Mapping[str, int],
                        changes: Mapping[str, int]) -> Dict[str, int]:
         """The settings ``current`` with ``changes`` applied, if every value is in range and
-        the whole is consistent (:func:`fliss.hdl.registers.problems`); else
-        :exc:`~fliss.host.errors.SettingsError`."""
+        the whole is consistent (:func:`fliss.hdl.registers.problems`, with the board's
+        histogram bank from its identity); else :exc:`~fliss.host.errors.SettingsError`."""
         candidate = dict(current)
         for name, value in changes.items():
             if name not in BY_NAME:
@@ -364,7 +369,10 @@ class BoardClient:
             except ValueError as error:
                 raise SettingsError(str(error)) from None
             candidate[name] = value
-        found = problems(candidate)
+        # (the board's histogram bank from its identity, asked for only when the split changes)
+        found = problems(candidate, MAX_BANK_BITS)
+        if not found and {"pixel_bits", "bin_shift"} & set(changes):
+            found = split_problems(candidate, self.identity.bank_bits)
         if found:
             raise SettingsError("; ".join(found))
         return candidate

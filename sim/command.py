@@ -5,7 +5,7 @@ from ..hdl.protocol import (PROTOCOL_VERSION, GATEWARE_MAJOR, GATEWARE_MINOR, Pa
                             READ_MAX, CONSISTENCY, REGISTER_BYTES, registers_layout)
 from ..hdl.registers import (REGISTERS, BY_ADDRESS, KEYING, defaults, problems,
                              register_maxima, iv_problem, value_of, words_of)
-from ..hdl.settings import DelayMode
+from ..hdl.settings import BANK_BITS, DelayMode
 from .codec import pack, unpack, byte_size, unpack_words
 from .delay import KeyedRestarts
 
@@ -13,10 +13,10 @@ from .delay import KeyedRestarts
 __all__ = ["CommandModel", "identity_bytes"]
 
 
-def identity_bytes(clock_hz, baud):
+def identity_bytes(clock_hz, baud, bank_bits=BANK_BITS):
     return pack(Identity, protocol=PROTOCOL_VERSION, gateware_major=GATEWARE_MAJOR,
                 gateware_minor=GATEWARE_MINOR, registers=len(REGISTERS), clock_hz=int(clock_hz),
-                baud=int(baud))
+                baud=int(baud), bank_bits=int(bank_bits))
 
 
 class CommandModel:
@@ -24,7 +24,8 @@ class CommandModel:
 
     :meth:`command` takes a packet ``(type, seq, payload)`` and returns the reply
     ``(type, payload)``; :meth:`link_error` the reply to a dropped frame. ``maxima`` lowers
-    register maxima as in :class:`~fliss.hdl.command.CommandProcessor`.
+    register maxima as in :class:`~fliss.hdl.command.CommandProcessor`; ``bank_bits`` is the
+    histogram bank's (its pixel split check, and the identity).
 
     ``keyed_source``: the board has a delay core with the keyed source (a whole board; not the
     command side alone, whose IV in use stays 0). The IV registers read its IV in use
@@ -32,8 +33,9 @@ class CommandModel:
     to use its keystream (commands take far longer than a start).
     """
 
-    def __init__(self, clock_hz, baud, maxima=None, keyed_source=False):
+    def __init__(self, clock_hz, baud, maxima=None, keyed_source=False, bank_bits=BANK_BITS):
         self.clock_hz, self.baud = clock_hz, baud
+        self.bank_bits = bank_bits
         self.maxima = register_maxima(maxima, clock_hz)
         self.settings = defaults(clock_hz)
         self.running = False
@@ -77,7 +79,7 @@ class CommandModel:
         if type == PacketType.PING.value:
             return PacketType.ACK, bytes([seq])
         if type == PacketType.IDENTIFY.value:
-            return PacketType.IDENTITY, identity_bytes(self.clock_hz, self.baud)
+            return PacketType.IDENTITY, identity_bytes(self.clock_hz, self.baud, self.bank_bits)
         if type in (PacketType.START.value, PacketType.STOP.value):
             self.running = type == PacketType.START.value
             self._keyed_load()
@@ -115,7 +117,7 @@ class CommandModel:
                 candidate[register.name] = value
                 written.append(register.name)
             keyed = any(self.maxima[r.name] for r in KEYING.members)    # (else no IV rule)
-            if problems(candidate) or \
+            if problems(candidate, self.bank_bits) or \
                     keyed and iv_problem(written, candidate, self.iv_in_use):
                 return self._nak(seq, NakCode.OUT_OF_RANGE, CONSISTENCY)
             self.settings = candidate

@@ -1,4 +1,4 @@
-"""Bit-exact model of :class:`fliss.hdl.histogram.Histogram`.
+"""Bit-exact model of :class:`fliss.hdl.histogram.Histogram`: per-pixel frames.
 
 The model assumes the readout keeps up, as the gateware needs for acquisitions without dead
 time: each frame is read out before the next one ends, so frames are back to back.
@@ -6,75 +6,122 @@ time: each frame is read out before the next one ends, so frames are back to bac
 It models both RAM kinds (``Histogram(ram="dual")`` and ``ram="single"``), with, for single-port
 banks, events at least two cycles apart (closer ones are dropped and counted in
 ``dropped_busy``) and ``enable`` rising no earlier than ``Histogram.init_cycles``.
+
+A frame's counts are an array of shape ``(P, N)``: ``P`` pixels (the addresses ``first_pixel …
+first_pixel + P - 1``) of ``N`` bins; the gateware reads them out in flat order
+(``counts.ravel()``: index ``pixel * N + bin``).
 """
 
 import numpy as np
 
-from ..hdl.event import TIMESTAMP_BITS
-from ..hdl.histogram import (BIN_BITS, COUNT_WIDTH, MIN_COUNT_WIDTH, MAX_COUNT_WIDTH, MAX_SHIFT,
-                             INTEGRATION_WIDTH, READOUT_CYCLES_PER_BIN)
+from ..hdl.event import ADDRESS_BITS, TIMESTAMP_BITS
+from ..hdl.histogram import (BANK_BITS, COUNT_WIDTH, MIN_COUNT_WIDTH, MAX_COUNT_WIDTH, MAX_SHIFT,
+                             MAX_BANK_BITS, INTEGRATION_WIDTH, READOUT_CYCLES_PER_BIN)
 
 
-__all__ = ["check_settings", "bins_read", "readout_cycles", "histogram", "frames"]
+__all__ = ["check_settings", "split", "bins_read", "readout_cycles", "histogram", "frames"]
 
 
-def check_settings(*, shift=0, integration=1, bin_bits=BIN_BITS, count_width=COUNT_WIDTH):
-    """Raise :exc:`ValueError` unless the histogram settings are valid."""
-    if not isinstance(bin_bits, (int, np.integer)) or not 1 <= bin_bits <= TIMESTAMP_BITS:
-        raise ValueError(f"Bin index width must be an integer from 1 to {TIMESTAMP_BITS} "
-                         f"bits, not {bin_bits!r}")
-    if not isinstance(count_width, (int, np.integer)) or \
-            not MIN_COUNT_WIDTH <= count_width <= MAX_COUNT_WIDTH:
+def _integer(value):
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+
+
+def check_settings(*, shift=0, integration=1, bank_bits=BANK_BITS, count_width=COUNT_WIDTH,
+                   pixel_bits=0, first_pixel=0):
+    """Raise :exc:`ValueError` unless the histogram settings are valid (the split need not fit
+    the bank: the engine then keeps what does, see :func:`split`)."""
+    if not _integer(bank_bits) or not 1 <= bank_bits <= MAX_BANK_BITS:
+        raise ValueError(f"Bank address width must be an integer from 1 to {MAX_BANK_BITS} "
+                         f"bits, not {bank_bits!r}")
+    if not _integer(count_width) or not MIN_COUNT_WIDTH <= count_width <= MAX_COUNT_WIDTH:
         raise ValueError(f"Count width must be an integer from {MIN_COUNT_WIDTH} to "
                          f"{MAX_COUNT_WIDTH} bits, not {count_width!r}")
-    if not isinstance(shift, (int, np.integer)) or not 0 <= shift <= MAX_SHIFT:
+    if not _integer(shift) or not 0 <= shift <= MAX_SHIFT:
         raise ValueError(f"Bin shift must be an integer from 0 to {MAX_SHIFT}, not {shift!r}")
-    if not isinstance(integration, (int, np.integer)) or \
-            not 1 <= integration < (1 << INTEGRATION_WIDTH):
+    if not _integer(pixel_bits) or not 0 <= pixel_bits <= ADDRESS_BITS:
+        raise ValueError(f"Pixel bits must be an integer from 0 to {ADDRESS_BITS}, "
+                         f"not {pixel_bits!r}")
+    if not _integer(first_pixel) or not 0 <= first_pixel < (1 << ADDRESS_BITS):
+        raise ValueError(f"First pixel must be an address from 0 to {(1 << ADDRESS_BITS) - 1}, "
+                         f"not {first_pixel!r}")
+    if not _integer(integration) or not 1 <= integration < (1 << INTEGRATION_WIDTH):
         raise ValueError(f"Integration time must be from 1 to {(1 << INTEGRATION_WIDTH) - 1} "
                          f"clock cycles, not {integration!r}")
 
 
-def bins_read(shift=0, bin_bits=BIN_BITS):
-    """Number of bins read out per frame: ``2**min(bin_bits, 13 - shift)``."""
-    check_settings(shift=shift, bin_bits=bin_bits)
-    return 1 << min(bin_bits, TIMESTAMP_BITS - shift)
+def split(shift=0, pixel_bits=0, bank_bits=BANK_BITS):
+    """``(q, b)``: a frame holds ``2**q`` pixels of ``2**b`` bins. ``q = pixel_bits`` and
+    ``b = 13 - shift`` when the split fits the bank (``pixel_bits + 13 - shift <=
+    bank_bits``); otherwise ``q = min(pixel_bits, bank_bits)`` and ``b = bank_bits - q``."""
+    check_settings(shift=shift, pixel_bits=pixel_bits, bank_bits=bank_bits)
+    q = min(pixel_bits, bank_bits)
+    return q, min(TIMESTAMP_BITS - shift, bank_bits - q)
 
 
-def readout_cycles(shift=0, bin_bits=BIN_BITS):
+def bins_read(shift=0, bank_bits=BANK_BITS, pixel_bits=0):
+    """Number of bins read out per frame, all pixels: ``2**(q + b)`` (:func:`split`)."""
+    q, b = split(shift, pixel_bits, bank_bits)
+    return 1 << (q + b)
+
+
+def readout_cycles(shift=0, bank_bits=BANK_BITS, pixel_bits=0):
     """Fewest clock cycles the readout of one frame takes."""
-    return READOUT_CYCLES_PER_BIN * bins_read(shift, bin_bits)
+    return READOUT_CYCLES_PER_BIN * bins_read(shift, bank_bits, pixel_bits)
 
 
-def histogram(timestamps, *, shift=0, bin_bits=BIN_BITS, count_width=COUNT_WIDTH):
-    """Histogram of one frame, as read out.
-
-    Returns
-    -------
-    counts : numpy.ndarray of int64
-        ``bins_read(shift, bin_bits)`` saturating counts.
-    overflow : int
-        Events whose bin is beyond ``2**bin_bits - 1``.
-    """
-    check_settings(shift=shift, bin_bits=bin_bits, count_width=count_width)
-    timestamps = np.asarray(timestamps, dtype=np.int64)
-    if np.any((timestamps < 0) | (timestamps >= (1 << TIMESTAMP_BITS))):
-        raise ValueError(f"Timestamps must be from 0 to {(1 << TIMESTAMP_BITS) - 1}")
-    bins = timestamps >> shift
-    in_range = bins < (1 << bin_bits)
-    counts = np.bincount(bins[in_range], minlength=bins_read(shift, bin_bits))
-    counts = np.minimum(counts, (1 << count_width) - 1).astype(np.int64)
-    return counts, int(np.count_nonzero(~in_range))
-
-
-def frames(cycles, timestamps, *, integration, enable, disable=None, shift=0,
-           bin_bits=BIN_BITS, count_width=COUNT_WIDTH):
-    """Frames of an acquisition whose readout keeps up.
+def histogram(timestamps, addresses=None, *, shift=0, bank_bits=BANK_BITS, pixel_bits=0,
+              first_pixel=0, count_width=COUNT_WIDTH):
+    """Histograms of one frame, as read out.
 
     Parameters
     ----------
-    cycles, timestamps : array_like
-        Arrival cycle and timestamp of each event.
+    timestamps, addresses : array_like
+        The frame's events; ``addresses`` None: all of ``first_pixel``.
+
+    Returns
+    -------
+    counts : numpy.ndarray of int64, shape ``(2**q, 2**b)``
+        Saturating counts per pixel and bin (:func:`split`); the readout sends
+        ``counts.ravel()``.
+    overflow : int
+        Events of a pixel of the frame whose bin is beyond ``2**b - 1``.
+    dropped_pixel : int
+        Events whose address is not a pixel of the frame.
+    """
+    check_settings(shift=shift, bank_bits=bank_bits, count_width=count_width,
+                   pixel_bits=pixel_bits, first_pixel=first_pixel)
+    q, b = split(shift, pixel_bits, bank_bits)
+    timestamps = np.asarray(timestamps, dtype=np.int64)
+    if addresses is None:
+        addresses = np.full(len(timestamps), first_pixel, dtype=np.int64)
+    addresses = np.asarray(addresses, dtype=np.int64)
+    if addresses.shape != timestamps.shape:
+        raise ValueError(f"Addresses ({len(addresses)}) and timestamps ({len(timestamps)}) "
+                         f"must be as many")
+    if np.any((timestamps < 0) | (timestamps >= (1 << TIMESTAMP_BITS))):
+        raise ValueError(f"Timestamps must be from 0 to {(1 << TIMESTAMP_BITS) - 1}")
+    if np.any((addresses < 0) | (addresses >= (1 << ADDRESS_BITS))):
+        raise ValueError(f"Addresses must be from 0 to {(1 << ADDRESS_BITS) - 1}")
+    pixels = addresses - first_pixel
+    in_window = (pixels >= 0) & (pixels < (1 << q))
+    bins = timestamps >> shift
+    in_range = in_window & (bins < (1 << b))
+    flat = (pixels[in_range] << b) | bins[in_range]
+    counts = np.bincount(flat, minlength=1 << (q + b))
+    counts = np.minimum(counts, (1 << count_width) - 1).astype(np.int64)
+    return (counts.reshape(1 << q, 1 << b), int(np.count_nonzero(in_window & ~in_range)),
+            int(np.count_nonzero(~in_window)))
+
+
+def frames(cycles, timestamps, addresses=None, *, integration, enable, disable=None, shift=0,
+           bank_bits=BANK_BITS, pixel_bits=0, first_pixel=0, count_width=COUNT_WIDTH):
+    """Frames of an acquisition whose readout keeps up (settings held for all frames).
+
+    Parameters
+    ----------
+    cycles, timestamps, addresses : array_like
+        Arrival cycle, timestamp and address of each event (``addresses`` None: all of
+        ``first_pixel``).
     integration : int
         Frame length in clock cycles.
     enable : int
@@ -85,18 +132,23 @@ def frames(cycles, timestamps, *, integration, enable, disable=None, shift=0,
     Returns
     -------
     histograms : list of numpy.ndarray
-        One histogram per frame, in order: every frame that has started up to and including
-        cycle ``disable`` (a frame starting in cycle ``disable`` is empty), or, without
-        ``disable``, up to the last event.
+        One ``(P, N)`` array per frame (:func:`histogram`), in order: every frame that has
+        started up to and including cycle ``disable`` (a frame starting in cycle ``disable``
+        is empty), or, without ``disable``, up to the last event.
     overflow : int
         Events counted in ``overflow``.
     dropped : int
         Events counted in ``dropped`` (arrived outside every frame).
+    dropped_pixel : int
+        Events counted in ``dropped_pixel``.
     """
-    check_settings(shift=shift, integration=integration, bin_bits=bin_bits,
-                   count_width=count_width)
+    check_settings(shift=shift, integration=integration, bank_bits=bank_bits,
+                   count_width=count_width, pixel_bits=pixel_bits, first_pixel=first_pixel)
     cycles = np.asarray(cycles, dtype=np.int64)
     timestamps = np.asarray(timestamps, dtype=np.int64)
+    if addresses is None:
+        addresses = np.full(len(timestamps), first_pixel, dtype=np.int64)
+    addresses = np.asarray(addresses, dtype=np.int64)
     start = enable + 1
     inside = cycles >= start
     if disable is not None:
@@ -108,10 +160,13 @@ def frames(cycles, timestamps, *, integration, enable, disable=None, shift=0,
     else:
         count = int(frame[inside].max()) + 1 if np.any(inside) else 0
     histograms = []
-    overflow = 0
+    overflow = dropped_pixel = 0
     for k in range(count):
-        counts, over = histogram(timestamps[inside & (frame == k)], shift=shift,
-                                 bin_bits=bin_bits, count_width=count_width)
+        chosen = inside & (frame == k)
+        counts, over, outside = histogram(
+            timestamps[chosen], addresses[chosen], shift=shift, bank_bits=bank_bits,
+            pixel_bits=pixel_bits, first_pixel=first_pixel, count_width=count_width)
         histograms.append(counts)
         overflow += over
-    return histograms, overflow, int(np.count_nonzero(~inside))
+        dropped_pixel += outside
+    return histograms, overflow, int(np.count_nonzero(~inside)), dropped_pixel

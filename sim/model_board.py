@@ -31,12 +31,13 @@ from contextlib import contextmanager
 import numpy as np
 
 from ..hdl import DEFAULT_CLOCK_HZ
-from ..hdl.event import TIMESTAMP_BITS
+from ..hdl.histogram_layout import MAX_COUNT_WIDTH
 from ..hdl.protocol import (DEFAULT_BAUD, HISTOGRAM_COUNT_BITS, PacketType, STATUS_FIELDS,
                             LINK_COUNTERS, MAX_EVENTS_PER_PACKET, EVENT_BYTES)
 from ..hdl.registers import AcquisitionMode, TdcSource, value_of, words_of
 from .codec import LinkError, Packet, encode_frame, pack_events, packet_type
 from . import scheduler as _scheduler
+from . import histogram as _histogram
 from .command import CommandModel
 from .histogram_packets import HISTOGRAM_TYPES, decode_chunk, encode_histogram, frame_bins
 from .delay import DelayMode
@@ -284,6 +285,10 @@ class ModelBoard(PtyServer):
         if s["tdc_source"] == TdcSource.COARSE.value:
             lsb_per_cycle = int(round(self.simulation.scene.lsb_per_cycle))
             events["timestamp"] //= lsb_per_cycle
+        if s["collisions"]:     # (the event filter drops flagged events before the gate)
+            flagged = events["collision"] != 0
+            self.status["dropped_collision"] += int(np.count_nonzero(flagged))
+            events = events[~flagged]
         stamps = events["timestamp"]
         inside = (stamps >= s["gate_start"]) & (stamps <= s["gate_end"])
         self.status["dropped_gate"] += int(np.count_nonzero(~inside))
@@ -306,13 +311,21 @@ class ModelBoard(PtyServer):
         return min(count, budget)
 
     def _accumulate(self, events):
-        shift = self.settings["bin_shift"]
-        bins = (1 << TIMESTAMP_BITS) >> shift
+        # Per-pixel histograms, flat in readout order (pixel << (13 - bin_shift) | bin);
+        # events of other addresses are counted in dropped_pixel.
+        s = self.settings
+        split = dict(shift=s["bin_shift"], pixel_bits=s["pixel_bits"],
+                     first_pixel=s["first_pixel"], bank_bits=self.model.bank_bits,
+                     count_width=MAX_COUNT_WIDTH)
         if self._frame_counts is None:
-            self._frame_counts = np.zeros(bins, dtype=np.int64)
+            self._frame_counts = np.zeros(_histogram.bins_read(
+                split["shift"], split["bank_bits"], split["pixel_bits"]), dtype=np.int64)
         if events is not None and len(events):
-            self._frame_counts += np.bincount(events["timestamp"].astype(np.int64) >> shift,
-                                              minlength=bins)[:bins]
+            counts, overflow, outside = _histogram.histogram(
+                events["timestamp"], events["address"], **split)
+            self._frame_counts += counts.ravel()
+            self.status["histogram_overflow"] += overflow
+            self.status["dropped_pixel"] += outside
 
     def _send_histogram(self):
         # The frame's packets as the gateware's packetizer makes them (full or compact chunks).

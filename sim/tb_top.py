@@ -8,7 +8,8 @@ sensor model produced.
 
 The baud rate is given to the design and to this testbench by ``FLISS_TB_BAUD``; the register
 maxima of a smaller build (:meth:`fliss.hdl.top.FlissTop.register_maxima`) by
-``FLISS_TB_MAXIMA``, as JSON.
+``FLISS_TB_MAXIMA``, as JSON; its histogram bank (:attr:`fliss.hdl.top.FlissTop.bank_bits`) by
+``FLISS_TB_BANK_BITS``.
 """
 
 import json
@@ -25,6 +26,7 @@ from ..hdl import DEFAULT_CLOCK_HZ
 from ..hdl.protocol import (PacketType, MAX_ENCODED, Nak, ReadRequest, Status, STATUS_FIELDS,
                             LINK_COUNTERS, registers_layout)
 from ..hdl.registers import BY_NAME, REGISTERS, AcquisitionMode
+from ..hdl.settings import BANK_BITS
 from . import codec
 from .command import CommandModel
 from .event import EVENT_DTYPE
@@ -35,6 +37,7 @@ from .uart_bfm import UartSink, UartSource
 BAUD = int(os.environ.get("FLISS_TB_BAUD", 12_000_000))
 FUZZ_FRAMES = int(os.environ.get("FLISS_TB_FUZZ_FRAMES", 10_000))
 MAXIMA = json.loads(os.environ.get("FLISS_TB_MAXIMA", "{}"))
+BANK_BITS = int(os.environ.get("FLISS_TB_BANK_BITS", BANK_BITS))
 CLOCK_PERIOD_PS = round(1e12 / DEFAULT_CLOCK_HZ)
 
 
@@ -53,7 +56,8 @@ class TopTB:
         self.dut = dut
         self.encoder = codec.PacketEncoder()
         self.decoder = codec.FrameDecoder(synced=True)
-        self.model = CommandModel(DEFAULT_CLOCK_HZ, BAUD, maxima=MAXIMA, keyed_source=True)
+        self.model = CommandModel(DEFAULT_CLOCK_HZ, BAUD, maxima=MAXIMA, keyed_source=True,
+                                  bank_bits=BANK_BITS)
         self.packets = []
         self.link_reports = []
         self.sensor_events = []
@@ -348,3 +352,114 @@ async def test_histogram_closed_loop(dut):
     assert (frame, first_bin, chunk_shift, last) == (0, 0, shift, 1)
     assert len(tb.sensor_events) > 100
     assert np.array_equal(counts, want)
+
+
+async def _sensor_events(tb, rng, count, *, pixel_bits, first_pixel):
+    """Drive ``count`` random events straight onto the sensor bus, at least 5 cycles apart
+    (the strobe high 2 cycles, low at least 3): addresses mostly those of the frame, some
+    others; timestamps over all codes; one in five flagged as a collision. Returns them as
+    (timestamp, address, collision) arrays."""
+    dut = tb.dut
+    pixels = range(first_pixel, first_pixel + (1 << pixel_bits))
+    others = [address for address in range(64) if address not in pixels]
+    events = []
+    for _ in range(count):
+        inside = not others or rng.random() < 0.75
+        address = rng.choice(pixels) if inside else rng.choice(others)
+        event = (rng.randrange(8192), address, int(rng.random() < 0.2))
+        dut.sensor_timestamp.value, dut.sensor_address.value, dut.sensor_collision.value = \
+            event
+        await ClockCycles(dut.clk, 1)
+        dut.sensor_valid.value = 1
+        await ClockCycles(dut.clk, 2)
+        dut.sensor_valid.value = 0
+        await ClockCycles(dut.clk, 3 + rng.randrange(4))
+        events.append(event)
+    return tuple(np.array(column, dtype=np.int64) for column in zip(*events))
+
+
+async def _frame(tb, frame, bins, *, timeout_us=20_000, split=None):
+    """The counts of histogram ``frame``, from its chunks (full or compact, as the board chose)
+    placed at their flat ``first_bin``, once all ``bins`` have come. ``split``, if given, is the
+    ``(pixel_bits, first_pixel)`` every chunk's header must carry."""
+    counts = np.full(bins, -1, dtype=np.int64)
+    deadline = get_sim_time("us") + timeout_us
+    while get_sim_time("us") < deadline:
+        tb._drain()
+        counts[:] = -1
+        for packet in tb.data_packets + tb.packets:
+            if packet.type not in HISTOGRAM_TYPES:
+                continue
+            chunk = decode_chunk(packet.type, packet.payload)
+            if chunk.frame != frame:
+                continue
+            if split is not None:
+                assert (chunk.pixel_bits, chunk.first_pixel) == split, \
+                    f"frame {frame}: chunk header split {(chunk.pixel_bits, chunk.first_pixel)}"
+            counts[chunk.first_bin:chunk.first_bin + len(chunk.counts)] = chunk.counts
+        if np.all(counts >= 0):
+            return counts
+        await Timer(50, unit="us")
+    raise AssertionError(f"frame {frame}: {int(np.sum(counts < 0))} of {bins} bins missing")
+
+
+#: Splits of the pixel histogram test: pixel_bits, first_pixel, bin_shift, collisions (drop
+#: them); all fit a bank of 2**14 bins (the iCEBreaker's).
+PIXEL_SPLITS = [(2, 7, 8, 1), (6, 0, 10, 0), (0, 37, 6, 1), (3, 56, 9, 1)]
+
+
+@cocotb.test()
+async def test_pixel_histograms(dut):
+    """Histograms by (pixel, bin): random (address, timestamp, collision) events on the sensor
+    bus, under several pixel splits; each frame equals the per-pixel bincount of the events
+    injected during it, bit for bit, and STATUS counts the events dropped as collisions and
+    for addresses outside the frame's pixels."""
+    tb = TopTB(dut)
+    await tb.start()
+    tb.data_packets = []        # (this test's packets only)
+    rng = random.Random(17)
+    # single-port banks are cleared after reset (2**bank_bits cycles) before a frame starts
+    await ClockCycles(dut.clk, (1 << BANK_BITS) + 100)
+    before = await tb.status()
+    for frame, (pixel_bits, first_pixel, shift, drop) in enumerate(PIXEL_SPLITS):
+        # One frame per split: a long integration, ended by STOP. The histogram's settings
+        # in one WRITE (one at a time, some orders would pass through splits that do not fit).
+        names = ("bin_shift", "integration", "collisions", "pixel_bits", "first_pixel",
+                 "full_readout")
+        values = dict(bin_shift=shift, integration=10_000_000, collisions=drop,
+                      pixel_bits=pixel_bits, first_pixel=first_pixel, full_readout=1)
+        addresses = [BY_NAME[name].address for name in names]
+        assert addresses == list(range(addresses[0], addresses[0] + len(names)))
+        reply = await tb.command(PacketType.WRITE, codec.pack(
+            registers_layout(len(names)), address=addresses[0],
+            values=[values[name] for name in names]))
+        assert reply.type == PacketType.ACK, reply
+        await tb.command(PacketType.START)
+        timestamps, addresses, collisions = await _sensor_events(
+            tb, rng, 300, pixel_bits=pixel_bits, first_pixel=first_pixel)
+        await ClockCycles(dut.clk, 50)
+        await tb.command(PacketType.STOP)
+        bins = 1 << (13 - shift)
+        counts = await _frame(tb, frame, bins << pixel_bits, split=(pixel_bits, first_pixel))
+        # Independently of the models: drop the flagged events if asked, then the other
+        # addresses; the rest by pixel and bin.
+        kept = collisions == 0 if drop else np.ones(len(timestamps), dtype=bool)
+        pixel = addresses - first_pixel
+        inside = kept & (pixel >= 0) & (pixel < (1 << pixel_bits))
+        want = np.bincount(pixel[inside] * bins + (timestamps[inside] >> shift),
+                           minlength=bins << pixel_bits)
+        assert np.array_equal(counts, want), (frame, np.flatnonzero(counts != want)[:8])
+        after = await tb.status()
+        delta = {name: after[name] - before[name] for name in
+                 ("events", "frames", "dropped_collision", "dropped_pixel",
+                  "dropped_histogram", "histogram_overflow", "dropped_gate")}
+        assert delta == {"events": int(kept.sum()), "frames": 1,
+                         "dropped_collision": int((~kept).sum()),
+                         "dropped_pixel": int((kept & ~inside).sum()),
+                         "dropped_histogram": 0, "histogram_overflow": 0,
+                         "dropped_gate": 0}, (frame, delta)
+        assert inside.sum() > 150 and (not drop or (~kept).sum() > 30)
+        assert pixel_bits == 6 or (kept & ~inside).sum() > 30
+        dut._log.info("split %s: %d events, %d in the frame, %d bins", PIXEL_SPLITS[frame],
+                      len(timestamps), int(inside.sum()), len(counts))
+        before = after

@@ -8,15 +8,16 @@ Cycle numbers are those of the gateware's clock. Per-cycle inputs (``enable``, `
 import numpy as np
 
 from ..hdl.event import PULSE_BITS, ADDRESS_BITS
-from ..hdl.tdc import CAPTURE_LATENCY, FILTER_LATENCY, MAX_TIMESTAMP, COUNTER_WIDTH
+from ..hdl.tdc import (CAPTURE_LATENCY, FILTER_LATENCY, FILTER_COUNTERS, MAX_TIMESTAMP,
+                       COUNTER_WIDTH)
 from .event import EVENT_DTYPE
 
 
 __all__ = ["COUNTERS", "check_gate", "filter_events", "interface", "coarse"]
 
 
-#: Names of the event counters, as the gateware's output ports.
-COUNTERS = ("accepted", "dropped_stopped", "dropped_overflow", "dropped_gate", "dropped_overrun")
+#: Names of the event counters, as the gateware's output ports, in order of precedence.
+COUNTERS = FILTER_COUNTERS
 
 
 def check_gate(gate_start, gate_end):
@@ -39,7 +40,7 @@ def _per_cycle(values):
 
 
 def filter_events(capture_cycles, events, *, enabled, overflow=None, gate_start=0,
-                  gate_end=MAX_TIMESTAMP, ready=1):
+                  gate_end=MAX_TIMESTAMP, drop_collisions=0, ready=1):
     """Model of :class:`EventFilter`.
 
     Parameters
@@ -50,6 +51,8 @@ def filter_events(capture_cycles, events, *, enabled, overflow=None, gate_start=
         The events.
     enabled, overflow : array_like of bool
         ``enable`` and ``overflow`` with each event.
+    drop_collisions : int
+        ``gate.drop_collisions``: drop the events whose ``collision`` flag is set.
     ready : array, callable or int
         ``events.ready`` per cycle.
 
@@ -74,6 +77,8 @@ def filter_events(capture_cycles, events, *, enabled, overflow=None, gate_start=
             counters["dropped_stopped"] += 1
         elif over:
             counters["dropped_overflow"] += 1
+        elif drop_collisions and event["collision"]:
+            counters["dropped_collision"] += 1
         elif not gate_start <= event["timestamp"] <= gate_end:
             counters["dropped_gate"] += 1
         elif free_from > cycle:
@@ -94,7 +99,7 @@ def filter_events(capture_cycles, events, *, enabled, overflow=None, gate_start=
 
 
 def interface(strobe_cycles, timestamps, addresses, collisions, *, enable, pulse_index,
-              gate_start=0, gate_end=MAX_TIMESTAMP, ready=1):
+              gate_start=0, gate_end=MAX_TIMESTAMP, drop_collisions=0, ready=1):
     """Model of :class:`TdcInterface`.
 
     ``strobe_cycles`` are the first cycles in which ``pin_valid`` reads high, one per event,
@@ -112,7 +117,7 @@ def interface(strobe_cycles, timestamps, addresses, collisions, *, enable, pulse
     events["pulse"] = [(int(pulse_index(c)) - 1) % (1 << PULSE_BITS) for c in sample]
     enabled = [bool(enable(c)) for c in sample]
     return filter_events(sample + 1, events, enabled=enabled, gate_start=gate_start,
-                         gate_end=gate_end, ready=ready)
+                         gate_end=gate_end, drop_collisions=drop_collisions, ready=ready)
 
 
 def coarse(hit_cycles, start_cycles, *, enable, pulse_index, address=0, gate_start=0,

@@ -10,6 +10,7 @@ from amaranth.hdl import UnusedElaboratable
 
 from fliss.hdl.delay import DelayMode
 from fliss.hdl.registers import REGISTERS, AcquisitionMode
+from fliss.hdl.settings import BANK_BITS
 from fliss.hdl.top import FlissTop, SMALL
 from fliss.sim.cocotb_runner import run_cocotb, write_verilog
 
@@ -33,7 +34,7 @@ def test_top(simulator, top_verilog, cocotb_counts):
     results = run_cocotb(
         simulator, verilog_path=top_verilog, toplevel="fliss_top",
         test_module="fliss.sim.tb_top", build_dir=BUILD,
-        extra_env={"FLISS_TB_BAUD": str(BAUD),
+        extra_env={"FLISS_TB_BAUD": str(BAUD), "FLISS_TB_BANK_BITS": str(BANK_BITS),
                    "FLISS_TB_FUZZ_FRAMES": str(FUZZ_FRAMES[simulator])})
     cocotb_counts(simulator, results)
     assert results.failed == []
@@ -42,15 +43,18 @@ def test_top(simulator, top_verilog, cocotb_counts):
 
 def test_top_small(simulator, cocotb_counts):
     # The iCE40UP5K build through its pins: every register written (in range, at its maximum,
-    # above it) and read back against the model with this build's maxima, and a histogram.
+    # above it) and read back against the model with this build's maxima and bank, a
+    # histogram, and per-pixel histograms.
     top = FlissTop(baud=BAUD, **SMALL)
     maxima = top.register_maxima()
     verilog_path = write_verilog(top, "fliss_top", BUILD_SMALL / "fliss_top.v")
     results = run_cocotb(
         simulator, verilog_path=verilog_path, toplevel="fliss_top",
         test_module="fliss.sim.tb_top", build_dir=BUILD_SMALL,
-        testcase=["test_identify_and_registers", "test_histogram_closed_loop"],
-        extra_env={"FLISS_TB_BAUD": str(BAUD), "FLISS_TB_MAXIMA": json.dumps(maxima)})
+        testcase=["test_identify_and_registers", "test_histogram_closed_loop",
+                  "test_pixel_histograms"],
+        extra_env={"FLISS_TB_BAUD": str(BAUD), "FLISS_TB_MAXIMA": json.dumps(maxima),
+                   "FLISS_TB_BANK_BITS": str(top.bank_bits)})
     cocotb_counts(simulator, results)
     assert results.failed == []
     assert results.passed == results.expected

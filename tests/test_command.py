@@ -25,11 +25,14 @@ def group_settings(ctx, registers):
     return values
 
 
-def run_commands(packets, *, link_errors=(), status=None, maxima=None, reset_before=None):
+def run_commands(packets, *, link_errors=(), status=None, maxima=None, reset_before=None,
+                 bank_bits=None):
     """Send ``(type, seq, payload)`` packets; return the replies ``(type, payload)`` and the
     settings after each command. ``reset_before``: the number of a packet before which the
-    command processor is reset."""
-    dut = CommandProcessor(clock_hz=CLOCK_HZ, baud=BAUD, maxima=maxima)
+    command processor is reset. ``bank_bits``: the histogram bank's (default: the
+    processor's)."""
+    dut = CommandProcessor(clock_hz=CLOCK_HZ, baud=BAUD, maxima=maxima,
+                           **({} if bank_bits is None else {"bank_bits": bank_bits}))
     reset = Signal()
     replies, settings, updates = [], [], []
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from amaranth.hdl import Fragment, Instance, UnusedElaboratable
 
-from fliss.hdl.histogram import Histogram, BIN_BITS, COUNT_WIDTH
+from fliss.hdl.histogram import Histogram, COUNT_WIDTH
 from fliss.hdl.spram import SinglePortRam
 from fliss.sim import histogram as model
 
@@ -53,8 +53,13 @@ def hazard_stimulus(rng, cycles, *, bins, shift, gaps=True):
     return valid, timestamps
 
 
+#: The bank of these tests, unless they say otherwise: 8192 bins, one pixel of every code.
+BANK_BITS = 13
+
+
 def run_histogram(dut, valid, timestamps, *, integration, shift, ready=None, settle=None,
-                  probe=None, garbage=None, wait_init=True):
+                  probe=None, garbage=None, wait_init=True, addresses=None, pixel_bits=0,
+                  first_pixel=0):
     """Drive ``valid``/``timestamps`` from cycle 0, with ``enable`` high from cycle 0 to the
     cycle after the last event; collect the read out frames. Cycle 0 is the first cycle a frame
     can start in (``dut.init_cycles`` after reset: before it, ``enable`` is low and no event
@@ -62,14 +67,20 @@ def run_histogram(dut, valid, timestamps, *, integration, shift, ready=None, set
     single-port engine must clear them, like SPRAM at power-up). ``wait_init=False``: cycle 0 is
     the first after reset, whatever ``dut.init_cycles``.
 
-    Returns frames (list of (counts, shift)) and the final counters.
+    ``addresses``: the events' pixel addresses (default all 0); ``pixel_bits`` and
+    ``first_pixel``: the split, held for every frame.
+
+    Returns frames (list of (flat counts, (shift, pixel_bits, first_pixel) of the frame as
+    presented)) and the final counters.
     """
     cycles = len(valid)
     frames = []
     result = {}
-    readout_bins = model.bins_read(shift, dut.bin_bits)
+    readout_bins = model.bins_read(shift, dut.bank_bits, pixel_bits)
     if settle is None:
-        settle = 4 * model.readout_cycles(shift, dut.bin_bits) + 100
+        settle = 4 * model.readout_cycles(shift, dut.bank_bits, pixel_bits) + 100
+    if addresses is None:
+        addresses = np.zeros(cycles, dtype=np.int64)
 
     async def stimulus(ctx):
         if garbage is not None:
@@ -81,10 +92,13 @@ def run_histogram(dut, valid, timestamps, *, integration, shift, ready=None, set
             await ctx.tick().repeat(dut.init_cycles)
         ctx.set(dut.settings.integration, integration)
         ctx.set(dut.settings.bin_shift, shift)
+        ctx.set(dut.settings.pixel_bits, pixel_bits)
+        ctx.set(dut.settings.first_pixel, first_pixel)
         ctx.set(dut.enable, 1)
         for cycle in range(cycles):
             ctx.set(dut.events.valid, int(valid[cycle]))
             ctx.set(dut.events.payload.timestamp, int(timestamps[cycle]))
+            ctx.set(dut.events.payload.address, int(addresses[cycle]))
             await ctx.tick()
         ctx.set(dut.events.valid, 0)
         ctx.set(dut.enable, 0)
@@ -96,7 +110,8 @@ def run_histogram(dut, valid, timestamps, *, integration, shift, ready=None, set
                 break
         result.update(dropped=ctx.get(dut.dropped), overflow=ctx.get(dut.overflow),
                       frames=ctx.get(dut.frames), pending=ctx.get(dut.pending),
-                      dropped_busy=ctx.get(dut.dropped_busy))
+                      dropped_busy=ctx.get(dut.dropped_busy),
+                      dropped_pixel=ctx.get(dut.dropped_pixel))
 
     async def consumer(ctx):
         counts = []
@@ -106,40 +121,47 @@ def run_histogram(dut, valid, timestamps, *, integration, shift, ready=None, set
                 ctx.set(dut.readout.ready, int(ready(cycle)))
             else:
                 ctx.set(dut.readout.ready, 1)
-            _, _, got, rdy, index, count, last, bank_shift = await ctx.tick().sample(
+            _, _, got, rdy, index, count, last, *split = await ctx.tick().sample(
                 dut.readout.valid, dut.readout.ready, dut.readout.payload.index,
-                dut.readout.payload.count, dut.readout.payload.last, dut.readout_shift)
+                dut.readout.payload.count, dut.readout.payload.last, dut.readout_shift,
+                dut.readout_pixel_bits, dut.readout_first_pixel)
             cycle += 1
             if got and rdy:
                 assert index == len(counts)
                 counts.append(count)
                 assert last == (index == readout_bins - 1)
                 if last:
-                    frames.append((np.array(counts), bank_shift))
+                    frames.append((np.array(counts), tuple(split)))
                     counts = []
 
     simulate(dut, stimulus, background=[consumer] + ([probe] if probe is not None else []))
     return frames, result
 
 
-def check_against_model(frames, result, valid, timestamps, *, integration, shift, bin_bits):
+def check_against_model(frames, result, valid, timestamps, *, integration, shift, bank_bits,
+                        addresses=None, pixel_bits=0, first_pixel=0):
     cycles = np.flatnonzero(valid)
-    expected, overflow, dropped = model.frames(
-        cycles, timestamps[valid], integration=integration, enable=0, disable=len(valid),
-        shift=shift, bin_bits=bin_bits)
+    expected, overflow, dropped, dropped_pixel = model.frames(
+        cycles, timestamps[valid], None if addresses is None else addresses[valid],
+        integration=integration, enable=0, disable=len(valid), shift=shift,
+        bank_bits=bank_bits, pixel_bits=pixel_bits, first_pixel=first_pixel)
+    q, _ = model.split(shift, pixel_bits, bank_bits)
     assert len(frames) == len(expected) >= 3
-    for k, ((counts, frame_shift), want) in enumerate(zip(frames, expected)):
-        assert frame_shift == shift
+    for k, ((counts, split), want) in enumerate(zip(frames, expected)):
+        assert split == (shift, q, first_pixel)
+        want = want.ravel()     # the readout order
         mismatch = np.flatnonzero(counts != want)
         assert mismatch.size == 0, \
             f"frame {k}: bins {mismatch[:8]} read {counts[mismatch[:8]]}, want {want[mismatch[:8]]}"
     assert result["overflow"] == overflow
     assert result["dropped"] == dropped
+    assert result["dropped_pixel"] == dropped_pixel
     assert result["dropped_busy"] == 0
     assert result["frames"] == len(expected)
     assert result["pending"] == 0
-    # Every event is counted exactly once: in a bin, in overflow or in dropped.
-    assert sum(int(f.sum()) for f, _ in frames) + overflow + dropped == int(valid.sum())
+    # Every event is counted exactly once: in a bin, in overflow, dropped or dropped_pixel.
+    assert sum(int(f.sum()) for f, _ in frames) + overflow + dropped + dropped_pixel == \
+        int(valid.sum())
 
 
 def spaced(rng, valid, timestamps, *, length=None):
@@ -167,14 +189,14 @@ def hits(valid, timestamps, shift, apart):
 
 
 def test_one_event_per_clock_matches_model():
-    # 8192 bins in RAM, shift 5: 256 bins read out per frame, 768 cycles of readout per frame.
+    # 8192 bins in RAM, shift 5: 256 bins read out per frame, 1536 cycles of readout per frame.
     rng = np.random.default_rng(2019)
-    cycles, integration, shift = 6_000, 1_500, 5
+    cycles, integration, shift = 6_000, 1_800, 5
     valid, timestamps = hazard_stimulus(rng, cycles, bins=256, shift=shift, gaps=False)
-    dut = Histogram()
+    dut = Histogram(bank_bits=BANK_BITS)
     frames, result = run_histogram(dut, valid, timestamps, integration=integration, shift=shift)
     check_against_model(frames, result, valid, timestamps, integration=integration,
-                        shift=shift, bin_bits=BIN_BITS)
+                        shift=shift, bank_bits=BANK_BITS)
     # the stimulus really hit the hazards: same bin one and two cycles apart
     bins = timestamps >> shift
     assert np.count_nonzero(bins[1:] == bins[:-1]) > 1000
@@ -185,15 +207,15 @@ def test_single_port_every_other_clock_matches_model():
     # Single-port banks, 8192 bins, shift 5, events two to six cycles apart (mostly two): same
     # bin back to back (forwarded or from the RAM, depending on the read slots), A,B,A, runs.
     rng = np.random.default_rng(2020)
-    integration, shift = 1_500, 5
+    integration, shift = 1_800, 5
     valid, timestamps = hazard_stimulus(rng, 3_000, bins=256, shift=shift, gaps=False)
     valid, timestamps = spaced(rng, valid, timestamps)
-    dut = Histogram(ram="single")
+    dut = Histogram(bank_bits=BANK_BITS, ram="single")
     assert dut.latency == 8 and dut.readout_cycles_per_bin == model.READOUT_CYCLES_PER_BIN
     assert dut.init_cycles == 8192 and dut.min_event_spacing == 2
     frames, result = run_histogram(dut, valid, timestamps, integration=integration, shift=shift)
     check_against_model(frames, result, valid, timestamps, integration=integration,
-                        shift=shift, bin_bits=BIN_BITS)
+                        shift=shift, bank_bits=BANK_BITS)
     assert hits(valid, timestamps, shift, 2) > 500
     assert hits(valid, timestamps, shift, 3) > 50
     events = timestamps[valid] >> shift
@@ -206,18 +228,18 @@ def test_gaps_overflow_and_slow_reader(ram):
     # is ready in half of the cycles and still keeps up with the frames. The banks start with
     # garbage: the single-port engine clears them after reset.
     rng = np.random.default_rng(7)
-    cycles, integration, shift, bin_bits = 4_000, 1_300, 0, 7
+    cycles, integration, shift, bank_bits = 4_000, 1_300, 0, 7
     valid, timestamps = hazard_stimulus(rng, cycles, bins=128, shift=shift, gaps=True)
     timestamps[rng.random(cycles) < 0.1] = rng.integers(128, 8192)
     if ram == "single":
         valid, timestamps = spaced(rng, valid, timestamps)
     ready_pattern = rng.random(100_000) < 0.5
-    dut = Histogram(bin_bits=bin_bits, ram=ram)
+    dut = Histogram(bank_bits=bank_bits, ram=ram)
     frames, result = run_histogram(dut, valid, timestamps, integration=integration, shift=shift,
                                    ready=lambda cycle: ready_pattern[cycle],
                                    garbage=rng if ram == "single" else None)
     check_against_model(frames, result, valid, timestamps, integration=integration,
-                        shift=shift, bin_bits=bin_bits)
+                        shift=shift, bank_bits=bank_bits)
     assert result["overflow"] > 100
 
 
@@ -225,14 +247,14 @@ def test_gaps_overflow_and_slow_reader(ram):
 def test_disable_on_frame_boundary(ram):
     # enable falls exactly where a frame starts: that frame is read out empty, in the model too
     rng = np.random.default_rng(5)
-    cycles, integration, shift = 1 + 3 * 600, 600, 6
+    cycles, integration, shift = 1 + 3 * 900, 900, 6
     valid, timestamps = hazard_stimulus(rng, cycles, bins=128, shift=shift, gaps=False)
     if ram == "single":
         valid, timestamps = spaced(rng, valid, timestamps, length=cycles)
-    dut = Histogram(ram=ram)
+    dut = Histogram(bank_bits=BANK_BITS, ram=ram)
     frames, result = run_histogram(dut, valid, timestamps, integration=integration, shift=shift)
     check_against_model(frames, result, valid, timestamps, integration=integration,
-                        shift=shift, bin_bits=BIN_BITS)
+                        shift=shift, bank_bits=BANK_BITS)
     assert len(frames) == 4 and frames[3][0].sum() == 0
     assert frames[2][0].sum() == np.count_nonzero(valid[1 + 2 * integration:]) > 150
 
@@ -242,7 +264,7 @@ def test_counts_saturate(ram):
     # Bins preloaded near 2**16 - 1 (as after a long acquisition), then hit back to back:
     # counts stop at 65535, through the RAM path and through the forwarding paths.
     count_max = (1 << COUNT_WIDTH) - 1
-    dut = Histogram(bin_bits=4, ram=ram)
+    dut = Histogram(bank_bits=4, ram=ram)
     shift = 9
     preload = np.zeros(16, dtype=np.int64)
     preload[[3, 5, 7, 9]] = count_max - 2, count_max, count_max - 1, count_max - 4
@@ -274,7 +296,7 @@ def test_counts_saturate(ram):
         ctx.set(dut.enable, 0)
         ctx.set(dut.readout.ready, 1)
         counts = []
-        for _ in range(100):
+        for _ in range(200):
             _, _, got, count, last = await ctx.tick().sample(
                 dut.readout.valid, dut.readout.payload.count, dut.readout.payload.last)
             if got:
@@ -289,8 +311,8 @@ def test_counts_saturate(ram):
     assert frames[0] == list(want)
     assert want[3] == want[5] == want[7] == want[9] == count_max
     # the model saturates the same way (with a 16-bit count, from zero)
-    counts, _ = model.histogram(np.full(70_000, 3 << shift), shift=shift, bin_bits=4)
-    assert counts[3] == count_max and counts.sum() == count_max
+    counts, _, _ = model.histogram(np.full(70_000, 3 << shift), shift=shift, bank_bits=4)
+    assert counts[0, 3] == count_max and counts.sum() == count_max
 
 
 @pytest.mark.parametrize("ram", ["dual", "single"])
@@ -299,11 +321,11 @@ def test_busy_reader_drops_are_counted(ram):
     # drops and counts the events that arrive meanwhile, and every frame holds exactly the
     # events of its own fill window.
     rng = np.random.default_rng(3)
-    cycles, integration, shift = 3_000, 600, 6
+    cycles, integration, shift = 4_200, 900, 6
     valid, timestamps = hazard_stimulus(rng, cycles, bins=128, shift=shift, gaps=False)
     if ram == "single":
         valid, timestamps = spaced(rng, valid, timestamps, length=cycles)
-    dut = Histogram(ram=ram)
+    dut = Histogram(bank_bits=BANK_BITS, ram=ram)
     filling = np.zeros(cycles + 5000, dtype=bool)
 
     async def probe(ctx):
@@ -317,7 +339,7 @@ def test_busy_reader_drops_are_counted(ram):
 
     def stall_at(cycle):
         cycle -= dut.init_cycles
-        return not (700 <= cycle < 1_000 or 1_500 <= cycle < 1_800)
+        return not (700 <= cycle < 1_200 or 2_800 <= cycle < 3_200)
 
     frames, result = run_histogram(dut, valid, timestamps, integration=integration, shift=shift,
                                    ready=stall_at, probe=probe)
@@ -333,11 +355,11 @@ def test_busy_reader_drops_are_counted(ram):
     assert len(frames) == len(windows)
     for (counts, _), w in zip(frames, windows):
         inside = valid[w]
-        want, _ = model.histogram(timestamps[w][inside], shift=shift)
-        np.testing.assert_array_equal(counts, want)
+        want, _, _ = model.histogram(timestamps[w][inside], shift=shift, bank_bits=BANK_BITS)
+        np.testing.assert_array_equal(counts, want.ravel())
     counted = sum(int(f.sum()) for f, _ in frames)
     expected_drops = int(np.count_nonzero(valid & ~filling[:cycles]))
-    assert result["dropped"] == expected_drops > (300 if ram == "dual" else 150)
+    assert result["dropped"] == expected_drops > (300 if ram == "dual" else 100)
     assert result["dropped_busy"] == 0
     assert counted + result["dropped"] == int(valid.sum())
 
@@ -347,11 +369,11 @@ def test_single_port_events_too_close_are_counted():
     # the engine takes an event unless it took one in the cycle before; the others are counted
     # in `dropped_busy` and `dropped`. The frames hold exactly the events taken.
     rng = np.random.default_rng(11)
-    cycles, integration, shift, bin_bits = 3_000, 700, 0, 7
+    cycles, integration, shift, bank_bits = 3_000, 900, 0, 7
     _, timestamps = hazard_stimulus(rng, cycles, bins=128, shift=shift, gaps=False)
     valid = rng.random(cycles) < 0.6            # many events one cycle apart, runs of them too
     valid[rng.integers(cycles, size=20)] = False
-    dut = Histogram(bin_bits=bin_bits, ram="single")
+    dut = Histogram(bank_bits=bank_bits, ram="single")
     frames, result = run_histogram(dut, valid, timestamps, integration=integration, shift=shift,
                                    garbage=rng)
     # Independently: frames fill from cycle 1 to cycle `cycles - 1` (enable falls at `cycles`)
@@ -359,12 +381,12 @@ def test_single_port_events_too_close_are_counted():
     for cycle in np.flatnonzero(valid):
         taken[cycle] = 1 <= cycle and not (cycle >= 1 and taken[cycle - 1])
     busy = valid & ~taken & (np.arange(cycles) >= 1)
-    expected, overflow, _ = model.frames(np.flatnonzero(taken), timestamps[taken],
-                                         integration=integration, enable=0, disable=cycles,
-                                         shift=shift, bin_bits=bin_bits)
+    expected, overflow, _, _ = model.frames(np.flatnonzero(taken), timestamps[taken],
+                                            integration=integration, enable=0, disable=cycles,
+                                            shift=shift, bank_bits=bank_bits)
     assert len(frames) == len(expected) >= 4
     for (counts, _), want in zip(frames, expected):
-        np.testing.assert_array_equal(counts, want)
+        np.testing.assert_array_equal(counts, want.ravel())
     assert result["overflow"] == overflow > 100
     assert result["dropped_busy"] == int(busy.sum()) > 300
     assert result["dropped"] == int(busy.sum()) + int(valid[0])
@@ -377,8 +399,8 @@ def test_single_port_clears_banks_after_reset():
     # `enable` high from reset: the first frame starts once the banks are cleared, as if
     # `enable` rose in cycle `init_cycles`; events before are dropped; no garbage is read out.
     rng = np.random.default_rng(13)
-    integration, shift, bin_bits = 600, 0, 7
-    dut = Histogram(bin_bits=bin_bits, ram="single")
+    integration, shift, bank_bits = 900, 0, 7
+    dut = Histogram(bank_bits=bank_bits, ram="single")
     start = dut.init_cycles
     assert start == 128
     valid, timestamps = hazard_stimulus(rng, 1_200, bins=128, shift=shift, gaps=False)
@@ -394,12 +416,12 @@ def test_single_port_clears_banks_after_reset():
     frames, result = run_histogram(dut, valid, timestamps, integration=integration, shift=shift,
                                    garbage=rng, wait_init=False, probe=probe)
     assert filling.index(1) == start + 1
-    expected, overflow, dropped = model.frames(
+    expected, overflow, dropped, _ = model.frames(
         np.flatnonzero(valid), timestamps[valid], integration=integration, enable=start,
-        disable=len(valid), shift=shift, bin_bits=bin_bits)
+        disable=len(valid), shift=shift, bank_bits=bank_bits)
     assert len(frames) == len(expected) == 3
     for (counts, _), want in zip(frames, expected):
-        np.testing.assert_array_equal(counts, want)
+        np.testing.assert_array_equal(counts, want.ravel())
     assert result["dropped"] == dropped == int(valid[:start + 1].sum())
     assert result["overflow"] == overflow
     assert result["dropped_busy"] == 0
@@ -452,7 +474,7 @@ def test_single_port_ram_spram_on_ice40_up():
     assert not any(isinstance(sub, Instance) for sub, _, _ in fragment.subfragments)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UnusedElaboratable)
-        histogram = Fragment.get(Histogram(ram="single"), platform)
+        histogram = Fragment.get(Histogram(bank_bits=14, ram="single"), platform)
     def instances(fragment):
         for sub, _, _ in fragment.subfragments:
             if isinstance(sub, Instance):
@@ -463,8 +485,8 @@ def test_single_port_ram_spram_on_ice40_up():
 
 
 @pytest.mark.parametrize("kwargs, message", [
-    ({"bin_bits": 0}, "Bin index width must be an integer from 1 to 13 bits, not 0"),
-    ({"bin_bits": 14}, "Bin index width must be an integer from 1 to 13 bits, not 14"),
+    ({"bank_bits": 0}, "Bank address width must be an integer from 1 to 19 bits, not 0"),
+    ({"bank_bits": 20}, "Bank address width must be an integer from 1 to 19 bits, not 20"),
     ({"count_width": 15}, "Count width must be an integer from 16 to 32 bits, not 15"),
     ({"count_width": "16"}, "Count width must be an integer from 16 to 32 bits, not '16'"),
     ({"ram": "triple"}, "RAM kind must be one of 'dual', 'single', not 'triple'"),
@@ -473,8 +495,8 @@ def test_single_port_ram_spram_on_ice40_up():
      "Count width must be 16 bits with single-port RAM, not 17"),
     ({"ram": "single", "count_width": 32},
      "Count width must be 16 bits with single-port RAM, not 32"),
-    ({"ram": "single", "bin_bits": 14},
-     "Bin index width must be an integer from 1 to 13 bits, not 14"),
+    ({"ram": "single", "bank_bits": 20},
+     "Bank address width must be an integer from 1 to 19 bits, not 20"),
 ])
 def test_bad_parameters(kwargs, message, construction_error):
     assert construction_error(lambda: Histogram(**kwargs)) == message
@@ -491,24 +513,26 @@ def test_bad_settings(kwargs, message):
 
 
 def test_model_by_hand():
-    counts, overflow = model.histogram([0, 1, 2, 3, 31, 32, 8191], shift=5, bin_bits=2)
-    assert list(counts) == [5, 1, 0, 0] and overflow == 1
-    assert model.bins_read(0) == 8192 and model.bins_read(5) == 256
-    assert model.bins_read(0, bin_bits=8) == 256 and model.bins_read(13) == 1
-    hists, overflow, dropped = model.frames([0, 1, 2, 3, 4, 5, 9], [1, 1, 2, 2, 2, 7, 7],
-                                            integration=3, enable=0, disable=9, bin_bits=3)
+    counts, overflow, outside = model.histogram([0, 1, 2, 3, 31, 32, 8191], shift=5,
+                                                bank_bits=2)
+    assert counts.tolist() == [[5, 1, 0, 0]] and overflow == 1 and outside == 0
+    assert model.bins_read(0, 13) == 8192 and model.bins_read(5, 13) == 256
+    assert model.bins_read(0, bank_bits=8) == 256 and model.bins_read(13) == 1
+    hists, overflow, dropped, outside = model.frames(
+        [0, 1, 2, 3, 4, 5, 9], [1, 1, 2, 2, 2, 7, 7], integration=3, enable=0, disable=9,
+        bank_bits=3)
     # frames start at cycles 1, 4, 7; the events of cycles 0 and 9 are outside every frame
-    assert [list(h) for h in hists] == [[0, 1, 2, 0, 0, 0, 0, 0], [0, 0, 1, 0, 0, 0, 0, 1],
-                                        [0] * 8]
-    assert overflow == 0 and dropped == 2
+    assert [h.tolist() for h in hists] == [[[0, 1, 2, 0, 0, 0, 0, 0]],
+                                           [[0, 0, 1, 0, 0, 0, 0, 1]], [[0] * 8]]
+    assert overflow == 0 and dropped == 2 and outside == 0
 
 
 @pytest.mark.parametrize("ram", ["dual", "single"])
 def test_shortest_frame_without_dead_time(ram):
     # With a reader that is always ready, frames follow each other without dead time if
-    # `integration` is at least 4 n + latency + 3 cycles (n bins read out), and not with one
+    # `integration` is at least 6 n + latency + 3 cycles (n bins read out), and not with one
     # cycle less: `latency` and `readout_cycles_per_bin` are what the gateware does.
-    dut = Histogram(bin_bits=4, ram=ram)
+    dut = Histogram(bank_bits=4, ram=ram)
     shortest = dut.readout_cycles_per_bin * 16 + dut.latency + 3
     lows = {}
 

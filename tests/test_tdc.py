@@ -104,8 +104,9 @@ def run(dut, cycles, drive, ready):
     return cycles_out, events_out, counters
 
 
+@pytest.mark.parametrize("drop_collisions", [0, 1])
 @pytest.mark.parametrize("filtered", [True, False])
-def test_tdc_interface_matches_model(filtered):
+def test_tdc_interface_matches_model(filtered, drop_collisions):
     rng = np.random.default_rng(6)
     rises, highs, end = strobe_train(rng, 300, 10)
     cycles = end + 20
@@ -133,6 +134,7 @@ def test_tdc_interface_matches_model(filtered):
         if cycle == 0:
             ctx.set(dut.gate.start, gate_start)
             ctx.set(dut.gate.end, gate_end)
+            ctx.set(dut.gate.drop_collisions, drop_collisions)
         ctx.set(dut.pin_valid, int(pin_valid[cycle]))
         ctx.set(dut.pin_timestamp, int(bus[cycle, 0]))
         ctx.set(dut.pin_address, int(bus[cycle, 1]))
@@ -143,11 +145,15 @@ def test_tdc_interface_matches_model(filtered):
     got_cycles, got, counters = run(dut, cycles, drive, ready)
     want, valid_cycles, want_cycles, want_counters = model.interface(
         rises, timestamps, addresses, collisions, enable=enable, pulse_index=pulse_index,
-        gate_start=gate_start, gate_end=gate_end, ready=ready)
+        gate_start=gate_start, gate_end=gate_end, drop_collisions=drop_collisions, ready=ready)
     assert counters == want_counters, want_counters
     assert all(want_counters[name] > 10 for name in
                ("dropped_stopped", "dropped_gate", "dropped_overrun"))
     assert want_counters["accepted"] > 100
+    # with drop_collisions, no flagged event passes and (one in two being flagged) many are
+    # counted; without, flagged events pass
+    assert np.any(got["collision"] == 1) != bool(drop_collisions)
+    assert (want_counters["dropped_collision"] > 30) == bool(drop_collisions)
     np.testing.assert_array_equal(got, want)
     np.testing.assert_array_equal(got_cycles, want_cycles)
     # Latency as documented: valid from OUTPUT_LATENCY cycles after the strobe reads high.
@@ -202,7 +208,8 @@ def test_coarse_tdc_matches_model(filtered):
         hits, starts, enable=enable, pulse_index=pulse_index, address=42,
         gate_start=gate_start, gate_end=gate_end, ready=ready)
     assert counters == want_counters
-    assert all(want_counters[name] > 5 for name in model.COUNTERS)
+    assert all(want_counters[name] > 5 for name in model.COUNTERS
+               if name != "dropped_collision")
     np.testing.assert_array_equal(got, want)
     np.testing.assert_array_equal(got_cycles, want_cycles)
     for event in got[:50]:

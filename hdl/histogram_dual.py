@@ -1,0 +1,231 @@
+"""Dual-port bank storage of the histogram engine: block RAM, one event per cycle.
+
+A bank of ``2**bank_bits`` bins spans many block RAMs (64 on the ULX3S's ECP5 for 65 536 bins),
+spread over the whole chip: their words come back to the counting pipeline through registers
+near each RAM and a registered OR tree, :data:`READ_STAGES` cycles more than one RAM would
+take, and the pipeline forwards the counts of as many more events ahead.
+"""
+
+from amaranth.hdl import Cat, Module, Mux, Signal
+from amaranth.lib import wiring
+from amaranth.lib.memory import Memory
+
+from .histogram_banks import _MEMBERS_DOC, _increment, _members
+
+
+__all__ = ["BLOCK_BITS", "READ_STAGES", "LATENCY", "DualPortBanks"]
+
+
+#: Words of one RAM block of a bank, as a power of two: 1024 words of 16 bits, one ECP5 EBR.
+BLOCK_BITS = 10
+#: Registered stages between the RAM blocks' outputs and the bank's word, beyond the one that
+#: a single RAM needs: the blocks' own registers, then one OR level (groups of
+#: :data:`OR_GROUP`), then the word.
+READ_STAGES = 2
+#: Inputs of each OR of the read tree's first level.
+OR_GROUP = 8
+#: Cycles from an event's transfer on ``events`` to the block RAM write of its bin.
+LATENCY = 7 + READ_STAGES
+#: Events ahead whose writes a read misses (their counts are forwarded).
+FORWARD = 4 + READ_STAGES
+
+
+class DualPortBanks(wiring.Component):
+    __doc__ = """Two banks in block RAM (:class:`amaranth.lib.memory.Memory`), one event per cycle.
+
+    Each bank is ``2**(bank_bits - 10)`` blocks of 1024 words (one block if smaller), every
+    block a memory with a read port and a write port. The pipeline from the bin on: register the
+    read address (R), the blocks' data out (D), each block's word registered near it (D1), the
+    block read chosen (one-hot) and OR-ed in groups (D2), the bank's word registered (Q) — the
+    extra :data:`READ_STAGES` stages cut the routing across the chip —, saturating increment
+    with forwarding from the :data:`FORWARD` events ahead (E), RAM write (W). ``word`` is the
+    registered RAM word of the readout bank: ``READ_STAGES`` cycles after the readout's
+    CAPTURE, it holds until its next read.
+""" + _MEMBERS_DOC
+
+    def __init__(self, bank_bits, count_width):
+        self.bank_bits = bank_bits
+        self.count_width = count_width
+        self.latency = LATENCY
+        self.init_cycles = 0
+        self.read_stages = READ_STAGES
+        super().__init__(_members(bank_bits, count_width, initialising=False))
+        self.block_bits = min(bank_bits, BLOCK_BITS)
+        self.blocks = 1 << (bank_bits - self.block_bits)
+        self.banks = tuple(_BlockedBank(self.block_bits, self.blocks, count_width)
+                           for _ in range(2))
+
+    def elaborate(self, platform):
+        m = Module()
+
+        width = self.bank_bits
+        for k, bank in enumerate(self.banks):
+            for j, memory in enumerate(bank.memories):
+                m.submodules[f"bank{k}_{j}"] = memory
+
+        # Stage R: the bin (fine shift) is registered here and in the read address register of
+        # its bank: the block RAMs sample it at the end of this cycle.
+        valid_r = Signal()
+        bin_r = Signal(width)
+        bank_r = Signal()
+        m.d.sync += [
+            valid_r.eq(self.valid),
+            bin_r.eq(self.bin),
+            bank_r.eq(self.bank),
+        ]
+
+        # The stages after R, each a registered copy of the one before: D (data out), the read
+        # stages, Q, E, W, and after W the events written one or more cycles ago.
+        def stage(name, valid, bin, bank):
+            copy = (Signal(name=f"valid_{name}"), Signal(width, name=f"bin_{name}"),
+                    Signal(name=f"bank_{name}"))
+            m.d.sync += [copy[0].eq(valid), copy[1].eq(bin), copy[2].eq(bank)]
+            return copy
+
+        stages = [stage("d", valid_r, bin_r, bank_r)]
+        for n in range(READ_STAGES):
+            stages.append(stage(f"d{n + 1}", *stages[-1]))
+        valid_q, bin_q, bank_q = stage("q", *stages[-1])
+        valid_e, bin_e, bank_e = stage("e", valid_q, bin_q, bank_q)
+        after = [stage("w", valid_e, bin_e, bank_e)]
+        for n in range(FORWARD - 3):
+            after.append(stage(f"x{n + 1}", *after[-1]))   # written n + 1 cycles ago
+
+        # A read misses the writes of the FORWARD events ahead of it (written in its own cycle
+        # or later). Their bins are compared with its own in the last stage before Q (`valid_p`
+        # ...: event p), the outcome registered for stage Q.
+        valid_p, bin_p, bank_p = stages[-1]
+        ahead = [(valid_q, bin_q, bank_q), (valid_e, bin_e, bank_e)] + after
+        hits_q = [Signal(name=f"hit{n + 1}_q") for n in range(FORWARD)]
+        m.d.sync += [hit.eq(valid_p & valid & (bin_p == bin) & (bank_p == bank))
+                     for hit, (valid, bin, bank) in zip(hits_q, ahead)]
+
+        # Stage Q: the bank's word (`stored`, from the read stages). `chain[n]` holds the count
+        # written by the event n + 2 ahead; on a match the nearest replaces the stale word.
+        stored = [bank.word for bank in self.banks]
+        written = Signal(self.count_width)
+        chain = [written] + [Signal(self.count_width, name=f"written_before{n + 1}")
+                             for n in range(FORWARD - 2)]
+        base = Mux(bank_q, stored[1], stored[0])
+        for hit, count in reversed(list(zip(hits_q[1:], chain))):
+            base = Mux(hit, count, base)
+        base_e = Signal(self.count_width)
+        hit1_e = Signal()
+        m.d.sync += [base_e.eq(base), hit1_e.eq(hits_q[0])]
+
+        # Stage E: increment, saturating. `written` now holds the count of the event one ahead.
+        # Both candidates are incremented side by side and the forwarding choice comes last, so
+        # the loop through `written` is one increment and one LUT.
+        new = Signal(self.count_width)
+        m.d.comb += new.eq(Mux(hit1_e, _increment(m, written, self.count_width, "written"),
+                               _increment(m, base_e, self.count_width, "base")))
+        m.d.sync += [written.eq(new)]
+        m.d.sync += [later.eq(earlier) for earlier, later in zip(chain, chain[1:])]
+
+        # Stage W: the RAM write, from registers (`written` is the data).
+
+        # RAM ports, driven from registers: the pipeline uses the bank its event was tagged
+        # with, the readout the other one. Each block has its own write enable register.
+        for k, bank in enumerate(self.banks):
+            read_address = Signal(width, name=f"read_address{k}")
+            read_enable = Signal(name=f"read_enable{k}")
+            write_address = Signal(width, name=f"write_address{k}")
+            write_enable = Signal(name=f"write_enable{k}")
+            write_zero = Signal(name=f"write_zero{k}")
+            with m.If(self.valid & (self.bank == k)):
+                m.d.sync += read_address.eq(self.bin), read_enable.eq(1)
+            with m.Elif(self.readout_read & (self.readout_bank == k)):
+                m.d.sync += read_address.eq(self.readout_index), read_enable.eq(1)
+            with m.Else():
+                m.d.sync += read_enable.eq(0)
+            pipeline_write = valid_e & (bank_e == k)
+            readout_write = self.readout_clear & (self.readout_bank == k)
+            write_to = Mux(pipeline_write, bin_e, self.readout_index)
+            with m.If(pipeline_write):
+                m.d.sync += write_address.eq(bin_e), write_enable.eq(1), write_zero.eq(0)
+            with m.Elif(readout_write):
+                m.d.sync += [write_address.eq(self.readout_index), write_enable.eq(1),
+                             write_zero.eq(1)]
+            with m.Else():
+                m.d.sync += write_enable.eq(0)
+            bank.connect(m, read_address=read_address, read_enable=read_enable,
+                         write_address=write_address, write_to=write_to,
+                         write=pipeline_write | readout_write,
+                         write_data=Mux(write_zero, 0, written))
+
+        # The word of the bank being read out, from its registers
+        m.d.comb += self.word.eq(Mux(self.readout_bank, stored[1], stored[0]))
+
+        return m
+
+
+class _BlockedBank:
+    """One bank of :class:`DualPortBanks`: ``blocks`` memories of ``2**block_bits`` words, the
+    read tree after them (``word``: the word read, :data:`READ_STAGES` + 1 cycles after its
+    address is sampled) and per-block write enables."""
+
+    def __init__(self, block_bits, blocks, count_width):
+        self.block_bits = block_bits
+        self.count_width = count_width
+        self.memories = [Memory(shape=count_width, depth=1 << block_bits, init=[])
+                         for _ in range(blocks)]
+        self.word = Signal(count_width)
+        #: The bank's words, for testbenches: ``data[index]`` and ``data.depth``, as a
+        #: :class:`~amaranth.hdl.MemoryData`.
+        self.data = _BankWords(self.memories, block_bits)
+
+    def connect(self, m, *, read_address, read_enable, write_address, write_to, write,
+                write_data):
+        low = self.block_bits
+        blocks = len(self.memories)
+        width = self.count_width
+        if blocks > 1:
+            block_d = Signal(len(read_address) - low, name=f"{self.word.name}_block_d")
+            m.d.sync += block_d.eq(read_address[low:])
+        # Each block's data out registered as it is, every cycle (a register with no other
+        # input, placed by its block RAM: the RAM's output is slow); the block read, one-hot, a
+        # cycle after its address is sampled (held between reads)
+        read_d = Signal(name=f"{self.word.name}_read_d")
+        m.d.sync += read_d.eq(read_enable)
+        chosen = Signal(blocks, name=f"{self.word.name}_chosen")
+        with m.If(read_d):
+            m.d.sync += chosen.eq(1 << (block_d if blocks > 1 else 0))
+        words = []
+        for j, memory in enumerate(self.memories):
+            read_port = memory.read_port()
+            write_port = memory.write_port()
+            local = Signal(width, name=f"{self.word.name}_block{j}")
+            enable = Signal(name=f"{self.word.name}_write{j}")
+            # (each block's write enable is a register of its own, loaded with the address)
+            m.d.sync += enable.eq(write & (write_to[low:] == j if blocks > 1 else 1))
+            m.d.sync += local.eq(read_port.data)
+            m.d.comb += [
+                read_port.addr.eq(read_address[:low]),
+                read_port.en.eq(read_enable),
+                write_port.addr.eq(write_address[:low]),
+                write_port.en.eq(enable),
+                write_port.data.eq(write_data),
+            ]
+            words.append(local & chosen[j].replicate(width))
+        # the OR tree: groups registered, then the word
+        groups = []
+        for start in range(0, blocks, OR_GROUP):
+            group = Signal(width, name=f"{self.word.name}_group{start // OR_GROUP}")
+            part = words[start:start + OR_GROUP]
+            m.d.sync += group.eq(Cat(*[Cat(w[bit] for w in part).any() for bit in range(width)])
+                                 if len(part) > 1 else part[0])
+            groups.append(group)
+        m.d.sync += self.word.eq(Cat(*[Cat(g[bit] for g in groups).any() for bit in range(width)])
+                                 if len(groups) > 1 else groups[0])
+
+
+class _BankWords:
+    """The words of a :class:`_BlockedBank`, indexed as one memory."""
+
+    def __init__(self, memories, block_bits):
+        self._memories = memories
+        self._block_bits = block_bits
+        self.depth = len(memories) << block_bits
+
+    def __getitem__(self, index):
+        return self._memories[index >> self._block_bits].data[index & ((1 << self._block_bits) - 1)]
