@@ -293,7 +293,7 @@ class FlissTop(wiring.Component):
                                                        ram=self.histogram_ram)
         packetizer = HistogramPacketizer if self.compact_readout else FullHistogramPacketizer
         m.submodules.histogram_packets = histogram_packets = \
-            packetizer(index_bits=histogram.bin_bits)
+            packetizer(index_bits=self.bank_bits)
         m.d.comb += [
             histogram.enable.eq(running & ~raw_mode),
             # (field by field: a build's maxima may narrow some)

@@ -62,12 +62,13 @@ def histogram_frames(n, *, seed=1, truth_m=TRUTH_M, first=FIRST, shift=SHIFT, st
 
 def depth_frames(depths_m, *, first=FIRST, shift=SHIFT, start=0):
     """:class:`DepthFrame` items from depths ``(n, P)`` in metres (NaN: not detected), their
-    positions in bins by the contract: ToF ``(position + 0.5) * bin_s``."""
+    positions in bins from the start of bin 0, as DEPTH packets give them: ToF
+    ``position * bin_s``."""
     bin_s = LSB_S * (1 << shift)
     frames = []
     for i, row in enumerate(np.asarray(depths_m, dtype=float)):
         detected = np.isfinite(row)
-        position = np.where(detected, 2 * row / C / bin_s - 0.5, np.nan)
+        position = np.where(detected, 2 * row / C / bin_s, np.nan)
         frames.append(DepthFrame(start + i, first, shift, position,
                                  np.where(detected, 40.0, 0.0), np.full(len(row), 2.0),
                                  detected, 2000.0 + i))

@@ -106,7 +106,7 @@ def frames(rng, count):
                          [(3, 0.0, MAX_ENCODED), (4, 0.5, MAX_ENCODED), (5, 0.2, 40)])
 def test_cobs_decoder_matches_codec(seed, idle, max_encoded):
     rng = random.Random(seed)
-    stream = frames(rng, 25)
+    stream = frames(rng, 40)   # (enough for several oversize frames at every MAX_ENCODED)
     expected = decoder_model(stream, max_encoded)
     dut = CobsDecoder(max_encoded=max_encoded)
     received = []

@@ -231,7 +231,7 @@ def check_decoder(stream, rng, *, idle_in=0.0, idle_out=0.0):
 
     async def send(ctx):
         await stream_put_all(ctx, dut.i, stream, rng=rng, idle=idle_in)
-        await ctx.tick().repeat(2 * MAX_PAYLOAD + 50)
+        await ctx.tick().repeat(8 * MAX_PAYLOAD + 50)    # (the last payload out, at idle_out)
         counts = {NakCode.BAD_CRC: ctx.get(dut.bad_crc), NakCode.TRUNCATED: ctx.get(dut.truncated),
                   NakCode.OVERSIZE: ctx.get(dut.oversize),
                   NakCode.BAD_LENGTH: ctx.get(dut.bad_length)}
