@@ -103,7 +103,8 @@ MAX_BACKLOG = 1 << 22
 RESET_CYCLES = 4
 
 #: Packets that count as data for ``FLISS_BOARD_RESET_AFTER``.
-DATA_TYPES = frozenset({PacketType.HISTOGRAM, PacketType.HISTOGRAM_COMPACT, PacketType.EVENTS})
+DATA_TYPES = frozenset({PacketType.HISTOGRAM, PacketType.HISTOGRAM_COMPACT, PacketType.EVENTS,
+                        PacketType.DEPTH})
 
 #: Clock cycles one event takes on the sensor bus (bus set, strobe one cycle later for two
 #: cycles, bus held three more).
