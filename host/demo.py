@@ -5,13 +5,20 @@ scene simulator feeds its sensor pins with the echo of a target 4 m away and wit
 an aggressor whose trigger is the gateware's own aggressor output, 75 ns after the victim. The
 demo then drives it with the ordinary commands (``config``, ``capture``, ``analyze``, ``plot``),
 first with FLISS off and then with the masked delay source (Wm = 6), and prints what changed.
-Last, ``fliss attack`` shows an attacker that predicts the ``mseq`` and ``masked`` delays and
-makes a ghost target, and fails against the ``keyed`` source.
+Then the imager: a second virtual board sees a line scene (the paper's column of 60 pixels, a
+wall at 4 m with an object at 2.5 m in front of pixels 20 to 39) lit by a flash aggressor, and
+the board sends a depth frame per integration; with FLISS off the aggressor plants ghost depths,
+with FLISS on the profile is the scene's. Last, ``fliss attack`` shows an attacker that predicts
+the ``mseq`` and ``masked`` delays and makes a ghost target, and fails against the ``keyed``
+source.
 """
 
 import math
 import shlex
 import time
+from dataclasses import dataclass
+
+import numpy as np
 
 from amaranth.sim import Simulator
 
@@ -41,13 +48,16 @@ def register(subparsers, formatter):
                         help="simulator of the virtual board")
     parser.add_argument("--out", default="build/demo", metavar="DIR",
                         help="output folder; the demo replaces its own files there "
-                             "(fliss-off.h5, fliss-on.h5, demo.png, attack.txt, attack.png)")
+                             "(fliss-off.h5, fliss-on.h5, demo.png, imager-off.h5, imager-on.h5, "
+                             "imager.png, attack.txt, attack.png)")
     parser.add_argument("--acquisitions", type=int, default=2,
                         help="histograms per setting")
     parser.add_argument("--integration", default="2ms", metavar="TIME",
                         help="integration time per histogram (simulated time)")
     parser.add_argument("--target-m", type=float, default=4.0, metavar="M",
-                        help="distance of the victim's target")
+                        help="distance of the victim's target (and of the imager's wall)")
+    parser.add_argument("--depth-frames", type=int, default=3, metavar="N",
+                        help="depth frames per setting in the imager part")
     parser.add_argument("--trace", action="store_true",
                         help="instead: print a pulse scheduler trace from the gateware, checked "
                              "against the reference model (a few seconds, no simulator needed)")
@@ -112,6 +122,8 @@ def run(args):
         return run_trace()
     if args.acquisitions < 1:
         raise UserError(f"--acquisitions must be at least 1, not {args.acquisitions}")
+    if args.depth_frames < 1:
+        raise UserError(f"--depth-frames must be at least 1, not {args.depth_frames}")
     if not (math.isfinite(args.target_m) and args.target_m > 0):
         raise UserError(f"--target-m must be a positive distance in metres, not {args.target_m:g}")
     duration_s(args.integration, f"--integration {args.integration}")    # a time with a unit
@@ -157,6 +169,7 @@ def run(args):
     _step("Peaks and suppression", ["analyze", *paths, "--victim-tof", f"{tof_s * 1e9:.3f}ns"])
     png = out / "demo.png"
     _step("Histograms", ["plot", *paths, "-o", str(png)])
+    imager = run_imager(args, out, period, masked_period)
     # An attacker that predicts the delays (docs/security.md): a few seconds of model time.
     _step("An attacker that predicts the delays (mseq, masked) and one it cannot (keyed)",
           ["attack", "--sources", "off,mseq,masked,keyed", "--lengths", "8",
@@ -176,5 +189,62 @@ def run(args):
         relation = ">=" if result.limited else "="
         print(f"  {label:<32} victim peak {result.victim.height:7.1f} counts at "
               f"{result.victim.position_s * 1e9:6.2f} ns, S {relation} {result.s_db:5.1f} dB")
-    print(f"  plot: {png}   ({time.monotonic() - started:.0f} s)")
+    for line in imager.lines:
+        print(f"  imager, {line}")
+    print(f"  plots: {png}, {imager.png}   ({time.monotonic() - started:.0f} s)")
     return 0
+
+
+@dataclass(frozen=True)
+class ImagerResult:
+    """What the imager part found: the summary lines and the figure."""
+    lines: list
+    png: object
+
+
+def run_imager(args, out, period, masked_period):
+    """The imager part of the demo: depth frames of the line scene, FLISS off and on, with a
+    flash aggressor, through ``fliss config``, ``capture --readout depth`` and ``analyze``; the
+    two depth profiles drawn beside the scene's."""
+    from .virtual import start_virtual_board
+    from .fileformat import read_capture
+    from .demo_imager import compare_profiles, draw_profiles, summary_lines
+    from ..sim.scene import line_pixels
+
+    line = line_pixels(wall_m=args.target_m)
+    truth = np.asarray(line.distance_m, dtype=float)
+    print(f"\n== The imager: a line of {len(truth)} pixels (wall at {args.target_m:g} m, an object "
+          f"at 2.5 m before pixels 20-39), a flash aggressor lighting every pixel; one depth "
+          f"frame per integration, made on the board", flush=True)
+    # Weak light (the column's TDC keeps one photon a laser cycle: the last pixel to fire)
+    with start_virtual_board(args.sim, scene="line", target_m=args.target_m, signal=0.02,
+                             aggressor_signal=0.02, ambient_hz=1e4, seed=1) as port:
+        print(f"virtual board (line scene) on {port}")
+        common = ["--port", port]
+        files = {}
+        for label, mode, aggressor_period in (
+                ("FLISS off", ["--mode", "off"], period),
+                ("FLISS on", ["--mode", "masked", "--mask-width", "6", "--seed", "0xACE1"],
+                 masked_period)):
+            _step(f"Imager, {label}: configure",
+                  ["config", *common, *mode, "--aggressor", "on", "--aggressor-period-cycles",
+                   str(aggressor_period), "--pixels", "64", "--bin-shift", "6",
+                   "--depth-filter", "2", "--depth-threshold", "4", "--integration", "2ms"])
+            files[label] = out / ("imager-off.h5" if "off" in label else "imager-on.h5")
+            _step(f"Imager, {label}: capture depth frames",
+                  ["capture", *common, "--readout", "depth", "--acquisitions",
+                   str(args.depth_frames), "-o", str(files[label]), "--overwrite"])
+    _step("Imager: per-pixel table (FLISS on)", ["analyze", str(files["FLISS on"])])
+    depths = []
+    for path in files.values():
+        capture = read_capture(path)
+        # (64 pixels histogrammed; the line has the first 60)
+        depths.append(np.asarray(capture.depth["depth_m"], dtype=float)[capture.complete][
+            :, :len(truth)])
+    comparison = compare_profiles(*depths, truth, np.arange(len(truth)))
+    png = out / "imager.png"
+    draw_profiles(comparison, png, title="Depth profiles of the line scene with a flash "
+                                         "aggressor")
+    lines = summary_lines(comparison)
+    print("\n".join(lines) + f"\nplot: {png}")
+    return ImagerResult(lines, png)
