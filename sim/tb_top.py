@@ -143,13 +143,15 @@ class TopTB:
 
     # Sensor model: after each TDC start, maybe one photon event on the bus.
 
-    def start_sensor(self, rng, probability, *, max_code=8191):
-        self._sensor = cocotb.start_soon(self._sensor_loop(rng, probability, max_code))
+    def start_sensor(self, rng, probability, *, max_code=8191, addresses=60):
+        """Events after TDC starts, of pixel addresses ``0 … addresses - 1``."""
+        self._sensor = cocotb.start_soon(self._sensor_loop(rng, probability, max_code,
+                                                           addresses))
 
     def stop_sensor(self):
         self._sensor.cancel()
 
-    async def _sensor_loop(self, rng, probability, max_code):
+    async def _sensor_loop(self, rng, probability, max_code, addresses):
         dut = self.dut
         while True:
             await RisingEdge(dut.tdc_start)
@@ -159,7 +161,7 @@ class TopTB:
             if rng.random() >= probability:
                 continue
             code = rng.randrange(0, max_code + 1)
-            address = rng.randrange(0, 60)
+            address = rng.randrange(0, addresses)
             collision = int(rng.random() < 0.1)
             # The sensor's conversion ends after its 409.6 ns range: present the event then.
             await ClockCycles(dut.clk, 34)
@@ -322,14 +324,14 @@ async def test_raw_events_closed_loop(dut):
 @cocotb.test()
 async def test_histogram_closed_loop(dut):
     """Histogram mode: the first frame equals the histogram of the events the sensor model
-    produced during it."""
+    produced during it (all of pixel 0: the frame's one pixel by default)."""
     tb = TopTB(dut)
     await tb.start()
     shift = 6   # 128 bins: one chunk per frame
     integration = 40_000
     await _acquire(tb, delay_mode=1, length=5, seed=3, bin_shift=shift,
                    integration=integration)
-    tb.start_sensor(random.Random(9), 0.6)
+    tb.start_sensor(random.Random(9), 0.6, addresses=1)
     # Stop the photons well before the first frame ends.
     await ClockCycles(tb.dut.clk, integration - 3000)
     tb.stop_sensor()
