@@ -9,7 +9,8 @@ sensor model produced.
 The baud rate is given to the design and to this testbench by ``FLISS_TB_BAUD``; the register
 maxima of a smaller build (:meth:`fliss.hdl.top.FlissTop.register_maxima`) by
 ``FLISS_TB_MAXIMA``, as JSON; its histogram bank (:attr:`fliss.hdl.top.FlissTop.bank_bits`) by
-``FLISS_TB_BANK_BITS``.
+``FLISS_TB_BANK_BITS``, and the cycles its histogram takes to clear its banks after reset by
+``FLISS_TB_INIT_CYCLES``.
 """
 
 import json
@@ -37,6 +38,8 @@ BAUD = int(os.environ.get("FLISS_TB_BAUD", 12_000_000))
 FUZZ_FRAMES = int(os.environ.get("FLISS_TB_FUZZ_FRAMES", 10_000))
 MAXIMA = json.loads(os.environ.get("FLISS_TB_MAXIMA", "{}"))
 BANK_BITS = int(os.environ.get("FLISS_TB_BANK_BITS", BANK_BITS))
+#: Cycles after reset before the histogram can start a frame (single-port banks are cleared).
+INIT_CYCLES = int(os.environ.get("FLISS_TB_INIT_CYCLES", 0))
 CLOCK_PERIOD_PS = round(1e12 / DEFAULT_CLOCK_HZ)
 
 
@@ -74,6 +77,7 @@ class TopTB:
         dut.rst.value = 0
         await ClockCycles(dut.clk, 4)
         self.sink = UartSink(dut.uart_tx, BAUD)
+        await ClockCycles(dut.clk, INIT_CYCLES)
         self.pulses = 0   # TDC starts since reset: each test starts acquisition once
         cocotb.start_soon(self._count_pulses())
 
@@ -419,8 +423,6 @@ async def test_pixel_histograms(dut):
     await tb.start()
     tb.data_packets = []        # (this test's packets only)
     rng = random.Random(17)
-    # single-port banks are cleared after reset (2**bank_bits cycles) before a frame starts
-    await ClockCycles(dut.clk, (1 << BANK_BITS) + 100)
     before = await tb.status()
     for frame, (pixel_bits, first_pixel, shift, drop) in enumerate(PIXEL_SPLITS):
         # One frame per split: a long integration, ended by STOP. The histogram's settings

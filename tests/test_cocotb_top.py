@@ -54,7 +54,8 @@ def test_top_small(simulator, cocotb_counts):
         testcase=["test_identify_and_registers", "test_histogram_closed_loop",
                   "test_pixel_histograms"],
         extra_env={"FLISS_TB_BAUD": str(BAUD), "FLISS_TB_MAXIMA": json.dumps(maxima),
-                   "FLISS_TB_BANK_BITS": str(top.bank_bits)})
+                   "FLISS_TB_BANK_BITS": str(top.bank_bits),
+                   "FLISS_TB_INIT_CYCLES": str(1 << top.bank_bits)})   # (clearing the SPRAMs)
     cocotb_counts(simulator, results)
     assert results.failed == []
     assert results.passed == results.expected
