@@ -115,6 +115,7 @@ def test_top_register_file_takes_what_the_top_runs(options):
                     reset = register.reset_value(flisstop.clock_hz)
                     assert maxima[register.name] < 2 * max(reset, register.minimum, 1)
                     lowered[register.name] = maxima[register.name]
+        lowered["pixel_bits"] = top.submodules.histogram.max_pixel_bits
         if not core.keyed:
             # no keyed source: delay modes up to masked, and no key or IV but 0
             lowered["delay_mode"] = DelayMode.MASKED.value
