@@ -97,7 +97,7 @@ class _Harness(Elaboratable):
         enable, ready = Signal(), Signal()
         m.d.sync += enable.eq(self.enable), ready.eq(self.ready)
         if self.fliss:
-            m.submodules.dut = dut = Histogram(bin_bits=10)
+            m.submodules.dut = dut = Histogram(bank_bits=10)
             m.d.comb += [
                 dut.events.valid.eq(1),
                 dut.events.payload.timestamp.eq(lfsr[:TIMESTAMP_BITS]),

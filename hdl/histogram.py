@@ -122,6 +122,9 @@ class Histogram(wiring.Component):
     bank_bits : int
         Width of a bank's word address, from 1 to 19: ``2**bank_bits`` bins per bank (16, the
         default: 64 pixels of 1024 bins, or one of 8192).
+    max_pixel_bits : int
+        Largest ``pixel_bits`` the build takes, 0 to 6; with 0 (a smaller build) a frame is one
+        pixel, the address ``first_pixel``, and ``settings.pixel_bits`` is not used.
     count_width : int
         Width of a bin count, from 16 to 32 bits; 16 with ``ram="single"``.
     ram : ``"dual"`` or ``"single"``
@@ -193,7 +196,8 @@ class Histogram(wiring.Component):
         The parameter.
     """
 
-    def __init__(self, *, bank_bits=BANK_BITS, count_width=COUNT_WIDTH, ram="dual"):
+    def __init__(self, *, bank_bits=BANK_BITS, count_width=COUNT_WIDTH, ram="dual",
+                 max_pixel_bits=PIXEL_BITS):
         if ram not in RAM_KINDS:
             raise ValueError(f"RAM kind must be one of {', '.join(map(repr, RAM_KINDS))}, "
                              f"not {ram!r}")
@@ -204,6 +208,10 @@ class Histogram(wiring.Component):
                 not MIN_COUNT_WIDTH <= count_width <= MAX_COUNT_WIDTH:
             raise ValueError(f"Count width must be an integer from {MIN_COUNT_WIDTH} to "
                              f"{MAX_COUNT_WIDTH} bits, not {count_width!r}")
+        if not isinstance(max_pixel_bits, int) or not 0 <= max_pixel_bits <= PIXEL_BITS:
+            raise ValueError(f"Most pixel bits must be an integer from 0 to {PIXEL_BITS}, "
+                             f"not {max_pixel_bits!r}")
+        self.max_pixel_bits = max_pixel_bits
         if ram == "single" and count_width != COUNT_WIDTH:
             raise ValueError(f"Count width must be {COUNT_WIDTH} bits with single-port RAM, "
                              f"not {count_width!r}")
@@ -256,7 +264,7 @@ class Histogram(wiring.Component):
             sequencer.enable.eq(self.enable),
             sequencer.integration.eq(self.settings.integration),
             sequencer.shift.eq(self.settings.bin_shift),
-            sequencer.pixel_bits.eq(self.settings.pixel_bits),
+            sequencer.pixel_bits.eq(self.settings.pixel_bits if self.max_pixel_bits else 0),
             sequencer.first_pixel.eq(self.settings.first_pixel),
             sequencer.hold.eq(storage.initialising),
             sequencer.done.eq(reader.done),
@@ -320,15 +328,16 @@ class Histogram(wiring.Component):
         bank2 = Signal()
         in_window = Signal()
         in_range = Signal()
-        m.d.comb += [
-            in_window.eq(~offset1[-1] & ((offset1[:PIXEL_BITS] & pixels1) == 0)),
-            in_range.eq((timestamp1 & mask1) == 0),
-        ]
+        if self.max_pixel_bits:
+            m.d.comb += in_window.eq(~offset1[-1] & ((offset1[:PIXEL_BITS] & pixels1) == 0))
+        else:       # (one pixel, selected by its address: no pixel logic)
+            m.d.comb += in_window.eq(offset1 == 0)
+        m.d.comb += in_range.eq((timestamp1 & mask1) == 0)
         m.d.sync += [
             valid2.eq(valid1 & in_window & in_range),
             coarse2.eq(timestamp1 >> Cat(C(0, 2), shift1[2:])),
             fine2.eq(shift1[:2]),
-            base2.eq(offset1[:PIXEL_BITS] << position1),
+            base2.eq(offset1[:PIXEL_BITS] << position1 if self.max_pixel_bits else 0),
             bank2.eq(bank1),
         ]
         count_event(m, self.dropped_pixel, valid1 & ~in_window, self.clear,

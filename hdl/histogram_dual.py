@@ -35,8 +35,8 @@ class DualPortBanks(wiring.Component):
 
     Each bank is ``2**(bank_bits - 10)`` blocks of 1024 words (one block if smaller), every
     block a memory with a read port and a write port. The pipeline from the bin on: register the
-    read address (R), the blocks' data out (D), each block's word registered near it (D1), the
-    block read chosen (one-hot) and OR-ed in groups (D2), the bank's word registered (Q) — the
+    read address (R), the blocks' data out (D), each block's word registered near it (zero but
+    in the block read: stage D1), OR-ed in groups (D2), the bank's word registered (Q) — the
     extra :data:`READ_STAGES` stages cut the routing across the chip —, saturating increment
     with forwarding from the :data:`FORWARD` events ahead (E), RAM write (W). ``word`` is the
     registered RAM word of the readout bank: ``READ_STAGES`` cycles after the readout's
@@ -179,17 +179,13 @@ class _BlockedBank:
         low = self.block_bits
         blocks = len(self.memories)
         width = self.count_width
+        # the block read, a cycle after its address is sampled; each block's word registered
+        # near it (zero unless it is the block read), and held between reads
+        read_d = Signal(name=f"{self.word.name}_read_d")
+        m.d.sync += read_d.eq(read_enable)
         if blocks > 1:
             block_d = Signal(len(read_address) - low, name=f"{self.word.name}_block_d")
             m.d.sync += block_d.eq(read_address[low:])
-        # Each block's data out registered as it is, every cycle (a register with no other
-        # input, placed by its block RAM: the RAM's output is slow); the block read, one-hot, a
-        # cycle after its address is sampled (held between reads)
-        read_d = Signal(name=f"{self.word.name}_read_d")
-        m.d.sync += read_d.eq(read_enable)
-        chosen = Signal(blocks, name=f"{self.word.name}_chosen")
-        with m.If(read_d):
-            m.d.sync += chosen.eq(1 << (block_d if blocks > 1 else 0))
         words = []
         for j, memory in enumerate(self.memories):
             read_port = memory.read_port()
@@ -198,7 +194,9 @@ class _BlockedBank:
             enable = Signal(name=f"{self.word.name}_write{j}")
             # (each block's write enable is a register of its own, loaded with the address)
             m.d.sync += enable.eq(write & (write_to[low:] == j if blocks > 1 else 1))
-            m.d.sync += local.eq(read_port.data)
+            with m.If(read_d):
+                m.d.sync += local.eq(Mux(block_d == j, read_port.data, 0) if blocks > 1
+                                     else read_port.data)
             m.d.comb += [
                 read_port.addr.eq(read_address[:low]),
                 read_port.en.eq(read_enable),
@@ -206,7 +204,7 @@ class _BlockedBank:
                 write_port.en.eq(enable),
                 write_port.data.eq(write_data),
             ]
-            words.append(local & chosen[j].replicate(width))
+            words.append(local)
         # the OR tree: groups registered, then the word
         groups = []
         for start in range(0, blocks, OR_GROUP):

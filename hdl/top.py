@@ -35,12 +35,13 @@ SPRAM_BANK_BITS = SPRAM_DEPTH.bit_length() - 1
 
 #: Options of :class:`FlissTop` for the smallest build, which fits an iCE40UP5K (the
 #: iCEBreaker's FPGA): histograms only, in single-port RAM (one SPRAM per bank: 16384 bins,
-#: ``bank_bits`` 14); no aggressor emitter; no keyed delay source; no depth engine; full
+#: ``bank_bits`` 14), of one pixel selected by address (``max_pixel_bits`` 0: the per-pixel
+#: logic does not fit); no aggressor emitter; no keyed delay source; no depth engine; full
 #: histogram chunks only; periods up to 2**24 - 1 cycles (0.47 s at 36 MHz, the iCEBreaker's
 #: clock) and pulses up to 255 cycles.
-SMALL = dict(histogram_ram="single", bank_bits=SPRAM_BANK_BITS, aggressor=False,
-             raw_events=False, keyed=False, depth=False, period_width=24, pulse_width_width=8,
-             compact_readout=False)
+SMALL = dict(histogram_ram="single", bank_bits=SPRAM_BANK_BITS, max_pixel_bits=0,
+             aggressor=False, raw_events=False, keyed=False, depth=False, period_width=24,
+             pulse_width_width=8, compact_readout=False)
 
 
 class FlissTop(wiring.Component):
@@ -65,6 +66,9 @@ class FlissTop(wiring.Component):
         Each histogram bank holds ``2**bank_bits`` bins, from 13 to 19 (``None``: 16 with
         ``"dual"``, 64 pixels of 1024 bins; 14 with ``"single"``, one SPRAM). The register file
         refuses a pixel split that does not fit, and IDENTITY reports it.
+    max_pixel_bits : int
+        Largest ``pixel_bits``, 0 to 6 (``Histogram`` ``max_pixel_bits``); below 6 the register
+        file refuses larger values as out of range (0: one pixel, selected by ``first_pixel``).
     aggressor_delays : bool
         Give the aggressor emitter a delay source of its own. Without it (a smaller build, for
         the iCE40UP5K), the aggressor fires on its nominal schedule only, and a write of
@@ -132,9 +136,10 @@ class FlissTop(wiring.Component):
     running:          Out(1)
 
     def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, baud=DEFAULT_BAUD, raw_depth=512,
-                 histogram_ram="dual", bank_bits=None, aggressor_delays=True, aggressor=True,
-                 raw_events=True, keyed=True, depth=True, period_width=PERIOD_WIDTH,
-                 pulse_width_width=PULSE_WIDTH_WIDTH, compact_readout=True):
+                 histogram_ram="dual", bank_bits=None, max_pixel_bits=ADDRESS_BITS,
+                 aggressor_delays=True, aggressor=True, raw_events=True, keyed=True, depth=True,
+                 period_width=PERIOD_WIDTH, pulse_width_width=PULSE_WIDTH_WIDTH,
+                 compact_readout=True):
         self.clock_hz = clock_hz
         self.baud = baud
         self.raw_depth = raw_depth
@@ -149,6 +154,10 @@ class FlissTop(wiring.Component):
             raise ValueError(f"Histogram bank address width must be an integer from "
                              f"{MIN_BANK_BITS} to {MAX_BANK_BITS} bits, not {bank_bits!r}")
         self.bank_bits = bank_bits
+        if not isinstance(max_pixel_bits, int) or not 0 <= max_pixel_bits <= ADDRESS_BITS:
+            raise ValueError(f"Most pixel bits must be an integer from 0 to {ADDRESS_BITS}, "
+                             f"not {max_pixel_bits!r}")
+        self.max_pixel_bits = max_pixel_bits
         for name, value in (("aggressor_delays", aggressor_delays), ("aggressor", aggressor),
                             ("raw_events", raw_events), ("keyed", keyed), ("depth", depth),
                             ("compact_readout", compact_readout)):
@@ -188,6 +197,8 @@ class FlissTop(wiring.Component):
             maxima["acquisition"] = AcquisitionMode.RAW.value
         if not self.raw_events:
             maxima["acquisition"] = AcquisitionMode.HISTOGRAM.value
+        if self.max_pixel_bits < ADDRESS_BITS:
+            maxima["pixel_bits"] = self.max_pixel_bits
         if not self.keyed:
             maxima[VICTIM.register("mode").name] = DelayMode.MASKED.value
             for register in KEYING.members:
@@ -290,7 +301,8 @@ class FlissTop(wiring.Component):
         # Histogram mode
         raw_mode = acquisition.mode == AcquisitionMode.RAW
         m.submodules.histogram = histogram = Histogram(bank_bits=self.bank_bits,
-                                                       ram=self.histogram_ram)
+                                                       ram=self.histogram_ram,
+                                                       max_pixel_bits=self.max_pixel_bits)
         packetizer = HistogramPacketizer if self.compact_readout else FullHistogramPacketizer
         m.submodules.histogram_packets = histogram_packets = \
             packetizer(index_bits=self.bank_bits)

@@ -54,7 +54,8 @@ def test_top_small(simulator, cocotb_counts):
         testcase=["test_identify_and_registers", "test_histogram_closed_loop",
                   "test_pixel_histograms"],
         extra_env={"FLISS_TB_BAUD": str(BAUD), "FLISS_TB_MAXIMA": json.dumps(maxima),
-                   "FLISS_TB_BANK_BITS": str(top.bank_bits)})
+                   "FLISS_TB_BANK_BITS": str(top.bank_bits),
+                   "FLISS_TB_INIT_CYCLES": str(1 << top.bank_bits)})   # (clearing the SPRAMs)
     cocotb_counts(simulator, results)
     assert results.failed == []
     assert results.passed == results.expected
@@ -114,6 +115,7 @@ def test_top_register_file_takes_what_the_top_runs(options):
                     reset = register.reset_value(flisstop.clock_hz)
                     assert maxima[register.name] < 2 * max(reset, register.minimum, 1)
                     lowered[register.name] = maxima[register.name]
+        lowered["pixel_bits"] = top.submodules.histogram.max_pixel_bits
         if not core.keyed:
             # no keyed source: delay modes up to masked, and no key or IV but 0
             lowered["delay_mode"] = DelayMode.MASKED.value

@@ -122,3 +122,20 @@ def test_model_pixels_by_hand():
         model.check_settings(pixel_bits=7)
     with pytest.raises(ValueError, match="First pixel must be an address from 0 to 63, not 64"):
         model.check_settings(first_pixel=64)
+
+
+@pytest.mark.parametrize("ram", ["dual", "single"])
+def test_one_pixel_build(ram):
+    # A build without the per-pixel logic (max_pixel_bits 0, the iCEBreaker's): one pixel,
+    # the address first_pixel, the others dropped and counted.
+    rng = np.random.default_rng(37)
+    integration, shift, first_pixel = 900, 7, 37
+    valid, timestamps, addresses = pixel_stimulus(rng, 3 * integration, shift=shift,
+                                                  pixel_bits=0, first_pixel=first_pixel,
+                                                  outside=0.4, ram=ram)
+    dut = Histogram(bank_bits=13, ram=ram, max_pixel_bits=0)
+    frames, result = run_histogram(dut, valid, timestamps, integration=integration,
+                                   shift=shift, addresses=addresses, first_pixel=first_pixel)
+    check_against_model(frames, result, valid, timestamps, integration=integration,
+                        shift=shift, bank_bits=13, addresses=addresses, first_pixel=first_pixel)
+    assert result["dropped_pixel"] > 100
