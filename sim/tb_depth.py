@@ -30,7 +30,7 @@ FRAMES = int(os.environ.get("FLISS_TB_DEPTH_FRAMES", 40))
 SEED = int(os.environ.get("FLISS_TB_DEPTH_SEED", 1))
 CLOCK_PERIOD_PS = round(1e12 / DEFAULT_CLOCK_HZ)
 
-_READOUT = data.Layout.cast(readout_layout())
+_READOUT = data.Layout.cast(readout_layout(TIMESTAMP_BITS))   # (the engine's default index)
 _BEAT = data.Layout.cast(PacketBeat)
 _HEADER = data.Layout.cast(_BEAT["header"].shape)
 _SETTINGS = data.Layout.cast(DEPTH.layout())

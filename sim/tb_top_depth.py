@@ -30,7 +30,7 @@ async def test_depth_closed_loop(dut):
                    depth_threshold=threshold)
     await tb.command(PacketType.START)
     # Photons in the first 1500 codes only (bins 0-23 of 128): a block standing out of zeros.
-    tb.start_sensor(random.Random(21), 0.6, max_code=1500)
+    tb.start_sensor(random.Random(21), 0.6, max_code=1500, addresses=1)   # (the frame: pixel 0)
     await ClockCycles(tb.dut.clk, integration - 3000)
     tb.stop_sensor()
     await ClockCycles(tb.dut.clk, 4000)
