@@ -245,21 +245,21 @@ class HistogramHarness(wiring.Component):
 
 
 PROOFS = [
-    Proof("histogram.counted_once", lambda: HistogramHarness("count"), "bmc", 40,
+    Proof("histogram.counted_once", lambda: HistogramHarness("count"), "bmc", 30,
           "histogram: every event counted once, in a bin read out, dropped, dropped_pixel or "
           "overflow",
-          mutant=lambda: HistogramHarness("count", _counted_twice), mutant_depth=26),
+          mutant=lambda: HistogramHarness("count", _counted_twice), mutant_depth=20),
     Proof("histogram.readout_bank", lambda: HistogramHarness("bank"), "prove", 4,
           "histogram: no event is counted into the bank being read out",
           mutant=lambda: HistogramHarness("bank", _count_into_readout), cover_depth=24),
     Proof("histogram.counted_once_single",
           lambda: HistogramHarness("count", ram="single", max_integration=SINGLE_INTEGRATION),
-          "bmc", 42,
+          "bmc", 34,
           "histogram, single-port banks: every event counted once, in a bin read out, "
           "overflow, dropped_pixel, dropped_busy or dropped",
           mutant=lambda: HistogramHarness("count", _single_counted_twice, ram="single",
                                          max_integration=SINGLE_INTEGRATION),
-          mutant_depth=26),
+          mutant_depth=20),
     Proof("histogram.readout_bank_single", lambda: HistogramHarness("bank", ram="single"),
           "prove", 4,
           "histogram, single-port banks: no event is counted into the bank being read out",

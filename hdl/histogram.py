@@ -52,13 +52,14 @@ class Histogram(wiring.Component):
     Each bank is blocks of 1024 words, :class:`amaranth.lib.memory.Memory` with a read port and
     a write port (block RAM; :class:`~fliss.hdl.histogram_dual.DualPortBanks`). ``events`` is
     always ready: the engine takes one event in every clock cycle, also when consecutive events
-    hit the same bin. Each event goes through a pipeline of :data:`LATENCY` stages, each with
-    little logic, for timing: pixel offset; range and window checks with the coarse shift and
-    the pixel's place in the bank; fine shift to the flat index; block RAM read; each block's
-    word registered as it leaves its block RAM, then OR-ed in a registered tree (a bank of 64
-    blocks spans the chip); forwarding; saturating increment; block RAM write (every RAM input
-    comes from a register). A read misses the writes of the six events ahead of it, so their
-    bins are compared with its own; on a match the event takes the newest of their counts
+    hit the same bin. Each event goes through a pipeline of :attr:`latency` stages (at most
+    :data:`LATENCY`), each with little logic, for timing: pixel offset; range and window checks
+    with the coarse shift and the pixel's place in the bank; fine shift to the flat index; block
+    RAM read; in a bank of more than one block, each block's word registered as it leaves its
+    block RAM, then OR-ed in a registered tree (a bank of 64 blocks spans the chip: two stages
+    more); forwarding; saturating increment; block RAM write (every RAM input comes from a
+    register). A read misses the writes of the four (six with the tree) events ahead of it, so
+    their bins are compared with its own; on a match the event takes the newest of their counts
     (forwarding) instead of the stale RAM word.
 
     Single-port banks (``ram="single"``)
@@ -112,10 +113,11 @@ class Histogram(wiring.Component):
     ``readout_pixel_bits`` and ``readout_first_pixel`` give the frame's settings meanwhile.
     Each bin is cleared as it is transferred, so the bank is empty when it fills again. The
     readout starts once the last events of the frame have left the pipeline and takes at least
-    :data:`READOUT_CYCLES_PER_BIN` (6) cycles per bin (both RAM kinds: one read, one clearing
-    write and the word's way through the read stages per bin), so frames follow each other
-    without dead time if ``integration`` is at least ``6 P N +`` :attr:`latency` ``+ 3`` cycles
-    plus the time the consumer holds ``ready`` low.
+    :attr:`readout_cycles_per_bin` cycles per bin: 4 (one read, one clearing write), plus the
+    word's way through the read stages of a bank of more than one block (6, at most
+    :data:`READOUT_CYCLES_PER_BIN`), so frames follow each other without dead time if
+    ``integration`` is at least ``readout_cycles_per_bin * P N +`` :attr:`latency` ``+ 3``
+    cycles plus the time the consumer holds ``ready`` low.
 
     Parameters
     ----------
@@ -183,10 +185,11 @@ class Histogram(wiring.Component):
     ram : str
         ``"dual"`` or ``"single"``.
     latency : int
-        Most cycles from an event's arrival to the RAM write of its bin: :data:`LATENCY` or
-        :data:`SINGLE_LATENCY`.
+        Most cycles from an event's arrival to the RAM write of its bin: ``7 +
+        read_stages(bank_bits)`` (at most :data:`LATENCY`) or :data:`SINGLE_LATENCY`.
     readout_cycles_per_bin : int
-        :data:`READOUT_CYCLES_PER_BIN`.
+        Fewest cycles per bin of the readout: 4, or 6 with dual-port banks of more than one
+        block (:data:`READOUT_CYCLES_PER_BIN`).
     min_event_spacing : int
         Fewest cycles between two events that are both counted: 1 or 2.
     init_cycles : int
@@ -218,7 +221,6 @@ class Histogram(wiring.Component):
         self.bank_bits = bank_bits
         self.count_width = count_width
         self.ram = ram
-        self.readout_cycles_per_bin = READOUT_CYCLES_PER_BIN
         if ram == "dual":
             self.min_event_spacing = 1
             storage = DualPortBanks(bank_bits, count_width)
@@ -227,6 +229,7 @@ class Histogram(wiring.Component):
             storage = SinglePortBanks(bank_bits, count_width)
         self._storage = storage
         self.latency = storage.latency
+        self.readout_cycles_per_bin = 4 + storage.read_stages
         self.init_cycles = storage.init_cycles
         self.banks = storage.banks
         super().__init__({
@@ -257,7 +260,8 @@ class Histogram(wiring.Component):
         m.submodules.sequencer = sequencer = FrameSequencer(self.bank_bits)
         m.submodules.storage = storage = self._storage
         m.submodules.reader = reader = BankReadout(self.bank_bits, self.count_width,
-                                                   latency=self.latency, capture=single)
+                                                   latency=self.latency, capture=single,
+                                                   settle=storage.read_stages)
 
         # Frames and banks
         m.d.comb += [

@@ -97,6 +97,7 @@ class SinglePortBanks(wiring.Component):
         self.bank_bits = bank_bits
         self.count_width = count_width
         self.latency = SINGLE_LATENCY
+        self.read_stages = 0
         self.init_cycles = 1 << bank_bits
         super().__init__(_members(bank_bits, count_width, initialising=True))
         self.banks = tuple(SinglePortRam(depth=1 << bank_bits, width=count_width)

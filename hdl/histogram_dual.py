@@ -3,31 +3,38 @@
 A bank of ``2**bank_bits`` bins spans many block RAMs (64 on the ULX3S's ECP5 for 65 536 bins),
 spread over the whole chip: their words come back to the counting pipeline through registers
 near each RAM and a registered OR tree, :data:`READ_STAGES` cycles more than one RAM would
-take, and the pipeline forwards the counts of as many more events ahead.
+take, and the pipeline forwards the counts of as many more events ahead. A bank of one block
+(1024 words or fewer) has no read stages.
 """
 
 from amaranth.hdl import Cat, Module, Mux, Signal
 from amaranth.lib import wiring
 from amaranth.lib.memory import Memory
 
+from .block_ram import RegisteredRam
 from .histogram_banks import _MEMBERS_DOC, _increment, _members
 
 
-__all__ = ["BLOCK_BITS", "READ_STAGES", "LATENCY", "DualPortBanks"]
+__all__ = ["BLOCK_BITS", "READ_STAGES", "LATENCY", "read_stages", "DualPortBanks"]
 
 
 #: Words of one RAM block of a bank, as a power of two: 1024 words of 16 bits, one ECP5 EBR.
 BLOCK_BITS = 10
 #: Registered stages between the RAM blocks' outputs and the bank's word, beyond the one that
-#: a single RAM needs: the blocks' own registers, then one OR level (groups of
-#: :data:`OR_GROUP`), then the word.
+#: a single RAM needs, in a bank of more than one block: the blocks' own registers, then one OR
+#: level (groups of :data:`OR_GROUP`), then the word. A bank of one block has none.
 READ_STAGES = 2
 #: Inputs of each OR of the read tree's first level.
 OR_GROUP = 8
-#: Cycles from an event's transfer on ``events`` to the block RAM write of its bin.
+#: Most cycles from an event's transfer on ``events`` to the block RAM write of its bin (banks
+#: of more than one block; ``7 + read_stages(bank_bits)``).
 LATENCY = 7 + READ_STAGES
-#: Events ahead whose writes a read misses (their counts are forwarded).
-FORWARD = 4 + READ_STAGES
+
+
+def read_stages(bank_bits):
+    """Read stages of a bank of ``2**bank_bits`` words: :data:`READ_STAGES` if it spans more
+    than one block, else 0."""
+    return READ_STAGES if bank_bits > BLOCK_BITS else 0
 
 
 class DualPortBanks(wiring.Component):
@@ -37,18 +44,21 @@ class DualPortBanks(wiring.Component):
     block a memory with a read port and a write port. The pipeline from the bin on: register the
     read address (R), the blocks' data out (D), each block's word registered near it (zero but
     in the block read: stage D1), OR-ed in groups (D2), the bank's word registered (Q) — the
-    extra :data:`READ_STAGES` stages cut the routing across the chip —, saturating increment
-    with forwarding from the :data:`FORWARD` events ahead (E), RAM write (W). ``word`` is the
-    registered RAM word of the readout bank: ``READ_STAGES`` cycles after the readout's
-    CAPTURE, it holds until its next read.
+    extra ``read_stages`` (:data:`READ_STAGES`, none with one block) cut the routing across the
+    chip —, saturating increment with forwarding from the ``forward`` (4 + ``read_stages``)
+    events ahead (E), RAM write (W). ``word`` is the registered RAM word of the readout bank:
+    ``read_stages`` cycles after the readout's CAPTURE, it holds until its next read.
 """ + _MEMBERS_DOC
 
     def __init__(self, bank_bits, count_width):
         self.bank_bits = bank_bits
         self.count_width = count_width
-        self.latency = LATENCY
+        self.read_stages = read_stages(bank_bits)
+        #: Cycles from an event's transfer to the RAM write of its bin.
+        self.latency = 7 + self.read_stages
+        #: Events ahead whose writes a read misses (their counts are forwarded).
+        self.forward = 4 + self.read_stages
         self.init_cycles = 0
-        self.read_stages = READ_STAGES
         super().__init__(_members(bank_bits, count_width, initialising=False))
         self.block_bits = min(bank_bits, BLOCK_BITS)
         self.blocks = 1 << (bank_bits - self.block_bits)
@@ -83,20 +93,20 @@ class DualPortBanks(wiring.Component):
             return copy
 
         stages = [stage("d", valid_r, bin_r, bank_r)]
-        for n in range(READ_STAGES):
+        for n in range(self.read_stages):
             stages.append(stage(f"d{n + 1}", *stages[-1]))
         valid_q, bin_q, bank_q = stage("q", *stages[-1])
         valid_e, bin_e, bank_e = stage("e", valid_q, bin_q, bank_q)
         after = [stage("w", valid_e, bin_e, bank_e)]
-        for n in range(FORWARD - 3):
+        for n in range(self.forward - 3):
             after.append(stage(f"x{n + 1}", *after[-1]))   # written n + 1 cycles ago
 
-        # A read misses the writes of the FORWARD events ahead of it (written in its own cycle
+        # A read misses the writes of the `forward` events ahead of it (written in its own cycle
         # or later). Their bins are compared with its own in the last stage before Q (`valid_p`
         # ...: event p), the outcome registered for stage Q.
         valid_p, bin_p, bank_p = stages[-1]
         ahead = [(valid_q, bin_q, bank_q), (valid_e, bin_e, bank_e)] + after
-        hits_q = [Signal(name=f"hit{n + 1}_q") for n in range(FORWARD)]
+        hits_q = [Signal(name=f"hit{n + 1}_q") for n in range(self.forward)]
         m.d.sync += [hit.eq(valid_p & valid & (bin_p == bin) & (bank_p == bank))
                      for hit, (valid, bin, bank) in zip(hits_q, ahead)]
 
@@ -105,7 +115,7 @@ class DualPortBanks(wiring.Component):
         stored = [bank.word for bank in self.banks]
         written = Signal(self.count_width)
         chain = [written] + [Signal(self.count_width, name=f"written_before{n + 1}")
-                             for n in range(FORWARD - 2)]
+                             for n in range(self.forward - 2)]
         base = Mux(bank_q, stored[1], stored[0])
         for hit, count in reversed(list(zip(hits_q[1:], chain))):
             base = Mux(hit, count, base)
@@ -161,14 +171,17 @@ class DualPortBanks(wiring.Component):
 
 class _BlockedBank:
     """One bank of :class:`DualPortBanks`: ``blocks`` memories of ``2**block_bits`` words, the
-    read tree after them (``word``: the word read, :data:`READ_STAGES` + 1 cycles after its
-    address is sampled) and per-block write enables."""
+    read tree after them (``word``: the word read, ``read_stages(bank_bits)`` + 1 cycles after
+    its address is sampled) and per-block write enables."""
 
     def __init__(self, block_bits, blocks, count_width):
         self.block_bits = block_bits
         self.count_width = count_width
-        self.memories = [Memory(shape=count_width, depth=1 << block_bits, init=[])
-                         for _ in range(blocks)]
+        if blocks == 1:
+            self.memories = [Memory(shape=count_width, depth=1 << block_bits, init=[])]
+        else:
+            self.memories = [RegisteredRam(depth=1 << block_bits, width=count_width)
+                             for _ in range(blocks)]
         self.word = Signal(count_width)
         #: The bank's words, for testbenches: ``data[index]`` and ``data.depth``, as a
         #: :class:`~amaranth.hdl.MemoryData`.
@@ -179,33 +192,51 @@ class _BlockedBank:
         low = self.block_bits
         blocks = len(self.memories)
         width = self.count_width
-        # the block read, a cycle after its address is sampled; each block's word registered
-        # near it (zero unless it is the block read), and held between reads
-        read_d = Signal(name=f"{self.word.name}_read_d")
-        m.d.sync += read_d.eq(read_enable)
-        if blocks > 1:
-            block_d = Signal(len(read_address) - low, name=f"{self.word.name}_block_d")
-            m.d.sync += block_d.eq(read_address[low:])
-        words = []
-        for j, memory in enumerate(self.memories):
+        # The block read, a cycle after its address is sampled (stage D); the groups of the OR
+        # tree (D2) and the word (Q). Only the word holds between reads.
+        read = [Signal(name=f"{self.word.name}_read_{stage}") for stage in ("d", "d1", "d2")]
+        m.d.sync += [read[0].eq(read_enable)] + [b.eq(a) for a, b in zip(read, read[1:])]
+        if blocks == 1:
+            # one block: no read stages, its word registered as it leaves the RAM
+            memory, = self.memories
             read_port = memory.read_port()
             write_port = memory.write_port()
-            local = Signal(width, name=f"{self.word.name}_block{j}")
-            enable = Signal(name=f"{self.word.name}_write{j}")
-            # (each block's write enable is a register of its own, loaded with the address)
-            m.d.sync += enable.eq(write & (write_to[low:] == j if blocks > 1 else 1))
-            with m.If(read_d):
-                m.d.sync += local.eq(Mux(block_d == j, read_port.data, 0) if blocks > 1
-                                     else read_port.data)
+            enable = Signal(name=f"{self.word.name}_write")
+            m.d.sync += enable.eq(write)
+            with m.If(read[0]):
+                m.d.sync += self.word.eq(read_port.data)
             m.d.comb += [
-                read_port.addr.eq(read_address[:low]),
+                read_port.addr.eq(read_address),
                 read_port.en.eq(read_enable),
-                write_port.addr.eq(write_address[:low]),
+                write_port.addr.eq(write_address),
                 write_port.en.eq(enable),
                 write_port.data.eq(write_data),
             ]
-            words.append(local)
-        # the OR tree: groups registered, then the word
+            return
+        # More blocks: each a RegisteredRam, whose word is registered as it leaves the block
+        # (stage D1: on the ECP5, the block RAM's own output register). Each block's select is
+        # registered for D1 (one-hot over the blocks), and the groups of the OR tree take the
+        # words of their blocks AND-ed with their selects (D2).
+        block_d = Signal(len(read_address) - low, name=f"{self.word.name}_block_d")
+        m.d.sync += block_d.eq(read_address[low:])
+        words = []
+        for j, memory in enumerate(self.memories):
+            chosen = Signal(name=f"{self.word.name}_chosen{j}")
+            enable = Signal(name=f"{self.word.name}_write{j}")
+            # (each block's write enable is a register of its own, loaded with the address)
+            m.d.sync += [
+                chosen.eq(read[0] & (block_d == j)),
+                enable.eq(write & (write_to[low:] == j)),
+            ]
+            m.d.comb += [
+                memory.read_addr.eq(read_address[:low]),
+                memory.read_en.eq(read_enable),
+                memory.write_addr.eq(write_address[:low]),
+                memory.write_en.eq(enable),
+                memory.write_data.eq(write_data),
+            ]
+            words.append(memory.read_data & chosen.replicate(width))
+        # the OR tree: groups registered, then the word (held between reads)
         groups = []
         for start in range(0, blocks, OR_GROUP):
             group = Signal(width, name=f"{self.word.name}_group{start // OR_GROUP}")
@@ -213,8 +244,10 @@ class _BlockedBank:
             m.d.sync += group.eq(Cat(*[Cat(w[bit] for w in part).any() for bit in range(width)])
                                  if len(part) > 1 else part[0])
             groups.append(group)
-        m.d.sync += self.word.eq(Cat(*[Cat(g[bit] for g in groups).any() for bit in range(width)])
-                                 if len(groups) > 1 else groups[0])
+        with m.If(read[2]):
+            m.d.sync += self.word.eq(
+                Cat(*[Cat(g[bit] for g in groups).any() for bit in range(width)])
+                if len(groups) > 1 else groups[0])
 
 
 class _BankWords:

@@ -11,9 +11,10 @@ from .histogram_layout import readout_layout
 __all__ = ["SETTLE", "READOUT_CYCLES_PER_BIN", "BankReadout"]
 
 
-#: Cycles the readout waits after a read for the word (the dual-port banks' read stages).
+#: Most cycles the readout waits after a read for the word (the dual-port banks' read stages;
+#: ``settle``).
 SETTLE = READ_STAGES
-#: Clock cycles per bin on ``readout`` when its consumer is always ready (both RAM kinds).
+#: Most clock cycles per bin on ``readout`` when its consumer is always ready: ``4 + settle``.
 READOUT_CYCLES_PER_BIN = 4 + SETTLE
 
 
@@ -23,9 +24,9 @@ class BankReadout(wiring.Component):
 
     After a swap it waits ``latency`` cycles for the last events of the frame to leave the
     pipeline, then for each bin sets the bank's read address (ADDRESS), sets a clearing write
-    (READ), takes the word (CAPTURE, :data:`SETTLE` + 1 cycles: the dual-port banks' word comes
+    (READ), takes the word (CAPTURE, ``settle`` + 1 cycles: the dual-port banks' word comes
     through their read stages) and presents it on ``readout`` (PRESENT) until transferred:
-    :data:`READOUT_CYCLES_PER_BIN` cycles per bin.
+    ``4 + settle`` cycles per bin.
 
     Parameters
     ----------
@@ -39,6 +40,8 @@ class BankReadout(wiring.Component):
         Register ``word`` in the first cycle of CAPTURE (single-port banks, whose output after a
         write cycle is not the word read); otherwise ``word`` holds from the last cycle of
         CAPTURE until the next read of the bank.
+    settle : int
+        Cycles the word takes after the first of CAPTURE: the banks' ``read_stages``.
 
     Members
     -------
@@ -62,8 +65,9 @@ class BankReadout(wiring.Component):
         Bins of the frame: ``index``, ``count``, ``last``.
     """
 
-    def __init__(self, bank_bits, count_width, *, latency, capture):
+    def __init__(self, bank_bits, count_width, *, latency, capture, settle):
         self.latency = latency
+        self.settle = settle
         self.capture = capture
         super().__init__({
             "swap":    In(1),
@@ -82,7 +86,7 @@ class BankReadout(wiring.Component):
 
         read_index = self.index
         read_last = Signal()
-        settle = Signal(range(SETTLE + 1))
+        settle = Signal(range(self.settle + 1))
         if self.capture:
             present_count = Signal.like(self.word, name="read_count")
         else:
@@ -111,12 +115,12 @@ class BankReadout(wiring.Component):
                 m.next = "CAPTURE"
             with m.State("CAPTURE"):
                 # the word read in READ (with single-port banks: never the output after a
-                # write), then SETTLE cycles more (with dual-port banks: the word on its way)
+                # write), then `settle` cycles more (with dual-port banks: the word on its way)
                 if self.capture:
                     with m.If(settle == 0):
                         m.d.sync += present_count.eq(self.word)
                 m.d.sync += settle.eq(settle + 1)
-                with m.If(settle >= SETTLE):
+                with m.If(settle >= self.settle):
                     m.d.sync += settle.eq(0)
                     m.next = "PRESENT"
             with m.State("PRESENT"):

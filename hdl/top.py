@@ -90,7 +90,8 @@ class FlissTop(wiring.Component):
     depth : bool
         Build the depth engine (:class:`~fliss.hdl.depth.DepthEngine`), which turns each
         histogram into a DEPTH packet in acquisition mode 2 (depth). Without it, a write of
-        ``acquisition`` 2 is refused as out of range.
+        ``acquisition`` 2 is refused as out of range. It needs ``raw_events`` (the register
+        file refuses modes above a maximum, so it cannot refuse mode 1 alone).
 
     compact_readout : bool
         Build the histogram packetizer that sends compact chunks where shorter
@@ -163,6 +164,10 @@ class FlissTop(wiring.Component):
                             ("compact_readout", compact_readout)):
             if not isinstance(value, bool):
                 raise TypeError(f"{name} must be True or False, not {value!r}")
+        if depth and not raw_events:
+            # (a register maximum cannot refuse acquisition mode 1 and accept mode 2)
+            raise ValueError("A build with the depth engine must have raw events too: "
+                             "depth=True needs raw_events=True")
         self.aggressor = aggressor
         self.aggressor_delays = aggressor_delays and aggressor
         self.raw_events = raw_events
@@ -193,7 +198,7 @@ class FlissTop(wiring.Component):
             maxima[AGGRESSOR.register("enable").name] = 0
         if not self.aggressor_delays:
             maxima[AGGRESSOR_DELAY.register("mode").name] = 0
-        if not self.depth:
+        if not self.depth:      # (and so, without raw events, no depth either)
             maxima["acquisition"] = AcquisitionMode.RAW.value
         if not self.raw_events:
             maxima["acquisition"] = AcquisitionMode.HISTOGRAM.value

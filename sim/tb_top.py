@@ -31,7 +31,7 @@ from ..hdl.settings import BANK_BITS
 from . import codec
 from .command import CommandModel
 from .event import EVENT_DTYPE
-from .histogram_packets import HISTOGRAM_TYPES, decode_chunk
+from .histogram_packets import HISTOGRAM_TYPES, assemble, decode_chunk
 from .uart_bfm import UartSink, UartSource
 
 
@@ -385,28 +385,23 @@ async def _sensor_events(tb, rng, count, *, pixel_bits, first_pixel):
 
 
 async def _frame(tb, frame, bins, *, timeout_us=20_000, split=None):
-    """The counts of histogram ``frame``, from its chunks (full or compact, as the board chose)
-    placed at their flat ``first_bin``, once all ``bins`` have come. ``split``, if given, is the
-    ``(pixel_bits, first_pixel)`` every chunk's header must carry."""
-    counts = np.full(bins, -1, dtype=np.int64)
+    """The counts of histogram ``frame``, from its chunks (full or compact, as the board chose),
+    once all ``bins`` have come. ``split``, if given, is the ``(pixel_bits, first_pixel)`` the
+    frame's header must carry."""
     deadline = get_sim_time("us") + timeout_us
     while get_sim_time("us") < deadline:
         tb._drain()
-        counts[:] = -1
-        for packet in tb.data_packets + tb.packets:
-            if packet.type not in HISTOGRAM_TYPES:
-                continue
-            chunk = decode_chunk(packet.type, packet.payload)
-            if chunk.frame != frame:
-                continue
+        got = assemble((packet.type, packet.payload)
+                       for packet in tb.data_packets + tb.packets).get(frame)
+        if got is not None and got[2]:
+            chunk, counts, _ = got
+            assert len(counts) == bins, f"frame {frame}: {len(counts)} bins, not {bins}"
             if split is not None:
                 assert (chunk.pixel_bits, chunk.first_pixel) == split, \
                     f"frame {frame}: chunk header split {(chunk.pixel_bits, chunk.first_pixel)}"
-            counts[chunk.first_bin:chunk.first_bin + len(chunk.counts)] = chunk.counts
-        if np.all(counts >= 0):
             return counts
         await Timer(50, unit="us")
-    raise AssertionError(f"frame {frame}: {int(np.sum(counts < 0))} of {bins} bins missing")
+    raise AssertionError(f"frame {frame}: not all of its {bins} bins came")
 
 
 #: Splits of the pixel histogram test: pixel_bits, first_pixel, bin_shift, collisions (drop

@@ -67,6 +67,8 @@ def test_top_small(simulator, cocotb_counts):
     (dict(aggressor_delays=0), TypeError, "aggressor_delays must be True or False, not 0"),
     (dict(aggressor=None), TypeError, "aggressor must be True or False, not None"),
     (dict(raw_events="no"), TypeError, "raw_events must be True or False, not 'no'"),
+    (dict(raw_events=False), ValueError,
+     "A build with the depth engine must have raw events too: depth=True needs raw_events=True"),
     (dict(period_width=16), ValueError,
      "Period width must be an integer from 17 to 32 bits, not 16"),
 ])

@@ -211,7 +211,7 @@ def test_single_port_every_other_clock_matches_model():
     valid, timestamps = hazard_stimulus(rng, 3_000, bins=256, shift=shift, gaps=False)
     valid, timestamps = spaced(rng, valid, timestamps)
     dut = Histogram(bank_bits=BANK_BITS, ram="single")
-    assert dut.latency == 8 and dut.readout_cycles_per_bin == model.READOUT_CYCLES_PER_BIN
+    assert dut.latency == 8 and dut.readout_cycles_per_bin == 4
     assert dut.init_cycles == 8192 and dut.min_event_spacing == 2
     frames, result = run_histogram(dut, valid, timestamps, integration=integration, shift=shift)
     check_against_model(frames, result, valid, timestamps, integration=integration,
@@ -321,11 +321,13 @@ def test_busy_reader_drops_are_counted(ram):
     # drops and counts the events that arrive meanwhile, and every frame holds exactly the
     # events of its own fill window.
     rng = np.random.default_rng(3)
-    cycles, integration, shift = 4_200, 900, 6
+    dut = Histogram(bank_bits=BANK_BITS, ram=ram)
+    # the frames' timing scales with the readout's cycles per bin (4, or 6 with read stages)
+    scale = dut.readout_cycles_per_bin / 4
+    cycles, integration, shift = int(3_000 * scale), int(600 * scale), 6
     valid, timestamps = hazard_stimulus(rng, cycles, bins=128, shift=shift, gaps=False)
     if ram == "single":
         valid, timestamps = spaced(rng, valid, timestamps, length=cycles)
-    dut = Histogram(bank_bits=BANK_BITS, ram=ram)
     filling = np.zeros(cycles + 5000, dtype=bool)
 
     async def probe(ctx):
@@ -339,7 +341,7 @@ def test_busy_reader_drops_are_counted(ram):
 
     def stall_at(cycle):
         cycle -= dut.init_cycles
-        return not (700 <= cycle < 1_200 or 2_800 <= cycle < 3_200)
+        return not (700 * scale <= cycle < 1_000 * scale or 1_500 * scale <= cycle < 1_800 * scale)
 
     frames, result = run_histogram(dut, valid, timestamps, integration=integration, shift=shift,
                                    ready=stall_at, probe=probe)
@@ -530,8 +532,8 @@ def test_model_by_hand():
 @pytest.mark.parametrize("ram", ["dual", "single"])
 def test_shortest_frame_without_dead_time(ram):
     # With a reader that is always ready, frames follow each other without dead time if
-    # `integration` is at least 6 n + latency + 3 cycles (n bins read out), and not with one
-    # cycle less: `latency` and `readout_cycles_per_bin` are what the gateware does.
+    # `integration` is at least c n + latency + 3 cycles (n bins read out, c cycles per bin),
+    # and not with one cycle less: `latency` and `readout_cycles_per_bin` are what the gateware does.
     dut = Histogram(bank_bits=4, ram=ram)
     shortest = dut.readout_cycles_per_bin * 16 + dut.latency + 3
     lows = {}

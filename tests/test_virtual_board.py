@@ -22,7 +22,7 @@ from fliss.host.client import BoardClient
 from fliss.host.fileformat import read_capture
 from fliss.sim import scene
 from fliss.sim.cocotb_runner import simulator_available
-from fliss.sim.histogram_packets import HISTOGRAM_TYPES, decode_chunk
+from fliss.sim.histogram_packets import HISTOGRAM_TYPES, assemble
 from fliss.sim.virtual_board import SensorModel
 
 
@@ -243,22 +243,17 @@ def check_register_round_trip(link, pulses):
 
 
 def _frame(link, number, timeout_s):
-    """Bins of histogram frame ``number``, from its chunks."""
-    chunks = {}
+    """Shift and bins of histogram frame ``number``, from its chunks (full or compact, whichever
+    the board found shorter)."""
+    packets = []
     deadline = time.monotonic() + timeout_s
     while True:
         packet = link.next(HISTOGRAM_TYPES, timeout_s=max(deadline - time.monotonic(), 0))
-        # (a full or a compact chunk, whichever the board found shorter)
-        chunk = decode_chunk(packet.type, packet.payload)
-        frame, first_bin, shift, last = chunk.frame, chunk.first_bin, chunk.shift, chunk.last
-        if frame < number:
-            continue
-        assert frame == number, (frame, number)
-        chunks[first_bin] = chunk.counts.astype(np.int64)
-        if last:
-            break
-    bins = np.concatenate([chunks[first] for first in sorted(chunks)])
-    return shift, bins
+        packets.append((packet.type, packet.payload))
+        got = assemble(packets).get(number)
+        if got is not None and got[2]:
+            chunk, counts, _ = got
+            return chunk.shift, counts
 
 
 def check_histogram_with_aggressor(link, pulses):
