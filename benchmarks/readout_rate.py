@@ -11,15 +11,16 @@ chunks where shorter), in the same run.
 Link time comes from the exact wire bytes of those packets (header, payload, CRC, COBS,
 delimiter: :func:`fliss.sim.codec.encode_frame`) at 10 bits a byte. The packetizer's time per
 frame follows :class:`fliss.hdl.histogram_packetizer.HistogramPacketizer` at 80 MHz: each
-window of 128 bins is taken at the readout's 4 cycles a bin, a compact window is then encoded
-(2 cycles an empty bin, 3 a bin with a count, one a token byte), and a packet the window sends occupies the packetizer
-until it is on the wire (conservative: the frame encoder's buffer is not counted). The bank is
+window of 128 bins is taken at the readout's 6 cycles a bin (``READOUT_CYCLES_PER_BIN``: the
+ULX3S's banks of 64 block RAMs), a compact window is then encoded (2 cycles an empty bin, 3 a bin
+with a count, one a token byte), and a packet the window sends occupies the packetizer until it
+is on the wire (conservative: the frame encoder's buffer is not counted). The bank is
 free when the last bin is taken; the histogram engine then starts the next frame, or, if the
 other bank is still being read out, waits and drops the events meanwhile (``dropped_histogram``).
 Frames follow each other as in :class:`fliss.hdl.histogram_frames.FrameSequencer`.
 
 ``--cross-check`` (on by default) runs one 1 ms frame through the gateware (packetizer,
-arbiter, frame encoder) in Amaranth's simulator with the readout at 4 cycles a bin and a
+arbiter, frame encoder) in Amaranth's simulator with the readout at 6 cycles a bin and a
 12 Mbaud UART's pace on its output, and prints its bank and busy times beside this model's.
 
 ``--shift`` takes wider bins (``8192 >> shift`` bins of ``2**shift`` codes).

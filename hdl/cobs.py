@@ -60,8 +60,10 @@ class CobsEncoder(wiring.Component):
     run is sent from one bank while the next is collected, at one byte per cycle, in the other.
     The input goes through a half-rate register slice (so it takes at most a byte every two
     cycles), where each byte is tested for zero, so that no path runs from the producer through
-    the filler's decisions; the output byte is one LUT after the block RAM, its choice made a
-    cycle ahead.
+    the filler's decisions. Each run byte is registered as it leaves the block RAM, so a run
+    goes out at a byte every other cycle at most (as fast as the half-rate slice in front of
+    the UART takes them); the output byte is one LUT after registers, its choice made a cycle
+    ahead.
     The delimiter is the emitter's, not a stage of its own, which cost 13 logic cells on the
     iCE40UP5K (``docs/boards.md``).
 
@@ -158,12 +160,14 @@ class CobsEncoder(wiring.Component):
         e_final = Signal()
         sent = Signal(range(COBS_MAX_RUN + 1))
         e_last = Signal()           # the byte of the run being sent is its last (registered)
-        # The output byte is one LUT after the run buffer (block RAM, slow to output): which
-        # byte goes out is decided a cycle ahead, into `e_is_code` and `e_is_data`, rather than
-        # decoded from the state.
+        # The run buffer is block RAM, slow to output, and may sit far from the UART: each run
+        # byte is registered as it leaves it (LOAD, `e_data`), and the output byte is one LUT
+        # after registers; which byte goes out is decided a cycle ahead, into `e_is_code` and
+        # `e_is_data`, rather than decoded from the state.
+        e_data = Signal(8)
         e_is_code = Signal()
         e_is_data = Signal()
-        m.d.comb += self.o.payload.eq(Mux(e_is_code, e_code, run_rd.data & e_is_data.replicate(8)))
+        m.d.comb += self.o.payload.eq(Mux(e_is_code, e_code, e_data & e_is_data.replicate(8)))
         with m.FSM(name="emit"):
             with m.State("IDLE"):
                 with m.If(pending):
@@ -186,17 +190,21 @@ class CobsEncoder(wiring.Component):
                     m.d.sync += [sent.eq(0), e_is_code.eq(0), e_last.eq(e_len == 1)]
                     with m.If(e_len != 0):
                         m.d.sync += e_is_data.eq(1)
-                        m.next = "DATA"
+                        m.next = "LOAD"
                     with m.Elif(e_final):
                         m.d.sync += emitting.eq(0)
                         m.next = "DELIMITER"
                     with m.Else():
                         m.d.sync += emitting.eq(0)
                         m.next = "IDLE"
+            with m.State("LOAD"):
+                # the byte read in the cycle before (the run's first in CODE, the next in DATA)
+                m.d.sync += e_data.eq(run_rd.data)
+                m.next = "DATA"
             with m.State("DATA"):
                 m.d.comb += [
                     self.o.valid.eq(1),
-                    run_rd.addr.eq(Cat(Mux(self.o.ready, sent + 1, sent)[:bank_bits], e_bank)),
+                    run_rd.addr.eq(Cat((sent + 1)[:bank_bits], e_bank)),
                 ]
                 with m.If(self.o.ready):
                     m.d.sync += [sent.eq(sent + 1), e_last.eq(sent + 2 == e_len)]
@@ -206,6 +214,8 @@ class CobsEncoder(wiring.Component):
                             m.next = "DELIMITER"
                         with m.Else():
                             m.next = "IDLE"
+                    with m.Else():
+                        m.next = "LOAD"
             with m.State("DELIMITER"):
                 assert DELIMITER == 0   # neither the code nor the data: zero
                 m.d.comb += self.o.valid.eq(1)

@@ -16,7 +16,7 @@ from .keyed import Keying
 from .packetizer import EventPacketizer, FullHistogramPacketizer, HistogramPacketizer
 from .protocol import DEFAULT_BAUD
 from .rawfifo import RawFifo
-from .registers import (VICTIM, AGGRESSOR, AGGRESSOR_DELAY, KEYING, AcquisitionMode,
+from .registers import (VICTIM, AGGRESSOR, AGGRESSOR_DELAY, KEYING, DEPTH, AcquisitionMode,
                         TdcSource)
 from .settings import (BANK_BITS, MAX_BANK_BITS, MIN_BANK_BITS, DelayMode, PERIOD_WIDTH,
                        PULSE_WIDTH_WIDTH, check_widths)
@@ -200,6 +200,10 @@ class FlissTop(wiring.Component):
             maxima[AGGRESSOR_DELAY.register("mode").name] = 0
         if not self.depth:      # (and so, without raw events, no depth either)
             maxima["acquisition"] = AcquisitionMode.RAW.value
+            # its settings stay, as wide as their reset values need (as the aggressor's)
+            for register in DEPTH.members:
+                least = max(register.minimum, register.reset_value(self.clock_hz))
+                maxima[register.name] = min(register.maximum, (1 << least.bit_length()) - 1)
         if not self.raw_events:
             maxima["acquisition"] = AcquisitionMode.HISTOGRAM.value
         if self.max_pixel_bits < ADDRESS_BITS:

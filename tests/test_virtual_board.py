@@ -416,7 +416,8 @@ def test_demo_runs_again(tmp_path, capsys):
         if os.environ.get("FLISS_REQUIRE_SIMULATORS"):
             pytest.fail(message + " (FLISS_REQUIRE_SIMULATORS is set)")
         pytest.skip(message)
-    argv = ["demo", "--out", str(tmp_path), "--integration", "0.5ms", "--acquisitions", "1"]
+    argv = ["demo", "--out", str(tmp_path), "--integration", "0.5ms", "--acquisitions", "1",
+            "--depth-frames", "1"]
     written = []
     for _ in range(2):
         assert main(argv) == 0
