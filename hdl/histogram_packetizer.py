@@ -12,7 +12,7 @@ from .protocol import (CHUNK_BINS, COMPACT_BYTES, HISTOGRAM_COUNT_BITS, MAX_FRAM
                        HistogramChunk, HistogramCompact, PacketType)
 
 
-__all__ = ["HistogramPacketizer"]
+__all__ = ["histogram_packetizer_members", "HistogramPacketizer"]
 
 
 _FULL_HEADER = data.Layout.cast(HistogramChunk).size // 8
@@ -28,6 +28,19 @@ def _token_length(value):
     # Bytes of the token of a run of `value` empty bins or of a count `value` (LEB128 of
     # 2 * value or 2 * value + 1): 1 below 64, 2 below 8192, else 3.
     return Mux(value < 64, 1, Mux(value < 8192, 2, 3))
+
+
+def histogram_packetizer_members(index_bits):
+    """Members of a histogram packetizer (this one, or the full-chunk one of
+    :mod:`fliss.hdl.packetizer`): the readout's bins and the frame's settings in, packets out."""
+    return {
+        "readout":      In(stream.Signature(readout_layout(index_bits, COUNT_WIDTH))),
+        "shift":        In(range(MAX_SHIFT + 1)),
+        "pixel_bits":   In(range(ADDRESS_BITS + 1)),
+        "first_pixel":  In(ADDRESS_BITS),
+        "full_readout": In(1),
+        "packets":      Out(stream.Signature(PacketBeat)),
+    }
 
 
 class HistogramPacketizer(wiring.Component):
@@ -74,14 +87,7 @@ class HistogramPacketizer(wiring.Component):
             raise ValueError(f"Index width must be an integer from 1 to {_RUN_BITS} bits, not "
                              f"{index_bits!r}")
         self.index_bits = index_bits
-        super().__init__({
-            "readout":      In(stream.Signature(readout_layout(index_bits, COUNT_WIDTH))),
-            "shift":        In(range(MAX_SHIFT + 1)),
-            "pixel_bits":   In(range(ADDRESS_BITS + 1)),
-            "first_pixel":  In(ADDRESS_BITS),
-            "full_readout": In(1),
-            "packets":      Out(stream.Signature(PacketBeat)),
-        })
+        super().__init__(histogram_packetizer_members(index_bits))
 
     def elaborate(self, platform):
         m = Module()

@@ -9,10 +9,10 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from . import lookup
-from .event import ADDRESS_BITS, Event, TIMESTAMP_BITS
+from .event import Event, TIMESTAMP_BITS
 from .framing import PacketBeat
-from .histogram_layout import BIN_BITS, COUNT_WIDTH, MAX_SHIFT, readout_layout
-from .histogram_packetizer import HistogramPacketizer
+from .histogram_layout import BIN_BITS, COUNT_WIDTH
+from .histogram_packetizer import HistogramPacketizer, histogram_packetizer_members
 from .protocol import (PacketType, HistogramChunk, HISTOGRAM_COUNT_BITS, CHUNK_BINS, EVENT_BYTES,
                        MAX_EVENTS_PER_PACKET, MAX_FRAME_BITS)
 
@@ -149,14 +149,7 @@ class FullHistogramPacketizer(wiring.Component):
             raise ValueError(f"Index width must be an integer from 1 to {MAX_FRAME_BITS} bits, "
                              f"not {index_bits!r}")
         self.index_bits = index_bits
-        super().__init__({
-            "readout":      In(stream.Signature(readout_layout(index_bits, COUNT_WIDTH))),
-            "shift":        In(range(MAX_SHIFT + 1)),
-            "pixel_bits":   In(range(ADDRESS_BITS + 1)),
-            "first_pixel":  In(ADDRESS_BITS),
-            "full_readout": In(1),
-            "packets":      Out(stream.Signature(PacketBeat)),
-        })
+        super().__init__(histogram_packetizer_members(index_bits))
 
     def elaborate(self, platform):
         m = Module()
