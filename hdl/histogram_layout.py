@@ -27,7 +27,7 @@ INTEGRATION_WIDTH = 32
 #: ``2**bin_shift`` timestamp codes wide) and ``integration`` (frame length in clock cycles); the
 #: layout of the register group :data:`~fliss.hdl.registers.HISTOGRAM`.
 HistogramSettings = HISTOGRAM.layout()
-assert HistogramSettings.size >= (MAX_SHIFT.bit_length() + INTEGRATION_WIDTH)
+assert HistogramSettings.size == (MAX_SHIFT.bit_length() + INTEGRATION_WIDTH)
 
 
 def readout_layout(bin_bits=BIN_BITS, count_width=COUNT_WIDTH):

@@ -35,7 +35,7 @@ __all__ = [
 
 
 #: Version of this protocol, reported in the identity packet.
-PROTOCOL_VERSION = 3
+PROTOCOL_VERSION = 2
 
 #: Version of the gateware (the package's version in ``pyproject.toml``; a test holds the two
 #: together). The identity packet reports its major and minor numbers.

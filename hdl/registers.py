@@ -22,28 +22,25 @@ from dataclasses import dataclass, field
 from amaranth.lib import data, enum
 
 from . import DEFAULT_PRF_HZ, period_cycles
-from .event import ADDRESS_BITS, TIMESTAMP_BITS
+from .event import TIMESTAMP_BITS
 from .settings import (DelayMode, IV_BITS, KEY_BITS, MIN_LENGTH, MAX_LENGTH, MAX_MASK_WIDTH,
                        PERIOD_WIDTH, PULSE_WIDTH_WIDTH)
 
 
 __all__ = ["AcquisitionMode", "TdcSource", "Register", "Setting", "RegisterGroup",
            "DELAY_SETTINGS", "VICTIM", "AGGRESSOR", "AGGRESSOR_DELAY", "ACQUISITION", "GATE",
-           "HISTOGRAM", "DEPTH", "KEYING", "GROUPS",
+           "HISTOGRAM", "KEYING", "GROUPS",
            "REGISTERS", "BY_NAME", "BY_ADDRESS", "RECORDED", "DelaySettings", "settings_layout",
            "register_maxima", "defaults", "problems", "max_delay", "words_of", "value_of",
            "iv_problem"]
 
 
-class AcquisitionMode(enum.Enum, shape=2):
+class AcquisitionMode(enum.Enum, shape=1):
     """What the board sends while acquiring."""
-    #: Histograms, one per integration time (per pixel: see ``pixel_bits``).
+    #: Histograms, one per integration time.
     HISTOGRAM = 0
     #: Every event, as EVENTS packets.
     RAW       = 1
-    #: Depth frames: per pixel, the position, height and background of its strongest peak,
-    #: one DEPTH packet per integration time.
-    DEPTH     = 2
 
 
 class TdcSource(enum.Enum, shape=1):
@@ -210,56 +207,31 @@ AGGRESSOR = RegisterGroup("aggressor", (
 
 #: What is acquired, and from where (the top level's own choices).
 ACQUISITION = RegisterGroup("acquisition", (
-    Setting("mode",       2, 0, max(mode.value for mode in AcquisitionMode)),
+    Setting("mode",       1, 0, 1),
     Setting("tdc_source", 1, 0, 1),
 ), {
-    "mode":       ("acquisition", 0x00, 0, "acquisition mode: 0 histogram, 1 raw events, 2 depth frames"),
+    "mode":       ("acquisition", 0x00, 0, "acquisition mode: 0 histogram, 1 raw events"),
     "tdc_source": ("tdc_source", 0x10, 0,
                    "event source: 0 sensor timestamp bus, 1 built-in coarse TDC"),
 })
 
-#: The event filter's gate (:class:`~fliss.hdl.tdc.EventFilter`): the timestamps it accepts,
-#: and whether it keeps the events the sensor flags as collisions.
+#: The event filter's gate (:class:`~fliss.hdl.tdc.EventFilter`).
 GATE = RegisterGroup("gate", (
     Setting("start", TIMESTAMP_BITS, 0, (1 << TIMESTAMP_BITS) - 1, "codes"),
     Setting("end",   TIMESTAMP_BITS, 0, (1 << TIMESTAMP_BITS) - 1, "codes"),
-    Setting("drop_collisions", 1, 0, 1),
 ), {
     "start": ("gate_start", 0x11, 0, "first timestamp accepted"),
     "end":   ("gate_end", 0x12, (1 << TIMESTAMP_BITS) - 1, "last timestamp accepted"),
-    "drop_collisions": ("collisions", 0x15, 0,
-                        "events with the collision flag: 0 kept, 1 dropped (and counted)"),
 })
 
-#: The histogram's frames (:class:`~fliss.hdl.histogram.Histogram`): bin width, integration
-#: time, and how its bank is split between pixels. A frame holds ``2**pixel_bits`` pixels, the
-#: addresses ``first_pixel …``, each of ``2**(13 - bin_shift)`` bins; the readout sends them
-#: pixel after pixel (flat index ``pixel << (13 - bin_shift) | bin``).
+#: The histogram's frames (:class:`~fliss.hdl.histogram.Histogram`).
 HISTOGRAM = RegisterGroup("histogram", (
     Setting("bin_shift",   4,  0, TIMESTAMP_BITS),
     Setting("integration", 32, 1, _U32, "cycles"),
-    Setting("pixel_bits",  3,  0, ADDRESS_BITS),
-    Setting("first_pixel", ADDRESS_BITS, 0, (1 << ADDRESS_BITS) - 1),
-    Setting("full_readout", 1, 0, 1),
 ), {
     "bin_shift":   ("bin_shift", 0x13, 0, "histogram bins are 2**bin_shift codes wide"),
     "integration": ("integration", 0x14, lambda clock_hz: round(10e-3 * clock_hz),
                     "histogram integration time (10 ms by default)"),
-    "pixel_bits":  ("pixel_bits", 0x16, 0, "histograms of 2**pixel_bits pixels"),
-    "first_pixel": ("first_pixel", 0x17, 0,
-                    "address of the first pixel histogrammed (others dropped, counted)"),
-    "full_readout": ("full_readout", 0x18, 0,
-                     "histogram readout: 0 compact when shorter, 1 always full"),
-})
-
-#: The depth engine (:class:`~fliss.hdl.depth.DepthEngine`): matched filter and threshold.
-DEPTH = RegisterGroup("depth", (
-    Setting("filter",    5,  1, 16, "bins"),
-    Setting("threshold", 16, 0, (1 << 16) - 1, "counts"),
-), {
-    "filter":    ("depth_filter", 0x19, 4, "width of the depth engine's matched filter"),
-    "threshold": ("depth_threshold", 0x1a, 16,
-                  "least filtered peak height above background for a depth"),
 })
 
 #: Key and IV of the victim's ``keyed`` source (:class:`~fliss.hdl.keyed.KeyedStream`): the
@@ -277,16 +249,16 @@ KEYING = RegisterGroup("keying", (
     Setting("key1", 32,           0, _U32),
     Setting("key2", KEY_BITS - 64, 0, (1 << (KEY_BITS - 64)) - 1),
 ), {
-    "iv0":  ("iv0", 0x1b, 0, "IV of the keyed source, bits 0-31 (reads: the IV in use)"),
-    "iv1":  ("iv1", 0x1c, 0, "IV of the keyed source, bits 32-63"),
-    "iv2":  ("iv2", 0x1d, 0, "IV of the keyed source, bits 64-79"),
-    "key0": ("key0", 0x1e, 0, "key of the keyed source, bits 0-31 (write-only: reads 0)"),
-    "key1": ("key1", 0x1f, 0, "key of the keyed source, bits 32-63 (write-only)"),
-    "key2": ("key2", 0x20, 0, "key of the keyed source, bits 64-79 (write-only)"),
+    "iv0":  ("iv0", 0x15, 0, "IV of the keyed source, bits 0-31 (reads: the IV in use)"),
+    "iv1":  ("iv1", 0x16, 0, "IV of the keyed source, bits 32-63"),
+    "iv2":  ("iv2", 0x17, 0, "IV of the keyed source, bits 64-79"),
+    "key0": ("key0", 0x18, 0, "key of the keyed source, bits 0-31 (write-only: reads 0)"),
+    "key1": ("key1", 0x19, 0, "key of the keyed source, bits 32-63 (write-only)"),
+    "key2": ("key2", 0x1a, 0, "key of the keyed source, bits 64-79 (write-only)"),
 }, write_only=frozenset({"key0", "key1", "key2"}), in_use=frozenset({"iv0", "iv1", "iv2"}))
 
 #: Every group; the link has no settings, so it has no group.
-GROUPS = (VICTIM, AGGRESSOR, AGGRESSOR_DELAY, ACQUISITION, GATE, HISTOGRAM, DEPTH, KEYING)
+GROUPS = (VICTIM, AGGRESSOR, AGGRESSOR_DELAY, ACQUISITION, GATE, HISTOGRAM, KEYING)
 
 #: The registers, in address order.
 REGISTERS = tuple(sorted((r for group in GROUPS for r in group.members),

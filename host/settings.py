@@ -116,17 +116,6 @@ OPTIONS: Tuple[Option, ...] = (
     Option("bin_shift", "bin_shift", WHOLE, "histogram bins are 2**N codes wide", "N"),
     Option("integration", "integration", TIME, "histogram integration time (10ms), and raw "
            "block length", "TIME"),
-    Option("collisions", "collisions", CHOICE, "events the sensor flags as collisions: kept, "
-           "or dropped and counted", choices={"keep": 0, "drop": 1}),
-    Option("pixel_bits", "pixel_bits", WHOLE, "histograms of 2**N pixels", "N"),
-    Option("first_pixel", "first_pixel", WHOLE, "address of the first pixel histogrammed",
-           "ADDRESS"),
-    Option("histogram_format", "full_readout", CHOICE, "histogram readout: compact when "
-           "shorter, or always full", choices={"compact": 0, "full": 1}),
-    Option("depth_filter", "depth_filter", WHOLE, "width of the depth engine's matched filter "
-           "(bins)", "N"),
-    Option("depth_threshold", "depth_threshold", WHOLE, "least filtered peak height above "
-           "background for a depth (counts)", "COUNTS"),
     Option("key", "key0", KEY, "key of the keyed source: 20 hex digits as the test vectors print "
            "it, or random (from the operating system's generator); write-only: the board never "
            "reads it back", "HEX|random", shown=False),
