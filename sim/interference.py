@@ -50,8 +50,8 @@ aggressor_kind ["free"]
     effective PRF until it predicts the victim's delays, then so that its pulse arrives the time
     of flight of ``ghost_m`` after each TDC start. One attack per run serves all of them (they
     see the same victim), so they fire together; their unlocked train starts ``offset_ns``
-    late (drawn per run, uniform over one victim period, if negative), in whole cycles. Not with ``fine_step`` > 1 (the attacker reads
-    whole clock cycles).
+    late (drawn per run, uniform over one victim period, if negative), in whole cycles. Not
+    with ``fine_step`` > 1 (the attacker reads whole clock cycles).
 ghost_m [10.0]
     Distance of the ghost a locked predicting aggressor injects.
 ppm_spread [50.0]
@@ -219,12 +219,15 @@ def _keyed(point):
     return _delay.parse_mode(point["scheme"]) == _delay.DelayMode.KEYED
 
 
+def _seed_fields(point, seed):
+    # The drawn seed as the delay source takes it: keyed, the key (with seed 1 and IV 0)
+    return dict(seed=1, key=seed) if _keyed(point) else dict(seed=seed, key=0)
+
+
 def _victim(point, seed):
-    # keyed: the seed is the key, the IV 0
-    keyed = _keyed(point)
     settings = _scheduler.Settings(mode=_delay.parse_mode(point["scheme"]), length=point["length"],
-                                   mask_width=point["mask_width"], seed=1 if keyed else seed,
-                                   key=seed if keyed else 0, iv=0,
+                                   mask_width=point["mask_width"], iv=0,
+                                   **_seed_fields(point, seed),
                                    period=point["period_cycles"], grid=bool(point["grid"]))
     try:
         return settings.check()
@@ -285,8 +288,7 @@ def scene_of(point, rng):
             aggressors.append(Aggressor(period_cycles=point["period_cycles"],
                                         mode=point["scheme"], length=point["length"],
                                         mask_width=point["mask_width"],
-                                        seed=1 if _keyed(point) else seed,
-                                        key=seed if _keyed(point) else 0,
+                                        **_seed_fields(point, seed),
                                         grid=bool(point["grid"]), **common))
     return Scene(victim=victim, distance_m=point["distance_m"],
                  detections_per_pulse=point["detections_per_pulse"], fwhm_s=_FWHM_S,
