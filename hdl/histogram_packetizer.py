@@ -123,7 +123,10 @@ class HistogramPacketizer(wiring.Component):
         run = Signal(_RUN_BITS + 1)
         value = Signal(_RUN_BITS + 2)
         pending_count = Signal(COUNT_WIDTH)
-        word = Signal(COUNT_WIDTH)      # the buffer's word, registered as it leaves the RAM
+        # the buffers' words, each registered as it leaves its RAM, with no logic between: the
+        # RAMs are block RAMs, slow to output, which may sit far from this logic
+        word = Signal(COUNT_WIDTH)
+        token = Signal(8)
         prefetch = Signal()
         full_header = Signal(HistogramChunk)
         compact_header = Signal(HistogramCompact)
@@ -359,7 +362,7 @@ class HistogramPacketizer(wiring.Component):
             with m.State("CLOSE_LOAD"):
                 m.next = "CLOSE_FETCH"
             with m.State("CLOSE_FETCH"):
-                m.d.sync += word.eq(token_read.data)
+                m.d.sync += token.eq(token_read.data)
                 m.next = "CLOSE_TOKEN"
             with m.State("CLOSE_TOKEN"):
                 final = step == open_bytes - 1
@@ -367,7 +370,7 @@ class HistogramPacketizer(wiring.Component):
                     self.packets.valid.eq(1),
                     self.packets.p.header.type.eq(PacketType.HISTOGRAM_COMPACT),
                     self.packets.p.header.length.eq(compact_length),
-                    self.packets.p.data.eq(word[:8]),
+                    self.packets.p.data.eq(token),
                     self.packets.p.last.eq(final),
                 ]
                 with m.If(self.packets.ready):
