@@ -94,8 +94,9 @@ def _built(module, name):
 def test_top_register_file_takes_what_the_top_runs(options):
     # The register file accepts every value the blocks the top level builds can take, and only
     # those: aggressor delay modes its aggressor can run (none without an aggressor), periods
-    # and pulse widths that fit its delay core's settings, raw events only if it has the FIFO.
-    # The other registers keep the register map's maxima.
+    # and pulse widths that fit its delay core's settings, raw events only if it has the FIFO,
+    # depth mode and settings only with the depth engine. The other registers keep the register
+    # map's maxima.
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UnusedElaboratable)    # elaborated, never converted
         flisstop = FlissTop(**options)
@@ -121,6 +122,13 @@ def test_top_register_file_takes_what_the_top_runs(options):
                 if register.name.startswith("aggressor_"):
                     reset = register.reset_value(flisstop.clock_hz)
                     assert maxima[register.name] < 2 * max(reset, register.minimum, 1)
+                    lowered[register.name] = maxima[register.name]
+        if not _built(top, "depth"):
+            # no depth engine: its settings hold values as wide as their reset values only
+            for register in REGISTERS:
+                if register.group == "depth":
+                    reset = register.reset_value(flisstop.clock_hz)
+                    assert reset <= maxima[register.name] < 2 * max(reset, register.minimum, 1)
                     lowered[register.name] = maxima[register.name]
         lowered["pixel_bits"] = top.submodules.histogram.max_pixel_bits
         if not core.keyed:

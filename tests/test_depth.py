@@ -318,7 +318,8 @@ def test_builds_without_the_engine_refuse_depth_mode(construction_error):
         maxima = FlissTop(depth=False).register_maxima()
         small = FlissTop(**SMALL).register_maxima()
         gc.collect()
-    assert maxima == {"acquisition": 1}
+    # (its settings stay, as wide as their resets need: 4 in 3 bits, 16 in 5)
+    assert maxima == {"acquisition": 1, "depth_filter": 0b111, "depth_threshold": 0b11111}
     assert small["acquisition"] == 0
     assert construction_error(lambda: FlissTop(depth="yes"), TypeError) == \
         "depth must be True or False, not 'yes'"
