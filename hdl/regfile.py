@@ -125,9 +125,12 @@ class RegisterFile(wiring.Component):
                 m.d.comb += word.eq(settings[register.name])
         m.d.comb += self.read_data.eq(words[self.read_address])
 
-        # A WRITE puts its values in `candidate` and marks them in `written`; the registers it
-        # does not write keep theirs in `settings`. (Copying all of `settings` into the candidate
-        # first would put a multiplexer in front of every candidate bit.)
+        # A command begins by copying `settings` into `candidate`; a WRITE puts its values
+        # there and marks them in `written` (for the keyed source's rules). The candidate is
+        # then the settings the WRITE would make, as the consistency checks need them, and a
+        # commit copies it all. (The copy's multiplexer in front of each candidate bit shares
+        # the bit's logic cell with it; choosing between candidate and settings for the
+        # checks instead took a LUT of its own per bit checked.)
         candidate = Signal(layout, init=defaults(self.clock_hz))
         written = Signal(len(REGISTERS))
 
@@ -192,24 +195,17 @@ class RegisterFile(wiring.Component):
         with m.If(self.start):
             m.d.sync += value_address.eq(self.start_address)
         with m.If(self.begin):
-            m.d.sync += [self.error.eq(0), written.eq(0)]
+            m.d.sync += [self.error.eq(0), written.eq(0), candidate.eq(settings)]
 
         # Commit (a build without the keyed source has no key or IV: nothing to tell it)
         if self._keyed:
             m.d.comb += self.rekey.eq(self.commit & Cat(written[r.address]
                                                         for r in KEYING.members).any())
         with m.If(self.commit):
-            for register in REGISTERS:
-                with m.If(written[register.address]):
-                    m.d.sync += settings[register.name].eq(candidate[register.name])
+            m.d.sync += settings.eq(candidate)
 
         # Consistency of the candidate settings
-        c = Signal(layout)      # the settings the WRITE would make
-        for register in REGISTERS:
-            m.d.comb += c[register.name].eq(Mux(written[register.address],
-                                                candidate[register.name],
-                                                settings[register.name]))
-        self._consistency(m, c, written)
+        self._consistency(m, candidate, written)
 
         return m
 
