@@ -18,10 +18,10 @@ __all__ = ["RegisterFile"]
 class RegisterFile(wiring.Component):
     """Register file of :mod:`fliss.hdl.registers`, written by the command processor.
 
-    A WRITE puts its values, one at a time, into a candidate set of settings: each value is
-    range-checked (its register's minimum and maximum), and the settings the candidate would make
-    are checked together (:func:`fliss.hdl.registers.problems`); ``commit`` then applies every
-    value written at once.
+    A command begins with a copy of the settings as the candidate; a WRITE puts its values, one
+    at a time, into the candidate: each value is range-checked (its register's minimum and
+    maximum), and the settings the candidate makes are checked together
+    (:func:`fliss.hdl.registers.problems`); ``commit`` then applies every value written at once.
 
     Parameters
     ----------
@@ -38,7 +38,8 @@ class RegisterFile(wiring.Component):
     Members
     -------
     begin : In(1)
-        A command begins: forget the values written and the error.
+        A command begins: forget the values written and the error, copy the settings into the
+        candidate.
     start : In(1)
         The first value of a WRITE goes to register ``start_address``.
     start_address : In(16)
