@@ -155,7 +155,7 @@ class FullHistogramPacketizer(wiring.Component):
         m = Module()
 
         frame = Signal(32)
-        chunk = Signal(HistogramChunk)
+        last_chunk = Signal()
         bins = Signal(range(CHUNK_BINS + 1))   # bins in this chunk
         sent = Signal.like(bins)
         byte = Signal(range(max(_CHUNK_HEADER, COUNT_BYTES)))
@@ -189,12 +189,7 @@ class FullHistogramPacketizer(wiring.Component):
             with m.State("WAIT"):
                 with m.If(self.readout.valid):
                     m.d.sync += [
-                        chunk.frame.eq(frame),
-                        chunk.first_bin.eq(self.readout.p.index),
-                        chunk.shift.eq(self.shift),
-                        chunk.pixel_bits.eq(self.pixel_bits),
-                        chunk.first_pixel.eq(self.first_pixel),
-                        chunk.last.eq(self.readout.p.index >= last_first_bin),
+                        last_chunk.eq(self.readout.p.index >= last_first_bin),
                         bins.eq(chunk_bins),
                         length.eq(chunk_length),
                     ]
@@ -207,6 +202,18 @@ class FullHistogramPacketizer(wiring.Component):
                     m.next = "PREFIX"
 
             with m.State("PREFIX"):
+                # The header from the values it describes: they hold until the chunk's first
+                # bin is taken (the bin waits on `readout`; the frame's settings and number
+                # change only after its last bin), so none is copied into a register.
+                chunk = Signal(HistogramChunk)
+                m.d.comb += [
+                    chunk.frame.eq(frame),
+                    chunk.first_bin.eq(self.readout.p.index),
+                    chunk.shift.eq(self.shift),
+                    chunk.pixel_bits.eq(self.pixel_bits),
+                    chunk.first_pixel.eq(self.first_pixel),
+                    chunk.last.eq(last_chunk),
+                ]
                 m.d.comb += [
                     self.packets.valid.eq(1),
                     self.packets.p.data.eq(chunk.as_value().word_select(byte, 8)),

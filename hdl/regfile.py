@@ -18,10 +18,10 @@ __all__ = ["RegisterFile"]
 class RegisterFile(wiring.Component):
     """Register file of :mod:`fliss.hdl.registers`, written by the command processor.
 
-    A WRITE puts its values, one at a time, into a candidate set of settings: each value is
-    range-checked (its register's minimum and maximum), and the settings the candidate would make
-    are checked together (:func:`fliss.hdl.registers.problems`); ``commit`` then applies every
-    value written at once.
+    A command begins with a copy of the settings as the candidate; a WRITE puts its values, one
+    at a time, into the candidate: each value is range-checked (its register's minimum and
+    maximum), and the settings the candidate makes are checked together
+    (:func:`fliss.hdl.registers.problems`); ``commit`` then applies every value written at once.
 
     Parameters
     ----------
@@ -38,7 +38,8 @@ class RegisterFile(wiring.Component):
     Members
     -------
     begin : In(1)
-        A command begins: forget the values written and the error.
+        A command begins: forget the values written and the error, copy the settings into the
+        candidate.
     start : In(1)
         The first value of a WRITE goes to register ``start_address``.
     start_address : In(16)
@@ -125,9 +126,12 @@ class RegisterFile(wiring.Component):
                 m.d.comb += word.eq(settings[register.name])
         m.d.comb += self.read_data.eq(words[self.read_address])
 
-        # A WRITE puts its values in `candidate` and marks them in `written`; the registers it
-        # does not write keep theirs in `settings`. (Copying all of `settings` into the candidate
-        # first would put a multiplexer in front of every candidate bit.)
+        # A command begins by copying `settings` into `candidate`; a WRITE puts its values
+        # there and marks them in `written` (for the keyed source's rules). The candidate is
+        # then the settings the WRITE would make, as the consistency checks need them, and a
+        # commit copies it all. (The copy's multiplexer in front of each candidate bit shares
+        # the bit's logic cell with it; choosing between candidate and settings for the
+        # checks instead took a LUT of its own per bit checked.)
         candidate = Signal(layout, init=defaults(self.clock_hz))
         written = Signal(len(REGISTERS))
 
@@ -192,24 +196,17 @@ class RegisterFile(wiring.Component):
         with m.If(self.start):
             m.d.sync += value_address.eq(self.start_address)
         with m.If(self.begin):
-            m.d.sync += [self.error.eq(0), written.eq(0)]
+            m.d.sync += [self.error.eq(0), written.eq(0), candidate.eq(settings)]
 
         # Commit (a build without the keyed source has no key or IV: nothing to tell it)
         if self._keyed:
             m.d.comb += self.rekey.eq(self.commit & Cat(written[r.address]
                                                         for r in KEYING.members).any())
         with m.If(self.commit):
-            for register in REGISTERS:
-                with m.If(written[register.address]):
-                    m.d.sync += settings[register.name].eq(candidate[register.name])
+            m.d.sync += settings.eq(candidate)
 
         # Consistency of the candidate settings
-        c = Signal(layout)      # the settings the WRITE would make
-        for register in REGISTERS:
-            m.d.comb += c[register.name].eq(Mux(written[register.address],
-                                                candidate[register.name],
-                                                settings[register.name]))
-        self._consistency(m, c, written)
+        self._consistency(m, candidate, written)
 
         return m
 
