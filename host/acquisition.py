@@ -344,7 +344,10 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
             link = board.link_counters()
             damaged = f"{link['dropped_frames']} corrupt, {link['missing_packets']} lost"
             if mode in _FRAMED:
-                bar.update(rows.saved, f"{rate(state['events'], elapsed)}  link: {damaged}")
+                # (a depth frame carries no event count: its pace is in frames)
+                pace = (f"{rows.saved / elapsed:.1f} frames/s" if mode == "depth" and elapsed > 0
+                        else rate(state["events"], elapsed))
+                bar.update(rows.saved, f"{pace}  link: {damaged}")
                 if rows.done:
                     break
             else:
