@@ -23,7 +23,7 @@ import numpy as np
 from ..hdl.event import PULSE_BITS, TDC_LSB_S
 from .event import EVENT_DTYPE
 from .scene_description import COUNTERS, SPEED_OF_LIGHT, TDC_CODES, TRUNCATION_SIGMAS
-from .scene_photons import Chunk, Simulation, _non_paralysable
+from .scene_photons import Chunk, Simulation, _non_paralysable, _spans
 
 
 __all__ = ["PixelChunk", "PixelSimulation", "simulation_for"]
@@ -198,16 +198,8 @@ class PixelSimulation(Simulation):
         times, sources, pixel = times[now][order], sources[now][order], pixel[now][order]
 
         # Which span each photon is in: the TDC window of `span`, or the dead time before it
-        if self._separated:
-            span = np.searchsorted(starts, times + self._dead, side="right") - 1
-            offset = times - starts[np.maximum(span, 0)]
-            in_span = (span >= 0) & (offset < TDC_CODES)
-            in_window = in_span & (offset >= 0)
-        else:
-            span = np.searchsorted(span_starts, times, side="right") - 1
-            clipped = np.maximum(span, 0)
-            in_span = (span >= 0) & (times < ends[clipped])
-            in_window = in_span & (times >= starts[clipped])
+        span, in_span, in_window = _spans(times, starts, span_starts, ends, self._dead,
+                                          self._separated)
 
         # Detection: each pixel's dead time, then the sensor's TDCs
         spanned = np.flatnonzero(in_span)

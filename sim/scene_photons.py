@@ -50,6 +50,24 @@ class Chunk:
         return len(self.start_cycles)
 
 
+def _spans(times, starts, span_starts, ends, dead, separated):
+    """``(span, in_span, in_window)`` of photons at ``times`` (sorted): the span each is in (the
+    TDC window from ``starts[span]``, or the dead time before it), whether it is in one, and
+    whether in its window. ``separated``: spans do not overlap, each its window and the dead
+    time before; otherwise they run from ``span_starts`` to ``ends``."""
+    if separated:
+        span = np.searchsorted(starts, times + dead, side="right") - 1
+        offset = times - starts[np.maximum(span, 0)]
+        in_span = (span >= 0) & (offset < TDC_CODES)
+        in_window = in_span & (offset >= 0)
+    else:
+        span = np.searchsorted(span_starts, times, side="right") - 1
+        clipped = np.maximum(span, 0)
+        in_span = (span >= 0) & (times < ends[clipped])
+        in_window = in_span & (times >= starts[clipped])
+    return span, in_span, in_window
+
+
 def _non_paralysable(times, dead, last):
     """Which photons (sorted ``times``) a non-paralysable detector detects; ``last`` is the time
     of the last detection before them."""
@@ -234,6 +252,7 @@ class Simulation:
                          np.zeros_like(self.counts))
         edges = cycles[:count + 1] * self._lsb
         starts = edges[:-1]
+        ends = span_starts = None
         if self._separated:
             # Every span is [start - dead, start + 2**13) and they never touch.
             boundary = edges[-1] - self._dead
@@ -290,16 +309,8 @@ class Simulation:
         sources = sources[order]
 
         # Which span each photon is in: the TDC window of `span`, or the dead time before it
-        if self._separated:
-            span = np.searchsorted(starts, times + self._dead, side="right") - 1
-            offset = times - starts[np.maximum(span, 0)]
-            in_span = (span >= 0) & (offset < TDC_CODES)
-            in_window = in_span & (offset >= 0)
-        else:
-            span = np.searchsorted(span_starts, times, side="right") - 1
-            clipped = np.maximum(span, 0)
-            in_span = (span >= 0) & (times < ends[clipped])
-            in_window = in_span & (times >= starts[clipped])
+        span, in_span, in_window = _spans(times, starts, span_starts, ends, self._dead,
+                                          self._separated)
 
         # Detection: which span, dead time, single-hit TDC
         counts = np.zeros_like(self.counts)
