@@ -1,11 +1,11 @@
 """DEPTH packets: the records of a frame, stored as they come, sent after a header."""
 
 from amaranth.hdl import Module, Signal
-from amaranth.lib import stream, wiring
-from amaranth.lib.memory import Memory
+from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from . import lookup
+from .block_ram import RegisteredRam
 from .framing import PacketBeat
 from .protocol import (PacketType, DepthHeader, DepthRecord, DEPTH_HEADER_BYTES,
                        DEPTH_RECORD_BYTES, DEPTH_PIXELS)
@@ -18,8 +18,9 @@ _PIXEL_BITS = (DEPTH_PIXELS - 1).bit_length()
 
 
 class DepthPacketizer(wiring.Component):
-    """Stores up to :data:`~fliss.hdl.protocol.DEPTH_PIXELS` records (a block RAM) and sends
-    them as one DEPTH packet.
+    """Stores up to :data:`~fliss.hdl.protocol.DEPTH_PIXELS` records (a block RAM with a
+    registered read, :class:`~fliss.hdl.block_ram.RegisteredRam`) and sends them as one DEPTH
+    packet.
 
     ``write`` stores ``record`` as the frame's next pixel. ``send`` (while not ``busy``) takes
     ``header`` and sends the packet: its header beat, the :class:`DepthHeader` bytes, then the
@@ -47,9 +48,8 @@ class DepthPacketizer(wiring.Component):
     def elaborate(self, platform):
         m = Module()
 
-        m.submodules.records = records = Memory(shape=DepthRecord, depth=DEPTH_PIXELS, init=[])
-        write = records.write_port()
-        read = records.read_port()
+        m.submodules.records = records = RegisteredRam(
+            depth=DEPTH_PIXELS, width=data.Layout.cast(DepthRecord).size)
 
         header = Signal(DepthHeader)
         pixel = Signal(range(DEPTH_PIXELS + 1))
@@ -61,14 +61,15 @@ class DepthPacketizer(wiring.Component):
         m.d.comb += [
             self.packets.p.header.type.eq(PacketType.DEPTH),
             self.packets.p.header.length.eq(length),
-            read.addr.eq(pixel),
-            write.addr.eq(pixel),
-            write.data.eq(self.record),
+            records.read_addr.eq(pixel),
+            records.read_en.eq(1),
+            records.write_addr.eq(pixel),
+            records.write_data.eq(self.record),
         ]
 
         with m.FSM():
             with m.State("STORE"):
-                m.d.comb += write.en.eq(self.write)
+                m.d.comb += records.write_en.eq(self.write)
                 with m.If(self.write):
                     m.d.sync += pixel.eq(pixel + 1)
                 with m.If(self.send):
@@ -91,14 +92,18 @@ class DepthPacketizer(wiring.Component):
                         m.d.sync += byte.eq(0)
                         m.next = "FETCH"
 
-            # The record memory's read port gives the word a cycle after its address
+            # The record memory gives the word two cycles after its address
             with m.State("FETCH"):
+                m.d.comb += self.busy.eq(1)
+                m.next = "SETTLE"
+
+            with m.State("SETTLE"):
                 m.d.comb += self.busy.eq(1)
                 m.next = "LOAD"
 
             with m.State("LOAD"):
                 m.d.comb += self.busy.eq(1)
-                m.d.sync += word.eq(read.data.as_value())
+                m.d.sync += word.eq(records.read_data)
                 m.next = "RECORD"
 
             with m.State("RECORD"):

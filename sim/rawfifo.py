@@ -1,11 +1,12 @@
 """Bit-exact model of :class:`fliss.hdl.rawfifo.RawFifo`.
 
 An input register delays every event by one cycle; then comes
-:class:`amaranth.lib.fifo.SyncFIFOBuffered`: a block-RAM queue of ``depth - 1`` entries followed by
-an output register. Per cycle, the model applies the same rules: the queue
-takes a write unless it holds ``depth - 1`` entries; the output register loads the oldest queued
-entry whenever it is empty or being read; the entry loaded in a cycle is never the one written in
-that cycle.
+:class:`amaranth.lib.fifo.SyncFIFOBuffered` of ``depth - 1``: a block-RAM queue of ``depth - 2``
+entries followed by its register, then the output register. Per cycle, the model applies the
+same rules: the queue takes a write unless it holds ``depth - 2`` entries; the output register
+loads the middle one's contents (an entry or nothing) whenever it is empty or being read, and
+the middle one loads the oldest queued entry whenever it is empty or being moved on; the entry
+loaded in a cycle is never the one written in that cycle.
 """
 
 from collections import deque
@@ -20,8 +21,8 @@ __all__ = ["check_depth", "simulate"]
 
 def check_depth(depth):
     """Raise :exc:`ValueError` unless ``depth`` is a valid FIFO depth."""
-    if not isinstance(depth, (int, np.integer)) or depth < 3:
-        raise ValueError(f"FIFO depth must be an integer of at least 3, not {depth!r}")
+    if not isinstance(depth, (int, np.integer)) or depth < 4:
+        raise ValueError(f"FIFO depth must be an integer of at least 4, not {depth!r}")
 
 
 def simulate(valid, ready, *, depth=DEPTH, counter_width=COUNTER_WIDTH):
@@ -50,22 +51,23 @@ def simulate(valid, ready, *, depth=DEPTH, counter_width=COUNTER_WIDTH):
     valid = np.asarray(valid, dtype=bool)
     ready = np.asarray(ready, dtype=bool)
     queue = deque()
-    out = None  # event number in the output register
+    middle = None   # event number in the SyncFIFOBuffered's register
+    out = None      # event number in the output register
     number = 0
     transfers, dropped, levels = [], [], []
     accepted = 0
     for cycle in range(len(ready)):
-        levels.append(len(queue) + (out is not None))
-        w_rdy = len(queue) != depth - 1
-        r_en = bool(ready[cycle])
-        r_rdy = out is not None
-        if r_rdy and r_en:
+        levels.append(len(queue) + (middle is not None) + (out is not None))
+        w_rdy = len(queue) != depth - 2
+        if out is not None and ready[cycle]:
             transfers.append((cycle, out))
-        inner_read = len(queue) > 0 and (not r_rdy or r_en)
-        if inner_read:
-            out = queue.popleft()
-        elif r_en:
-            out = None
+        take = out is None or bool(ready[cycle])
+        if take:
+            out = middle
+        if len(queue) > 0 and (middle is None or take):
+            middle = queue.popleft()
+        elif take:
+            middle = None
         if 1 <= cycle <= len(valid) and valid[cycle - 1]:  # the input register's output
             if w_rdy:
                 queue.append(number)

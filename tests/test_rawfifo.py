@@ -52,7 +52,7 @@ def run_fifo(dut, valid, ready, words):
     return transfers, np.array(levels), counters
 
 
-@pytest.mark.parametrize("depth, counter_width", [(16, 32), (5, 32), (3, 32), (16, 4)])
+@pytest.mark.parametrize("depth, counter_width", [(16, 32), (5, 32), (4, 32), (16, 4)])
 def test_fifo_matches_model(depth, counter_width):
     rng = np.random.default_rng(depth * 100 + counter_width)
     cycles = 3_000
@@ -99,8 +99,8 @@ def test_clear_counters():
 
 
 @pytest.mark.parametrize("kwargs, message", [
-    ({"depth": 2}, "FIFO depth must be an integer of at least 3, not 2"),
-    ({"depth": 8.0}, "FIFO depth must be an integer of at least 3, not 8.0"),
+    ({"depth": 3}, "FIFO depth must be an integer of at least 4, not 3"),
+    ({"depth": 8.0}, "FIFO depth must be an integer of at least 4, not 8.0"),
     ({"counter_width": 0}, "Counter width must be an integer from 1 to 64 bits, not 0"),
 ])
 def test_bad_parameters(kwargs, message, construction_error):
