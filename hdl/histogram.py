@@ -16,7 +16,7 @@ from .histogram_frames import FrameSequencer
 from .histogram_layout import (BANK_BITS, BIN_BITS, COUNT_WIDTH, INTEGRATION_WIDTH,
                                MAX_BANK_BITS, MAX_COUNT_WIDTH, MAX_SHIFT, MIN_COUNT_WIDTH,
                                PIXEL_BITS, PIXEL_SETTING_BITS, HistogramSettings, readout_layout)
-from .histogram_readout import READOUT_CYCLES_PER_BIN, BankReadout
+from .histogram_readout import READOUT_CYCLES_PER_BIN, BankReadout, readout_cycles_per_bin
 from .tdc import COUNTER_WIDTH, count_event
 
 
@@ -185,11 +185,13 @@ class Histogram(wiring.Component):
     ram : str
         ``"dual"`` or ``"single"``.
     latency : int
-        Most cycles from an event's arrival to the RAM write of its bin: ``7 +
-        read_stages(bank_bits)`` (at most :data:`LATENCY`) or :data:`SINGLE_LATENCY`.
+        Most cycles from an event's arrival to the RAM write of its bin:
+        :func:`~fliss.hdl.histogram_dual.latency` of the bank's read stages (at most
+        :data:`LATENCY`) or :data:`SINGLE_LATENCY`.
     readout_cycles_per_bin : int
-        Fewest cycles per bin of the readout: 4, or 6 with dual-port banks of more than one
-        block (:data:`READOUT_CYCLES_PER_BIN`).
+        Fewest cycles per bin of the readout,
+        :func:`~fliss.hdl.histogram_readout.readout_cycles_per_bin` of the bank's read stages:
+        4, or 6 with dual-port banks of more than one block (:data:`READOUT_CYCLES_PER_BIN`).
     min_event_spacing : int
         Fewest cycles between two events that are both counted: 1 or 2.
     init_cycles : int
@@ -229,7 +231,7 @@ class Histogram(wiring.Component):
             storage = SinglePortBanks(bank_bits, count_width)
         self._storage = storage
         self.latency = storage.latency
-        self.readout_cycles_per_bin = 4 + storage.read_stages
+        self.readout_cycles_per_bin = readout_cycles_per_bin(storage.read_stages)
         self.init_cycles = storage.init_cycles
         self.banks = storage.banks
         super().__init__({

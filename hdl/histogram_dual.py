@@ -15,7 +15,8 @@ from .block_ram import RegisteredRam
 from .histogram_banks import _MEMBERS_DOC, _increment, _members
 
 
-__all__ = ["BLOCK_BITS", "READ_STAGES", "LATENCY", "read_stages", "DualPortBanks"]
+__all__ = ["BLOCK_BITS", "READ_STAGES", "LATENCY", "read_stages", "latency", "forward",
+           "DualPortBanks"]
 
 
 #: Words of one RAM block of a bank, as a power of two: 1024 words of 16 bits, one ECP5 EBR.
@@ -26,15 +27,29 @@ BLOCK_BITS = 10
 READ_STAGES = 2
 #: Inputs of each OR of the read tree's first level.
 OR_GROUP = 8
-#: Most cycles from an event's transfer on ``events`` to the block RAM write of its bin (banks
-#: of more than one block; ``7 + read_stages(bank_bits)``).
-LATENCY = 7 + READ_STAGES
 
 
 def read_stages(bank_bits):
     """Read stages of a bank of ``2**bank_bits`` words: :data:`READ_STAGES` if it spans more
     than one block, else 0."""
     return READ_STAGES if bank_bits > BLOCK_BITS else 0
+
+
+def latency(read_stages):
+    """Cycles from an event's transfer on ``events`` to the block RAM write of its bin, in a
+    bank of ``read_stages`` read stages (:func:`read_stages`)."""
+    return 7 + read_stages
+
+
+def forward(read_stages):
+    """Events ahead whose writes a read misses (their counts are forwarded), in a bank of
+    ``read_stages`` read stages (:func:`read_stages`)."""
+    return 4 + read_stages
+
+
+#: Most cycles from an event's transfer on ``events`` to the block RAM write of its bin (banks
+#: of more than one block; :func:`latency` of :data:`READ_STAGES`).
+LATENCY = latency(READ_STAGES)
 
 
 class DualPortBanks(wiring.Component):
@@ -45,7 +60,7 @@ class DualPortBanks(wiring.Component):
     read address (R), the blocks' data out (D), each block's word registered near it (zero but
     in the block read: stage D1), OR-ed in groups (D2), the bank's word registered (Q) — the
     extra ``read_stages`` (:data:`READ_STAGES`, none with one block) cut the routing across the
-    chip —, saturating increment with forwarding from the ``forward`` (4 + ``read_stages``)
+    chip —, saturating increment with forwarding from the ``forward`` (:func:`forward`)
     events ahead (E), RAM write (W). ``word`` is the registered RAM word of the readout bank:
     ``read_stages`` cycles after the readout's CAPTURE, it holds until its next read.
 """ + _MEMBERS_DOC
@@ -55,9 +70,9 @@ class DualPortBanks(wiring.Component):
         self.count_width = count_width
         self.read_stages = read_stages(bank_bits)
         #: Cycles from an event's transfer to the RAM write of its bin.
-        self.latency = 7 + self.read_stages
+        self.latency = latency(self.read_stages)
         #: Events ahead whose writes a read misses (their counts are forwarded).
-        self.forward = 4 + self.read_stages
+        self.forward = forward(self.read_stages)
         self.init_cycles = 0
         super().__init__(_members(bank_bits, count_width, initialising=False))
         self.block_bits = min(bank_bits, BLOCK_BITS)

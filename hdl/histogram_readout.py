@@ -8,14 +8,22 @@ from .histogram_dual import READ_STAGES
 from .histogram_layout import readout_layout
 
 
-__all__ = ["SETTLE", "READOUT_CYCLES_PER_BIN", "BankReadout"]
+__all__ = ["SETTLE", "READOUT_CYCLES_PER_BIN", "readout_cycles_per_bin", "BankReadout"]
+
+
+def readout_cycles_per_bin(settle):
+    """Clock cycles per bin on ``readout`` when its consumer is always ready, the word coming
+    ``settle`` cycles after the first of CAPTURE (:class:`BankReadout`): ADDRESS, READ,
+    CAPTURE (``settle`` + 1) and PRESENT."""
+    return 4 + settle
 
 
 #: Most cycles the readout waits after a read for the word (the dual-port banks' read stages;
 #: ``settle``).
 SETTLE = READ_STAGES
-#: Most clock cycles per bin on ``readout`` when its consumer is always ready: ``4 + settle``.
-READOUT_CYCLES_PER_BIN = 4 + SETTLE
+#: Most clock cycles per bin on ``readout`` when its consumer is always ready
+#: (:func:`readout_cycles_per_bin` of :data:`SETTLE`).
+READOUT_CYCLES_PER_BIN = readout_cycles_per_bin(SETTLE)
 
 
 class BankReadout(wiring.Component):
@@ -26,7 +34,7 @@ class BankReadout(wiring.Component):
     pipeline, then for each bin sets the bank's read address (ADDRESS), sets a clearing write
     (READ), takes the word (CAPTURE, ``settle`` + 1 cycles: the dual-port banks' word comes
     through their read stages) and presents it on ``readout`` (PRESENT) until transferred:
-    ``4 + settle`` cycles per bin.
+    :func:`readout_cycles_per_bin` cycles per bin.
 
     Parameters
     ----------

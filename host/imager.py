@@ -21,6 +21,7 @@ import numpy as np
 
 from ..hdl.registers import AcquisitionMode
 from .errors import SettingsError
+from .results import FrameCounts
 from .settings import Settings
 from .stream import DepthFrame, HistogramFrame
 
@@ -47,7 +48,7 @@ def depth_m(time_of_flight_s) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class Images:
+class Images(FrameCounts):
     """Per-pixel histograms from :meth:`fliss.host.board.Board.acquire_image`.
 
     Attributes
@@ -71,16 +72,6 @@ class Images:
     frames: np.ndarray
     complete: np.ndarray
     settings: Settings
-
-    @property
-    def bin_s(self) -> float:
-        """Width of a bin, in seconds."""
-        return self.settings.bin_s
-
-    @property
-    def total(self) -> np.ndarray:
-        """Each pixel's histogram summed over the frames, ``(P, N)``."""
-        return self.counts.sum(axis=0, dtype=np.uint64)
 
     @property
     def intensity(self) -> np.ndarray:

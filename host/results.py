@@ -8,7 +8,7 @@ import numpy as np
 from .settings import Settings
 
 
-__all__ = ["Histogram", "Histograms", "Events"]
+__all__ = ["Histogram", "FrameCounts", "Histograms", "Events"]
 
 
 @dataclass(frozen=True)
@@ -32,8 +32,24 @@ class Histogram:
     complete: bool
 
 
+class FrameCounts:
+    """What :class:`Histograms` and :class:`~fliss.host.imager.Images` share: ``counts``, one
+    frame per row of its first axis, and the board's ``settings``."""
+
+    @property
+    def bin_s(self) -> float:
+        """Width of a bin, in seconds."""
+        return self.settings.bin_s
+
+    @property
+    def total(self) -> np.ndarray:
+        """The frames' counts summed (over ``counts``' first axis): ``(bins,)`` of
+        :class:`Histograms`, each pixel's ``(P, N)`` of :class:`~fliss.host.imager.Images`."""
+        return self.counts.sum(axis=0, dtype=np.uint64)
+
+
 @dataclass(frozen=True)
-class Histograms:
+class Histograms(FrameCounts):
     """Histograms from :meth:`Board.acquire`.
 
     Attributes
@@ -54,16 +70,6 @@ class Histograms:
     frames: np.ndarray
     complete: np.ndarray
     settings: Settings
-
-    @property
-    def bin_s(self) -> float:
-        """Width of a bin, in seconds."""
-        return self.settings.bin_s
-
-    @property
-    def total(self) -> np.ndarray:
-        """The sum of the histograms, ``(bins,)``."""
-        return self.counts.sum(axis=0, dtype=np.uint64)
 
     @property
     def lost(self) -> int:

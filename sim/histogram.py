@@ -18,6 +18,7 @@ from ..hdl.event import ADDRESS_BITS, TIMESTAMP_BITS
 from ..hdl.histogram import (BANK_BITS, COUNT_WIDTH, MIN_COUNT_WIDTH, MAX_COUNT_WIDTH, MAX_SHIFT,
                              MAX_BANK_BITS, INTEGRATION_WIDTH)
 from ..hdl.histogram_dual import read_stages
+from ..hdl.histogram_readout import readout_cycles_per_bin
 
 
 __all__ = ["check_settings", "split", "bins_read", "readout_cycles", "histogram", "frames"]
@@ -69,7 +70,7 @@ def readout_cycles(shift=0, bank_bits=BANK_BITS, pixel_bits=0, ram="dual"):
     """Fewest clock cycles the readout of one frame takes: 4 per bin, 6 with dual-port banks
     of more than one block (their word's way through the read stages)."""
     stages = read_stages(bank_bits) if ram == "dual" else 0
-    return (4 + stages) * bins_read(shift, bank_bits, pixel_bits)
+    return readout_cycles_per_bin(stages) * bins_read(shift, bank_bits, pixel_bits)
 
 
 def histogram(timestamps, addresses=None, *, shift=0, bank_bits=BANK_BITS, pixel_bits=0,

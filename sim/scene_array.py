@@ -22,7 +22,7 @@ import numpy as np
 
 from ..hdl.event import PULSE_BITS, TDC_LSB_S
 from .event import EVENT_DTYPE
-from .scene_description import COUNTERS, SPEED_OF_LIGHT, TDC_CODES, TRUNCATION_SIGMAS
+from .scene_description import COUNTERS, SPEED_OF_LIGHT, TDC_CODES
 from .scene_photons import Chunk, Simulation, _non_paralysable, _spans
 
 
@@ -82,68 +82,24 @@ class PixelSimulation(Simulation):
             raise ValueError("A PixelSimulation needs a scene with pixels (a PixelArray)")
         self.pixels = pixels
         count = len(pixels)
-        self._count = count
+        self._pixel_count = count
         self._addresses = pixels.addresses
         self._column = pixels.sensor == "column"
         self._collision = pixels.collision_window_s / TDC_LSB_S
-        # Per pulsed source: mean detections of each pixel, and each pixel's arrival time after
-        # the base time the source's pulse train gives (the single pixel's time of flight).
+        # Per pulsed source: mean detections of each pixel, each pixel's arrival time after the
+        # base time the source's pulse train gives (the single pixel's time of flight), and the
+        # earliest of those (see Simulation._photons).
         tof = 2.0 * pixels.distance_m / SPEED_OF_LIGHT / TDC_LSB_S
         own = tof - scene.tof_s / TDC_LSB_S
-        self._means = [pixels.echo(scene.detections_per_pulse)]
-        self._extra = [own]
+        means = [pixels.echo(scene.detections_per_pulse)]
+        extras = [own]
         for aggressor in scene.aggressors:
-            self._means.append(np.full(count, float(aggressor.detections_per_pulse)))
-            self._extra.append(own if aggressor.tof_s is None else np.zeros(count))
-        self._lowest = [float(extra.min()) for extra in self._extra]
-        self._lit = [bool(means.any()) for means in self._means]
+            means.append(np.full(count, float(aggressor.detections_per_pulse)))
+            extras.append(own if aggressor.tof_s is None else np.zeros(count))
+        self._per_pixel = [(mean, extra, float(extra.min())) for mean, extra in zip(means, extras)]
         self._last_detections = np.full(count, -np.inf)
         self._carry_pixels = np.zeros(0, dtype=np.int16)
         self.pixel_counts = np.zeros((count, self._sources, len(COUNTERS)), dtype=np.int64)
-
-    def _photons(self, boundary, count, starts, span_starts, ends):
-        """Photons up to ``boundary``: carried over, from each pulsed source, background in the
-        spans; ``(times, sources, pixels)``, not sorted."""
-        rng = self._rng
-        pixels = self._count
-        times, sources, owners = [self._carry_times], [self._carry_sources], [self._carry_pixels]
-        for index, (pulses, _mean, sigma, wander) in enumerate(self._pulsed):
-            means, extra = self._means[index], self._extra[index]
-            source = index if index == 0 else index + 1
-            centres = pulses.until(boundary + TRUNCATION_SIGMAS * (sigma + wander) + 1.0
-                                   - self._lowest[index])
-            if not self._lit[index] or len(centres) == 0:
-                continue
-            if wander > 0:
-                centres = centres + wander * np.clip(rng.standard_normal(len(centres)),
-                                                     -TRUNCATION_SIGMAS, TRUNCATION_SIGMAS)
-            numbers = rng.poisson(means * len(centres))
-            pixel = np.repeat(np.arange(pixels, dtype=np.int16), numbers)
-            spread = np.clip(rng.standard_normal(len(pixel)), -TRUNCATION_SIGMAS,
-                             TRUNCATION_SIGMAS)
-            times.append(centres[rng.integers(0, len(centres), len(pixel))] + extra[pixel]
-                         + sigma * spread)
-            sources.append(np.full(len(pixel), source, dtype=np.int8))
-            owners.append(pixel)
-        if self._background > 0:
-            if self._separated:
-                longest = TDC_CODES + self._dead
-            else:
-                lengths = ends - span_starts
-                longest = float(lengths.max())
-            number = rng.poisson(self._background * longest * count * pixels)
-            span = rng.integers(0, count, number)
-            offset = rng.uniform(0.0, longest, number)
-            pixel = rng.integers(0, pixels, number).astype(np.int16)
-            if self._separated:
-                times.append(starts[span] + (offset - self._dead))
-            else:
-                inside = offset < lengths[span]
-                times.append(span_starts[span[inside]] + offset[inside])
-                pixel = pixel[inside]
-            sources.append(np.full(len(pixel), 1, dtype=np.int8))
-            owners.append(pixel)
-        return np.concatenate(times), np.concatenate(sources), np.concatenate(owners)
 
     def _detect(self, times, pixel):
         """Which photons (``times`` in time order, of ``pixel``) the pixels' SPADs detect."""
@@ -156,11 +112,12 @@ class PixelSimulation(Simulation):
         stride = float(local[-1]) + 4.0 * dead + 1.0
         # One block per pixel: its last detection (if it still matters), then its photons.
         previous = np.maximum(self._last_detections - origin, -2.0 * dead)
+        pixels = self._pixel_count
         order = np.lexsort((local, pixel))
-        keyed = np.concatenate((previous + np.arange(self._count) * stride,
+        keyed = np.concatenate((previous + np.arange(pixels) * stride,
                                 local[order] + pixel[order] * stride))
-        owner = np.concatenate((np.arange(self._count), pixel[order]))
-        sentinel = np.concatenate((np.ones(self._count, dtype=bool), np.zeros(count, dtype=bool)))
+        owner = np.concatenate((np.arange(pixels), pixel[order]))
+        sentinel = np.concatenate((np.ones(pixels, dtype=bool), np.zeros(count, dtype=bool)))
         block = np.lexsort((keyed, owner))
         result = _non_paralysable(keyed[block], dead, -np.inf)
         detected = np.empty(count, dtype=bool)
@@ -248,7 +205,7 @@ class PixelSimulation(Simulation):
         if not self._column:
             # One TDC per pixel: per (cycle, pixel) the last (first) detection, in address order
             order = np.lexsort((np.arange(len(fires)), pixel[fires], cycle))
-            group = cycle[order] * self._count + pixel[fires][order]
+            group = cycle[order] * self._pixel_count + pixel[fires][order]
             keep = np.ones(len(order), dtype=bool)
             if last:
                 keep[:-1] = group[1:] != group[:-1]

@@ -193,6 +193,11 @@ class Simulation:
         self._last_detection = -math.inf
         self._carry_times = np.zeros(0)
         self._carry_sources = np.zeros(0, dtype=np.int8)
+        # A pixel array (see PixelSimulation) sets its number of pixels, the pixels of the
+        # photons carried over and, per pulsed source, how its photons spread over the pixels.
+        self._pixel_count = None
+        self._carry_pixels = None
+        self._per_pixel = None
         #: Photon counters since the start, ``(sources, len(COUNTERS))``.
         self.counts = np.zeros((self._sources, len(COUNTERS)), dtype=np.int64)
 
@@ -238,10 +243,71 @@ class Simulation:
         if len(values):
             self._last_edges[index] = values[-1:]
 
+    def _photons(self, boundary, count, starts, span_starts, ends):
+        """Photons up to ``boundary`` (and of the pulses near it, after it): carried over, from
+        each pulsed source, and background in the ``count`` spans; ``(times, sources, pixels)``,
+        not sorted. ``pixels`` is ``None`` but for a pixel array, whose pulsed sources give each
+        pixel its own mean detections and arrival time (``_per_pixel``) and whose background falls
+        on every pixel alike."""
+        rng = self._rng
+        array = self._pixel_count
+        times, sources, owners = [self._carry_times], [self._carry_sources], [self._carry_pixels]
+        for index, (pulses, mean, sigma, wander) in enumerate(self._pulsed):
+            source = index if index == 0 else index + 1
+            extra, lowest = None, 0.0
+            if array is not None:
+                mean, extra, lowest = self._per_pixel[index]
+            centres = pulses.until(boundary + TRUNCATION_SIGMAS * (sigma + wander) + 1.0
+                                   - lowest)
+            if not np.any(mean) or len(centres) == 0:
+                continue
+            if wander > 0:
+                centres = centres + wander * np.clip(rng.standard_normal(len(centres)),
+                                                     -TRUNCATION_SIGMAS, TRUNCATION_SIGMAS)
+            number = rng.poisson(mean * len(centres))
+            if array is not None:
+                pixel = np.repeat(np.arange(array, dtype=np.int16), number)
+                number = len(pixel)
+                owners.append(pixel)
+            spread = np.clip(rng.standard_normal(number), -TRUNCATION_SIGMAS, TRUNCATION_SIGMAS)
+            arrivals = centres[rng.integers(0, len(centres), number)]
+            if extra is not None:
+                arrivals = arrivals + extra[pixel]
+            times.append(arrivals + sigma * spread)
+            sources.append(np.full(number, source, dtype=np.int8))
+        if self._background > 0:
+            # A Poisson process on each span: drawn on spans all as long as the longest, then
+            # thinned to each span's true length.
+            if self._separated:
+                longest = TDC_CODES + self._dead
+            else:
+                lengths = ends - span_starts
+                longest = float(lengths.max())
+            mean = self._background * longest * count
+            if array is not None:
+                mean = mean * array
+            number = rng.poisson(mean)
+            span = rng.integers(0, count, number)
+            offset = rng.uniform(0.0, longest, number)
+            if array is not None:
+                pixel = rng.integers(0, array, number).astype(np.int16)
+            if self._separated:
+                times.append(starts[span] + (offset - self._dead))
+            else:
+                inside = offset < lengths[span]
+                times.append(span_starts[span[inside]] + offset[inside])
+                number = int(inside.sum())
+                if array is not None:
+                    pixel = pixel[inside]
+            sources.append(np.full(number, 1, dtype=np.int8))
+            if array is not None:
+                owners.append(pixel)
+        return (np.concatenate(times), np.concatenate(sources),
+                None if array is None else np.concatenate(owners))
+
     def step(self, max_cycles=None, *, until_cycle=None):
         """Simulate the next laser cycles: at most ``max_cycles`` (default: one chunk), and only
         those whose TDC start is before clock cycle ``until_cycle``. Returns a :class:`Chunk`."""
-        rng = self._rng
         max_cycles = self.chunk_cycles if max_cycles is None else int(max_cycles)
         cycles = self._starts.get(self.pulse, self.pulse + max_cycles + 1)
         count = max(min(max_cycles, len(cycles) - 1), 0)   # the next start must be known
@@ -262,41 +328,7 @@ class Simulation:
                                      np.concatenate(([self._previous_end], ends[:-1])))
             boundary = max(edges[-1] - self._dead, ends[-1])
 
-        # Photons: carried over, from each pulsed source, and background in the spans
-        times = [self._carry_times]
-        sources = [self._carry_sources]
-        for index, (pulses, mean, sigma, wander) in enumerate(self._pulsed):
-            index = index if index == 0 else index + 1
-            centres = pulses.until(boundary + TRUNCATION_SIGMAS * (sigma + wander) + 1.0)
-            if mean == 0 or len(centres) == 0:
-                continue
-            if wander > 0:
-                centres = centres + wander * np.clip(rng.standard_normal(len(centres)),
-                                                     -TRUNCATION_SIGMAS, TRUNCATION_SIGMAS)
-            number = rng.poisson(mean * len(centres))
-            spread = np.clip(rng.standard_normal(number), -TRUNCATION_SIGMAS, TRUNCATION_SIGMAS)
-            times.append(centres[rng.integers(0, len(centres), number)] + sigma * spread)
-            sources.append(np.full(number, index, dtype=np.int8))
-        if self._background > 0:
-            # A Poisson process on each span: drawn on spans all as long as the longest, then
-            # thinned to each span's true length.
-            if self._separated:
-                longest = TDC_CODES + self._dead
-            else:
-                lengths = ends - span_starts
-                longest = float(lengths.max())
-            number = rng.poisson(self._background * longest * count)
-            span = rng.integers(0, count, number)
-            offset = rng.uniform(0.0, longest, number)
-            if self._separated:
-                times.append(starts[span] + (offset - self._dead))
-            else:
-                inside = offset < lengths[span]
-                times.append(span_starts[span[inside]] + offset[inside])
-                number = int(inside.sum())
-            sources.append(np.full(number, 1, dtype=np.int8))
-        times = np.concatenate(times)
-        sources = np.concatenate(sources)
+        times, sources, _ = self._photons(boundary, count, starts, span_starts, ends)
         later = times >= boundary
         if later.any():
             self._carry_times, self._carry_sources = times[later], sources[later]

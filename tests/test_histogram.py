@@ -8,6 +8,7 @@ import pytest
 from amaranth.hdl import Fragment, Instance, UnusedElaboratable
 
 from fliss.hdl.histogram import Histogram, COUNT_WIDTH
+from fliss.hdl.histogram_readout import readout_cycles_per_bin
 from fliss.hdl.spram import SinglePortRam
 from fliss.sim import histogram as model
 
@@ -323,7 +324,7 @@ def test_busy_reader_drops_are_counted(ram):
     rng = np.random.default_rng(3)
     dut = Histogram(bank_bits=BANK_BITS, ram=ram)
     # the frames' timing scales with the readout's cycles per bin (4, or 6 with read stages)
-    scale = dut.readout_cycles_per_bin / 4
+    scale = dut.readout_cycles_per_bin / readout_cycles_per_bin(0)
     cycles, integration, shift = int(3_000 * scale), int(600 * scale), 6
     valid, timestamps = hazard_stimulus(rng, cycles, bins=128, shift=shift, gaps=False)
     if ram == "single":
