@@ -215,10 +215,13 @@ class FrameDecoder(wiring.Component):
             end.eq(crc.o.valid & crc.o.ready & crc.o.p.end),
         ]
 
-        # Packet bytes: the header, then the payload into the buffer at `count - HEADER_BYTES`
-        m.d.comb += [
+        # Packet bytes: the header, then the payload into the buffer at `count - HEADER_BYTES`.
+        # The write is registered (the block RAM may sit far away) and lands a cycle later,
+        # still before the buffer is first read, in `ending`.
+        m.d.sync += [
             buffer.write_addr.eq(count - HEADER_BYTES),
             buffer.write_data.eq(crc.o.p.data),
+            buffer.write_en.eq(0),
         ]
         with m.If(take):
             with m.If(count <= max_bytes):
@@ -226,7 +229,7 @@ class FrameDecoder(wiring.Component):
             with m.If(count < HEADER_BYTES):
                 m.d.sync += header.eq(Cat(header.as_value()[8:], crc.o.p.data))
             with m.Elif(count < max_bytes):
-                m.d.comb += buffer.write_en.eq(1)
+                m.d.sync += buffer.write_en.eq(1)
 
         # Checks, in two steps for timing: at the delimiter each check is registered; in the next
         # cycle (`ending`, when the input waits) the verdict is drawn from them and registered
@@ -297,7 +300,8 @@ class FrameDecoder(wiring.Component):
         # `buffer.read_data` holds the byte of the next beat, ready to be loaded into the output
         # when this one is taken, and the stage behind it the byte after. The two reads that
         # fill it are made while the frame is judged (bytes 0 and 1, in `ending` and at
-        # `accept`: every byte is written by then).
+        # `accept`: every byte is written by then). A frame can end while a packet is sent only
+        # if it is too short to pass, so its `ending` makes no read then.
         beat = Signal(range(MAX_PAYLOAD + 1))
         advance = Signal()
         m.d.comb += [

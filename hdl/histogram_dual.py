@@ -147,7 +147,7 @@ class DualPortBanks(wiring.Component):
         m.d.sync += [written.eq(new)]
         m.d.sync += [later.eq(earlier) for earlier, later in zip(chain, chain[1:])]
 
-        # Stage W: the RAM write, from registers (`written` is the data).
+        # Stage W: the RAM write, from registers.
 
         # RAM ports, driven from registers: the pipeline uses the bank its event was tagged
         # with, the readout the other one. Each block has its own write enable register.
@@ -156,7 +156,7 @@ class DualPortBanks(wiring.Component):
             read_enable = Signal(name=f"read_enable{k}")
             write_address = Signal(width, name=f"write_address{k}")
             write_enable = Signal(name=f"write_enable{k}")
-            write_zero = Signal(name=f"write_zero{k}")
+            write_data = Signal(self.count_width, name=f"write_data{k}")
             with m.If(self.valid & (self.bank == k)):
                 m.d.sync += read_address.eq(self.bin), read_enable.eq(1)
             with m.Elif(self.readout_read & (self.readout_bank == k)):
@@ -166,17 +166,19 @@ class DualPortBanks(wiring.Component):
             pipeline_write = valid_e & (bank_e == k)
             readout_write = self.readout_clear & (self.readout_bank == k)
             write_to = Mux(pipeline_write, bin_e, self.readout_index)
+            # (the data is a register of each bank's own, `written` or zero, as it goes to
+            # every block of the bank, across the chip)
             with m.If(pipeline_write):
-                m.d.sync += write_address.eq(bin_e), write_enable.eq(1), write_zero.eq(0)
+                m.d.sync += write_address.eq(bin_e), write_enable.eq(1), write_data.eq(new)
             with m.Elif(readout_write):
                 m.d.sync += [write_address.eq(self.readout_index), write_enable.eq(1),
-                             write_zero.eq(1)]
+                             write_data.eq(0)]
             with m.Else():
                 m.d.sync += write_enable.eq(0)
             bank.connect(m, read_address=read_address, read_enable=read_enable,
                          write_address=write_address, write_to=write_to,
                          write=pipeline_write | readout_write,
-                         write_data=Mux(write_zero, 0, written))
+                         write_data=write_data)
 
         # The word of the bank being read out, from its registers
         m.d.comb += self.word.eq(Mux(self.readout_bank, stored[1], stored[0]))
