@@ -2,9 +2,9 @@
 
 from amaranth.hdl import Cat, Const, Module, Mux, Signal
 from amaranth.lib import data, stream, wiring
-from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
+from .block_ram import RegisteredRam
 from .event import ADDRESS_BITS
 from .framing import PacketBeat
 from .histogram_layout import BIN_BITS, COUNT_WIDTH, MAX_SHIFT, readout_layout
@@ -93,10 +93,9 @@ class HistogramPacketizer(wiring.Component):
         m = Module()
 
         # The window's counts, and the tokens of the compact chunk in progress
-        m.submodules.counts = counts = Memory(shape=COUNT_WIDTH, depth=CHUNK_BINS, init=[])
-        m.submodules.tokens = tokens = Memory(shape=8, depth=COMPACT_BYTES, init=[])
-        count_write, count_read = counts.write_port(), counts.read_port(transparent_for=())
-        token_write, token_read = tokens.write_port(), tokens.read_port(transparent_for=())
+        # (block RAMs with a registered read: a word is there two cycles after its address)
+        m.submodules.counts = counts = RegisteredRam(depth=CHUNK_BINS, width=COUNT_WIDTH)
+        m.submodules.tokens = tokens = RegisteredRam(depth=COMPACT_BYTES, width=8)
 
         frame = Signal(32)
         frame_start = Signal(init=1)    # the next bin taken is a frame's first
@@ -123,19 +122,24 @@ class HistogramPacketizer(wiring.Component):
         run = Signal(_RUN_BITS + 1)
         value = Signal(_RUN_BITS + 2)
         pending_count = Signal(COUNT_WIDTH)
-        # the buffers' words, each registered as it leaves its RAM, with no logic between: the
-        # RAMs are block RAMs, slow to output, which may sit far from this logic
+        # the buffers' words, registered again as they come (the RAMs may sit far from this
+        # logic). A RAM gives a word two cycles after its address: each word is addressed
+        # while the one before is used (`ahead`: the address is `step + 1`), or, for the
+        # first, from the state before (`first`: the address is 0).
         word = Signal(COUNT_WIDTH)
         token = Signal(8)
-        prefetch = Signal()
+        ahead = Signal()
+        first = Signal()
         full_header = Signal(HistogramChunk)
         compact_header = Signal(HistogramCompact)
 
         m.d.comb += [
-            count_read.addr.eq(Mux(prefetch, step + 1, step)),
-            token_read.addr.eq(step),
-            token_write.addr.eq(open_bytes),
-            token_write.data.eq(Cat(value[:7], value >= 0x80)),
+            counts.read_addr.eq(Mux(first, 0, Mux(ahead, step + 1, step))),
+            counts.read_en.eq(1),
+            tokens.read_addr.eq(Mux(first, 0, Mux(ahead, step + 1, step))),
+            tokens.read_en.eq(1),
+            tokens.write_addr.eq(open_bytes),
+            tokens.write_data.eq(Cat(value[:7], value >= 0x80)),
             full_header.eq(split),
             full_header.first_bin.eq(window_first),
             full_header.last.eq(window_last),
@@ -174,9 +178,9 @@ class HistogramPacketizer(wiring.Component):
         m.d.sync += beat_valid.eq(0)
         with m.If(beat_valid):
             m.d.comb += [
-                count_write.addr.eq(window_bins),
-                count_write.data.eq(beat.count),
-                count_write.en.eq(1),
+                counts.write_addr.eq(window_bins),
+                counts.write_data.eq(beat.count),
+                counts.write_en.eq(1),
             ]
             with m.If(window_bins == 0):
                 m.d.sync += [
@@ -218,6 +222,7 @@ class HistogramPacketizer(wiring.Component):
                         beat_settings.full_readout.eq(self.full_readout),
                     ]
                     with m.If(self.readout.p.last | (taken == CHUNK_BINS - 1)):
+                        m.d.sync += step.eq(0)
                         m.next = "SCAN_END"
             with m.State("SCAN_END"):       # (stage 2 of the window's last beat)
                 m.next = "DECIDE"
@@ -256,6 +261,7 @@ class HistogramPacketizer(wiring.Component):
                     self.packets.p.header.type.eq(PacketType.HISTOGRAM),
                     self.packets.p.header.length.eq(_FULL_HEADER + _COUNT_BYTES * window_bins),
                     self.packets.p.data.eq(full_header.as_value().word_select(step, 8)),
+                    first.eq(1),
                 ]
                 with m.If(self.packets.ready):
                     m.d.sync += step.eq(step + 1)
@@ -265,7 +271,7 @@ class HistogramPacketizer(wiring.Component):
             with m.State("FULL_LOAD"):      # (the buffer's word for `step` comes next cycle)
                 m.next = "FULL_FETCH"
             with m.State("FULL_FETCH"):
-                m.d.sync += word.eq(count_read.data)
+                m.d.sync += word.eq(counts.read_data)
                 m.next = "FULL_COUNT"
             with m.State("FULL_COUNT"):
                 final = byte & (step == window_bins - 1)
@@ -275,6 +281,7 @@ class HistogramPacketizer(wiring.Component):
                     self.packets.p.header.length.eq(_FULL_HEADER + _COUNT_BYTES * window_bins),
                     self.packets.p.data.eq(word.word_select(byte, 8)),
                     self.packets.p.last.eq(final),
+                    ahead.eq(1),
                 ]
                 with m.If(self.packets.ready):
                     m.d.sync += byte.eq(~byte)
@@ -303,14 +310,13 @@ class HistogramPacketizer(wiring.Component):
                 with m.Else():
                     m.next = "ENCODE_FETCH"
             with m.State("ENCODE_FETCH"):
-                m.d.sync += word.eq(count_read.data)
+                m.d.comb += ahead.eq(1)     # (the next bin's word, in case this one is empty)
+                m.d.sync += word.eq(counts.read_data)
                 m.next = "ENCODE_BIN"
             with m.State("ENCODE_BIN"):
                 m.d.sync += step.eq(step + 1)
                 with m.If(word == 0):
                     m.d.sync += run.eq(run + 1)
-                    # (the next bin's address now, so its word is there in ENCODE_FETCH)
-                    m.d.comb += prefetch.eq(1)
                     m.next = "ENCODE_FETCH"
                     with m.If(step + 1 == window_bins):
                         m.next = "ENCODE_LOAD"
@@ -321,7 +327,7 @@ class HistogramPacketizer(wiring.Component):
                     m.d.sync += value.eq(Cat(Const(0, 1), word)), pending_count.eq(0)
                     m.next = "ENCODE_TOKEN"
             with m.State("ENCODE_TOKEN"):
-                m.d.comb += token_write.en.eq(1)
+                m.d.comb += tokens.write_en.eq(1)
                 m.d.sync += open_bytes.eq(open_bytes + 1), value.eq(value >> 7)
                 with m.If(value < 0x80):
                     m.d.sync += run.eq(0)
@@ -351,6 +357,7 @@ class HistogramPacketizer(wiring.Component):
                     self.packets.p.header.length.eq(compact_length),
                     self.packets.p.data.eq(compact_header.as_value().word_select(step, 8)),
                     self.packets.p.last.eq(final),
+                    first.eq(1),
                 ]
                 with m.If(self.packets.ready):
                     m.d.sync += step.eq(step + 1)
@@ -362,7 +369,7 @@ class HistogramPacketizer(wiring.Component):
             with m.State("CLOSE_LOAD"):
                 m.next = "CLOSE_FETCH"
             with m.State("CLOSE_FETCH"):
-                m.d.sync += token.eq(token_read.data)
+                m.d.sync += token.eq(tokens.read_data)
                 m.next = "CLOSE_TOKEN"
             with m.State("CLOSE_TOKEN"):
                 final = step == open_bytes - 1
@@ -372,6 +379,7 @@ class HistogramPacketizer(wiring.Component):
                     self.packets.p.header.length.eq(compact_length),
                     self.packets.p.data.eq(token),
                     self.packets.p.last.eq(final),
+                    ahead.eq(1),
                 ]
                 with m.If(self.packets.ready):
                     m.d.sync += step.eq(step + 1)
