@@ -14,9 +14,9 @@ it found (:class:`DecodedByte`). Neither checks a CRC: :mod:`.crc` does, in the 
 
 from amaranth.hdl import C, Cat, Module, Mux, Signal
 from amaranth.lib import data, stream, wiring
+from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
-from .block_ram import RegisteredRam
 from .buffer import StreamBuffer
 from .protocol import DELIMITER, COBS_MAX_RUN
 
@@ -81,8 +81,10 @@ class CobsEncoder(wiring.Component):
     def elaborate(self, platform):
         m = Module()
 
-        m.submodules.run = run = RegisteredRam(depth=2 << (COBS_MAX_RUN - 1).bit_length(),
-                                               width=8)   # two banks
+        m.submodules.run = run = Memory(shape=8, depth=2 << (COBS_MAX_RUN - 1).bit_length(),
+                                        init=[])   # two banks
+        run_wr = run.write_port()
+        run_rd = run.read_port(transparent_for=())
 
         # Input slice, with the zero test on the way in
         m.submodules.byte_buffer = byte_buffer = StreamBuffer(
@@ -129,9 +131,8 @@ class CobsEncoder(wiring.Component):
             ]
 
         m.d.comb += [
-            run.write_addr.eq(Cat(run_len[:bank_bits], fill_bank)),
-            run.write_data.eq(u_data),
-            run.read_en.eq(1),
+            run_wr.addr.eq(Cat(run_len[:bank_bits], fill_bank)),
+            run_wr.data.eq(u_data),
         ]
         with m.If(ending):
             with m.If(~pending):
@@ -144,7 +145,7 @@ class CobsEncoder(wiring.Component):
                     close(run_len + 1, run_len, final=0)
                     m.d.sync += ending.eq(u_last)
                 with m.Else():
-                    m.d.comb += run.write_en.eq(1)
+                    m.d.comb += run_wr.en.eq(1)
                     with m.If(run_len == COBS_MAX_RUN - 1):
                         close(COBS_MAX_RUN + 1, COBS_MAX_RUN, final=u_last)
                     with m.Else():
@@ -159,19 +160,16 @@ class CobsEncoder(wiring.Component):
         e_final = Signal()
         sent = Signal(range(COBS_MAX_RUN + 1))
         e_last = Signal()           # the byte of the run being sent is its last (registered)
-        # The run buffer is block RAM, slow to output, and may sit far from the UART: it gives
-        # a byte from its own output register two cycles after the byte's address, and each
-        # byte is registered again as it comes (LOAD, `e_data`); the output byte is one LUT
+        # The run buffer is block RAM, slow to output, and may sit far from the UART: each run
+        # byte is registered as it leaves it (LOAD, `e_data`), and the output byte is one LUT
         # after registers; which byte goes out is decided a cycle ahead, into `e_is_code` and
-        # `e_is_data`, rather than decoded from the state. A byte is addressed two cycles
-        # before its LOAD: the run's first from IDLE on, the next one from the LOAD before.
+        # `e_is_data`, rather than decoded from the state.
         e_data = Signal(8)
         e_is_code = Signal()
         e_is_data = Signal()
         m.d.comb += self.o.payload.eq(Mux(e_is_code, e_code, e_data & e_is_data.replicate(8)))
         with m.FSM(name="emit"):
             with m.State("IDLE"):
-                m.d.comb += run.read_addr.eq(Cat(C(0, bank_bits), p_bank))
                 with m.If(pending):
                     m.d.sync += [
                         pending.eq(0),
@@ -186,7 +184,7 @@ class CobsEncoder(wiring.Component):
             with m.State("CODE"):
                 m.d.comb += [
                     self.o.valid.eq(1),
-                    run.read_addr.eq(Cat(C(0, bank_bits), e_bank)),
+                    run_rd.addr.eq(Cat(C(0, bank_bits), e_bank)),
                 ]
                 with m.If(self.o.ready):
                     m.d.sync += [sent.eq(0), e_is_code.eq(0), e_last.eq(e_len == 1)]
@@ -200,13 +198,13 @@ class CobsEncoder(wiring.Component):
                         m.d.sync += emitting.eq(0)
                         m.next = "IDLE"
             with m.State("LOAD"):
-                m.d.comb += run.read_addr.eq(Cat((sent + 1)[:bank_bits], e_bank))
-                m.d.sync += e_data.eq(run.read_data)
+                # the byte read in the cycle before (the run's first in CODE, the next in DATA)
+                m.d.sync += e_data.eq(run_rd.data)
                 m.next = "DATA"
             with m.State("DATA"):
                 m.d.comb += [
                     self.o.valid.eq(1),
-                    run.read_addr.eq(Cat((sent + 1)[:bank_bits], e_bank)),
+                    run_rd.addr.eq(Cat((sent + 1)[:bank_bits], e_bank)),
                 ]
                 with m.If(self.o.ready):
                     m.d.sync += [sent.eq(sent + 1), e_last.eq(sent + 2 == e_len)]

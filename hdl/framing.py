@@ -21,9 +21,9 @@ payload is empty). Each direction is a chain of stream stages:
 
 from amaranth.hdl import Cat, Module, Mux, Signal
 from amaranth.lib import data, stream, wiring
+from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
-from .block_ram import RegisteredRam
 from .cobs import CobsEncoder, CobsDecoder
 from .crc import CrcAppender, CrcChecker
 from .protocol import (Header, HEADER_BYTES, MAX_PAYLOAD, MAX_PACKET, MAX_ENCODED, CRC_BYTES,
@@ -192,7 +192,9 @@ class FrameDecoder(wiring.Component):
         m.submodules.crc = crc = CrcChecker()
         wiring.connect(m, wiring.flipped(self.i), cobs.i)
         wiring.connect(m, cobs.o, crc.i)
-        m.submodules.buffer = buffer = RegisteredRam(depth=MAX_PAYLOAD, width=8, pipelined=True)
+        m.submodules.buffer = buffer = Memory(shape=8, depth=MAX_PAYLOAD, init=[])
+        buf_wr = buffer.write_port()
+        buf_rd = buffer.read_port(transparent_for=())
 
         sending = Signal()      # a checked packet is on its way out
         max_bytes = MAX_PACKET - CRC_BYTES                  # header and payload
@@ -215,13 +217,10 @@ class FrameDecoder(wiring.Component):
             end.eq(crc.o.valid & crc.o.ready & crc.o.p.end),
         ]
 
-        # Packet bytes: the header, then the payload into the buffer at `count - HEADER_BYTES`.
-        # The write is registered (the block RAM may sit far away) and lands a cycle later,
-        # still before the buffer is first read, in `ending`.
-        m.d.sync += [
-            buffer.write_addr.eq(count - HEADER_BYTES),
-            buffer.write_data.eq(crc.o.p.data),
-            buffer.write_en.eq(0),
+        # Packet bytes: the header, then the payload into the buffer at `count - HEADER_BYTES`
+        m.d.comb += [
+            buf_wr.addr.eq(count - HEADER_BYTES),
+            buf_wr.data.eq(crc.o.p.data),
         ]
         with m.If(take):
             with m.If(count <= max_bytes):
@@ -229,7 +228,7 @@ class FrameDecoder(wiring.Component):
             with m.If(count < HEADER_BYTES):
                 m.d.sync += header.eq(Cat(header.as_value()[8:], crc.o.p.data))
             with m.Elif(count < max_bytes):
-                m.d.sync += buffer.write_en.eq(1)
+                m.d.comb += buf_wr.en.eq(1)
 
         # Checks, in two steps for timing: at the delimiter each check is registered; in the next
         # cycle (`ending`, when the input waits) the verdict is drawn from them and registered
@@ -295,31 +294,27 @@ class FrameDecoder(wiring.Component):
                         m.d.comb += getattr(self.tally, name).eq(1)
 
         # Output: a header beat, then the payload from the buffer; every output is a register.
-        # `beat` counts beats sent. The buffer is a two-stage pipeline that moves on each read
-        # (for timing: its words leave it from a register); it is read two beats ahead, so that
-        # `buffer.read_data` holds the byte of the next beat, ready to be loaded into the output
-        # when this one is taken, and the stage behind it the byte after. The two reads that
-        # fill it are made while the frame is judged (bytes 0 and 1, in `ending` and at
-        # `accept`: every byte is written by then). A frame can end while a packet is sent only
-        # if it is too short to pass, so its `ending` makes no read then.
+        # `beat` counts beats sent. The buffer is read a beat ahead: `buf_rd.data` holds the
+        # byte of the next beat, ready to be loaded into the output when this one is taken.
+        start = Signal()
         beat = Signal(range(MAX_PAYLOAD + 1))
         advance = Signal()
         m.d.comb += [
+            start.eq(accept),
             advance.eq(self.o.valid & self.o.ready),
             self.o.valid.eq(sending),
-            buffer.read_en.eq((ending & ~sending) | accept | advance),
-            buffer.read_addr.eq(Mux(sending, beat + 2, Mux(accept, 1, 0))),
+            buf_rd.addr.eq(Mux(start, 0, Mux(advance, beat + 1, beat))),
         ]
         with m.If(advance):
             m.d.sync += [
                 beat.eq(beat + 1),
-                self.o.payload.data.eq(buffer.read_data),
+                self.o.payload.data.eq(buf_rd.data),
                 self.o.payload.first.eq(0),
                 self.o.payload.last.eq(beat + 1 == self.o.payload.header.length),
             ]
             with m.If(self.o.payload.last):
                 m.d.sync += sending.eq(0)
-        with m.If(accept):
+        with m.If(start):
             m.d.sync += [
                 sending.eq(1),
                 beat.eq(0),
