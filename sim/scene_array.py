@@ -127,24 +127,11 @@ class PixelSimulation(Simulation):
     def step(self, max_cycles=None, *, until_cycle=None):
         """Simulate the next laser cycles (as :meth:`Simulation.step`); returns a
         :class:`PixelChunk`."""
-        max_cycles = self.chunk_cycles if max_cycles is None else int(max_cycles)
-        cycles = self._starts.get(self.pulse, self.pulse + max_cycles + 1)
-        count = max(min(max_cycles, len(cycles) - 1), 0)
-        if until_cycle is not None:
-            count = int(np.searchsorted(cycles[:count], until_cycle, side="left"))
+        cycles, count = self._cycles(max_cycles, until_cycle)
         if count == 0:
             return PixelChunk(self.pulse, cycles[:0].copy(), np.zeros(0, dtype=EVENT_DTYPE),
                               np.zeros_like(self.counts), np.zeros_like(self.pixel_counts))
-        edges = cycles[:count + 1] * self._lsb
-        starts = edges[:-1]
-        ends = span_starts = None
-        if self._separated:
-            boundary = edges[-1] - self._dead
-        else:
-            ends = np.minimum(starts + TDC_CODES, edges[1:])
-            span_starts = np.maximum(starts - self._dead,
-                                     np.concatenate(([self._previous_end], ends[:-1])))
-            boundary = max(edges[-1] - self._dead, ends[-1])
+        starts, span_starts, ends, boundary = self._windows(cycles, count)
 
         times, sources, pixel = self._photons(boundary, count, starts, span_starts, ends)
         later = times >= boundary

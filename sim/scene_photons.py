@@ -305,17 +305,20 @@ class Simulation:
         return (np.concatenate(times), np.concatenate(sources),
                 None if array is None else np.concatenate(owners))
 
-    def step(self, max_cycles=None, *, until_cycle=None):
-        """Simulate the next laser cycles: at most ``max_cycles`` (default: one chunk), and only
-        those whose TDC start is before clock cycle ``until_cycle``. Returns a :class:`Chunk`."""
+    def _cycles(self, max_cycles, until_cycle):
+        """The TDC start cycles from the next laser cycle on, and how many of them the next step
+        simulates (at most ``max_cycles``, those before ``until_cycle``)."""
         max_cycles = self.chunk_cycles if max_cycles is None else int(max_cycles)
         cycles = self._starts.get(self.pulse, self.pulse + max_cycles + 1)
         count = max(min(max_cycles, len(cycles) - 1), 0)   # the next start must be known
         if until_cycle is not None:
             count = int(np.searchsorted(cycles[:count], until_cycle, side="left"))
-        if count == 0:
-            return Chunk(self.pulse, cycles[:0].copy(), np.zeros(0, dtype=EVENT_DTYPE),
-                         np.zeros_like(self.counts))
+        return cycles, count
+
+    def _windows(self, cycles, count):
+        """Times of the step's ``count`` TDC starts, of its spans (``None`` when they never
+        touch) and of their ends (the same), and the time from which photons belong to the
+        next step."""
         edges = cycles[:count + 1] * self._lsb
         starts = edges[:-1]
         ends = span_starts = None
@@ -327,6 +330,16 @@ class Simulation:
             span_starts = np.maximum(starts - self._dead,
                                      np.concatenate(([self._previous_end], ends[:-1])))
             boundary = max(edges[-1] - self._dead, ends[-1])
+        return starts, span_starts, ends, boundary
+
+    def step(self, max_cycles=None, *, until_cycle=None):
+        """Simulate the next laser cycles: at most ``max_cycles`` (default: one chunk), and only
+        those whose TDC start is before clock cycle ``until_cycle``. Returns a :class:`Chunk`."""
+        cycles, count = self._cycles(max_cycles, until_cycle)
+        if count == 0:
+            return Chunk(self.pulse, cycles[:0].copy(), np.zeros(0, dtype=EVENT_DTYPE),
+                         np.zeros_like(self.counts))
+        starts, span_starts, ends, boundary = self._windows(cycles, count)
 
         times, sources, _ = self._photons(boundary, count, starts, span_starts, ends)
         later = times >= boundary
