@@ -26,7 +26,7 @@ BLOCK_BITS = 10
 #: level (groups of :data:`OR_GROUP`), then the word. A bank of one block has none.
 READ_STAGES = 2
 #: Inputs of each OR of the read tree's first level.
-OR_GROUP = 8
+OR_GROUP = 4
 
 
 def read_stages(bank_bits):
