@@ -99,7 +99,8 @@ class RawFifo(wiring.Component):
         count_event(m, self.dropped, drop, self.clear, self.tally.dropped)
 
         # Read side: the queue's output comes straight from its block RAM, slow to output
-        # (5.8 ns on the ULX3S), so it goes into the output register with no logic in between.
+        # (5.8 ns on the ULX3S), so it goes only into the output register, and the link's
+        # logic starts from a register.
         take = Signal()
         m.d.comb += [
             take.eq(~self.output.valid | self.output.ready),
