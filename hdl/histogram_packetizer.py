@@ -133,10 +133,11 @@ class HistogramPacketizer(wiring.Component):
         full_header = Signal(HistogramChunk)
         compact_header = Signal(HistogramCompact)
 
+        address = Mux(first, 0, Mux(ahead, step + 1, step))
         m.d.comb += [
-            counts.read_addr.eq(Mux(first, 0, Mux(ahead, step + 1, step))),
+            counts.read_addr.eq(address),
             counts.read_en.eq(1),
-            tokens.read_addr.eq(Mux(first, 0, Mux(ahead, step + 1, step))),
+            tokens.read_addr.eq(address),
             tokens.read_en.eq(1),
             tokens.write_addr.eq(open_bytes),
             tokens.write_data.eq(Cat(value[:7], value >= 0x80)),
