@@ -41,9 +41,14 @@ TALLY_WIDTH = 6
 
 
 def _counted_twice(block, module):
-    # each event's bin is written with its count plus two
-    new, written = assigned(module, "new", "written")
+    # each event's bin is written with its count plus two (into the RAM and the forwarding
+    # register both)
+    new, written, valid_e, bank_e = assigned(module, "new", "written", "valid_e", "bank_e")
     module.d.sync += written.eq(new + 1)
+    for k in range(2):
+        write_data, = assigned(module, f"write_data{k}")
+        with module.If(valid_e & (bank_e == k)):
+            module.d.sync += write_data.eq(new + 1)
 
 
 def _count_into_readout(block, module):
@@ -199,12 +204,13 @@ class HistogramHarness(wiring.Component):
                 Assert(~start_read | (drain == 0)),
             ]
         for k in range(2):
-            write_enable, write_zero = assigned(banks, f"write_enable{k}", f"write_zero{k}")
+            # a count the pipeline writes is at least 1 (it saturates); the readout writes 0
+            write_enable, write_data = assigned(banks, f"write_enable{k}", f"write_data{k}")
+            counting = write_enable & (write_data != 0)
             busy = ~is_reading("IDLE") & (dut._storage.readout_bank == k)
             m.d.comb += [
-                Assert(~(write_enable & ~write_zero & busy)),
-                Cover(write_enable & ~write_zero & (dut._storage.readout_bank == k) &
-                      dut.pending),
+                Assert(~(counting & busy)),
+                Cover(counting & (dut._storage.readout_bank == k) & dut.pending),
             ]
 
 
