@@ -307,6 +307,13 @@ def left_in_group(group):
     return alive
 
 
+def _sigint_as_at_a_terminal():
+    # A command started in the foreground of a terminal has SIGINT at its default; a test run
+    # from a background job (`cmd &`, `nohup`) would pass it on ignored, and Python then never
+    # raises KeyboardInterrupt
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @pytest.mark.parametrize("whom, signum", [("group", signal.SIGINT), ("main", signal.SIGTERM)])
 def test_ctrl_c_stops_the_workers_and_keeps_the_finished_points(tmp_path, whom, signum):
     """Ctrl-C at a terminal signals the whole process group; kill signals the command only."""
@@ -315,7 +322,8 @@ def test_ctrl_c_stops_the_workers_and_keeps_the_finished_points(tmp_path, whom, 
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([TESTS, os.environ.get("PYTHONPATH", "")]))
     process = subprocess.Popen([sys.executable, "-m", "fliss", "sweep", str(spec), "-o",
                                 str(out), "--workers", "2"], env=env, start_new_session=True,
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               preexec_fn=_sigint_as_at_a_terminal)
     try:
         deadline = time.monotonic() + 60
         while not (out / "points").is_dir() or not os.listdir(out / "points"):
