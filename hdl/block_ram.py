@@ -30,7 +30,9 @@ class RegisteredRam(wiring.Component):
 
     A read with ``read_en`` high samples ``read_addr`` at a clock edge; ``read_data`` shows the
     word after the edge that follows (two cycles after the address was set up), and holds while
-    no read is made. A write with ``write_en`` high writes ``write_data`` to ``write_addr`` at
+    no read is made. With ``pipelined``, the two registers move only on a read instead: a read
+    samples its address and shows the word sampled by the read before it, so ``read_data`` is
+    the word of the last read but one (a two-stage pipeline that stalls with ``read_en``). A write with ``write_en`` high writes ``write_data`` to ``write_addr`` at
     the edge. A read and a write of the same word at the same edge give an undefined word (the
     histogram never uses one). The contents are zero after configuration.
 
@@ -51,6 +53,8 @@ class RegisteredRam(wiring.Component):
         Bits per word.
     domain : str
         Clock domain of the RAM.
+    pipelined : bool
+        Whether ``read_en`` stalls the second register too (see above).
 
     Members
     -------
@@ -67,7 +71,7 @@ class RegisteredRam(wiring.Component):
         Contents of the generic memory, for testbenches; unused with ``DP16KD``.
     """
 
-    def __init__(self, *, depth, width, domain="sync"):
+    def __init__(self, *, depth, width, domain="sync", pipelined=False):
         if not isinstance(depth, int) or not 1 <= depth <= DP16KD_DEPTH:
             raise ValueError(f"Depth must be an integer from 1 to {DP16KD_DEPTH}, not {depth!r}")
         if not isinstance(width, int) or width < 1:
@@ -75,6 +79,7 @@ class RegisteredRam(wiring.Component):
         self.depth = depth
         self.width = width
         self.domain = domain
+        self.pipelined = bool(pipelined)
         self.data = MemoryData(shape=width, depth=depth, init=[])
         super().__init__({
             "write_addr": In(range(depth)),
@@ -115,7 +120,8 @@ class RegisteredRam(wiring.Component):
                     p_WRITEMODE_A="NORMAL", p_WRITEMODE_B="NORMAL", p_GSR="AUTO",
                     i_CLKA=clock, i_CEA=one, i_OCEA=one, i_WEA=self.write_en, i_RSTA=zero,
                     i_CSA0=zero, i_CSA1=zero, i_CSA2=zero,
-                    i_CLKB=clock, i_CEB=self.read_en, i_OCEB=one, i_WEB=zero, i_RSTB=zero,
+                    i_CLKB=clock, i_CEB=self.read_en,
+                    i_OCEB=self.read_en if self.pipelined else one, i_WEB=zero, i_RSTB=zero,
                     i_CSB0=zero, i_CSB1=zero, i_CSB2=zero,
                     **address("ADA", self.write_addr, 1),
                     **word("DIA", self.write_data[low:high], "i"),
@@ -135,6 +141,10 @@ class RegisteredRam(wiring.Component):
                 write_port.en.eq(self.write_en),
                 write_port.data.eq(self.write_data),
             ]
-            m.d[self.domain] += self.read_data.eq(read_port.data)
+            if self.pipelined:
+                with m.If(self.read_en):
+                    m.d[self.domain] += self.read_data.eq(read_port.data)
+            else:
+                m.d[self.domain] += self.read_data.eq(read_port.data)
 
         return m

@@ -17,6 +17,7 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
+from .block_ram import RegisteredRam, has_dp16kd
 from .buffer import StreamBuffer
 from .protocol import DELIMITER, COBS_MAX_RUN
 
@@ -67,6 +68,15 @@ class CobsEncoder(wiring.Component):
     The delimiter is the emitter's, not a stage of its own, which cost 13 logic cells on the
     iCE40UP5K (``docs/boards.md``).
 
+    Parameters
+    ----------
+    registered_read : bool or None
+        Read the run buffer through a :class:`~fliss.hdl.block_ram.RegisteredRam`, whose bytes
+        leave the block RAM from its output register (for timing on an ECP5: the ULX3S at
+        100 MHz), each addressed two cycles ahead; otherwise a plain memory read a cycle ahead
+        (fewer logic cells: the iCEBreaker). The output is the same, cycle for cycle.
+        ``None``: registered on an ECP5 platform (:func:`~fliss.hdl.block_ram.has_dp16kd`).
+
     Members
     -------
     i : In(stream.Signature(PacketByte))
@@ -78,13 +88,39 @@ class CobsEncoder(wiring.Component):
     i: In(stream.Signature(PacketByte))
     o: Out(stream.Signature(8))
 
+    def __init__(self, *, registered_read=None):
+        if registered_read not in (None, False, True):
+            raise TypeError(f"registered_read must be None, False or True, not "
+                            f"{registered_read!r}")
+        self.registered_read = registered_read
+        super().__init__()
+
     def elaborate(self, platform):
         m = Module()
 
-        m.submodules.run = run = Memory(shape=8, depth=2 << (COBS_MAX_RUN - 1).bit_length(),
-                                        init=[])   # two banks
-        run_wr = run.write_port()
-        run_rd = run.read_port(transparent_for=())
+        registered = has_dp16kd(platform) if self.registered_read is None else \
+            self.registered_read
+        depth = 2 << (COBS_MAX_RUN - 1).bit_length()        # two banks
+        write_addr = Signal(range(depth))
+        write_data = Signal(8)
+        write_en = Signal()
+        read_addr = Signal(range(depth))
+        if registered:
+            m.submodules.run = run = RegisteredRam(depth=depth, width=8)
+            m.d.comb += [
+                run.write_addr.eq(write_addr), run.write_data.eq(write_data),
+                run.write_en.eq(write_en), run.read_addr.eq(read_addr), run.read_en.eq(1),
+            ]
+            read_data = run.read_data
+        else:
+            m.submodules.run = run = Memory(shape=8, depth=depth, init=[])
+            run_wr = run.write_port()
+            run_rd = run.read_port(transparent_for=())
+            m.d.comb += [
+                run_wr.addr.eq(write_addr), run_wr.data.eq(write_data), run_wr.en.eq(write_en),
+                run_rd.addr.eq(read_addr),
+            ]
+            read_data = run_rd.data
 
         # Input slice, with the zero test on the way in
         m.submodules.byte_buffer = byte_buffer = StreamBuffer(
@@ -131,8 +167,8 @@ class CobsEncoder(wiring.Component):
             ]
 
         m.d.comb += [
-            run_wr.addr.eq(Cat(run_len[:bank_bits], fill_bank)),
-            run_wr.data.eq(u_data),
+            write_addr.eq(Cat(run_len[:bank_bits], fill_bank)),
+            write_data.eq(u_data),
         ]
         with m.If(ending):
             with m.If(~pending):
@@ -145,7 +181,7 @@ class CobsEncoder(wiring.Component):
                     close(run_len + 1, run_len, final=0)
                     m.d.sync += ending.eq(u_last)
                 with m.Else():
-                    m.d.comb += run_wr.en.eq(1)
+                    m.d.comb += write_en.eq(1)
                     with m.If(run_len == COBS_MAX_RUN - 1):
                         close(COBS_MAX_RUN + 1, COBS_MAX_RUN, final=u_last)
                     with m.Else():
@@ -163,13 +199,17 @@ class CobsEncoder(wiring.Component):
         # The run buffer is block RAM, slow to output, and may sit far from the UART: each run
         # byte is registered as it leaves it (LOAD, `e_data`), and the output byte is one LUT
         # after registers; which byte goes out is decided a cycle ahead, into `e_is_code` and
-        # `e_is_data`, rather than decoded from the state.
+        # `e_is_data`, rather than decoded from the state. A plain read gives a byte a cycle
+        # after its address (the run's first addressed in CODE, the next in DATA); a registered
+        # read two cycles after (also in IDLE and LOAD, the cycles before those).
         e_data = Signal(8)
         e_is_code = Signal()
         e_is_data = Signal()
         m.d.comb += self.o.payload.eq(Mux(e_is_code, e_code, e_data & e_is_data.replicate(8)))
         with m.FSM(name="emit"):
             with m.State("IDLE"):
+                if registered:
+                    m.d.comb += read_addr.eq(Cat(C(0, bank_bits), p_bank))
                 with m.If(pending):
                     m.d.sync += [
                         pending.eq(0),
@@ -184,7 +224,7 @@ class CobsEncoder(wiring.Component):
             with m.State("CODE"):
                 m.d.comb += [
                     self.o.valid.eq(1),
-                    run_rd.addr.eq(Cat(C(0, bank_bits), e_bank)),
+                    read_addr.eq(Cat(C(0, bank_bits), e_bank)),
                 ]
                 with m.If(self.o.ready):
                     m.d.sync += [sent.eq(0), e_is_code.eq(0), e_last.eq(e_len == 1)]
@@ -198,13 +238,14 @@ class CobsEncoder(wiring.Component):
                         m.d.sync += emitting.eq(0)
                         m.next = "IDLE"
             with m.State("LOAD"):
-                # the byte read in the cycle before (the run's first in CODE, the next in DATA)
-                m.d.sync += e_data.eq(run_rd.data)
+                if registered:
+                    m.d.comb += read_addr.eq(Cat((sent + 1)[:bank_bits], e_bank))
+                m.d.sync += e_data.eq(read_data)
                 m.next = "DATA"
             with m.State("DATA"):
                 m.d.comb += [
                     self.o.valid.eq(1),
-                    run_rd.addr.eq(Cat((sent + 1)[:bank_bits], e_bank)),
+                    read_addr.eq(Cat((sent + 1)[:bank_bits], e_bank)),
                 ]
                 with m.If(self.o.ready):
                     m.d.sync += [sent.eq(sent + 1), e_last.eq(sent + 2 == e_len)]

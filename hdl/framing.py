@@ -24,6 +24,7 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
+from .block_ram import RegisteredRam, has_dp16kd
 from .cobs import CobsEncoder, CobsDecoder
 from .crc import CrcAppender, CrcChecker
 from .protocol import (Header, HEADER_BYTES, MAX_PAYLOAD, MAX_PACKET, MAX_ENCODED, CRC_BYTES,
@@ -154,6 +155,16 @@ class FrameDecoder(wiring.Component):
     input. The input also waits for one cycle after each delimiter, while the frame is judged.
     Every signal of ``o`` comes straight from a flip-flop.
 
+    Parameters
+    ----------
+    registered_read : bool or None
+        Read the payload buffer through a :class:`~fliss.hdl.block_ram.RegisteredRam`, whose
+        bytes leave the block RAM from its output register (for timing on an ECP5, where a
+        block RAM's plain output is slow: the ULX3S at 100 MHz), two bytes ahead and with its
+        write registered; otherwise a plain memory read a byte ahead (fewer logic cells: the
+        iCEBreaker). The packets are the same, cycle for cycle. ``None``: registered on an
+        ECP5 platform (:func:`~fliss.hdl.block_ram.has_dp16kd`).
+
     Members
     -------
     i : In(stream.Signature(8))
@@ -174,7 +185,11 @@ class FrameDecoder(wiring.Component):
         counters elsewhere.
     """
 
-    def __init__(self):
+    def __init__(self, *, registered_read=None):
+        if registered_read not in (None, False, True):
+            raise TypeError(f"registered_read must be None, False or True, not "
+                            f"{registered_read!r}")
+        self.registered_read = registered_read
         super().__init__({
             "i":           In(stream.Signature(8)),
             "o":           Out(stream.Signature(PacketBeat)),
@@ -192,9 +207,18 @@ class FrameDecoder(wiring.Component):
         m.submodules.crc = crc = CrcChecker()
         wiring.connect(m, wiring.flipped(self.i), cobs.i)
         wiring.connect(m, cobs.o, crc.i)
-        m.submodules.buffer = buffer = Memory(shape=8, depth=MAX_PAYLOAD, init=[])
-        buf_wr = buffer.write_port()
-        buf_rd = buffer.read_port(transparent_for=())
+        registered = has_dp16kd(platform) if self.registered_read is None else \
+            self.registered_read
+        if registered:
+            m.submodules.buffer = buffer = RegisteredRam(depth=MAX_PAYLOAD, width=8,
+                                                         pipelined=True)
+            write_addr, write_data, write_en = buffer.write_addr, buffer.write_data, \
+                buffer.write_en
+        else:
+            m.submodules.buffer = buffer = Memory(shape=8, depth=MAX_PAYLOAD, init=[])
+            buf_wr = buffer.write_port()
+            buf_rd = buffer.read_port(transparent_for=())
+            write_addr, write_data, write_en = buf_wr.addr, buf_wr.data, buf_wr.en
 
         sending = Signal()      # a checked packet is on its way out
         max_bytes = MAX_PACKET - CRC_BYTES                  # header and payload
@@ -217,10 +241,14 @@ class FrameDecoder(wiring.Component):
             end.eq(crc.o.valid & crc.o.ready & crc.o.p.end),
         ]
 
-        # Packet bytes: the header, then the payload into the buffer at `count - HEADER_BYTES`
-        m.d.comb += [
-            buf_wr.addr.eq(count - HEADER_BYTES),
-            buf_wr.data.eq(crc.o.p.data),
+        # Packet bytes: the header, then the payload into the buffer at `count - HEADER_BYTES`.
+        # A registered write (`registered`: the block RAM may sit far away) lands a cycle
+        # later, still before the buffer is first read, in `ending`.
+        write = m.d.sync if registered else m.d.comb
+        write += [
+            write_addr.eq(count - HEADER_BYTES),
+            write_data.eq(crc.o.p.data),
+            write_en.eq(0),
         ]
         with m.If(take):
             with m.If(count <= max_bytes):
@@ -228,7 +256,7 @@ class FrameDecoder(wiring.Component):
             with m.If(count < HEADER_BYTES):
                 m.d.sync += header.eq(Cat(header.as_value()[8:], crc.o.p.data))
             with m.Elif(count < max_bytes):
-                m.d.comb += buf_wr.en.eq(1)
+                write += write_en.eq(1)
 
         # Checks, in two steps for timing: at the delimiter each check is registered; in the next
         # cycle (`ending`, when the input waits) the verdict is drawn from them and registered
@@ -294,27 +322,39 @@ class FrameDecoder(wiring.Component):
                         m.d.comb += getattr(self.tally, name).eq(1)
 
         # Output: a header beat, then the payload from the buffer; every output is a register.
-        # `beat` counts beats sent. The buffer is read a beat ahead: `buf_rd.data` holds the
-        # byte of the next beat, ready to be loaded into the output when this one is taken.
-        start = Signal()
+        # `beat` counts beats sent. `read_data` holds the byte of the next beat, ready to be
+        # loaded into the output when this one is taken:
+        # - plain read: the buffer is read a beat ahead;
+        # - registered read: the buffer is a two-stage pipeline that moves on each read, read
+        #   two beats ahead, so the stage behind `read_data` holds the byte after. The two
+        #   reads that fill it are made while the frame is judged (bytes 0 and 1, in `ending`
+        #   and at `accept`: every byte is written by then). A frame can end while a packet is
+        #   sent only if it is too short to pass, so its `ending` makes no read then.
         beat = Signal(range(MAX_PAYLOAD + 1))
         advance = Signal()
         m.d.comb += [
-            start.eq(accept),
             advance.eq(self.o.valid & self.o.ready),
             self.o.valid.eq(sending),
-            buf_rd.addr.eq(Mux(start, 0, Mux(advance, beat + 1, beat))),
         ]
+        if registered:
+            m.d.comb += [
+                buffer.read_en.eq((ending & ~sending) | accept | advance),
+                buffer.read_addr.eq(Mux(sending, beat + 2, Mux(accept, 1, 0))),
+            ]
+            read_data = buffer.read_data
+        else:
+            m.d.comb += buf_rd.addr.eq(Mux(accept, 0, Mux(advance, beat + 1, beat)))
+            read_data = buf_rd.data
         with m.If(advance):
             m.d.sync += [
                 beat.eq(beat + 1),
-                self.o.payload.data.eq(buf_rd.data),
+                self.o.payload.data.eq(read_data),
                 self.o.payload.first.eq(0),
                 self.o.payload.last.eq(beat + 1 == self.o.payload.header.length),
             ]
             with m.If(self.o.payload.last):
                 m.d.sync += sending.eq(0)
-        with m.If(start):
+        with m.If(accept):
             m.d.sync += [
                 sending.eq(1),
                 beat.eq(0),

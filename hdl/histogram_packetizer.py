@@ -164,9 +164,9 @@ class HistogramPacketizer(wiring.Component):
                     empty.eq(0),
                 ]
 
-        window_compact = ~full_readout & \
-            (fresh_bytes + _COMPACT_HEADER < _FULL_HEADER + _COUNT_BYTES * window_bins)
-        fits = open_bytes + carried_bytes <= COMPACT_BYTES
+        # The choices of DECIDE, registered in WEIGH (each is a carry chain)
+        window_compact = Signal()
+        fits = Signal()
 
         # Stage 1 (SCAN): a beat of the readout into registers. Stage 2, the next cycle: its
         # count into the buffer, its tokens counted.
@@ -226,6 +226,13 @@ class HistogramPacketizer(wiring.Component):
                         m.d.sync += step.eq(0)
                         m.next = "SCAN_END"
             with m.State("SCAN_END"):       # (stage 2 of the window's last beat)
+                m.next = "WEIGH"
+            with m.State("WEIGH"):
+                m.d.sync += [
+                    window_compact.eq(~full_readout & (fresh_bytes + _COMPACT_HEADER <
+                                                       _FULL_HEADER + _COUNT_BYTES * window_bins)),
+                    fits.eq(open_bytes + carried_bytes <= COMPACT_BYTES),
+                ]
                 m.next = "DECIDE"
 
             with m.State("DECIDE"):

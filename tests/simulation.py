@@ -3,15 +3,18 @@
 * :func:`simulate` sets up a clocked simulation of a design, adds its testbenches and runs it;
 * :func:`stream_put` and :func:`stream_get` move one payload over an ``amaranth.lib.stream``
   interface, following its transfer rules (``valid`` does not wait for ``ready``; the payload
-  stays put until it is taken).
+  stays put until it is taken);
+* :class:`Twins` runs two variants of a block side by side on the same inputs.
 """
 
+from amaranth.hdl import Elaboratable, Module
+from amaranth.lib import wiring
 from amaranth.sim import Simulator
 
 from fliss.hdl import DEFAULT_CLOCK_HZ
 
 
-__all__ = ["simulate", "stream_put", "stream_get", "stream_put_all", "stream_get_each"]
+__all__ = ["simulate", "stream_put", "stream_get", "stream_put_all", "stream_get_each", "Twins"]
 
 
 def simulate(dut, *testbenches, background=(), clock_hz=DEFAULT_CLOCK_HZ, deadline=None):
@@ -73,3 +76,30 @@ async def stream_get_each(ctx, stream, *, rng=None, idle=0.0):
         if rng is not None and rng.random() < idle:
             await ctx.tick().repeat(rng.randint(1, 4))
         yield await stream_get(ctx, stream)
+
+
+class Twins(Elaboratable):
+    """Two components of the same signature (two variants of a block): the testbench drives
+    ``first``'s inputs, which drive ``second``'s too; :meth:`outputs` lists both's outputs, for
+    a comparison cycle by cycle."""
+
+    def __init__(self, first, second):
+        assert first.signature == second.signature
+        self.first, self.second = first, second
+
+    def _members(self, component):
+        return list(component.signature.flatten(component))
+
+    def outputs(self):
+        """``(first, second)``: the two lists of output signals, in the same order."""
+        return tuple([value for _, member, value in self._members(component)
+                      if member.flow == wiring.Out] for component in (self.first, self.second))
+
+    def elaborate(self, platform):
+        m = Module()
+        m.submodules.first, m.submodules.second = self.first, self.second
+        for (_, member, value), (_, _, twin) in zip(self._members(self.first),
+                                                    self._members(self.second)):
+            if member.flow == wiring.In:
+                m.d.comb += twin.eq(value)
+        return m

@@ -8,7 +8,7 @@ from fliss.hdl.cobs import CobsEncoder, CobsDecoder
 from fliss.hdl.protocol import COBS_MAX_RUN, MAX_ENCODED, MAX_PACKET
 from fliss.sim import codec
 
-from simulation import simulate, stream_put_all, stream_get_each
+from simulation import simulate, stream_put_all, stream_get_each, Twins
 
 
 def nonzero_bytes(rng, count):
@@ -41,19 +41,24 @@ def random_packets(rng, count, longest=MAX_PACKET):
 
 # Encoder
 
+def packet_bytes(packets):
+    return ({"data": byte, "last": index == len(packet) - 1}
+            for packet in packets for index, byte in enumerate(packet))
+
+
+#: The encoder's two ways of reading its run buffer: a plain memory (the iCEBreaker) and a
+#: registered block RAM read (the ULX3S).
+@pytest.mark.parametrize("registered_read", [False, True], ids=["plain", "registered"])
 @pytest.mark.parametrize("seed, idle", [(1, 0.0), (2, 0.5)])
-def test_cobs_encoder_matches_codec(seed, idle):
+def test_cobs_encoder_matches_codec(seed, idle, registered_read):
     rng = random.Random(seed)
     packets = corner_packets(rng) + random_packets(rng, 15)
     expected = b"".join(codec.cobs_encode(packet) + b"\x00" for packet in packets)
-    dut = CobsEncoder()
+    dut = CobsEncoder(registered_read=registered_read)
     received = bytearray()
 
     async def send(ctx):
-        await stream_put_all(ctx, dut.i, ({"data": byte, "last": index == len(packet) - 1}
-                                          for packet in packets
-                                          for index, byte in enumerate(packet)),
-                             rng=rng, idle=idle)
+        await stream_put_all(ctx, dut.i, packet_bytes(packets), rng=rng, idle=idle)
         await ctx.tick().repeat(2000)
         assert ctx.get(dut.o.valid) == 0
 
@@ -63,6 +68,33 @@ def test_cobs_encoder_matches_codec(seed, idle):
 
     simulate(dut, send, background=[collect])
     assert bytes(received) == expected
+
+
+def test_cobs_encoder_reads_give_the_same_bytes_cycle_for_cycle():
+    rng = random.Random(9)
+    packets = corner_packets(rng) + random_packets(rng, 15)
+    dut = Twins(CobsEncoder(registered_read=False), CobsEncoder(registered_read=True))
+    plain, registered = dut.outputs()
+    compared = {"bytes": 0, "cycles": 0}
+
+    async def send(ctx):
+        await stream_put_all(ctx, dut.first.i, packet_bytes(packets), rng=rng, idle=0.3)
+        await ctx.tick().repeat(2000)
+
+    async def consume(ctx):
+        while True:
+            ctx.set(dut.first.o.ready, rng.random() < 0.6)
+            await ctx.tick()
+
+    async def compare(ctx):
+        async for _, _, ready, valid, *values in ctx.tick().sample(
+                dut.first.o.ready, dut.first.o.valid, *plain, *registered):
+            assert values[:len(plain)] == values[len(plain):], compared["cycles"]
+            compared["cycles"] += 1
+            compared["bytes"] += ready and valid
+
+    simulate(dut, send, background=[consume, compare])
+    assert compared["bytes"] == sum(len(codec.cobs_encode(packet)) + 1 for packet in packets)
 
 
 # Decoder

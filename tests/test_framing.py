@@ -15,7 +15,7 @@ from fliss.hdl.protocol import (PacketType, NakCode, MAX_PAYLOAD, MAX_ENCODED, C
 from fliss.hdl.uart import UartTx, UartRx
 from fliss.sim import codec
 
-from simulation import simulate, stream_put, stream_get, stream_put_all
+from simulation import simulate, stream_put, stream_get, stream_put_all, Twins
 
 
 def beats(packet):
@@ -219,14 +219,14 @@ def corrupt_stream(rng, packets):
     return bytes(stream)
 
 
-def check_decoder(stream, rng, *, idle_in=0.0, idle_out=0.0):
+def check_decoder(stream, rng, *, idle_in=0.0, idle_out=0.0, registered_read=False):
     model = codec.FrameDecoder(synced=True)
     items = model.feed(stream)
     expected_packets = [(int(p.type.value if isinstance(p.type, PacketType) else p.type),
                          p.seq, p.payload) for p in items if isinstance(p, codec.Packet)]
     expected_drops = [e.code for e in items if isinstance(e, codec.LinkError)]
 
-    dut = FrameDecoder()
+    dut = FrameDecoder(registered_read=registered_read)
     packets, drops = [], []
 
     async def send(ctx):
@@ -252,40 +252,77 @@ def check_decoder(stream, rng, *, idle_in=0.0, idle_out=0.0):
     return len(expected_packets), len(expected_drops)
 
 
-def test_decoder_good_packets():
+#: The decoder's two ways of reading its payload buffer: a plain memory (the iCEBreaker) and a
+#: registered block RAM read (the ULX3S).
+READS = pytest.mark.parametrize("registered_read", [False, True], ids=["plain", "registered"])
+
+
+@READS
+def test_decoder_good_packets(registered_read):
     rng = random.Random(3)
     packets = edge_packets(rng) + random_packets(rng, 10)
     stream = b"".join(codec.encode_frame(*packet) for packet in packets)
-    good, dropped = check_decoder(stream, rng)
+    good, dropped = check_decoder(stream, rng, registered_read=registered_read)
     assert good == len(packets) and dropped == 0
 
 
+@READS
 @pytest.mark.parametrize("seed, idle_in, idle_out", [(4, 0.0, 0.0), (5, 0.3, 0.6)])
-def test_decoder_damaged_frames(seed, idle_in, idle_out):
+def test_decoder_damaged_frames(seed, idle_in, idle_out, registered_read):
     rng = random.Random(seed)
     packets = random_packets(rng, 30)
     stream = corrupt_stream(rng, packets)
-    good, dropped = check_decoder(stream, rng, idle_in=idle_in, idle_out=idle_out)
+    good, dropped = check_decoder(stream, rng, idle_in=idle_in, idle_out=idle_out,
+                                  registered_read=registered_read)
     assert good >= 10 and dropped >= 10
 
 
-def test_decoder_random_bytes_then_resync():
+def test_decoder_reads_give_the_same_beats_cycle_for_cycle():
+    rng = random.Random(11)
+    stream = corrupt_stream(rng, random_packets(rng, 30))
+    dut = Twins(FrameDecoder(registered_read=False), FrameDecoder(registered_read=True))
+    plain, registered = dut.outputs()
+    compared = {"beats": 0, "cycles": 0}
+
+    async def send(ctx):
+        await stream_put_all(ctx, dut.first.i, stream, rng=rng, idle=0.3)
+        await ctx.tick().repeat(8 * MAX_PAYLOAD + 50)
+
+    async def consume(ctx):
+        while True:
+            ctx.set(dut.first.o.ready, rng.random() < 0.5)
+            await ctx.tick()
+
+    async def compare(ctx):
+        async for _, _, ready, valid, *values in ctx.tick().sample(
+                dut.first.o.ready, dut.first.o.valid, *plain, *registered):
+            assert values[:len(plain)] == values[len(plain):], compared["cycles"]
+            compared["cycles"] += 1
+            compared["beats"] += ready and valid
+
+    simulate(dut, send, background=[consume, compare])
+    assert compared["beats"] > 500
+
+
+@READS
+def test_decoder_random_bytes_then_resync(registered_read):
     rng = random.Random(6)
     noise = bytes(rng.choice([0, rng.randint(1, 255)]) if rng.random() < 0.05
                   else rng.randint(1, 255) for _ in range(1500))
     packets = random_packets(rng, 3)
     stream = noise + b"\x00" + b"".join(codec.encode_frame(*p) for p in packets)
-    good, dropped = check_decoder(stream, rng)
+    good, dropped = check_decoder(stream, rng, registered_read=registered_read)
     assert good == 3 and dropped >= 1
 
 
-def test_decoder_slow_consumer_stalls_input_without_loss():
+@READS
+def test_decoder_slow_consumer_stalls_input_without_loss(registered_read):
     # The consumer takes one beat in ten cycles; the input waits, nothing is dropped.
     rng = random.Random(7)
     packets = [(PacketType.WRITE, n, bytes(rng.randint(0, 255) for _ in range(60)))
                for n in range(4)]
     stream = b"".join(codec.encode_frame(*p) for p in packets)
-    good, dropped = check_decoder(stream, rng, idle_out=0.9)
+    good, dropped = check_decoder(stream, rng, idle_out=0.9, registered_read=registered_read)
     assert good == 4 and dropped == 0
 
 
