@@ -9,6 +9,8 @@ from amaranth.hdl import Fragment, Instance
 from amaranth.sim import Simulator
 
 from fliss.hdl.block_ram import DP16KD_WIDTH, RegisteredRam
+from fliss.hdl.cobs import CobsEncoder
+from fliss.hdl.framing import FrameDecoder
 
 
 @pytest.mark.parametrize("pipelined", [False, True])
@@ -99,3 +101,24 @@ def test_ecp5_ram_is_dp16kd_with_output_register(width, pipelined):
 def test_ram_refuses_bad_depth(construction_error):
     assert construction_error(lambda: RegisteredRam(depth=2048, width=16)) == \
         "Depth must be an integer from 1 to 1024, not 2048"
+
+
+def _reads_through_dp16kd(block, platform, name):
+    fragment = Fragment.get(block, platform)
+    buffer, = [f for f, n, *_ in fragment.subfragments if n == name]
+    return any(isinstance(f, Instance) and f.type == "DP16KD" for f, *_ in buffer.subfragments)
+
+
+@pytest.mark.parametrize("factory, name", [(FrameDecoder, "buffer"), (CobsEncoder, "run")],
+                         ids=["frame_decoder", "cobs_encoder"])
+def test_link_buffers_read_through_the_output_register_on_an_ecp5(factory, name):
+    platform = _ecp5_platform()
+    assert _reads_through_dp16kd(factory(), platform, name)
+    assert not _reads_through_dp16kd(factory(registered_read=False), platform, name)
+
+
+@pytest.mark.parametrize("factory", [FrameDecoder, CobsEncoder],
+                         ids=["frame_decoder", "cobs_encoder"])
+def test_link_buffers_refuse_a_bad_read_choice(construction_error, factory):
+    assert construction_error(lambda: factory(registered_read="yes"), TypeError) == \
+        "registered_read must be None, False or True, not 'yes'"
