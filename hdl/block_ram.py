@@ -30,10 +30,10 @@ class RegisteredRam(wiring.Component):
 
     A read with ``read_en`` high samples ``read_addr`` at a clock edge; ``read_data`` shows the
     word after the edge that follows (two cycles after the address was set up), and holds while
-    no read is made. With ``pipelined``, the two registers move only on a read instead: a read
-    samples its address and shows the word sampled by the read before it, so ``read_data`` is
-    the word of the last read but one (a two-stage pipeline that stalls with ``read_en``). A write with ``write_en`` high writes ``write_data`` to ``write_addr`` at
-    the edge. A read and a write of the same word at the same edge give an undefined word (the
+    no read is made. With ``output_enable``, the second register (``read_data``) moves only in
+    cycles with ``output_en`` high: each of the two stalls on its own enable (with ``output_en``
+    the same as ``read_en``, a two-stage pipeline: ``read_data`` is the word of the last read but
+    one). A write with ``write_en`` high writes ``write_data`` to ``write_addr`` at the edge. A read and a write of the same word at the same edge give an undefined word (the
     histogram never uses one). The contents are zero after configuration.
 
     On an ECP5 platform (:func:`has_dp16kd`) the RAM is ``DP16KD`` blocks in 1024 × 18 mode (one
@@ -53,8 +53,8 @@ class RegisteredRam(wiring.Component):
         Bits per word.
     domain : str
         Clock domain of the RAM.
-    pipelined : bool
-        Whether ``read_en`` stalls the second register too (see above).
+    output_enable : bool
+        Whether the second register has an enable, ``output_en`` (see above).
 
     Members
     -------
@@ -63,6 +63,8 @@ class RegisteredRam(wiring.Component):
     write_data : In(width)
     read_addr : In(range(depth))
     read_en : In(1)
+    output_en : In(1)
+        Only with ``output_enable``.
     read_data : Out(width)
 
     Attributes
@@ -71,7 +73,7 @@ class RegisteredRam(wiring.Component):
         Contents of the generic memory, for testbenches; unused with ``DP16KD``.
     """
 
-    def __init__(self, *, depth, width, domain="sync", pipelined=False):
+    def __init__(self, *, depth, width, domain="sync", output_enable=False):
         if not isinstance(depth, int) or not 1 <= depth <= DP16KD_DEPTH:
             raise ValueError(f"Depth must be an integer from 1 to {DP16KD_DEPTH}, not {depth!r}")
         if not isinstance(width, int) or width < 1:
@@ -79,7 +81,7 @@ class RegisteredRam(wiring.Component):
         self.depth = depth
         self.width = width
         self.domain = domain
-        self.pipelined = bool(pipelined)
+        self.output_enable = bool(output_enable)
         self.data = MemoryData(shape=width, depth=depth, init=[])
         super().__init__({
             "write_addr": In(range(depth)),
@@ -87,6 +89,7 @@ class RegisteredRam(wiring.Component):
             "write_data": In(width),
             "read_addr":  In(range(depth)),
             "read_en":    In(1),
+            **({"output_en": In(1)} if self.output_enable else {}),
             "read_data":  Out(width),
         })
 
@@ -121,7 +124,7 @@ class RegisteredRam(wiring.Component):
                     i_CLKA=clock, i_CEA=one, i_OCEA=one, i_WEA=self.write_en, i_RSTA=zero,
                     i_CSA0=zero, i_CSA1=zero, i_CSA2=zero,
                     i_CLKB=clock, i_CEB=self.read_en,
-                    i_OCEB=self.read_en if self.pipelined else one, i_WEB=zero, i_RSTB=zero,
+                    i_OCEB=self.output_en if self.output_enable else one, i_WEB=zero, i_RSTB=zero,
                     i_CSB0=zero, i_CSB1=zero, i_CSB2=zero,
                     **address("ADA", self.write_addr, 1),
                     **word("DIA", self.write_data[low:high], "i"),
@@ -141,8 +144,8 @@ class RegisteredRam(wiring.Component):
                 write_port.en.eq(self.write_en),
                 write_port.data.eq(self.write_data),
             ]
-            if self.pipelined:
-                with m.If(self.read_en):
+            if self.output_enable:
+                with m.If(self.output_en):
                     m.d[self.domain] += self.read_data.eq(read_port.data)
             else:
                 m.d[self.domain] += self.read_data.eq(read_port.data)

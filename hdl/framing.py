@@ -211,7 +211,7 @@ class FrameDecoder(wiring.Component):
             self.registered_read
         if registered:
             m.submodules.buffer = buffer = RegisteredRam(depth=MAX_PAYLOAD, width=8,
-                                                         pipelined=True)
+                                                         output_enable=True)
             write_addr, write_data, write_en = buffer.write_addr, buffer.write_data, \
                 buffer.write_en
         else:
@@ -339,6 +339,7 @@ class FrameDecoder(wiring.Component):
         if registered:
             m.d.comb += [
                 buffer.read_en.eq((ending & ~sending) | accept | advance),
+                buffer.output_en.eq(buffer.read_en),
                 buffer.read_addr.eq(Mux(sending, beat + 2, Mux(accept, 1, 0))),
             ]
             read_data = buffer.read_data

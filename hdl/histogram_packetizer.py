@@ -167,6 +167,14 @@ class HistogramPacketizer(wiring.Component):
         # The choices of DECIDE, registered in WEIGH (each is a carry chain)
         window_compact = Signal()
         fits = Signal()
+        # The packets' lengths, registered: each holds for a cycle or more before its packet
+        # starts (`window_bins` from SCAN_END, `open_bytes` from ENCODE_TOKEN)
+        full_length = Signal(16)
+        compact_length = Signal(16)
+        m.d.sync += [
+            full_length.eq(_FULL_HEADER + _COUNT_BYTES * window_bins),
+            compact_length.eq(_COMPACT_HEADER + open_bytes),
+        ]
 
         # Stage 1 (SCAN): a beat of the readout into registers. Stage 2, the next cycle: its
         # count into the buffer, its tokens counted.
@@ -259,7 +267,7 @@ class HistogramPacketizer(wiring.Component):
                     self.packets.valid.eq(1),
                     self.packets.p.first.eq(1),
                     self.packets.p.header.type.eq(PacketType.HISTOGRAM),
-                    self.packets.p.header.length.eq(_FULL_HEADER + _COUNT_BYTES * window_bins),
+                    self.packets.p.header.length.eq(full_length),
                 ]
                 with m.If(self.packets.ready):
                     m.next = "FULL_HEADER"
@@ -267,7 +275,7 @@ class HistogramPacketizer(wiring.Component):
                 m.d.comb += [
                     self.packets.valid.eq(1),
                     self.packets.p.header.type.eq(PacketType.HISTOGRAM),
-                    self.packets.p.header.length.eq(_FULL_HEADER + _COUNT_BYTES * window_bins),
+                    self.packets.p.header.length.eq(full_length),
                     self.packets.p.data.eq(full_header.as_value().word_select(step, 8)),
                     first.eq(1),
                 ]
@@ -286,7 +294,7 @@ class HistogramPacketizer(wiring.Component):
                 m.d.comb += [
                     self.packets.valid.eq(1),
                     self.packets.p.header.type.eq(PacketType.HISTOGRAM),
-                    self.packets.p.header.length.eq(_FULL_HEADER + _COUNT_BYTES * window_bins),
+                    self.packets.p.header.length.eq(full_length),
                     self.packets.p.data.eq(word.word_select(byte, 8)),
                     self.packets.p.last.eq(final),
                     ahead.eq(1),
@@ -346,7 +354,6 @@ class HistogramPacketizer(wiring.Component):
                         m.next = "ENCODE_LOAD"
 
             # The compact chunk in progress as a HISTOGRAM_COMPACT packet
-            compact_length = _COMPACT_HEADER + open_bytes
             with m.State("CLOSE"):
                 m.d.comb += [
                     self.packets.valid.eq(1),

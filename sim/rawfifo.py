@@ -1,8 +1,8 @@
 """Bit-exact model of :class:`fliss.hdl.rawfifo.RawFifo`.
 
-An input register delays every event by one cycle; then comes
-:class:`amaranth.lib.fifo.SyncFIFOBuffered` of ``depth - 1``: a block-RAM queue of ``depth - 2``
-entries followed by its register, then the output register. Per cycle, the model applies the
+An input register delays every event by one cycle; then comes a block-RAM queue of
+``depth - 2`` entries, then the RAM's two read registers: the middle one (the read) and the
+output register. Per cycle, the model applies the
 same rules: the queue takes a write unless it holds ``depth - 2`` entries; the output register
 loads the middle one's contents (an entry or nothing) whenever it is empty or being read, and
 the middle one loads the oldest queued entry whenever it is empty or being moved on; the entry
@@ -13,16 +13,10 @@ from collections import deque
 
 import numpy as np
 
-from ..hdl.rawfifo import DEPTH, COUNTER_WIDTH
+from ..hdl.rawfifo import DEPTH, COUNTER_WIDTH, check_depth
 
 
 __all__ = ["check_depth", "simulate"]
-
-
-def check_depth(depth):
-    """Raise :exc:`ValueError` unless ``depth`` is a valid FIFO depth."""
-    if not isinstance(depth, (int, np.integer)) or depth < 4:
-        raise ValueError(f"FIFO depth must be an integer of at least 4, not {depth!r}")
 
 
 def simulate(valid, ready, *, depth=DEPTH, counter_width=COUNTER_WIDTH):
@@ -51,7 +45,7 @@ def simulate(valid, ready, *, depth=DEPTH, counter_width=COUNTER_WIDTH):
     valid = np.asarray(valid, dtype=bool)
     ready = np.asarray(ready, dtype=bool)
     queue = deque()
-    middle = None   # event number in the SyncFIFOBuffered's register
+    middle = None   # event number in the RAM's first read register
     out = None      # event number in the output register
     number = 0
     transfers, dropped, levels = [], [], []

@@ -13,20 +13,22 @@ from fliss.hdl.cobs import CobsEncoder
 from fliss.hdl.framing import FrameDecoder
 
 
-@pytest.mark.parametrize("pipelined", [False, True])
-def test_generic_ram_reads_two_cycles_later_and_holds(pipelined):
+@pytest.mark.parametrize("output_enable", [False, True])
+def test_generic_ram_reads_two_cycles_later_and_holds(output_enable):
     # A read sampled at edge k shows its word after edge k + 1 and holds while no read is
-    # made (pipelined: after the next read's edge instead); writes land at their edge. The
-    # model is a dict and a two-deep pipeline.
-    ram = RegisteredRam(depth=64, width=12, pipelined=pipelined)
+    # made (output_enable: after the next edge with `output_en` instead); writes land at their
+    # edge. The model is a dict and two registers.
+    ram = RegisteredRam(depth=64, width=12, output_enable=output_enable)
     rng = random.Random(5)
-    steps = [(rng.random() < 0.5, rng.randrange(64), rng.random() < 0.6, rng.randrange(64),
-              rng.randrange(1 << 12)) for _ in range(600)]
+    steps = [(rng.random() < 0.5, rng.random() < 0.5, rng.randrange(64), rng.random() < 0.6,
+              rng.randrange(64), rng.randrange(1 << 12)) for _ in range(600)]
     seen = []
 
     async def testbench(ctx):
-        for read_en, read_addr, write_en, write_addr, write_data in steps:
+        for read_en, output_en, read_addr, write_en, write_addr, write_data in steps:
             ctx.set(ram.read_en, read_en)
+            if output_enable:
+                ctx.set(ram.output_en, output_en)
             ctx.set(ram.read_addr, read_addr)
             ctx.set(ram.write_en, write_en and write_addr != read_addr)   # (no collisions)
             ctx.set(ram.write_addr, write_addr)
@@ -40,8 +42,8 @@ def test_generic_ram_reads_two_cycles_later_and_holds(pipelined):
     sim.run()
 
     words, latch, output, expected = {}, 0, 0, []
-    for read_en, read_addr, write_en, write_addr, write_data in steps:
-        if read_en or not pipelined:
+    for read_en, output_en, read_addr, write_en, write_addr, write_data in steps:
+        if output_en or not output_enable:
             output = latch                              # the output register
         if read_en:
             latch = words.get(read_addr, 0)             # the read, before this edge's write
@@ -69,9 +71,9 @@ def _ecp5_platform():
     return FlissULX3SPlatform()
 
 
-@pytest.mark.parametrize("width,pipelined", [(16, False), (32, False), (16, True)])
-def test_ecp5_ram_is_dp16kd_with_output_register(width, pipelined):
-    ram = RegisteredRam(depth=1024, width=width, pipelined=pipelined)
+@pytest.mark.parametrize("width,output_enable", [(16, False), (32, False), (16, True)])
+def test_ecp5_ram_is_dp16kd_with_output_register(width, output_enable):
+    ram = RegisteredRam(depth=1024, width=width, output_enable=output_enable)
     fragment = Fragment.get(ram, _ecp5_platform())
     instances = [f for f, *_ in fragment.subfragments if isinstance(f, Instance)]
     assert len(instances) == -(-width // DP16KD_WIDTH)
@@ -92,8 +94,8 @@ def test_ecp5_ram_is_dp16kd_with_output_register(width, pipelined):
             assert _bit(ports[f"DOB{n}"]) == _bit(ram.read_data[low + n])
         assert ports["WEA"] is ram.write_en and ports["CEB"] is ram.read_en
         assert ports["WEB"].value == 0
-        if pipelined:
-            assert ports["OCEB"] is ram.read_en
+        if output_enable:
+            assert ports["OCEB"] is ram.output_en
         else:
             assert ports["OCEB"].value == 1
 

@@ -99,8 +99,9 @@ def test_clear_counters():
 
 
 @pytest.mark.parametrize("kwargs, message", [
-    ({"depth": 3}, "FIFO depth must be an integer of at least 4, not 3"),
-    ({"depth": 8.0}, "FIFO depth must be an integer of at least 4, not 8.0"),
+    ({"depth": 3}, "FIFO depth must be an integer from 4 to 1026, not 3"),
+    ({"depth": 1027}, "FIFO depth must be an integer from 4 to 1026, not 1027"),
+    ({"depth": 8.0}, "FIFO depth must be an integer from 4 to 1026, not 8.0"),
     ({"counter_width": 0}, "Counter width must be an integer from 1 to 64 bits, not 0"),
 ])
 def test_bad_parameters(kwargs, message, construction_error):
