@@ -1,4 +1,4 @@
-from amaranth.hdl import Cat, Module, Signal
+from amaranth.hdl import Module, Mux, Signal
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
@@ -13,9 +13,7 @@ class PacketArbiter(wiring.Component):
     """Merges packet streams into one, a whole packet at a time, and numbers the packets.
 
     At a packet boundary the lowest-numbered input with a packet waiting wins, so replies to
-    commands (input 0) never queue behind a histogram. The winner is registered before its
-    packet passes (a cycle a packet), so the inputs' payloads go to the output through a
-    multiplexer whose select is a register. Each packet leaves with the next sequence
+    commands (input 0) never queue behind a histogram. Each packet leaves with the next sequence
     number (modulo 256) in its header. The output is registered (a :class:`StreamBuffer`), so no
     combinational path runs from the inputs to the consumer. It passes a beat every other cycle
     at most (a half-rate buffer, half the flip-flops): the UART behind it is far slower.
@@ -50,26 +48,28 @@ class PacketArbiter(wiring.Component):
         merged = buffer.i
 
         seq = Signal(8)
-        busy = Signal()         # a packet passes from input `grant`
+        busy = Signal()
         grant = Signal(range(self.count))
 
-        # Choice at a packet boundary, into `grant`
+        # Choice at a packet boundary
         choice = Signal.like(grant)
         for index in reversed(range(self.count)):
             with m.If(self.i[index].valid):
                 m.d.comb += choice.eq(index)
-        with m.If(~busy & Cat(port.valid for port in self.i).any()):
-            m.d.sync += busy.eq(1), grant.eq(choice)
+        current = Mux(busy, grant, choice)
 
         for index, port in enumerate(self.i):
-            with m.If(busy & (grant == index)):
+            with m.If(current == index):
                 m.d.comb += [
                     merged.valid.eq(port.valid),
                     merged.payload.eq(port.payload),
                     port.ready.eq(merged.ready),
                 ]
         m.d.comb += merged.p.header.seq.eq(seq)
-        with m.If(merged.valid & merged.ready & merged.p.last):
-            m.d.sync += busy.eq(0), seq.eq(seq + 1)
+
+        with m.If(merged.valid & merged.ready):
+            m.d.sync += busy.eq(~merged.p.last), grant.eq(current)
+            with m.If(merged.p.last):
+                m.d.sync += seq.eq(seq + 1)
 
         return m

@@ -12,6 +12,8 @@ software model; the tests compare the two bit for bit.
 it found (:class:`DecodedByte`). Neither checks a CRC: :mod:`.crc` does, in the stage beside.
 """
 
+from types import SimpleNamespace
+
 from amaranth.hdl import C, Cat, Module, Mux, Signal
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.memory import Memory
@@ -100,27 +102,18 @@ class CobsEncoder(wiring.Component):
 
         registered = has_dp16kd(platform) if self.registered_read is None else \
             self.registered_read
-        depth = 2 << (COBS_MAX_RUN - 1).bit_length()        # two banks
-        write_addr = Signal(range(depth))
-        write_data = Signal(8)
-        write_en = Signal()
-        read_addr = Signal(range(depth))
         if registered:
-            m.submodules.run = run = RegisteredRam(depth=depth, width=8)
-            m.d.comb += [
-                run.write_addr.eq(write_addr), run.write_data.eq(write_data),
-                run.write_en.eq(write_en), run.read_addr.eq(read_addr), run.read_en.eq(1),
-            ]
-            read_data = run.read_data
+            m.submodules.run = run = RegisteredRam(
+                depth=2 << (COBS_MAX_RUN - 1).bit_length(), width=8)   # two banks
+            m.d.comb += run.read_en.eq(1)
+            # (its signals under the names of a memory port's: one description drives either)
+            run_wr = SimpleNamespace(addr=run.write_addr, data=run.write_data, en=run.write_en)
+            run_rd = SimpleNamespace(addr=run.read_addr, data=run.read_data)
         else:
-            m.submodules.run = run = Memory(shape=8, depth=depth, init=[])
+            m.submodules.run = run = Memory(shape=8, depth=2 << (COBS_MAX_RUN - 1).bit_length(),
+                                            init=[])   # two banks
             run_wr = run.write_port()
             run_rd = run.read_port(transparent_for=())
-            m.d.comb += [
-                run_wr.addr.eq(write_addr), run_wr.data.eq(write_data), run_wr.en.eq(write_en),
-                run_rd.addr.eq(read_addr),
-            ]
-            read_data = run_rd.data
 
         # Input slice, with the zero test on the way in
         m.submodules.byte_buffer = byte_buffer = StreamBuffer(
@@ -167,8 +160,8 @@ class CobsEncoder(wiring.Component):
             ]
 
         m.d.comb += [
-            write_addr.eq(Cat(run_len[:bank_bits], fill_bank)),
-            write_data.eq(u_data),
+            run_wr.addr.eq(Cat(run_len[:bank_bits], fill_bank)),
+            run_wr.data.eq(u_data),
         ]
         with m.If(ending):
             with m.If(~pending):
@@ -181,7 +174,7 @@ class CobsEncoder(wiring.Component):
                     close(run_len + 1, run_len, final=0)
                     m.d.sync += ending.eq(u_last)
                 with m.Else():
-                    m.d.comb += write_en.eq(1)
+                    m.d.comb += run_wr.en.eq(1)
                     with m.If(run_len == COBS_MAX_RUN - 1):
                         close(COBS_MAX_RUN + 1, COBS_MAX_RUN, final=u_last)
                     with m.Else():
@@ -209,7 +202,7 @@ class CobsEncoder(wiring.Component):
         with m.FSM(name="emit"):
             with m.State("IDLE"):
                 if registered:
-                    m.d.comb += read_addr.eq(Cat(C(0, bank_bits), p_bank))
+                    m.d.comb += run_rd.addr.eq(Cat(C(0, bank_bits), p_bank))
                 with m.If(pending):
                     m.d.sync += [
                         pending.eq(0),
@@ -224,7 +217,7 @@ class CobsEncoder(wiring.Component):
             with m.State("CODE"):
                 m.d.comb += [
                     self.o.valid.eq(1),
-                    read_addr.eq(Cat(C(0, bank_bits), e_bank)),
+                    run_rd.addr.eq(Cat(C(0, bank_bits), e_bank)),
                 ]
                 with m.If(self.o.ready):
                     m.d.sync += [sent.eq(0), e_is_code.eq(0), e_last.eq(e_len == 1)]
@@ -239,13 +232,13 @@ class CobsEncoder(wiring.Component):
                         m.next = "IDLE"
             with m.State("LOAD"):
                 if registered:
-                    m.d.comb += read_addr.eq(Cat((sent + 1)[:bank_bits], e_bank))
-                m.d.sync += e_data.eq(read_data)
+                    m.d.comb += run_rd.addr.eq(Cat((sent + 1)[:bank_bits], e_bank))
+                m.d.sync += e_data.eq(run_rd.data)
                 m.next = "DATA"
             with m.State("DATA"):
                 m.d.comb += [
                     self.o.valid.eq(1),
-                    read_addr.eq(Cat((sent + 1)[:bank_bits], e_bank)),
+                    run_rd.addr.eq(Cat((sent + 1)[:bank_bits], e_bank)),
                 ]
                 with m.If(self.o.ready):
                     m.d.sync += [sent.eq(sent + 1), e_last.eq(sent + 2 == e_len)]

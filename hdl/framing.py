@@ -212,13 +212,10 @@ class FrameDecoder(wiring.Component):
         if registered:
             m.submodules.buffer = buffer = RegisteredRam(depth=MAX_PAYLOAD, width=8,
                                                          output_enable=True)
-            write_addr, write_data, write_en = buffer.write_addr, buffer.write_data, \
-                buffer.write_en
         else:
             m.submodules.buffer = buffer = Memory(shape=8, depth=MAX_PAYLOAD, init=[])
             buf_wr = buffer.write_port()
             buf_rd = buffer.read_port(transparent_for=())
-            write_addr, write_data, write_en = buf_wr.addr, buf_wr.data, buf_wr.en
 
         sending = Signal()      # a checked packet is on its way out
         max_bytes = MAX_PACKET - CRC_BYTES                  # header and payload
@@ -244,19 +241,27 @@ class FrameDecoder(wiring.Component):
         # Packet bytes: the header, then the payload into the buffer at `count - HEADER_BYTES`.
         # A registered write (`registered`: the block RAM may sit far away) lands a cycle
         # later, still before the buffer is first read, in `ending`.
-        write = m.d.sync if registered else m.d.comb
-        write += [
-            write_addr.eq(count - HEADER_BYTES),
-            write_data.eq(crc.o.p.data),
-            write_en.eq(0),
-        ]
+        if registered:
+            m.d.sync += [
+                buffer.write_addr.eq(count - HEADER_BYTES),
+                buffer.write_data.eq(crc.o.p.data),
+                buffer.write_en.eq(0),
+            ]
+        else:
+            m.d.comb += [
+                buf_wr.addr.eq(count - HEADER_BYTES),
+                buf_wr.data.eq(crc.o.p.data),
+            ]
         with m.If(take):
             with m.If(count <= max_bytes):
                 m.d.sync += count.eq(count + 1)
             with m.If(count < HEADER_BYTES):
                 m.d.sync += header.eq(Cat(header.as_value()[8:], crc.o.p.data))
             with m.Elif(count < max_bytes):
-                write += write_en.eq(1)
+                if registered:
+                    m.d.sync += buffer.write_en.eq(1)
+                else:
+                    m.d.comb += buf_wr.en.eq(1)
 
         # Checks, in two steps for timing: at the delimiter each check is registered; in the next
         # cycle (`ending`, when the input waits) the verdict is drawn from them and registered
@@ -330,9 +335,11 @@ class FrameDecoder(wiring.Component):
         #   reads that fill it are made while the frame is judged (bytes 0 and 1, in `ending`
         #   and at `accept`: every byte is written by then). A frame can end while a packet is
         #   sent only if it is too short to pass, so its `ending` makes no read then.
+        start = Signal()
         beat = Signal(range(MAX_PAYLOAD + 1))
         advance = Signal()
         m.d.comb += [
+            start.eq(accept),
             advance.eq(self.o.valid & self.o.ready),
             self.o.valid.eq(sending),
         ]
@@ -344,7 +351,7 @@ class FrameDecoder(wiring.Component):
             ]
             read_data = buffer.read_data
         else:
-            m.d.comb += buf_rd.addr.eq(Mux(accept, 0, Mux(advance, beat + 1, beat)))
+            m.d.comb += buf_rd.addr.eq(Mux(start, 0, Mux(advance, beat + 1, beat)))
             read_data = buf_rd.data
         with m.If(advance):
             m.d.sync += [
@@ -355,7 +362,7 @@ class FrameDecoder(wiring.Component):
             ]
             with m.If(self.o.payload.last):
                 m.d.sync += sending.eq(0)
-        with m.If(accept):
+        with m.If(start):
             m.d.sync += [
                 sending.eq(1),
                 beat.eq(0),
