@@ -51,7 +51,7 @@ program: $(BOARDS_STAMP)
 	$(PY) -m fliss.boards.build program $(BOARD)
 
 test-boards: $(BOARDS_STAMP)
-	FLISS_BUILD_BOARDS=1 $(PY) -m pytest tests/test_boards.py $(PYTEST_ARGS)
+	FLISS_BUILD_BOARDS=1 $(PY) -m pytest tests/test_boards.py tests/test_block_ram.py $(PYTEST_ARGS)
 
 # Formal proofs with SymbiYosys from PyPI: the runner's own tests (skipped by `make test`, which
 # lacks the formal extra), then every proof, its covers and its mutant (docs/verification.md). FORMAL_ARGS: e.g. `-j 1`, or proof names.

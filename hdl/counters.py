@@ -28,8 +28,8 @@ class CounterBank(wiring.Component):
     A snapshot takes the counts *at a handoff*: the scan after it writes every sum to a second
     memory too, which the reader reads at leisure. The snapshot is exact: counter ``k`` in it
     is the number of strobes on ``inc[k]`` up to and including the cycle of the handoff
-    (``captured``), clamped to all ones. ``captured`` is the first handoff at or after the
-    cycle of ``capture``, at most ``count - 1`` cycles later; ``ready`` rises once the snapshot
+    (``captured``), clamped to all ones. ``captured`` is the first handoff after the cycle of
+    ``capture``, 1 to ``count`` cycles later; ``ready`` rises once the snapshot
     is complete, ``count + 2`` cycles after ``captured``.
 
     Reset zeroes the counters: the first scan after it writes zeros.
@@ -104,14 +104,16 @@ class CounterBank(wiring.Component):
                 m.d.sync += pending[k].eq(pending[k] + self.inc[k])
                 m.d.sync += queue[k].eq(queue[k + 1] if k + 1 < n else 0)
 
-        # Snapshot: asked for, then taken during the scan after a handoff
+        # Snapshot: asked for (registered: `capture` comes from a command's decoding, and
+        # `captured` enables many registers elsewhere), then taken during the scan after a
+        # handoff
         asked = Signal()
         copying = Signal()
         with m.If(handoff):
-            m.d.sync += [copying.eq(asked | self.capture), asked.eq(0)]
+            m.d.sync += [copying.eq(asked), asked.eq(self.capture)]
         with m.Elif(self.capture):
             m.d.sync += asked.eq(1)
-        m.d.comb += self.captured.eq(handoff & (asked | self.capture))
+        m.d.comb += self.captured.eq(handoff & asked)
 
         # Stage 0: read the counter at `position` and take its pending count.
         # Stage 1: write back the sum, clamped (to zero in the first scan after reset).

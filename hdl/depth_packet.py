@@ -63,13 +63,18 @@ class DepthPacketizer(wiring.Component):
             self.packets.p.header.length.eq(length),
             records.read_addr.eq(pixel),
             records.read_en.eq(1),
+        ]
+        # A record's write is registered (the block RAM may sit far away) and lands a cycle
+        # later, long before the records are read (after HEADER and PREFIX)
+        m.d.sync += [
             records.write_addr.eq(pixel),
             records.write_data.eq(self.record),
+            records.write_en.eq(0),
         ]
 
         with m.FSM():
             with m.State("STORE"):
-                m.d.comb += records.write_en.eq(self.write)
+                m.d.sync += records.write_en.eq(self.write)
                 with m.If(self.write):
                     m.d.sync += pixel.eq(pixel + 1)
                 with m.If(self.send):

@@ -73,8 +73,9 @@ def _ecp5_platform():
 
 @pytest.mark.parametrize("width,output_enable", [(16, False), (32, False), (16, True)])
 def test_ecp5_ram_is_dp16kd_with_output_register(width, output_enable):
+    platform = _ecp5_platform()
     ram = RegisteredRam(depth=1024, width=width, output_enable=output_enable)
-    fragment = Fragment.get(ram, _ecp5_platform())
+    fragment = Fragment.get(ram, platform)
     instances = [f for f, *_ in fragment.subfragments if isinstance(f, Instance)]
     assert len(instances) == -(-width // DP16KD_WIDTH)
     for k, instance in enumerate(instances):

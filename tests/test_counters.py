@@ -53,7 +53,7 @@ def check(dut, driven, snapshots):
     top = (1 << dut.width) - 1
     counts = np.minimum(np.cumsum(driven, axis=0, dtype=np.int64), top)
     for asked, captured, ready, values in snapshots:
-        assert 0 <= captured - asked < dut.count, (asked, captured)
+        assert 1 <= captured - asked <= dut.count, (asked, captured)
         assert ready - captured == dut.count + 2, (captured, ready)
         assert values == counts[captured].tolist(), (asked, captured)
 
