@@ -95,6 +95,30 @@ class Twins(Elaboratable):
         return tuple([value for _, member, value in self._members(component)
                       if member.flow == wiring.Out] for component in (self.first, self.second))
 
+    def run_compared(self, send, *, rng, ready=0.5):
+        """Simulate with ``send(ctx)`` driving ``first``'s inputs and the ``ready`` of its output
+        stream ``o`` high at random (with probability ``ready``); the two's outputs must be the
+        same in every cycle. Returns the number of transfers on ``o``."""
+        first, second = self.outputs()
+        transfers = 0
+
+        async def consume(ctx):
+            while True:
+                ctx.set(self.first.o.ready, rng.random() < ready)
+                await ctx.tick()
+
+        async def compare(ctx):
+            nonlocal transfers
+            cycle = 0
+            async for _, _, taken, valid, *values in ctx.tick().sample(
+                    self.first.o.ready, self.first.o.valid, *first, *second):
+                assert values[:len(first)] == values[len(first):], f"cycle {cycle}"
+                cycle += 1
+                transfers += taken and valid
+
+        simulate(self, send, background=[consume, compare])
+        return transfers
+
     def elaborate(self, platform):
         m = Module()
         m.submodules.first, m.submodules.second = self.first, self.second

@@ -74,27 +74,13 @@ def test_cobs_encoder_reads_give_the_same_bytes_cycle_for_cycle():
     rng = random.Random(9)
     packets = corner_packets(rng) + random_packets(rng, 15)
     dut = Twins(CobsEncoder(registered_read=False), CobsEncoder(registered_read=True))
-    plain, registered = dut.outputs()
-    compared = {"bytes": 0, "cycles": 0}
 
     async def send(ctx):
         await stream_put_all(ctx, dut.first.i, packet_bytes(packets), rng=rng, idle=0.3)
         await ctx.tick().repeat(2000)
 
-    async def consume(ctx):
-        while True:
-            ctx.set(dut.first.o.ready, rng.random() < 0.6)
-            await ctx.tick()
-
-    async def compare(ctx):
-        async for _, _, ready, valid, *values in ctx.tick().sample(
-                dut.first.o.ready, dut.first.o.valid, *plain, *registered):
-            assert values[:len(plain)] == values[len(plain):], compared["cycles"]
-            compared["cycles"] += 1
-            compared["bytes"] += ready and valid
-
-    simulate(dut, send, background=[consume, compare])
-    assert compared["bytes"] == sum(len(codec.cobs_encode(packet)) + 1 for packet in packets)
+    sent = dut.run_compared(send, rng=rng, ready=0.6)
+    assert sent == sum(len(codec.cobs_encode(packet)) + 1 for packet in packets)
 
 
 # Decoder

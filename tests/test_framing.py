@@ -281,27 +281,12 @@ def test_decoder_reads_give_the_same_beats_cycle_for_cycle():
     rng = random.Random(11)
     stream = corrupt_stream(rng, random_packets(rng, 30))
     dut = Twins(FrameDecoder(registered_read=False), FrameDecoder(registered_read=True))
-    plain, registered = dut.outputs()
-    compared = {"beats": 0, "cycles": 0}
 
     async def send(ctx):
         await stream_put_all(ctx, dut.first.i, stream, rng=rng, idle=0.3)
         await ctx.tick().repeat(8 * MAX_PAYLOAD + 50)
 
-    async def consume(ctx):
-        while True:
-            ctx.set(dut.first.o.ready, rng.random() < 0.5)
-            await ctx.tick()
-
-    async def compare(ctx):
-        async for _, _, ready, valid, *values in ctx.tick().sample(
-                dut.first.o.ready, dut.first.o.valid, *plain, *registered):
-            assert values[:len(plain)] == values[len(plain):], compared["cycles"]
-            compared["cycles"] += 1
-            compared["beats"] += ready and valid
-
-    simulate(dut, send, background=[consume, compare])
-    assert compared["beats"] > 500
+    assert dut.run_compared(send, rng=rng, ready=0.5) > 500
 
 
 @READS
