@@ -33,8 +33,9 @@ class RegisteredRam(wiring.Component):
     no read is made. With ``output_enable``, the second register (``read_data``) moves only in
     cycles with ``output_en`` high: each of the two stalls on its own enable (with ``output_en``
     the same as ``read_en``, a two-stage pipeline: ``read_data`` is the word of the last read but
-    one). A write with ``write_en`` high writes ``write_data`` to ``write_addr`` at the edge. A read and a write of the same word at the same edge give an undefined word (the
-    histogram never uses one). The contents are zero after configuration.
+    one). A write with ``write_en`` high writes ``write_data`` to ``write_addr`` at the edge. A
+    read and a write of the same word at the same edge give an undefined word (no user makes
+    one). The contents are zero after configuration.
 
     On an ECP5 platform (:func:`has_dp16kd`) the RAM is ``DP16KD`` blocks in 1024 × 18 mode (one
     for every 18 bits of the word), port A writing, port B reading, with ``REGMODE_B = "OUTREG"``: the second register is the

@@ -19,6 +19,8 @@ DEPTH = 512
 #: Largest FIFO depth: a block RAM of :data:`~fliss.hdl.block_ram.DP16KD_DEPTH` words and the
 #: two read registers.
 MAX_DEPTH = DP16KD_DEPTH + 2
+#: Width of one event in the FIFO, in bits.
+EVENT_WIDTH = data.Layout.cast(Event).size
 
 
 def check_depth(depth):
@@ -26,8 +28,6 @@ def check_depth(depth):
     if isinstance(depth, bool) or not isinstance(depth, numbers.Integral) or \
             not 4 <= depth <= MAX_DEPTH:
         raise ValueError(f"FIFO depth must be an integer from 4 to {MAX_DEPTH}, not {depth!r}")
-#: Width of one event in the FIFO, in bits.
-EVENT_WIDTH = data.Layout.cast(Event).size
 
 
 class RawFifo(wiring.Component):
