@@ -7,7 +7,8 @@ from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
 
-__all__ = ["DP16KD_DEPTH", "DP16KD_WIDTH", "has_dp16kd", "RegisteredRam"]
+__all__ = ["DP16KD_DEPTH", "DP16KD_WIDTH", "has_dp16kd", "check_registered_read",
+           "reads_registered", "RegisteredRam"]
 
 
 #: Words of one ``DP16KD`` as the histogram uses it (1024 words of 18 bits).
@@ -22,6 +23,19 @@ def has_dp16kd(platform):
         return False
     from amaranth.vendor import LatticePlatform
     return isinstance(platform, LatticePlatform) and getattr(platform, "family", None) == "ecp5"
+
+
+def check_registered_read(choice):
+    """Refuse a ``registered_read`` parameter (of a block that reads a buffer either through a
+    :class:`RegisteredRam` or a plain memory) that is not ``None``, ``False`` or ``True``."""
+    if choice not in (None, False, True):
+        raise TypeError(f"registered_read must be None, False or True, not {choice!r}")
+
+
+def reads_registered(choice, platform):
+    """Whether a block with ``registered_read=choice`` reads through a :class:`RegisteredRam`
+    on ``platform``: ``None`` chooses it on an ECP5 (:func:`has_dp16kd`)."""
+    return has_dp16kd(platform) if choice is None else choice
 
 
 class RegisteredRam(wiring.Component):

@@ -19,7 +19,7 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
-from .block_ram import RegisteredRam, has_dp16kd
+from .block_ram import RegisteredRam, check_registered_read, reads_registered
 from .buffer import StreamBuffer
 from .protocol import DELIMITER, COBS_MAX_RUN
 
@@ -91,17 +91,14 @@ class CobsEncoder(wiring.Component):
     o: Out(stream.Signature(8))
 
     def __init__(self, *, registered_read=None):
-        if registered_read not in (None, False, True):
-            raise TypeError(f"registered_read must be None, False or True, not "
-                            f"{registered_read!r}")
+        check_registered_read(registered_read)
         self.registered_read = registered_read
         super().__init__()
 
     def elaborate(self, platform):
         m = Module()
 
-        registered = has_dp16kd(platform) if self.registered_read is None else \
-            self.registered_read
+        registered = reads_registered(self.registered_read, platform)
         if registered:
             m.submodules.run = run = RegisteredRam(
                 depth=2 << (COBS_MAX_RUN - 1).bit_length(), width=8)   # two banks

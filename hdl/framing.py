@@ -24,7 +24,7 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
-from .block_ram import RegisteredRam, has_dp16kd
+from .block_ram import RegisteredRam, check_registered_read, reads_registered
 from .cobs import CobsEncoder, CobsDecoder
 from .crc import CrcAppender, CrcChecker
 from .protocol import (Header, HEADER_BYTES, MAX_PAYLOAD, MAX_PACKET, MAX_ENCODED, CRC_BYTES,
@@ -186,9 +186,7 @@ class FrameDecoder(wiring.Component):
     """
 
     def __init__(self, *, registered_read=None):
-        if registered_read not in (None, False, True):
-            raise TypeError(f"registered_read must be None, False or True, not "
-                            f"{registered_read!r}")
+        check_registered_read(registered_read)
         self.registered_read = registered_read
         super().__init__({
             "i":           In(stream.Signature(8)),
@@ -207,8 +205,7 @@ class FrameDecoder(wiring.Component):
         m.submodules.crc = crc = CrcChecker()
         wiring.connect(m, wiring.flipped(self.i), cobs.i)
         wiring.connect(m, cobs.o, crc.i)
-        registered = has_dp16kd(platform) if self.registered_read is None else \
-            self.registered_read
+        registered = reads_registered(self.registered_read, platform)
         if registered:
             m.submodules.buffer = buffer = RegisteredRam(depth=MAX_PAYLOAD, width=8,
                                                          output_enable=True)
