@@ -52,11 +52,12 @@ class RegisteredRam(wiring.Component):
     one). The contents are zero after configuration.
 
     On an ECP5 platform (:func:`has_dp16kd`) the RAM is ``DP16KD`` blocks in 1024 × 18 mode (one
-    for every 18 bits of the word), port A writing, port B reading, with ``REGMODE_B = "OUTREG"``: the second register is the
-    block's own output register, so a word leaves the block from a register and not from the
-    slow path out of the array (5.8 ns on the ULX3S's speed grade, before any routing).
-    Elsewhere (no platform, as in simulation or Verilog generation, or other FPGAs) it is an
-    :class:`amaranth.lib.memory.Memory` read port followed by a register, with the same timing.
+    for every 18 bits of the word), port A writing, port B reading, with
+    ``REGMODE_B = "OUTREG"``: the second register is the block's own output register, so a word
+    leaves the block from a register and not from the slow path out of the array (5.8 ns on the
+    ULX3S's speed grade, before any routing). Elsewhere (no platform, as in simulation or Verilog
+    generation, or other FPGAs) it is an :class:`amaranth.lib.memory.Memory` read port followed
+    by a register, with the same timing.
     Yosys ships ``DP16KD`` as a black box, so the instance itself is checked only by the board
     build (placement, routing and timing), not simulated.
 
