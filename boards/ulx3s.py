@@ -144,12 +144,27 @@ _PINS = {
 }
 
 
+def _ecp5_85_block_ram_quads():
+    """The LFE5U-85F's 208 ``DP16KD`` sites (nextpnr's BEL names) in quads of four side by side:
+    four rows of 13 quads. Every third quad of a row (the ends and the middle) comes last, so
+    that the first 32 leave room between them for the routing and the other block RAMs; within
+    that, nearest the middle of the fabric (126 by 95 tiles) first."""
+    rows = (22, 46, 70, 82)
+    starts = (4, 13, 22, 31, 40, 49, 58, 69, 78, 87, 96, 105, 114)
+    order = sorted((n % 3 == 0, abs(x + 3 - 63) + abs(y - 47), y, x)
+                   for y in rows for n, x in enumerate(starts))
+    return tuple(tuple(f"X{x + 2 * n}/Y{y}/EBR{n}" for n in range(4)) for *_, y, x in order)
+
+
 class FlissULX3SPlatform(FlissPlatform, ULX3S_85F_Platform):
     """ULX3S (ECP5-85F) with the FLISS pins and a PLL to the design clock
     (:class:`FlissPlatform`): 80 MHz exactly when 80 MHz is asked."""
 
     board = "ulx3s"
     pins = _PINS
+    #: Where the histogram places its banks' block RAMs, a quad for each group of its read
+    #: tree (:class:`~fliss.hdl.histogram_dual.DualPortBanks`).
+    block_ram_quads = _ecp5_85_block_ram_quads()
     pll_search = staticmethod(ecp5_pll)
     clocking_class = _ECP5Clocking
 

@@ -87,6 +87,9 @@ class RegisteredRam(wiring.Component):
     ----------
     data : :class:`amaranth.hdl.MemoryData`
         Contents of the generic memory, for testbenches; unused with ``DP16KD``.
+    site : str or None
+        Where nextpnr places the ``DP16KD`` (its BEL name, as ``"X58/Y46/EBR0"``), for a RAM
+        of one block; ``None`` (the default) leaves it to the placer. Set before elaboration.
     """
 
     def __init__(self, *, depth, width, domain="sync", output_enable=False):
@@ -99,6 +102,7 @@ class RegisteredRam(wiring.Component):
         self.domain = domain
         self.output_enable = bool(output_enable)
         self.data = MemoryData(shape=width, depth=depth, init=[])
+        self.site = None
         super().__init__({
             "write_addr": In(range(depth)),
             "write_en":   In(1),
@@ -110,6 +114,9 @@ class RegisteredRam(wiring.Component):
         })
 
     def elaborate(self, platform):
+        if self.site is not None and self.width > DP16KD_WIDTH:
+            raise ValueError(f"A site places a RAM of one block ({DP16KD_WIDTH} bits), not of "
+                             f"{self.width} bits")
         m = Module()
 
         if has_dp16kd(platform):
@@ -126,6 +133,7 @@ class RegisteredRam(wiring.Component):
                         (C(0, 1) if direction == "i" else Signal(name=f"{prefix}{n}_unused"))
                         for n in range(DP16KD_WIDTH)}
 
+            placed = {} if self.site is None else {"a_BEL": self.site}
             clock = ClockSignal(self.domain)
             zero, one = C(0, 1), C(1, 1)
             for k, low in enumerate(range(0, self.width, DP16KD_WIDTH)):
@@ -148,6 +156,7 @@ class RegisteredRam(wiring.Component):
                     **word("DIB", C(0, DP16KD_WIDTH), "i"),
                     **word("DOB", self.read_data[low:high], "o"),
                     **word("DOA", C(0, 0), "o"),
+                    **placed,
                 )
         else:
             m.submodules.memory = memory = Memory(data=self.data)

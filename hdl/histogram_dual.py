@@ -62,7 +62,12 @@ class DualPortBanks(wiring.Component):
     extra ``read_stages`` (:data:`READ_STAGES`, none with one block) cut the routing across the
     chip —, saturating increment with forwarding from the ``forward`` (:func:`forward`)
     events ahead (E), RAM write (W). ``word`` is the registered RAM word of the readout bank:
-    ``read_stages`` cycles after the readout's CAPTURE, it holds until its next read.
+    ``read_stages`` cycles after the readout's CAPTURE, it holds until its next read. The
+    readout's clearing write lands two cycles after its READ.
+
+    On a platform with a ``block_ram_quads`` floorplan (the ULX3S), each group of
+    :data:`OR_GROUP` blocks sits in four neighbouring block RAM sites, so that the first level of
+    the read tree is short; the groups of the two banks take turns in the platform's list.
 """ + _MEMBERS_DOC
 
     def __init__(self, bank_bits, count_width):
@@ -87,6 +92,7 @@ class DualPortBanks(wiring.Component):
         for k, bank in enumerate(self.banks):
             for j, memory in enumerate(bank.memories):
                 m.submodules[f"bank{k}_{j}"] = memory
+        self._place(getattr(platform, "block_ram_quads", None))
 
         # Stage R: the bin (fine shift) is registered here and in the read address register of
         # its bank: the block RAMs sample it at the end of this cycle.
@@ -150,7 +156,11 @@ class DualPortBanks(wiring.Component):
         # Stage W: the RAM write, from registers.
 
         # RAM ports, driven from registers: the pipeline uses the bank its event was tagged
-        # with, the readout the other one. Each block has its own write enable register.
+        # with, the readout the other one. Each block has its own write enable register. The
+        # readout's clearing write is registered once more before it is decoded to the blocks
+        # (it lands a cycle later, while the readout still waits for its word).
+        clear_index = Signal(width)
+        m.d.sync += clear_index.eq(self.readout_index)
         for k, bank in enumerate(self.banks):
             read_address = Signal(width, name=f"read_address{k}")
             read_enable = Signal(name=f"read_enable{k}")
@@ -164,14 +174,15 @@ class DualPortBanks(wiring.Component):
             with m.Else():
                 m.d.sync += read_enable.eq(0)
             pipeline_write = valid_e & (bank_e == k)
-            readout_write = self.readout_clear & (self.readout_bank == k)
-            write_to = Mux(pipeline_write, bin_e, self.readout_index)
+            readout_write = Signal(name=f"clear{k}")
+            m.d.sync += readout_write.eq(self.readout_clear & (self.readout_bank == k))
+            write_to = Mux(pipeline_write, bin_e, clear_index)
             # (the data is a register of each bank's own, `written` or zero, as it goes to
             # every block of the bank, across the chip)
             with m.If(pipeline_write):
                 m.d.sync += write_address.eq(bin_e), write_enable.eq(1), write_data.eq(new)
             with m.Elif(readout_write):
-                m.d.sync += [write_address.eq(self.readout_index), write_enable.eq(1),
+                m.d.sync += [write_address.eq(clear_index), write_enable.eq(1),
                              write_data.eq(0)]
             with m.Else():
                 m.d.sync += write_enable.eq(0)
@@ -184,6 +195,23 @@ class DualPortBanks(wiring.Component):
         m.d.comb += self.word.eq(Mux(self.readout_bank, stored[1], stored[0]))
 
         return m
+
+
+    def _place(self, quads):
+        # A platform that lists its block RAM sites in quads of four side by side, the best
+        # first (`block_ram_quads`), has each group of the read tree in a quad, the two banks'
+        # groups taking turns: a group's register then sits next to its blocks, and the banks
+        # spread alike. (With fewer quads than groups, the placer decides.)
+        groups = [bank.memories[start:start + OR_GROUP] for start in range(0, self.blocks, OR_GROUP)
+                  for bank in self.banks]
+        for group in groups:
+            for memory in group:
+                memory.site = None
+        if quads is None or self.blocks == 1 or len(groups) > len(quads):
+            return
+        for group, quad in zip(groups, quads):
+            for memory, site in zip(group, quad):
+                memory.site = site
 
 
 class _BlockedBank:

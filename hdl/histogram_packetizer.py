@@ -125,15 +125,29 @@ class HistogramPacketizer(wiring.Component):
         # the buffers' words, registered again as they come (the RAMs may sit far from this
         # logic). A RAM gives a word two cycles after its address: each word is addressed
         # while the one before is used (`ahead`: the address is `step + 1`), or, for the
-        # first, from the state before (`first`: the address is 0).
+        # first, from the state before (`first`: the address is 0). The address is one LUT
+        # from registers, as the RAMs may be far: `step + 1` is kept in `step_next`, and
+        # `ahead` and `first` are set with the state (:func:`goto`).
         word = Signal(COUNT_WIDTH)
         token = Signal(8)
+        step_next = Signal.like(step, init=1)
         ahead = Signal()
         first = Signal()
         full_header = Signal(HistogramChunk)
         compact_header = Signal(HistogramCompact)
 
-        address = Mux(first, 0, Mux(ahead, step + 1, step))
+        def goto(state):
+            m.next = state
+            m.d.sync += [ahead.eq(state in ("FULL_COUNT", "ENCODE_FETCH", "CLOSE_TOKEN")),
+                         first.eq(state in ("FULL_HEADER", "CLOSE_HEADER"))]
+
+        def advance():
+            return [step.eq(step_next), step_next.eq(step_next + 1)]
+
+        def restart():
+            return [step.eq(0), step_next.eq(1)]
+
+        address = Mux(first, 0, Mux(ahead, step_next, step))
         m.d.comb += [
             counts.read_addr.eq(address),
             counts.read_en.eq(1),
@@ -231,35 +245,35 @@ class HistogramPacketizer(wiring.Component):
                         beat_settings.full_readout.eq(self.full_readout),
                     ]
                     with m.If(self.readout.p.last | (taken == CHUNK_BINS - 1)):
-                        m.d.sync += step.eq(0)
-                        m.next = "SCAN_END"
+                        m.d.sync += restart()
+                        goto("SCAN_END")
             with m.State("SCAN_END"):       # (stage 2 of the window's last beat)
-                m.next = "WEIGH"
+                goto("WEIGH")
             with m.State("WEIGH"):
                 m.d.sync += [
                     window_compact.eq(~full_readout & (fresh_bytes + _COMPACT_HEADER <
                                                        _FULL_HEADER + _COUNT_BYTES * window_bins)),
                     fits.eq(open_bytes + carried_bytes <= COMPACT_BYTES),
                 ]
-                m.next = "DECIDE"
+                goto("DECIDE")
 
             with m.State("DECIDE"):
-                m.d.sync += step.eq(0), byte.eq(0)
+                m.d.sync += *restart(), byte.eq(0)
                 with m.If(window_compact):
                     with m.If(open_ & fits):
                         m.d.sync += run.eq(open_run)
-                        m.next = "ENCODE_LOAD"
+                        goto("ENCODE_LOAD")
                     with m.Elif(open_):
                         m.d.sync += then_full.eq(0), close_last.eq(0)
-                        m.next = "CLOSE"
+                        goto("CLOSE")
                     with m.Else():
-                        m.next = "OPEN"
+                        goto("OPEN")
                 with m.Else():
                     with m.If(open_):
                         m.d.sync += then_full.eq(1), close_last.eq(0)
-                        m.next = "CLOSE"
+                        goto("CLOSE")
                     with m.Else():
-                        m.next = "FULL"
+                        goto("FULL")
 
             # A window as a HISTOGRAM chunk: header, then its counts from the buffer
             with m.State("FULL"):
@@ -270,25 +284,24 @@ class HistogramPacketizer(wiring.Component):
                     self.packets.p.header.length.eq(full_length),
                 ]
                 with m.If(self.packets.ready):
-                    m.next = "FULL_HEADER"
+                    goto("FULL_HEADER")
             with m.State("FULL_HEADER"):
                 m.d.comb += [
                     self.packets.valid.eq(1),
                     self.packets.p.header.type.eq(PacketType.HISTOGRAM),
                     self.packets.p.header.length.eq(full_length),
                     self.packets.p.data.eq(full_header.as_value().word_select(step, 8)),
-                    first.eq(1),
                 ]
                 with m.If(self.packets.ready):
-                    m.d.sync += step.eq(step + 1)
+                    m.d.sync += advance()
                     with m.If(step == _FULL_HEADER - 1):
-                        m.d.sync += step.eq(0)
-                        m.next = "FULL_LOAD"
+                        m.d.sync += restart()
+                        goto("FULL_LOAD")
             with m.State("FULL_LOAD"):      # (the buffer's word for `step` comes next cycle)
-                m.next = "FULL_FETCH"
+                goto("FULL_FETCH")
             with m.State("FULL_FETCH"):
                 m.d.sync += word.eq(counts.read_data)
-                m.next = "FULL_COUNT"
+                goto("FULL_COUNT")
             with m.State("FULL_COUNT"):
                 final = byte & (step == window_bins - 1)
                 m.d.comb += [
@@ -297,51 +310,49 @@ class HistogramPacketizer(wiring.Component):
                     self.packets.p.header.length.eq(full_length),
                     self.packets.p.data.eq(word.word_select(byte, 8)),
                     self.packets.p.last.eq(final),
-                    ahead.eq(1),
                 ]
                 with m.If(self.packets.ready):
                     m.d.sync += byte.eq(~byte)
                     with m.If(byte):
-                        m.d.sync += step.eq(step + 1)
-                        m.next = "FULL_LOAD"
+                        m.d.sync += advance()
+                        goto("FULL_LOAD")
                     with m.If(final):
-                        m.next = "NEXT"
+                        goto("NEXT")
 
             # A compact window: its tokens after those of the chunk in progress
             with m.State("OPEN"):
                 m.d.sync += [
                     open_.eq(1), open_first.eq(window_first), open_bytes.eq(0),
-                    run.eq(0), step.eq(0),
+                    run.eq(0), *restart(),
                 ]
-                m.next = "ENCODE_LOAD"
+                goto("ENCODE_LOAD")
             with m.State("ENCODE_LOAD"):
                 with m.If(step == window_bins):
                     m.d.sync += open_run.eq(run), open_last.eq(window_first + window_bins - 1)
                     with m.If(window_last):
-                        m.d.sync += close_last.eq(1), step.eq(0)
-                        m.next = "CLOSE"
+                        m.d.sync += close_last.eq(1), *restart()
+                        goto("CLOSE")
                     with m.Else():
                         m.d.sync += window_bins.eq(0), taken.eq(0)
-                        m.next = "SCAN"
+                        goto("SCAN")
                 with m.Else():
-                    m.next = "ENCODE_FETCH"
+                    goto("ENCODE_FETCH")
             with m.State("ENCODE_FETCH"):
-                m.d.comb += ahead.eq(1)     # (the next bin's word, in case this one is empty)
                 m.d.sync += word.eq(counts.read_data)
-                m.next = "ENCODE_BIN"
+                goto("ENCODE_BIN")
             with m.State("ENCODE_BIN"):
-                m.d.sync += step.eq(step + 1)
+                m.d.sync += advance()
                 with m.If(word == 0):
                     m.d.sync += run.eq(run + 1)
-                    m.next = "ENCODE_FETCH"
+                    goto("ENCODE_FETCH")
                     with m.If(step + 1 == window_bins):
-                        m.next = "ENCODE_LOAD"
+                        goto("ENCODE_LOAD")
                 with m.Elif(run != 0):
                     m.d.sync += value.eq(Cat(Const(1, 1), run)), pending_count.eq(word)
-                    m.next = "ENCODE_TOKEN"
+                    goto("ENCODE_TOKEN")
                 with m.Else():
                     m.d.sync += value.eq(Cat(Const(0, 1), word)), pending_count.eq(0)
-                    m.next = "ENCODE_TOKEN"
+                    goto("ENCODE_TOKEN")
             with m.State("ENCODE_TOKEN"):
                 m.d.comb += tokens.write_en.eq(1)
                 m.d.sync += open_bytes.eq(open_bytes + 1), value.eq(value >> 7)
@@ -351,7 +362,7 @@ class HistogramPacketizer(wiring.Component):
                         m.d.sync += value.eq(Cat(Const(0, 1), pending_count)),
                         m.d.sync += pending_count.eq(0)
                     with m.Else():
-                        m.next = "ENCODE_LOAD"
+                        goto("ENCODE_LOAD")
 
             # The compact chunk in progress as a HISTOGRAM_COMPACT packet
             with m.State("CLOSE"):
@@ -362,8 +373,8 @@ class HistogramPacketizer(wiring.Component):
                     self.packets.p.header.length.eq(compact_length),
                 ]
                 with m.If(self.packets.ready):
-                    m.d.sync += step.eq(0)
-                    m.next = "CLOSE_HEADER"
+                    m.d.sync += restart()
+                    goto("CLOSE_HEADER")
             with m.State("CLOSE_HEADER"):
                 final = (step == _COMPACT_HEADER - 1) & (open_bytes == 0)
                 m.d.comb += [
@@ -372,20 +383,19 @@ class HistogramPacketizer(wiring.Component):
                     self.packets.p.header.length.eq(compact_length),
                     self.packets.p.data.eq(compact_header.as_value().word_select(step, 8)),
                     self.packets.p.last.eq(final),
-                    first.eq(1),
                 ]
                 with m.If(self.packets.ready):
-                    m.d.sync += step.eq(step + 1)
+                    m.d.sync += advance()
                     with m.If(final):
-                        m.next = "CLOSED"
+                        goto("CLOSED")
                     with m.Elif(step == _COMPACT_HEADER - 1):
-                        m.d.sync += step.eq(0)
-                        m.next = "CLOSE_LOAD"
+                        m.d.sync += restart()
+                        goto("CLOSE_LOAD")
             with m.State("CLOSE_LOAD"):
-                m.next = "CLOSE_FETCH"
+                goto("CLOSE_FETCH")
             with m.State("CLOSE_FETCH"):
                 m.d.sync += token.eq(tokens.read_data)
-                m.next = "CLOSE_TOKEN"
+                goto("CLOSE_TOKEN")
             with m.State("CLOSE_TOKEN"):
                 final = step == open_bytes - 1
                 m.d.comb += [
@@ -394,27 +404,26 @@ class HistogramPacketizer(wiring.Component):
                     self.packets.p.header.length.eq(compact_length),
                     self.packets.p.data.eq(token),
                     self.packets.p.last.eq(final),
-                    ahead.eq(1),
                 ]
                 with m.If(self.packets.ready):
-                    m.d.sync += step.eq(step + 1)
-                    m.next = "CLOSE_LOAD"
+                    m.d.sync += advance()
+                    goto("CLOSE_LOAD")
                     with m.If(final):
-                        m.next = "CLOSED"
+                        goto("CLOSED")
             with m.State("CLOSED"):
-                m.d.sync += open_.eq(0), open_run.eq(0), step.eq(0), byte.eq(0)
+                m.d.sync += open_.eq(0), open_run.eq(0), *restart(), byte.eq(0)
                 with m.If(close_last):
-                    m.next = "NEXT"
+                    goto("NEXT")
                 with m.Elif(then_full):
-                    m.next = "FULL"
+                    goto("FULL")
                 with m.Else():
-                    m.next = "OPEN"
+                    goto("OPEN")
 
             # The window is done: the next one, or the next frame
             with m.State("NEXT"):
                 m.d.sync += window_bins.eq(0), taken.eq(0)
                 with m.If(window_last):
                     m.d.sync += frame.eq(frame + 1), frame_start.eq(1), close_last.eq(0)
-                m.next = "SCAN"
+                goto("SCAN")
 
         return m

@@ -57,6 +57,7 @@ class EventPacketizer(wiring.Component):
         m = Module()
 
         count = Signal(range(MAX_EVENTS_PER_PACKET + 1))
+        length = Signal(16)             # the packet's length, `count` events
         sent = Signal.like(count)
         byte = Signal(range(EVENT_BYTES))
         waited = Signal(range(BATCH_TIMEOUT + 1))
@@ -64,7 +65,7 @@ class EventPacketizer(wiring.Component):
 
         m.d.comb += [
             self.packets.p.header.type.eq(PacketType.EVENTS),
-            self.packets.p.header.length.eq(count * EVENT_BYTES),
+            self.packets.p.header.length.eq(length),
         ]
 
         with m.FSM():
@@ -77,9 +78,15 @@ class EventPacketizer(wiring.Component):
                         count.eq(Mux(full, MAX_EVENTS_PER_PACKET, self.level)),
                         waited.eq(0),
                     ]
-                    m.next = "HEADER"
+                    m.next = "LENGTH"
                 with m.Else():
                     m.d.sync += waited.eq(waited + 1)
+
+            with m.State("LENGTH"):
+                # (the product from a register into a register: on an ECP5 it is a multiplier
+                # block, slow enough to need its own cycle)
+                m.d.sync += length.eq(count * EVENT_BYTES)
+                m.next = "HEADER"
 
             with m.State("HEADER"):
                 m.d.comb += [

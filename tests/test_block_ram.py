@@ -125,3 +125,58 @@ def test_link_buffers_read_through_the_output_register_on_an_ecp5(factory, name)
 def test_link_buffers_refuse_a_bad_read_choice(construction_error, factory):
     assert construction_error(lambda: factory(registered_read="yes"), TypeError) == \
         "registered_read must be None, False or True, not 'yes'"
+
+
+def test_ecp5_ram_goes_to_its_site():
+    platform = _ecp5_platform()
+    ram = RegisteredRam(depth=1024, width=16)
+    ram.site = "X58/Y46/EBR0"
+    instance, = [f for f, *_ in Fragment.get(ram, platform).subfragments
+                 if isinstance(f, Instance)]
+    assert instance.attrs["BEL"] == "X58/Y46/EBR0"
+    wide = RegisteredRam(depth=1024, width=32)
+    wide.site = "X58/Y46/EBR0"
+    with pytest.raises(ValueError, match="A site places a RAM of one block"):
+        Fragment.get(wide, platform)
+
+
+def _sites(fragment):
+    """``{hierarchy: BEL}`` of the DP16KD instances under ``fragment``."""
+    found = {}
+    for sub, name, *_ in fragment.subfragments:
+        if isinstance(sub, Instance) and sub.type == "DP16KD":
+            found[name] = sub.attrs.get("BEL")
+        elif not isinstance(sub, Instance):
+            found.update({f"{name}.{k}": v for k, v in _sites(sub).items()})
+    return found
+
+
+def test_ulx3s_histogram_banks_sit_in_quads_spread_over_the_rows():
+    # Each group of four blocks of a bank (the first level of its read tree) sits in four
+    # neighbouring EBR sites of one row: the sites are worked out here from the LFE5U-85F's
+    # rows (y 22, 46, 70, 82) and its quads (13 a row, EBR0 to EBR3 two columns apart).
+    from fliss.hdl.histogram_dual import DualPortBanks, OR_GROUP
+    platform = _ecp5_platform()
+    banks = DualPortBanks(16, 16)
+    sites = _sites(Fragment.get(banks, platform))
+    assert len(sites) == 128 and None not in sites.values()
+    assert len(set(sites.values())) == 128
+    starts = {4, 13, 22, 31, 40, 49, 58, 69, 78, 87, 96, 105, 114}
+    for k in range(2):
+        for start in range(0, 64, OR_GROUP):
+            group = [re.fullmatch(r"X(\d+)/Y(\d+)/EBR(\d)",
+                                  sites[f"bank{k}_{j}.dp16kd0"]).groups()
+                     for j in range(start, start + OR_GROUP)]
+            (x0, y, _), *_ = group
+            assert int(y) in (22, 46, 70, 82) and int(x0) in starts
+            assert [(int(x), int(y_), int(n)) for x, y_, n in group] == \
+                [(int(x0) + 2 * n, int(y), n) for n in range(4)]
+    # spread over the four rows, eight quads a row: every third quad free (ends and middle)
+    for row in (22, 46, 70, 82):
+        assert sum(f"/Y{row}/" in site for site in sites.values()) == 32
+    assert not any(site.startswith(tuple(f"X{x + 2 * n}/Y{row}/" for x in (4, 31, 58, 87, 114)
+                                    for n in range(4) for row in (22, 46, 70, 82)))
+                   for site in sites.values())
+    # elaborated with no platform, the placer decides
+    Fragment.get(banks, None)
+    assert all(memory.site is None for bank in banks.banks for memory in bank.memories)
