@@ -196,7 +196,6 @@ class DualPortBanks(wiring.Component):
 
         return m
 
-
     def _place(self, quads):
         # A platform that lists its block RAM sites in quads of four side by side, the best
         # first (`block_ram_quads`), has each group of the read tree in a quad, the two banks'
