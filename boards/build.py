@@ -354,8 +354,9 @@ def _frequency(text):
 
 def main(argv=None):
     argv = list(sys.argv[1:] if argv is None else argv)
-    # `build BOARD` is the default action: `python -m fliss.boards.build ulx3s`.
-    if argv and argv[0] in BOARDS:
+    # `build BOARD` is the default action: `python -m fliss.boards.build ulx3s` (and a word
+    # that is neither an action nor a board is refused as a board).
+    if argv and argv[0] not in ("build", "program") and not argv[0].startswith("-"):
         argv.insert(0, "build")
 
     parser = argparse.ArgumentParser(

@@ -6,6 +6,7 @@ minute per board (several more the first time, while YoWASP compiles the tools).
 
 import gc
 import os
+import re
 import warnings
 from contextlib import contextmanager
 
@@ -77,6 +78,18 @@ def test_platform_clock(board, clock_hz):
 def test_unknown_board():
     with pytest.raises(ValueError, match=r"^Unknown board 'de0'; choose one of icebreaker, ulx3s$"):
         platform_class("de0")
+
+
+def test_build_command_refuses_an_unknown_board(capsys):
+    # (the build module imports without the boards extra; only building needs it)
+    from fliss.boards.build import main
+    with pytest.raises(SystemExit) as exit:
+        main(["de0"])
+    assert exit.value.code == 2
+    error = capsys.readouterr().err.strip().splitlines()[-1]
+    # (Python's versions differ in quoting the choices)
+    assert re.fullmatch(r"python -m fliss\.boards\.build build: error: argument board: invalid "
+                        r"choice: 'de0' \(choose from '?icebreaker'?, '?ulx3s'?\)", error), error
 
 
 # Pin maps and the board top level
