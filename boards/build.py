@@ -352,20 +352,27 @@ def _frequency(text):
     return float(match.group(1)) * scale
 
 
+#: The command's actions, with their help; `build` is the default.
+_ACTIONS = {
+    "build":   "build the bitstream and check timing",
+    "program": "load the bitstream into the board",
+}
+
+
 def main(argv=None):
     argv = list(sys.argv[1:] if argv is None else argv)
     # `build BOARD` is the default action: `python -m fliss.boards.build ulx3s` (and a word
     # that is neither an action nor a board is refused as a board).
-    if argv and argv[0] not in ("build", "program") and not argv[0].startswith("-"):
+    if argv and argv[0] not in _ACTIONS and not argv[0].startswith("-"):
         argv.insert(0, "build")
 
     parser = argparse.ArgumentParser(
         prog="python -m fliss.boards.build",
         description="Build (default) or program a FLISS board.",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    actions = parser.add_subparsers(dest="action", required=True, metavar="{build,program}")
-    for action, help_text in (("build", "build the bitstream and check timing"),
-                              ("program", "load the bitstream into the board")):
+    actions = parser.add_subparsers(dest="action", required=True,
+                                    metavar="{" + ",".join(_ACTIONS) + "}")
+    for action, help_text in _ACTIONS.items():
         sub = actions.add_parser(action, help=help_text,
                                  formatter_class=argparse.ArgumentDefaultsHelpFormatter)
         sub.add_argument("board", choices=sorted(BOARDS), help="board")

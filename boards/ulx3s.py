@@ -150,8 +150,9 @@ def _ecp5_85_block_ram_quads():
     that the first 32 leave room between them for the routing and the other block RAMs; within
     that, nearest the middle of the fabric (126 by 95 tiles) first."""
     rows = (22, 46, 70, 82)
-    starts = (4, 13, 22, 31, 40, 49, 58, 69, 78, 87, 96, 105, 114)
-    order = sorted((n % 3 == 0, abs(x + 3 - 63) + abs(y - 47), y, x)
+    starts = (4, 13, 22, 31, 40, 49, 58, 69, 78, 87, 96, 105, 114)   # (EBR0..3 at x, x+2, ...)
+    middle_x, middle_y = 126 // 2, 95 // 2
+    order = sorted((n % 3 == 0, abs(x + 3 - middle_x) + abs(y - middle_y), y, x)
                    for y in rows for n, x in enumerate(starts))
     return tuple(tuple(f"X{x + 2 * n}/Y{y}/EBR{n}" for n in range(4)) for *_, y, x in order)
 

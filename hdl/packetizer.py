@@ -57,7 +57,7 @@ class EventPacketizer(wiring.Component):
         m = Module()
 
         count = Signal(range(MAX_EVENTS_PER_PACKET + 1))
-        length = Signal(16)             # the packet's length, `count` events
+        length = Signal.like(self.packets.p.header.length)     # of `count` events
         sent = Signal.like(count)
         byte = Signal(range(EVENT_BYTES))
         waited = Signal(range(BATCH_TIMEOUT + 1))
