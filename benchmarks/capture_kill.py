@@ -24,7 +24,7 @@ import numpy as np
 from fliss.host.client import BoardClient
 from fliss.host.fileformat import FLUSH_S, read_capture
 from fliss.host.units import parse_time
-from fliss.sim.model_board import model_board
+from fliss.sim.boards.model import model_board
 
 
 def one_kill(folder, index, after_s, integration, shift):

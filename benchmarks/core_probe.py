@@ -12,7 +12,7 @@ from amaranth.lib import wiring
 from amaranth.lib.cdc import FFSynchronizer
 from amaranth.lib.wiring import In, Out
 
-from fliss.hdl.core import DelayCore
+from fliss.hdl.delay.core import DelayCore
 
 
 __all__ = ["DelayCoreProbe"]

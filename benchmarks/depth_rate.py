@@ -2,7 +2,7 @@
 
 For each split of the bank into 64 pixels (16, 128 and 1024 bins each), the script
 
-* measures, in Amaranth's simulator, the cycles the :class:`~fliss.hdl.depth.DepthEngine` takes
+* measures, in Amaranth's simulator, the cycles the :class:`~fliss.hdl.depth.engine.DepthEngine` takes
   from a frame's first bin to its packet's first beat, fed as the histogram readout feeds it
   (one bin every ``READOUT_CYCLES_PER_BIN`` cycles), and checks its packet against the model;
 * takes the exact bytes on the wire of that DEPTH packet (COBS, CRC, delimiter; 10-bit
@@ -21,12 +21,14 @@ import argparse
 import numpy as np
 
 from fliss.hdl import DEFAULT_CLOCK_HZ
-from fliss.hdl.depth import DepthEngine
+from fliss.hdl.depth.engine import DepthEngine
 from fliss.hdl.event import TIMESTAMP_BITS
-from fliss.hdl.histogram import READOUT_CYCLES_PER_BIN
+from fliss.hdl.histogram.engine import READOUT_CYCLES_PER_BIN
 from fliss.hdl.protocol import PacketType, HistogramChunk, CHUNK_BINS, HISTOGRAM_COUNT_BITS
-from fliss.sim.codec import encode_frame, pack, pack_words
-from fliss.sim.depth import depth_frame, depth_payload
+from fliss.protocol.frames import encode_frame
+from fliss.protocol.layout import pack, pack_words
+from fliss.sim.models.depth import depth_frame
+from fliss.protocol.depth import depth_payload
 from amaranth.sim import Simulator
 
 

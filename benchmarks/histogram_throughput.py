@@ -37,8 +37,8 @@ from amaranth.sim import Simulator
 
 from fliss.hdl import DEFAULT_CLOCK_HZ
 from fliss.hdl.event import TIMESTAMP_BITS
-from fliss.hdl.histogram import Histogram, COUNT_WIDTH
-from fliss.sim import histogram as model
+from fliss.hdl.histogram.engine import Histogram, COUNT_WIDTH
+from fliss.sim.models import histogram as model
 
 
 SHIFT = 5  # 256 bins read out: a short readout keeps the benchmark quick

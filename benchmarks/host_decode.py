@@ -33,9 +33,11 @@ from fliss.hdl.protocol import (HISTOGRAM_COUNT_BITS, PacketType, MAX_EVENTS_PER
 from fliss.hdl.registers import defaults
 from fliss.host.bulk import BulkDecoder, crc_rows, decode_stream
 from fliss.host.stream import StreamAssembler, HistogramFrame, EventBatch
-from fliss.sim.codec import (FrameDecoder, Packet, cobs_decode, encode_frame, pack, pack_events,
-                             pack_words)
-from fliss.sim.model_board import scene_for
+from fliss.protocol.frames import FrameDecoder, Packet, encode_frame
+from fliss.protocol.cobs import cobs_decode
+from fliss.protocol.layout import pack, pack_words
+from fliss.protocol.events import pack_events
+from fliss.sim.boards.model import scene_for
 from fliss.sim.scene import Scene, Simulation
 
 

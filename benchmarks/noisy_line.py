@@ -1,6 +1,6 @@
 """Captures through a noisy line (issue 15): the figures of docs/verification.md ("A noisy line").
 
-For each seed, the Python model board behind a :class:`fliss.sim.noisy_line.NoisyLine` with a
+For each seed, the Python model board behind a :class:`fliss.sim.boards.noisy_line.NoisyLine` with a
 bit error rate in both directions; the host captures histograms through it
 (:func:`fliss.host.acquisition.capture`), then sets 32 register values and reads each back. It
 prints what the line did (bits flipped, frames it damaged), what the host detected (corrupt
@@ -22,8 +22,8 @@ import numpy as np
 from fliss.host.acquisition import capture
 from fliss.host.client import BoardClient
 from fliss.host.fileformat import read_capture
-from fliss.sim.model_board import model_board
-from fliss.sim.noisy_line import LineFaults, NoisyLine
+from fliss.sim.boards.model import model_board
+from fliss.sim.boards.noisy_line import LineFaults, NoisyLine
 
 
 def frames_damaged(model, injector):

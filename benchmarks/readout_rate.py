@@ -9,15 +9,15 @@ baseline: every bin as u16, as FLISS did before) and once with the board's choic
 chunks where shorter), in the same run.
 
 Link time comes from the exact wire bytes of those packets (header, payload, CRC, COBS,
-delimiter: :func:`fliss.sim.codec.encode_frame`) at 10 bits a byte. The packetizer's time per
-frame follows :class:`fliss.hdl.histogram_packetizer.HistogramPacketizer` at 80 MHz: each
+delimiter: :func:`fliss.protocol.encode_frame`) at 10 bits a byte. The packetizer's time per
+frame follows :class:`fliss.hdl.histogram.packetizer.HistogramPacketizer` at 80 MHz: each
 window of 128 bins is taken at the readout's 6 cycles a bin (``READOUT_CYCLES_PER_BIN``: the
 ULX3S's banks of 64 block RAMs), a compact window is then encoded (2 cycles an empty bin, 3 a bin
 with a count, one a token byte), and a packet the window sends occupies the packetizer until it
 is on the wire (conservative: the frame encoder's buffer is not counted). The bank is
 free when the last bin is taken; the histogram engine then starts the next frame, or, if the
 other bank is still being read out, waits and drops the events meanwhile (``dropped_histogram``).
-Frames follow each other as in :class:`fliss.hdl.histogram_frames.FrameSequencer`.
+Frames follow each other as in :class:`fliss.hdl.histogram.frames.FrameSequencer`.
 
 ``--cross-check`` (on by default) runs one 1 ms frame through the gateware (packetizer,
 arbiter, frame encoder) in Amaranth's simulator with the readout at 6 cycles a bin and a
@@ -34,13 +34,13 @@ import time
 import numpy as np
 
 from fliss.hdl import DEFAULT_CLOCK_HZ
-from fliss.hdl.histogram_readout import READOUT_CYCLES_PER_BIN
-from fliss.hdl.protocol import (CHUNK_BINS, MAX_ENCODED, HistogramChunk, HistogramCompact,
-                                PacketType)
-from fliss.sim import delay as delay_model
-from fliss.sim import scheduler
-from fliss.sim.codec import encode_frame, unpack_from
-from fliss.sim.histogram_packets import encode_histogram, tokens
+from fliss.hdl.histogram.readout import READOUT_CYCLES_PER_BIN
+from fliss.hdl.protocol import CHUNK_BINS, MAX_ENCODED, HistogramChunk, HistogramCompact, PacketType
+from fliss.sim.models import delay as delay_model
+from fliss.sim.models import scheduler
+from fliss.protocol.frames import encode_frame
+from fliss.protocol.layout import unpack_from
+from fliss.protocol.histograms import encode_histogram, tokens
 from fliss.sim.scene import Aggressor, Scene, acquire
 
 
@@ -119,7 +119,7 @@ def cross_check(counts, baud, shift):
     """Bank and busy time of ``counts`` (one frame) through the gateware in Amaranth's
     simulator, readout at 4 cycles a bin, output at the UART's pace."""
     from amaranth.sim import Simulator
-    from fliss.sim.histogram_link_top import HistogramLinkTop
+    from fliss.sim.benches.histogram_link_top import HistogramLinkTop
 
     dut = HistogramLinkTop()
     byte_cycles = round(BITS_PER_BYTE * CLOCK_HZ / baud)

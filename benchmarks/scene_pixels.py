@@ -18,8 +18,8 @@ import time
 
 import numpy as np
 
-from fliss.sim import scheduler
-from fliss.sim.delay import DelayMode
+from fliss.sim.models import scheduler
+from fliss.sim.models.delay import DelayMode
 from fliss.sim.scene import Aggressor, Scene, line_pixels, simulation_for
 
 

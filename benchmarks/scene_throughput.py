@@ -20,8 +20,8 @@ import time
 import numpy as np
 
 from fliss.hdl.event import TDC_LSB_S
-from fliss.sim import delay as delay_model
-from fliss.sim import scheduler
+from fliss.sim.models import delay as delay_model
+from fliss.sim.models import scheduler
 from fliss.sim.scene import Aggressor, Scene, Simulation
 
 

@@ -8,7 +8,7 @@ Prints, measured in the same run on a ``LocalCluster`` started for each case:
   itself took on the worker (its mean), and, as a baseline, the round trip of an empty task;
 * the simulation time of one point.
 
-The point function is the interference model (``fliss.sim.interference:evaluate``) when it is
+The point function is the interference model (``fliss.sim.studies.interference:evaluate``) when it is
 installed, else a stand-in of the same kind: the photon-level scene simulator on the paper's
 scene (victim with FLISS ``mseq`` L = 6, one aggressor) for ``--frames`` acquisitions. Cluster
 start-up and a first point on every worker are left out of the rates; the best of ``--repeat``
@@ -21,14 +21,14 @@ import argparse
 import os
 import time
 
-from fliss.host.sweep_engine import cluster, compute
-from fliss.host.sweep_spec import point_seed
+from fliss.host.sweep.engine import cluster, compute
+from fliss.host.sweep.spec import point_seed
 
 
 def scene_point(point, seed):
     """Stand-in point: ``frames`` 10 ms acquisitions of the paper's scene, peak count."""
-    from fliss.sim import delay as delay_model
-    from fliss.sim import scheduler
+    from fliss.sim.models import delay as delay_model
+    from fliss.sim.models import scheduler
     from fliss.sim.scene import Aggressor, Scene, acquire
 
     victim = scheduler.Settings(mode=delay_model.parse_mode("mseq"), period=80, length=6)
@@ -42,8 +42,8 @@ def scene_point(point, seed):
 def model(frames):
     """The point function and the points to run."""
     try:
-        from fliss.sim.interference import evaluate
-        return evaluate, "fliss.sim.interference:evaluate", \
+        from fliss.sim.studies.interference import evaluate
+        return evaluate, "fliss.sim.studies.interference:evaluate", \
             lambda i: {"frames": frames, "aggressors": 1 + i % 4}
     except ImportError:
         return scene_point, "scene stand-in (sim.interference not installed)", \

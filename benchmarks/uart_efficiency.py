@@ -22,11 +22,11 @@ from amaranth.lib import wiring
 from amaranth.sim import Simulator
 
 from fliss.hdl import DEFAULT_CLOCK_HZ
-from fliss.hdl.framing import FrameEncoder
+from fliss.hdl.link.framing import FrameEncoder
 from fliss.hdl.protocol import PacketType, EVENT_BYTES, MAX_EVENTS_PER_PACKET, MAX_PAYLOAD
-from fliss.hdl.uart import UartTx, CHARACTER_BITS, DATA_BITS
-from fliss.sim import codec
-from fliss.sim.event import EVENT_DTYPE
+from fliss.hdl.link.uart import UartTx, CHARACTER_BITS, DATA_BITS
+from fliss import protocol
+from fliss.protocol.events import EVENT_DTYPE
 
 
 BAUDS = [115_200, 3_000_000, 12_000_000]
@@ -46,17 +46,17 @@ def frames_for(rng, events_total, batch):
     frames = []
     for seq, start in enumerate(range(0, events_total, batch)):
         events = random_events(rng, min(batch, events_total - start), pulse0=start)
-        frames.append(codec.encode_frame(PacketType.EVENTS, seq % 256,
-                                         codec.pack_events(events)))
+        frames.append(protocol.encode_frame(PacketType.EVENTS, seq % 256,
+                                         protocol.pack_events(events)))
     return frames
 
 
 def simulate_line_cycles(frames, baud):
     """Cycles the gateware takes to put `frames` on the line: encoder into UartTx."""
     packets = []
-    decoder = codec.FrameDecoder(synced=True)
+    decoder = protocol.FrameDecoder(synced=True)
     for frame in frames:
-        packets += [p for p in decoder.feed(frame) if isinstance(p, codec.Packet)]
+        packets += [p for p in decoder.feed(frame) if isinstance(p, protocol.Packet)]
     m = Module()
     m.submodules.encoder = encoder = FrameEncoder()
     m.submodules.tx = tx = UartTx(clock_hz=DEFAULT_CLOCK_HZ, baud=baud)
@@ -146,7 +146,7 @@ def main():
     # Worst case for the COBS encoder: no zero byte at all, so every block is a full 254-byte
     # run that must be collected before its code byte can be sent.
     payload = bytes(np.random.default_rng(2).integers(1, 256, MAX_PAYLOAD, dtype=np.uint8))
-    kept = [codec.encode_frame(PacketType.HISTOGRAM, seq, payload) for seq in range(2)]
+    kept = [protocol.encode_frame(PacketType.HISTOGRAM, seq, payload) for seq in range(2)]
     cycles = simulate_line_cycles(kept, baud)
     line_bytes = sum(len(f) for f in kept)
     achieved = 2 * MAX_PAYLOAD / (cycles / DEFAULT_CLOCK_HZ)

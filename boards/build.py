@@ -198,7 +198,7 @@ def _signal_name(cell):
 
 
 def _relative_source(source):
-    # "/work/main/hdl/delay.py:107" -> "hdl/delay.py:107"; None for the tools' own cell libraries.
+    # "/work/main/hdl/delay.py:107" -> "hdl/delay/source.py:107"; None for the tools' own cell libraries.
     path, _, line = source.rpartition(":")
     if path.startswith("/share/") or not path.endswith(".py"):
         return None

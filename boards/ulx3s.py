@@ -164,7 +164,7 @@ class FlissULX3SPlatform(FlissPlatform, ULX3S_85F_Platform):
     board = "ulx3s"
     pins = _PINS
     #: Where the histogram places its banks' block RAMs, a quad for each group of its read
-    #: tree (:class:`~fliss.hdl.histogram_dual.DualPortBanks`).
+    #: tree (:class:`~fliss.hdl.histogram.dual.DualPortBanks`).
     block_ram_quads = _ecp5_85_block_ram_quads()
     pll_search = staticmethod(ecp5_pll)
     clocking_class = _ECP5Clocking

@@ -21,7 +21,7 @@ import time
 
 import numpy as np
 
-from fliss.sim.interference import evaluate
+from fliss.sim.studies.interference import evaluate
 
 
 SCHEMES = {

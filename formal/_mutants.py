@@ -5,10 +5,10 @@ from amaranth.hdl import Module, Mux, Signal
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
-from fliss.hdl.delay import DelaySource
-from fliss.hdl.laser import LaserTrigger
-from fliss.hdl.lfsr import POLYNOMIALS, _galois_step
-from fliss.hdl.scheduler import PulseScheduler
+from ..hdl.delay.source import DelaySource
+from ..hdl.delay.laser import LaserTrigger
+from ..hdl.delay.lfsr import POLYNOMIALS, _galois_step
+from ..hdl.delay.scheduler import PulseScheduler
 
 
 def _past(m, value):

@@ -1,4 +1,4 @@
-"""Formal harnesses of the delay core (``hdl/core.py``): laser trigger, pulse scheduler, delay
+"""Formal harnesses of the delay core (``hdl/delay/core.py``): laser trigger, pulse scheduler, delay
 source and LFSR.
 
 The core is proved with small settings, as the register file would accept them: ``period`` from
@@ -15,13 +15,13 @@ from amaranth.hdl import Assert, Assume, Cat, Cover, Const, Module, Mux, ResetSi
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In
 
-import fliss.hdl.core as core_module
-from fliss.hdl.core import DelayCore
-from fliss.hdl.delay import DelayMode, DelaySource
-from fliss.hdl.laser import LaserTrigger
-from fliss.hdl.lfsr import POLYNOMIALS, Lfsr
-from fliss.hdl.registers import DelaySettings
-from fliss.hdl.scheduler import PulseScheduler, _Timer
+import fliss.hdl.delay.core as core_module
+from ..hdl.delay.core import DelayCore
+from ..hdl.delay.source import DelayMode, DelaySource
+from ..hdl.delay.laser import LaserTrigger
+from ..hdl.delay.lfsr import POLYNOMIALS, Lfsr
+from ..hdl.registers import DelaySettings
+from ..hdl.delay.scheduler import PulseScheduler, _Timer
 
 from ._harness import assigned
 from ._mutants import (_EagerWidthScheduler, _LateStartTrigger, _LateStopScheduler,
@@ -62,7 +62,7 @@ def _assume_valid(m, settings, *, max_l=MAX_L, max_wm=MAX_WM):
 
 class _ProbedCore(DelayCore):
     """The delay core, with the scheduler's take cycle and pulse width brought out, and blocks
-    swapped for mutants (``swaps``: name in ``hdl/core.py`` -> class)."""
+    swapped for mutants (``swaps``: name in ``hdl/delay/core.py`` -> class)."""
 
     def __init__(self, swaps=None):
         super().__init__(period_width=PERIOD_WIDTH, pulse_width_width=PULSE_WIDTH_WIDTH)
@@ -219,7 +219,7 @@ class CoreHarness(wiring.Component):
         new_mode = Mux(pending, p_mode, mode)
         new_length = Mux(pending, p_length, length)
         new_mask_width = Mux(pending, p_mask_width, mask_width)
-        # the first delay after a sample comes from the seed (`hdl/lfsr.py` `Lfsr`: the
+        # the first delay after a sample comes from the seed (`hdl/delay/lfsr.py` `Lfsr`: the
         # m-sequence register seeded with the seed's low L bits, zero standing for 1), the
         # others are within the range of the frame's settings
         first = Signal(32)

@@ -1,4 +1,4 @@
-"""Formal harnesses of the histogram engine (``hdl/histogram.py`` with its frame sequencer,
+"""Formal harnesses of the histogram engine (``hdl/histogram/engine.py`` with its frame sequencer,
 banks and readout), with small parameters: two bins (``bank_bits = 1``), 16-bit counts,
 dual-port or single-port banks, frames of one to :data:`MAX_INTEGRATION` cycles (the
 single-port accounting: :data:`SINGLE_INTEGRATION`). Without a platform the single-port banks
@@ -16,8 +16,8 @@ from amaranth.hdl import Assert, Assume, Cover, Module, Mux, ResetSignal, Signal
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In
 
-from fliss.hdl.histogram import Histogram
-from fliss.hdl.histogram_layout import MAX_SHIFT, PIXEL_BITS, HistogramSettings
+from ..hdl.histogram.engine import Histogram
+from ..hdl.histogram.layout import MAX_SHIFT, PIXEL_BITS, HistogramSettings
 
 from ._harness import assigned, copy_of, fsm, open_block, open_submodule, past
 from .runner import Proof

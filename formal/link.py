@@ -1,8 +1,8 @@
-"""Formal harnesses of the link: the UART receiver (``hdl/uart.py``), the frame decoder
-(``hdl/framing.py`` with ``hdl/cobs.py`` and ``hdl/crc.py``) and the command processor with its
-register file (``hdl/command.py``, ``hdl/regfile.py``).
+"""Formal harnesses of the link: the UART receiver (``hdl/link/uart.py``), the frame decoder
+(``hdl/link/framing.py`` with ``hdl/link/cobs.py`` and ``hdl/link/crc.py``) and the command processor with its
+register file (``hdl/link/command.py``, ``hdl/regfile.py``).
 
-The UART runs at four cycles a bit (the shortest :func:`fliss.hdl.uart.bit_cycles` allows), so
+The UART runs at four cycles a bit (the shortest :func:`fliss.hdl.link.uart.bit_cycles` allows), so
 that a character lasts 40 cycles. Inputs are free in every cycle (any line, any byte, any
 backpressure). Mutants override a block's own statements (:func:`._harness.open_block`).
 """
@@ -11,12 +11,12 @@ from amaranth.hdl import Assert, Assume, Cover, Module, ResetSignal, Signal
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In
 
-from fliss.hdl.command import CommandProcessor
-from fliss.hdl.crc import CRC_INIT, crc16_next
-from fliss.hdl.framing import FrameDecoder, PacketBeat
-from fliss.hdl.protocol import (CRC_BYTES, DELIMITER, HEADER_BYTES, MAX_PACKET, MAX_PAYLOAD,
-                                NakCode, PacketType)
-from fliss.hdl.uart import CHARACTER_BITS, FRACTION_BITS, UartRx
+from ..hdl.link.command import CommandProcessor
+from ..hdl.link.crc import CRC_INIT, crc16_next
+from ..hdl.link.framing import FrameDecoder, PacketBeat
+from ..hdl.protocol import (CRC_BYTES, DELIMITER, HEADER_BYTES, MAX_PACKET, MAX_PAYLOAD, NakCode,
+                            PacketType)
+from ..hdl.link.uart import CHARACTER_BITS, FRACTION_BITS, UartRx
 
 from ._harness import assigned, fsm, open_block, open_submodule, past
 from .runner import Proof

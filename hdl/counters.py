@@ -1,4 +1,5 @@
-"""Counter bank: many saturating event counters in block RAM, with an exact snapshot."""
+"""Event counters: one saturating counter in flip-flops (:func:`count_event`), and a bank of many
+in block RAM with an exact snapshot (:class:`CounterBank`)."""
 
 from amaranth.hdl import Module, Mux, Signal
 from amaranth.lib import wiring
@@ -6,7 +7,23 @@ from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
 
-__all__ = ["CounterBank"]
+__all__ = ["count_event", "CounterBank"]
+
+
+def count_event(m, counter, condition, clear, strobe=None):
+    """Saturating event counter: ``counter`` counts the cycles with ``condition``, up to all
+    ones. ``clear`` restarts it from the event of its own cycle (0 or 1), so no event goes
+    uncounted. A register remembers that it is full, so no wide comparator sits in its enable
+    path. ``strobe``, if given, is driven with ``condition``: the same events, for a counter
+    elsewhere (a :class:`~fliss.hdl.counters.CounterBank`)."""
+    if strobe is not None:
+        m.d.comb += strobe.eq(condition)
+    top = (1 << len(counter)) - 1
+    full = Signal(name=f"{counter.name}_full")
+    with m.If(clear):
+        m.d.sync += counter.eq(condition), full.eq(condition & (top == 1))
+    with m.Elif(condition & ~full):
+        m.d.sync += counter.eq(counter + 1), full.eq(counter == top - 1)
 
 
 class CounterBank(wiring.Component):

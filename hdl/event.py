@@ -5,7 +5,7 @@ The sensor of the paper (Figure 6, Table 1) gives per photon a 13-bit timestamp 
 flag. The interface adds the index of the laser cycle (pulse) the event belongs to.
 
 This one definition serves the gateware (:class:`Event` is an ``amaranth.lib.data.Struct``), the
-models and the host (:data:`fliss.sim.event.EVENT_DTYPE` is derived from it).
+models and the host (:data:`fliss.protocol.events.EVENT_DTYPE` is derived from it).
 """
 
 from amaranth.lib import data

@@ -1,10 +1,10 @@
 """The FLISS link protocol: the one definition of packet types, header, CRC, limits and NAK codes.
 
-Gateware (:mod:`fliss.hdl.framing`, :mod:`fliss.hdl.command`, :mod:`fliss.hdl.packetizer`), the
-software codec (:mod:`fliss.sim.codec`), the models, the testbenches and the host all import
+Gateware (:mod:`fliss.hdl.link.framing`, :mod:`fliss.hdl.link.command`, :mod:`fliss.hdl.link.packetizer`), the
+software codec (:mod:`fliss.protocol`), the models, the testbenches and the host all import
 these names; no number of the protocol is written anywhere else. Every payload is an
 :mod:`amaranth.lib.data` layout here, and software packs and unpacks payloads from these layouts
-(:func:`fliss.sim.codec.pack`, :func:`fliss.sim.codec.unpack`). ``docs/protocol.md`` describes
+(:func:`fliss.protocol.pack`, :func:`fliss.protocol.unpack`). ``docs/protocol.md`` describes
 the byte layouts, and a test holds it to these definitions.
 
 A *packet* is a :class:`Header` (type, sequence number, payload length), a payload of at most
@@ -25,7 +25,7 @@ __all__ = [
     "PROTOCOL_VERSION", "GATEWARE_VERSION", "version_numbers", "GATEWARE_MAJOR", "GATEWARE_MINOR",
     "DEFAULT_BAUD", "DELIMITER", "COBS_MAX_RUN",
     "CRC_WIDTH", "CRC_POLY", "CRC_INIT", "CRC_CHECK", "CRC_BYTES",
-    "PacketType", "Header", "HEADER_BYTES", "MAX_PAYLOAD", "MAX_PACKET", "MAX_ENCODED",
+    "PacketType", "DATA_PACKETS", "Header", "HEADER_BYTES", "MAX_PAYLOAD", "MAX_PACKET", "MAX_ENCODED",
     "MAX_FRAME", "NakCode", "Ack", "Nak", "Identity", "ReadRequest", "REGISTER_BITS",
     "REGISTER_BYTES", "registers_layout", "READ_MAX", "CONSISTENCY", "COUNTER_BITS", "Status",
     "STATUS_FIELDS", "LINK_COUNTERS", "LINK_FIELDS", "LINK_ERRORS", "HistogramChunk",
@@ -117,6 +117,17 @@ class PacketType(enum.Enum, shape=8):
     #: Compact histogram chunk: a :class:`HistogramCompact`, then up to :data:`COMPACT_BYTES`
     #: bytes of tokens (runs of empty bins and counts, see :class:`HistogramCompact`).
     HISTOGRAM_COMPACT = 0x88
+
+
+#: The packets a board sends unasked while it acquires, and the kind of data each carries; every
+#: other device-to-host packet is a reply to a command. The software's list of data packets
+#: (:mod:`fliss.protocol.packets`) is made from this one.
+DATA_PACKETS = {
+    PacketType.EVENTS: "events",
+    PacketType.HISTOGRAM: "histogram",
+    PacketType.HISTOGRAM_COMPACT: "histogram",
+    PacketType.DEPTH: "depth",
+}
 
 
 class Header(data.Struct):

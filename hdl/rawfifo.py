@@ -8,7 +8,8 @@ from amaranth.lib.wiring import In, Out
 
 from .block_ram import DP16KD_DEPTH, RegisteredRam
 from .event import Event
-from .tdc import COUNTER_WIDTH, count_event
+from .tdc import COUNTER_WIDTH
+from .counters import count_event
 
 
 __all__ = ["DEPTH", "MAX_DEPTH", "COUNTER_WIDTH", "EVENT_WIDTH", "check_depth", "RawFifo"]

@@ -9,7 +9,7 @@ from .protocol import NakCode
 from .registers import (REGISTERS, GROUPS, DELAY_SETTINGS, KEYING, settings_layout, defaults,
                         register_maxima)
 from .event import ADDRESS_BITS, TIMESTAMP_BITS
-from .settings import BANK_BITS, MAX_BANK_BITS, MIN_BANK_BITS, DelayMode, IV_BITS
+from .delay.settings import BANK_BITS, MAX_BANK_BITS, MIN_BANK_BITS, DelayMode, IV_BITS
 
 
 __all__ = ["RegisterFile"]

@@ -23,8 +23,8 @@ from amaranth.lib import data, enum
 
 from . import DEFAULT_PRF_HZ, period_cycles
 from .event import ADDRESS_BITS, TIMESTAMP_BITS
-from .settings import (BANK_BITS, DelayMode, IV_BITS, KEY_BITS, MIN_LENGTH, MAX_LENGTH, MAX_MASK_WIDTH,
-                       PERIOD_WIDTH, PULSE_WIDTH_WIDTH)
+from .delay.settings import (BANK_BITS, DelayMode, IV_BITS, KEY_BITS, MIN_LENGTH, MAX_LENGTH,
+                             MAX_MASK_WIDTH, PERIOD_WIDTH, PULSE_WIDTH_WIDTH)
 
 
 __all__ = ["AcquisitionMode", "TdcSource", "Register", "Setting", "RegisterGroup",
@@ -157,7 +157,7 @@ def _period(clock_hz):
 _U32 = (1 << 32) - 1
 _MODE_MAX = max(mode.value for mode in DelayMode)
 
-#: The settings of a delay core (:class:`~fliss.hdl.core.DelayCore`): delay source, then
+#: The settings of a delay core (:class:`~fliss.hdl.delay.core.DelayCore`): delay source, then
 #: scheduler and laser trigger.
 DELAY_SETTINGS = (
     Setting("mode",        2,                 0,              _MODE_MAX),
@@ -198,7 +198,7 @@ AGGRESSOR_DELAY = RegisterGroup("aggressor_delay", DELAY_SETTINGS, {
     "seed":        ("aggressor_seed", 0x0f, 0xACE1, "seed of the aggressor's delay source"),
 }, fixed={"grid": 0}, limits={"mode": DelayMode.MASKED.value})
 
-#: The aggressor emitter's own settings (:class:`~fliss.hdl.aggressor.Aggressor`).
+#: The aggressor emitter's own settings (:class:`~fliss.hdl.delay.aggressor.Aggressor`).
 AGGRESSOR = RegisterGroup("aggressor", (
     Setting("enable", 1,  0, 1),
     Setting("offset", 32, 0, _U32, "cycles"),
@@ -231,7 +231,7 @@ GATE = RegisterGroup("gate", (
                         "events with the collision flag: 0 kept, 1 dropped (and counted)"),
 })
 
-#: The histogram's frames (:class:`~fliss.hdl.histogram.Histogram`): bin width, integration
+#: The histogram's frames (:class:`~fliss.hdl.histogram.engine.Histogram`): bin width, integration
 #: time, and how its bank is split between pixels. A frame holds ``2**pixel_bits`` pixels, the
 #: addresses ``first_pixel …``, each of ``2**(13 - bin_shift)`` bins; the readout sends them
 #: pixel after pixel (flat index ``pixel << (13 - bin_shift) | bin``).
@@ -252,7 +252,7 @@ HISTOGRAM = RegisterGroup("histogram", (
                      "histogram readout: 0 compact when shorter, 1 always full"),
 })
 
-#: The depth engine (:class:`~fliss.hdl.depth.DepthEngine`): matched filter and threshold.
+#: The depth engine (:class:`~fliss.hdl.depth.engine.DepthEngine`): matched filter and threshold.
 DEPTH = RegisterGroup("depth", (
     Setting("filter",    5,  1, 16, "bins"),
     Setting("threshold", 16, 0, (1 << 16) - 1, "counts"),
@@ -262,8 +262,8 @@ DEPTH = RegisterGroup("depth", (
                   "least filtered peak height above background for a depth"),
 })
 
-#: Key and IV of the victim's ``keyed`` source (:class:`~fliss.hdl.keyed.KeyedStream`): the
-#: 80-bit integers their printed bytes spell (:mod:`fliss.sim.trivium`), in 32-bit words, least
+#: Key and IV of the victim's ``keyed`` source (:class:`~fliss.hdl.delay.keyed.KeyedStream`): the
+#: 80-bit integers their printed bytes spell (:mod:`fliss.sim.models.trivium`), in 32-bit words, least
 #: significant first. The key is write-only. The IV reads as the IV in use (or, stopped, of the
 #: next run); a WRITE of the IV that writes no key must put it above the IV in use, so that
 #: under one key no IV (and so no keystream) is used twice. The IV registers come before the

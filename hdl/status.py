@@ -4,7 +4,7 @@ from amaranth.hdl import Module, Signal
 from amaranth.lib import data, wiring
 from amaranth.lib.wiring import In
 
-from .command import StatusSignature
+from .link.command import StatusSignature
 from .counters import CounterBank
 from .protocol import COUNTER_BITS, LINK_FIELDS, STATUS_FIELDS
 

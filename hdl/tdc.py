@@ -8,13 +8,14 @@ from amaranth.hdl import C, Module, Mux, Signal
 from amaranth.lib import cdc, data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
+from .counters import count_event
 from .event import Event, TIMESTAMP_BITS, ADDRESS_BITS, PULSE_BITS
 from .registers import GATE
 
 
 __all__ = ["SYNC_STAGES", "COUNTER_WIDTH", "CAPTURE_LATENCY", "FILTER_LATENCY", "OUTPUT_LATENCY",
            "MAX_TIMESTAMP", "FILTER_COUNTERS",
-           "count_event", "Gate", "Capture", "EventFilter", "TdcInterface", "CoarseTdc"]
+           "Gate", "Capture", "EventFilter", "TdcInterface", "CoarseTdc"]
 
 
 #: Flip-flops of the input synchronisers.
@@ -37,22 +38,6 @@ FILTER_COUNTERS = ("accepted", "dropped_stopped", "dropped_overflow", "dropped_c
 #: The gate of an :class:`EventFilter`: ``start`` and ``end`` in timestamp codes, inclusive, and
 #: ``drop_collisions`` (the register group :data:`~fliss.hdl.registers.GATE`).
 Gate = GATE.layout()
-
-
-def count_event(m, counter, condition, clear, strobe=None):
-    """Saturating event counter: ``counter`` counts the cycles with ``condition``, up to all
-    ones. ``clear`` restarts it from the event of its own cycle (0 or 1), so no event goes
-    uncounted. A register remembers that it is full, so no wide comparator sits in its enable
-    path. ``strobe``, if given, is driven with ``condition``: the same events, for a counter
-    elsewhere (a :class:`~fliss.hdl.counters.CounterBank`)."""
-    if strobe is not None:
-        m.d.comb += strobe.eq(condition)
-    top = (1 << len(counter)) - 1
-    full = Signal(name=f"{counter.name}_full")
-    with m.If(clear):
-        m.d.sync += counter.eq(condition), full.eq(condition & (top == 1))
-    with m.Elif(condition & ~full):
-        m.d.sync += counter.eq(counter + 1), full.eq(counter == top - 1)
 
 
 def _synchronised_rise(m, pin, name):
@@ -274,7 +259,7 @@ class TdcInterface(wiring.Component):
     enable : In(1)
         Acquisition is running; events outside are dropped and counted.
     pulse_index : In(32)
-        Pulses fired so far (:class:`~fliss.hdl.scheduler.PulseScheduler` ``pulse_index``).
+        Pulses fired so far (:class:`~fliss.hdl.delay.scheduler.PulseScheduler` ``pulse_index``).
     gate : In(Gate)
         Gate in timestamp codes, ``start … end`` inclusive; by default all codes.
     clear : In(1)
@@ -348,9 +333,9 @@ class CoarseTdc(wiring.Component):
     pin_hit : In(1)
         Photon hit, asynchronous, active high.
     tdc_start : In(1)
-        TDC start strobe (:class:`~fliss.hdl.laser.LaserTrigger` ``tdc_start``).
+        TDC start strobe (:class:`~fliss.hdl.delay.laser.LaserTrigger` ``tdc_start``).
     pulse_index : In(32)
-        Pulses fired so far (:class:`~fliss.hdl.scheduler.PulseScheduler` ``pulse_index``).
+        Pulses fired so far (:class:`~fliss.hdl.delay.scheduler.PulseScheduler` ``pulse_index``).
     address : In(6)
         Pixel address given to the events.
     enable, gate, clear, events

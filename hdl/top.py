@@ -3,27 +3,26 @@ from amaranth.lib import data, wiring
 from amaranth.lib.wiring import In, Out
 
 from . import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, period_cycles
-from .aggressor import Aggressor
-from .arbiter import PacketArbiter
-from .buffer import StreamBuffer
-from .command import CommandProcessor
-from .core import DelayCore
-from .depth import DepthEngine
+from .delay.aggressor import Aggressor
+from .link.arbiter import PacketArbiter
+from .link.buffer import StreamBuffer
+from .link.command import CommandProcessor
+from .delay.core import DelayCore
+from .depth.engine import DepthEngine
 from .event import TIMESTAMP_BITS, ADDRESS_BITS
-from .framing import FrameDecoder, FrameEncoder
-from .histogram import Histogram, RAM_KINDS
-from .keyed import Keying
-from .packetizer import EventPacketizer, FullHistogramPacketizer, HistogramPacketizer
+from .link.framing import FrameDecoder, FrameEncoder
+from .histogram.engine import Histogram, RAM_KINDS
+from .delay.keyed import Keying
+from .link.packetizer import EventPacketizer, FullHistogramPacketizer, HistogramPacketizer
 from .protocol import DEFAULT_BAUD
 from .rawfifo import RawFifo
-from .registers import (VICTIM, AGGRESSOR, AGGRESSOR_DELAY, KEYING, DEPTH, AcquisitionMode,
-                        TdcSource)
-from .settings import (BANK_BITS, MAX_BANK_BITS, MIN_BANK_BITS, DelayMode, PERIOD_WIDTH,
-                       PULSE_WIDTH_WIDTH, check_widths)
+from .registers import VICTIM, AGGRESSOR, AGGRESSOR_DELAY, KEYING, DEPTH, AcquisitionMode, TdcSource
+from .delay.settings import (BANK_BITS, MAX_BANK_BITS, MIN_BANK_BITS, DelayMode, PERIOD_WIDTH,
+                             PULSE_WIDTH_WIDTH, check_widths)
 from .spram import SPRAM_DEPTH
 from .status import StatusCounters, LINK_FIELDS
 from .tdc import EventFilter, TdcInterface, CoarseTdc
-from .uart import UartRx, UartTx, bit_cycles
+from .link.uart import UartRx, UartTx, bit_cycles
 
 
 __all__ = ["DEFAULT_BAUD", "SPRAM_BANK_BITS", "SMALL", "FlissTop"]
@@ -60,7 +59,7 @@ class FlissTop(wiring.Component):
     raw_depth : int
         Depth of the raw event FIFO, in events.
     histogram_ram : str
-        Storage of the histogram banks (:class:`~fliss.hdl.histogram.Histogram` ``ram``):
+        Storage of the histogram banks (:class:`~fliss.hdl.histogram.engine.Histogram` ``ram``):
         ``"dual"`` (block RAM) or ``"single"`` (single-port RAM: the SPRAM of an iCE40UP5K).
     bank_bits : int or None
         Each histogram bank holds ``2**bank_bits`` bins, from 13 to 19 (``None``: 16 with
@@ -79,25 +78,25 @@ class FlissTop(wiring.Component):
     period_width, pulse_width_width : int
         Widths of the victim's ``period`` and ``pulse_width`` settings (and the aggressor's), in
         bits: 32 and 16 by default; narrower ones make a smaller build, whose register file
-        refuses larger values as out of range (see :func:`~fliss.hdl.scheduler.check_widths`).
+        refuses larger values as out of range (see :func:`~fliss.hdl.delay.scheduler.check_widths`).
     raw_events : bool
         Build raw-event mode (the event FIFO and the EVENTS packetizer). Without it, a write of
         ``acquisition`` other than 0 (histograms) is refused as out of range.
     keyed : bool
-        Build the victim's keyed delay source (Trivium, :class:`~fliss.hdl.keyed.KeyedStream`).
+        Build the victim's keyed delay source (Trivium, :class:`~fliss.hdl.delay.keyed.KeyedStream`).
         Without it, a write of ``delay_mode`` 3 (keyed), or of a key or IV other than 0, is
         refused as out of range.
     depth : bool
-        Build the depth engine (:class:`~fliss.hdl.depth.DepthEngine`), which turns each
+        Build the depth engine (:class:`~fliss.hdl.depth.engine.DepthEngine`), which turns each
         histogram into a DEPTH packet in acquisition mode 2 (depth). Without it, a write of
         ``acquisition`` 2 is refused as out of range. It needs ``raw_events`` (the register
         file refuses modes above a maximum, so it cannot refuse mode 1 alone).
 
     compact_readout : bool
         Build the histogram packetizer that sends compact chunks where shorter
-        (:class:`~fliss.hdl.histogram_packetizer.HistogramPacketizer`). Without it (some 560
+        (:class:`~fliss.hdl.histogram.packetizer.HistogramPacketizer`). Without it (some 560
         LUTs and two block RAMs less on an iCE40), every histogram goes out in full HISTOGRAM
-        chunks (:class:`~fliss.hdl.packetizer.FullHistogramPacketizer`), whatever
+        chunks (:class:`~fliss.hdl.link.packetizer.FullHistogramPacketizer`), whatever
         ``full_readout`` says; hosts read both forms alike.
 
     Smaller builds answer every command as the full one does, except for the refusals above:

@@ -2,7 +2,7 @@
 
 :func:`capture` sets the acquisition mode and integration time, starts the board, writes what it
 sends to a file as it arrives (:class:`~fliss.host.fileformat.CaptureWriter`) and returns a
-:class:`CaptureResult`; it prints nothing (the command, :mod:`fliss.host.capture`, reports).
+:class:`CaptureResult`; it prints nothing (the command, :mod:`fliss.host.commands.capture`, reports).
 """
 
 import math
@@ -18,7 +18,7 @@ from ..hdl.registers import AcquisitionMode
 from .client import BoardClient
 from .errors import BoardLost, BoardReset, PathError, SettingsError
 from .fileformat import CaptureWriter
-from .fileformat_imager import blank_frame
+from .imager.files import blank_frame
 from .stream import DepthFrame, EventBatch, HistogramFrame
 from .units import format_time
 
@@ -262,7 +262,7 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
     (events for ``duration_s``); each frame (and raw-mode block) integrates for
     ``integration_s``.
     ``progress``, if given, has ``update(done, extra="", force=False)`` and ``close()`` (as
-    :class:`fliss.host.capture.Progress`). Ctrl-C stops the acquisition and keeps what was
+    :class:`fliss.host.commands.capture.Progress`). Ctrl-C stops the acquisition and keeps what was
     captured; a board lost mid-capture leaves a file with everything received. Both are told
     by the result; :exc:`~fliss.host.errors.SettingsError` for an integration time shorter
     than one clock cycle, and any :exc:`~fliss.host.errors.BoardError` before the capture

@@ -27,12 +27,13 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..hdl.event import TDC_LSB_S
-from ..sim.detection import FWHM_PER_SIGMA, Peak, background, find_peaks, noise_sigma, smooth
-from ..sim.detection import check_histogram as _check_histogram
-from ..sim.detection import threshold_height as _threshold
+from ..sim.studies.detection import (FWHM_PER_SIGMA, Peak, background, find_peaks, noise_sigma,
+                                     smooth)
+from ..sim.studies.detection import check_histogram as _check_histogram
+from ..sim.studies.detection import threshold_height as _threshold
 
 
-__all__ = ["FWHM_PER_SIGMA", "Peak", "Suppression", "background", "smooth", "noise_sigma",
+__all__ = ["analyze", "FWHM_PER_SIGMA", "Peak", "Suppression", "background", "smooth", "noise_sigma",
            "find_peaks", "identify", "suppression_db", "suppression", "relative_deviation",
            "mean_std"]
 
@@ -142,3 +143,30 @@ def mean_std(values: ArrayLike) -> tuple[float, float]:
     if len(values) == 0:
         return math.nan, math.nan
     return float(values.mean()), float(values.std(ddof=1)) if len(values) > 1 else 0.0
+
+
+def analyze(histogram, bin_s, *, victim_s=None, aggressors_s=(), tolerance_s=1.5e-9,
+            aggressor_on=False, shift=0):
+    """Background, peaks and (when it can be told) suppression of one histogram.
+
+    Returns ``(level, peaks, suppression or None, note)``."""
+    sigma_bins = max(5.0 / (1 << shift), 1.0)
+    level = background(histogram, sigma_bins=sigma_bins)
+    peaks = find_peaks(histogram, bin_s=bin_s, sigma_bins=sigma_bins, level=level)
+    result, note = None, ""
+    if victim_s is None and peaks and (aggressor_on or len(peaks) > 1 or aggressors_s):
+        victim_s = peaks[0].position_s
+        note = "victim = tallest peak"
+        if not aggressors_s:
+            aggressors_s = [peak.position_s for peak in peaks[1:]]
+    if victim_s is not None and peaks and not aggressors_s:
+        # Every other peak is an aggressor's: S is against the highest of them (equation 10).
+        aggressors_s = [peak.position_s for peak in peaks
+                        if abs(peak.position_s - victim_s) > tolerance_s]
+    if victim_s is not None and peaks:
+        try:
+            result = suppression(histogram, victim_s, aggressors_s, bin_s=bin_s,
+                                          sigma_bins=sigma_bins, tolerance_s=tolerance_s)
+        except ValueError as error:
+            note = str(error)
+    return level, peaks, result, note

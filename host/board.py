@@ -34,13 +34,13 @@ import numpy as np
 
 from ..hdl.protocol import DEFAULT_BAUD, HISTOGRAM_COUNT_BITS
 from ..hdl.registers import BY_NAME, AcquisitionMode
-from ..sim.event import EVENT_DTYPE
+from ..protocol.events import EVENT_DTYPE
 from .client import BoardClient, IdentityInfo
 from .errors import BoardLost, BoardMismatch, BoardRefused, SettingsError
-from .imager import DepthFrames, Images, acquire_depth, acquire_image
+from .imager.results import DepthFrames, Images, acquire_depth, acquire_image
 from .results import Events, Histogram, Histograms
-from .settings import (DEFAULT_BANK_BITS, Conversion, RoundingWarning, Settings, convert,
-                       describe, duration_s)
+from .settings import (DEFAULT_BANK_BITS, Conversion, RoundingWarning, Settings, convert, describe,
+                       duration_s)
 from .stream import EventBatch, HistogramFrame
 
 
@@ -403,7 +403,7 @@ class Board:
         -------
         CaptureResult
         """
-        from .acquisition import capture     # h5py, only when a file is written
+        from .acquisition import capture
 
         duration_s = _duration(duration)
         registers = self.client.read_registers()

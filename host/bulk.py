@@ -1,8 +1,8 @@
 """Bulk decoding of link bytes with numpy: recordings, and large reads from a board.
 
-:class:`~fliss.sim.codec.FrameDecoder` decodes one frame at a time in Python: right for
+:class:`~fliss.protocol.FrameDecoder` decodes one frame at a time in Python: right for
 replies, slow for raw events (about 1.5 µs per event). :class:`BulkDecoder` is a
-:class:`~fliss.sim.codec.FrameDecoder` that decodes all complete frames of a read at once:
+:class:`~fliss.protocol.FrameDecoder` that decodes all complete frames of a read at once:
 it returns the same packets and reports in the same order and keeps the same counters, for any
 input. :meth:`BulkDecoder.feed_events` returns the events of all EVENTS packets as one
 ``EVENT_DTYPE`` array instead of one packet per frame; :func:`decode_stream` decodes a whole
@@ -22,7 +22,7 @@ How, for the complete frames of one read:
   codec's byte table;
 * header fields and event fields are unpacked with shifts and masks over whole columns.
 
-Frames the bulk path leaves alone go through :func:`~fliss.sim.codec.decode_frame`, one by
+Frames the bulk path leaves alone go through :func:`~fliss.protocol.decode_frame`, one by
 one: frames of a length shared by fewer than ``min_group`` frames of the read (replies, noise),
 frames too long or too short to be a packet, and frames with a full 254-byte COBS block (their
 decoded length is not their encoded length minus one). Sequence numbers, counters and the order
@@ -37,9 +37,10 @@ from amaranth.lib import data
 
 from ..hdl.protocol import (DELIMITER, COBS_MAX_RUN, CRC_WIDTH, CRC_INIT, CRC_BYTES, PacketType,
                             Header, HEADER_BYTES, MAX_PACKET, MAX_ENCODED, NakCode, EVENT_BYTES)
-from ..sim import event as _event
-from ..sim.codec import (CRC_TABLE, FrameDecoder, LinkError, Packet, SequenceGap,
-                         decode_frame, packet_type)
+from ..protocol import events as _event
+from ..protocol.crc import CRC_TABLE
+from ..protocol.frames import (FrameDecoder, LinkError, Packet, SequenceGap, decode_frame,
+                               packet_type)
 
 
 __all__ = ["BULK_MIN_BYTES", "BULK_MIN_GROUP", "Decoded", "BulkDecoder", "decode_stream"]
@@ -78,7 +79,7 @@ def _column_table():
 
 
 def crc_rows(packets):
-    """The CRC (as :func:`fliss.sim.codec.crc16` computes it) of each row of ``packets``, a
+    """The CRC (as :func:`fliss.protocol.crc16` computes it) of each row of ``packets``, a
     2-D ``uint8`` array; a ``uint16`` array."""
     packets = np.asarray(packets, dtype=np.uint8)
     rows, length = packets.shape
@@ -170,10 +171,10 @@ class Decoded:
     ``events`` (``EVENT_DTYPE``) are the events of every EVENTS packet whose payload is a whole
     number of events, in order, and ``event_counts`` the number of events of each of those
     packets. ``items`` is everything else :meth:`FrameDecoder.feed
-    <fliss.sim.codec.FrameDecoder.feed>` would have returned, in order: the other packets
+    <fliss.protocol.FrameDecoder.feed>` would have returned, in order: the other packets
     (an EVENTS packet with a payload of another length among them), and every
-    :class:`~fliss.sim.codec.LinkError`, :class:`~fliss.sim.codec.SequenceGap` and
-    :class:`~fliss.sim.codec.Resync`.
+    :class:`~fliss.protocol.LinkError`, :class:`~fliss.protocol.SequenceGap` and
+    :class:`~fliss.protocol.Resync`.
     """
     events: np.ndarray
     event_counts: np.ndarray
@@ -352,17 +353,17 @@ class _Frames:
 
 
 class BulkDecoder(FrameDecoder):
-    """A :class:`~fliss.sim.codec.FrameDecoder` that decodes large reads with numpy.
+    """A :class:`~fliss.protocol.FrameDecoder` that decodes large reads with numpy.
 
     :meth:`feed` returns what :meth:`FrameDecoder.feed
-    <fliss.sim.codec.FrameDecoder.feed>` returns, and :attr:`counters` count the same;
+    <fliss.protocol.FrameDecoder.feed>` returns, and :attr:`counters` count the same;
     :meth:`feed_events` returns the events of EVENTS packets as one array. Both may be mixed on
     one stream: a frame cut by the end of one read is finished by the next.
 
     Parameters
     ----------
     synced : bool
-        As for :class:`~fliss.sim.codec.FrameDecoder`.
+        As for :class:`~fliss.protocol.FrameDecoder`.
     min_bytes : int
         Reads shorter than this go to the scalar decoder.
     min_group : int
@@ -424,9 +425,9 @@ class BulkDecoder(FrameDecoder):
 
 def decode_stream(data, *, synced=True):
     """Decode a recorded byte stream at once; returns a :class:`Decoded` and the
-    :class:`~fliss.sim.codec.LinkCounters`.
+    :class:`~fliss.protocol.LinkCounters`.
 
-    ``synced`` as for :class:`~fliss.sim.codec.FrameDecoder`: True when the recording begins
+    ``synced`` as for :class:`~fliss.protocol.FrameDecoder`: True when the recording begins
     with a frame. A frame not ended by a delimiter at the end of the recording is not decoded
     (nor counted), as with the streaming decoder.
     """

@@ -1,8 +1,8 @@
 """The ``fliss`` command.
 
-Each sub-command lives in its own module of :mod:`fliss.host`, which provides
-``register(subparsers)``: it adds its parser and sets ``run(args)`` as the parser's ``run``
-default. A command reports a user mistake by raising :class:`UserError`; it and every
+Each sub-command lives in its own module of :mod:`fliss.host.commands`, which provides
+``register(subparsers, formatter)``: it adds its parser and sets ``run(args)`` as the parser's
+``run`` default; ``args.fliss`` is :func:`main`, for a command that runs others (the demo). A command reports a user mistake by raising :class:`UserError`; it and every
 :class:`~fliss.host.errors.BoardError` of the library are printed as one line.
 """
 
@@ -13,31 +13,29 @@ import sys
 import warnings
 
 from .. import __version__
-from .errors import BoardError, PathError
+from .errors import BoardError, PathError, UserError
 from .settings import RoundingWarning
 
 
-__all__ = ["UserError", "build_parser", "parse_args", "main"]
+__all__ = ["build_parser", "parse_args", "main"]
 
 
-#: Modules of :mod:`fliss.host` that provide sub-commands, in the order of ``--help``.
+#: Modules of :mod:`fliss.host.commands`, one per sub-command, in the order of ``--help``.
 COMMAND_MODULES = [
-    "model_commands",
+    "prf_table",
+    "sequence",
     "demo",
     "reproduce",
     "sweep",
     "ports",
     "config",
     "capture",
-    "plot_commands",
+    "analyze",
+    "plot",
     "generate",
-    "board_command",
+    "board",
     "attack",
 ]
-
-
-class UserError(Exception):
-    """A mistake in what the user asked for, or an environment failure; one line, no traceback."""
 
 
 class _Formatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
@@ -53,7 +51,7 @@ def build_parser():
     subparsers = parser.add_subparsers(metavar="COMMAND", dest="command")
     subparsers.required = True
     for name in COMMAND_MODULES:
-        module = importlib.import_module(f"{__package__}.{name}")
+        module = importlib.import_module(f"{__package__}.commands.{name}")
         module.register(subparsers, _Formatter)
     # The same options after the sub-command (`fliss capture -q`), counted with those before.
     for command in set(subparsers.choices.values()):
@@ -90,6 +88,7 @@ def main(argv=None):
             # A setting rounded to whole clock cycles: one line, each time.
             warnings.simplefilter("always", RoundingWarning)
             warnings.showwarning = _show_warning
+            args.fliss = main
             return args.run(args) or 0
     except (UserError, BoardError, PathError) as error:
         print(f"fliss: error: {error}", file=sys.stderr)

@@ -3,7 +3,7 @@
 :class:`BoardClient` opens a port with :func:`serial.serial_for_url`, so a device path
 (``/dev/ttyUSB1``), a pty of a virtual board (``/dev/pts/7``), ``loop://`` and
 ``socket://host:port`` all work the same. Every byte received goes through one
-:class:`fliss.sim.codec.FrameDecoder`, which checks CRC and sequence numbers and counts what
+:class:`fliss.protocol.FrameDecoder`, which checks CRC and sequence numbers and counts what
 is lost or damaged (a :class:`fliss.host.bulk.BulkDecoder`, which decodes large reads with numpy
 and gives the same results); replies go to the command that waits for them, data packets to a
 :class:`~fliss.host.stream.StreamAssembler`, which turns HISTOGRAM chunks into whole histograms
@@ -30,11 +30,13 @@ from typing import Any, Callable, Dict, Iterable, Iterator, List, Mapping, Optio
 import serial
 
 from ..hdl.protocol import (PROTOCOL_VERSION, DEFAULT_BAUD, PacketType, NakCode, DELIMITER,
-                            Identity, Nak, ReadRequest, Status, READ_MAX, CONSISTENCY,
-                            LINK_ERRORS, registers_layout)
+                            Identity, Nak, ReadRequest, Status, READ_MAX, CONSISTENCY, LINK_ERRORS,
+                            registers_layout)
 from ..hdl.registers import REGISTERS, BY_NAME, BY_ADDRESS, problems, split_problems
-from ..hdl.settings import BANK_BITS, MAX_BANK_BITS
-from ..sim.codec import LinkCounters, Packet, PacketEncoder, byte_size, pack, unpack
+from ..hdl.delay.settings import BANK_BITS, MAX_BANK_BITS
+from ..protocol.frames import LinkCounters, Packet, PacketEncoder
+from ..protocol.layout import byte_size, pack, unpack
+from ..protocol.packets import DATA_TYPES
 from .bulk import BulkDecoder
 from .errors import BoardLost, BoardMismatch, BoardRefused, SettingsError
 from .port import default_timeout, open_port
@@ -192,8 +194,7 @@ class BoardClient:
             decoded = self.decoder.feed_events(data)
             for item in decoded.items:
                 if isinstance(item, Packet):
-                    if item.type in (PacketType.HISTOGRAM, PacketType.HISTOGRAM_COMPACT,
-                                     PacketType.EVENTS, PacketType.DEPTH):
+                    if item.type in DATA_TYPES:
                         self._last_data = self._last_rx
                         self._data.extend(self.assembler.add(item, now))
                     else:
@@ -210,7 +211,7 @@ class BoardClient:
 
     @property
     def link(self) -> LinkCounters:
-        """The decoder's :class:`~fliss.sim.codec.LinkCounters`."""
+        """The decoder's :class:`~fliss.protocol.LinkCounters`."""
         return self.decoder.counters
 
     def link_counters(self) -> Dict[str, int]:

@@ -2,11 +2,12 @@
 
 Everything the host library (:mod:`fliss.host.client`, :mod:`fliss.host.virtual`, ...) raises
 about a board derives from :exc:`BoardError`, so a script or a notebook catches that one class.
-The ``fliss`` command turns each into its one-line message (:func:`fliss.host.cli.main`).
+The ``fliss`` command turns each into its one-line message (:func:`fliss.host.cli.main`), and so
+it does with :exc:`UserError`, a mistake in what the user asked a command for.
 """
 
 __all__ = ["BoardError", "BoardLost", "BoardReset", "PortError", "BoardRefused", "BoardMismatch",
-           "SettingsError", "VirtualBoardError", "PathError"]
+           "SettingsError", "VirtualBoardError", "PathError", "UserError"]
 
 
 class BoardError(Exception):
@@ -71,3 +72,7 @@ class PathError(ValueError):
     message is one line that says what and what to do. Raised before anything is started, by
     :mod:`fliss.host.paths`, or when a file stops taking data (a full disk) during a capture,
     after the board is stopped and the file closed."""
+
+
+class UserError(Exception):
+    """A mistake in what the user asked for, or an environment failure; one line, no traceback."""

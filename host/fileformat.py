@@ -20,9 +20,9 @@ import numpy as np
 from .. import __version__
 from ..hdl.event import TDC_LSB_S, TIMESTAMP_BITS
 from ..hdl.registers import BY_NAME, RECORDED, TdcSource
-from ..sim.event import EVENT_DTYPE
-from .fileformat_imager import (IMAGE_MODES, append_depth, append_image, create_depth,
-                                create_image, read_imager)
+from ..protocol.events import EVENT_DTYPE
+from .imager.files import (IMAGE_MODES, append_depth, append_image, create_depth, create_image,
+                           read_imager)
 
 
 __all__ = ["FORMAT", "FORMAT_VERSION", "FLUSH_S", "RUNNING", "CaptureWriter", "Capture",

@@ -1,5 +1,5 @@
 """What the Python API's histogram and raw acquisitions return (:class:`Histograms`,
-:class:`Events`), as numpy arrays; the imager's are in :mod:`fliss.host.imager`."""
+:class:`Events`), as numpy arrays; the imager's are in :mod:`fliss.host.imager.results`."""
 
 from dataclasses import dataclass
 
@@ -33,7 +33,7 @@ class Histogram:
 
 
 class FrameCounts:
-    """What :class:`Histograms` and :class:`~fliss.host.imager.Images` share: ``counts``, one
+    """What :class:`Histograms` and :class:`~fliss.host.imager.results.Images` share: ``counts``, one
     frame per row of its first axis, and the board's ``settings``."""
 
     @property
@@ -44,7 +44,7 @@ class FrameCounts:
     @property
     def total(self) -> np.ndarray:
         """The frames' counts summed (over ``counts``' first axis): ``(bins,)`` of
-        :class:`Histograms`, each pixel's ``(P, N)`` of :class:`~fliss.host.imager.Images`."""
+        :class:`Histograms`, each pixel's ``(P, N)`` of :class:`~fliss.host.imager.results.Images`."""
         return self.counts.sum(axis=0, dtype=np.uint64)
 
 
@@ -87,7 +87,7 @@ class Events:
     Attributes
     ----------
     events : numpy.ndarray
-        A structured array (:data:`fliss.sim.event.EVENT_DTYPE`): ``timestamp`` (TDC codes),
+        A structured array (:data:`fliss.protocol.events.EVENT_DTYPE`): ``timestamp`` (TDC codes),
         ``address`` (pixel), ``collision``, ``pulse`` (laser cycle index).
     duration_s : float
         How long events were read, in seconds.

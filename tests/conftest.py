@@ -5,7 +5,7 @@ import warnings
 import pytest
 from amaranth.hdl import UnusedElaboratable
 
-from fliss.sim.cocotb_runner import SIMULATORS, prepare_path, simulator_available
+from fliss.sim.benches.runner import SIMULATORS, prepare_path, simulator_available
 
 
 _COCOTB_COUNTS = {}
@@ -57,7 +57,7 @@ def pytest_collection_modifyitems(items):
 @pytest.fixture
 def cocotb_counts(record_property):
     """``cocotb_counts(simulator, results)``: record the counts of a
-    :class:`~fliss.sim.cocotb_runner.CocotbResults` per simulator for the summary at the end of
+    :class:`~fliss.sim.benches.runner.CocotbResults` per simulator for the summary at the end of
     the run (the report carries them back from parallel workers)."""
     def record(simulator, results):
         record_property("cocotb", (simulator, *results.counts))

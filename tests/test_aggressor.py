@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 from amaranth.hdl import Module, Elaboratable, UnusedElaboratable
 
-from fliss.hdl.aggressor import Aggressor
-from fliss.hdl.core import DelayCore
-from fliss.hdl.delay import DelayMode
-from fliss.sim import aggressor as model
-from fliss.sim.scheduler import Settings
+from fliss.hdl.delay.aggressor import Aggressor
+from fliss.hdl.delay.core import DelayCore
+from fliss.hdl.delay.source import DelayMode
+from fliss.sim.models import aggressor as model
+from fliss.sim.models.scheduler import Settings
 from simulation import simulate
 
 

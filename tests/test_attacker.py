@@ -6,11 +6,11 @@ import math
 import numpy as np
 import pytest
 
-from fliss.sim.attacker import Attacker, Observer
-from fliss.sim.attacker_models import KnownTaps
-from fliss.sim import delay as delay_model
-from fliss.sim import gf2
-from fliss.sim.attacker_scene import Victim
+from fliss.sim.studies.attacker import Attacker, Observer
+from fliss.sim.studies.generators import KnownTaps
+from fliss.sim.models import delay as delay_model
+from fliss.sim.studies import gf2
+from fliss.sim.studies.attack_scene import Victim
 
 
 @pytest.fixture(scope="module")

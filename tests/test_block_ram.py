@@ -9,8 +9,8 @@ from amaranth.hdl import Fragment, Instance
 from amaranth.sim import Simulator
 
 from fliss.hdl.block_ram import DP16KD_WIDTH, RegisteredRam
-from fliss.hdl.cobs import CobsEncoder
-from fliss.hdl.framing import FrameDecoder
+from fliss.hdl.link.cobs import CobsEncoder
+from fliss.hdl.link.framing import FrameDecoder
 
 
 @pytest.mark.parametrize("output_enable", [False, True])
@@ -155,7 +155,7 @@ def test_ulx3s_histogram_banks_sit_in_quads_spread_over_the_rows():
     # Each group of four blocks of a bank (the first level of its read tree) sits in four
     # neighbouring EBR sites of one row: the sites are worked out here from the LFE5U-85F's
     # rows (y 22, 46, 70, 82) and its quads (13 a row, EBR0 to EBR3 two columns apart).
-    from fliss.hdl.histogram_dual import DualPortBanks, OR_GROUP
+    from fliss.hdl.histogram.dual import DualPortBanks, OR_GROUP
     platform = _ecp5_platform()
     banks = DualPortBanks(16, 16)
     sites = _sites(Fragment.get(banks, platform))

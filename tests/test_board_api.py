@@ -11,12 +11,12 @@ import fliss
 from fliss.hdl.registers import defaults
 from fliss.host.acquisition import capture
 from fliss.host.board import Board, Events, Histogram, Histograms
-from fliss.host.cli import UserError
+from fliss.host.errors import UserError
 from fliss.host.client import BoardClient
 from fliss.host.errors import BoardError, BoardLost, SettingsError
 from fliss.host.fileformat import read_capture
 from fliss.host.settings import RoundingWarning
-from fliss.sim.model_board import model_board
+from fliss.sim.boards.model import model_board
 from fliss.sim.scene import Scene
 
 import test_host_cli as host_cli

@@ -4,7 +4,7 @@ two cycles at half rate), and its ``ready`` and outputs are registered."""
 import numpy as np
 import pytest
 
-from fliss.hdl.buffer import StreamBuffer
+from fliss.hdl.link.buffer import StreamBuffer
 
 from simulation import simulate
 

@@ -13,13 +13,15 @@ from amaranth.lib import data
 
 from fliss.hdl.event import Event
 from fliss.hdl.protocol import (HISTOGRAM_COUNT_BITS, PacketType, NakCode, MAX_EVENTS_PER_PACKET,
-                                MAX_ENCODED, HistogramChunk, HEADER_BYTES, CRC_BYTES,
-                                EVENT_BYTES)
+                                MAX_ENCODED, HistogramChunk, HEADER_BYTES, CRC_BYTES, EVENT_BYTES)
 from fliss.host import bulk
 from fliss.host.stream import EventBatch, StreamAssembler
-from fliss.sim.codec import (FrameDecoder, Packet, LinkError, cobs_encode, crc16,
-                             encode_frame, pack, pack_events, pack_words)
-from fliss.sim.event import EVENT_DTYPE
+from fliss.protocol.frames import FrameDecoder, Packet, LinkError, encode_frame
+from fliss.protocol.cobs import cobs_encode
+from fliss.protocol.crc import crc16
+from fliss.protocol.layout import pack, pack_words
+from fliss.protocol.events import pack_events
+from fliss.protocol.events import EVENT_DTYPE
 
 
 # Streams

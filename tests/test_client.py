@@ -9,16 +9,16 @@ import pytest
 from fliss.hdl.protocol import HISTOGRAM_COUNT_BITS, STATUS_FIELDS
 from fliss.hdl.protocol import PacketType, PROTOCOL_VERSION, EVENT_BYTES, NakCode
 from fliss.hdl.registers import REGISTERS, defaults
-from fliss.host.cli import UserError
+from fliss.host.errors import UserError
 from fliss.host.client import BoardClient
 from fliss.host.errors import BoardError, BoardLost, BoardRefused, PortError, SettingsError
-from fliss.host.stream import (StreamAssembler, HistogramFrame,
-                               unpack_event_payload)
+from fliss.host.stream import StreamAssembler, HistogramFrame, unpack_event_payload
 from fliss.hdl.protocol import HistogramChunk, registers_layout
-from fliss.sim.codec import (FrameDecoder, Packet, unpack_events, pack, pack_words, unpack_from,
-                             unpack_words, byte_size)
-from fliss.sim.event import EVENT_DTYPE
-from fliss.sim.model_board import model_board
+from fliss.protocol.frames import FrameDecoder, Packet
+from fliss.protocol.events import unpack_events
+from fliss.protocol.layout import pack, pack_words, unpack_from, unpack_words, byte_size
+from fliss.protocol.events import EVENT_DTYPE
+from fliss.sim.boards.model import model_board
 
 
 CLOCK_HZ = 80_000_000

@@ -4,9 +4,9 @@ import random
 
 import pytest
 
-from fliss.hdl.cobs import CobsEncoder, CobsDecoder
+from fliss.hdl.link.cobs import CobsEncoder, CobsDecoder
 from fliss.hdl.protocol import COBS_MAX_RUN, MAX_ENCODED, MAX_PACKET
-from fliss.sim import codec
+from fliss import protocol
 
 from simulation import simulate, stream_put_all, stream_get_each, Twins
 
@@ -53,7 +53,7 @@ def packet_bytes(packets):
 def test_cobs_encoder_matches_codec(seed, idle, registered_read):
     rng = random.Random(seed)
     packets = corner_packets(rng) + random_packets(rng, 15)
-    expected = b"".join(codec.cobs_encode(packet) + b"\x00" for packet in packets)
+    expected = b"".join(protocol.cobs_encode(packet) + b"\x00" for packet in packets)
     dut = CobsEncoder(registered_read=registered_read)
     received = bytearray()
 
@@ -80,7 +80,7 @@ def test_cobs_encoder_reads_give_the_same_bytes_cycle_for_cycle():
         await ctx.tick().repeat(2000)
 
     sent = dut.run_compared(send, rng=rng, ready=0.6)
-    assert sent == sum(len(codec.cobs_encode(packet)) + 1 for packet in packets)
+    assert sent == sum(len(protocol.cobs_encode(packet)) + 1 for packet in packets)
 
 
 # Decoder
@@ -95,7 +95,7 @@ def decoder_model(stream, max_encoded):
             index += frame[index]
         missing = index - len(frame)
         if frame:
-            decoded = codec.cobs_decode(frame + b"\x01" * missing)
+            decoded = protocol.cobs_decode(frame + b"\x01" * missing)
             decoded = decoded[:len(decoded) - missing]
             items += [("byte", byte) for byte in decoded]
         items.append(("end", int(not frame), int(missing != 0), int(len(frame) > max_encoded)))
@@ -106,7 +106,7 @@ def frames(rng, count):
     """Good, cut, oversize, garbage and empty frames, each ending with its delimiter."""
     stream = bytearray()
     for packet in corner_packets(rng) + random_packets(rng, count):
-        frame = codec.cobs_encode(packet)
+        frame = protocol.cobs_encode(packet)
         kind = rng.choice(["good", "good", "cut", "garbage", "empty", "oversize"])
         if kind == "cut":
             frame = frame[:rng.randrange(1, len(frame))]

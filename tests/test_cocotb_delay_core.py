@@ -7,9 +7,9 @@ from amaranth.hdl import Module
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from fliss.hdl.core import DelayCore
-from fliss.hdl.delay import Delay, DelaySource
-from fliss.sim.cocotb_runner import run_cocotb, write_verilog
+from fliss.hdl.delay.core import DelayCore
+from fliss.hdl.delay.source import Delay, DelaySource
+from fliss.sim.benches.runner import run_cocotb, write_verilog
 
 
 BUILD = Path(__file__).resolve().parent.parent / "build" / "cocotb"
@@ -23,7 +23,7 @@ def delay_core_verilog():
 def test_delay_core(simulator, delay_core_verilog, cocotb_counts):
     results = run_cocotb(
         simulator, verilog_path=delay_core_verilog, toplevel="delay_core",
-        test_module="fliss.sim.tb_delay_core", build_dir=BUILD / "delay_core")
+        test_module="fliss.sim.benches.delay_core", build_dir=BUILD / "delay_core")
     cocotb_counts(simulator, results)
     assert results.failed == []
     assert results.passed == results.expected
@@ -63,7 +63,7 @@ def delay_source_verilog():
 def test_delay_source(simulator, delay_source_verilog, cocotb_counts):
     results = run_cocotb(
         simulator, verilog_path=delay_source_verilog, toplevel="delay_source",
-        test_module="fliss.sim.tb_delay_source", build_dir=BUILD / "delay_source",
+        test_module="fliss.sim.benches.delay_source", build_dir=BUILD / "delay_source",
         extra_env={"FLISS_TB_TRANSFERS": str(100_000 if simulator == "verilator" else 25_000)})
     cocotb_counts(simulator, results)
     assert results.failed == []

@@ -6,10 +6,10 @@ from pathlib import Path
 import numpy as np
 
 from fliss.host.stream import HistogramFrame, StreamAssembler
-from fliss.sim.cocotb_runner import run_cocotb, write_verilog
-from fliss.sim.codec import FrameDecoder, Packet
-from fliss.sim.histogram_link_top import HistogramLinkTop
-from fliss.sim.tb_packetizer import readout_frames
+from fliss.sim.benches.runner import run_cocotb, write_verilog
+from fliss.protocol.frames import FrameDecoder, Packet
+from fliss.sim.benches.histogram_link_top import HistogramLinkTop
+from fliss.sim.benches.packetizer import readout_frames
 
 
 BUILD = Path(__file__).resolve().parent.parent / "build" / "cocotb" / "histogram_link_top"
@@ -23,7 +23,7 @@ def test_histogram_packets(simulator, cocotb_counts):
     wire.unlink(missing_ok=True)
     results = run_cocotb(
         simulator, verilog_path=verilog, toplevel="histogram_link_top",
-        test_module="fliss.sim.tb_packetizer", build_dir=BUILD,
+        test_module="fliss.sim.benches.packetizer", build_dir=BUILD,
         extra_env={"FLISS_TB_PACKETIZER_OUT": str(wire)})
     cocotb_counts(simulator, results)
     assert results.failed == []

@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 
 from fliss.hdl.top import FlissTop
-from fliss.sim.cocotb_runner import run_cocotb, write_verilog
+from fliss.sim.benches.runner import run_cocotb, write_verilog
 
 
 BUILD = Path(__file__).resolve().parent.parent / "build" / "cocotb" / "fliss_top_scene"
@@ -22,7 +22,7 @@ def top_verilog():
 def test_line_scene_on_the_sensor_bus(simulator, top_verilog, cocotb_counts, case):
     results = run_cocotb(
         simulator, verilog_path=top_verilog, toplevel="fliss_top",
-        test_module="fliss.sim.tb_scene", build_dir=BUILD,
+        test_module="fliss.sim.benches.scene", build_dir=BUILD,
         extra_env={"FLISS_TB_BAUD": str(BAUD), "FLISS_TB_CASE": case})
     cocotb_counts(simulator, results)
     assert results.failed == []

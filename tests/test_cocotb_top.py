@@ -8,11 +8,11 @@ from pathlib import Path
 import pytest
 from amaranth.hdl import UnusedElaboratable
 
-from fliss.hdl.delay import DelayMode
+from fliss.hdl.delay.source import DelayMode
 from fliss.hdl.registers import REGISTERS, AcquisitionMode
-from fliss.hdl.settings import BANK_BITS
+from fliss.hdl.delay.settings import BANK_BITS
 from fliss.hdl.top import FlissTop, SMALL
-from fliss.sim.cocotb_runner import run_cocotb, write_verilog
+from fliss.sim.benches.runner import run_cocotb, write_verilog
 
 
 BUILD = Path(__file__).resolve().parent.parent / "build" / "cocotb" / "fliss_top"
@@ -38,7 +38,7 @@ def test_top(simulator, cocotb_counts):
                             BUILD / simulator / "fliss_top.v")
     results = run_cocotb(
         simulator, verilog_path=verilog, toplevel="fliss_top",
-        test_module="fliss.sim.tb_top", build_dir=BUILD,
+        test_module="fliss.sim.benches.top", build_dir=BUILD,
         extra_env={"FLISS_TB_BAUD": str(BAUD), "FLISS_TB_BANK_BITS": str(bank_bits),
                    "FLISS_TB_FUZZ_FRAMES": str(FUZZ_FRAMES[simulator])})
     cocotb_counts(simulator, results)
@@ -55,7 +55,7 @@ def test_top_small(simulator, cocotb_counts):
     verilog_path = write_verilog(top, "fliss_top", BUILD_SMALL / "fliss_top.v")
     results = run_cocotb(
         simulator, verilog_path=verilog_path, toplevel="fliss_top",
-        test_module="fliss.sim.tb_top", build_dir=BUILD_SMALL,
+        test_module="fliss.sim.benches.top", build_dir=BUILD_SMALL,
         testcase=["test_identify_and_registers", "test_histogram_closed_loop",
                   "test_pixel_histograms"],
         extra_env={"FLISS_TB_BAUD": str(BAUD), "FLISS_TB_MAXIMA": json.dumps(maxima),

@@ -4,7 +4,7 @@ Verilator."""
 from pathlib import Path
 
 from fliss.hdl.top import FlissTop
-from fliss.sim.cocotb_runner import run_cocotb, write_verilog
+from fliss.sim.benches.runner import run_cocotb, write_verilog
 
 
 BUILD = Path(__file__).resolve().parent.parent / "build" / "cocotb" / "fliss_top_depth"
@@ -15,7 +15,7 @@ def test_top_depth(simulator, cocotb_counts):
     verilog = write_verilog(FlissTop(baud=BAUD), "fliss_top", BUILD / "fliss_top.v")
     results = run_cocotb(
         simulator, verilog_path=verilog, toplevel="fliss_top",
-        test_module="fliss.sim.tb_top_depth", build_dir=BUILD,
+        test_module="fliss.sim.benches.top_depth", build_dir=BUILD,
         extra_env={"FLISS_TB_BAUD": str(BAUD)})
     cocotb_counts(simulator, results)
     assert results.failed == []

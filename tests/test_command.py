@@ -5,12 +5,12 @@ import random
 import pytest
 from amaranth.hdl import ResetInserter, Signal
 
-from fliss.hdl.command import CommandProcessor
+from fliss.hdl.link.command import CommandProcessor
 from fliss.hdl.protocol import (PacketType, NakCode, STATUS_FIELDS, Identity, Nak, ReadRequest,
                                 registers_layout)
 from fliss.hdl.registers import REGISTERS, BY_NAME, defaults, problems
-from fliss.sim.codec import pack, unpack
-from fliss.sim.command import CommandModel
+from fliss.protocol.layout import pack, unpack
+from fliss.sim.models.command import CommandModel
 from simulation import simulate
 
 

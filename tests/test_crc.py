@@ -6,9 +6,9 @@ import random
 import pytest
 from amaranth.lib.crc import catalog
 
-from fliss.hdl.crc import LINK_CRC, CrcAppender, CrcChecker
+from fliss.hdl.link.crc import LINK_CRC, CrcAppender, CrcChecker
 from fliss.hdl.protocol import CRC_BYTES, CRC_CHECK
-from fliss.sim import codec
+from fliss import protocol
 
 from simulation import simulate, stream_put, stream_put_all, stream_get_each
 
@@ -27,7 +27,7 @@ def test_link_crc_is_the_catalogue_crc16_ibm_3740():
         assert getattr(LINK_CRC, field) == getattr(catalog.CRC16_IBM_3740, field)
     assert LINK_CRC(8).compute(b"123456789") == CRC_CHECK
     data = bytes(random.Random(1).randint(0, 255) for _ in range(300))
-    assert LINK_CRC(8).compute(data) == codec.crc16(data) == binascii.crc_hqx(data, 0xffff)
+    assert LINK_CRC(8).compute(data) == protocol.crc16(data) == binascii.crc_hqx(data, 0xffff)
 
 
 @pytest.mark.parametrize("seed, idle", [(2, 0.0), (3, 0.5)])
@@ -36,7 +36,7 @@ def test_crc_appender_matches_codec(seed, idle):
     packets = random_packets(rng, 20)
     expected = []
     for packet in packets:
-        body = packet + codec.crc16(packet).to_bytes(CRC_BYTES, "big")
+        body = packet + protocol.crc16(packet).to_bytes(CRC_BYTES, "big")
         expected += [(byte, int(index == len(body) - 1)) for index, byte in enumerate(body)]
     dut = CrcAppender()
     received = []
@@ -59,9 +59,9 @@ def test_crc_appender_matches_codec(seed, idle):
 def checked_frames(rng, count):
     """(bytes, verdict) frames: good packets with their CRC, damaged ones, and frames shorter
     than the CRC. The verdict (empty, truncated, oversize) is random: the checker passes it on."""
-    frames = [(b"", 0), (b"\x12", 1), (b"\x00\x00", 2), (codec.encode_packet(1, 2, b""), 3)]
+    frames = [(b"", 0), (b"\x12", 1), (b"\x00\x00", 2), (protocol.encode_packet(1, 2, b""), 3)]
     for packet in random_packets(rng, count):
-        body = packet + codec.crc16(packet).to_bytes(CRC_BYTES, "big")
+        body = packet + protocol.crc16(packet).to_bytes(CRC_BYTES, "big")
         if rng.random() < 0.3:
             body = bytearray(body)
             body[rng.randrange(len(body))] ^= 1 << rng.randrange(8)
@@ -77,7 +77,7 @@ def test_crc_checker_matches_codec(seed, idle):
     for body, verdict in frames:
         expected += [("byte", byte) for byte in body[:-CRC_BYTES]]
         expected.append(("end", verdict, int(len(body) < CRC_BYTES),
-                         int(codec.crc16(body) != 0)))
+                         int(protocol.crc16(body) != 0)))
     dut = CrcChecker()
     received = []
 

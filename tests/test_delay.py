@@ -5,9 +5,9 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from fliss.hdl.delay import DelayMode, DelaySource
-from fliss.sim import delay as model
-from fliss.sim.scheduler import effective_prf, fire_cycles, measured_prf
+from fliss.hdl.delay.source import DelayMode, DelaySource
+from fliss.sim.models import delay as model
+from fliss.sim.models.scheduler import effective_prf, fire_cycles, measured_prf
 from simulation import simulate
 
 
@@ -137,7 +137,7 @@ def test_scheduler_hints_against_model():
     # and `zero_late` (R == 0 of a transfer made in the cycle after a load, a cycle later), with
     # transfers at least two cycles apart as the scheduler makes them, reloads in between, and
     # seeds that load as 1 (all-zero low bits).
-    from fliss.sim import lfsr
+    from fliss.sim.models import lfsr
     dut = DelaySource()
     cases = [(DelayMode.MSEQ, 5, 1, 0x20), (DelayMode.MSEQ, 4, 1, 9), (DelayMode.MSEQ, 3, 1, 1),
              (DelayMode.MASKED, 2, 3, 0), (DelayMode.MASKED, 2, 2, 0x1234),

@@ -9,16 +9,17 @@ import numpy as np
 import pytest
 from amaranth.hdl import UnusedElaboratable
 
-from fliss.hdl.depth import DepthEngine
+from fliss.hdl.depth.engine import DepthEngine
 from fliss.hdl.divider import SerialDivider
 from fliss.hdl.protocol import (PacketType, DepthHeader, DepthRecord, DEPTH_HEADER_BYTES,
                                 DEPTH_RECORD_BYTES, MAX_PAYLOAD, Nak, NakCode, registers_layout)
 from fliss.hdl.registers import BY_NAME
 from fliss.hdl.top import FlissTop, SMALL
-from fliss.sim.codec import pack, unpack, unpack_from
-from fliss.sim.command import CommandModel
-from fliss.sim.depth import (BACKGROUND_MAX, depth_frame, depth_payload, unpack_depth,
-                             check_depth_settings)
+from fliss.protocol.layout import pack, unpack, unpack_from
+from fliss.sim.models.command import CommandModel
+from fliss.protocol.depth import BACKGROUND_MAX, check_depth_settings
+from fliss.sim.models.depth import depth_frame
+from fliss.protocol.depth import depth_payload, unpack_depth
 from simulation import simulate
 
 

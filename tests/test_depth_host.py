@@ -9,9 +9,11 @@ import pytest
 from fliss.hdl.protocol import PacketType, DepthHeader
 from fliss.host.client import BoardClient
 from fliss.host.stream import DepthFrame, HistogramFrame, StreamAssembler
-from fliss.sim.codec import Packet, pack
-from fliss.sim.depth import depth_frame, depth_payload
-from fliss.sim.model_board import model_board
+from fliss.protocol.frames import Packet
+from fliss.protocol.layout import pack
+from fliss.sim.models.depth import depth_frame
+from fliss.protocol.depth import depth_payload
+from fliss.sim.boards.model import model_board
 
 
 def depth_packet(records, frame, **settings):

@@ -1,11 +1,11 @@
-"""Decision metrics of sim/detection.py on synthetic histograms with known answers."""
+"""Decision metrics of sim/studies/detection.py on synthetic histograms with known answers."""
 
 import math
 
 import numpy as np
 import pytest
 
-from fliss.sim import detection
+from fliss.sim.studies import detection
 
 from test_analysis import FWHM_S, expected_histogram     # the analysis tests' histograms
 

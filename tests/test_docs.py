@@ -7,11 +7,11 @@ from pathlib import Path
 from amaranth.lib import data
 
 from fliss.hdl.event import Event
-from fliss.hdl.protocol import (GATEWARE_VERSION, PROTOCOL_VERSION, CHUNK_BINS, Header, Ack,
-                                Nak, Identity, ReadRequest, Status, HistogramChunk, HistogramCompact,
-                                registers_layout, READ_MAX, CONSISTENCY, EVENT_BYTES,
-                                COMPACT_BYTES, DepthHeader, DepthRecord, DEPTH_HEADER_BYTES,
-                                DEPTH_RECORD_BYTES, MAX_PAYLOAD)
+from fliss.hdl.protocol import (GATEWARE_VERSION, PROTOCOL_VERSION, CHUNK_BINS, Header, Ack, Nak,
+                                Identity, ReadRequest, Status, HistogramChunk, HistogramCompact,
+                                registers_layout, READ_MAX, CONSISTENCY, EVENT_BYTES, COMPACT_BYTES,
+                                DepthHeader, DepthRecord, DEPTH_HEADER_BYTES, DEPTH_RECORD_BYTES,
+                                MAX_PAYLOAD)
 from fliss.hdl.registers import REGISTERS
 
 

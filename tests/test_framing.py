@@ -8,12 +8,12 @@ from amaranth.hdl import Elaboratable, Module
 from amaranth.lib import wiring
 
 from fliss.hdl import DEFAULT_CLOCK_HZ
-from fliss.hdl.crc import Crc16
-from fliss.hdl.framing import FrameEncoder, FrameDecoder
-from fliss.hdl.protocol import (PacketType, NakCode, MAX_PAYLOAD, MAX_ENCODED, CRC_BYTES,
-                                CRC_CHECK, COBS_MAX_RUN)
-from fliss.hdl.uart import UartTx, UartRx
-from fliss.sim import codec
+from fliss.hdl.link.crc import Crc16
+from fliss.hdl.link.framing import FrameEncoder, FrameDecoder
+from fliss.hdl.protocol import (PacketType, NakCode, MAX_PAYLOAD, MAX_ENCODED, CRC_BYTES, CRC_CHECK,
+                                COBS_MAX_RUN)
+from fliss.hdl.link.uart import UartTx, UartRx
+from fliss import protocol
 
 from simulation import simulate, stream_put, stream_get, stream_put_all, Twins
 
@@ -75,7 +75,7 @@ def edge_packets(rng):
     # A run of exactly COBS_MAX_RUN non-zero bytes that ends with the last CRC byte.
     while True:
         payload = b"\x00" + nonzero_bytes(rng, COBS_MAX_RUN - CRC_BYTES)
-        crc = codec.encode_packet(PacketType.HISTOGRAM, 5, payload)[-CRC_BYTES:]
+        crc = protocol.encode_packet(PacketType.HISTOGRAM, 5, payload)[-CRC_BYTES:]
         if 0 not in crc:
             packets.append((PacketType.HISTOGRAM, 5, payload))
             break
@@ -83,7 +83,7 @@ def edge_packets(rng):
     for position in (-1, -2):
         while True:
             payload = nonzero_bytes(rng, rng.randint(1, 20))
-            packet = codec.encode_packet(PacketType.STATUS, 6, payload)
+            packet = protocol.encode_packet(PacketType.STATUS, 6, payload)
             if packet[position] == 0:
                 packets.append((PacketType.STATUS, 6, payload))
                 break
@@ -118,10 +118,10 @@ def test_crc16_gateware():
             await ctx.tick()
             if index == 8:
                 assert ctx.get(dut.crc) == CRC_CHECK
-            expected = codec.crc16(data[:index + 1])
+            expected = protocol.crc16(data[:index + 1])
             assert ctx.get(dut.crc) == expected == binascii.crc_hqx(data[:index + 1], 0xffff)
         # The CRC of a packet, CRC included, is zero.
-        for byte in codec.crc16(data).to_bytes(CRC_BYTES, "big"):
+        for byte in protocol.crc16(data).to_bytes(CRC_BYTES, "big"):
             ctx.set(dut.data, byte)
             await ctx.tick()
         assert ctx.get(dut.crc) == 0
@@ -135,7 +135,7 @@ def test_crc16_gateware():
 def test_encoder_matches_codec(idle):
     rng = random.Random(int(idle * 10) + 2)
     packets = edge_packets(rng) + random_packets(rng, 12)
-    expected = b"".join(codec.encode_frame(*packet) for packet in packets)
+    expected = b"".join(protocol.encode_frame(*packet) for packet in packets)
     dut = FrameEncoder()
     received = bytearray()
 
@@ -160,7 +160,7 @@ def test_encoder_drops_and_counts_stray_beats():
     header = {"type": PacketType.PING.value, "seq": 7, "length": 2}
     stray = [{"header": header, "data": 0x55, "first": 0, "last": 0},
              {"header": header, "data": 0x66, "first": 0, "last": 1}]
-    expected = codec.encode_frame(*packet) * 2
+    expected = protocol.encode_frame(*packet) * 2
     dut = FrameEncoder()
     received = bytearray()
 
@@ -186,7 +186,7 @@ def corrupt_stream(rng, packets):
     """Frames with every kind of damage between good ones; returns the byte stream."""
     stream = bytearray()
     for packet in packets:
-        frame = codec.encode_frame(*packet)
+        frame = protocol.encode_frame(*packet)
         kind = rng.choice(["good", "good", "good", "flip", "truncate", "garbage", "oversize",
                            "length", "delimiters", "tail"])
         if kind == "flip":
@@ -201,15 +201,15 @@ def corrupt_stream(rng, packets):
             stream += frame
         elif kind == "oversize":
             type, seq, payload = packet
-            body = codec._header_bytes(type, seq, MAX_PAYLOAD + 1) + bytes(MAX_PAYLOAD + 1)
-            body += codec.crc16(body).to_bytes(CRC_BYTES, "big")
-            stream += codec.cobs_encode(body) + b"\x00"
+            body = protocol.frames._header_bytes(type, seq, MAX_PAYLOAD + 1) + bytes(MAX_PAYLOAD + 1)
+            body += protocol.crc16(body).to_bytes(CRC_BYTES, "big")
+            stream += protocol.cobs_encode(body) + b"\x00"
             stream += nonzero_bytes(rng, MAX_ENCODED + rng.randint(1, 3)) + b"\x00"
         elif kind == "length":
             type, seq, payload = packet
-            body = codec._header_bytes(type, seq, len(payload) + 1) + payload
-            body += codec.crc16(body).to_bytes(CRC_BYTES, "big")
-            stream += codec.cobs_encode(body) + b"\x00"
+            body = protocol.frames._header_bytes(type, seq, len(payload) + 1) + payload
+            body += protocol.crc16(body).to_bytes(CRC_BYTES, "big")
+            stream += protocol.cobs_encode(body) + b"\x00"
         elif kind == "delimiters":
             stream += b"\x00\x00" + frame + b"\x00"
         elif kind == "tail":
@@ -220,11 +220,11 @@ def corrupt_stream(rng, packets):
 
 
 def check_decoder(stream, rng, *, idle_in=0.0, idle_out=0.0, registered_read=False):
-    model = codec.FrameDecoder(synced=True)
+    model = protocol.FrameDecoder(synced=True)
     items = model.feed(stream)
     expected_packets = [(int(p.type.value if isinstance(p.type, PacketType) else p.type),
-                         p.seq, p.payload) for p in items if isinstance(p, codec.Packet)]
-    expected_drops = [e.code for e in items if isinstance(e, codec.LinkError)]
+                         p.seq, p.payload) for p in items if isinstance(p, protocol.Packet)]
+    expected_drops = [e.code for e in items if isinstance(e, protocol.LinkError)]
 
     dut = FrameDecoder(registered_read=registered_read)
     packets, drops = [], []
@@ -261,7 +261,7 @@ READS = pytest.mark.parametrize("registered_read", [False, True], ids=["plain", 
 def test_decoder_good_packets(registered_read):
     rng = random.Random(3)
     packets = edge_packets(rng) + random_packets(rng, 10)
-    stream = b"".join(codec.encode_frame(*packet) for packet in packets)
+    stream = b"".join(protocol.encode_frame(*packet) for packet in packets)
     good, dropped = check_decoder(stream, rng, registered_read=registered_read)
     assert good == len(packets) and dropped == 0
 
@@ -295,7 +295,7 @@ def test_decoder_random_bytes_then_resync(registered_read):
     noise = bytes(rng.choice([0, rng.randint(1, 255)]) if rng.random() < 0.05
                   else rng.randint(1, 255) for _ in range(1500))
     packets = random_packets(rng, 3)
-    stream = noise + b"\x00" + b"".join(codec.encode_frame(*p) for p in packets)
+    stream = noise + b"\x00" + b"".join(protocol.encode_frame(*p) for p in packets)
     good, dropped = check_decoder(stream, rng, registered_read=registered_read)
     assert good == 3 and dropped >= 1
 
@@ -306,7 +306,7 @@ def test_decoder_slow_consumer_stalls_input_without_loss(registered_read):
     rng = random.Random(7)
     packets = [(PacketType.WRITE, n, bytes(rng.randint(0, 255) for _ in range(60)))
                for n in range(4)]
-    stream = b"".join(codec.encode_frame(*p) for p in packets)
+    stream = b"".join(protocol.encode_frame(*p) for p in packets)
     good, dropped = check_decoder(stream, rng, idle_out=0.9, registered_read=registered_read)
     assert good == 4 and dropped == 0
 

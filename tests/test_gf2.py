@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from fliss.hdl.lfsr import POLYNOMIALS
-from fliss.sim import gf2
+from fliss.hdl.delay.lfsr import POLYNOMIALS
+from fliss.sim.studies import gf2
 
 
 def _galois_bits(poly, length, seed, count):

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 from amaranth.hdl import Fragment, Instance, UnusedElaboratable
 
-from fliss.hdl.histogram import Histogram, COUNT_WIDTH
-from fliss.hdl.histogram_readout import readout_cycles_per_bin
+from fliss.hdl.histogram.engine import Histogram, COUNT_WIDTH
+from fliss.hdl.histogram.readout import readout_cycles_per_bin
 from fliss.hdl.spram import SinglePortRam
-from fliss.sim import histogram as model
+from fliss.sim.models import histogram as model
 
 from simulation import simulate
 

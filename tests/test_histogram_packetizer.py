@@ -1,15 +1,15 @@
 """HISTOGRAM and HISTOGRAM_COMPACT packets from the gateware, in Amaranth's simulator, against
-the model (:func:`fliss.sim.histogram_packets.encode_histogram`) byte for byte."""
+the model (:func:`fliss.protocol.histograms.encode_histogram`) byte for byte."""
 
 import random
 
 import numpy as np
 import pytest
 
-from fliss.hdl.histogram_packetizer import HistogramPacketizer
-from fliss.hdl.packetizer import FullHistogramPacketizer
+from fliss.hdl.histogram.packetizer import HistogramPacketizer
+from fliss.hdl.link.packetizer import FullHistogramPacketizer
 from fliss.hdl.protocol import PacketType
-from fliss.sim.histogram_packets import assemble, encode_histogram, frame_bins
+from fliss.protocol.histograms import assemble, encode_histogram, frame_bins
 from simulation import simulate
 
 

@@ -8,9 +8,10 @@ import pytest
 
 from fliss.hdl.protocol import PacketType, HistogramChunk, HistogramCompact
 from fliss.host.stream import HistogramFrame, StreamAssembler
-from fliss.sim.codec import Packet, pack
-from fliss.sim.histogram_packets import (MalformedChunk, assemble, decode_chunk,
-                                         encode_histogram, frame_bins, tokens)
+from fliss.protocol.frames import Packet
+from fliss.protocol.layout import pack
+from fliss.protocol.histograms import (MalformedChunk, assemble, decode_chunk, encode_histogram,
+                                       frame_bins, tokens)
 
 
 COMPACT = PacketType.HISTOGRAM_COMPACT

@@ -5,8 +5,8 @@ outside the frame's pixels, splits that do not fit the bank."""
 import numpy as np
 import pytest
 
-from fliss.hdl.histogram import Histogram
-from fliss.sim import histogram as model
+from fliss.hdl.histogram.engine import Histogram
+from fliss.sim.models import histogram as model
 
 from test_histogram import check_against_model, hazard_stimulus, run_histogram, spaced
 

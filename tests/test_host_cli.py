@@ -17,7 +17,7 @@ from fliss.hdl.registers import BY_NAME, defaults
 from fliss.host.cli import main
 from fliss.host.client import BoardClient
 from fliss.host.fileformat import read_capture
-from fliss.sim.model_board import model_board, scene_for
+from fliss.sim.boards.model import model_board, scene_for
 from fliss.sim.scene import Scene, Simulation, time_of_flight
 
 

@@ -10,7 +10,7 @@ import pytest
 from fliss.hdl.registers import BY_NAME, defaults
 from fliss.host.cli import main, parse_args
 from fliss.host.fileformat import read_capture
-from fliss.sim.model_board import model_board
+from fliss.sim.boards.model import model_board
 from fliss.sim.scene import Scene
 
 

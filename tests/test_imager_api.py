@@ -7,12 +7,12 @@ import pytest
 import fliss
 from fliss.host.board import Board
 from fliss.host.cli import main
-from fliss.host.demo_imager import (compare_profiles, draw_profiles, run_on_board,
+from fliss.host.imager.demo import (compare_profiles, draw_profiles, run_on_board,
                                     summary_lines)
 from fliss.host.errors import SettingsError
 from fliss.host.fileformat import read_capture
-from fliss.host.imager import DepthFrames, Images
-from fliss.sim.model_board import model_board
+from fliss.host.imager.results import DepthFrames, Images
+from fliss.sim.boards.model import model_board
 from fliss.sim.scene import Scene
 
 import imager_frames as scene
@@ -105,7 +105,7 @@ def test_demo_comparison_counts_the_wrong_pixels(tmp_path):
 def test_demo_comparison_takes_depth_frames_and_refuses_a_wrong_truth():
     frames = scene.depth_frames(np.tile(TRUTH_M, (3, 1)))
     settings = Board(FakeClient([], scene.configuration())).settings
-    from fliss.host.imager import depth_from_frames
+    from fliss.host.imager.results import depth_from_frames
     depth = depth_from_frames(frames, settings)
     comparison = compare_profiles(depth, depth, TRUTH_M)
     assert list(comparison.pixels) == list(FIRST + np.arange(8))

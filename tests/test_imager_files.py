@@ -15,7 +15,7 @@ import pytest
 from fliss.host.acquisition import capture
 from fliss.host.cli import main
 from fliss.host.fileformat import CaptureWriter, read_capture
-from fliss.host.imager_analysis import capture_table, depth_table, image_table
+from fliss.host.imager.analysis import capture_table, depth_table, image_table
 
 import imager_frames as scene
 from imager_frames import C, FIRST, LSB_S, SHIFT, TRUTH_M, FakeClient

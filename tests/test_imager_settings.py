@@ -5,7 +5,7 @@ import pytest
 
 from fliss.hdl.registers import defaults
 from fliss.host.cli import main
-from fliss.host.config import describe as describe_register
+from fliss.host.commands.config import describe as describe_register
 from fliss.host.errors import SettingsError
 from fliss.host.settings import check_offline, convert, describe
 

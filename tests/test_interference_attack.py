@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from fliss.sim.attacker_scene import Victim
-from fliss.sim.interference import evaluate, scene_of, check_point
-from fliss.sim.interference_attack import attack_edges, victim_starts
+from fliss.sim.studies.attack_scene import Victim
+from fliss.sim.studies.interference import evaluate, scene_of, check_point
+from fliss.sim.studies.predicting_aggressor import attack_edges, victim_starts
 from fliss.sim.scene import time_of_flight
 
 
@@ -22,7 +22,7 @@ def test_the_keyed_victim_runs_the_trivium_delays_of_a_key_drawn_from_the_seed()
     again = scene_of(point, np.random.default_rng(1)).victim
     other = scene_of(point, np.random.default_rng(2)).victim
     assert first.key == again.key != other.key and first.iv == 0 and first.key >= 1 << 32
-    # The scene's starts are those of the Trivium delays of that key (sim/attacker_scene.py)
+    # The scene's starts are those of the Trivium delays of that key (sim/studies/attack_scene.py)
     expected = Victim("keyed", mask_width=6, key=first.key, iv=0).start_cycles(3000)
     assert np.array_equal(victim_starts(first, int(expected[-2]) + 1), expected)
     fixed = scene_of(check_point({"scheme": "keyed", "victim_seed": 99}),

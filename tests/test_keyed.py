@@ -4,11 +4,11 @@ keyed delays bit for bit, the start bound and the IV rule."""
 import numpy as np
 import pytest
 
-from fliss.hdl.delay import DelayMode, DelaySource
-from fliss.hdl.settings import KEYED_START_CYCLES
-from fliss.hdl.trivium import TriviumCore
-from fliss.sim import delay as model
-from fliss.sim import trivium
+from fliss.hdl.delay.source import DelayMode, DelaySource
+from fliss.hdl.delay.settings import KEYED_START_CYCLES
+from fliss.hdl.delay.trivium import TriviumCore
+from fliss.sim.models import delay as model
+from fliss.sim.models import trivium
 from simulation import simulate
 
 
@@ -165,8 +165,8 @@ def test_delay_core_keyed_updates_against_model():
     # cycle before the update): every pulse's fire cycle, delay and index against the model,
     # which stops a run while the keystream initialises and starts it again.
     import random
-    from fliss.hdl.core import DelayCore
-    from fliss.sim.scheduler import LATENCY, Settings, simulate as schedule
+    from fliss.hdl.delay.core import DelayCore
+    from fliss.sim.models.scheduler import LATENCY, Settings, simulate as schedule
     fields = ("mode", "length", "mask_width", "seed", "period", "grid", "pulse_width")
     rng = random.Random(1414)
     key, iv = 0x0123456789ABCDEF0123, 0x00000000000000000007
@@ -231,10 +231,10 @@ def test_key_write_only_and_iv_rule(monkeypatch):
     # the IV reads the IV in use; an IV written without the key must go above it; with a key,
     # any IV goes. The model (and the Python rule) say the same.
     import test_command
-    from fliss.hdl.command import CommandProcessor
+    from fliss.hdl.link.command import CommandProcessor
     from fliss.hdl.protocol import PacketType, ReadRequest, registers_layout
     from fliss.hdl.registers import BY_NAME, iv_problem
-    from fliss.sim.codec import pack, unpack
+    from fliss.protocol.layout import pack, unpack
 
     in_use = 0x1234
 

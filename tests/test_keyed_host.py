@@ -5,7 +5,7 @@ import pytest
 
 from fliss.hdl.registers import value_of
 from fliss.host.client import BoardClient
-from fliss.sim.model_board import model_board
+from fliss.sim.boards.model import model_board
 from test_host_cli import fliss
 
 
@@ -85,7 +85,7 @@ def test_capture_keyed_on_the_model_board(tmp_path, capsys):
     # A capture in keyed mode on the model board: the file records the IV in use, never the
     # key, and the scene simulator fires the laser with the keyed delays of that IV.
     from fliss.host.fileformat import read_capture
-    from fliss.sim import delay as model
+    from fliss.sim.models import delay as model
     from fliss.sim.scene import Scene
     with model_board(scene=Scene(detections_per_pulse=0.1, background_hz=2e5)) as board:
         status, out, err = fliss(capsys, "config", "--port", board.path, "--mode", "keyed",

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from fliss.hdl.lfsr import Lfsr, POLYNOMIALS
-from fliss.sim import lfsr as model
+from fliss.hdl.delay.lfsr import Lfsr, POLYNOMIALS
+from fliss.sim.models import lfsr as model
 
 from simulation import simulate
 

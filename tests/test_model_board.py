@@ -7,13 +7,13 @@ import pytest
 
 from fliss.host.client import BoardClient
 from fliss.host.stream import EventBatch
-from fliss.sim.command import CommandModel
-from fliss.sim.model_board import main, model_board, scene_for
+from fliss.sim.models.command import CommandModel
+from fliss.sim.boards.model import main, model_board, scene_for
 from fliss.sim.scene import Scene, line_pixels
 
 
 def test_pulse_count_restarts_with_each_start():
-    # The gateware's scheduler restarts its pulse index on every START (hdl/scheduler.py), so
+    # The gateware's scheduler restarts its pulse index on every START (hdl/delay/scheduler.py), so
     # STATUS `pulses` counts the pulses of the running acquisition only.
     with model_board() as model, BoardClient(model.path, timeout_s=2.0) as board:
         board.start()
@@ -63,5 +63,5 @@ def test_command_line_refuses_a_bad_scene(capsys):
         main(["--scene", "line", "--object-m", "0"])
     assert exit.value.code == 2
     assert capsys.readouterr().err.splitlines()[-1] == (
-        "python -m fliss.sim.model_board: error: Object distance (m) must be a finite positive "
+        "python -m fliss.sim.boards.model: error: Object distance (m) must be a finite positive "
         "number, not 0.0")

@@ -1,4 +1,4 @@
-"""The noisy line (sim/noisy_line.py) and the host on it: faults counted against an independent
+"""The noisy line (sim/boards/noisy_line.py) and the host on it: faults counted against an independent
 count, a 100-histogram capture at a bit error rate of 1e-4 both ways with no wrong data
 accepted, a board reset in the middle of a capture, and the progress output of a capture."""
 
@@ -12,15 +12,16 @@ import time
 import numpy as np
 import pytest
 
-from fliss.sim.histogram_packets import HISTOGRAM_TYPES, decode_chunk
+from fliss.protocol.histograms import decode_chunk
+from fliss.protocol.packets import HISTOGRAM_TYPES
 from fliss.host.acquisition import capture
-from fliss.host.capture import Progress
+from fliss.host.commands.common import Progress
 from fliss.host.cli import main
 from fliss.host.client import BoardClient
 from fliss.host.fileformat import read_capture
-from fliss.sim.model_board import model_board
-from fliss.sim.noisy_line import (FaultInjector, LineFaults, NoisyLine, add_line_arguments,
-                                  faults_from_args)
+from fliss.sim.boards.model import model_board
+from fliss.sim.boards.noisy_line import (FaultInjector, LineFaults, NoisyLine, add_line_arguments,
+                                         faults_from_args)
 
 
 SHIFT = 6                      # 128 bins: one chunk per histogram
@@ -110,10 +111,10 @@ def test_bad_rates_are_refused_with_one_line(capsys):
     # The command line: one line, exit 1, before anything is built.
     assert main(["board", "--line-errors", "1.5"]) == 1
     assert capsys.readouterr().err == "fliss: error: --line-errors must be from 0 to 1, not 1.5\n"
-    process = subprocess.run([sys.executable, "-m", "fliss.sim.model_board", "--line-errors",
+    process = subprocess.run([sys.executable, "-m", "fliss.sim.boards.model", "--line-errors",
                               "-1"], capture_output=True, text=True, timeout=60)
     assert process.returncode == 2
-    assert process.stderr == ("python -m fliss.sim.model_board: error: --line-errors must be "
+    assert process.stderr == ("python -m fliss.sim.boards.model: error: --line-errors must be "
                               "from 0 to 1, not -1\n")
 
 

@@ -9,13 +9,13 @@ import warnings
 import pytest
 from amaranth.hdl import UnusedElaboratable
 
-from fliss.hdl.command import CommandProcessor
+from fliss.hdl.link.command import CommandProcessor
 from fliss.hdl.protocol import CONSISTENCY, Identity, NakCode, Nak, PacketType
 from fliss.hdl.regfile import RegisterFile
 from fliss.hdl.registers import BY_NAME, defaults, problems, split_problems
 from fliss.hdl.top import FlissTop, SMALL
-from fliss.sim.codec import pack, unpack
-from fliss.sim.command import CommandModel
+from fliss.protocol.layout import pack, unpack
+from fliss.sim.models.command import CommandModel
 
 from test_command import BAUD, CLOCK_HZ, _write, run_commands
 
@@ -96,7 +96,7 @@ def test_host_checks_the_split_with_the_boards_bank():
     # (here a model board told it has 14 bits).
     from fliss.host.client import BoardClient
     from fliss.host.errors import SettingsError
-    from fliss.sim.model_board import model_board
+    from fliss.sim.boards.model import model_board
 
     with model_board() as model, BoardClient(model.path, timeout_s=2.0) as board:
         assert board.identify().bank_bits == 16

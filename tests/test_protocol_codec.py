@@ -1,4 +1,4 @@
-"""Software codec of the link protocol (fliss.sim.codec), against independent references."""
+"""Software codec of the link protocol (fliss.protocol), against independent references."""
 
 import binascii
 import random
@@ -9,13 +9,12 @@ import pytest
 from amaranth.hdl import Shape
 from amaranth.lib import data
 
-from fliss.hdl.protocol import (PacketType, NakCode, Header, HEADER_BYTES, MAX_PAYLOAD,
-                                MAX_PACKET, MAX_ENCODED, CRC_BYTES, CRC_CHECK, CRC_INIT,
-                                DIRECTION_BIT, EVENT_BYTES, MAX_EVENTS_PER_PACKET, Ack, Nak,
-                                Identity, ReadRequest, Status, HistogramChunk, READ_MAX,
-                                registers_layout)
-from fliss.sim import codec
-from fliss.sim.event import EVENT_DTYPE
+from fliss.hdl.protocol import (PacketType, NakCode, Header, HEADER_BYTES, MAX_PAYLOAD, MAX_PACKET,
+                                MAX_ENCODED, CRC_BYTES, CRC_CHECK, CRC_INIT, DIRECTION_BIT,
+                                EVENT_BYTES, MAX_EVENTS_PER_PACKET, Ack, Nak, Identity, ReadRequest,
+                                Status, HistogramChunk, READ_MAX, registers_layout)
+from fliss import protocol
+from fliss.protocol.events import EVENT_DTYPE
 
 
 # Definitions
@@ -26,7 +25,7 @@ def test_layout_constants():
     assert MAX_EVENTS_PER_PACKET * EVENT_BYTES <= MAX_PAYLOAD
     assert (MAX_EVENTS_PER_PACKET + 1) * EVENT_BYTES > MAX_PAYLOAD
     assert MAX_PACKET == HEADER_BYTES + MAX_PAYLOAD + CRC_BYTES
-    assert MAX_ENCODED == len(codec.cobs_encode(b"\x01" * MAX_PACKET))
+    assert MAX_ENCODED == len(protocol.cobs_encode(b"\x01" * MAX_PACKET))
 
 
 def _random_values(layout, rng):
@@ -48,36 +47,36 @@ def test_pack_is_the_gateware_value(layout):
     cast = data.Layout.cast(layout)
     for _ in range(20):
         values = _random_values(cast, rng)
-        payload = codec.pack(layout, values)
-        assert len(payload) == codec.byte_size(layout) == cast.size // 8
+        payload = protocol.pack(layout, values)
+        assert len(payload) == protocol.byte_size(layout) == cast.size // 8
         assert int.from_bytes(payload, "little") == cast.const(values).as_bits()
-        assert codec.unpack(layout, payload) == values
-        assert codec.unpack_from(layout, b"\xaa" + payload + b"\x55", 1) == values
+        assert protocol.unpack(layout, payload) == values
+        assert protocol.unpack_from(layout, b"\xaa" + payload + b"\x55", 1) == values
 
 
 def test_pack_nak_and_words():
-    payload = codec.pack(Nak, seq=3, code=NakCode.OUT_OF_RANGE, detail=0x0102)
+    payload = protocol.pack(Nak, seq=3, code=NakCode.OUT_OF_RANGE, detail=0x0102)
     assert payload == bytes([3, NakCode.OUT_OF_RANGE.value, 0x02, 0x01])
-    assert codec.unpack(Nak, payload) == {"seq": 3, "code": NakCode.OUT_OF_RANGE.value,
+    assert protocol.unpack(Nak, payload) == {"seq": 3, "code": NakCode.OUT_OF_RANGE.value,
                                          "detail": 0x0102}
-    assert codec.pack(Nak, code=NakCode.BAD_CRC) == bytes([0, 1, 0, 0])   # left out: zero
-    assert codec.pack_words([1, 0xffffffff]) == bytes([1, 0, 0, 0, 0xff, 0xff, 0xff, 0xff])
-    assert codec.unpack_words(bytes([9, 1, 0, 2, 0]), 16, offset=1) == [0x0001, 0x0002]
+    assert protocol.pack(Nak, code=NakCode.BAD_CRC) == bytes([0, 1, 0, 0])   # left out: zero
+    assert protocol.pack_words([1, 0xffffffff]) == bytes([1, 0, 0, 0, 0xff, 0xff, 0xff, 0xff])
+    assert protocol.unpack_words(bytes([9, 1, 0, 2, 0]), 16, offset=1) == [0x0001, 0x0002]
 
 
 def test_pack_refuses_what_does_not_fit():
     with pytest.raises(ValueError, match=r"^payload\.seq = 256 does not fit in 8 bits$"):
-        codec.pack(Ack, seq=256)
+        protocol.pack(Ack, seq=256)
     with pytest.raises(ValueError, match=r"^payload has no field 'sequence'$"):
-        codec.pack(Ack, sequence=1)
+        protocol.pack(Ack, sequence=1)
     with pytest.raises(ValueError, match=r"^payload\.values needs 2 elements, not 1$"):
-        codec.pack(registers_layout(2), address=0, values=[1])
+        protocol.pack(registers_layout(2), address=0, values=[1])
     with pytest.raises(ValueError, match=r"^Payload of 3 bytes, not 4$"):
-        codec.unpack(Nak, b"abc")
+        protocol.unpack(Nak, b"abc")
     with pytest.raises(ValueError, match=r"^Words must be from 0 to 65535$"):
-        codec.pack_words([1 << 16], 16)
+        protocol.pack_words([1 << 16], 16)
     with pytest.raises(ValueError, match=r"^3 bytes are not a whole number of 4-byte words$"):
-        codec.unpack_words(b"abc")
+        protocol.unpack_words(b"abc")
 
 
 def test_packet_type_directions():
@@ -90,19 +89,19 @@ def test_packet_type_directions():
 # CRC
 
 def test_crc_check_value():
-    assert codec.crc16(b"123456789") == CRC_CHECK == 0x29b1
-    assert codec.crc16(b"") == CRC_INIT
+    assert protocol.crc16(b"123456789") == CRC_CHECK == 0x29b1
+    assert protocol.crc16(b"") == CRC_INIT
 
 
 def test_crc_against_binascii():
     rng = random.Random(1)
     for length in list(range(20)) + [100, 1000]:
         data = bytes(rng.randint(0, 255) for _ in range(length))
-        assert codec.crc16(data) == binascii.crc_hqx(data, 0xffff)
+        assert protocol.crc16(data) == binascii.crc_hqx(data, 0xffff)
         # Continuing a CRC is the CRC of the concatenation.
-        assert codec.crc16(data[5:], codec.crc16(data[:5])) == codec.crc16(data)
+        assert protocol.crc16(data[5:], protocol.crc16(data[:5])) == protocol.crc16(data)
         # With the CRC appended most significant byte first, the CRC is zero.
-        assert codec.crc16(data + codec.crc16(data).to_bytes(2, "big")) == 0
+        assert protocol.crc16(data + protocol.crc16(data).to_bytes(2, "big")) == 0
 
 
 # COBS
@@ -118,17 +117,17 @@ def test_crc_against_binascii():
     ("", "01"),
 ])
 def test_cobs_vectors(data, encoded):
-    assert codec.cobs_encode(bytes.fromhex(data)) == bytes.fromhex(encoded)
-    assert codec.cobs_decode(bytes.fromhex(encoded)) == bytes.fromhex(data)
+    assert protocol.cobs_encode(bytes.fromhex(data)) == bytes.fromhex(encoded)
+    assert protocol.cobs_decode(bytes.fromhex(encoded)) == bytes.fromhex(data)
 
 
 def test_cobs_long_runs():
     run = bytes(range(1, 255))                           # 254 non-zero bytes
-    assert codec.cobs_encode(run) == b"\xff" + run
-    assert codec.cobs_encode(b"\x00" + run) == b"\x01\xff" + run
-    assert codec.cobs_encode(run + b"\xff") == b"\xff" + run + b"\x02\xff"
-    assert codec.cobs_encode(run + b"\x00") == b"\xff" + run + b"\x01\x01"
-    assert codec.cobs_encode(bytes(range(2, 256)) + b"\x00\x01") == (
+    assert protocol.cobs_encode(run) == b"\xff" + run
+    assert protocol.cobs_encode(b"\x00" + run) == b"\x01\xff" + run
+    assert protocol.cobs_encode(run + b"\xff") == b"\xff" + run + b"\x02\xff"
+    assert protocol.cobs_encode(run + b"\x00") == b"\xff" + run + b"\x01\x01"
+    assert protocol.cobs_encode(bytes(range(2, 256)) + b"\x00\x01") == (
         b"\xff" + bytes(range(2, 256)) + b"\x01\x02\x01")
 
 
@@ -138,10 +137,10 @@ def test_cobs_round_trip():
         for zeros in (0.0, 0.01, 0.5, 1.0):
             data = bytes(0 if rng.random() < zeros else rng.randint(1, 255)
                          for _ in range(length))
-            encoded = codec.cobs_encode(data)
+            encoded = protocol.cobs_encode(data)
             assert 0 not in encoded
             assert len(encoded) <= length + 1 + max(length - 1, 0) // 254
-            assert codec.cobs_decode(encoded) == data
+            assert protocol.cobs_decode(encoded) == data
 
 
 @pytest.mark.parametrize("encoded, message", [
@@ -151,21 +150,21 @@ def test_cobs_round_trip():
     ("", "empty"),
 ])
 def test_cobs_decode_errors(encoded, message):
-    with pytest.raises(codec.CobsError, match=f"^{message}$"):
-        codec.cobs_decode(bytes.fromhex(encoded))
+    with pytest.raises(protocol.CobsError, match=f"^{message}$"):
+        protocol.cobs_decode(bytes.fromhex(encoded))
 
 
 # Packets
 
 def test_packet_bytes():
     payload = b"\x00\x01\x02"
-    packet = codec.encode_packet(PacketType.WRITE, 0x2a, payload)
+    packet = protocol.encode_packet(PacketType.WRITE, 0x2a, payload)
     body = bytes([0x04, 0x2a, 0x03, 0x00]) + payload   # type, seq, length (little-endian)
     assert packet == body + binascii.crc_hqx(body, 0xffff).to_bytes(2, "big")
-    frame = codec.encode_frame(PacketType.WRITE, 0x2a, payload)
+    frame = protocol.encode_frame(PacketType.WRITE, 0x2a, payload)
     assert frame[-1] == 0 and 0 not in frame[:-1]
-    assert codec.cobs_decode(frame[:-1]) == packet
-    long = codec.encode_packet(PacketType.HISTOGRAM, 0, bytes(MAX_PAYLOAD))
+    assert protocol.cobs_decode(frame[:-1]) == packet
+    long = protocol.encode_packet(PacketType.HISTOGRAM, 0, bytes(MAX_PAYLOAD))
     assert long[2:4] == MAX_PAYLOAD.to_bytes(2, "little")
 
 
@@ -184,19 +183,19 @@ def test_header_struct_layout():
 def test_encode_errors(kwargs, message):
     arguments = {"type": PacketType.PING, "seq": 0, "payload": b""} | kwargs
     with pytest.raises(ValueError, match=f"^{message}$"):
-        codec.encode_packet(**arguments)
+        protocol.encode_packet(**arguments)
 
 
 # Streaming decoder
 
 def _raw_frame(header_length, payload, seq=0, crc_xor=0):
     body = bytes([PacketType.EVENTS.value, seq]) + header_length.to_bytes(2, "little") + payload
-    crc = codec.crc16(body) ^ crc_xor
-    return codec.cobs_encode(body + crc.to_bytes(2, "big")) + b"\x00"
+    crc = protocol.crc16(body) ^ crc_xor
+    return protocol.cobs_encode(body + crc.to_bytes(2, "big")) + b"\x00"
 
 
 def test_decoder_reports_everything():
-    good = [codec.encode_frame(PacketType.EVENTS, seq, bytes([seq, 0, seq])) for seq in range(10)]
+    good = [protocol.encode_frame(PacketType.EVENTS, seq, bytes([seq, 0, seq])) for seq in range(10)]
     stream = (b"\x17\x42\x99" + b"\x00"          # mid-frame start: resync, 3 bytes skipped
               + good[0] + good[1]
               + _raw_frame(3, b"\x02\x00\x02", seq=2, crc_xor=0x0100)       # bad CRC
@@ -208,9 +207,9 @@ def test_decoder_reports_everything():
               + b"\x07" * (MAX_ENCODED + 1) + b"\x00"                       # oversize
               + _raw_frame(5, b"\x01\x02\x03", seq=8)                       # bad length
               + good[5] + good[6] + good[9])                                # gap: 2 missing
-    decoder = codec.FrameDecoder()
+    decoder = protocol.FrameDecoder()
     items = decoder.feed(stream)
-    Packet, Gap, Error = codec.Packet, codec.SequenceGap, codec.LinkError
+    Packet, Gap, Error = protocol.Packet, protocol.SequenceGap, protocol.LinkError
     kinds = [(type(item).__name__,
               item.seq if isinstance(item, Packet) else
               (item.expected, item.missing) if isinstance(item, Gap) else
@@ -243,15 +242,15 @@ def test_decoder_byte_by_byte_equals_bulk():
     rng = random.Random(3)
     stream = bytearray()
     for seq in range(60):
-        frame = bytearray(codec.encode_frame(rng.choice(list(PacketType)), seq,
+        frame = bytearray(protocol.encode_frame(rng.choice(list(PacketType)), seq,
                                              bytes(rng.randint(0, 255)
                                                    for _ in range(rng.randint(0, MAX_PAYLOAD)))))
         if rng.random() < 0.3:
             frame[rng.randrange(len(frame))] ^= 1 << rng.randrange(8)
         stream += frame
-    bulk = codec.FrameDecoder(synced=True)
+    bulk = protocol.FrameDecoder(synced=True)
     whole = bulk.feed(stream)
-    split = codec.FrameDecoder(synced=True)
+    split = protocol.FrameDecoder(synced=True)
     pieces = []
     position = 0
     while position < len(stream):
@@ -264,7 +263,7 @@ def test_decoder_byte_by_byte_equals_bulk():
 
 
 def test_decoder_memory_bounded():
-    decoder = codec.FrameDecoder(synced=True)
+    decoder = protocol.FrameDecoder(synced=True)
     for _ in range(100):
         assert decoder.feed(b"\x55" * 1000) == []
         assert len(decoder._frame) <= MAX_ENCODED + 1
@@ -273,8 +272,8 @@ def test_decoder_memory_bounded():
 
 
 def test_packet_encoder_numbers_packets():
-    encoder = codec.PacketEncoder(seq=254)
-    decoder = codec.FrameDecoder(synced=True)
+    encoder = protocol.PacketEncoder(seq=254)
+    decoder = protocol.FrameDecoder(synced=True)
     stream = b"".join(encoder.frame(PacketType.PING) for _ in range(4))
     assert [item.seq for item in decoder.feed(stream)] == [254, 255, 0, 1]
     assert decoder.counters.sequence_gaps == 0
@@ -289,12 +288,12 @@ def test_events_round_trip():
     events["address"] = rng.integers(0, 1 << 6, len(events))
     events["collision"] = rng.integers(0, 2, len(events))
     events["pulse"] = rng.integers(0, 1 << 32, len(events), dtype=np.uint64)
-    payload = codec.pack_events(events)
+    payload = protocol.pack_events(events)
     assert len(payload) == len(events) * EVENT_BYTES <= MAX_PAYLOAD
     first = int.from_bytes(payload[:EVENT_BYTES], "little")
     assert first & 0x1fff == events["timestamp"][0]           # the struct's first field
     assert first >> 20 == events["pulse"][0]                  # after 13 + 6 + 1 bits
-    assert np.array_equal(codec.unpack_events(payload), events)
+    assert np.array_equal(protocol.unpack_events(payload), events)
     with pytest.raises(ValueError, match=r"^Event payload of 8 bytes is not a whole number of "
                                          r"7-byte events$"):
-        codec.unpack_events(bytes(8))
+        protocol.unpack_events(bytes(8))

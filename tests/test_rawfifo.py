@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from fliss.hdl.rawfifo import RawFifo
-from fliss.sim import rawfifo as model
-from fliss.sim.event import EVENT_DTYPE, pack, unpack
+from fliss.sim.models import rawfifo as model
+from fliss.protocol.events import EVENT_DTYPE, pack, unpack
 
 from simulation import simulate
 

@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 
 from fliss.hdl.event import TDC_LSB_S
-from fliss.sim import delay as delay_model
-from fliss.sim import scheduler
-from fliss.sim.delay import DelayStream
-from fliss.sim.event import EVENT_DTYPE, pack
+from fliss.sim.models import delay as delay_model
+from fliss.sim.models import scheduler
+from fliss.sim.models.delay import DelayStream
+from fliss.protocol.events import EVENT_DTYPE, pack
 from fliss.sim.scene import COUNTERS, Aggressor, Scene, Simulation, acquire, histogram
-from fliss.sim.scheduler import Settings
+from fliss.sim.models.scheduler import Settings
 
 
 C = 299_792_458.0

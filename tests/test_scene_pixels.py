@@ -10,10 +10,10 @@ import math
 import numpy as np
 import pytest
 
-from fliss.sim import scheduler
+from fliss.sim.models import scheduler
 from fliss.sim.scene import (COUNTERS, Aggressor, PixelArray, PixelSimulation, Scene, Simulation,
                              acquire, line_pixels, pixels_named, simulation_for)
-from fliss.sim.scheduler import Settings
+from fliss.sim.models.scheduler import Settings
 
 
 C = 299_792_458.0
@@ -260,7 +260,7 @@ def test_scheduler_starts_and_line_defaults():
     victim = Settings(mode="masked", mask_width=4, seed=9, period=80)
     simulation = simulation_for(Scene(victim=victim, pixels=pixels), seed=1, chunk_cycles=500)
     starts = np.concatenate([chunk.start_cycles for chunk in simulation.chunks(2000)])
-    from fliss.sim import delay as delay_model
+    from fliss.sim.models import delay as delay_model
     delays = delay_model.delays("masked", 2000, mask_width=4, seed=9)
     assert np.array_equal(starts, scheduler.fire_cycles(delays, 80) + scheduler.LATENCY)
 

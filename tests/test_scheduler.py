@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 from fliss.hdl import period_cycles
-from fliss.hdl.core import DelayCore
-from fliss.hdl.delay import DelayMode
-from fliss.hdl.laser import LaserTrigger
-from fliss.sim.aggressor import laser_waveform
-from fliss.sim.scheduler import (LATENCY, Settings, check_schedule, fire_cycles, simulate,
-                                 start_cycle)
+from fliss.hdl.delay.core import DelayCore
+from fliss.hdl.delay.source import DelayMode
+from fliss.hdl.delay.laser import LaserTrigger
+from fliss.sim.models.aggressor import laser_waveform
+from fliss.sim.models.scheduler import (LATENCY, Settings, check_schedule, fire_cycles, simulate,
+                                        start_cycle)
 from simulation import simulate as run_simulation
 
 

@@ -18,7 +18,7 @@ from fliss.host.cli import main
 from fliss.host.client import BoardClient
 from fliss.host.fileformat import RUNNING, CaptureWriter, read_capture
 from fliss.host.stream import HistogramFrame
-from fliss.sim.model_board import model_board
+from fliss.sim.boards.model import model_board
 from fliss.sim.scene import Scene
 
 

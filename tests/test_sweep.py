@@ -13,9 +13,9 @@ import pytest
 
 import sweep_points
 from fliss.host.cli import main
-from fliss.host.sweep_engine import (Store, SweepError, cluster, compute, run_sweep, table_rows,
-                                     write_table)
-from fliss.host.sweep_spec import SpecError, load, parse, point_key, point_seed
+from fliss.host.sweep.engine import (Store, SweepError, cluster, compute, run_sweep,
+                                              table_rows, write_table)
+from fliss.host.sweep.spec import SpecError, load, parse, point_key, point_seed
 
 
 MODEL = "sweep_points:evaluate"
@@ -356,15 +356,15 @@ def test_ctrl_c_stops_the_workers_and_keeps_the_finished_points(tmp_path, whom, 
 # With the interference model ------------------------------------------------------------------
 
 def test_the_example_spec_is_valid_for_the_interference_model():
-    pytest.importorskip("fliss.sim.interference")
+    pytest.importorskip("fliss.sim.studies.interference")
     spec = load(os.path.join(TESTS, "..", "examples", "sweep-quick.toml"))
-    assert spec.model == "fliss.sim.interference:evaluate"
+    assert spec.model == "fliss.sim.studies.interference:evaluate"
     assert len(spec.points()) == 3 * 4 * 3
     assert set(spec.varied()) == {"scheme", "aggressors", "aggressor_power"}
 
 
 def test_a_tiny_interference_sweep_through_the_command(tmp_path, capsys):
-    pytest.importorskip("fliss.sim.interference")
+    pytest.importorskip("fliss.sim.studies.interference")
     spec = tmp_path / "tiny.toml"
     spec.write_text('seed = 1\nframes = 2\n[parameters]\nscheme = ["off", "masked"]\n'
                     'aggressors = [1, 2]\nframes_per_run = 2\n')
@@ -389,7 +389,7 @@ def test_sweep_command_on_an_existing_scheduler(client, tmp_path, capsys):
 
 
 def test_the_spec_in_the_docs_gives_the_points_it_says(tmp_path):
-    pytest.importorskip("fliss.sim.interference")
+    pytest.importorskip("fliss.sim.studies.interference")
     text = open(os.path.join(TESTS, "..", "docs", "sweeps.md")).read()
     block = text.split("```toml\n", 1)[1].split("```", 1)[0]
     (tmp_path / "doc.toml").write_text(block)
@@ -399,7 +399,7 @@ def test_the_spec_in_the_docs_gives_the_points_it_says(tmp_path):
 
 
 def test_a_sweep_with_the_keyed_victim_and_the_predicting_aggressor(tmp_path, capsys):
-    pytest.importorskip("fliss.sim.interference")
+    pytest.importorskip("fliss.sim.studies.interference")
     spec = tmp_path / "attack.toml"
     spec.write_text('seed = 1\nframes = 2\n[parameters]\nscheme = ["mseq", "keyed"]\n'
                     'aggressor_kind = ["locked", "predicting"]\nt_int_s = 0.002\n')

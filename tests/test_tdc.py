@@ -9,8 +9,8 @@ from amaranth.lib.wiring import In, Out
 from fliss.hdl.event import Event
 from fliss.hdl.tdc import (Gate, EventFilter, TdcInterface, CoarseTdc, SYNC_STAGES, CAPTURE_LATENCY,
                            OUTPUT_LATENCY, MAX_TIMESTAMP, COUNTER_WIDTH)
-from fliss.sim import tdc as model
-from fliss.sim.event import EVENT_DTYPE, unpack
+from fliss.sim.models import tdc as model
+from fliss.protocol.events import EVENT_DTYPE, unpack
 from simulation import simulate
 
 

@@ -4,7 +4,7 @@ implementation written from the specification."""
 import numpy as np
 import pytest
 
-from fliss.sim import trivium
+from fliss.sim.models import trivium
 
 
 # eSTREAM Trivium test vectors (verified.test-vectors): (key, IV, first keystream byte, bytes).

@@ -1,13 +1,13 @@
-"""UART transmitter and receiver against the bit-level model (fliss.sim.uart)."""
+"""UART transmitter and receiver against the bit-level model (fliss.sim.models.uart)."""
 
 import pytest
 from amaranth.hdl import Elaboratable, Module, Signal
 
 from fliss.hdl import DEFAULT_CLOCK_HZ
-from fliss.hdl.uart import (UartTx, UartRx, bit_cycles, FRACTION_BITS, MIN_BIT_CYCLES,
-                            CHARACTER_BITS)
-from fliss.sim import uart as model
-from fliss.sim import lfsr
+from fliss.hdl.link.uart import (UartTx, UartRx, bit_cycles, FRACTION_BITS, MIN_BIT_CYCLES,
+                                 CHARACTER_BITS)
+from fliss.sim.models import uart as model
+from fliss.sim.models import lfsr
 from simulation import simulate
 
 

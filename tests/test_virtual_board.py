@@ -12,18 +12,19 @@ import numpy as np
 import pytest
 
 from fliss.hdl import DEFAULT_CLOCK_HZ
-from fliss.hdl.protocol import (EVENT_BYTES, PROTOCOL_VERSION, NakCode,
-                                PacketType, Identity, ReadRequest, Status, registers_layout)
+from fliss.hdl.protocol import (EVENT_BYTES, PROTOCOL_VERSION, NakCode, PacketType, Identity,
+                                ReadRequest, Status, registers_layout)
 from fliss.hdl.registers import BY_NAME, REGISTERS
-from fliss.sim import codec
+from fliss import protocol
 from fliss.host.virtual import SIMULATORS, VirtualBoard
 from fliss.host.cli import main
 from fliss.host.client import BoardClient
 from fliss.host.fileformat import read_capture
 from fliss.sim import scene
-from fliss.sim.cocotb_runner import simulator_available
-from fliss.sim.histogram_packets import HISTOGRAM_TYPES, assemble
-from fliss.sim.virtual_board import SensorModel
+from fliss.sim.benches.runner import simulator_available
+from fliss.protocol.histograms import assemble
+from fliss.protocol.packets import HISTOGRAM_TYPES
+from fliss.sim.boards.virtual import SensorModel
 
 
 BAUD = 12_000_000
@@ -153,8 +154,8 @@ class Link:
     def __init__(self, path):
         import serial
         self.port = serial.serial_for_url(path, baudrate=BAUD, timeout=0.05)
-        self.encoder = codec.PacketEncoder()
-        self.decoder = codec.FrameDecoder(synced=True)
+        self.encoder = protocol.PacketEncoder()
+        self.decoder = protocol.FrameDecoder(synced=True)
         self.pending = []
         self.data = []
         self.reports = []
@@ -164,7 +165,7 @@ class Link:
 
     def _read(self):
         for item in self.decoder.feed(self.port.read(4096)):
-            (self.pending if isinstance(item, codec.Packet) else self.reports).append(item)
+            (self.pending if isinstance(item, protocol.Packet) else self.reports).append(item)
 
     def next(self, types, timeout_s=30):
         deadline = time.monotonic() + timeout_s
@@ -189,23 +190,23 @@ class Link:
 
     def write(self, **values):
         for name, value in values.items():
-            reply = self.command(PacketType.WRITE, codec.pack(
+            reply = self.command(PacketType.WRITE, protocol.pack(
                 registers_layout(1), address=BY_NAME[name].address, values=[value]))
             assert reply.type == PacketType.ACK, (name, value, reply)
 
     def read(self, name, count=1):
-        reply = self.command(PacketType.READ, codec.pack(ReadRequest,
+        reply = self.command(PacketType.READ, protocol.pack(ReadRequest,
                                                          address=BY_NAME[name].address,
                                                          count=count))
         assert reply.type == PacketType.REGISTERS, reply
-        fields = codec.unpack(registers_layout(count), reply.payload)
+        fields = protocol.unpack(registers_layout(count), reply.payload)
         assert fields["address"] == BY_NAME[name].address
         return fields["values"]
 
     def status(self):
         reply = self.command(PacketType.GET_STATUS)
         assert reply.type == PacketType.STATUS
-        return codec.unpack(Status, reply.payload)
+        return protocol.unpack(Status, reply.payload)
 
 
 def check_ping_identify(link, pulses):
@@ -215,10 +216,10 @@ def check_ping_identify(link, pulses):
         assert (reply.type, reply.payload) == (PacketType.ACK, bytes([seq]))
     reply = link.command(PacketType.IDENTIFY)
     assert reply.type == PacketType.IDENTITY
-    identity = codec.unpack(Identity, reply.payload)
-    protocol, registers, clock_hz, baud = (identity["protocol"], identity["registers"],
+    identity = protocol.unpack(Identity, reply.payload)
+    version, registers, clock_hz, baud = (identity["protocol"], identity["registers"],
                                            identity["clock_hz"], identity["baud"])
-    assert (protocol, registers, clock_hz) == (PROTOCOL_VERSION, len(REGISTERS),
+    assert (version, registers, clock_hz) == (PROTOCOL_VERSION, len(REGISTERS),
                                                DEFAULT_CLOCK_HZ)
     assert abs(baud - BAUD) <= BAUD * 0.02
     assert not link.reports
@@ -231,7 +232,7 @@ def check_register_round_trip(link, pulses):
     assert link.read("gate_start", 2)[0] == 17
     assert link.read("seed") == [0x2b]
     # Refused: out of range, and nothing changes.
-    reply = link.command(PacketType.WRITE, codec.pack(
+    reply = link.command(PacketType.WRITE, protocol.pack(
         registers_layout(1), address=BY_NAME["mask_width"].address, values=[17]))
     assert reply.type == PacketType.NAK
     assert reply.payload[1] == NakCode.OUT_OF_RANGE.value
@@ -286,7 +287,7 @@ def check_histogram_with_aggressor(link, pulses):
     # 0.1 photons per pulse from each source: peaks far above the background.
     assert bins[top_two].min() > 10 * max(background, 1), (bins[top_two], background)
     assert status["events"] >= bins.sum() > pulses // 10
-    assert not [report for report in link.reports if not isinstance(report, codec.SequenceGap)]
+    assert not [report for report in link.reports if not isinstance(report, protocol.SequenceGap)]
 
 
 def check_raw_events(link, pulses):
@@ -314,7 +315,7 @@ def check_raw_events(link, pulses):
         received = sum(len(packet.payload) for packet in packets) // EVENT_BYTES
         if received >= status["events"] - before["events"] or time.monotonic() > deadline:
             break
-    events = np.concatenate([codec.unpack_events(packet.payload) for packet in packets])
+    events = np.concatenate([protocol.unpack_events(packet.payload) for packet in packets])
     link.write(acquisition=0)
     assert status["pulses"] >= pulses
     assert len(events) == status["events"] - before["events"] > 100

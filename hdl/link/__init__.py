@@ -1,0 +1,12 @@
+"""The link: a UART carrying framed, checked packets (``docs/protocol.md``) to and from the
+command processor and the data packetizers.
+
+* :mod:`.uart`: UART transmitter and receiver;
+* :mod:`.crc`: the CRC-16, appended and checked as stream stages;
+* :mod:`.cobs`: COBS encoder and decoder stream stages;
+* :mod:`.framing`: frame encoder and decoder, packets to and from the stages above;
+* :mod:`.buffer`: a stream buffer in block RAM;
+* :mod:`.command`: the command processor (register file access, status, NAKs);
+* :mod:`.packetizer`: EVENTS packets and full histogram chunks;
+* :mod:`.arbiter`: merges packet streams onto the link.
+"""

@@ -1,0 +1,260 @@
+"""Data packets: raw event batches and histogram chunks, built from the acquisition streams.
+
+The histogram packetizer that chooses compact chunks lives in
+:mod:`~fliss.hdl.histogram.packetizer`; :class:`FullHistogramPacketizer` here sends full chunks
+only, for the smallest builds."""
+
+from amaranth.hdl import Module, Mux, Signal
+from amaranth.lib import data, stream, wiring
+from amaranth.lib.wiring import In, Out
+
+from .. import lookup
+from ..event import Event, TIMESTAMP_BITS
+from .framing import PacketBeat
+from ..histogram.layout import BIN_BITS, COUNT_WIDTH
+from ..histogram.packetizer import HistogramPacketizer, histogram_packetizer_members
+from ..protocol import (PacketType, HistogramChunk, HISTOGRAM_COUNT_BITS, CHUNK_BINS, EVENT_BYTES,
+                        MAX_EVENTS_PER_PACKET, MAX_FRAME_BITS)
+
+
+__all__ = ["BATCH_TIMEOUT", "EventPacketizer", "HistogramPacketizer",
+           "FullHistogramPacketizer"]
+
+#: Bytes per bin count, and of a chunk's header.
+COUNT_BYTES = HISTOGRAM_COUNT_BITS // 8
+_CHUNK_HEADER = data.Layout.cast(HistogramChunk).size // 8
+assert COUNT_WIDTH == HISTOGRAM_COUNT_BITS, "the readout's counts go out as they are"
+
+#: Cycles an incomplete event batch waits for more events before it is sent anyway.
+BATCH_TIMEOUT = 1 << 14
+
+
+class EventPacketizer(wiring.Component):
+    """EVENTS packets from an event stream (normally a :class:`~fliss.hdl.rawfifo.RawFifo`).
+
+    A packet holds ``n`` events, each :data:`~fliss.hdl.protocol.EVENT_BYTES` bytes of the
+    :class:`~fliss.hdl.event.Event` value, little-endian. ``n`` is the FIFO ``level`` when the
+    packet starts, at most :data:`~fliss.hdl.protocol.MAX_EVENTS_PER_PACKET`; a packet starts
+    when a full batch is waiting, or when events have waited :data:`BATCH_TIMEOUT` cycles, or
+    when ``flush`` is high (acquisition stopped).
+
+    Members
+    -------
+    events : In(stream.Signature(Event))
+    level : In(16)
+        Events waiting behind ``events``, at least as many as will come without a gap.
+    flush : In(1)
+        Send what is waiting now.
+    packets : Out(stream.Signature(PacketBeat))
+    """
+
+    events:  In(stream.Signature(Event))
+    level:   In(16)
+    flush:   In(1)
+    packets: Out(stream.Signature(PacketBeat))
+
+    def elaborate(self, platform):
+        m = Module()
+
+        count = Signal(range(MAX_EVENTS_PER_PACKET + 1))
+        length = Signal.like(self.packets.p.header.length)     # of `count` events
+        sent = Signal.like(count)
+        byte = Signal(range(EVENT_BYTES))
+        waited = Signal(range(BATCH_TIMEOUT + 1))
+        word = Signal(EVENT_BYTES * 8)
+
+        m.d.comb += [
+            self.packets.p.header.type.eq(PacketType.EVENTS),
+            self.packets.p.header.length.eq(length),
+        ]
+
+        with m.FSM():
+            with m.State("WAIT"):
+                full = self.level >= MAX_EVENTS_PER_PACKET
+                with m.If(self.level == 0):
+                    m.d.sync += waited.eq(0)
+                with m.Elif(full | self.flush | (waited == BATCH_TIMEOUT)):
+                    m.d.sync += [
+                        count.eq(Mux(full, MAX_EVENTS_PER_PACKET, self.level)),
+                        waited.eq(0),
+                    ]
+                    m.next = "LENGTH"
+                with m.Else():
+                    m.d.sync += waited.eq(waited + 1)
+
+            with m.State("LENGTH"):
+                # (the product from a register into a register: on an ECP5 it is a multiplier
+                # block, slow enough to need its own cycle)
+                m.d.sync += length.eq(count * EVENT_BYTES)
+                m.next = "HEADER"
+
+            with m.State("HEADER"):
+                m.d.comb += [
+                    self.packets.valid.eq(1),
+                    self.packets.p.first.eq(1),
+                ]
+                with m.If(self.packets.ready):
+                    m.d.sync += sent.eq(0), byte.eq(0)
+                    m.next = "TAKE"
+
+            with m.State("TAKE"):
+                m.d.comb += self.events.ready.eq(1)
+                with m.If(self.events.valid):
+                    m.d.sync += word.eq(self.events.payload.as_value())
+                    m.next = "BYTES"
+
+            with m.State("BYTES"):
+                last_byte = byte == EVENT_BYTES - 1
+                m.d.comb += [
+                    self.packets.valid.eq(1),
+                    self.packets.p.data.eq(word.word_select(byte, 8)),
+                    self.packets.p.last.eq(last_byte & (sent == count - 1)),
+                ]
+                with m.If(self.packets.ready):
+                    m.d.sync += byte.eq(byte + 1)
+                    with m.If(last_byte):
+                        m.d.sync += byte.eq(0), sent.eq(sent + 1)
+                        with m.If(sent == count - 1):
+                            m.next = "WAIT"
+                        with m.Else():
+                            m.next = "TAKE"
+
+        return m
+
+
+class FullHistogramPacketizer(wiring.Component):
+    """HISTOGRAM packets only from a :class:`~fliss.hdl.histogram.engine.Histogram` readout: the
+    small alternative to :class:`~fliss.hdl.histogram.packetizer.HistogramPacketizer`, with
+    the same ports, for builds without room for compact chunks (it ignores ``full_readout``).
+
+    Each frame of ``2**(pixel_bits + 13 - shift)`` bins is sent as chunks of :data:`CHUNK_BINS`
+    bins (all of them when there are fewer) as they come: a :class:`HistogramChunk`, then one
+    u16 count per bin, little-endian; the packets of
+    :func:`fliss.protocol.histograms.encode_histogram` with ``full_readout``.
+
+    Parameters
+    ----------
+    index_bits : int
+        Width of the readout's flat index (up to 16).
+
+    Members
+    -------
+    readout : In(stream.Signature(readout_layout(index_bits, COUNT_WIDTH)))
+    shift : In(range(14))
+        Bin shift of the frame being read out.
+    pixel_bits : In(3)
+        The frame holds ``2**pixel_bits`` pixels.
+    first_pixel : In(6)
+        Address of the frame's pixel 0.
+    full_readout : In(1)
+        Ignored: every chunk is full.
+    packets : Out(stream.Signature(PacketBeat))
+    """
+
+    def __init__(self, *, index_bits=BIN_BITS):
+        if not isinstance(index_bits, int) or not 1 <= index_bits <= MAX_FRAME_BITS:
+            raise ValueError(f"Index width must be an integer from 1 to {MAX_FRAME_BITS} bits, "
+                             f"not {index_bits!r}")
+        self.index_bits = index_bits
+        super().__init__(histogram_packetizer_members(index_bits))
+
+    def elaborate(self, platform):
+        m = Module()
+
+        frame = Signal(32)
+        last_chunk = Signal()
+        bins = Signal(range(CHUNK_BINS + 1))   # bins in this chunk
+        sent = Signal.like(bins)
+        byte = Signal(range(max(_CHUNK_HEADER, COUNT_BYTES)))
+        count = Signal(COUNT_WIDTH)
+        last_of_frame = Signal()
+        # (registered ahead, for timing: the packet's length and "this is its last bin")
+        length = Signal(16)
+        last_bin = Signal()
+
+        # Sizes that follow from the frame's bins, 2**frame_bits, out of constant tables indexed
+        # by frame_bits (a LUT per bit, where shifts, comparisons and sums would be carry
+        # chains): bins in a chunk, its packet length, and the first bin of the frame's last
+        # chunk.
+        frame_bits = Signal(range(MAX_FRAME_BITS + 1))
+        m.d.comb += frame_bits.eq(self.pixel_bits + TIMESTAMP_BITS - self.shift)
+
+        def table(function):
+            values = [function(1 << bits) for bits in range(MAX_FRAME_BITS + 1)]
+            return lookup(values, frame_bits, fill=values[-1])
+        chunk_bins = table(lambda frame_bins: min(frame_bins, CHUNK_BINS))
+        chunk_length = table(lambda frame_bins: _CHUNK_HEADER +
+                             min(frame_bins, CHUNK_BINS) * COUNT_BYTES)
+        last_first_bin = table(lambda frame_bins: max(frame_bins - CHUNK_BINS, 0))
+
+        m.d.comb += [
+            self.packets.p.header.type.eq(PacketType.HISTOGRAM),
+            self.packets.p.header.length.eq(length),
+        ]
+
+        with m.FSM():
+            with m.State("WAIT"):
+                with m.If(self.readout.valid):
+                    m.d.sync += [
+                        last_chunk.eq(self.readout.p.index >= last_first_bin),
+                        bins.eq(chunk_bins),
+                        length.eq(chunk_length),
+                    ]
+                    m.next = "HEADER"
+
+            with m.State("HEADER"):
+                m.d.comb += [self.packets.valid.eq(1), self.packets.p.first.eq(1)]
+                with m.If(self.packets.ready):
+                    m.d.sync += byte.eq(0), sent.eq(0)
+                    m.next = "PREFIX"
+
+            with m.State("PREFIX"):
+                # The header from the values it describes: they hold until the chunk's first
+                # bin is taken (the bin waits on `readout`; the frame's settings and number
+                # change only after its last bin), so none is copied into a register.
+                chunk = Signal(HistogramChunk)
+                m.d.comb += [
+                    chunk.frame.eq(frame),
+                    chunk.first_bin.eq(self.readout.p.index),
+                    chunk.shift.eq(self.shift),
+                    chunk.pixel_bits.eq(self.pixel_bits),
+                    chunk.first_pixel.eq(self.first_pixel),
+                    chunk.last.eq(last_chunk),
+                ]
+                m.d.comb += [
+                    self.packets.valid.eq(1),
+                    self.packets.p.data.eq(chunk.as_value().word_select(byte, 8)),
+                ]
+                with m.If(self.packets.ready):
+                    m.d.sync += byte.eq(byte + 1)
+                    with m.If(byte == _CHUNK_HEADER - 1):
+                        m.d.sync += byte.eq(0)
+                        m.next = "TAKE"
+
+            with m.State("TAKE"):
+                m.d.comb += self.readout.ready.eq(1)
+                with m.If(self.readout.valid):
+                    m.d.sync += [count.eq(self.readout.p.count),
+                                 last_of_frame.eq(self.readout.p.last),
+                                 last_bin.eq(sent == bins - 1)]
+                    m.next = "COUNT"
+
+            with m.State("COUNT"):
+                last_byte = byte == COUNT_BYTES - 1
+                m.d.comb += [
+                    self.packets.valid.eq(1),
+                    self.packets.p.data.eq(count.word_select(byte, 8)),
+                    self.packets.p.last.eq(last_byte & last_bin),
+                ]
+                with m.If(self.packets.ready):
+                    m.d.sync += byte.eq(byte + 1)
+                    with m.If(last_byte):
+                        m.d.sync += byte.eq(0), sent.eq(sent + 1)
+                        with m.If(last_bin):
+                            with m.If(last_of_frame):
+                                m.d.sync += frame.eq(frame + 1)
+                            m.next = "WAIT"
+                        with m.Else():
+                            m.next = "TAKE"
+
+        return m

@@ -1,0 +1,371 @@
+"""``fliss attack``: an attacker that predicts the victim's delays, against each delay source.
+
+For each source the victim's pulses are generated, the attacker's observer records their
+emission times (with jitter and misses), the attacker (:mod:`fliss.sim.studies.attacker`) searches for
+a lock and fires; the scene simulator builds the victim's histograms with the attacker's pulses
+as an aggressor at the ghost's distance, and the peak finder measures the ghost's
+``S = 10 log10(Pv / P_ghost)``. See ``docs/security.md``.
+"""
+
+import json
+import math
+import os
+import secrets
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ...hdl import DEFAULT_CLOCK_HZ
+from ...sim.studies.attacker import Attacker, Observer
+from ...sim.studies.generators import verify_pulses
+from ...sim.studies.attack_scene import SOURCES, Victim, run as run_scene
+from .. import analysis
+from ..errors import UserError
+from ..paths import check_output_path
+from ..units import parse_time
+
+
+__all__ = ["register", "run", "experiment", "theory"]
+
+
+def _count(text):
+    """A pulse count: ``50000``, ``1e6``."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise UserError(f"Pulse count must be a whole number such as 50000 or 1e6, "
+                        f"not {text!r}") from None
+    if not math.isfinite(value) or value != int(value) or value < 1:
+        raise UserError(f"Pulse count must be a positive whole number, not {text!r}")
+    return int(value)
+
+
+def _list(text, what, allowed=None):
+    items = [item.strip() for item in text.split(",") if item.strip()]
+    if not items:
+        raise UserError(f"{what} must be a comma-separated list, not {text!r}")
+    if allowed is not None:
+        for item in items:
+            if item not in allowed:
+                raise UserError(f"{what}: {item!r} is not one of {', '.join(allowed)}")
+        return items
+    try:
+        return [int(item, 0) for item in items]
+    except ValueError:
+        raise UserError(f"{what} must be comma-separated integers, not {text!r}") from None
+
+
+def _hex80(text, what):
+    if text == "random":
+        return int.from_bytes(secrets.token_bytes(10), "big")
+    try:
+        value = int(text, 16)
+    except ValueError:
+        raise UserError(f"{what} must be 20 hex digits (80 bits) or 'random', "
+                        f"not {text!r}") from None
+    if not 0 <= value < 1 << 80:
+        raise UserError(f"{what} must fit in 80 bits (20 hex digits), not {text!r}")
+    return value
+
+
+def theory(victim):
+    """Pulses observed until lock in theory, known and unknown taps (``None`` where the source
+    is not a linear register): in interval mode one pulse whose delay cannot be read (no
+    interval before it; in grid mode the phase search reads it), then the pulses that determine
+    the register (1 for ``mseq``, ``ceil(32 / Wm)`` for ``masked``; ``2 L`` bits for
+    Berlekamp-Massey), then the checked ones."""
+    first = 0 if victim.grid else 1
+    if victim.mode == "mseq":
+        length = victim.length
+        return (first + 1 + verify_pulses(length, 48),
+                first + 2 * length + verify_pulses(length, 48))
+    if victim.mode == "masked":
+        width = victim.mask_width
+        return (first + -(-32 // width) + verify_pulses(width, 48),
+                first + 2 * 32 + verify_pulses(width, 48))
+    return None, None
+
+
+def _register_seed(seed, length):
+    """The register state a seed loads as (its low bits, 1 if they are all zero)."""
+    if not 2 <= length <= 32:
+        raise UserError(f"--lengths: L must be from 2 to 32, not {length}")
+    return (seed & ((1 << length) - 1)) or 1
+
+
+def _victims(args):
+    victims = []
+    for source in args.sources:
+        if source == "mseq":
+            victims += [Victim("mseq", length=length, seed=_register_seed(args.seed, length),
+                               period=args.period,
+                               grid=args.grid) for length in args.lengths]
+        elif source == "masked":
+            victims += [Victim("masked", mask_width=width, seed=args.seed, period=args.period,
+                               grid=args.grid) for width in args.mask_widths]
+        elif source in ("keyed", "random"):
+            victims.append(Victim(source, mask_width=args.keyed_width, seed=args.seed,
+                                  key=args.key, iv=args.iv, period=args.period, grid=args.grid))
+        else:
+            victims.append(Victim("off", period=args.period, grid=args.grid))
+    return victims
+
+
+def _median(values):
+    """Median of the finite values, or ``None`` (JSON has no NaN)."""
+    values = values[np.isfinite(values)]
+    return float(np.median(values)) if len(values) else None
+
+
+def _measure(histograms):
+    """S of the ghost in each histogram, whether it is a lower bound, and whether the peak
+    finder reports the ghost as a target."""
+    s_db, limited, reported = [], [], []
+    for histogram in histograms.histograms:
+        try:
+            result = analysis.suppression(histogram, histograms.victim_s, [histograms.ghost_s])
+        except ValueError:
+            s_db.append(math.nan)
+            limited.append(False)
+            reported.append(False)
+            continue
+        s_db.append(result.s_db)
+        limited.append(result.limited)
+        reported.append(not result.limited)
+    return np.array(s_db), np.array(limited), np.array(reported)
+
+
+def experiment(victims, *, pulses, scene_pulses, acquisition_pulses, observer, ghost_m,
+               unknown_taps=True, clock_hz=DEFAULT_CLOCK_HZ, seed=1, progress=None):
+    """One row per victim: the attack, its lock, and the ghost it makes."""
+    rows = []
+    attackers = {}
+    for index, victim in enumerate(victims):
+        key = (victim.period, victim.grid)
+        if key not in attackers:
+            common = dict(grid=victim.grid, clock_hz=clock_hz, jitter_s=observer.jitter_s)
+            attackers[key] = (Attacker(victim.period, **common),
+                              Attacker(victim.period, known_taps=False, **common)
+                              if unknown_taps else None)
+        attacker, blind = attackers[key]
+        started = time.monotonic()
+        scene_count = min(pulses, scene_pulses)
+        starts = victim.start_cycles(pulses + 1, start=100)
+        times, seen = observer.observe(starts[:pulses])
+        result = attacker.attack(times)
+        blind_result = blind.attack(times[:min(len(times), 4096)]) if blind else None
+        edges = result.edges
+        lock_s = None if result.locked_after is None else \
+            float((np.rint(times[result.locked_after - 1] * clock_hz) - starts[0]) / clock_hz)
+        histograms = run_scene(victim, starts[:scene_count + 1], edges, acquisition_pulses,
+                               ghost_m=ghost_m, clock_hz=clock_hz, seed=seed + index)
+        s_db, limited, reported = _measure(histograms)
+        after = histograms.end_s >= (lock_s if lock_s is not None else 0.0)
+        known, unknown = theory(victim)
+        rows.append({
+            "mode": victim.mode,
+            "length": victim.length,
+            "mask_width": victim.mask_width,
+            "label": victim.label,
+            "observed_pulses": int(len(times)),
+            "locked_after_pulses": result.locked_after,
+            "locked_model": result.model,
+            "locks": len(result.locks),
+            "lock_time_s": lock_s,
+            "theory_known_taps": known,
+            "locked_after_pulses_unknown_taps": None if blind_result is None else
+            blind_result.locked_after,
+            "theory_unknown_taps": unknown,
+            "ghost_s_db": _median(s_db[after]),
+            "ghost_s_lower_bound": bool(limited[after].all()) if after.any() else None,
+            "ghost_reported_fraction": float(reported[after].mean()) if after.any() else None,
+            "s_db": [None if not math.isfinite(value) else round(float(value), 2)
+                     for value in s_db],
+            "s_db_lower_bound": [bool(value) for value in limited],
+            "time_s": [float(value) for value in histograms.end_s],
+            "seconds": round(time.monotonic() - started, 2),
+        })
+        if progress is not None:
+            progress(rows[-1])
+    return rows
+
+
+def _figure(rows, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    figure, (left, right) = plt.subplots(1, 2, figsize=(12, 4.5))
+    labels = [row["label"] for row in rows]
+    counts = [row["locked_after_pulses"] or 0 for row in rows]
+    colours = ["tab:red" if row["locked_after_pulses"] else "tab:green" for row in rows]
+    left.barh(labels, counts, color=colours)
+    for position, row in enumerate(rows):
+        text = str(row["locked_after_pulses"]) if row["locked_after_pulses"] else \
+            f"not locked after {row['observed_pulses']}"
+        left.text(max(counts[position], 1), position, " " + text, va="center", fontsize=8)
+    left.set_xscale("symlog")
+    left.set_xlabel("victim pulses observed until lock")
+    left.invert_yaxis()
+    colours = plt.get_cmap("tab20").colors
+    for number, row in enumerate(rows):
+        colour = colours[number % len(colours)]
+        times = np.array(row["time_s"])
+        values = np.array([math.nan if v is None else v for v in row["s_db"]])
+        bound = np.array(row["s_db_lower_bound"], dtype=bool)
+        style = "-" if row["locked_after_pulses"] else "--"
+        right.plot(times * 1e3, values, style, color=colour, label=row["label"])
+        right.plot(times[~bound] * 1e3, values[~bound], "o", color=colour, markersize=3)
+        right.plot(times[bound] * 1e3, values[bound], "^", color=colour, markersize=4,
+                   markerfacecolor="none")
+        if row["lock_time_s"] is not None:
+            right.plot([row["lock_time_s"] * 1e3], [0], "|", color=colour, markersize=14)
+    right.axhline(0, color="grey", linewidth=0.5)
+    right.set_xscale("log")
+    right.set_xlabel("time since the attack started (ms); |: lock")
+    right.set_ylabel("ghost S = 10 log10(Pv / P_ghost) (dB)")
+    right.set_title("solid: locked, dashed: never; open: lower bound (no ghost peak found)",
+                    fontsize=8)
+    right.legend(fontsize=7, ncol=2)
+    figure.tight_layout()
+    figure.savefig(path, dpi=120)
+    plt.close(figure)
+
+
+def _table(rows):
+    header = (f"{'source':<16} {'observed':>9} {'locked after':>12} {'theory':>7} "
+              f"{'unknown taps':>12} {'theory':>7} {'ghost S (dB)':>13} {'reported':>9}  model")
+    lines = [header, "-" * len(header)]
+    for row in rows:
+        def cell(value, width):
+            return f"{'-' if value is None else value:>{width}}"
+        s_db = row["ghost_s_db"]
+        s_text = "-" if s_db is None else \
+            f"{'>=' if row['ghost_s_lower_bound'] else ''}{s_db:.1f}"
+        reported = row["ghost_reported_fraction"]
+        lines.append(
+            f"{row['label']:<16} {row['observed_pulses']:>9} "
+            f"{cell(row['locked_after_pulses'] or 'never', 12)} "
+            f"{cell(row['theory_known_taps'], 7)} "
+            f"{cell(row['locked_after_pulses_unknown_taps'], 12)} "
+            f"{cell(row['theory_unknown_taps'], 7)} {s_text:>13} "
+            f"{cell(None if reported is None else f'{100 * reported:.0f}%', 9)}  "
+            f"{row['locked_model'] or ''}")
+    return "\n".join(lines)
+
+
+def register(subparsers, formatter):
+    parser = subparsers.add_parser(
+        "attack", formatter_class=formatter,
+        help="run an attacker that predicts the delays against each delay source",
+        description="An attacker watches the victim's laser (emission times with jitter and "
+                    "missed pulses), recovers the delays and the generator (register state by "
+                    "GF(2) linear algebra with known taps, Berlekamp-Massey with unknown ones), "
+                    "locks when its predictions hold, then fires so that a ghost appears at a "
+                    "chosen distance. The scene simulator measures the ghost with the peak "
+                    "finder. Prints a table, writes a figure. See docs/security.md.")
+    parser.add_argument("--sources", default=",".join(SOURCES), metavar="LIST",
+                        help=f"victim delay sources, comma-separated, from {', '.join(SOURCES)}")
+    parser.add_argument("--lengths", default="4,6,10,16", metavar="LIST",
+                        help="register lengths L of the mseq victims")
+    parser.add_argument("--mask-widths", default="1,3,6,10", metavar="LIST",
+                        help="mask widths Wm of the masked victims")
+    parser.add_argument("--keyed-width", type=int, default=6, metavar="WM",
+                        help="Wm of the keyed and random victims")
+    parser.add_argument("--key", default="random", metavar="HEX",
+                        help="keyed victim's 80-bit key (20 hex digits) or 'random' (never "
+                             "printed)")
+    parser.add_argument("--iv", default="0", metavar="HEX", help="keyed victim's 80-bit IV")
+    parser.add_argument("--seed", type=lambda text: int(text, 0), default=0xACE1,
+                        help="register seed of mseq/masked, generator seed of random and of "
+                             "the photons")
+    parser.add_argument("--period", type=int, default=80, metavar="CYCLES",
+                        help="victim's nominal period T in clock cycles (80: 1 MHz at 80 MHz)")
+    parser.add_argument("--grid", action="store_true", help="victim in grid scheduler mode")
+    parser.add_argument("--pulses", default="50000", metavar="N",
+                        help="victim pulses the attacker observes (1e6 for the keyed claim)")
+    parser.add_argument("--scene-pulses", default="50000", metavar="N",
+                        help="victim pulses simulated in the scene (at most --pulses)")
+    parser.add_argument("--acquisition-pulses", default="5000", metavar="N",
+                        help="victim pulses in each histogram")
+    parser.add_argument("--jitter", default="100ps", metavar="TIME",
+                        help="RMS jitter of the attacker's emission times")
+    parser.add_argument("--missed", type=float, default=0.0, metavar="FRACTION",
+                        help="fraction of the victim's pulses the attacker misses (0 to <1)")
+    parser.add_argument("--ghost-m", type=float, default=10.0, metavar="M",
+                        help="distance of the ghost target the attacker creates")
+    parser.add_argument("--no-unknown-taps", action="store_true",
+                        help="skip the second attacker that does not use the polynomial table")
+    parser.add_argument("--table", default="attack.txt", metavar="PATH",
+                        help="table output ('-': none)")
+    parser.add_argument("--figure", default="attack.png", metavar="PATH",
+                        help="figure output ('-': none)")
+    parser.add_argument("--json", action="store_true", help="print the table as JSON")
+    parser.set_defaults(run=run)
+
+
+def _arguments(args):
+    args.sources = _list(args.sources, "--sources", SOURCES)
+    args.lengths = _list(args.lengths, "--lengths")
+    args.mask_widths = _list(args.mask_widths, "--mask-widths")
+    args.pulses = _count(args.pulses)
+    args.scene_pulses = _count(args.scene_pulses)
+    args.acquisition_pulses = _count(args.acquisition_pulses)
+    if args.pulses < 2:
+        raise UserError("--pulses must be at least 2")
+    if args.acquisition_pulses > min(args.pulses, args.scene_pulses):
+        raise UserError(f"--acquisition-pulses ({args.acquisition_pulses}) must not exceed "
+                        f"the simulated pulses ({min(args.pulses, args.scene_pulses)})")
+    if not math.isfinite(args.ghost_m) or not 0 < args.ghost_m <= 60:
+        raise UserError(f"--ghost-m must be from 0 to 60 m (inside the TDC range), "
+                        f"not {args.ghost_m:g}")
+    if not math.isfinite(args.missed) or not 0 <= args.missed < 1:
+        raise UserError(f"--missed must be a fraction from 0 to below 1, not {args.missed:g}")
+    try:
+        args.jitter_s = parse_time(args.jitter)
+    except ValueError as error:
+        raise UserError(str(error)) from None
+    if args.jitter_s < 0:
+        raise UserError(f"--jitter must not be negative, not {args.jitter}")
+    args.key = _hex80(args.key, "--key")
+    args.iv = _hex80(args.iv, "--iv")
+    try:
+        return _victims(args)
+    except ValueError as error:
+        raise UserError(str(error)) from None
+
+
+def run(args):
+    victims = _arguments(args)
+    # Outputs are checked before minutes of work; they are replaced as plot's are.
+    if args.table != "-":
+        check_output_path(args.table, overwrite=None, flag="--table")
+    if args.figure != "-":
+        check_output_path(args.figure, overwrite=None, flag="--figure")
+    observer = Observer(jitter_s=args.jitter_s, missed=args.missed, seed=args.seed)
+
+    def progress(row):
+        if not args.json:
+            locked = row["locked_after_pulses"]
+            print(f"  {row['label']:<16} {'locked after ' + str(locked) if locked else 'not locked'}"
+                  f" ({row['seconds']:.1f} s)", file=sys.stderr, flush=True)
+
+    rows = experiment(victims, pulses=args.pulses, scene_pulses=args.scene_pulses,
+                      acquisition_pulses=args.acquisition_pulses, observer=observer,
+                      ghost_m=args.ghost_m, unknown_taps=not args.no_unknown_taps,
+                      seed=args.seed, progress=progress)
+    table = _table(rows)
+    if args.table != "-":
+        Path(args.table).write_text(table + "\n")
+    if args.figure != "-":
+        _figure(rows, args.figure)
+    if args.json:
+        json.dump(rows, sys.stdout, indent=1)
+        print()
+    else:
+        print(table)
+        outputs = [path for path in (args.table, args.figure) if path != "-"]
+        if outputs:
+            print("wrote " + ", ".join(os.fspath(path) for path in outputs))
+    return 0

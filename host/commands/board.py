@@ -1,0 +1,127 @@
+"""``fliss board``: run the virtual board (:mod:`fliss.host.virtual`) until Ctrl-C, and print
+the path of its pty."""
+
+import logging
+import signal
+import sys
+import time
+
+from ...sim.boards.noisy_line import NoisyLine, add_line_arguments, describe, faults_from_args
+from ...sim.scene.pixels import SCENE_NAMES, SENSOR_KINDS
+from ..errors import UserError
+from ..units import parse_baud, parse_frequency
+from ..virtual import SIMULATORS, VirtualBoard
+
+
+__all__ = ["register", "run_board"]
+
+
+logger = logging.getLogger(__name__)
+
+
+def register(subparsers, formatter):
+    parser = subparsers.add_parser(
+        "board", formatter_class=formatter,
+        help="run the virtual board: the real gateware in a simulator, behind a pty",
+        description="Generates the Verilog of the FLISS top level, builds it once for the "
+                    "simulator (build/virtual-board/SIM/), runs it with the scene simulator on "
+                    "its sensor pins in closed loop, and prints the path of a pseudo-terminal "
+                    "carrying its UART (also linked as build/virtual-board/tty). Use that path "
+                    "as --port of the other commands. Runs until Ctrl-C. The simulation runs "
+                    "about a thousand times slower than a real board: keep integration times "
+                    "to a few ms and use a bin shift.")
+    parser.add_argument("--sim", choices=SIMULATORS, default="verilator",
+                        help="simulator")
+    parser.add_argument("--baud", default="12M", help="UART baud rate of the gateware")
+    parser.add_argument("--target-m", type=float, default=4.0, metavar="M",
+                        help="distance of the victim's target, metres")
+    parser.add_argument("--ambient", default="100kHz", metavar="HZ",
+                        help="background photon rate at the pixel (ambient light, dark counts)")
+    parser.add_argument("--signal", type=float, default=0.05, metavar="PHOTONS",
+                        help="mean detected echo photons per victim pulse")
+    parser.add_argument("--aggressor-signal", type=float, default=0.05, metavar="PHOTONS",
+                        help="mean detected photons per aggressor pulse")
+    parser.add_argument("--seed", type=int, default=None, help="seed of the photon statistics")
+    parser.add_argument("--scene", choices=SCENE_NAMES, default="single",
+                        help="single: one pixel looking at the target (the paper's bench); "
+                             "line: a column of 60 pixels looking at a wall --target-m away "
+                             "with an object --object-m away before pixels 20 to 39")
+    parser.add_argument("--sensor", choices=SENSOR_KINDS, default="column",
+                        help="sensor of the line scene: column (the paper's: one event per "
+                             "laser cycle, from the pixel that fired last, with a collision "
+                             "flag) or per_pixel (one TDC per pixel)")
+    parser.add_argument("--object-m", type=float, default=2.5, metavar="M",
+                        help="distance of the line scene's object, metres")
+    parser.add_argument("--reset-after", type=int, default=None, metavar="PACKETS",
+                        help="reset the gateware (a power cycle) once, after this many data "
+                             "packets to the host; SIGUSR1 to this process resets it too")
+    add_line_arguments(parser)
+    parser.set_defaults(run=run_board)
+
+
+def run_board(args):
+    try:
+        baud = parse_baud(args.baud)
+        ambient_hz = parse_frequency(args.ambient)
+        faults = faults_from_args(args)
+    except ValueError as error:
+        raise UserError(str(error)) from None
+    if args.reset_after is not None and args.reset_after < 1:
+        raise UserError(f"--reset-after must be at least 1, not {args.reset_after}")
+    board = VirtualBoard(args.sim, baud=baud, target_m=args.target_m, ambient_hz=ambient_hz,
+                         signal=args.signal, aggressor_signal=args.aggressor_signal,
+                         seed=args.seed, scene=args.scene, sensor=args.sensor,
+                         object_m=args.object_m, reset_after=args.reset_after)
+
+    def terminate(number, frame):
+        raise KeyboardInterrupt
+
+    def reset(number, frame):
+        if board.running:
+            logger.warning("resetting the virtual board (SIGUSR1)")
+            board.reset()
+
+    # `kill` (as a script does to a board in the background) and a closed terminal stop the
+    # board as cleanly as Ctrl-C.
+    signal.signal(signal.SIGTERM, terminate)
+    signal.signal(signal.SIGHUP, terminate)
+    signal.signal(signal.SIGUSR1, reset)
+    line = None
+    try:
+        path = board.start()
+        if faults is not None:
+            line = NoisyLine(path, to_host=faults[0], to_board=faults[1], seed=args.line_seed)
+            print(line.open(), flush=True)
+            print(f"fliss: virtual board ({args.sim}, {baud} baud) on {path} (link "
+                  f"{board.root / 'tty'}), behind a noisy line on {line.path}; Ctrl-C stops it",
+                  file=sys.stderr, flush=True)
+        else:
+            print(path, flush=True)
+            print(f"fliss: virtual board ({args.sim}, {baud} baud) on {path} "
+                  f"(link {board.root / 'tty'}); Ctrl-C stops it", file=sys.stderr, flush=True)
+        last = time.monotonic()
+        previous = {}
+        while True:
+            time.sleep(0.5)
+            if not board.running:
+                raise UserError(f"the {args.sim} simulation stopped: {board.last_log_line()}")
+            if line is not None and not line.running:
+                raise UserError(f"the noisy line stopped: {line.error}")
+            if time.monotonic() - last >= 10:
+                last = time.monotonic()
+                stats = board.stats()
+                if stats and previous and stats["wall_s"] > previous["wall_s"]:
+                    wall_s = stats["wall_s"] - previous["wall_s"]
+                    logger.info("%.0f clock cycles/s simulated, %.0f bytes/s to the host, "
+                                "%d events", (stats["cycles"] - previous["cycles"]) / wall_s,
+                                (stats["bytes_to_host"] - previous["bytes_to_host"]) / wall_s,
+                                stats["events"] - previous["events"])
+                previous = stats
+    except KeyboardInterrupt:
+        print("fliss: virtual board stopped", file=sys.stderr)
+        return 0
+    finally:
+        if line is not None:
+            line.close()
+            print(f"fliss: noisy line: {describe(line)}", file=sys.stderr)
+        board.stop()

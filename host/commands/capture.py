@@ -1,0 +1,132 @@
+"""``fliss capture``: histograms, per-pixel histograms (images), depth frames or raw events
+from a board into an HDF5 file.
+
+The capture itself is :meth:`fliss.host.board.Board.capture` (at the board's settings, after
+those of the flags given); this module adds the command line, the progress bar and the report.
+"""
+
+import argparse
+import signal
+import sys
+
+from ..acquisition import left_running
+from ..errors import UserError
+from ..errors import BoardReset
+from ..paths import check_output_path
+from .common import Progress
+from .port_options import add_port_arguments, connect
+from .setting_options import add_setting_arguments, settings_from_args
+from ..settings import check_offline, duration_s
+
+
+__all__ = ["register", "run", "report"]
+
+
+def register(subparsers, formatter):
+    parser = subparsers.add_parser(
+        "capture", formatter_class=formatter,
+        help="capture histograms, images, depth frames or raw events into an HDF5 file",
+        description="Captures at the board's settings (as `fliss config` left them), changed "
+                    "first by any setting flags given here: starts the board and writes what "
+                    "it sends to FILE as it arrives (schema: docs/file-format.md), with the "
+                    "board's registers as used, its identity and the link's counters. "
+                    "Ctrl-C, kill (SIGTERM) or a closed terminal (SIGHUP) stops the acquisition "
+                    "on the board and keeps what was captured; a board that stops answering, "
+                    "or is reset, leaves a file with everything received; after kill -9 the "
+                    "file holds all but the last half second (docs/file-format.md). "
+                    "--readout image saves per-pixel histograms (frame, pixel, bin) and "
+                    "--readout depth the board's depth frames (frame, pixel); the readout "
+                    "is --readout, as --mode is the victim's delay source.")
+    add_port_arguments(parser)
+    parser.add_argument("--acquisitions", type=int, default=10, metavar="N",
+                        help="frames to capture (histogram, image and depth readouts)")
+    parser.add_argument("--duration", default="1s", metavar="TIME",
+                        help="how long to capture (raw readout)")
+    parser.add_argument("--output", "-o", required=True, metavar="FILE.h5",
+                        default=argparse.SUPPRESS,
+                        help="HDF5 file to write")
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing FILE")
+    add_setting_arguments(parser, "settings (as in `fliss config`; those not given keep the "
+                                  "board's values: --readout histogram|image|depth|raw, "
+                                  "--pixels N, --integration TIME, --mode for the delay "
+                                  "source, ...)")
+    parser.set_defaults(run=run)
+
+
+def run(args):
+    settings = settings_from_args(args)
+    check_offline(settings)         # before the board: wrong on any board
+    duration_s(args.duration, f"--duration {args.duration}")
+    if args.acquisitions < 1:
+        raise UserError(f"--acquisitions must be at least 1, not {args.acquisitions}")
+    check_output_path(args.output, overwrite=args.overwrite)      # before the board
+    quiet = getattr(args, "quiet", 0) > 0
+    with connect(args) as board:
+        warning = left_running(board.client, "this capture stops it and starts it again")
+        if warning:
+            print(f"fliss: warning: {warning}", file=sys.stderr)
+        board.configure(settings, style="flag")
+        readout = board.settings["readout"]
+        image = True if settings.get("readout") == "image" else None
+        if readout in ("histogram", "depth"):
+            unit = "depth frames" if readout == "depth" else \
+                "images" if image or board.settings["pixels"] > 1 else "histograms"
+            bar = Progress(args.acquisitions, unit, enabled=not quiet)
+        else:
+            bar = Progress(round(duration_s(args.duration, ""), 1), "s", enabled=not quiet)
+        result = board.capture(args.output, acquisitions=args.acquisitions,
+                               duration=args.duration, progress=bar, image=image)
+    try:
+        return report(result, quiet=quiet)
+    except OSError:     # the terminal went away (SIGHUP); the file is saved all the same
+        return 128 + result.signal if result.signal else 1
+
+
+def report(result, *, quiet=False, out=None):
+    """Print what :func:`~fliss.host.acquisition.capture` saved and warn about what was lost;
+    returns the exit status (128 + the signal when interrupted: 130 for Ctrl-C, 143 for
+    SIGTERM, 129 for SIGHUP). Raises :exc:`UserError` when the board
+    was lost."""
+    out = sys.stdout if out is None else out
+    link, stream, what, path = result.link, result.stream, result.what, result.path
+    status_start, status_end = result.status_start, result.status_end
+    damaged = link["dropped_frames"] + link["missing_packets"]
+    board_dropped = result.board_dropped
+    if not quiet:
+        print(f"saved {what} to {path}", file=out)
+        print(f"link: {link['bytes']} bytes, {link['packets']} packets, "
+              f"{link['dropped_frames']} corrupt frames dropped, "
+              f"{link['missing_packets']} packets missing, "
+              f"{stream['incomplete_rows']} incomplete histograms, "
+              f"{stream['lost_rows']} histograms lost", file=out)
+        if status_end is not None:
+            print(f"board: {status_end['events'] - status_start['events']} events accepted, "
+                  f"{board_dropped} dropped on the board, "
+                  f"{status_end['frames'] - status_start['frames']} "
+                  f"{'histograms' if result.mode != 'depth' else 'frames'}", file=out)
+        deliberate = result.board_deliberate
+        if any(deliberate.values()):
+            print(f"board: {deliberate.get('dropped_collision', 0)} events flagged as "
+                  f"collisions dropped (--collisions drop), {deliberate.get('dropped_pixel', 0)}"
+                  f" events of pixels outside the frame dropped (counted in the file)", file=out)
+    if damaged and not isinstance(result.lost, BoardReset):
+        print(f"fliss: warning: {link['dropped_frames']} corrupt frames and "
+              f"{link['missing_packets']} missing packets on the link (counted in the file)",
+              file=sys.stderr)
+    if board_dropped:
+        advice = ("the link is too slow for this event rate; use a higher baud rate or "
+                  "histogram mode") if result.mode == "raw" else \
+            ("events arrived while no histogram was filling, as the previous one was still "
+             "being sent; use a longer integration time, a larger bin shift or a higher baud "
+             "rate")
+        print(f"fliss: warning: {board_dropped} events dropped on the board (counted in the "
+              f"file): {advice}", file=sys.stderr)
+    if result.lost is not None:
+        raise UserError(f"{result.lost}; saved what was received ({what}) to {path}")
+    if result.interrupted:
+        # The shell's status of a process killed by the signal: 130 Ctrl-C, 143 kill, 129 hangup.
+        signum = result.signal or signal.SIGINT
+        name = "" if signum == signal.SIGINT else f" by {signum.name}"
+        print(f"fliss: interrupted{name}; acquisition stopped, capture saved", file=sys.stderr)
+        return 128 + signum
+    return 0

@@ -1,0 +1,44 @@
+"""``fliss prf-table``: the effective PRF of each delay source (Table 2 of the paper)."""
+
+from ...sim.models.scheduler import prf_rows
+from ..errors import UserError
+from ..units import format_frequency
+from .common import add_timing_options, timing_from_args
+
+
+__all__ = ["register", "run_prf_table"]
+
+
+def register(subparsers, formatter):
+    parser = subparsers.add_parser(
+        "prf-table", formatter_class=formatter,
+        help="effective PRF for each delay source (Table 2 of the paper)",
+        description="Effective PRF, equation 4: f_clk / (T + E(T_rnd)), with T = round(f_clk / "
+                    "PRF) cycles. Sequences of up to 2**20 pulses are also generated and "
+                    "measured.")
+    add_timing_options(parser)
+    parser.add_argument("--lengths", type=int, nargs="*", default=[3, 4, 5, 6, 8, 16, 32],
+                        metavar="L", help="register lengths of the mseq source")
+    parser.add_argument("--mask-widths", type=int, nargs="*", default=[], metavar="W",
+                        help="mask widths of the masked source")
+    parser.add_argument("--grid", action="store_true",
+                        help="grid scheduler mode: pulse k at k*T + delay (needs the largest "
+                             "delay to fit in the period)")
+    parser.set_defaults(run=run_prf_table)
+
+
+def run_prf_table(args):
+    clock_hz, period = timing_from_args(args)
+    try:
+        rows = prf_rows(clock_hz, period, args.lengths, args.mask_widths, grid=args.grid)
+    except ValueError as error:
+        raise UserError(str(error)) from None
+    print(f"clock {format_frequency(clock_hz)}, nominal PRF {format_frequency(clock_hz / period)}"
+          f" (T = {period} cycles), {'grid' if args.grid else 'interval'} mode")
+    print(f"{'source':<8} {'setting':<8} {'max delay':>12} {'mean delay':>14} "
+          f"{'PRF_eff (eq. 4)':>16} {'measured':>12}")
+    for mode, setting, max_delay, mean_delay, closed, measured in rows:
+        name = f"L={setting['length']}" if "length" in setting else f"Wm={setting['mask_width']}"
+        print(f"{mode:<8} {name:<8} {max_delay:>12} {float(mean_delay):>14.6g} "
+              f"{format_frequency(closed):>16} "
+              f"{format_frequency(measured) if measured is not None else '-':>12}")

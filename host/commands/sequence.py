@@ -1,0 +1,72 @@
+"""``fliss sequence``: the delays (or laser fire times) of a delay source, one a line."""
+
+import sys
+
+import numpy as np
+
+from ...sim.models import delay as delay_model
+from ...sim.models import scheduler as scheduler_model
+from ...sim.models import trivium
+from ..errors import UserError
+from .common import add_timing_options, timing_from_args
+
+
+__all__ = ["register", "run_sequence"]
+
+
+def register(subparsers, formatter):
+    parser = subparsers.add_parser(
+        "sequence", formatter_class=formatter,
+        help="print the delays (or laser fire times) of a delay source",
+        description="One delay in clock cycles per line, exactly as the gateware produces them "
+                    "after a start; with --times, the cycle of each laser rising edge counted "
+                    "from the first frame.")
+    parser.add_argument("--mode", default="mseq", choices=["off", "mseq", "masked", "keyed"],
+                        help="delay source")
+    parser.add_argument("--length", type=int, default=6, metavar="L",
+                        help="register length of the mseq source, 2 to 32")
+    parser.add_argument("--mask-width", type=int, default=6, metavar="W",
+                        help="mask width of the masked or keyed source, 1 to 16")
+    parser.add_argument("--key", metavar="HEX",
+                        help="key of the keyed source (20 hex digits, as the test vectors print "
+                             "it)")
+    parser.add_argument("--iv", metavar="HEX",
+                        help="IV of the keyed source: the IV in use, as the board reads it")
+    parser.add_argument("--seed", type=lambda text: int(text, 0), default=1, metavar="S",
+                        help="non-zero register seed (decimal or 0x hex)")
+    parser.add_argument("--count", type=int, default=16, metavar="N", help="number of pulses")
+    parser.add_argument("--times", action="store_true",
+                        help="print laser fire times in clock cycles instead of delays")
+    parser.add_argument("--grid", action="store_true",
+                        help="grid scheduler mode (pulse k at k*T + delay) for --times")
+    parser.add_argument("--pulse-width", type=int, default=1, metavar="CYCLES",
+                        help="laser pulse width in clock cycles, checked against the period")
+    add_timing_options(parser)
+    parser.set_defaults(run=run_sequence)
+
+
+def run_sequence(args):
+    clock_hz, period = timing_from_args(args)
+    if args.count < 0:
+        raise UserError(f"--count must not be negative, not {args.count}")
+    try:
+        keyed = {}
+        if args.mode == "keyed":
+            if args.key is None or args.iv is None:
+                raise ValueError("--mode keyed needs --key and --iv")
+            keyed = dict(key=trivium.parse_hex(args.key, "key"),
+                         iv=trivium.parse_hex(args.iv, "IV"))
+        settings = scheduler_model.Settings(
+            mode=delay_model.parse_mode(args.mode), length=args.length,
+            mask_width=args.mask_width, seed=args.seed, period=period, grid=args.grid,
+            pulse_width=args.pulse_width, **keyed).check()
+        delays = settings.delays(args.count)
+    except ValueError as error:
+        raise UserError(str(error)) from None
+    if args.times:
+        values = scheduler_model.fire_cycles(delays, period, grid=args.grid) + \
+            scheduler_model.LATENCY
+    else:
+        values = delays
+    out = sys.stdout
+    np.savetxt(out, values, fmt="%d")

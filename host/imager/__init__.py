@@ -1,0 +1,8 @@
+"""The imager's data on the host: per-pixel histograms and depth frames.
+
+* :mod:`.results`: :class:`~.results.Images` and :class:`~.results.DepthFrames`, numpy arrays;
+* :mod:`.files`: their groups in a capture file;
+* :mod:`.analysis`: per-pixel peaks and depths;
+* :mod:`.report`: tables and figures of an imager capture;
+* :mod:`.demo`: the imager's part of ``fliss demo``.
+"""

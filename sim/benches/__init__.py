@@ -1,0 +1,8 @@
+"""cocotb testbenches of the generated Verilog, and what they need.
+
+* :mod:`.runner`: pytest to cocotb (Verilog from a component, built once per folder);
+* :mod:`.uart_bfm`: UART driver and monitor;
+* :mod:`.link_top`, :mod:`.histogram_link_top`: tops of parts of the link for fuzzing;
+* one bench per block or top: :mod:`.delay_source`, :mod:`.delay_core`, :mod:`.depth`,
+  :mod:`.link`, :mod:`.packetizer`, :mod:`.top`, :mod:`.top_depth`, :mod:`.scene`.
+"""

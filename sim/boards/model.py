@@ -1,0 +1,457 @@
+"""A FLISS board in Python, behind a pseudo-terminal: for host tests and for demos without a
+simulator.
+
+:class:`ModelBoard` speaks the real protocol bytes (:mod:`fliss.hdl.protocol`) over a pty: it
+decodes commands with the software codec (:mod:`fliss.protocol`), answers them with
+:class:`fliss.sim.models.command.CommandModel` (the reply semantics of the gateware command processor)
+and, while acquiring, sends HISTOGRAM chunks or EVENTS batches made from the photon scene
+simulator (:mod:`fliss.sim.scene`) with the configured delay settings, paced by the wall clock.
+
+It is a behavioural model of the whole board, not a cycle-accurate one: frame ``k`` of an
+acquisition holds the laser cycles whose TDC start falls in clock cycles ``[k I, (k + 1) I)``
+(``I`` = ``integration``), exactly as :func:`fliss.sim.scene.acquire` cuts a run, so a test can
+predict every histogram from the scene and the seeds.
+
+Faults can be injected (:class:`fliss.sim.boards.pty_server.PtyServer`): ``kill_after`` closes the pty
+after that many data packets (a board unplugged mid-capture), ``hang_after`` stops sending
+without closing, ``reset_after`` resets the board (a power cycle mid-capture: registers,
+counters, histogram and sequence numbers back to reset, acquisition stopped), and ``corrupt_every`` damages one byte of every n-th frame sent (never a
+delimiter, never into a delimiter), keeping the list of what it damaged in
+:attr:`ModelBoard.corrupted`.
+
+Run ``python -m fliss.sim.boards.model`` to get a board on a pty for ``fliss`` commands.
+"""
+
+import argparse
+import signal
+import sys
+import time
+from contextlib import contextmanager
+
+import numpy as np
+
+from ...hdl import DEFAULT_CLOCK_HZ
+from ...hdl.histogram.layout import MAX_COUNT_WIDTH
+from ...hdl.protocol import (DEFAULT_BAUD, HISTOGRAM_COUNT_BITS, PacketType, STATUS_FIELDS,
+                             LINK_COUNTERS, MAX_EVENTS_PER_PACKET, EVENT_BYTES)
+from ...hdl.registers import AcquisitionMode, TdcSource, value_of, words_of
+from ...protocol.frames import LinkError, Packet, encode_frame, packet_type
+from ...protocol.events import pack_events
+from ..models import scheduler as _scheduler
+from ..models import histogram as _histogram
+from ..models.command import CommandModel
+from ...protocol.histograms import decode_chunk, encode_histogram, frame_bins
+from ...protocol.packets import HISTOGRAM_TYPES
+from ..models.delay import DelayMode
+from ..models.depth import depth_frame
+from ...protocol.depth import depth_payload
+from .noisy_line import NoisyLine, add_line_arguments, describe, faults_from_args
+from .pty_server import PtyServer
+from ..scene import SCENE_NAMES, SENSOR_KINDS, Aggressor, Scene, pixels_named, simulation_for
+
+
+__all__ = ["DEFAULT_BAUD", "BACKLOG_BYTES", "ModelBoard", "scene_for", "model_board", "main"]
+
+
+#: While more bytes than this wait to go out, the model simulates no further: a host slower
+#: than the model slows the model's time down rather than piling up data (the gateware would
+#: drop histograms or events instead, and count them).
+BACKLOG_BYTES = 32 * 1024
+
+
+
+def scene_for(settings, template=None, *, aggressor_detections_per_pulse=0.05, clock_hz=None):
+    """The scene a board with register ``settings`` (by name) sees: ``template`` (a
+    :class:`Scene`, for the physics, and its pixel array if it has one: then the events carry
+    the pixels' addresses and collision flags) with the victim and aggressor taken from the
+    registers. The aggressor lights every pixel (a flash)."""
+    template = Scene() if template is None else template
+    clock_hz = template.clock_hz if clock_hz is None else clock_hz
+    s = settings
+    victim = _scheduler.Settings(mode=DelayMode(s["delay_mode"]), length=s["length"],
+                                 mask_width=s["mask_width"], seed=s["seed"], period=s["period"],
+                                 grid=bool(s["grid"]), pulse_width=s["pulse_width"],
+                                 key=value_of(s, "key"), iv=value_of(s, "iv"))
+    aggressors = ()
+    if s["aggressor"]:
+        mode = DelayMode(s["aggressor_delay_mode"])
+        aggressors = (Aggressor(
+            period_cycles=s["aggressor_period"], offset_s=s["aggressor_offset"] / clock_hz,
+            detections_per_pulse=aggressor_detections_per_pulse, mode=mode,
+            length=s["aggressor_length"], mask_width=s["aggressor_mask_width"],
+            seed=s["aggressor_seed"]),)
+    return template.replace(victim=victim, aggressors=aggressors, clock_hz=clock_hz)
+
+
+class ModelBoard(PtyServer):
+    """A board on a pseudo-terminal, served by a thread (a
+    :class:`~fliss.sim.boards.pty_server.PtyServer`).
+
+    Parameters
+    ----------
+    clock_hz : int
+        Clock frequency reported in the identity and used for all times.
+    baud : int
+        Baud rate reported in the identity.
+    scene : Scene or None
+        Physics of the scene (distance, photon rates, background…); victim and aggressor come
+        from the registers at each START.
+    photon_seed : int
+        Seed of the photon statistics; the ``n``-th acquisition (START) since the board was
+        made uses :meth:`seed_for` ``(n)``.
+    time_scale : float
+        Simulated seconds per wall-clock second.
+    kill_after, hang_after, reset_after, corrupt_every, corrupt_seed, corrupt_types, corrupt_commands_every
+        Faults of the line, as in :class:`~fliss.sim.boards.pty_server.PtyServer`.
+    protocol_version : int or None
+        Report this protocol version instead of the real one.
+    line_limited : bool
+        In raw mode, send no more events per block of ``integration`` cycles than the line
+        carries at ``baud`` in full EVENTS frames; drop the rest at the raw FIFO and count them
+        in ``dropped_fifo``, as the gateware does. (A pty itself carries anything.)
+    maxima : dict
+        Register maxima of a smaller build (:meth:`fliss.hdl.top.FlissTop.register_maxima`).
+    """
+
+    def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, baud=DEFAULT_BAUD, scene=None,
+                 aggressor_detections_per_pulse=0.05, photon_seed=0, time_scale=1.0,
+                 kill_after=None, hang_after=None, reset_after=None, corrupt_every=None,
+                 corrupt_seed=1, corrupt_types=None, corrupt_commands_every=None,
+                 protocol_version=None, line_limited=False, maxima=None):
+        super().__init__(kill_after=kill_after, hang_after=hang_after, reset_after=reset_after,
+                         corrupt_every=corrupt_every, corrupt_seed=corrupt_seed,
+                         corrupt_types=corrupt_types,
+                         corrupt_commands_every=corrupt_commands_every)
+        self.clock_hz = int(clock_hz)
+        self.baud = int(baud)
+        self.template = Scene(clock_hz=self.clock_hz) if scene is None else scene
+        self.aggressor_detections_per_pulse = aggressor_detections_per_pulse
+        self.photon_seed = photon_seed
+        self.time_scale = float(time_scale)
+        self.protocol_version = protocol_version
+        self.line_limited = line_limited
+        self.maxima = maxima
+        self.model = CommandModel(self.clock_hz, self.baud, maxima=maxima, keyed_source=True)
+        self.status = dict.fromkeys(STATUS_FIELDS, 0)
+        #: Acquisitions started so far (each START while stopped).
+        self.starts = 0
+        self._frame = 0          # histogram number since reset
+        self._depth_frame = 0    # depth frame number since reset
+
+    def sent_histograms(self, bins, *, whole=False):
+        """The histograms sent so far, from this board's own record (``sent``): counts of
+        ``bins`` bins by frame number, from both chunk forms; with ``whole``, only those whose
+        last chunk was sent."""
+        sent, ended = {}, set()
+        for type_value, _seq, payload in list(self.sent):
+            if packet_type(type_value) not in HISTOGRAM_TYPES:
+                continue
+            chunk = decode_chunk(packet_type(type_value), payload)
+            first = chunk.first_bin
+            sent.setdefault(chunk.frame, np.zeros(bins, np.int64))[
+                first:first + len(chunk.counts)] = chunk.counts
+            if chunk.last:
+                ended.add(chunk.frame)
+        return {frame: counts for frame, counts in sent.items() if not whole or frame in ended}
+
+    def seed_for(self, acquisition):
+        """Seed of the photon statistics of acquisition ``acquisition`` (0 for the first START)."""
+        return np.random.SeedSequence([self.photon_seed, acquisition])
+
+    @property
+    def running(self):
+        return self.model.running
+
+    @property
+    def next_frame(self):
+        """Number the next histogram will carry (frames count from 0 since the board was
+        made)."""
+        return self._frame
+
+    # Serving
+
+    @property
+    def _busy(self):
+        return self.model.running
+
+    def _work(self, now):
+        if self.model.running and len(self._out) < BACKLOG_BYTES:
+            self._advance(now)
+
+    def _killed(self):
+        self.model.running = False
+
+    def _reset(self):
+        self.model = CommandModel(self.clock_hz, self.baud, maxima=self.maxima,
+                                  keyed_source=True)
+        self.status = dict.fromkeys(STATUS_FIELDS, 0)
+        self._frame = 0
+        self._depth_frame = 0
+        self._frame_counts = None
+        self._pending_events = []
+
+    def _receive(self, item):
+        if isinstance(item, LinkError):
+            self.status[LINK_COUNTERS[item.code]] += 1
+            self._send(*self.model.link_error(item.code))
+            return
+        if not isinstance(item, Packet):
+            return
+        type_value = item.type.value if isinstance(item.type, PacketType) else item.type
+        was_running = self.model.running
+        if type_value == PacketType.STOP.value and was_running and not item.payload:
+            # The frame in progress ends now; its data follow the ACK, as from the gateware.
+            reply = self.model.command(type_value, item.seq, item.payload, self.status)
+            self._send(*reply)
+            self._advance(time.monotonic(), final=True)
+            return
+        reply = self.model.command(type_value, item.seq, item.payload, self.status)
+        if type_value == PacketType.IDENTIFY.value and self.protocol_version is not None \
+                and reply[0] == PacketType.IDENTITY:
+            reply = (reply[0], bytes([self.protocol_version]) + reply[1][1:])
+        self._send(*reply)
+        if type_value == PacketType.START.value and self.model.running and not was_running:
+            self._begin(time.monotonic())
+
+    # Acquisition
+
+    def _begin(self, now):
+        # (the keyed source runs with the IV in use)
+        settings = {**self.model.settings, **words_of(self.model.iv_in_use, "iv")}
+        self.settings = dict(settings)
+        scene = scene_for(settings, self.template,
+                          aggressor_detections_per_pulse=self.aggressor_detections_per_pulse,
+                          clock_hz=self.clock_hz)
+        self.simulation = simulation_for(scene, seed=self.seed_for(self.starts))
+        self.starts += 1
+        self.status["pulses"] = 0       # the scheduler's pulse index restarts, as in the gateware
+        self._t0 = now
+        self._done_cycles = 0           # clock cycles simulated
+        self._frame_counts = None
+        self._pending_events = []
+        self._raw = settings["acquisition"] == AcquisitionMode.RAW.value
+        self._depth = settings["acquisition"] == AcquisitionMode.DEPTH.value
+
+    def _cycles_at(self, now):
+        return int((now - self._t0) * self.time_scale * self.clock_hz)
+
+    def _advance(self, now, final=False):
+        """Simulate up to the present (up to a stop with ``final``) and send what is due.
+
+        Time is simulated in blocks of ``integration`` clock cycles (the random draws depend
+        only on the settings and the seed, not on the wall clock): one histogram per block, or
+        the block's events. At a stop the block in progress is simulated up to the stop and
+        sent too, as the gateware reads out a shortened frame.
+        """
+        integration = self.settings["integration"]
+        target = self._cycles_at(now)
+        block_end = (self._done_cycles // integration + 1) * integration
+        if final:
+            # A model slower than real time stops where it has got to, within a block.
+            self._block(min(max(target, self._done_cycles), block_end))
+            if self._raw:
+                self._send_events(flush=True)
+            return
+        # One block at a time, so that commands are served while the model catches up.
+        if block_end <= target:
+            self._block(block_end)
+            if self._raw:
+                self._send_events(flush=False)
+
+    def _block(self, end):
+        events = self._events(self._simulate(end))
+        self._done_cycles = end
+        if not self._raw:
+            self._accumulate(events)
+            if self._depth:
+                self._send_depth()
+            else:
+                self._send_histogram()
+
+    def _simulate(self, end):
+        simulation = self.simulation
+        pieces = []
+        while simulation.next_start_cycle is not None and simulation.next_start_cycle < end:
+            chunk = simulation.step(until_cycle=end)
+            self.status["pulses"] += chunk.cycles
+            pieces.append(chunk.events)
+        if not pieces:
+            return None
+        return np.concatenate(pieces)
+
+    def _events(self, events):
+        """Apply the TDC source and gate to simulated events and count them."""
+        if events is None or len(events) == 0:
+            return events
+        s = self.settings
+        events = events.copy()
+        if s["tdc_source"] == TdcSource.COARSE.value:
+            lsb_per_cycle = int(round(self.simulation.scene.lsb_per_cycle))
+            events["timestamp"] //= lsb_per_cycle
+        if s["collisions"]:     # (the event filter drops flagged events before the gate)
+            flagged = events["collision"] != 0
+            self.status["dropped_collision"] += int(np.count_nonzero(flagged))
+            events = events[~flagged]
+        stamps = events["timestamp"]
+        inside = (stamps >= s["gate_start"]) & (stamps <= s["gate_end"])
+        self.status["dropped_gate"] += int(np.count_nonzero(~inside))
+        events = events[inside]
+        self.status["events"] += len(events)
+        if self._raw:
+            if self.line_limited:
+                allowed = self._line_events(len(events))
+                self.status["dropped_fifo"] += len(events) - allowed
+                events = events[:allowed]
+            self._pending_events.append(events)
+        return events
+
+    def _line_events(self, count):
+        """Events the line carries in one block, in full EVENTS frames (8N1 characters)."""
+        frame_bytes = len(encode_frame(PacketType.EVENTS, 0,
+                                       bytes(MAX_EVENTS_PER_PACKET * EVENT_BYTES)))
+        seconds = self.settings["integration"] / self.clock_hz
+        budget = int(seconds * self.baud / 10 / frame_bytes * MAX_EVENTS_PER_PACKET)
+        return min(count, budget)
+
+    def _accumulate(self, events):
+        # Per-pixel histograms, flat in readout order (pixel << (13 - bin_shift) | bin);
+        # events of other addresses are counted in dropped_pixel.
+        s = self.settings
+        split = dict(shift=s["bin_shift"], pixel_bits=s["pixel_bits"],
+                     first_pixel=s["first_pixel"], bank_bits=self.model.bank_bits,
+                     count_width=MAX_COUNT_WIDTH)
+        if self._frame_counts is None:
+            self._frame_counts = np.zeros(_histogram.bins_read(
+                split["shift"], split["bank_bits"], split["pixel_bits"]), dtype=np.int64)
+        if events is not None and len(events):
+            counts, overflow, outside = _histogram.histogram(
+                events["timestamp"], events["address"], **split)
+            self._frame_counts += counts.ravel()
+            self.status["histogram_overflow"] += overflow
+            self.status["dropped_pixel"] += outside
+
+    def _send_histogram(self):
+        # The frame's packets as the gateware's packetizer makes them (full or compact chunks).
+        s = self.settings
+        shift, pixel_bits = s["bin_shift"], s.get("pixel_bits", 0)
+        counts = self._frame_counts if self._frame_counts is not None else \
+            np.zeros(frame_bins(shift, pixel_bits), dtype=np.int64)
+        for type, payload in encode_histogram(counts, frame=self._frame, shift=shift,
+                                              pixel_bits=pixel_bits,
+                                              first_pixel=s.get("first_pixel", 0),
+                                              full_readout=s.get("full_readout", 0)):
+            self._send(type, payload, data=True)
+        self._frame += 1
+        self.status["frames"] += 1
+        self._frame_counts = None
+
+    def _send_depth(self):
+        """The frame as the depth engine sends it: one DEPTH packet (:mod:`fliss.sim.models.depth`)."""
+        s = self.settings
+        shift, pixel_bits = s["bin_shift"], s["pixel_bits"]
+        counts = self._frame_counts if self._frame_counts is not None else \
+            np.zeros(frame_bins(shift, pixel_bits), dtype=np.int64)
+        counts = np.minimum(counts, (1 << HISTOGRAM_COUNT_BITS) - 1).reshape(1 << pixel_bits, -1)
+        first_pixel = s["first_pixel"]
+        records = depth_frame(counts, shift=s["bin_shift"], filter=s["depth_filter"],
+                              threshold=s["depth_threshold"])
+        self._send(PacketType.DEPTH, depth_payload(
+            records, frame=self._depth_frame, first_pixel=first_pixel, pixel_bits=pixel_bits,
+            shift=s["bin_shift"], filter=s["depth_filter"], threshold=s["depth_threshold"]),
+            data=True)
+        self._depth_frame = (self._depth_frame + 1) & 0xffffffff
+        self.status["frames"] += 1
+        self._frame_counts = None
+
+    def _send_events(self, flush):
+        if not self._pending_events:
+            return
+        events = np.concatenate(self._pending_events)
+        whole = len(events) - len(events) % MAX_EVENTS_PER_PACKET
+        cut = len(events) if flush else whole
+        for start in range(0, cut, MAX_EVENTS_PER_PACKET):
+            batch = events[start:min(start + MAX_EVENTS_PER_PACKET, cut)]
+            self._send(PacketType.EVENTS, pack_events(batch), data=True)
+        rest = events[cut:]
+        self._pending_events = [rest] if len(rest) else []
+
+@contextmanager
+def model_board(**options):
+    """A :class:`ModelBoard` on a pty for the duration of a ``with`` block; yields the board
+    (its :attr:`~ModelBoard.path` is the pty to open)."""
+    board = ModelBoard(**options)
+    board.open()
+    try:
+        yield board
+    finally:
+        board.close()
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(
+        prog="python -m fliss.sim.boards.model",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        description="Serve a Python model of a FLISS board on a pseudo-terminal and print its "
+                    "path; stop with Ctrl-C.")
+    parser.add_argument("--distance-m", type=float, default=4.0, help="target distance")
+    parser.add_argument("--signal", type=float, default=0.05,
+                        help="victim detections per pulse")
+    parser.add_argument("--aggressor-signal", type=float, default=0.05,
+                        help="aggressor detections per pulse")
+    parser.add_argument("--background-hz", type=float, default=1e5, help="background rate")
+    parser.add_argument("--seed", type=int, default=0, help="photon statistics seed")
+    parser.add_argument("--scene", choices=SCENE_NAMES, default="single",
+                        help="single: one pixel at --distance-m; line: 60 pixels looking at a "
+                             "wall --distance-m away, an object --object-m away before pixels "
+                             "20 to 39")
+    parser.add_argument("--sensor", choices=SENSOR_KINDS, default="column",
+                        help="sensor of the line scene: one TDC for the column, or one per "
+                             "pixel")
+    parser.add_argument("--object-m", type=float, default=2.5,
+                        help="distance of the line scene's object")
+    parser.add_argument("--reset-after", type=int, default=None, metavar="PACKETS",
+                        help="reset the board (a power cycle) after this many data packets")
+    add_line_arguments(parser)
+    args = parser.parse_args(argv)
+    try:
+        faults = faults_from_args(args)
+    except ValueError as error:
+        parser.exit(2, f"{parser.prog}: error: {error}\n")
+    if args.reset_after is not None and args.reset_after < 1:
+        parser.exit(2, f"{parser.prog}: error: --reset-after must be at least 1, not "
+                       f"{args.reset_after}\n")
+    try:
+        pixels = pixels_named(args.scene, sensor=args.sensor, wall_m=args.distance_m,
+                              object_m=args.object_m)
+        scene = Scene(distance_m=args.distance_m, detections_per_pulse=args.signal,
+                      background_hz=args.background_hz, pixels=pixels)
+    except ValueError as error:
+        parser.exit(2, f"{parser.prog}: error: {error}\n")
+    signal.signal(signal.SIGTERM, _terminate)
+    line = None
+    with model_board(scene=scene, aggressor_detections_per_pulse=args.aggressor_signal,
+                     photon_seed=args.seed, reset_after=args.reset_after) as board:
+        try:
+            if faults is not None:
+                line = NoisyLine(board.path, to_host=faults[0], to_board=faults[1],
+                                 seed=args.line_seed)
+                print(line.open(), flush=True)
+            else:
+                print(board.path, flush=True)
+            while True:
+                time.sleep(1)
+        except KeyboardInterrupt:
+            pass
+        finally:
+            if line is not None:
+                line.close()
+                print(f"{parser.prog}: noisy line: {describe(line)}", file=sys.stderr)
+    return 0
+
+
+def _terminate(number, frame):
+    raise KeyboardInterrupt
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,454 @@
+"""The virtual board: the top level's generated Verilog in a simulator, behind a pseudo-terminal.
+
+This is the cocotb test module that :mod:`fliss.host.virtual` runs in Icarus or Verilator. It
+
+* opens a pseudo-terminal, writes the path of its slave side to the file named by
+  ``FLISS_BOARD_PTY_FILE`` (written whole, then renamed, so the launcher never reads half of it),
+  and carries the bytes: pty to the ``uart_rx`` pin with :class:`~fliss.sim.benches.uart_bfm.UartSource`,
+  the ``uart_tx`` pin to the pty with :class:`~fliss.sim.benches.uart_bfm.UartSink`. The pty is read
+  without blocking every :data:`POLL_US` microseconds of simulated time; while the board is idle
+  (not acquiring, nothing to send either way) the loop also waits a little in real time, so an
+  idle board takes no CPU. It keeps its own descriptor of the slave side open, so host tools can
+  open and close the port as often as they like, as with a USB UART;
+* feeds the sensor pins in closed loop from a :class:`~fliss.sim.scene.Simulation` of the scene
+  (:mod:`fliss.sim.scene`): the victim's echo from a target ``FLISS_BOARD_TARGET_M`` metres away
+  relative to each ``tdc_start`` rising edge the gateware emits, the aggressor's photons after
+  each ``aggressor_laser`` rising edge (over the same path unless
+  ``FLISS_BOARD_AGGRESSOR_TOF_S`` says otherwise), background light and SPAD dead time. The
+  sensor keeps the last photon of each TDC window and presents it on the bus as the sensor of
+  the paper does, when its conversion range ends: bus first, then ``sensor_valid`` high for two
+  clock cycles, at most one event per window. With ``FLISS_BOARD_SCENE=line`` the scene is a
+  pixel array (:func:`~fliss.sim.scene.pixels.line_pixels`: a wall ``FLISS_BOARD_TARGET_M``
+  away, an object ``FLISS_BOARD_OBJECT_M`` away before pixels 20 to 39) seen by the sensor
+  ``FLISS_BOARD_SENSOR``: ``column`` (the paper's: one event per window, the address of the
+  pixel that fired last, the collision flag) or ``per_pixel`` (one TDC per pixel: a window's
+  events one after the other, in address order; see *Bus timing*);
+* resets the gateware (``rst`` high for :data:`RESET_CYCLES` cycles, as a power cycle or the
+  reset button would: registers, counters, sequence and histogram numbers back to reset) once
+  ``FLISS_BOARD_RESET_AFTER`` data packets (HISTOGRAM, EVENTS) have gone to the host, and each
+  time the file ``FLISS_BOARD_RESET_FILE`` appears (it is removed; checked once a second);
+* runs until the launcher (``FLISS_BOARD_PARENT_PID``) is gone, or until killed.
+
+Python work per laser cycle is one scene step and a few triggers, nothing per clock cycle.
+
+Timing of the sensor model
+--------------------------
+The gateware tags an event with the laser cycle in progress when the strobe is captured, so the
+event of cycle ``k`` must reach the bus before the TDC start of cycle ``k + 1``. The scene
+simulator only simulates a laser cycle once it knows the next TDC start (which bounds the
+window); so when a window's conversion range (``2**13`` codes, 33 clock cycles at 80 MHz) has
+passed without a new start, the model gives the simulator a *closing start* at that moment: a
+window that records nothing, whose only effect is the SPAD dead time that photons detected
+between windows carry into the next one. The event's strobe rises 35 cycles after the TDC start
+and is captured 2 cycles later. A start less than 33 cycles after the previous one cuts the
+window short, as in the scene model; with starts less than 38 cycles apart (PRFs above about
+2 MHz) an event arrives after the next start and raw events carry that cycle's index.
+
+Bus timing
+----------
+Each event takes :data:`EVENT_BUS_CYCLES` clock cycles on the bus: address, collision flag and
+timestamp set, ``sensor_valid`` high one cycle later for two cycles, the bus held three cycles
+more (the strobe low meanwhile). When its conversion range ends the sensor copies its TDCs into
+a readout buffer and shifts the buffer out on the bus, event after event: up to one event per
+window from the column, up to one per pixel that fired from a per-pixel sensor. The next
+window's copy overwrites the buffer: the events not shifted out by then are lost and counted
+(``busy_drops`` in the statistics file; ``SensorModel.busy_drops``). At the paper's 1 MHz PRF
+(80 cycles) a window is read out 34 cycles after its TDC start and its events may start
+until the next window's readout, 80 cycles later: 14 events per window fit (one every 6 cycles).
+
+The built-in coarse TDC (``tdc_source = 1``, pin ``photon_hit``) gets no photons: this model
+learns the photons of a window only once the window is over.
+"""
+
+import math
+import os
+from collections import deque
+import select
+import time
+import tty
+
+import cocotb
+from cocotb.clock import Clock
+from cocotb.simtime import get_sim_time
+from cocotb.triggers import ClockCycles, Event, RisingEdge, Timer
+
+from ...hdl import DEFAULT_CLOCK_HZ
+from .. import scene as _scene
+from ...protocol.frames import FrameDecoder, Packet
+from ...protocol.packets import DATA_TYPES
+from ..benches.uart_bfm import UartSink, UartSource
+
+
+__all__ = ["POLL_US", "RESET_CYCLES", "EVENT_BUS_CYCLES", "SensorModel", "PtyBridge",
+           "virtual_board"]
+
+
+#: Simulated time between two polls of the pseudo-terminal, in microseconds (6 bytes at 12 M
+#: baud, far less than the pty's buffer; 400 clock cycles, so the poll costs nothing next to
+#: the simulation, and a command waits little for it).
+POLL_US = 5
+
+#: Idle polls before the loop starts waiting in real time as well.
+IDLE_POLLS = 100
+
+#: Real time waited per poll while idle, in seconds, unless the host writes first: an idle
+#: board simulates 5 µs, then sleeps (some 5 % of a core instead of all of it).
+IDLE_WAIT_S = 0.1
+
+#: Largest backlog of bytes for the host before the oldest are dropped (a host that does not
+#: read loses data, as with a real USB UART).
+MAX_BACKLOG = 1 << 22
+
+#: Clock cycles ``rst`` is held high by a reset in the middle of a run.
+RESET_CYCLES = 4
+
+#: Clock cycles one event takes on the sensor bus (bus set, strobe one cycle later for two
+#: cycles, bus held three more).
+EVENT_BUS_CYCLES = 6
+
+CLOCK_PERIOD_PS = round(1e12 / DEFAULT_CLOCK_HZ)
+
+
+def _env(name, default, convert=float):
+    value = os.environ.get(name)
+    return default if value in (None, "") else convert(value)
+
+
+class SensorModel:
+    """Drives the sensor bus of ``dut`` from a simulation of the scene
+    (:func:`~fliss.sim.scene.array.simulation_for`: one pixel, or a pixel array) in closed
+    loop: its TDC starts and aggressor triggers are those the gateware emits. With ``record``,
+    :attr:`fed` holds every event the scene gave, :attr:`presented` every event put on the bus
+    (both as ``(timestamp, address, collision)``), :attr:`fed_windows` the number of events of
+    each window read out."""
+
+    def __init__(self, dut, scene, *, seed=None, record=False):
+        self.dut = dut
+        self.scene = scene
+        self.simulation = _scene.simulation_for(scene, seed=seed, chunk_cycles=64,
+                                                external_starts=True, external_aggressors=True)
+        # Cycles after a TDC start when the sensor's conversion range is over.
+        self.window_cycles = math.ceil(_scene.TDC_CODES / scene.lsb_per_cycle)
+        self.starts = 0          # real TDC starts seen
+        self.events = 0          # events put on the bus
+        self.late = 0            # windows cut short by the next start
+        self.busy_drops = 0      # events overwritten in the readout buffer, not on the bus
+        self.python_s = 0.0      # real time spent in the scene simulator
+        self.fed = [] if record else None
+        self.presented = [] if record else None
+        self.fed_windows = [] if record else None
+        self._open = None        # cycle of the last start whose window is not closed yet
+        self._closing = set()    # closing starts fed and not simulated yet
+        self._queue = deque()    # windows read out, each a list of events
+        self._wake = Event()
+        for name in ("sensor_valid", "sensor_timestamp", "sensor_address", "sensor_collision",
+                     "photon_hit"):
+            getattr(dut, name).value = 0
+
+    def start(self):
+        cocotb.start_soon(self._starts())
+        cocotb.start_soon(self._presenter())
+        if self.scene.aggressors:
+            cocotb.start_soon(self._aggressor())
+
+    @staticmethod
+    def cycle():
+        return round(get_sim_time("ps") / CLOCK_PERIOD_PS)
+
+    async def _aggressor(self):
+        while True:
+            await RisingEdge(self.dut.aggressor_laser)
+            self.on_aggressor(self.cycle())
+
+    def on_aggressor(self, cycle):
+        """A rising edge of the aggressor's trigger in clock cycle ``cycle``."""
+        self.simulation.feed_aggressor(0, [cycle])
+
+    async def _starts(self):
+        while True:
+            await RisingEdge(self.dut.tdc_start)
+            cycle = self.cycle()
+            self.on_start(cycle)
+            cocotb.start_soon(self._close(cycle))
+
+    async def _close(self, cycle):
+        # One cycle after the window's end, so that a real start in that cycle is seen first.
+        await Timer((self.window_cycles + 1) * CLOCK_PERIOD_PS, unit="ps")
+        self.on_window_end(cycle)
+
+    def on_start(self, cycle):
+        """A TDC start (victim laser pulse) in clock cycle ``cycle``."""
+        self.starts += 1
+        cut = self._open is not None
+        self.simulation.feed([cycle])
+        if cut:
+            # The previous window ends at this start: simulate it now.
+            self.late += 1
+            self._emit()
+        self._open = cycle
+
+    def on_window_end(self, cycle):
+        """The conversion range of the window started in ``cycle`` is over (a cycle ago)."""
+        if self._open != cycle:
+            return                      # a later start has cut this window already
+        self._closing.add(cycle + self.window_cycles)
+        self.simulation.feed([cycle + self.window_cycles], fired=False)
+        self._emit()
+
+    def _emit(self):
+        began = time.perf_counter()
+        try:
+            self._simulate()
+        finally:
+            self.python_s += time.perf_counter() - began
+
+    def _simulate(self):
+        chunk = self.simulation.step()
+        self._open = None
+        closing = self._closing
+        starts = [int(cycle) for cycle in chunk.start_cycles]
+        windows = {}
+        for event in chunk.events:
+            index = (int(event["pulse"]) - chunk.first_pulse) & 0xffffffff
+            # Events of closing windows are photons between TDC windows: nobody records them.
+            if starts[index] not in closing:
+                windows.setdefault(index, []).append(
+                    (int(event["timestamp"]), int(event["address"]), int(event["collision"])))
+        closing.difference_update(starts)
+        for index in sorted(windows):
+            self._queue.append(windows[index])
+            if self.fed is not None:
+                self.fed.extend(windows[index])
+                self.fed_windows.append(len(windows[index]))
+        if self._queue:
+            self._wake.set()
+
+    async def _presenter(self):
+        dut = self.dut
+        while True:
+            if not self._queue:
+                self._wake.clear()
+                await self._wake.wait()
+                continue
+            window = self._queue.popleft()
+            for position, (timestamp, address, collision) in enumerate(window):
+                if self._queue:
+                    # The next window's readout has overwritten the buffer.
+                    self.busy_drops += len(window) - position
+                    break
+                dut.sensor_timestamp.value = timestamp
+                dut.sensor_address.value = address
+                dut.sensor_collision.value = collision
+                await Timer(CLOCK_PERIOD_PS, unit="ps")
+                dut.sensor_valid.value = 1
+                await Timer(2 * CLOCK_PERIOD_PS, unit="ps")
+                dut.sensor_valid.value = 0
+                self.events += 1
+                if self.presented is not None:
+                    self.presented.append((timestamp, address, collision))
+                # Hold the bus past the capture, and the strobe low for two cycles.
+                await Timer((EVENT_BUS_CYCLES - 3) * CLOCK_PERIOD_PS, unit="ps")
+
+
+class PtyBridge:
+    """A pseudo-terminal carrying the UART pins of ``dut``.
+
+    :meth:`poll` moves what the host wrote to the UART driver and what the UART monitor received
+    to the host, without blocking; it returns whether anything moved. With ``count_data`` it
+    also decodes what goes to the host and counts the data packets (:attr:`data_packets`).
+    """
+
+    def __init__(self, dut, baud, *, count_data=False):
+        self.master, self.slave = os.openpty()
+        tty.setraw(self.slave)          # no echo, no line editing: bytes pass unchanged
+        os.set_blocking(self.master, False)
+        self.path = os.ttyname(self.slave)
+        self.source = UartSource(dut.uart_rx, baud)
+        self.sink = UartSink(dut.uart_tx, baud)
+        self._to_board = bytearray()
+        self._to_host = bytearray()
+        self._wake = Event()
+        self.bytes_to_board = 0
+        self.bytes_to_host = 0
+        self.dropped = 0
+        self.data_packets = 0
+        self._decoder = FrameDecoder(synced=True) if count_data else None
+
+    def start(self):
+        cocotb.start_soon(self._sender())
+
+    async def _sender(self):
+        while True:
+            if not self._to_board:
+                self._wake.clear()
+                await self._wake.wait()
+                continue
+            data = bytes(self._to_board)
+            self._to_board.clear()
+            await self.source.send(data)
+
+    def poll(self):
+        moved = False
+        while True:
+            try:
+                data = os.read(self.master, 1 << 16)
+            except (BlockingIOError, InterruptedError):
+                break
+            except OSError:             # EIO: no slave open (never, as we hold one)
+                break
+            if not data:
+                break
+            self._to_board += data
+            self.bytes_to_board += len(data)
+            moved = True
+        if self._to_board:
+            self._wake.set()
+        received = self.sink.received
+        if received:
+            self._to_host += received
+            self.bytes_to_host += len(received)
+            if self._decoder is not None:
+                self.data_packets += sum(
+                    isinstance(item, Packet) and item.type in DATA_TYPES
+                    for item in self._decoder.feed(bytes(received)))
+            del received[:]
+            moved = True
+        if len(self._to_host) > MAX_BACKLOG:
+            excess = len(self._to_host) - MAX_BACKLOG
+            del self._to_host[:excess]
+            self.dropped += excess
+        if self._to_host:
+            try:
+                written = os.write(self.master, self._to_host)
+                del self._to_host[:written]
+            except (BlockingIOError, InterruptedError):
+                pass
+            except OSError:
+                self.dropped += len(self._to_host)
+                self._to_host.clear()
+        return moved or bool(self._to_board)
+
+    @property
+    def backlog(self):
+        return len(self._to_host)
+
+    def wait(self, seconds):
+        """Wait in real time until the host writes something, or ``seconds``."""
+        select.select([self.master], [], [], seconds)
+
+
+def _publish(path, text):
+    temporary = f"{path}.tmp"
+    with open(temporary, "w") as file:
+        file.write(text)
+    os.replace(temporary, path)
+
+
+def _parent_alive(pid):
+    if pid is None:
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _scene_from_environment():
+    target_m = _env("FLISS_BOARD_TARGET_M", 4.0)
+    aggressor_tof = os.environ.get("FLISS_BOARD_AGGRESSOR_TOF_S")
+    aggressor = _scene.Aggressor(
+        period_cycles=80, offset_s=0.0,
+        detections_per_pulse=_env("FLISS_BOARD_AGGRESSOR_SIGNAL", 0.05),
+        tof_s=None if aggressor_tof in (None, "") else float(aggressor_tof))
+    pixels = _scene.pixels_named(os.environ.get("FLISS_BOARD_SCENE") or "single",
+                                 sensor=os.environ.get("FLISS_BOARD_SENSOR") or "column",
+                                 wall_m=target_m, object_m=_env("FLISS_BOARD_OBJECT_M", 2.5))
+    return _scene.Scene(
+        distance_m=target_m,
+        detections_per_pulse=_env("FLISS_BOARD_SIGNAL", 0.05),
+        background_hz=_env("FLISS_BOARD_AMBIENT_HZ", 1e5),
+        aggressors=(aggressor,), pixels=pixels)
+
+
+async def _reset(dut):
+    """The gateware's reset, as a power cycle or the reset button would do."""
+    dut.rst.value = 1
+    await ClockCycles(dut.clk, RESET_CYCLES)
+    dut.rst.value = 0
+
+
+def _reset_requested(path):
+    if not path:
+        return False
+    try:
+        os.unlink(path)
+    except FileNotFoundError:
+        return False
+    return True
+
+
+@cocotb.test()
+async def virtual_board(dut):
+    """Serve the board on a pseudo-terminal until the launcher goes away."""
+    baud = _env("FLISS_BOARD_BAUD", 12_000_000, int)
+    seed = _env("FLISS_BOARD_SEED", None, int)
+    parent = _env("FLISS_BOARD_PARENT_PID", None, int)
+    pty_file = os.environ.get("FLISS_BOARD_PTY_FILE")
+    stats_file = os.environ.get("FLISS_BOARD_STATS_FILE")
+    reset_after = _env("FLISS_BOARD_RESET_AFTER", None, int)
+    reset_file = os.environ.get("FLISS_BOARD_RESET_FILE")
+    resets = 0
+
+    Clock(dut.clk, CLOCK_PERIOD_PS, unit="ps").start()
+    dut.uart_rx.value = 1
+    sensor = SensorModel(dut, _scene_from_environment(), seed=seed)
+    dut.rst.value = 1
+    await ClockCycles(dut.clk, 4)
+    dut.rst.value = 0
+    await ClockCycles(dut.clk, 4)
+    sensor.start()
+    bridge = PtyBridge(dut, baud, count_data=reset_after is not None)
+    bridge.start()
+    if pty_file:
+        _publish(pty_file, bridge.path + "\n")
+    dut._log.info("virtual board on %s at %d baud", bridge.path, baud)
+
+    idle = 0
+    wall_start = last_check = time.monotonic()
+    sim_start_ps = get_sim_time("ps")
+    while True:
+        await Timer(POLL_US, unit="us")
+        if bridge.poll() or bridge.backlog or int(dut.running.value):
+            idle = 0
+        else:
+            idle += 1
+            if idle > IDLE_POLLS:
+                bridge.wait(IDLE_WAIT_S)
+        reset = (reset_after is not None and not resets
+                 and bridge.data_packets >= reset_after)
+        now = time.monotonic()
+        if now - last_check >= 1.0:
+            last_check = now
+            reset = reset or _reset_requested(reset_file)
+            if not _parent_alive(parent):
+                dut._log.info("launcher gone: stopping")
+                break
+            if stats_file:
+                cycles = round((get_sim_time("ps") - sim_start_ps) / CLOCK_PERIOD_PS)
+                _publish(stats_file, (
+                    f'{{"wall_s": {now - wall_start:.3f}, "cycles": {cycles}, '
+                    f'"bytes_to_board": {bridge.bytes_to_board}, '
+                    f'"bytes_to_host": {bridge.bytes_to_host}, "dropped": {bridge.dropped}, '
+                    f'"tdc_starts": {sensor.starts}, "events": {sensor.events}, '
+                    f'"late_windows": {sensor.late}, "busy_drops": {sensor.busy_drops}, '
+                    f'"scene_s": {sensor.python_s:.3f}, "resets": {resets}}}\n'))
+        if reset:
+            resets += 1
+            dut._log.info("reset %d after %d data packets to the host", resets,
+                          bridge.data_packets)
+            await _reset(dut)
+    os.close(bridge.master)
+    os.close(bridge.slave)

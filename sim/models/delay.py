@@ -1,0 +1,273 @@
+"""Bit-exact model of :class:`fliss.hdl.delay.source.DelaySource`."""
+
+import sys
+
+import numpy as np
+
+from ...hdl.delay.settings import DelayMode, MAX_LENGTH, MAX_MASK_WIDTH, MASKED_LENGTH, MASKED_STEPS
+from . import lfsr, trivium
+
+
+__all__ = ["DelayMode", "parse_mode", "check_settings", "delays", "max_delay", "mean_delay",
+           "sequence_period", "DelayStream", "next_iv", "KeyedRestarts"]
+
+
+def parse_mode(mode):
+    """A :class:`DelayMode` from itself or its name (``"off"``, ``"mseq"``, ``"masked"``,
+    ``"keyed"``)."""
+    if isinstance(mode, DelayMode):
+        return mode
+    try:
+        return DelayMode[str(mode).upper()]
+    except KeyError:
+        names = ", ".join(m.name.lower() for m in DelayMode)
+        raise ValueError(f"Delay mode must be one of {names}, not {mode!r}") from None
+
+
+def check_settings(mode, *, length=None, mask_width=None, seed=1, key=None, iv=None):
+    """Validate delay settings as a user gives them; return the mode.
+
+    ``length`` is needed for ``mseq``, ``mask_width`` for ``masked`` and ``keyed``, ``key`` and
+    ``iv`` (10 bytes or an 80-bit integer, :mod:`fliss.sim.models.trivium`) for ``keyed``. The seed must
+    be a non-zero state of the register: from 1 to ``2**L - 1`` (``2**32 - 1`` for ``masked``).
+    """
+    mode = parse_mode(mode)
+    if mode == DelayMode.KEYED:
+        if key is None or iv is None:
+            raise ValueError("The keyed delay source needs a key and an IV")
+        trivium.as_int(key, "key")
+        trivium.as_int(iv, "IV")
+    if mode == DelayMode.MSEQ:
+        if length is None:
+            raise ValueError("The mseq delay source needs a register length L")
+        lfsr.check_length(length)
+        bits = length
+    elif mode in (DelayMode.MASKED, DelayMode.KEYED):
+        if mask_width is None:
+            raise ValueError(f"The {mode.name.lower()} delay source needs a mask width Wm")
+        if not isinstance(mask_width, (int, np.integer)) or not 1 <= mask_width <= MAX_MASK_WIDTH:
+            raise ValueError(f"Mask width must be an integer from 1 to {MAX_MASK_WIDTH}, "
+                             f"not {mask_width!r}")
+        bits = MASKED_LENGTH
+    else:
+        bits = MAX_LENGTH
+    if not isinstance(seed, (int, np.integer)) or not 1 <= seed < (1 << bits):
+        raise ValueError(f"Seed must be an integer from 1 to {(1 << bits) - 1} (a non-zero "
+                         f"{bits}-bit register state), not {seed!r}")
+    return mode
+
+
+def delays(mode, count, *, length=None, mask_width=None, seed=1, key=None, iv=None):
+    """The first ``count`` delays, in clock cycles, after a load; a ``numpy.int64`` array.
+    (``keyed``: after a load that initialises with ``iv``, see :class:`KeyedRestarts`.)"""
+    mode = check_settings(mode, length=length, mask_width=mask_width, seed=seed, key=key, iv=iv)
+    if mode == DelayMode.KEYED:
+        return trivium.keyed_delays(key, iv, mask_width, count)
+    if mode == DelayMode.MSEQ:
+        return lfsr.states(length, seed, count).astype(np.int64) - 1
+    if mode == DelayMode.MASKED:
+        states = lfsr.states(MASKED_LENGTH, seed, count, steps=MASKED_STEPS)
+        return (states & np.uint64((1 << mask_width) - 1)).astype(np.int64)
+    return np.zeros(count, dtype=np.int64)
+
+
+def max_delay(mode, *, length=None, mask_width=None):
+    """Largest delay of the source, in clock cycles."""
+    mode = _check_shape(mode, length, mask_width)
+    if mode == DelayMode.MSEQ:
+        return (1 << length) - 2
+    if mode in (DelayMode.MASKED, DelayMode.KEYED):
+        return (1 << mask_width) - 1
+    return 0
+
+
+def _check_shape(mode, length, mask_width):
+    # The settings that shape the delays (the key and IV do not)
+    mode = parse_mode(mode)
+    key = iv = 0 if mode == DelayMode.KEYED else None
+    return check_settings(mode, length=length, mask_width=mask_width, key=key, iv=iv)
+
+
+def sequence_period(mode, *, length=None, mask_width=None):
+    """Number of pulses after which the delay sequence repeats; ``None`` for ``keyed`` (its
+    period is unknown and far beyond any run: Trivium's state has 288 bits)."""
+    mode = _check_shape(mode, length, mask_width)
+    if mode == DelayMode.KEYED:
+        return None
+    if mode == DelayMode.MSEQ:
+        return (1 << length) - 1
+    if mode == DelayMode.MASKED:
+        return (1 << MASKED_LENGTH) - 1
+    return 1
+
+
+def mean_delay(mode, *, length=None, mask_width=None):
+    """Mean delay over one whole sequence period, in clock cycles, as an exact fraction.
+
+    ``mseq``: the states ``1 … 2**L - 1`` each once, so ``R`` averages ``2**(L-1) - 1``.
+    ``masked``: over the ``2**32 - 1`` non-zero states, each non-zero value of the low ``Wm``
+    bits occurs ``2**(32-Wm)`` times and zero ``2**(32-Wm) - 1`` times.
+    ``keyed``: that of uniform ``Wm``-bit delays, ``(2**Wm - 1) / 2`` (an ideal keystream's).
+    """
+    from fractions import Fraction
+    mode = _check_shape(mode, length, mask_width)
+    if mode == DelayMode.KEYED:
+        return Fraction((1 << mask_width) - 1, 2)
+    if mode == DelayMode.MSEQ:
+        return Fraction((1 << length) - 2, 2)
+    if mode == DelayMode.MASKED:
+        per_value = 1 << (MASKED_LENGTH - mask_width)
+        total = per_value * ((1 << mask_width) - 1) * (1 << mask_width) // 2
+        return Fraction(total, (1 << MASKED_LENGTH) - 1)
+    return Fraction(0)
+
+
+class DelayStream:
+    """The delays of a delay source after a load, continued block after block.
+
+    ``take(n)`` returns the next ``n`` delays; consecutive calls give exactly
+    :func:`fliss.sim.models.delay.delays` of the total count. Sequences of up to ``2**16`` pulses are
+    tabulated once; longer ones advance a block of register states by a precomputed jump.
+    """
+
+    TABLE_LIMIT = 1 << 16
+
+    #: Delays of a :meth:`block` of the ``keyed`` source.
+    KEYED_BLOCK = 1 << 12
+
+    def __init__(self, mode, *, length=None, mask_width=None, seed=1, block=1 << 16, key=None,
+                 iv=None):
+        self.mode = check_settings(mode, length=length, mask_width=mask_width, seed=seed,
+                                   key=key, iv=iv)
+        self._table = None
+        self._position = 0
+        if self.mode == DelayMode.KEYED:
+            self._keystream = trivium.Trivium(key, iv)
+            self._mask_width = mask_width
+            return
+        if self.mode == DelayMode.OFF:
+            self._table = np.zeros(1, dtype=np.int64)
+            return
+        period = sequence_period(self.mode, length=length, mask_width=mask_width)
+        if period <= self.TABLE_LIMIT:
+            self._table = delays(self.mode, period, length=length, mask_width=mask_width,
+                                        seed=seed)
+            return
+        if self.mode == DelayMode.MSEQ:
+            bits, steps = length, 1
+            self._offset, self._mask = 1, None
+        else:
+            bits, steps = MASKED_LENGTH, MASKED_STEPS
+            self._offset, self._mask = 0, np.uint32((1 << mask_width) - 1)
+        self._states = lfsr.states(bits, seed, block, steps=steps).astype(np.uint32)
+        # The map of `block` pulses as two lookup tables of 16 bits each: the image of a state is
+        # the XOR of the images of its set bits (the register is linear over GF(2)).
+        columns = [int(lfsr.states(bits, 1 << bit, 2, steps=steps * block)[1])
+                   for bit in range(bits)]
+        self._tables = np.zeros(((bits + 15) // 16, 1 << 16), dtype=np.uint32)
+        for half, table in enumerate(self._tables):
+            for bit in range(min(16, bits - 16 * half)):
+                table[1 << bit:2 << bit] = table[:1 << bit] ^ np.uint32(columns[16 * half + bit])
+
+    @property
+    def table(self):
+        """One whole period of a tabulated sequence from its start, or ``None``."""
+        return self._table
+
+    def _next_states(self):
+        # The low and high 16 bits of each state, as strided views of the uint32 array
+        halves = self._states.view(np.uint16)
+        low, high = (0, 1) if sys.byteorder == "little" else (1, 0)
+        result = np.take(self._tables[0], halves[low::2])
+        if len(self._tables) > 1:
+            result ^= np.take(self._tables[1], halves[high::2])
+        self._states = result
+
+    def take(self, count):
+        """The next ``count`` delays, as ``numpy.int64``."""
+        if self.mode == DelayMode.KEYED:
+            bits = self._keystream.bits(count * self._mask_width).reshape(count, -1)
+            return (bits.astype(np.int64) << np.arange(self._mask_width)).sum(axis=1)
+        if self._table is not None:
+            index = (self._position + np.arange(count, dtype=np.int64)) % len(self._table)
+            self._position = (self._position + count) % len(self._table)
+            return self._table[index]
+        pieces = []
+        while count > 0:
+            if self._position == len(self._states):
+                self._next_states()
+                self._position = 0
+            piece = self._states[self._position:self._position + count]
+            self._position += len(piece)
+            count -= len(piece)
+            pieces.append(piece)
+        states = np.concatenate(pieces) if pieces else np.zeros(0, dtype=np.uint32)
+        return self._delays_of(states)
+
+    def _delays_of(self, states):
+        if self._mask is not None:
+            return (states & self._mask).astype(np.int64)
+        return states.astype(np.int64) - self._offset
+
+    def block(self):
+        """The delays from the current position to the end of the current block of register
+        states (all of a block but the first time); the same sequence as :meth:`take`. Only for
+        sequences that are not tabulated (``keyed``: the next ``KEYED_BLOCK`` delays)."""
+        if self.mode == DelayMode.KEYED:
+            return self.take(self.KEYED_BLOCK)
+        if self._position == len(self._states):
+            self._next_states()
+            self._position = 0
+        states = self._states[self._position:]
+        self._position = len(self._states)
+        return self._delays_of(states)
+
+
+
+def next_iv(iv):
+    """The IV after ``iv`` (80-bit integer) in the ``keyed`` source's restarts: ``iv + 1``,
+    modulo ``2**80``."""
+    return (trivium.as_int(iv, "IV") + 1) % (1 << 80)
+
+
+class KeyedRestarts:
+    """Which IV each run of the ``keyed`` source uses, as :class:`fliss.hdl.delay.keyed.KeyedStream`
+    decides it.
+
+    A load of the source in ``keyed`` mode (a start, or an update while running) initialises
+    Trivium again if the key or IV was written since the last initialisation (with the IV
+    written), or if delays were taken since (with :func:`next_iv` of the IV in use); otherwise
+    the keystream goes on where it is. The board starts with key and IV zero, not yet
+    initialised.
+    """
+
+    def __init__(self):
+        self.key = 0
+        self.written_iv = 0
+        self.iv = 0
+        self._pending = True
+        self._used = False
+
+    def write(self, *, key=None, iv=None):
+        """The host writes the key, the IV, or both."""
+        if key is not None:
+            self.key = trivium.as_int(key, "key")
+        if iv is not None:
+            self.written_iv = trivium.as_int(iv, "IV")
+        self._pending = True
+
+    def load(self):
+        """A load in ``keyed`` mode; True if it initialises (the IV in use is then :attr:`iv`,
+        the keystream from its start)."""
+        if self._pending:
+            self.iv, self._pending, self._used = self.written_iv, False, False
+            return True
+        if self._used:
+            self.iv, self._used = next_iv(self.iv), False
+            return True
+        return False
+
+    def take(self, count=1):
+        """``count`` delays are taken from the keystream."""
+        if count:
+            self._used = True

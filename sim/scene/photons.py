@@ -1,0 +1,408 @@
+"""Photon generation and detection of the scene simulator, laser cycle after laser cycle.
+
+:class:`Simulation` streams the :class:`~fliss.sim.scene.description.Scene` a chunk of laser
+cycles at a time; each :class:`Chunk` holds the events the sensor delivers and the photon
+counters (see :mod:`fliss.sim.scene` for the model).
+"""
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...hdl.event import PULSE_BITS, TDC_LSB_S
+from ..models import delay as _delay
+from ..models import scheduler as _scheduler
+from ...protocol.events import EVENT_DTYPE
+from .description import COUNTERS, FWHM_PER_SIGMA, TDC_CODES, TRUNCATION_SIGMAS, Scene
+from .pulses import EdgeBuffer, EdgeSchedule, PulseTrain
+
+
+__all__ = ["Chunk", "Simulation"]
+
+
+_GENERATED, _OUTSIDE, _DEAD, _OVERWRITTEN, _RECORDED = range(len(COUNTERS))
+
+
+@dataclass
+class Chunk:
+    """What one :meth:`Simulation.step` produced.
+
+    Attributes
+    ----------
+    first_pulse : int
+        Index of its first laser cycle.
+    start_cycles : numpy.ndarray
+        TDC start (laser rising edge) of each of its cycles, in clock cycles.
+    events : numpy.ndarray
+        ``EVENT_DTYPE`` events, in time order.
+    counts : numpy.ndarray
+        ``(sources, len(COUNTERS))`` photon counters of the chunk.
+    """
+
+    first_pulse: int
+    start_cycles: np.ndarray
+    events: np.ndarray
+    counts: np.ndarray
+
+    @property
+    def cycles(self):
+        return len(self.start_cycles)
+
+
+def _spans(times, starts, span_starts, ends, dead, separated):
+    """``(span, in_span, in_window)`` of photons at ``times`` (sorted): the span each is in (the
+    TDC window from ``starts[span]``, or the dead time before it), whether it is in one, and
+    whether in its window. ``separated``: spans do not overlap, each its window and the dead
+    time before; otherwise they run from ``span_starts`` to ``ends``."""
+    if separated:
+        span = np.searchsorted(starts, times + dead, side="right") - 1
+        offset = times - starts[np.maximum(span, 0)]
+        in_span = (span >= 0) & (offset < TDC_CODES)
+        in_window = in_span & (offset >= 0)
+    else:
+        span = np.searchsorted(span_starts, times, side="right") - 1
+        clipped = np.maximum(span, 0)
+        in_span = (span >= 0) & (times < ends[clipped])
+        in_window = in_span & (times >= starts[clipped])
+    return span, in_span, in_window
+
+
+def _non_paralysable(times, dead, last):
+    """Which photons (sorted ``times``) a non-paralysable detector detects; ``last`` is the time
+    of the last detection before them."""
+    count = len(times)
+    if count == 0 or dead <= 0:
+        return np.ones(count, dtype=bool)
+    previous = np.empty(count)
+    previous[0] = last
+    previous[1:] = times[:-1]
+    # A photon at least one dead time after the previous photon is detected whatever happened
+    # before. The others sit in clusters behind such a photon and are resolved in order, one
+    # position of all clusters at a time.
+    detected = (times - previous) >= dead
+    if detected.all():
+        return detected
+    heads = np.maximum.accumulate(np.where(detected, np.arange(count), -1))
+    open_ = np.flatnonzero(~detected)
+    head = heads[open_]
+    clusters, cluster = np.unique(head, return_inverse=True)
+    reference = np.where(clusters >= 0, times[np.maximum(clusters, 0)], last)
+    position = open_ - head
+    order = np.argsort(position, kind="stable")
+    bounds = np.searchsorted(position[order], np.arange(1, position.max() + 2))
+    for lo, hi in zip(bounds[:-1], bounds[1:]):
+        members = order[lo:hi]
+        index = open_[members]
+        owner = cluster[members]
+        ok = times[index] - reference[owner] >= dead
+        detected[index] = ok
+        reference[owner[ok]] = times[index[ok]]
+    return detected
+
+
+def _cycles(values, what):
+    values = np.asarray(values)
+    if values.ndim != 1 or (len(values) and not np.issubdtype(values.dtype, np.integer)):
+        raise ValueError(f"{what} must be a 1-D array of whole clock cycles")
+    return values.astype(np.int64)
+
+
+class Simulation:
+    """The scene, laser cycle after laser cycle, in chunks.
+
+    Parameters
+    ----------
+    scene : Scene
+    seed : int or numpy.random.SeedSequence or None
+        Seed of the photon statistics (the delay sequences have their own seeds in the settings).
+    chunk_cycles : int
+        Laser cycles per chunk: memory is proportional to it.
+    external_starts : bool
+        The victim's TDC starts do not come from the reference scheduler (``scene.victim``) but
+        are given with :meth:`feed`, for instance as a simulated gateware emits them; a laser
+        cycle is simulated once the start of the next one is known.
+    external_aggressors : bool
+        The aggressors' laser triggers are given with :meth:`feed_aggressor`: each aggressor is
+        then a pulse ``offset_s + tof`` after each trigger edge, and its own period and delay
+        settings are not used.
+    """
+
+    def __init__(self, scene, *, seed=None, chunk_cycles=1 << 16, external_starts=False,
+                 external_aggressors=False):
+        if not isinstance(scene, Scene):
+            raise ValueError(f"Expected a Scene, not {scene!r}")
+        if isinstance(chunk_cycles, bool) or not isinstance(chunk_cycles, (int, np.integer)) \
+                or chunk_cycles < 1:
+            raise ValueError(f"Chunk size must be a positive number of laser cycles, "
+                             f"not {chunk_cycles!r}")
+        self.scene = scene
+        self.chunk_cycles = int(chunk_cycles)
+        self._rng = np.random.default_rng(seed)
+        lsb = scene.lsb_per_cycle
+        self._lsb = lsb
+        self._dead = scene.dead_time_s / TDC_LSB_S
+        self._background = scene.background_hz * TDC_LSB_S
+        jitter = scene.jitter_fwhm_s / FWHM_PER_SIGMA / TDC_LSB_S
+        self.external_starts = bool(external_starts)
+        if self.external_starts and scene.fine_step != 1:
+            raise ValueError("Fed TDC starts are whole clock cycles: a scene with a fine delay "
+                             "step takes its starts from the scheduler model")
+        self._starts = EdgeBuffer(None if self.external_starts else
+                               EdgeSchedule(scene.victim, self.chunk_cycles + 1,
+                                            fine_step=scene.fine_step))
+        # Pulsed sources: (pulses, mean detections, sigma in LSBs, per-pulse jitter in LSBs)
+        self._pulsed = []
+        sigma = math.hypot(scene.fwhm_s / FWHM_PER_SIGMA / TDC_LSB_S, jitter)
+        # Fed from outside, the victim fires with some of the starts only (see `feed`).
+        self._fired = EdgeBuffer(None) if self.external_starts else self._starts
+        self._signal = PulseTrain(self._fired, scale=lsb, shift=scene.tof_s / TDC_LSB_S,
+                               guess=self.chunk_cycles + 2, trim=self.external_starts)
+        self._pulsed.append((self._signal, scene.detections_per_pulse, sigma, 0.0))
+        self.external_aggressors = bool(external_aggressors)
+        self._aggressor_edges = []
+        self._last_edges = [np.zeros(0, dtype=np.int64) for _ in scene.aggressors]
+        for aggressor in scene.aggressors:
+            tof = scene.tof_s if aggressor.tof_s is None else aggressor.tof_s
+            shift = (aggressor.offset_s + tof) / TDC_LSB_S
+            # Its own oscillator: one of its cycles lasts 1 / (1 + ppm 1e-6) victim cycles
+            own = lsb / (1.0 + aggressor.ppm * 1e-6)
+            if self.external_aggressors:
+                edges = EdgeBuffer(None)
+                self._aggressor_edges.append(edges)
+                pulses = PulseTrain(edges, scale=own, shift=shift, guess=64)
+            elif aggressor.has_delays:
+                pulses = PulseTrain(EdgeBuffer(EdgeSchedule(aggressor.settings(), self.chunk_cycles)),
+                                 scale=own, shift=shift, guess=self.chunk_cycles + 2)
+            else:
+                pulses = PulseTrain(shift=shift + (1 + _scheduler.LATENCY) * own,
+                                 step=float(aggressor.period_cycles) * own)
+            sigma = math.hypot(aggressor.fwhm_s / FWHM_PER_SIGMA / TDC_LSB_S, jitter)
+            self._pulsed.append((pulses, aggressor.detections_per_pulse, sigma,
+                                 aggressor.jitter_s / TDC_LSB_S))
+        self._sources = len(scene.sources)
+        # Windows and dead times of consecutive pulses never meet when the shortest time between
+        # two TDC starts is longer than both: a faster path that needs no per-cycle arrays.
+        victim = scene.victim
+        shortest = victim.period - (_delay.max_delay(victim.mode, length=victim.length,
+                                                     mask_width=victim.mask_width)
+                                    / scene.fine_step if victim.grid else 0)
+        self._separated = shortest * lsb > TDC_CODES + self._dead and not self.external_starts
+        self.pulse = 0
+        self._previous_end = -math.inf
+        self._last_detection = -math.inf
+        self._carry_times = np.zeros(0)
+        self._carry_sources = np.zeros(0, dtype=np.int8)
+        # A pixel array (see PixelSimulation) sets its number of pixels, the pixels of the
+        # photons carried over and, per pulsed source, how its photons spread over the pixels.
+        self._pixel_count = None
+        self._carry_pixels = None
+        self._per_pixel = None
+        #: Photon counters since the start, ``(sources, len(COUNTERS))``.
+        self.counts = np.zeros((self._sources, len(COUNTERS)), dtype=np.int64)
+
+    @property
+    def next_start_cycle(self):
+        """TDC start cycle of the next laser cycle to simulate (``None`` if not fed yet); a
+        ``float`` with a fine delay step."""
+        known = self._starts.get(self.pulse, self.pulse + 1)
+        return known[0].item() if len(known) else None
+
+    def feed(self, start_cycles, *, fired=True):
+        """Give the next TDC starts, in clock cycles, with ``external_starts``: integers,
+        increasing, after every start given before. With ``fired``, the victim laser fires with
+        them (its echo follows); without, they only close the previous TDC window."""
+        if not self.external_starts:
+            raise ValueError("This simulation takes its TDC starts from the scheduler model; "
+                             "create it with external_starts=True to feed them")
+        values = _cycles(start_cycles, "TDC starts")
+        previous = self._starts.get(self._starts.end - 1, self._starts.end)
+        if np.any(np.diff(np.concatenate((previous, values))) <= 0):
+            raise ValueError("TDC starts must increase strictly, also across calls to feed()")
+        self._starts.feed(values)
+        if fired:
+            self._fired.feed(values)
+
+    def feed_aggressor(self, index, edge_cycles):
+        """Give the next rising edges of aggressor ``index``'s laser trigger, in clock cycles,
+        with ``external_aggressors``: integers, increasing, after every edge given before. Give
+        each edge before :meth:`step` simulates the laser cycles its photons fall in: photons of
+        an edge given later are not simulated."""
+        if not self.external_aggressors:
+            raise ValueError("This simulation takes its aggressors from their settings; create "
+                             "it with external_aggressors=True to feed their triggers")
+        if not isinstance(index, (int, np.integer)) or not 0 <= index < len(self._aggressor_edges):
+            raise ValueError(f"Aggressor index must be from 0 to "
+                             f"{len(self._aggressor_edges) - 1}, not {index!r}")
+        values = _cycles(edge_cycles, "Aggressor trigger edges")
+        previous = self._last_edges[index]
+        if np.any(np.diff(np.concatenate((previous, values))) <= 0):
+            raise ValueError("Aggressor trigger edges must increase strictly, also across calls "
+                             "to feed_aggressor()")
+        self._aggressor_edges[index].feed(values)
+        if len(values):
+            self._last_edges[index] = values[-1:]
+
+    def _photons(self, boundary, count, starts, span_starts, ends):
+        """Photons up to ``boundary`` (and of the pulses near it, after it): carried over, from
+        each pulsed source, and background in the ``count`` spans; ``(times, sources, pixels)``,
+        not sorted. ``pixels`` is ``None`` but for a pixel array, whose pulsed sources give each
+        pixel its own mean detections and arrival time (``_per_pixel``) and whose background falls
+        on every pixel alike."""
+        rng = self._rng
+        array = self._pixel_count
+        times, sources, owners = [self._carry_times], [self._carry_sources], [self._carry_pixels]
+        for index, (pulses, mean, sigma, wander) in enumerate(self._pulsed):
+            source = index if index == 0 else index + 1
+            extra, lowest = None, 0.0
+            if array is not None:
+                mean, extra, lowest = self._per_pixel[index]
+            centres = pulses.until(boundary + TRUNCATION_SIGMAS * (sigma + wander) + 1.0
+                                   - lowest)
+            if not np.any(mean) or len(centres) == 0:
+                continue
+            if wander > 0:
+                centres = centres + wander * np.clip(rng.standard_normal(len(centres)),
+                                                     -TRUNCATION_SIGMAS, TRUNCATION_SIGMAS)
+            number = rng.poisson(mean * len(centres))
+            if array is not None:
+                pixel = np.repeat(np.arange(array, dtype=np.int16), number)
+                number = len(pixel)
+                owners.append(pixel)
+            spread = np.clip(rng.standard_normal(number), -TRUNCATION_SIGMAS, TRUNCATION_SIGMAS)
+            arrivals = centres[rng.integers(0, len(centres), number)]
+            if extra is not None:
+                arrivals = arrivals + extra[pixel]
+            times.append(arrivals + sigma * spread)
+            sources.append(np.full(number, source, dtype=np.int8))
+        if self._background > 0:
+            # A Poisson process on each span: drawn on spans all as long as the longest, then
+            # thinned to each span's true length.
+            if self._separated:
+                longest = TDC_CODES + self._dead
+            else:
+                lengths = ends - span_starts
+                longest = float(lengths.max())
+            mean = self._background * longest * count
+            if array is not None:
+                mean = mean * array
+            number = rng.poisson(mean)
+            span = rng.integers(0, count, number)
+            offset = rng.uniform(0.0, longest, number)
+            if array is not None:
+                pixel = rng.integers(0, array, number).astype(np.int16)
+            if self._separated:
+                times.append(starts[span] + (offset - self._dead))
+            else:
+                inside = offset < lengths[span]
+                times.append(span_starts[span[inside]] + offset[inside])
+                number = int(inside.sum())
+                if array is not None:
+                    pixel = pixel[inside]
+            sources.append(np.full(number, 1, dtype=np.int8))
+            if array is not None:
+                owners.append(pixel)
+        return (np.concatenate(times), np.concatenate(sources),
+                None if array is None else np.concatenate(owners))
+
+    def _cycles(self, max_cycles, until_cycle):
+        """The TDC start cycles from the next laser cycle on, and how many of them the next step
+        simulates (at most ``max_cycles``, those before ``until_cycle``)."""
+        max_cycles = self.chunk_cycles if max_cycles is None else int(max_cycles)
+        cycles = self._starts.get(self.pulse, self.pulse + max_cycles + 1)
+        count = max(min(max_cycles, len(cycles) - 1), 0)   # the next start must be known
+        if until_cycle is not None:
+            count = int(np.searchsorted(cycles[:count], until_cycle, side="left"))
+        return cycles, count
+
+    def _windows(self, cycles, count):
+        """Times of the step's ``count`` TDC starts, of its spans (``None`` when they never
+        touch) and of their ends (the same), and the time from which photons belong to the
+        next step."""
+        edges = cycles[:count + 1] * self._lsb
+        starts = edges[:-1]
+        ends = span_starts = None
+        if self._separated:
+            # Every span is [start - dead, start + 2**13) and they never touch.
+            boundary = edges[-1] - self._dead
+        else:
+            ends = np.minimum(starts + TDC_CODES, edges[1:])
+            span_starts = np.maximum(starts - self._dead,
+                                     np.concatenate(([self._previous_end], ends[:-1])))
+            boundary = max(edges[-1] - self._dead, ends[-1])
+        return starts, span_starts, ends, boundary
+
+    def step(self, max_cycles=None, *, until_cycle=None):
+        """Simulate the next laser cycles: at most ``max_cycles`` (default: one chunk), and only
+        those whose TDC start is before clock cycle ``until_cycle``. Returns a :class:`Chunk`."""
+        cycles, count = self._cycles(max_cycles, until_cycle)
+        if count == 0:
+            return Chunk(self.pulse, cycles[:0].copy(), np.zeros(0, dtype=EVENT_DTYPE),
+                         np.zeros_like(self.counts))
+        starts, span_starts, ends, boundary = self._windows(cycles, count)
+
+        times, sources, _ = self._photons(boundary, count, starts, span_starts, ends)
+        later = times >= boundary
+        if later.any():
+            self._carry_times, self._carry_sources = times[later], sources[later]
+            now = ~later
+            times, sources = times[now], sources[now]
+        else:
+            self._carry_times, self._carry_sources = times[:0], sources[:0]
+        order = np.argsort(times)
+        times = times[order]
+        sources = sources[order]
+
+        # Which span each photon is in: the TDC window of `span`, or the dead time before it
+        span, in_span, in_window = _spans(times, starts, span_starts, ends, self._dead,
+                                          self._separated)
+
+        # Detection: which span, dead time, single-hit TDC
+        counts = np.zeros_like(self.counts)
+        counts[:, _GENERATED] = np.bincount(sources, minlength=self._sources)
+        span_times = times[in_span]
+        detected = _non_paralysable(span_times, self._dead, self._last_detection)
+        if detected.any():
+            self._last_detection = float(span_times[detected][-1])
+        window = in_window[in_span]
+        candidate = window & detected
+        picked = np.flatnonzero(in_span)[candidate]
+        cycle = span[picked]
+        if self.scene.keep == "last":
+            keep = np.ones(len(cycle), dtype=bool)
+            keep[:-1] = cycle[1:] != cycle[:-1]
+        else:
+            keep = np.ones(len(cycle), dtype=bool)
+            keep[1:] = cycle[1:] != cycle[:-1]
+        recorded = picked[keep]
+        counts[:, _OUTSIDE] = np.bincount(sources[~in_window], minlength=self._sources)
+        counts[:, _DEAD] = np.bincount(sources[np.flatnonzero(in_span)[window & ~detected]],
+                                       minlength=self._sources)
+        counts[:, _OVERWRITTEN] = np.bincount(sources[picked[~keep]], minlength=self._sources)
+        counts[:, _RECORDED] = np.bincount(sources[recorded], minlength=self._sources)
+
+        events = np.zeros(len(recorded), dtype=EVENT_DTYPE)
+        cycle = span[recorded]
+        stamps = np.floor(times[recorded] - starts[cycle]).astype(np.int64)
+        events["timestamp"] = np.minimum(stamps, TDC_CODES - 1)
+        events["address"] = self.scene.address
+        events["pulse"] = (self.pulse + cycle) & ((1 << PULSE_BITS) - 1)
+
+        chunk = Chunk(self.pulse, cycles[:count].copy(), events, counts)
+        self.pulse += count
+        self._starts.trim(self.pulse if self.external_starts else
+                          min(self.pulse, self._signal.next_index))
+        self._previous_end = float(starts[-1] + TDC_CODES if self._separated else ends[-1])
+        self.counts += counts
+        return chunk
+
+    def chunks(self, cycles):
+        """Chunks covering the next ``cycles`` laser cycles (fewer if the TDC starts fed so far
+        run out first)."""
+        remaining = int(cycles)
+        while remaining > 0:
+            chunk = self.step(min(remaining, self.chunk_cycles))
+            if chunk.cycles == 0:
+                return
+            remaining -= chunk.cycles
+            yield chunk

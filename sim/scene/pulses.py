@@ -1,0 +1,171 @@
+"""Laser rising edges and pulse arrival times for the scene simulator, made block by block.
+
+:class:`EdgeSchedule` gives the rising edges of a delay core from the reference scheduler,
+:class:`EdgeBuffer` holds an increasing sequence of edges (made by a schedule or fed from outside),
+and :class:`PulseTrain` hands out the arrival times of one pulsed source in increasing order.
+"""
+
+import math
+from functools import lru_cache
+
+import numpy as np
+
+from ...hdl.delay.settings import MASKED_LENGTH, MASKED_STEPS
+from ..models import lfsr as _lfsr
+from ..models import scheduler as _scheduler
+from ..models.delay import DelayMode, DelayStream
+
+
+__all__ = ["MaskedDelays", "EdgeSchedule", "EdgeBuffer", "PulseTrain"]
+
+
+@lru_cache(maxsize=4)
+def _basis_states(count):
+    """States ``0 … count - 1`` of the masked source's register loaded with each basis vector:
+    ``(MASKED_LENGTH, count)`` ``uint32``. The register is linear over GF(2), so the states after
+    any seed are the XOR of the rows of its set bits."""
+    return np.stack([_lfsr.states(MASKED_LENGTH, 1 << bit, count,
+                                  steps=MASKED_STEPS).astype(np.uint32)
+                     for bit in range(MASKED_LENGTH)])
+
+
+class MaskedDelays:
+    """The delays of the ``masked`` source, block after block, as
+    :class:`fliss.sim.models.delay.DelayStream` gives them (the same sequence), made cheaply for many
+    seeds: one set of basis states is computed per block length and process, and each block of
+    a seed is an XOR of its rows."""
+
+    table = None
+
+    def __init__(self, mask_width, seed, block):
+        self._mask = np.uint32((1 << mask_width) - 1)
+        self._basis = _basis_states(block)
+        self._state = _lfsr.load(seed, MASKED_LENGTH)
+
+    def block(self):
+        states = np.zeros(self._basis.shape[1], dtype=np.uint32)
+        for bit in range(MASKED_LENGTH):
+            if self._state >> bit & 1:
+                states ^= self._basis[bit]
+        # The next block starts one step of the source after the last state
+        self._state = int(_lfsr.states(MASKED_LENGTH, int(states[-1]), 2,
+                                       steps=MASKED_STEPS)[1])
+        return (states & self._mask).astype(np.int64)
+
+
+class EdgeSchedule:
+    """Laser rising edges (TDC starts) of a delay core, in clock cycles, block by block.
+
+    With ``fine_step`` > 1 the delays count in steps of ``1 / fine_step`` cycle (a model
+    option) and the edges are ``float64``."""
+
+    def __init__(self, settings, block, fine_step=1):
+        self._settings = settings
+        self._fine = fine_step
+        if settings.mode == DelayMode.MASKED:
+            self._delays = MaskedDelays(settings.mask_width, settings.seed, block)
+        else:
+            self._delays = DelayStream(settings.mode, length=settings.length,
+                                       mask_width=settings.mask_width, seed=settings.seed,
+                                       key=settings.key, iv=settings.iv)
+        self._take = 0
+        self._block = block
+        self._pattern = None
+        table = self._delays.table
+        if table is not None:
+            # A short sequence: the edges of whole sequence periods, computed once and shifted.
+            delays = np.tile(table, max(1, -(-block // len(table))))
+            self._pattern = self._edges(delays)
+            self._length = self._take
+            self._take = 0
+
+    def _edges(self, delays):
+        period, grid = self._settings.period, self._settings.grid
+        if self._fine != 1:
+            delays = delays / self._fine
+            if grid:
+                fires = (self._take + period * np.arange(len(delays))) + 1 + delays
+                self._take += period * len(delays)
+                return fires + _scheduler.LATENCY
+        if grid:
+            fires = _scheduler.fire_cycles(delays, period, grid=True, start=self._take)
+            self._take += period * len(delays)
+            return fires + _scheduler.LATENCY
+        # Interval mode, as fire_cycles: pulse k fires 1 + R[k] cycles after its take cycle
+        # start + sum(T + R[i], i < k), that is at start + cumsum(T + R)[k] - T + 1.
+        ends = np.cumsum(delays + period)
+        edges = ends + (self._take - period + 1 + _scheduler.LATENCY)
+        self._take += ends[-1] if len(ends) else 0
+        return edges
+
+    def __call__(self):
+        if self._pattern is not None:
+            edges = self._pattern + self._take
+            self._take += self._length
+            return edges
+        return self._edges(self._delays.block())
+
+
+class EdgeBuffer:
+    """An increasing sequence read by global index, made block by block by ``blocks()`` or, when
+    ``blocks`` is ``None``, fed from outside (then ``get`` returns what is known)."""
+
+    def __init__(self, blocks):
+        self._blocks = blocks
+        self._data = np.zeros(0, dtype=np.int64)
+        self._base = 0
+
+    @property
+    def end(self):
+        """Index after the last value known."""
+        return self._base + len(self._data)
+
+    def feed(self, values):
+        self._data = np.concatenate((self._data, values))
+
+    def get(self, lo, hi):
+        while self._base + len(self._data) < hi and self._blocks is not None:
+            self._data = np.concatenate((self._data[lo - self._base:], self._blocks()))
+            self._base = lo
+        return self._data[lo - self._base:hi - self._base]
+
+    def trim(self, lo):
+        if lo > self._base:
+            self._data = self._data[lo - self._base:]
+            self._base = lo
+
+
+class PulseTrain:
+    """Arrival times (pulse centres, LSBs) of one pulsed source, handed out in increasing order."""
+
+    def __init__(self, buffer=None, *, scale=1.0, shift=0.0, step=None, guess=4096, trim=True):
+        self._buffer = buffer
+        self._trim = trim
+        self._scale, self._shift, self._step = scale, shift, step
+        self._next = 0
+        self._guess = guess
+
+    def until(self, limit):
+        """Centres of the pulses not handed out yet that arrive before ``limit``."""
+        if self._buffer is None:
+            # Arithmetic train: centre of pulse j is shift + j * step.
+            end = max(self._next, math.ceil((limit - self._shift) / self._step))
+            centres = self._shift + np.arange(self._next, end, dtype=np.float64) * self._step
+            self._next = end
+            return centres
+        count = self._guess
+        while True:
+            cycles = self._buffer.get(self._next, self._next + count)
+            centres = cycles * self._scale + self._shift
+            found = int(np.searchsorted(centres, limit, side="left"))
+            if found < len(centres) or len(centres) < count:
+                break                       # past the limit, or no more pulses known yet
+            count *= 2
+        self._next += found
+        if self._trim:
+            self._buffer.trim(self._next)
+        return centres[:found]
+
+    @property
+    def next_index(self):
+        return self._next

@@ -1,0 +1,9 @@
+"""Studies on the scene simulator.
+
+* :mod:`.detection`: target detection in a histogram, and decision metrics over frames;
+* :mod:`.interference`: how often a frame reports a wrong distance, per point of a sweep;
+* :mod:`.attacker`, :mod:`.generators`, :mod:`.gf2`: an attacker that predicts the victim's
+  delays from its emission times, and the public generators it may assume;
+* :mod:`.attack_scene`: the attacker in the scene simulator;
+* :mod:`.predicting_aggressor`: the attacker as an aggressor of the interference study.
+"""
