@@ -28,7 +28,7 @@ from .codec import pack, unpack_from
 
 
 __all__ = ["RECORD_DTYPE", "BACKGROUND_MAX", "check_depth_settings", "depth_frame",
-           "depth_payload", "unpack_depth", "frame_counts"]
+           "depth_payload", "unpack_depth"]
 
 
 #: The fields of a :class:`~fliss.hdl.protocol.DepthRecord`, as the engine makes them.
@@ -111,11 +111,6 @@ def depth_frame(counts, *, shift, filter, threshold):
     records["position"] = _ONE * end - (_ONE // 2) * width + step
     records["detected"] = records["height"] >= threshold
     return records
-
-
-def frame_counts(counts, pixel_bits, shift):
-    """A flat, pixel-major frame (``P * N`` bins, as read out) as an array (P, N)."""
-    return np.asarray(counts).reshape(1 << pixel_bits, 1 << (TIMESTAMP_BITS - shift))
 
 
 def depth_payload(records, *, frame, first_pixel, pixel_bits, shift, filter, threshold):

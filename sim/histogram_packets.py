@@ -33,7 +33,7 @@ from .codec import byte_size, pack, packet_type, unpack_from, word_dtype
 
 
 __all__ = ["HISTOGRAM_TYPES", "FULL_HEADER_BYTES", "COMPACT_HEADER_BYTES",
-           "MalformedChunk", "Chunk", "frame_bins", "token_length", "tokens", "window_is_compact",
+           "MalformedChunk", "Chunk", "frame_bins", "tokens", "window_is_compact",
            "encode_histogram", "decode_chunk", "assemble"]
 
 
@@ -90,11 +90,6 @@ def _check_split(shift, pixel_bits, first_pixel):
     if pixel_bits + TIMESTAMP_BITS - shift > MAX_FRAME_BITS:
         raise MalformedChunk(f"a frame of 2**{pixel_bits} pixels of 2**{TIMESTAMP_BITS - shift} "
                              f"bins is beyond the 2**{MAX_FRAME_BITS} flat indices")
-
-
-def token_length(value):
-    """Bytes of the LEB128 token ``value``."""
-    return 1 if value < 1 << 7 else 2 if value < 1 << 14 else 3
 
 
 def _leb128(value, out):
