@@ -8,11 +8,10 @@ Prints, measured in the same run on a ``LocalCluster`` started for each case:
   itself took on the worker (its mean), and, as a baseline, the round trip of an empty task;
 * the simulation time of one point.
 
-The point function is the interference model (``fliss.sim.studies.interference:evaluate``) when it is
-installed, else a stand-in of the same kind: the photon-level scene simulator on the paper's
-scene (victim with FLISS ``mseq`` L = 6, one aggressor) for ``--frames`` acquisitions. Cluster
-start-up and a first point on every worker are left out of the rates; the best of ``--repeat``
-runs is kept. On a shared machine the figures are noisy.
+The point function is the interference model (``fliss.sim.studies.interference:evaluate``), each point
+``--frames`` frames of 1 to 4 aggressors. Cluster start-up and a first point on every worker are
+left out of the rates; the best of ``--repeat`` runs is kept. On a shared machine the figures
+are noisy.
 
 Usage: ``python benchmarks/sweep_scaling.py [--points N] [--frames F] [--repeat R]``
 """
@@ -23,31 +22,13 @@ import time
 
 from fliss.host.sweep.engine import cluster, compute
 from fliss.host.sweep.spec import point_seed
-
-
-def scene_point(point, seed):
-    """Stand-in point: ``frames`` 10 ms acquisitions of the paper's scene, peak count."""
-    from fliss.sim.models import delay as delay_model
-    from fliss.sim.models import scheduler
-    from fliss.sim.scene import Aggressor, Scene, acquire
-
-    victim = scheduler.Settings(mode=delay_model.parse_mode("mseq"), period=80, length=6)
-    mean = float(delay_model.mean_delay(victim.mode, length=6, mask_width=None))
-    scene = Scene(victim=victim, aggressors=(Aggressor(period_cycles=80 + mean + point["ppm"]
-                                                       * 1e-6 * 80),))
-    runs = acquire(scene, point["t_int_s"], point["frames"], seed=seed)
-    return {"counts": int(runs.counts.sum())}
+from fliss.sim.studies.interference import evaluate
 
 
 def model(frames):
-    """The point function and the points to run."""
-    try:
-        from fliss.sim.studies.interference import evaluate
-        return evaluate, "fliss.sim.studies.interference:evaluate", \
-            lambda i: {"frames": frames, "aggressors": 1 + i % 4}
-    except ImportError:
-        return scene_point, "scene stand-in (sim.interference not installed)", \
-            lambda i: {"frames": frames, "t_int_s": 10e-3, "ppm": float(i)}
+    """The point function, its name and the points to run."""
+    return evaluate, "fliss.sim.studies.interference:evaluate", \
+        lambda i: {"frames": frames, "aggressors": 1 + i % 4}
 
 
 def measure(workers, processes, function, points, repeat):

@@ -26,7 +26,7 @@ __all__ = [
     "DEFAULT_BAUD", "DELIMITER", "COBS_MAX_RUN",
     "CRC_WIDTH", "CRC_POLY", "CRC_INIT", "CRC_CHECK", "CRC_BYTES",
     "PacketType", "DATA_PACKETS", "Header", "HEADER_BYTES", "MAX_PAYLOAD", "MAX_PACKET", "MAX_ENCODED",
-    "MAX_FRAME", "NakCode", "Ack", "Nak", "Identity", "ReadRequest", "REGISTER_BITS",
+    "NakCode", "Ack", "Nak", "Identity", "ReadRequest", "REGISTER_BITS",
     "REGISTER_BYTES", "registers_layout", "READ_MAX", "CONSISTENCY", "COUNTER_BITS", "Status",
     "STATUS_FIELDS", "LINK_COUNTERS", "LINK_FIELDS", "LINK_ERRORS", "HistogramChunk",
     "HISTOGRAM_COUNT_BITS", "CHUNK_BINS", "HistogramCompact", "COMPACT_BYTES",
@@ -197,9 +197,6 @@ MAX_PACKET = HEADER_BYTES + MAX_PAYLOAD + CRC_BYTES
 #: Largest COBS-encoded packet, in bytes: COBS adds a code byte in front of every run of up to
 #: :data:`COBS_MAX_RUN` bytes. A receiver drops longer frames as ``OVERSIZE``.
 MAX_ENCODED = MAX_PACKET + 1 + (MAX_PACKET - 1) // COBS_MAX_RUN
-
-#: Largest frame on the wire, in bytes: the encoded packet and the delimiter.
-MAX_FRAME = MAX_ENCODED + 1
 
 
 class NakCode(enum.Enum, shape=8):

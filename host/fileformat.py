@@ -19,7 +19,7 @@ import numpy as np
 
 from .. import __version__
 from ..hdl.event import TDC_LSB_S, TIMESTAMP_BITS
-from ..hdl.registers import BY_NAME, RECORDED, TdcSource
+from ..hdl.registers import BY_NAME, TdcSource
 from ..protocol.events import EVENT_DTYPE
 from .imager.files import (IMAGE_MODES, append_depth, append_image, create_depth, create_image,
                            read_imager)
@@ -451,8 +451,3 @@ def _plain(value):
     if isinstance(value, bytes):
         return value.decode()
     return value
-
-
-# Registers that are in every file, in address order (for readers without the map): all but
-# the write-only key.
-REGISTER_NAMES = tuple(register.name for register in RECORDED)

@@ -35,7 +35,7 @@ from .frames import packet_type
 
 
 __all__ = ["FULL_HEADER_BYTES", "COMPACT_HEADER_BYTES",
-           "MalformedChunk", "Chunk", "frame_bins", "token_length", "tokens", "window_is_compact",
+           "MalformedChunk", "Chunk", "frame_bins", "tokens", "window_is_compact",
            "encode_histogram", "decode_chunk", "assemble"]
 
 
@@ -91,11 +91,6 @@ def _check_split(shift, pixel_bits, first_pixel):
     if pixel_bits + TIMESTAMP_BITS - shift > MAX_FRAME_BITS:
         raise MalformedChunk(f"a frame of 2**{pixel_bits} pixels of 2**{TIMESTAMP_BITS - shift} "
                              f"bins is beyond the 2**{MAX_FRAME_BITS} flat indices")
-
-
-def token_length(value):
-    """Bytes of the LEB128 token ``value``."""
-    return 1 if value < 1 << 7 else 2 if value < 1 << 14 else 3
 
 
 def _leb128(value, out):

@@ -18,13 +18,12 @@ The model runs 64 rounds in one step: no tap is nearer than 66 rounds to a regis
 import numpy as np
 
 
-__all__ = ["KEY_BYTES", "IV_BYTES", "INIT_ROUNDS", "as_int", "parse_hex", "Trivium",
+__all__ = ["KEY_BYTES", "INIT_ROUNDS", "as_int", "parse_hex", "Trivium",
            "keystream", "keystream_bytes", "keyed_delays"]
 
 
 #: Key and IV length in bytes (80 bits each).
 KEY_BYTES = 10
-IV_BYTES = 10
 
 #: Rounds run after loading, before the first keystream bit (4 × 288).
 INIT_ROUNDS = 4 * 288
