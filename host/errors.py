@@ -7,7 +7,7 @@ it does with :exc:`UserError`, a mistake in what the user asked a command for.
 """
 
 __all__ = ["BoardError", "BoardLost", "BoardReset", "PortError", "BoardRefused", "BoardMismatch",
-           "SettingsError", "VirtualBoardError", "PathError", "UserError"]
+           "SettingsError", "VirtualBoardError", "PathError", "FormatError", "UserError"]
 
 
 class BoardError(Exception):
@@ -72,6 +72,12 @@ class PathError(ValueError):
     message is one line that says what and what to do. Raised before anything is started, by
     :mod:`fliss.host.paths`, or when a file stops taking data (a full disk) during a capture,
     after the board is stopped and the file closed."""
+
+
+class FormatError(ValueError):
+    """A capture cannot be exported to the format asked for (a depth capture to PTU, a
+    histogram to Photon-HDF5, a library missing), or a PTU or Photon-HDF5 file cannot be read
+    as a capture; the message is one line that says why (:mod:`fliss.host.formats`)."""
 
 
 class UserError(Exception):

@@ -1,0 +1,78 @@
+"""Captures in other programs' formats, both ways: PTU (PicoQuant) and Photon-HDF5.
+
+:func:`export_capture` writes a capture (:class:`~fliss.host.fileformat.Capture`) in one of
+:data:`FORMATS`; :func:`read_file` reads a FLISS capture file, a PTU file or a Photon-HDF5
+file as a capture, so that ``fliss analyze`` and ``fliss plot`` take any of them. What maps to
+what, and what is lost: docs/file-format.md. Everything refused is a :exc:`FormatError` (a
+``ValueError``) of one line.
+"""
+
+import os
+import tempfile
+
+from ..errors import FormatError
+from ..fileformat import read_capture
+from .photon_hdf5 import is_photon_hdf5, read_photon_hdf5, write_photon_hdf5
+from .ptu import read_ptu, write_ptu
+
+
+__all__ = ["FORMATS", "FormatError", "export_capture", "read_file"]
+
+
+#: Export formats by name: (description, writer, what it takes).
+FORMATS = {
+    "ptu": ("PTU (PicoQuant)", write_ptu, ("raw", "histogram", "image")),
+    "photon-hdf5": ("Photon-HDF5", write_photon_hdf5, ("raw",)),
+}
+
+_PTU = b"PQTTTR\0\0"
+_PHU = b"PQHISTO\0"
+
+
+def export_capture(capture, path, to):
+    """Write ``capture`` to ``path`` in the format ``to`` (a key of :data:`FORMATS`); returns
+    the number of records (PTU) or photons (Photon-HDF5) written. The file is written under
+    a temporary name beside ``path`` and renamed when whole, so a refusal or a failure leaves
+    ``path`` as it was."""
+    if to not in FORMATS:
+        raise FormatError(f"no export format {to!r}; the formats are {', '.join(FORMATS)}")
+    if capture.mode == "depth":
+        raise FormatError(f"{capture.path}: a depth capture cannot be exported: PTU and "
+                          f"Photon-HDF5 hold photons and TCSPC histograms, not depth frames; "
+                          f"the FLISS capture file (HDF5) is the format that holds them")
+    name, write, modes = FORMATS[to]
+    if capture.mode not in modes:
+        article = "an" if capture.mode[0] in "aeiou" else "a"
+        raise FormatError(f"{capture.path}: {article} {capture.mode} capture cannot go to {name}, "
+                          f"which holds photons one by one, not histograms: export it to PTU "
+                          f"(--to ptu)")
+    folder, base = os.path.split(os.path.abspath(path))
+    handle, partial = tempfile.mkstemp(prefix=f".{base}.", suffix=".part", dir=folder)
+    os.close(handle)
+    try:
+        written = write(capture, partial)
+        os.replace(partial, path)
+    finally:
+        if os.path.exists(partial):
+            os.unlink(partial)
+    return written
+
+
+def read_file(path):
+    """The capture in ``path``: a FLISS capture file (:func:`~fliss.host.fileformat.
+    read_capture`), a PTU file (T3) or a Photon-HDF5 file (:mod:`.ptu`, :mod:`.photon_hdf5`).
+    Raises :exc:`ValueError` of one line for what cannot be read."""
+    path = str(path)
+    try:
+        with open(path, "rb") as f:
+            head = f.read(len(_PTU))
+    except OSError:
+        head = b""                      # read_capture says why
+    if head == _PTU:
+        return read_ptu(path)
+    if head == _PHU:
+        raise FormatError(f"{path}: a PicoQuant histogram (PHU) file; fliss reads PTU files "
+                          f"(T3 records), Photon-HDF5 files and FLISS capture files")
+    if head.startswith(b"\x89HDF") and is_photon_hdf5(path):
+        return read_photon_hdf5(path)
+    return read_capture(path)
