@@ -32,6 +32,7 @@ COMMAND_MODULES = [
     "capture",
     "analyze",
     "plot",
+    "export",
     "generate",
     "board",
     "attack",

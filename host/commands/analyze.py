@@ -29,7 +29,8 @@ def register(subparsers, formatter):
                     "depth and ToF of the tallest peak of the pixel's summed histogram, its "
                     "height, the background, detected or not; of a depth capture (--readout "
                     "depth) the median over the frames and the detection rate.")
-    parser.add_argument("files", nargs="+", metavar="FILE", help="capture files (HDF5)")
+    parser.add_argument("files", nargs="+", metavar="FILE",
+                        help="capture files (HDF5), PTU or Photon-HDF5 files")
     parser.add_argument("--victim-tof", metavar="TIME",
                         help="position of the victim's peak (e.g. 26.7ns)")
     parser.add_argument("--aggressor-tof", nargs="*", default=[], metavar="TIME",

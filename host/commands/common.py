@@ -7,7 +7,7 @@ import sys
 import time
 
 from ..errors import UserError
-from ..fileformat import read_capture
+from ..formats import read_file
 from ..units import parse_frequency, parse_time
 from ...hdl import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, period_cycles
 
@@ -122,9 +122,10 @@ def sigterm_interrupts():
 
 
 def read_capture_file(path):
-    """The capture in ``path``; one warning line (stderr) for what of it could not be read."""
+    """The capture in ``path`` (a FLISS capture, a PTU or a Photon-HDF5 file); one warning
+    line (stderr) for what of it could not be read."""
     try:
-        capture = read_capture(path)
+        capture = read_file(path)
     except ValueError as error:
         raise UserError(str(error)) from None
     if capture.problems:

@@ -25,7 +25,8 @@ def register(subparsers, formatter):
                     "draws the depth against the pixel (a line sensor's profile; an image with "
                     "--shape) and the intensity, for all frames together, a grid of frames, "
                     "or an animated GIF of them (--frames).")
-    parser.add_argument("files", nargs="+", metavar="FILE", help="capture files (HDF5)")
+    parser.add_argument("files", nargs="+", metavar="FILE",
+                        help="capture files (HDF5), PTU or Photon-HDF5 files")
     parser.add_argument("-o", "--output", required=True, metavar="PNG",
                         default=argparse.SUPPRESS, help="image to write")
     parser.add_argument("--log", action="store_true", help="logarithmic count axis")

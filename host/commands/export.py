@@ -1,0 +1,55 @@
+"""``fliss export CAPTURE --to ptu|photon-hdf5 -o OUT``: a capture in another program's format."""
+
+import argparse
+import os
+import time
+
+from ..errors import FormatError, UserError
+from ..formats import FORMATS, export_capture
+from ..paths import check_output_path
+from .common import read_capture_file
+
+
+__all__ = ["register", "run_export"]
+
+
+def register(subparsers, formatter):
+    parser = subparsers.add_parser(
+        "export", formatter_class=formatter,
+        help="write a capture as PTU (PicoQuant) or Photon-HDF5",
+        description="Writes a capture in a format other TCSPC programs read. A raw capture "
+                    "becomes time-tagged records: the laser cycle as the sync count, the TDC "
+                    "code as the micro time, the pixel address as the channel (PTU: T3 "
+                    "records; Photon-HDF5: timestamps, nanotimes, detectors). A histogram or "
+                    "image capture becomes a PTU file in T3 image mode (one frame per "
+                    "histogram, one image pixel per sensor pixel); Photon-HDF5 holds photons "
+                    "only. Depth captures have no form in either. The settings (delay mode, "
+                    "L or Wm, seed or IV, PRF; never the key) go into the file's own "
+                    "metadata. Mapping and losses: docs/file-format.md.")
+    parser.add_argument("capture", metavar="CAPTURE", help="capture file (HDF5)")
+    parser.add_argument("--to", required=True, choices=sorted(FORMATS), default=argparse.SUPPRESS,
+                        help="output format")
+    parser.add_argument("-o", "--output", required=True, metavar="OUT",
+                        default=argparse.SUPPRESS, help="file to write")
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing OUT")
+    parser.set_defaults(run=run_export)
+
+
+def run_export(args):
+    check_output_path(args.output, overwrite=args.overwrite)
+    if os.path.exists(args.output) and os.path.exists(args.capture) and \
+            os.path.samefile(args.output, args.capture):
+        raise UserError(f"--output: {args.output} is the capture itself; give another file")
+    capture = read_capture_file(args.capture)
+    start = time.perf_counter()
+    try:
+        written = export_capture(capture, args.output, args.to)
+    except FormatError as error:
+        raise UserError(str(error)) from None
+    except OSError as error:
+        raise UserError(f"cannot write {args.output}: {error.strerror or error}") from None
+    if getattr(args, "quiet", 0) <= 0:
+        what = "photons" if args.to == "photon-hdf5" else "records"
+        print(f"wrote {args.output}: {FORMATS[args.to][0]}, {written} {what}, "
+              f"{os.path.getsize(args.output)} bytes, {time.perf_counter() - start:.2f} s")
+    return 0
