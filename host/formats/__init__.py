@@ -8,7 +8,6 @@ what, and what is lost: docs/file-format.md. Everything refused is a :exc:`Forma
 """
 
 import os
-import tempfile
 
 from ..errors import FormatError
 from ..fileformat import read_capture
@@ -47,8 +46,7 @@ def export_capture(capture, path, to):
                           f"which holds photons one by one, not histograms: export it to PTU "
                           f"(--to ptu)")
     folder, base = os.path.split(os.path.abspath(path))
-    handle, partial = tempfile.mkstemp(prefix=f".{base}.", suffix=".part", dir=folder)
-    os.close(handle)
+    partial = os.path.join(folder, f".{base}.{os.getpid()}.part")
     try:
         written = write(capture, partial)
         os.replace(partial, path)
