@@ -72,7 +72,7 @@ def trace_gateware(settings, cycles, clock_hz=DEFAULT_CLOCK_HZ):
 
     async def testbench(ctx):
         for name in ("mode", "length", "mask_width", "seed", "period", "grid", "pulse_width"):
-            ctx.set(getattr(dut, name), getattr(settings, name))
+            ctx.set(getattr(dut.settings, name), getattr(settings, name))
         await ctx.tick()
         ctx.set(dut.enable, 1)
         for cycle in range(1, cycles):
