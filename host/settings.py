@@ -33,7 +33,7 @@ from ..hdl.delay.settings import DelayMode
 from .errors import SettingsError
 from .setting_kinds import (CHOICE, FREQUENCY, GATE, IV, KEY, MAX_PIXELS, PIXEL, PIXELS, TIME,
                             WHOLE, Context, Kind, code_s, exact_frequency, exact_time, said)
-from .units import format_time, parse_time
+from .units import format_frequency, format_time, parse_time
 
 
 __all__ = ["RoundingWarning", "Kind", "Option", "OPTIONS", "BY_OPTION", "Conversion",
@@ -76,6 +76,13 @@ def _names(enum):
     return {member.name.lower(): member.value for member in enum}
 
 
+def _after_reset(register):
+    """``after reset: 1 cycle, 12.5 ns at 80 MHz``: a time register's reset value."""
+    cycles = BY_NAME[register].reset_value(DEFAULT_CLOCK_HZ)
+    return (f"after reset: {cycles} cycle{'' if cycles == 1 else 's'}, "
+            f"{format_time(cycles / DEFAULT_CLOCK_HZ)} at {format_frequency(DEFAULT_CLOCK_HZ)}")
+
+
 _MODES = _names(DelayMode)
 _ON_OFF = {"off": 0, "on": 1}
 
@@ -95,7 +102,8 @@ OPTIONS: Tuple[Option, ...] = (
            shown=False),
     Option("scheduler", "grid", CHOICE, "interval: pulses T + R apart; grid: pulse k at k T + R",
            choices={"interval": 0, "grid": 1}),
-    Option("pulse_width", "pulse_width", TIME, "laser trigger pulse width (25ns)", "TIME"),
+    Option("pulse_width", "pulse_width", TIME, f"laser trigger pulse width "
+           f"({_after_reset('pulse_width')})", "TIME"),
     Option("aggressor", "aggressor", CHOICE, "aggressor emitter", choices=_ON_OFF),
     Option("aggressor_prf", "aggressor_period", FREQUENCY, "aggressor pulse repetition "
            "frequency", "HZ"),
@@ -103,7 +111,8 @@ OPTIONS: Tuple[Option, ...] = (
            "cycles", "N", shown=False),
     Option("aggressor_offset", "aggressor_offset", TIME, "aggressor offset after the victim "
            "(75ns)", "TIME"),
-    Option("aggressor_width", "aggressor_width", TIME, "aggressor trigger pulse width", "TIME"),
+    Option("aggressor_width", "aggressor_width", TIME, f"aggressor trigger pulse width "
+           f"({_after_reset('aggressor_width')})", "TIME"),
     Option("aggressor_mode", "aggressor_delay_mode", CHOICE, "aggressor's own delay source",
            choices=_MODES),
     Option("aggressor_length", "aggressor_length", WHOLE, "aggressor mseq register length "

@@ -1,4 +1,5 @@
-"""The README's Python API example runs as it is and prints what the README says."""
+"""The README's Python API examples run as they are and print what the README says; its table
+gives the shapes the arrays have."""
 
 import re
 import subprocess
@@ -7,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+import fliss
+from fliss.sim.boards.model import model_board
 from fliss.sim.scene import Scene, line_pixels, time_of_flight
 
 
@@ -51,3 +54,36 @@ def test_readme_imager_example_runs():
     assert np.allclose(depths, line.distance_m[[0, 30, 59]], atol=0.051)
     assert lines[1].endswith("] False")
     assert len(lines) == 2
+
+
+def table_shapes(call):
+    """{array: shape} that the README's API table gives in the row of ``call``: a name (or a
+    list of names) right before a shape, ``(n, P)``, applies it."""
+    row = re.search(rf"^\| `{re.escape(call)}` \|(.*)\|$", README.read_text(),
+                    flags=re.MULTILINE).group(1)
+    shapes = {}
+    for names, shape in re.findall(r"((?:`\w+`, )*`\w+`)(?: \(\w+\))? `\(([^)]*)\)`", row):
+        for name in re.findall(r"`(\w+)`", names):
+            shapes[name] = tuple(word.strip() for word in shape.split(",") if word.strip())
+    return shapes
+
+
+def test_api_table_gives_the_shapes_of_the_arrays():
+    n, pixels, bin_shift = 2, 4, 3
+    with model_board(scene=Scene(pixels=line_pixels(), detections_per_pulse=0.02)) as model:
+        with fliss.connect(model.path) as board:
+            board.configure(integration="2ms", bin_shift=bin_shift)
+            histograms = board.acquire(n)
+            board.configure(pixels=pixels, first_pixel=20)
+            images = board.acquire_image(n)
+            depth = board.acquire_depth(n)
+    bins = 8192 >> bin_shift                   # 8192 codes a pixel
+    sizes = {"n": n, "P": pixels, "bins": bins, "N": bins}
+    for call, result, least in (("board.acquire(n)", histograms, 2),
+                                ("board.acquire_image(n)", images, 4),
+                                ("board.acquire_depth(n)", depth, 7)):
+        shapes = table_shapes(call)
+        assert len(shapes) >= least, call
+        for name, shape in shapes.items():
+            assert np.shape(getattr(result, name)) == tuple(sizes[s] for s in shape), \
+                f"{call}: {name}"

@@ -2,9 +2,10 @@
 
 The real top-level gateware runs in a simulator behind a pseudo-terminal (``fliss board``); the
 scene simulator feeds its sensor pins with the echo of a target 4 m away and with the photons of
-an aggressor whose trigger is the gateware's own aggressor output, 75 ns after the victim. The
-demo then drives it with the ordinary commands (``config``, ``capture``, ``analyze``, ``plot``),
-first with FLISS off and then with the masked delay source (Wm = 6), and prints what changed.
+an aggressor whose trigger is the gateware's own aggressor output, 75 ns after the victim and at
+the victim's effective PRF (:func:`effective_period`). The demo then drives it with the ordinary
+commands (``config``, ``capture``, ``analyze``, ``plot``), first with FLISS off and then with the
+masked delay source (Wm = 6), and prints what changed.
 Then the imager: a second virtual board sees a line scene (the paper's column of 60 pixels, a
 wall at 4 m with an object at 2.5 m in front of pixels 20 to 39) lit by a flash aggressor, and
 the board sends a depth frame per integration; with FLISS off the aggressor plants ghost depths,
@@ -61,8 +62,18 @@ def register(subparsers, formatter):
                         help="depth frames per setting in the imager part")
     parser.add_argument("--trace", action="store_true",
                         help="instead: print a pulse scheduler trace from the gateware, checked "
-                             "against the reference model (a few seconds, no simulator needed)")
+                             "against the reference model (about a second, no simulator needed)")
     parser.set_defaults(run=run)
+
+
+def effective_period(period, mask_width=None):
+    """The victim's mean pulse interval in whole clock cycles, its nominal period ``T`` plus its
+    mean delay (the clock frequency over it is its effective PRF): ``T`` with FLISS off
+    (``mask_width`` None), ``T + E[R]`` with masked delays of ``mask_width`` bits. The demo's
+    aggressor runs at this period."""
+    if mask_width is None:
+        return period
+    return round(period + mean_delay(DelayMode.MASKED, mask_width=mask_width))
 
 
 def trace_gateware(settings, cycles, clock_hz=DEFAULT_CLOCK_HZ):
@@ -72,7 +83,7 @@ def trace_gateware(settings, cycles, clock_hz=DEFAULT_CLOCK_HZ):
 
     async def testbench(ctx):
         for name in ("mode", "length", "mask_width", "seed", "period", "grid", "pulse_width"):
-            ctx.set(getattr(dut, name), getattr(settings, name))
+            ctx.set(getattr(dut.settings, name), getattr(settings, name))
         await ctx.tick()
         ctx.set(dut.enable, 1)
         for cycle in range(1, cycles):
@@ -137,10 +148,12 @@ def run(args):
     tof_s = 2 * args.target_m / C_M_S
     out = check_output_dir(args.out, flag="--out")
     # As on the paper's bench, the aggressor runs at the victim's effective PRF.
-    masked_period = round(period + mean_delay(DelayMode.MASKED, mask_width=6))
+    masked_period = effective_period(period, mask_width=6)
     print(f"FLISS demo: victim at {format_frequency(prf_hz)} ({period} cycles of "
           f"{format_frequency(clock_hz)}), target {args.target_m:g} m (ToF "
-          f"{tof_s * 1e9:.2f} ns), aggressor 75 ns after the victim at the victim's PRF.")
+          f"{tof_s * 1e9:.2f} ns), aggressor 75 ns after the victim at the victim's effective "
+          f"PRF ({format_frequency(clock_hz / period)} with FLISS off, "
+          f"{format_frequency(clock_hz / masked_period)} with masked delays).")
     print("Effective PRF of the victim, complete m-sequences (paper, Table 2): " + ", ".join(
         f"L={s['length']}: {format_frequency(closed)}"
         for _, s, _, _, closed, _ in prf_rows(clock_hz, period, lengths=[3, 4, 5, 6, 8])))
@@ -155,7 +168,7 @@ def run(args):
                    "--acquisitions", str(args.acquisitions)]
         files = {}
         for label, mode, aggressor_period in (
-                ("FLISS off", ["--mode", "off"], period),
+                ("FLISS off", ["--mode", "off"], effective_period(period)),
                 ("FLISS on, masked delays, Wm = 6", ["--mode", "masked", "--mask-width", "6",
                                                      "--seed", "0xACE1"], masked_period)):
             step(f"{label}: configure", ["config", *common, *mode, "--aggressor", "on",

@@ -7,10 +7,9 @@ Conventions
 -----------
 * A pixel is named by its sensor address (``pixels``: ``first_pixel …``); arrays are indexed by
   the pixel's place in the frame.
-* A depth frame's ``position`` is in bins, bin ``b`` covering ``[b, b + 1)`` bin widths from the
-  TDC start, a whole ``b`` standing for the bin's centre as everywhere in fliss: the time of
-  flight is ``(position + 0.5) * bin_s`` (:func:`tof_s`) and the depth ``c * tof / 2``
-  (:func:`depth_m`).
+* A depth frame's ``position`` is in bins from the start of bin 0, bin ``b`` covering
+  ``[b, b + 1)`` bin widths from the TDC start: the time of flight is ``position * bin_s``
+  (:func:`tof_s`) and the depth ``c * tof / 2`` (:func:`depth_m`).
 """
 
 import logging

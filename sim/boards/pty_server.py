@@ -64,7 +64,7 @@ class PtyServer:
                  corrupt_seed=1, corrupt_types=None, corrupt_commands_every=None):
         self.kill_after = kill_after
         self.reset_after = reset_after
-        #: Resets so far (``reset_after``).
+        #: Resets so far (``reset_after``, :meth:`reset`).
         self.resets = 0
         self.hang_after = hang_after
         self.corrupt_every = corrupt_every
@@ -139,6 +139,18 @@ class PtyServer:
 
     def __exit__(self, *exc):
         self.close()
+
+    def reset(self, timeout_s=5.0):
+        """Reset the board now, a power cycle as ``reset_after`` makes one (counted in
+        :attr:`resets`), and return once it is done."""
+        with self._lock:
+            resets = self.resets
+            self._reset_due = True
+        deadline = time.monotonic() + timeout_s
+        while self.resets == resets:
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"the board on {self.path} did not reset in {timeout_s:g} s")
+            time.sleep(0.002)
 
     def _serve(self):
         decoder = FrameDecoder(synced=False)
