@@ -1,0 +1,185 @@
+"""What the figures show, read back from matplotlib's objects: the sweep's (one line per compared
+value in colours that do not repeat, the rest as panels, P on a log axis with its Wilson
+intervals), ``fliss attack``'s, ``fliss plot``'s (victim and aggressor peaks labelled where they
+are, the ``--shape`` image's rows and columns), the imager demo's and ``fliss reproduce``'s;
+every legend outside the data."""
+
+import math
+import os
+import sys
+
+import numpy as np
+import pytest
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.colors import to_hex
+from matplotlib.figure import Figure
+
+from fliss.host.sweep.figures import MAX_PANELS, figures
+
+sys.path.insert(0, os.path.dirname(__file__))
+
+
+C = 299_792_458.0
+
+
+@pytest.fixture
+def drawn(monkeypatch):
+    """The figures saved during a test, by file name."""
+    saved = {}
+    original = Figure.savefig
+
+    def savefig(self, name, *args, **kwargs):
+        saved[os.path.basename(str(name))] = self
+        return original(self, name, *args, **kwargs)
+    monkeypatch.setattr(Figure, "savefig", savefig)
+    return saved
+
+
+def panels(figure):
+    return [axes for axes in figure.axes if axes.get_visible() and axes.get_label() !=
+            "<colorbar>"]
+
+
+def renderer_of(figure):
+    """A renderer of ``figure`` drawn again (pyplot closed it: it has lost its canvas)."""
+    canvas = FigureCanvasAgg(figure)
+    canvas.draw()
+    return canvas.get_renderer()
+
+
+def outside_every_axes(figure, legend):
+    renderer = renderer_of(figure)
+    box = legend.get_window_extent(renderer)
+    return not any(box.overlaps(axes.get_window_extent(renderer))
+                   for axes in figure.axes if axes.get_visible())
+
+
+def lines_by_label(axes):
+    return {line.get_label(): line for line in axes.get_lines()
+            if not line.get_label().startswith("_")}
+
+
+# The sweep -------------------------------------------------------------------------------------
+
+SCHEMES = ("off", "mseq", "masked")
+AGGRESSORS = (1, 2, 4, 8)
+POWERS = (0.5, 1.0, 2.0)
+
+
+def wilson(k, n, z=1.959964):
+    # Wilson score interval, written out here from its textbook form.
+    p = k / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z / (1 + z * z / n) * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
+    return max(centre - half, 0.0), min(centre + half, 1.0)
+
+
+def sweep_rows(schemes=SCHEMES, frames=50):
+    """The quick example's grid: FLISS off goes wrong more often with more and stronger
+    aggressors, the others never."""
+    rows = []
+    for scheme in schemes:
+        for aggressors in AGGRESSORS:
+            for power in POWERS:
+                wrong = int(aggressors * power) if scheme == "off" else 0
+                low, high = wilson(wrong, frames)
+                rows.append({
+                    "scheme": scheme, "aggressors": aggressors, "aggressor_power": power,
+                    "t_int_s": 0.01, "frames": frames, "p_wrong_depth": wrong / frames,
+                    "p_wrong_depth_lo": low, "p_wrong_depth_hi": high,
+                    "s_db": 20.0 - aggressors * power - (5.0 if scheme == "off" else 0.0),
+                    "curve_p_detect": f"[1.0, 0.9, {0.2 + 0.1 * aggressors}]",
+                    "curve_false_per_frame": f"[{wrong / 10}, 0.02, 0.0]"})
+    return rows
+
+
+def test_p_wrong_depth_has_a_line_per_scheme_and_a_panel_per_power(tmp_path, drawn):
+    rows = sweep_rows()
+    written, notes = figures(rows, str(tmp_path), ["scheme", "aggressors", "aggressor_power"])
+    assert "p_wrong_depth_vs_aggressors.png" in written and notes == []
+    figure = drawn["p_wrong_depth_vs_aggressors.png"]
+    axes = panels(figure)
+    assert [a.get_title() for a in axes] == ["aggressor_power=0.5", "aggressor_power=1",
+                                             "aggressor_power=2"]
+    legend, = figure.legends
+    assert outside_every_axes(figure, legend)
+    names = [f"scheme={scheme}" for scheme in SCHEMES]
+    assert [text.get_text() for text in legend.get_texts()][:3] == names
+    for panel, power in zip(axes, POWERS):
+        assert panel.get_yscale() == "log" and panel.get_xscale() == "log"
+        lines = lines_by_label(panel)
+        assert sorted(lines) == sorted(names)
+        colours = {to_hex(line.get_color()) for line in lines.values()}
+        assert len(colours) == 3
+        for scheme in SCHEMES:
+            expected = [row for row in rows if row["scheme"] == scheme and
+                        row["aggressor_power"] == power]
+            colour = to_hex(lines[f"scheme={scheme}"].get_color())
+            estimates = lines[f"scheme={scheme}"].get_ydata()
+            assert [value for value in estimates if np.isfinite(value)] == pytest.approx(
+                [row["p_wrong_depth"] for row in expected if row["p_wrong_depth"] > 0])
+            # a frame count of 0 is drawn as an open "v" at the Wilson upper bound
+            tops = [line for line in panel.get_lines() if line.get_marker() == "v" and
+                    to_hex(line.get_color()) == colour]
+            zero = [row for row in expected if row["p_wrong_depth"] == 0]
+            assert sorted(tops[0].get_ydata()) == pytest.approx(
+                sorted(wilson(0, 50)[1] for _ in zero))
+        # every point's interval is a bar: 4 aggressor counts for each of 3 schemes
+        bars = [c for c in panel.collections if len(c.get_segments()) == len(AGGRESSORS)]
+        assert len(bars) == 3
+        low = min(panel.get_ylim())
+        assert 0 < low <= min(row["p_wrong_depth_lo"] for row in rows
+                              if row["p_wrong_depth_lo"] > 0)
+
+
+def test_every_detection_curve_is_drawn_in_its_panel(tmp_path, drawn):
+    rows = sweep_rows()
+    figures(rows, str(tmp_path), ["scheme", "aggressors", "aggressor_power"])
+    figure = drawn["detection_curves.png"]
+    axes = panels(figure)
+    assert len(axes) == len(AGGRESSORS) * len(POWERS)
+    assert axes[0].get_title() == "aggressors=1, aggressor_power=0.5"
+    assert axes[-1].get_title() == "aggressors=8, aggressor_power=2"
+    for panel in axes:
+        lines = lines_by_label(panel)
+        assert sorted(lines) == sorted(f"scheme={scheme}" for scheme in SCHEMES)
+        assert len({to_hex(line.get_color()) for line in lines.values()}) == 3
+    assert sum(len(lines_by_label(panel)) for panel in axes) == len(rows)
+    assert outside_every_axes(figure, figure.legends[0])
+
+
+def test_twelve_compared_values_get_twelve_colours(tmp_path, drawn):
+    schemes = [f"s{index}" for index in range(12)]
+    figures(sweep_rows(schemes), str(tmp_path), ["scheme", "aggressors", "aggressor_power"])
+    figure = drawn["s_vs_aggressor_power.png"]
+    axes = panels(figure)
+    assert [a.get_title() for a in axes] == [f"aggressors={n}" for n in AGGRESSORS]
+    for panel in axes:
+        lines = lines_by_label(panel)
+        assert len(lines) == 12
+        assert len({to_hex(line.get_color()) for line in lines.values()}) == 12
+    legend, = figure.legends
+    assert len({to_hex(h.get_color()) for h in legend.legend_handles}) == 12
+    assert outside_every_axes(figure, legend)
+
+
+def test_a_zip_partner_joins_the_line_label(tmp_path, drawn):
+    rows = [dict(row, length={"mseq": 6, "masked": 4}[row["scheme"]])
+            for row in sweep_rows(("mseq", "masked"))]
+    figures(rows, str(tmp_path), ["scheme", "length", "aggressors", "aggressor_power"])
+    axes = panels(drawn["s_vs_aggressor_power.png"])
+    assert len(axes) == len(AGGRESSORS)
+    assert sorted(lines_by_label(axes[0])) == ["scheme=masked, length=4",
+                                               "scheme=mseq, length=6"]
+
+
+def test_too_many_panels_are_said(tmp_path, drawn):
+    rows = [dict(row, seed_index=index) for index in range(30) for row in sweep_rows(("off",))
+            if row["aggressor_power"] == 1.0]
+    _, notes = figures(rows, str(tmp_path), ["aggressors", "seed_index"])
+    # P(wrong depth): a line per seed_index (30 colours); detection curves: a panel per one
+    assert notes[0] == f"detection curves: the first {MAX_PANELS} of 30 panels drawn (one " \
+                       f"per seed_index)"
+    lines = lines_by_label(panels(drawn["p_wrong_depth_vs_aggressors.png"])[0])
+    assert len({to_hex(line.get_color()) for line in lines.values()}) == 30
+    assert len(panels(drawn["detection_curves.png"])) == MAX_PANELS
