@@ -14,6 +14,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import to_hex
 from matplotlib.figure import Figure
 
+from fliss.host.cli import main
 from fliss.host.sweep.figures import MAX_PANELS, figures
 
 sys.path.insert(0, os.path.dirname(__file__))
@@ -183,3 +184,34 @@ def test_too_many_panels_are_said(tmp_path, drawn):
     lines = lines_by_label(panels(drawn["p_wrong_depth_vs_aggressors.png"])[0])
     assert len({to_hex(line.get_color()) for line in lines.values()}) == 30
     assert len(panels(drawn["detection_curves.png"])) == MAX_PANELS
+
+
+# fliss attack ----------------------------------------------------------------------------------
+
+def test_attack_figure_gives_every_source_its_colour_and_keeps_legends_off_the_data(
+        tmp_path, drawn, capsys):
+    assert main(["attack", "--pulses", "3000", "--scene-pulses", "3000", "--acquisition-pulses",
+                 "1000", "--no-unknown-taps", "--table", "-",
+                 "--figure", str(tmp_path / "attack.png")]) == 0
+    capsys.readouterr()
+    figure = drawn["attack.png"]
+    bars, *families = figure.axes
+    labels = [label.get_text() for label in bars.get_yticklabels()]
+    assert len(labels) == 11 and labels[0] == "off" and labels[-1] == "random Wm=6"
+    assert [axes.get_title(loc="left") for axes in families] == ["off", "mseq", "masked",
+                                                                 "keyed, random"]
+    lines = {label: line for axes in families for label, line in lines_by_label(axes).items()}
+    assert sorted(lines) == sorted(labels)
+    assert len({to_hex(line.get_color()) for line in lines.values()}) == 11
+    for axes in families:
+        assert outside_every_axes(figure, axes.get_legend())
+    assert outside_every_axes(figure, figure.legends[0])
+
+
+def test_attack_figure_draws_a_few_sources_in_one_panel(tmp_path, drawn, capsys):
+    assert main(["attack", "--sources", "off,mseq,keyed", "--lengths", "8", "--pulses", "3000",
+                 "--scene-pulses", "3000", "--acquisition-pulses", "1000", "--no-unknown-taps",
+                 "--table", "-", "--figure", str(tmp_path / "attack.png")]) == 0
+    capsys.readouterr()
+    bars, s_panel = drawn["attack.png"].axes
+    assert sorted(lines_by_label(s_panel)) == ["keyed Wm=6", "mseq L=8", "off"]
