@@ -32,7 +32,8 @@ def legend_below(figure, handles, labels, *, title=None, columns=None):
     """A legend of ``figure`` below its panels, outside every one of them; the figure must use
     the constrained layout (``plt.subplots(..., layout="constrained")``), which makes room.
     One row up to 6 entries, else 4 columns unless ``columns`` says; fewer when the legend
-    would be wider than the figure."""
+    would be wider than the figure, and the figure taller when it is more than half an inch
+    high."""
     if not handles:
         return None
     columns = columns or (len(handles) if len(handles) <= 6 else 4)
@@ -41,10 +42,14 @@ def legend_below(figure, handles, labels, *, title=None, columns=None):
         legend = figure.legend(handles, labels, loc="outside lower center", ncol=columns,
                                title=title, fontsize="small", title_fontsize="small",
                                frameon=False)
-        if columns == 1 or legend.get_window_extent(renderer).width <= figure.bbox.width:
-            return legend
+        box = legend.get_window_extent(renderer)
+        if columns == 1 or box.width <= figure.bbox.width:
+            break
         legend.remove()
         columns -= 1
+    width, height = figure.get_size_inches()
+    figure.set_size_inches(width, height + max(box.height / figure.dpi - 0.5, 0.0))
+    return legend
 
 
 def mark_peaks(axes, marks):

@@ -174,6 +174,7 @@ def test_a_zip_partner_joins_the_line_label(tmp_path, drawn):
                                                "scheme=mseq, length=6"]
 
 
+@pytest.mark.filterwarnings("error")       # constrained layout found room for every panel
 def test_too_many_panels_are_said(tmp_path, drawn):
     rows = [dict(row, seed_index=index) for index in range(30) for row in sweep_rows(("off",))
             if row["aggressor_power"] == 1.0]

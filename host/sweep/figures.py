@@ -138,9 +138,10 @@ def _x_axis(axes, values, name):
 
 
 def _dodged(x, index, count, log, spacing):
-    """``x`` moved sideways for line ``index`` of ``count``, so equal points stay apart."""
-    shift = index - (count - 1) / 2
-    return x * 2 ** (0.06 * shift) if log else x + 0.04 * spacing * shift
+    """``x`` moved sideways for line ``index`` of ``count``, so equal points stay apart (all
+    of them within 0.4 of an octave, or of the spacing of the values)."""
+    shift = (index - (count - 1) / 2) * min(0.06, 0.4 / count)
+    return x * 2 ** shift if log else x + spacing * shift
 
 
 def _at_frame(rows):
