@@ -15,9 +15,12 @@ from matplotlib.colors import to_hex
 from matplotlib.figure import Figure
 
 from fliss.host.cli import main
+from fliss.host.fileformat import CaptureWriter
+from fliss.host.stream import HistogramFrame
 from fliss.host.sweep.figures import MAX_PANELS, figures
 
 sys.path.insert(0, os.path.dirname(__file__))
+import imager_frames as scene                                   # noqa: E402
 
 
 C = 299_792_458.0
@@ -216,3 +219,74 @@ def test_attack_figure_draws_a_few_sources_in_one_panel(tmp_path, drawn, capsys)
     capsys.readouterr()
     bars, s_panel = drawn["attack.png"].axes
     assert sorted(lines_by_label(s_panel)) == ["keyed Wm=6", "mseq L=8", "off"]
+
+
+# fliss plot of histograms ----------------------------------------------------------------------
+
+SHIFT = 3
+BIN_S = 50e-12 * (1 << SHIFT)
+VICTIM_S = 2 * 4.0 / C                  # a target at 4 m
+AGGRESSOR_S = VICTIM_S + 75e-9          # the aggressor 75 ns after the victim
+
+
+def histogram_capture(path, victim=400.0, aggressor=500.0, seed=1):
+    """A histogram capture with the victim's echo and a taller aggressor peak (2.1 ns FWHM
+    Gaussians over a flat background), Poisson counts."""
+    edges = np.arange((8192 >> SHIFT) + 1) * BIN_S
+    sigma = 2.1e-9 / 2.3548
+
+    def gaussian(centre, photons):
+        cdf = np.array([0.5 * (1 + math.erf((edge - centre) / (sigma * math.sqrt(2))))
+                        for edge in edges])
+        return photons * np.diff(cdf)
+    means = 0.3 + gaussian(VICTIM_S, victim) + gaussian(AGGRESSOR_S, aggressor)
+    counts = np.random.default_rng(seed).poisson(means).astype(np.uint32)
+    with CaptureWriter(str(path), mode="histogram", identity=scene.identity(),
+                       configuration=scene.configuration(pixel_bits=0, bin_shift=SHIFT,
+                                                         delay_mode=0, aggressor=1)) as writer:
+        writer.add_histogram(HistogramFrame(0, SHIFT, counts, True, 0, 1.0))
+
+
+def labels_of(axes):
+    return {text.get_text().split(" ")[0]: text for text in axes.texts}
+
+
+def test_plot_labels_the_victim_and_the_aggressor_where_they_are(tmp_path, drawn, capsys):
+    histogram_capture(tmp_path / "a.h5")
+    assert main(["plot", str(tmp_path / "a.h5"), "-o", str(tmp_path / "a.png"),
+                 "--victim-tof", f"{VICTIM_S * 1e9:.3f}ns"]) == 0
+    capsys.readouterr()
+    figure = drawn["a.png"]
+    axes, = figure.axes
+    texts = labels_of(axes)
+    assert sorted(texts) == ["aggressor", "victim"]
+    for name, truth in (("victim", VICTIM_S), ("aggressor", AGGRESSOR_S)):
+        assert texts[name].xy[0] == pytest.approx(truth * 1e9, abs=BIN_S * 1e9)
+        assert texts[name].get_text() == f"{name} {texts[name].xy[0]:.1f} ns"
+    legend, = figure.legends
+    assert outside_every_axes(figure, legend)
+    label = legend.get_texts()[0].get_text()
+    assert label.startswith("a.h5 (FLISS off, aggressor on): S = -")   # the aggressor is taller
+
+
+def test_plot_without_the_victims_tof_says_it_took_the_tallest(tmp_path, drawn, capsys):
+    histogram_capture(tmp_path / "a.h5")
+    assert main(["plot", str(tmp_path / "a.h5"), "-o", str(tmp_path / "a.png")]) == 0
+    capsys.readouterr()
+    texts = labels_of(drawn["a.png"].axes[0])
+    assert texts["victim"].get_text().endswith(" ns (tallest)")
+    assert texts["victim"].xy[0] == pytest.approx(AGGRESSOR_S * 1e9, abs=BIN_S * 1e9)
+
+
+def test_labels_of_two_captures_do_not_overlap(tmp_path, drawn, capsys):
+    histogram_capture(tmp_path / "a.h5")
+    histogram_capture(tmp_path / "b.h5", victim=380.0, seed=2)
+    assert main(["plot", str(tmp_path / "a.h5"), str(tmp_path / "b.h5"), "-o",
+                 str(tmp_path / "ab.png"), "--victim-tof", f"{VICTIM_S * 1e9:.3f}ns"]) == 0
+    capsys.readouterr()
+    figure = drawn["ab.png"]
+    renderer = renderer_of(figure)
+    from matplotlib.text import Text
+    boxes = [Text.get_window_extent(text, renderer) for text in figure.axes[0].texts]
+    assert len(boxes) == 4
+    assert not any(a.overlaps(b) for i, a in enumerate(boxes) for b in boxes[i + 1:])
