@@ -15,7 +15,9 @@ from matplotlib.colors import to_hex
 from matplotlib.figure import Figure
 
 from fliss.host.cli import main
-from fliss.host.fileformat import CaptureWriter
+from fliss.host.fileformat import CaptureWriter, read_capture
+from fliss.host.imager.demo import compare_profiles, draw_profiles
+from fliss.host.imager.report import plot_imager
 from fliss.host.stream import HistogramFrame
 from fliss.host.sweep.figures import MAX_PANELS, figures
 
@@ -290,3 +292,53 @@ def test_labels_of_two_captures_do_not_overlap(tmp_path, drawn, capsys):
     boxes = [Text.get_window_extent(text, renderer) for text in figure.axes[0].texts]
     assert len(boxes) == 4
     assert not any(a.overlaps(b) for i, a in enumerate(boxes) for b in boxes[i + 1:])
+
+
+# The imager ------------------------------------------------------------------------------------
+
+def depth_capture(path, frames=3):
+    truth = np.full((8, 8), 4.0)
+    truth[2:5, 3:7] = 2.5
+    depths = np.tile(truth.ravel(), (frames, 1)) + 0.3 * np.arange(frames)[:, None]
+    depths[1, 10] = np.nan
+    with CaptureWriter(str(path), mode="depth", identity=scene.identity(),
+                       configuration=scene.configuration(pixel_bits=6, first_pixel=0)) as writer:
+        for frame in scene.depth_frames(depths, first=0):
+            writer.add_frame(frame)
+    return read_capture(str(path))
+
+
+def test_the_8x8_depth_image_names_its_rows_and_columns(tmp_path, drawn):
+    capture = depth_capture(tmp_path / "d.h5")
+    plot_imager(capture, str(tmp_path / "d.png"), shape="8x8", quiet=True)
+    image = drawn["d.png"].axes[0]
+    assert [t.get_text() for t in image.get_xticklabels()] == [str(i) for i in range(8)]
+    assert [t.get_text() for t in image.get_yticklabels()] == [str(i) for i in range(8)]
+    assert (image.get_xlabel(), image.get_ylabel()) == ("column", "row")
+    assert image.get_title() == "d.h5: depth (pixel 0 + 8 × row + column)"
+    picture, = image.get_images()
+    # row 2, column 3: the object, 2.5 m plus 0.3 m a frame, median over the 3 frames
+    assert picture.get_array()[2, 3] == pytest.approx(2.8, abs=0.02)
+
+
+def test_the_grid_of_depth_images_shares_one_colour_scale(tmp_path, drawn):
+    capture = depth_capture(tmp_path / "d.h5")
+    plot_imager(capture, str(tmp_path / "g.png"), shape="8x8", frames="grid", quiet=True)
+    limits = {axes.get_images()[0].get_clim() for axes in drawn["g.png"].axes
+              if axes.get_images()}
+    assert len(limits) == 1
+
+
+def test_the_imager_demo_figure_explains_every_mark_outside_the_data(tmp_path, drawn):
+    truth = np.array([4.0, 4.0, 2.5, 2.5, 4.0, 4.0])
+    off = np.tile(truth, (3, 1))
+    off[:, 1] = 15.0                                    # a ghost depth at pixel 1
+    draw_profiles(compare_profiles(off, np.tile(truth, (3, 1)), truth), str(tmp_path / "i.png"))
+    figure = drawn["i.png"]
+    legend, = figure.legends
+    labels = [text.get_text() for text in legend.get_texts()]
+    assert labels == ["single frames (3)", "scene", "measured (median over the frames)",
+                      "wrong depth (more than 0.15 m from the scene)"]
+    grey = lines_by_label(figure.axes[0])["single frames (3)"]
+    assert to_hex(legend.legend_handles[0].get_color()) == to_hex(grey.get_color())
+    assert outside_every_axes(figure, legend)
