@@ -342,3 +342,24 @@ def test_the_imager_demo_figure_explains_every_mark_outside_the_data(tmp_path, d
     grey = lines_by_label(figure.axes[0])["single frames (3)"]
     assert to_hex(legend.legend_handles[0].get_color()) == to_hex(grey.get_color())
     assert outside_every_axes(figure, legend)
+
+
+# fliss reproduce -------------------------------------------------------------------------------
+
+def test_reproduce_figures_label_the_peaks_and_keep_legends_off_the_data(tmp_path, drawn,
+                                                                          capsys):
+    assert main(["-q", "reproduce", "--acquisitions", "3", "--t-int", "10ms", "20ms",
+                 "--lengths", "3", "6", "--mask-widths", "6", "--jobs", "1",
+                 "--out", str(tmp_path)]) == 0
+    capsys.readouterr()
+    texts = labels_of(drawn["fig08_aggressor.png"].axes[0])
+    assert texts["victim"].xy[0] == pytest.approx(VICTIM_S * 1e9, abs=0.1)
+    assert texts["aggressor"].xy[0] == pytest.approx(AGGRESSOR_S * 1e9, abs=0.1)
+    for name in ("fig09_suppression_L.png", "fig10_histograms.png", "fig11_deviations.png",
+                 "fig12_suppression_Wm.png"):
+        figure = drawn[name]
+        assert all(axes.get_legend() is None for axes in figure.axes), name
+        assert outside_every_axes(figure, figure.legends[0]), name
+    legend = drawn["fig11_deviations.png"].legends[0]
+    assert [t.get_text() for t in legend.get_texts()] == ["T_int = 10 ms", "T_int = 20 ms"]
+    assert len({to_hex(h.get_color()) for h in legend.legend_handles}) == 2
