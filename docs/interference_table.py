@@ -128,9 +128,9 @@ def draw(points, folder):
                 done = sorted(points.get((scheme, kind), []), key=lambda item: item[0])
                 if not done:
                     continue
-                # side by side: the schemes' points at one N stay apart
-                numbers = [number * 2 ** (0.05 * (index - (len(lines) - 1) / 2))
-                           for number, _ in done]
+                # P side by side: the schemes' intervals at one N stay apart
+                shift = 0.05 * (index - (len(lines) - 1) / 2) if key == "p_wrong_depth" else 0
+                numbers = [number * 2 ** shift for number, _ in done]
                 results = [result for _, result in done]
                 if key == "p_wrong_depth":
                     draw_proportion(axis, numbers, [r["p_wrong_depth"] for r in results],
