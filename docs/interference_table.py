@@ -105,53 +105,76 @@ def main():
 
 
 def draw(points, folder):
-    """P(wrong depth) and S against N, and detection curves, as PNG files in ``folder``."""
+    """P(wrong depth) and S against N, and detection curves, as PNG files in ``folder``: a
+    panel per aggressor kind, a line per scheme (colours and markers of their own), the legend
+    below the panels."""
     import matplotlib
     matplotlib.use("Agg")
     from matplotlib import pyplot
+    from fliss.host.plotting import draw_proportion, legend_below, proportion_key, styles
 
     folder.mkdir(parents=True, exist_ok=True)
-    for key, label, name in (("p_wrong_depth", "P(wrong depth) per frame (0 drawn at 1e-4)",
-                              "p_wrong"),
+    lines = list(zip(SCHEMES, styles(len(SCHEMES))))
+    positive = [result[key] for done in points.values() for _, result in done
+                for key in ("p_wrong_depth", "p_wrong_depth_lo", "p_wrong_depth_hi")
+                if result[key]]
+    floor = 10 ** np.floor(np.log10(min(positive + [LIMIT]) / 2))
+    for key, label, name in (("p_wrong_depth", "P(wrong depth) per frame", "p_wrong"),
                              ("s_db", "S (dB)", "s_db")):
-        figure, axes = pyplot.subplots(1, len(KINDS), figsize=(11, 4), sharey=True)
+        figure, axes = pyplot.subplots(1, len(KINDS), figsize=(11, 5), sharey=True,
+                                       layout="constrained")
         for axis, kind in zip(axes, KINDS):
-            for scheme in SCHEMES:
+            for index, (scheme, (colour, marker)) in enumerate(lines):
                 done = sorted(points.get((scheme, kind), []), key=lambda item: item[0])
                 if not done:
                     continue
-                numbers = [number for number, _ in done]
-                values = [result[key] if result[key] is not None else np.nan
-                          for _, result in done]
+                # P side by side: the schemes' intervals at one N stay apart
+                shift = 0.05 * (index - (len(lines) - 1) / 2) if key == "p_wrong_depth" else 0
+                numbers = [number * 2 ** shift for number, _ in done]
+                results = [result for _, result in done]
                 if key == "p_wrong_depth":
-                    values = [max(value, 1e-4) for value in values]
-                axis.plot(numbers, values, "o-", label=scheme)
+                    draw_proportion(axis, numbers, [r["p_wrong_depth"] for r in results],
+                                    [r["p_wrong_depth_lo"] for r in results],
+                                    [r["p_wrong_depth_hi"] for r in results], colour=colour,
+                                    marker=marker, floor=floor, label=scheme)
+                else:
+                    axis.plot(numbers, [np.nan if r[key] is None else r[key] for r in results],
+                              marker=marker, color=colour, label=scheme)
             if key == "p_wrong_depth":
                 axis.set_yscale("log")
-                axis.axhline(LIMIT, color="k", linestyle=":")
+                axis.set_ylim(floor, 1.0)
+                axis.axhline(LIMIT, color="k", linestyle=":", label=f"limit {LIMIT:g}")
             axis.set_xscale("log", base=2)
             axis.set_xlabel("aggressors (equal power)")
             axis.set_title(kind)
+            axis.grid(True, alpha=0.3)
         axes[0].set_ylabel(label)
-        axes[-1].legend(fontsize=7)
-        figure.tight_layout()
+        handles, labels = axes[0].get_legend_handles_labels()
+        if key == "p_wrong_depth":
+            extra, texts = proportion_key("no wrong depth in any frame: 95 % upper bound")
+            handles, labels = handles + extra, labels + texts
+        legend_below(figure, handles, labels)
         figure.savefig(folder / f"interference_{name}.png", dpi=120)
         pyplot.close(figure)
-    figure, axes = pyplot.subplots(1, len(KINDS), figsize=(11, 4), sharey=True)
+    figure, axes = pyplot.subplots(1, len(KINDS), figsize=(11, 5), sharey=True,
+                                   layout="constrained")
     for axis, kind in zip(axes, KINDS):
-        for scheme in SCHEMES:
+        for index, (scheme, (colour, marker)) in enumerate(lines):
             done = [item for item in points.get((scheme, kind), []) if item[0] <= 8]
             if not done:
                 continue
             number, result = max(done, key=lambda item: item[0])
             axis.plot(json.loads(result["curve_false_per_frame"]),
-                      json.loads(result["curve_p_detect"]), "o-", label=f"{scheme}, N={number}")
+                      json.loads(result["curve_p_detect"]), marker=marker, color=colour,
+                      markerfacecolor="none", markersize=8 - 4 * index / len(lines),
+                      label=f"{scheme}, N={number}")
         axis.set_xscale("symlog", linthresh=1e-3)
         axis.set_xlabel("false targets per frame")
         axis.set_title(kind)
+        axis.grid(True, alpha=0.3)
+        axis.legend(fontsize=7, loc="upper left", bbox_to_anchor=(0, -0.15), ncol=2,
+                    frameon=False)
     axes[0].set_ylabel("P(detect)")
-    axes[-1].legend(fontsize=7)
-    figure.tight_layout()
     figure.savefig(folder / "interference_curves.png", dpi=120)
     pyplot.close(figure)
 

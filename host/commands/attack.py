@@ -192,43 +192,112 @@ def experiment(victims, *, pulses, scene_pulses, acquisition_pulses, observer, g
     return rows
 
 
+#: Colour map of each delay source in the figure: a hue per source, shades for its L or Wm.
+_FAMILY_COLOURS = {"off": "Greys", "mseq": "Blues", "masked": "Oranges", "keyed": "Greens",
+                   "random": "Purples"}
+
+
+#: Sources drawn in one panel of S at most; more get a panel per family.
+_ONE_PANEL = 6
+
+
+def _family(row):
+    return "keyed, random" if row["mode"] in ("keyed", "random") else row["mode"]
+
+
+def _colours(rows):
+    """A colour per row, none repeated: the hue of its source, a shade per variant."""
+    from matplotlib import colormaps
+    colours = []
+    for row in rows:
+        same = [other for other in rows if other["mode"] == row["mode"]]
+        shade = 0.75 if len(same) == 1 else 0.45 + 0.5 * same.index(row) / (len(same) - 1)
+        colours.append(colormaps[_FAMILY_COLOURS.get(row["mode"], "Greys")](shade))
+    return colours
+
+
 def _figure(rows, path):
+    """Left: pulses observed until the attacker locks, per source, with the theory. Right:
+    the ghost's S against time, one panel per source family (one for all of up to
+    :data:`_ONE_PANEL` sources), a legend beside each."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    figure, (left, right) = plt.subplots(1, 2, figsize=(12, 4.5))
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+    from ..plotting import legend_below
+
+    colours = _colours(rows)
+    family = _family if len(rows) > _ONE_PANEL else (lambda row: "")
+    families = list(dict.fromkeys(family(row) for row in rows))
+    figure = plt.figure(figsize=(13, 1.8 + 2.2 * max(len(families), 2)), layout="constrained")
+    grid = figure.add_gridspec(len(families), 2, width_ratios=[1, 1.5])
+    left = figure.add_subplot(grid[:, 0])
+    right = [figure.add_subplot(grid[index, 1]) for index in range(len(families))]
+    for axis in right[1:]:
+        axis.sharex(right[0])
+        axis.sharey(right[0])
+
+    # Pulses until lock
     labels = [row["label"] for row in rows]
-    counts = [row["locked_after_pulses"] or 0 for row in rows]
-    colours = ["tab:red" if row["locked_after_pulses"] else "tab:green" for row in rows]
-    left.barh(labels, counts, color=colours)
-    for position, row in enumerate(rows):
-        text = str(row["locked_after_pulses"]) if row["locked_after_pulses"] else \
-            f"not locked after {row['observed_pulses']}"
-        left.text(max(counts[position], 1), position, " " + text, va="center", fontsize=8)
-    left.set_xscale("symlog")
-    left.set_xlabel("victim pulses observed until lock")
+    for position, (row, colour) in enumerate(zip(rows, colours)):
+        locked = row["locked_after_pulses"]
+        if locked:
+            left.barh(position, locked, color=colour, edgecolor="0.3", linewidth=0.5)
+            text = f" {locked}"
+        else:
+            left.barh(position, row["observed_pulses"], color="none", edgecolor="0.5",
+                      hatch="//", linewidth=0.5)
+            text = f" not locked after {row['observed_pulses']}"
+        left.text(locked or row["observed_pulses"], position, text, va="center", fontsize=8)
+        if row["theory_known_taps"] is not None:
+            left.plot([row["theory_known_taps"]], [position], "|", color="k", markersize=14,
+                      markeredgewidth=2)
+    left.set_yticks(range(len(rows)), labels)
+    left.set_xscale("log")
+    left.set_xlim(0.7, max(row["observed_pulses"] for row in rows) * 20)
+    left.set_xlabel("victim pulses observed until the attacker locks")
     left.invert_yaxis()
-    colours = plt.get_cmap("tab20").colors
-    for number, row in enumerate(rows):
-        colour = colours[number % len(colours)]
-        times = np.array(row["time_s"])
-        values = np.array([math.nan if v is None else v for v in row["s_db"]])
-        bound = np.array(row["s_db_lower_bound"], dtype=bool)
-        style = "-" if row["locked_after_pulses"] else "--"
-        right.plot(times * 1e3, values, style, color=colour, label=row["label"])
-        right.plot(times[~bound] * 1e3, values[~bound], "o", color=colour, markersize=3)
-        right.plot(times[bound] * 1e3, values[bound], "^", color=colour, markersize=4,
-                   markerfacecolor="none")
-        if row["lock_time_s"] is not None:
-            right.plot([row["lock_time_s"] * 1e3], [0], "|", color=colour, markersize=14)
-    right.axhline(0, color="grey", linewidth=0.5)
-    right.set_xscale("log")
-    right.set_xlabel("time since the attack started (ms); |: lock")
-    right.set_ylabel("ghost S = 10 log10(Pv / P_ghost) (dB)")
-    right.set_title("solid: locked, dashed: never; open: lower bound (no ghost peak found)",
-                    fontsize=8)
-    right.legend(fontsize=7, ncol=2)
-    figure.tight_layout()
+
+    # The ghost's S against time
+    for axis, name in zip(right, families):
+        for row, colour in zip(rows, colours):
+            if family(row) != name:
+                continue
+            times = np.array(row["time_s"]) * 1e3
+            values = np.array([math.nan if v is None else v for v in row["s_db"]])
+            bound = np.array(row["s_db_lower_bound"], dtype=bool)
+            style = "-" if row["locked_after_pulses"] else "--"
+            axis.plot(times, values, style, color=colour, label=row["label"])
+            axis.plot(times[~bound], values[~bound], "o", color=colour, markersize=3)
+            axis.plot(times[bound], values[bound], "^", color=colour, markersize=5,
+                      markerfacecolor="none")
+            if row["lock_time_s"] is not None:
+                axis.axvline(row["lock_time_s"] * 1e3, color=colour, linestyle=":",
+                             linewidth=1.2)
+        axis.axhline(0, color="0.5", linewidth=0.6)
+        axis.set_xscale("log")
+        axis.set_ylabel("ghost S (dB)")
+        axis.set_title(name, fontsize="small", loc="left")
+        axis.grid(True, alpha=0.3)
+        axis.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+        if axis is not right[-1]:
+            axis.tick_params(labelbottom=False)
+    right[-1].set_xlabel("time since the attack started (ms)")
+
+    legend_below(figure, [
+        Line2D([], [], color="k", marker="|", linestyle="none", markersize=12,
+               markeredgewidth=2),
+        Patch(facecolor="none", edgecolor="0.5", hatch="//"),
+        Line2D([], [], color="0.3"), Line2D([], [], color="0.3", linestyle="--"),
+        Line2D([], [], color="0.3", marker="^", markerfacecolor="none", linestyle="none"),
+        Line2D([], [], color="0.3", linestyle=":")], [
+        "theory (known taps)", "never locked: pulses observed", "S after a lock",
+        "S, never locked", "lower bound: no ghost peak found", "lock",
+        ], columns=3)
+    figure.suptitle("An attacker that predicts the delays: how soon it locks, and the ghost's "
+                    "S = 10 log10(Pv / P_ghost); 0 dB: the ghost as tall as the target",
+                    fontsize="small")
     figure.savefig(path, dpi=120)
     plt.close(figure)
 

@@ -182,7 +182,7 @@ def run(args):
     paths = [str(path) for path in files.values()]
     step("Peaks and suppression", ["analyze", *paths, "--victim-tof", f"{tof_s * 1e9:.3f}ns"])
     png = out / "demo.png"
-    step("Histograms", ["plot", *paths, "-o", str(png)])
+    step("Histograms", ["plot", *paths, "-o", str(png), "--victim-tof", f"{tof_s * 1e9:.3f}ns"])
     imager = run_imager(args, out, period, masked_period)
     # An attacker that predicts the delays (docs/security.md): a few seconds of model time.
     step("An attacker that predicts the delays (mseq, masked) and one it cannot (keyed)",

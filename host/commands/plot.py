@@ -6,9 +6,11 @@ import os
 
 import numpy as np
 
+from ..analysis import analyze
 from ..errors import UserError
 from ..imager.report import plot_imager
 from ..paths import check_output_path
+from ..plotting import legend_below, mark_peaks
 from .common import parse_times, read_capture_file
 
 
@@ -21,7 +23,10 @@ def register(subparsers, formatter):
                                                 "depth and intensity of an image or depth "
                                                 "capture",
         description="Plots the summed histogram of each capture file (one curve per file) "
-                    "against the time from the TDC start. Of one image or depth capture it "
+                    "against the time from the TDC start, its victim's and highest aggressor's "
+                    "peaks labelled with their ToF as fliss analyze finds them (with "
+                    "--victim-tof and --aggressor-tof as there), and S in the legend. Of one "
+                    "image or depth capture it "
                     "draws the depth against the pixel (a line sensor's profile; an image with "
                     "--shape) and the intensity, for all frames together, a grid of frames, "
                     "or an animated GIF of them (--frames).")
@@ -33,6 +38,10 @@ def register(subparsers, formatter):
     parser.add_argument("--range", nargs=2, metavar=("START", "END"),
                         help="time range shown (e.g. 0ns 200ns)")
     parser.add_argument("--title", default=None, help="figure title")
+    parser.add_argument("--victim-tof", metavar="TIME",
+                        help="position of the victim's peak (e.g. 26.7ns), as for analyze")
+    parser.add_argument("--aggressor-tof", nargs="*", default=[], metavar="TIME",
+                        help="positions of aggressor peaks, as for analyze")
     parser.add_argument("--frames", choices=["summary", "grid", "animation"],
                         default="summary", help="image and depth captures: all frames "
                         "together, one panel per frame, or a GIF (needs pillow)")
@@ -68,7 +77,10 @@ def run_plot(args):
         raise UserError("--frames and --shape are for image and depth captures (--readout "
                         "image or depth)")
     window = parse_times(args.range, "--range") if args.range else None
-    figure, axes = plt.subplots(figsize=(9, 4.5))
+    victim = parse_times([args.victim_tof], "--victim-tof")[0] if args.victim_tof else None
+    aggressors = parse_times(args.aggressor_tof, "--aggressor-tof")
+    figure, axes = plt.subplots(figsize=(9, 5), layout="constrained")
+    marks = []
     for path, capture in captures:
         histogram = capture.total_histogram()
         times_ns = (np.arange(len(histogram)) + 0.5) * capture.bin_s * 1e9
@@ -78,17 +90,24 @@ def run_plot(args):
             mode = {0: "off", 1: f"mseq L={c.get('length')}",
                     2: f"masked Wm={c.get('mask_width')}"}.get(c.get("delay_mode"), "?")
             label += f" (FLISS {mode}, aggressor {'on' if c.get('aggressor') else 'off'})"
-        axes.step(times_ns, histogram, where="mid", linewidth=0.8, label=label)
+        line, = axes.step(times_ns, histogram, where="mid", linewidth=0.8)
+        s_text, peaks = _peaks(histogram, capture, victim, aggressors)
+        line.set_label(label + s_text)
+        marks += [(*peak, line.get_color()) for peak in peaks]
     axes.set_xlabel("time from TDC start (ns)")
     axes.set_ylabel("counts per bin")
     if args.log:
         axes.set_yscale("log")
+    # room above the tallest peak for the stacked labels
+    bottom, top = axes.get_ylim()
+    axes.set_ylim(bottom, top * 3 ** len(captures) if args.log
+                  else top * (1.1 + 0.07 * len(captures)))
     if window:
         axes.set_xlim(window[0] * 1e9, window[1] * 1e9)
-    axes.legend(fontsize="small")
+    mark_peaks(axes, marks)
+    legend_below(figure, *axes.get_legend_handles_labels(), columns=1)
     if args.title:
         axes.set_title(args.title)
-    figure.tight_layout()
     try:
         figure.savefig(args.output, dpi=120)
     except OSError as error:
@@ -98,3 +117,25 @@ def run_plot(args):
     if getattr(args, "quiet", 0) <= 0:
         print(f"wrote {args.output}")
     return 0
+
+
+def _peaks(histogram, capture, victim_s, aggressors_s):
+    """The victim's peak and the highest aggressor peak of ``histogram`` as
+    :func:`fliss.host.analysis.analyze` tells them apart (``fliss analyze``), or the tallest
+    peak when it cannot: ``(S text for the curve's label, [(ToF ns, height, label)])``."""
+    if not histogram.sum():
+        return "", []
+    level, peaks, result, note = analyze(
+        histogram, capture.bin_s, victim_s=victim_s, aggressors_s=aggressors_s,
+        aggressor_on=bool(capture.configuration.get("aggressor")), shift=capture.shift)
+    if result is None:
+        return "", [(peak.position_s * 1e9, level + peak.height,
+                     f"peak {peak.position_s * 1e9:.1f} ns") for peak in peaks[:1]]
+    named = [(result.victim, "victim", " (tallest)" if note == "victim = tallest peak" else "")]
+    if result.aggressors:
+        count = len(result.aggressors)
+        named.append((result.aggressors[0], "aggressor",
+                      f" (highest of {count})" if count > 1 else ""))
+    return f": S {'>=' if result.limited else '='} {result.s_db:.1f} dB", [
+        (peak.position_s * 1e9, level + peak.height,
+         f"{name} {peak.position_s * 1e9:.1f} ns{detail}") for peak, name, detail in named]

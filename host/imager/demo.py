@@ -116,34 +116,38 @@ def summary_lines(comparison: Comparison) -> list:
 
 
 def draw_profiles(comparison: Comparison, output: str, *, title: str = "") -> None:
-    """Draw the two depth profiles beside each other, each with the truth, into ``output``."""
+    """Draw the two depth profiles beside each other, each with the truth, into ``output``;
+    one legend below both."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from ..plotting import legend_below
 
-    figure, axes = plt.subplots(1, 2, figsize=(11, 4.2), sharey=True)
+    figure, axes = plt.subplots(1, 2, figsize=(11, 4.6), sharey=True, layout="constrained")
     pixels = comparison.pixels
     top = np.nanmax(np.concatenate([comparison.truth_m, comparison.off.per_frame_m.ravel(),
                                     comparison.on.per_frame_m.ravel()]))
     for axis, name, result in ((axes[0], "FLISS off", comparison.off),
                                (axes[1], "FLISS on", comparison.on)):
-        for row in result.per_frame_m:
-            axis.plot(pixels, row, ".", color="0.7", markersize=3)
+        frames = len(result.per_frame_m)
+        for index, row in enumerate(result.per_frame_m):
+            axis.plot(pixels, row, ".", color="0.6", markersize=3,
+                      label=f"single frames ({frames})" if index == 0 else None)
         axis.step(pixels, comparison.truth_m, where="mid", color="k", linewidth=1.2,
                   label="scene")
-        axis.plot(pixels, result.depth_m, "o", color="tab:red" if result.wrong.any()
-                  else "tab:blue", markersize=4, label="measured (median)")
+        axis.plot(pixels, result.depth_m, "o", color="tab:blue", markersize=4,
+                  label="measured (median over the frames)")
         axis.plot(pixels[result.wrong], result.depth_m[result.wrong], "x", color="tab:red",
-                  markersize=9, label="wrong depth")
+                  markersize=9, label=f"wrong depth (more than {comparison.tolerance_m:g} m "
+                                      f"from the scene)")
         axis.set_title(f"{name}: {int(result.wrong.sum())} pixels at a wrong depth "
                        f"({result.wrong_frames:.0%} of single-frame depths)", fontsize="small")
         axis.set_xlabel("pixel address")
         axis.set_ylim(0, (top if np.isfinite(top) else 1.0) * 1.1)
     axes[0].set_ylabel("depth (m)")
-    axes[1].legend(fontsize="small", loc="lower right")
+    legend_below(figure, *axes[0].get_legend_handles_labels())
     if title:
         figure.suptitle(title)
-    figure.tight_layout()
     try:
         figure.savefig(output, dpi=110)
     finally:

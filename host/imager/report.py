@@ -121,7 +121,8 @@ def plot_imager(capture, output, *, frames="summary", shape=None, title=None, qu
         for index, axis in enumerate(axes.flat):
             if index < count:
                 _depth_panel(axis, capture.pixels, per_frame[index], shape,
-                             f"frame {capture.frames[capture.complete][index]}")
+                             f"frame {capture.frames[capture.complete][index]}",
+                             limits=_limits(per_frame))
             else:
                 axis.axis("off")
         figure.suptitle(f"{label}: {what} per frame")
@@ -162,9 +163,20 @@ def _depth_panel(axis, pixels, depths, shape, title, limits=None):
         if limits:
             axis.set_ylim(*limits)
     else:
-        picture = axis.imshow(depths.reshape(shape), cmap="viridis",
+        # Pixel (r, c) is address first + r * columns + c; grey: no target found.
+        from matplotlib import colormaps
+        rows, columns = shape
+        viridis = colormaps["viridis"].with_extremes(bad="0.8")
+        picture = axis.imshow(depths.reshape(shape), cmap=viridis,
                               **({"vmin": limits[0], "vmax": limits[1]} if limits else {}))
-        axis.figure.colorbar(picture, ax=axis, label="depth (m)")
+        missing = "; grey: no target" if np.isnan(depths).any() else ""
+        axis.figure.colorbar(picture, ax=axis, label=f"depth (m){missing}")
+        for set_ticks, count in ((axis.set_xticks, columns), (axis.set_yticks, rows)):
+            set_ticks(range(count) if count <= 16 else
+                      range(0, count, math.ceil(count / 16)))
+        axis.set_xlabel("column")
+        axis.set_ylabel("row")
+        title += f" (pixel {pixels[0]} + {columns} × row + column)"
     axis.set_title(title, fontsize="small")
 
 
@@ -187,6 +199,8 @@ def _intensity_panel(figure, axis, pixels, intensity):
                                   -0.5))
     axis.set_xlabel("pixel address")
     axis.set_ylabel("frame")
+    from matplotlib.ticker import MaxNLocator
+    axis.yaxis.set_major_locator(MaxNLocator(integer=True))
     axis.set_title("peak height (counts)", fontsize="small")
     figure.colorbar(picture, ax=axis)
 

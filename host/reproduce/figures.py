@@ -6,6 +6,7 @@ import os
 import numpy as np
 
 from .. import analysis
+from ..plotting import legend_below, mark_peaks, styles
 
 
 __all__ = ["figures"]
@@ -22,7 +23,6 @@ def figures(config, by_t, results, out_dir):
     written = []
 
     def save(figure, name):
-        figure.tight_layout()
         figure.savefig(os.path.join(out_dir, name), dpi=110)
         plt.close(figure)
         written.append(name)
@@ -34,9 +34,23 @@ def figures(config, by_t, results, out_dir):
         axes.set_xlabel("time from TDC start (ns)")
         axes.set_ylabel("counts per 50 ps code")
 
+    def mark(axes, histogram, peaks):
+        """Label the victim's peak and the highest aggressor peak: ``peaks`` as the results'
+        ``example_peaks``, ``(ToF s, height)`` per aggressor peak, then the victim's."""
+        level = analysis.background(histogram)
+        victim = [peak for peak in peaks if peak[0] == "victim"]
+        others = sorted((peak for peak in peaks if peak[0] != "victim"), key=lambda p: -p[1])
+        marks = [(v[1] * 1e9, level + v[2], f"victim {v[1] * 1e9:.1f} ns", "tab:green")
+                 for v in victim[:1]]
+        marks += [(position * 1e9, level + height, f"aggressor {position * 1e9:.1f} ns"
+                   + (f" (highest of {len(others)})" if len(others) > 1 else ""), "tab:red")
+                  for position, height in others[:1]]
+        axes.set_ylim(top=axes.get_ylim()[1] * 1.15)
+        mark_peaks(axes, marks)
+
     # Figure 7: the victim alone
     reference = by_t[t_max]
-    figure, axes = plt.subplots(figsize=(7, 4))
+    figure, axes = plt.subplots(figsize=(7, 4), layout="constrained")
     plot_histogram(axes, reference["example"], 0, 2000)
     tof = analysis.mean_std(reference["tof"])[0] * 1e9
     fwhm = analysis.mean_std(reference["fwhm"])[0] * 1e9
@@ -50,34 +64,41 @@ def figures(config, by_t, results, out_dir):
 
     # Figure 8: victim and aggressor, FLISS off
     if "off" in by_kind:
-        figure, axes = plt.subplots(figsize=(7, 4))
+        figure, axes = plt.subplots(figsize=(7, 4), layout="constrained")
         plot_histogram(axes, by_kind["off"][0]["example"], 0, 3000)
+        mark(axes, by_kind["off"][0]["example"], by_kind["off"][0]["example_peaks"])
         axes.set_title(f"Victim and aggressor (offset 75 ns), FLISS off, "
                        f"T_int = {t_max * 1e3:g} ms", fontsize=9)
         save(figure, "fig08_aggressor.png")
 
     def s_plot(results_, setting_name, name, title, paper_point):
-        figure, axes = plt.subplots(figsize=(6, 4))
+        figure, axes = plt.subplots(figsize=(6.5, 4.6), layout="constrained")
         times = sorted({result["job"].t_int_s for result in results_})
-        for t in times:
+        for index, (t, (colour, marker)) in enumerate(zip(times, styles(len(times)))):
             chosen = sorted((r for r in results_ if r["job"].t_int_s == t),
                             key=lambda r: r["job"].setting)
-            settings = [r["job"].setting for r in chosen]
-            stats = [analysis.mean_std(r["s_db"]) for r in chosen]
-            limited = [np.nanmean(np.asarray(r["limited"], dtype=float)) > 0.5 for r in chosen]
-            line = axes.errorbar(settings, [s[0] for s in stats], yerr=[s[1] for s in stats],
-                                 marker="o", capsize=3, label=f"T_int = {t * 1e3:g} ms")
-            for x, (mean, _), flag in zip(settings, stats, limited):
-                if flag:
-                    axes.annotate("≥", (x, mean), textcoords="offset points", xytext=(4, 4),
-                                  color=line[0].get_color())
-        axes.plot(*paper_point, "r*", markersize=12, label="paper (highest reported)")
+            settings = np.array([r["job"].setting for r in chosen], dtype=float)
+            settings += 0.06 * (index - (len(times) - 1) / 2)     # apart from the other T_int
+            stats = np.array([analysis.mean_std(r["s_db"]) for r in chosen])
+            limited = np.array([np.nanmean(np.asarray(r["limited"], dtype=float)) > 0.5
+                                for r in chosen], dtype=bool)
+            axes.errorbar(settings, stats[:, 0], yerr=stats[:, 1], color=colour, capsize=3,
+                          label=f"T_int = {t * 1e3:g} ms")
+            axes.plot(settings[~limited], stats[~limited, 0], marker, color=colour)
+            axes.plot(settings[limited], stats[limited, 0], marker, color=colour,
+                      markerfacecolor="white")
+        axes.plot(*paper_point, "r*", markersize=12, linestyle="none",
+                  label="paper (highest reported)")
+        axes.plot([], [], "o", color="0.4", markerfacecolor="white",
+                  label="lower bound (no aggressor peak found)")
         axes.set_xticks(sorted({r["job"].setting for r in results_}))
         axes.set_xlabel(setting_name)
         axes.set_ylabel("suppression ratio S (dB)")
         axes.set_title(title, fontsize=9)
         axes.grid(alpha=0.3)
-        axes.legend(fontsize=8)
+        entries = sorted(zip(*axes.get_legend_handles_labels()),
+                         key=lambda entry: not entry[1].startswith("T_int"))
+        legend_below(figure, *zip(*entries), columns=2)
         save(figure, name)
 
     if "mseq" in by_kind:
@@ -89,27 +110,37 @@ def figures(config, by_t, results, out_dir):
                         key=lambda r: r["job"].setting)
         columns = 2
         rows_ = max(1, math.ceil(len(chosen) / columns))
-        figure, grid = plt.subplots(rows_, columns, figsize=(10, 3 * rows_), squeeze=False)
+        figure, grid = plt.subplots(rows_, columns, figsize=(10, 1 + 3 * rows_), squeeze=False,
+                                    layout="constrained")
+        bounds = False
         for axes, result in zip(grid.flat, chosen):
             plot_histogram(axes, result["example"])
             victim = [peak for peak in result["example_peaks"] if peak[0] == "victim"]
             if victim:
                 _, _, pv, pa, limited = victim[0]
+                bounds |= bool(limited)
                 level = analysis.background(result["example"])
-                axes.axhline(level + pv, color="green", linewidth=0.8, label="victim peak")
-                axes.axhline(level + pa, color="red", linewidth=0.8,
-                             label="highest aggressor peak" + (" (≤ threshold)" if limited
-                                                               else ""))
-                axes.legend(fontsize=7)
+                axes.axhline(level + pv, color="tab:green", linewidth=0.8)
+                axes.axhline(level + pa, color="tab:red", linewidth=0.8,
+                             linestyle=":" if limited else "-")
+                mark(axes, result["example"], result["example_peaks"])
             axes.set_title(f"L = {result['job'].setting}, T_int = {t_max * 1e3:g} ms",
                            fontsize=9)
         for axes in list(grid.flat)[len(chosen):]:
             axes.set_visible(False)
+        line = plt.Line2D
+        legend_below(figure, [line([], [], color="tab:green"), line([], [], color="tab:red"),
+                              line([], [], color="tab:red", linestyle=":")][:2 + bounds],
+                     ["victim's peak Pv", "highest aggressor peak Pa",
+                      "no aggressor peak: Pa at the detection threshold (S a lower bound)"
+                      ][:2 + bounds])
         save(figure, "fig10_histograms.png")
 
         # Figure 11: deviations from the reference
-        figure, grid = plt.subplots(1, 3, figsize=(12, 3.8))
-        for t in sorted({r["job"].t_int_s for r in by_kind["mseq"]}):
+        figure, grid = plt.subplots(1, 3, figsize=(12, 4.2), layout="constrained")
+        times = sorted({r["job"].t_int_s for r in by_kind["mseq"]})
+        for index, (t, (colour, marker)) in enumerate(zip(times, styles(len(times)))):
+            shift = 0.06 * (index - (len(times) - 1) / 2)     # apart from the other T_int
             chosen = sorted((r for r in by_kind["mseq"] if r["job"].t_int_s == t),
                             key=lambda r: r["job"].setting)
             ref = by_t[t]
@@ -118,15 +149,15 @@ def figures(config, by_t, results, out_dir):
                 reference_value = analysis.mean_std(ref[key])[0]
                 stats = [analysis.mean_std(analysis.relative_deviation(r[key], reference_value)
                                            * 100) for r in chosen]
-                axes.errorbar([r["job"].setting for r in chosen], [s[0] for s in stats],
-                              yerr=[s[1] for s in stats], marker="o", capsize=3,
-                              label=f"T_int = {t * 1e3:g} ms")
+                axes.errorbar([r["job"].setting + shift for r in chosen], [s[0] for s in stats],
+                              yerr=[s[1] for s in stats], marker=marker, color=colour,
+                              capsize=3, label=f"T_int = {t * 1e3:g} ms")
                 axes.set_title(f"relative deviation of {label}", fontsize=9)
                 axes.set_xlabel("LFSR length L")
                 axes.set_xticks([r["job"].setting for r in chosen])
                 axes.set_ylabel("%")
                 axes.grid(alpha=0.3)
-        grid[0].legend(fontsize=8)
+        legend_below(figure, *grid[0].get_legend_handles_labels())
         save(figure, "fig11_deviations.png")
 
     if "masked" in by_kind:
