@@ -7,6 +7,7 @@ import sys
 import pytest
 
 from fliss.host.cli import main
+from fliss.sim.models.delay import DelayMode, delays
 
 
 def run(capsys, *argv):
@@ -100,3 +101,17 @@ def test_module_entry_point():
     result = subprocess.run([sys.executable, "-m", "fliss", "sequence", "--seed", "0"],
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 1 and "Traceback" not in result.stderr
+
+
+def test_demo_trace(capsys):
+    # mseq, L = 4 (x^4 + x^3 + 1), seed 1, at T = 80 cycles: each laser edge T + R after the one
+    # before, R from the reference model's sequence.
+    code, out, err = run(capsys, "demo", "--trace")
+    assert code == 0, err
+    lines = out.splitlines()
+    assert lines[-1] == "Gateware and reference model agree bit for bit: yes"
+    rows = [[int(word) for word in line.split()] for line in lines[2:-1]]
+    expected = [int(r) for r in delays(DelayMode.MSEQ, 12, length=4, seed=1)]
+    assert [row[:2] for row in rows] == [[index, r] for index, r in enumerate(expected)]
+    assert [row[3] for row in rows[1:]] == [80 + r for r in expected[1:]]
+    assert [b[2] - a[2] for a, b in zip(rows, rows[1:])] == [80 + r for r in expected[1:]]
