@@ -197,12 +197,19 @@ _FRAMED = {"histogram": "histograms", "image": "images", "depth": "depth frames"
 class _Rows:
     """The frame rows of a capture: ``acquisitions`` consecutive frame numbers from the
     first one, with a row marked incomplete (zeros; nothing detected) for each that never
-    arrived."""
+    arrived.
+
+    Histograms and depth frames are numbered apart, each from reset, while the board's STATUS
+    ``frames`` counts both. ``first_expected`` (STATUS ``frames`` at the start) is the first
+    frame's number when the board has made frames of this readout only; a first frame that
+    arrives numbered behind it shows that the board made frames of the other readout too, and
+    is taken as the capture's first."""
 
     def __init__(self, writer, acquisitions, first_expected, configuration, mode):
         self.writer, self.acquisitions = writer, acquisitions
         self.first_expected, self.shift = first_expected, configuration["bin_shift"]
         self.configuration, self.mode = configuration, mode
+        self.first = None       # frame number of the first row
         self.next = None        # frame number of the next row
         self.saved = self.lost = self.incomplete = self.discarded = 0
 
@@ -215,7 +222,8 @@ class _Rows:
         the rows added."""
         if self.next is None:
             ahead = (item.frame - self.first_expected) % (1 << 32)
-            self.next = self.first_expected if ahead < self.acquisitions else item.frame
+            self.first = self.first_expected if ahead < self.acquisitions else item.frame
+            self.next = self.first
         ahead = (item.frame - self.next) % (1 << 32)
         if self.done or ahead >= 1 << 31:       # beyond the capture, or from before it
             self.discarded += 1
@@ -231,6 +239,16 @@ class _Rows:
         else:
             self.discarded += 1
         return self.saved - before
+
+    def lose_made(self, made):
+        """Rows of zeros for the frames, of the ``made`` ones the board completed during the
+        capture (STATUS ``frames`` at the end less at the start), that never arrived, up to the
+        last one asked for."""
+        if self.first is None:
+            return
+        end = (self.first + min(made, self.acquisitions)) % (1 << 32)
+        if (end - self.next) % (1 << 32) < 1 << 31:     # (never back to before the next row)
+            self.lose_up_to(end)
 
     def lose_up_to(self, frame):
         """Rows of zeros for the frames from the next one up to ``frame`` (excluded)."""
@@ -377,16 +395,14 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
         if lost is None:
             try:
                 board.stop()
-                for item in board.settle():
+                for item in board.settle(frames_at_start=status_start["frames"]):
                     store(item)
                 status_end = board.status()
                 # Histograms the board completed that never arrived, up to the last one asked
                 # for (rows of zeros, unless the file cannot take more).
                 if state["file_error"] is None:
                     try:
-                        rows.lose_up_to((status_start["frames"] + min(
-                            status_end["frames"] - status_start["frames"], acquisitions))
-                                        % (1 << 32))
+                        rows.lose_made(status_end["frames"] - status_start["frames"])
                     except OSError as error:
                         state["file_error"] = error
             except BoardLost as error:

@@ -106,6 +106,7 @@ class Board:
 
     def __init__(self, client: BoardClient) -> None:
         self.client = client
+        self._frames_at_start = None
         try:
             self.identity: IdentityInfo = client.identify()
         except BaseException:
@@ -232,6 +233,8 @@ class Board:
         if registers["acquisition"] != readout.value:
             registers = self.client.write_registers({"acquisition": readout.value},
                                                     current=registers)
+        # (what settle waits for: the frames made from here on)
+        self._frames_at_start = self.client.status()["frames"]
         self.client.reset_counters()
         self.client.start()
         return describe(registers, self.clock_hz)
@@ -248,7 +251,7 @@ class Board:
             self._stop_quietly()
             raise
         self.client.stop()
-        for item in self.client.settle():
+        for item in self.client.settle(frames_at_start=self._frames_at_start):
             if batches is not None and isinstance(item, EventBatch):
                 batches.append(item.events)
 

@@ -449,13 +449,15 @@ class BoardClient:
                                 f"{data_timeout_s:g} s during an acquisition")
             yield None
 
-    def settle(self, limit_s: float = 120.0, give_up_s: float = 3.0
+    def settle(self, limit_s: float = 120.0, give_up_s: float = 3.0,
+               frames_at_start: Optional[int] = None
                ) -> List[Union[HistogramFrame, EventBatch]]:
         """After a STOP: read until every histogram the board completed has arrived (its STATUS
-        ``frames`` count), until nothing more has come for ``give_up_s`` (a histogram lost on a
-        noisy line), or until ``limit_s``; returns everything received. A board that is slow to send its
-        last histogram (a simulation, a slow link) is waited for rather than left to spill into
-        the next capture."""
+        ``frames`` count; with ``frames_at_start``, its count at the last :meth:`reset_counters`,
+        as many frames as it made since: histograms and depth frames are numbered apart), until
+        nothing more has come for ``give_up_s`` (a histogram lost on a noisy line), or until
+        ``limit_s``; returns everything received. A board slow to send its last histogram (a
+        simulation, a slow link) is waited for rather than left to spill into the next capture."""
         end = time.monotonic() + limit_s
         items = []
         last = time.monotonic()
@@ -464,7 +466,9 @@ class BoardClient:
             items += received
             frames = self.status()["frames"]
             ended = self.assembler.frames_ended
-            if frames == 0 or ended == frames or time.monotonic() > end:
+            arrived = self.assembler.counters.frames + self.assembler.counters.depth_frames
+            if frames == 0 or ended == frames or time.monotonic() > end or (
+                    frames_at_start is not None and arrived >= frames - frames_at_start):
                 return items
             if ended is None and not items:
                 return items   # nothing of this capture's histograms: not ours to wait for

@@ -131,7 +131,7 @@ class FakeClient:
     def reset_counters(self):
         pass
 
-    def settle(self):
+    def settle(self, frames_at_start=None):
         return []
 
     def take_data(self):

@@ -90,6 +90,38 @@ def test_a_signal_stops_the_board_and_closes_the_file(tmp_path, signum):
     assert capture.counters["stream"]["lost_rows"] == 0
 
 
+@pytest.mark.parametrize("before, readout, signum", [
+    ("depth", "histogram", signal.SIGTERM), ("histogram", "depth", signal.SIGINT)])
+def test_a_stop_after_frames_of_the_other_readout_loses_nothing(tmp_path, before, readout,
+                                                                 signum):
+    # The board numbers histograms and depth frames apart, each from reset, and its STATUS
+    # `frames` counts both: after 6 frames of one readout, a capture of the other stopped early
+    # holds exactly the frames the board made in it, every one complete, none reported lost.
+    output = tmp_path / "after.h5"
+    with model_board(scene=SCENE) as model:
+        with BoardClient(model.path, timeout_s=2.0) as board:
+            board.write_registers({"bin_shift": SHIFT})
+        assert main(["-q", "capture", "--port", model.path, "--timeout", "2", "--readout",
+                     before, "--integration", "2ms", "--acquisitions", "6",
+                     "-o", str(tmp_path / "before.h5")]) == 0
+        process = fliss_capture(model, output, "--readout", readout)
+        deadline = time.monotonic() + 60
+        while process.poll() is None and model.status["frames"] < 20 and \
+                time.monotonic() < deadline:
+            time.sleep(0.05)
+        process.send_signal(signum)
+        out, err = process.communicate(timeout=30)
+    assert process.returncode == 128 + signum, err
+    capture = read_capture(output)
+    made = capture.counters["board_end"]["frames"] - capture.counters["board_start"]["frames"]
+    assert made >= 10
+    assert len(capture.frames) == made and capture.complete.all()
+    frames = capture.frames.astype(np.int64)
+    assert np.array_equal(frames, np.arange(made))      # the first of its readout since reset
+    assert capture.counters["stream"]["lost_rows"] == 0
+    assert ", 0 incomplete histograms, 0 histograms lost\n" in out
+
+
 def test_after_sigkill_every_flushed_row_is_read_and_the_running_board_is_reported(
         tmp_path, capsys):
     output = tmp_path / "killed.h5"
