@@ -230,6 +230,12 @@ def _convert_key(option, value, context):
     generator (:mod:`secrets`). The key is never shown; the caller finds it in the changes."""
     if isinstance(value, str) and value.strip().lower() == "random":
         key = int.from_bytes(secrets.token_bytes(10), "big")
+    elif isinstance(value, str):
+        # All 20 digits: a short key (12345) would be one nobody meant.
+        try:
+            key = parse_hex(value, "key", exact=True, alternative="random")
+        except ValueError as error:
+            refuse(option, value, context, str(error))
     else:
         key = _eighty_bits(option, value, context, "key")
     return words_of(key, "key")

@@ -145,10 +145,10 @@ OPTIONS: Tuple[Option, ...] = (
            "(bins)", "N"),
     Option("depth_threshold", "depth_threshold", WHOLE, "least filtered peak height above "
            "background for a depth (counts)", "COUNTS"),
-    Option("key", "key0", KEY, "key of the keyed source: 20 hex digits as the test vectors print "
-           "it, or random (from the operating system's generator); write-only: the board never "
+    Option("key", "key0", KEY, "key of the keyed source: all 20 hex digits, as the test vectors "
+           "print it, or random (from the operating system's generator); write-only: the board never "
            "reads it back", "HEX|random", shown=False),
-    Option("iv", "iv0", IV, "IV of the keyed source (20 hex digits); reads as the IV in use, "
+    Option("iv", "iv0", IV, "IV of the keyed source (up to 20 hex digits); reads as the IV in use, "
            "and a new IV must be above it unless a new key is given too", "HEX"),
 )
 

@@ -43,8 +43,12 @@ def test_attack_json_small_budget(capsys):
     (["--sources", "off,lfsr"], "'lfsr' is not one of"),
     (["--lengths", "40"], "L must be from 2 to 32"),
     (["--mask-widths", "x"], "comma-separated integers"),
-    (["--key", "xyz"], "--key must be 20 hex digits"),
-    (["--iv", "1" * 21], "--iv must fit in 80 bits"),
+    (["--key", "xyz"], "--key xyz: A Trivium key is 20 hex digits (80 bits, as the test "
+                       "vectors print it) or random, not 'xyz'"),
+    (["--key", "12345"], "--key 12345: A Trivium key is 20 hex digits (80 bits, as the test "
+                         "vectors print it) or random, not '12345' (5 digits)"),
+    (["--iv", "1" * 21], f"--iv {'1' * 21}: A Trivium IV is up to 20 hex digits (80 bits, as the "
+                         f"test vectors print it), not '{'1' * 21}' (21 digits)"),
     (["--keyed-width", "17", "--sources", "keyed"], "Mask width must be an integer from 1 to 16"),
     (["--acquisition-pulses", "5000", "--pulses", "100"], "must not exceed"),
 ])

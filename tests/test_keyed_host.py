@@ -3,8 +3,10 @@
 
 import pytest
 
-from fliss.hdl.registers import value_of
+import fliss as fliss_api
+from fliss.hdl.registers import defaults, value_of
 from fliss.host.client import BoardClient
+from fliss.host.errors import SettingsError
 from fliss.sim.boards.model import model_board
 from test_host_cli import fliss
 
@@ -12,6 +14,9 @@ from test_host_cli import fliss
 #: eSTREAM set 1 vector 0 (key 80 00 … 00, IV 0): keystream bytes 38 EB 86 FF, least
 #: significant bit first: 4-bit delays 8, 3, 11, 14, 6, 8, 15, 15.
 VECTOR_NIBBLES = [0x8, 0x3, 0xB, 0xE, 0x6, 0x8, 0xF, 0xF]
+
+#: A key of 20 hex digits.
+KEY = "0123456789abcdef0123"
 
 
 @pytest.fixture
@@ -30,12 +35,16 @@ def test_sequence_keyed_published_vector(capsys):
 
 @pytest.mark.parametrize("argv, message", [
     (["--key", "12345678901234567890a", "--iv", "0"],
-     "A Trivium key is up to 20 hex digits (80 bits, as the test vectors print it), not "
-     "'12345678901234567890a'"),
-    (["--key", "0", "--iv", "0xg"],
+     "A Trivium key is 20 hex digits (80 bits, as the test vectors print it), not "
+     "'12345678901234567890a' (21 digits)"),
+    # A short key is not padded with zeros: 12345 is not 00000000000000012345.
+    (["--key", "12345", "--iv", "0"],
+     "A Trivium key is 20 hex digits (80 bits, as the test vectors print it), not '12345' "
+     "(5 digits)"),
+    (["--key", KEY, "--iv", "0xg"],
      "A Trivium IV is up to 20 hex digits (80 bits, as the test vectors print it), not '0xg'"),
     (["--iv", "0"], "--mode keyed needs --key and --iv"),
-    (["--key", "1", "--iv", "0", "--mask-width", "17"],
+    (["--key", KEY, "--iv", "0", "--mask-width", "17"],
      "Mask width must be an integer from 1 to 16, not 17"),
 ])
 def test_sequence_keyed_refusals(capsys, argv, message):
@@ -64,7 +73,7 @@ def test_config_random_key_is_not_shown_and_reads_zero(model, capsys):
 
 def test_config_iv_must_go_up(model, capsys):
     status, out, err = fliss(capsys, "config", "--port", model.path, "--mode", "keyed",
-                             "--key", "1", "--iv", "0x20")
+                             "--key", KEY, "--iv", "0x20")
     assert status == 0, err
     # The IV in use again: nothing to write (the settings read back go back unchanged)
     status, out, err = fliss(capsys, "config", "--port", model.path, "--iv", "0x20")
@@ -77,8 +86,31 @@ def test_config_iv_must_go_up(model, capsys):
     status, out, err = fliss(capsys, "config", "--port", model.path, "--iv", "0x21")
     assert status == 0, err
     status, out, err = fliss(capsys, "config", "--port", model.path, "--key", "zz")
-    assert (status, err) == (1, "fliss: error: --key zz: A Trivium key is up to 20 hex digits "
-                                "(80 bits, as the test vectors print it), not 'zz'\n")
+    assert (status, err) == (1, "fliss: error: --key zz: A Trivium key is 20 hex digits "
+                                "(80 bits, as the test vectors print it) or random, not 'zz'\n")
+
+
+@pytest.mark.parametrize("key", ["12345", "0x12345", "0123456789abcdef012", "1" * 21])
+def test_a_key_is_all_20_digits(model, capsys, key):
+    # 12345 would be read as the key 00000000000000012345, one nobody meant: refused, here and
+    # in the Python API, and nothing is written.
+    digits = len(key.removeprefix("0x"))
+    expected = (f"A Trivium key is 20 hex digits (80 bits, as the test vectors print it) or "
+                f"random, not '{key}' ({digits} digits)")
+    status, out, err = fliss(capsys, "config", "--port", model.path, "--mode", "keyed",
+                             "--key", key, "--iv", "0x20")
+    assert (status, err) == (1, f"fliss: error: --key {key}: {expected}\n")
+    with fliss_api.connect(model.path, timeout_s=2.0) as board:
+        with pytest.raises(SettingsError) as error:
+            board.configure(key=key)
+    assert str(error.value) == f"key={key!r}: {expected}"
+    assert value_of(model.model.settings, "key") == 0
+    assert model.model.settings == defaults(80_000_000)
+    # All 20 digits, spaced as the test vectors print them, or with 0x, are taken.
+    status, out, err = fliss(capsys, "config", "--port", model.path, "--key",
+                             "80 00 00 00 00 00 00 00 00 00", "--show-key")
+    assert status == 0, err
+    assert out.splitlines()[0] == "key 0x80000000000000000000"
 
 
 def test_capture_keyed_on_the_model_board(tmp_path, capsys):

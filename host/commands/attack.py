@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ...hdl import DEFAULT_CLOCK_HZ
+from ...sim.models.trivium import parse_hex
 from ...sim.studies.attacker import Attacker, Observer
 from ...sim.studies.generators import verify_pulses
 from ...sim.studies.attack_scene import SOURCES, Victim, run as run_scene
@@ -57,17 +58,15 @@ def _list(text, what, allowed=None):
         raise UserError(f"{what} must be comma-separated integers, not {text!r}") from None
 
 
-def _hex80(text, what):
-    if text == "random":
+def _hex80(text, flag, what):
+    # A key: all 20 digits, or random; an IV: up to 20.
+    key = what == "key"
+    if key and text == "random":
         return int.from_bytes(secrets.token_bytes(10), "big")
     try:
-        value = int(text, 16)
-    except ValueError:
-        raise UserError(f"{what} must be 20 hex digits (80 bits) or 'random', "
-                        f"not {text!r}") from None
-    if not 0 <= value < 1 << 80:
-        raise UserError(f"{what} must fit in 80 bits (20 hex digits), not {text!r}")
-    return value
+        return parse_hex(text, what, exact=key, alternative="random" if key else None)
+    except ValueError as error:
+        raise UserError(f"{flag} {text}: {error}") from None
 
 
 def theory(victim):
@@ -397,8 +396,8 @@ def _arguments(args):
         raise UserError(str(error)) from None
     if args.jitter_s < 0:
         raise UserError(f"--jitter must not be negative, not {args.jitter}")
-    args.key = _hex80(args.key, "--key")
-    args.iv = _hex80(args.iv, "--iv")
+    args.key = _hex80(args.key, "--key", "key")
+    args.iv = _hex80(args.iv, "--iv", "IV")
     try:
         return _victims(args)
     except ValueError as error:

@@ -54,7 +54,7 @@ def run_sequence(args):
         if args.mode == "keyed":
             if args.key is None or args.iv is None:
                 raise ValueError("--mode keyed needs --key and --iv")
-            keyed = dict(key=trivium.parse_hex(args.key, "key"),
+            keyed = dict(key=trivium.parse_hex(args.key, "key", exact=True),
                          iv=trivium.parse_hex(args.iv, "IV"))
         settings = scheduler_model.Settings(
             mode=delay_model.parse_mode(args.mode), length=args.length,

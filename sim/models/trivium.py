@@ -48,17 +48,22 @@ def as_int(value, what="key"):
     return int(value)
 
 
-def parse_hex(text, what="key"):
+def parse_hex(text, what="key", *, exact=False, alternative=None):
     """The 80-bit integer of a key or IV written in hex as the test vectors print it: up to 20
     hex digits, spaces, ``_`` and a leading ``0x`` allowed (``80 00 00 00 00 00 00 00 00 00`` is
-    ``0x80000000000000000000``); ``ValueError`` with one line for anything else."""
+    ``0x80000000000000000000``); with ``exact``, all 20 digits (a key: ``12345`` would be read as
+    ``00000000000000012345``, a key nobody meant). ``ValueError`` with one line for anything
+    else, naming ``alternative`` (``"random"``) if the caller takes one."""
     digits = str(text).replace(" ", "").replace("_", "")
     if digits[:2].lower() == "0x":
         digits = digits[2:]
-    if not 1 <= len(digits) <= 2 * KEY_BYTES or \
-            any(c not in "0123456789abcdefABCDEF" for c in digits):
-        raise ValueError(f"A Trivium {what} is up to 20 hex digits (80 bits, as the test vectors "
-                         f"print it), not {text!r}")
+    hex_digits = bool(digits) and all(c in "0123456789abcdefABCDEF" for c in digits)
+    if not hex_digits or len(digits) > 2 * KEY_BYTES or \
+            (exact and len(digits) != 2 * KEY_BYTES):
+        count = f" ({len(digits)} digit{'s' * (len(digits) != 1)})" if hex_digits else ""
+        other = f" or {alternative}" if alternative else ""
+        raise ValueError(f"A Trivium {what} is {'' if exact else 'up to '}20 hex digits (80 bits, "
+                         f"as the test vectors print it){other}, not {text!r}{count}")
     return int(digits, 16)
 
 
