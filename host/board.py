@@ -170,7 +170,7 @@ class Board:
         **more
             Settings by name (:data:`fliss.host.settings.OPTIONS`): times with a unit
             (``integration="10ms"``, or ``"800cycles"``; a bare number is refused), frequencies
-            (``prf="1MHz"``), choices (``mode="masked"``, ``readout="raw"``), whole numbers
+            (``prf="1MHz"``; a unit here too), choices (``mode="masked"``, ``readout="raw"``), whole numbers
             (``mask_width=6``).
 
         Returns

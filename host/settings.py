@@ -11,7 +11,8 @@ The rules, the same in the library and on the command line:
 
 * A time takes a unit: ``"10ms"``, ``"75 ns"``, or whole clock cycles, ``"800cycles"`` (gate
   times: TDC codes, ``"2000codes"``). A bare number is refused (``10`` could be cycles, seconds
-  or milliseconds). A frequency takes a unit (``"1MHz"``) or is a number of hertz.
+  or milliseconds). A frequency takes a unit too (``"1MHz"``, ``"1e6Hz"``): a bare ``1`` would
+  be 1 Hz, a period of 80 million cycles.
 * A time or frequency that is not a whole number of clock cycles (codes) is rounded to the
   nearest; :func:`convert` returns a note for each, one line with the value used
   (``--aggressor-offset 80ns is 6.4 clock cycles of 12.5 ns: using 6 cycles, 75 ns``).

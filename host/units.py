@@ -8,12 +8,14 @@ __all__ = ["parse_frequency", "parse_time", "parse_baud", "format_frequency", "f
 
 _NUMBER = r"([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)"
 
-_FREQUENCY = {"": 1, "hz": 1, "khz": 1e3, "mhz": 1e6, "ghz": 1e9}
+_FREQUENCY = {"hz": 1, "khz": 1e3, "mhz": 1e6, "ghz": 1e9}
 _TIME = {"s": 1, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "ns": 1e-9, "ps": 1e-12}
 
 
 def _parse(text, units, what, example):
     match = re.fullmatch(_NUMBER + r"\s*([a-zµ]*)", str(text).strip(), flags=re.IGNORECASE)
+    if match is not None and not match.group(2) and "" not in units:
+        raise ValueError(f"give a unit: {example}")
     if match is None or match.group(2).lower() not in units:
         raise ValueError(f"cannot read {text!r} as a {what} (for example {example})")
     value = float(match.group(1)) * units[match.group(2).lower()]
@@ -23,8 +25,9 @@ def _parse(text, units, what, example):
 
 
 def parse_frequency(text):
-    """Frequency in Hz from ``"80MHz"``, ``"1 kHz"``, ``"2.5e6"`` (plain numbers are Hz)."""
-    value = _parse(text, _FREQUENCY, "frequency", "80MHz, 1kHz or 1e6")
+    """Frequency in Hz from ``"80MHz"``, ``"1 kHz"``, ``"2.5e6Hz"``; the unit is required (a
+    bare ``1`` would be 1 Hz, a period of 80 million cycles, when 1 MHz was meant)."""
+    value = _parse(text, _FREQUENCY, "frequency", "80MHz, 1kHz or 1e6Hz")
     return int(value) if value == int(value) else value
 
 

@@ -96,9 +96,12 @@ def test_config_round_trip(model, capsys):
     (["--pulse-width", "2us"], "--pulse-width (2 µs, 160 cycles) must be shorter than --prf "
                                "(1 µs, 80 cycles)"),
     (["--prf", "fast"], "--prf fast: cannot read 'fast' as a frequency (for example 80MHz, 1kHz "
-                        "or 1e6)"),
+                        "or 1e6Hz)"),
     (["--integration", "1ps"], "--integration 1ps: shorter than one clock cycle (12.5 ns)"),
     (["--integration", "10"], "--integration 10: give a unit: 10ms, or 800cycles"),
+    # A frequency too: 1 would be 1 Hz, a period of 80 000 000 cycles.
+    (["--prf", "1"], "--prf 1: give a unit: 80MHz, 1kHz or 1e6Hz"),
+    (["--aggressor-prf", "1e6"], "--aggressor-prf 1e6: give a unit: 80MHz, 1kHz or 1e6Hz"),
     (["--mask-width", "six"], "--mask-width six: expected a whole number (0x for hex)"),
     (["--prf", "1MHz", "--period-cycles", "80"],
      "--prf and --period-cycles both set period: give one of them"),

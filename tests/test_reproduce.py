@@ -47,7 +47,7 @@ def test_suppression_grows_with_the_lfsr_length(tiny_run):
 
 @pytest.mark.parametrize("argv, message", [
     (["--acquisitions", "0"], "--acquisitions must be at least 1, not 0"),
-    (["--t-int", "5"], "--t-int: cannot read '5' as a time (for example 10ms or 75ns)"),
+    (["--t-int", "5"], "--t-int: give a unit: 10ms or 75ns"),
     (["--lengths", "40"], "--lengths must be from 2 to 16 (complete sequences), not 40"),
     (["--mask-widths", "17"], "Mask width must be an integer from 1 to 16, not 17"),
     (["--jobs", "0"], "--jobs must be at least 1, not 0"),

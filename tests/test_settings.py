@@ -32,7 +32,7 @@ def changes(settings, clock_hz=CLOCK_HZ, **kw):
     ("integration", "800cycles", "integration", 800, None),
     ("integration", "800 cycles", "integration", 800, None),
     ("prf", "500kHz", "period", 160, None),
-    ("prf", 250000, "period", 320, None),            # a bare frequency is in hertz
+    ("prf", "250e3Hz", "period", 320, None),
     ("period_cycles", "0x50", "period", 80, None),
     ("aggressor_prf", "1.1MHz", "aggressor_period", 73,
      "--aggressor-prf 1.1MHz is a period of 72.73 clock cycles: using 73 cycles, 1.096 MHz"),

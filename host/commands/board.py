@@ -62,10 +62,13 @@ def register(subparsers, formatter):
 def run_board(args):
     try:
         baud = parse_baud(args.baud)
-        ambient_hz = parse_frequency(args.ambient)
         faults = faults_from_args(args)
     except ValueError as error:
         raise UserError(str(error)) from None
+    try:
+        ambient_hz = parse_frequency(args.ambient)
+    except ValueError as error:
+        raise UserError(f"--ambient {args.ambient}: {error}") from None
     if args.reset_after is not None and args.reset_after < 1:
         raise UserError(f"--reset-after must be at least 1, not {args.reset_after}")
     board = VirtualBoard(args.sim, baud=baud, target_m=args.target_m, ambient_hz=ambient_hz,

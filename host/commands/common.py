@@ -140,16 +140,16 @@ def parse_times(texts, flag):
         raise UserError(f"{flag}: {error}") from None
 
 
-def _parse_frequency(text):
+def _parse_frequency(text, flag):
     try:
         return parse_frequency(text)
     except ValueError as error:
-        raise UserError(str(error)) from None
+        raise UserError(f"{flag} {text}: {error}") from None
 
 
 def timing_from_args(args):
-    clock_hz = _parse_frequency(args.clock)
-    prf_hz = _parse_frequency(args.prf)
+    clock_hz = _parse_frequency(args.clock, "--clock")
+    prf_hz = _parse_frequency(args.prf, "--prf")
     try:
         return clock_hz, period_cycles(clock_hz, prf_hz)
     except ValueError as error:
@@ -158,6 +158,6 @@ def timing_from_args(args):
 
 def add_timing_options(parser):
     parser.add_argument("--clock", default=f"{DEFAULT_CLOCK_HZ // 1_000_000}MHz", metavar="HZ",
-                        help="system clock frequency (80MHz, 79.5e6, ...)")
+                        help="system clock frequency (80MHz, 79.5MHz, ...)")
     parser.add_argument("--prf", default=f"{DEFAULT_PRF_HZ // 1_000_000}MHz", metavar="HZ",
                         help="nominal pulse repetition frequency")

@@ -58,6 +58,9 @@ def run(args):
     output = check_output_dir(args.output)
     try:
         clock_hz = parse_frequency(args.clock)
+    except ValueError as error:
+        raise UserError(f"--clock {args.clock}: {error}") from None
+    try:
         baud = parse_baud(args.baud)
         period_cycles(clock_hz, DEFAULT_PRF_HZ)
         bit_cycles(clock_hz, baud)   # check before the top level is made
