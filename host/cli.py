@@ -9,6 +9,7 @@ Each sub-command lives in its own module of :mod:`fliss.host.commands`, which pr
 import argparse
 import importlib
 import logging
+import re
 import sys
 import warnings
 
@@ -43,8 +44,25 @@ class _Formatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescription
     pass
 
 
+#: A negative quantity, with or without its unit (``-5ms``, ``-1e6Hz``, ``-.5``): no option of
+#: ``fliss`` looks like one.
+_NEGATIVE = re.compile(r"-\.?\d\S*")
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument parser that takes a negative quantity as a value (``--integration -5ms``,
+    ``--range -5ns 200ns``), so that the option's own check refuses it with its reason
+    (``must be positive``); argparse takes only bare negative numbers so, and ``-5ms`` for an
+    option (``expected one argument``). Its sub-command parsers are of this class too."""
+
+    def _parse_optional(self, arg_string):
+        if _NEGATIVE.fullmatch(arg_string):
+            return None         # a value, not an option
+        return super()._parse_optional(arg_string)
+
+
 def build_parser():
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="fliss", formatter_class=_Formatter,
         description="FLISS: LiDAR interference suppression by pseudorandom pulse delays.")
     parser.add_argument("--version", action="version", version=f"fliss {__version__}")

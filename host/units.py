@@ -12,14 +12,16 @@ _FREQUENCY = {"hz": 1, "khz": 1e3, "mhz": 1e6, "ghz": 1e9}
 _TIME = {"s": 1, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "ns": 1e-9, "ps": 1e-12}
 
 
-def _parse(text, units, what, example):
+def _parse(text, units, what, example, zero=False):
     match = re.fullmatch(_NUMBER + r"\s*([a-zµ]*)", str(text).strip(), flags=re.IGNORECASE)
     if match is not None and not match.group(2) and "" not in units:
         raise ValueError(f"give a unit: {example}")
     if match is None or match.group(2).lower() not in units:
         raise ValueError(f"cannot read {text!r} as a {what} (for example {example})")
     value = float(match.group(1)) * units[match.group(2).lower()]
-    if not value > 0:
+    if zero and not value >= 0:
+        raise ValueError(f"{what} must not be negative, not {text!r}")
+    if not zero and not value > 0:
         raise ValueError(f"{what} must be positive, not {text!r}")
     return value
 
@@ -31,9 +33,10 @@ def parse_frequency(text):
     return int(value) if value == int(value) else value
 
 
-def parse_time(text):
-    """Time in seconds from ``"10ms"``, ``"75ns"``, ``"1.5s"``; the unit is required."""
-    return _parse(text, _TIME, "time", "10ms or 75ns")
+def parse_time(text, *, zero=False):
+    """Time in seconds from ``"10ms"``, ``"75ns"``, ``"1.5s"``; the unit is required. A time
+    must be positive, or with ``zero`` not negative (``"0ns"``: the TDC start)."""
+    return _parse(text, _TIME, "time", "10ms or 75ns", zero=zero)
 
 
 _BAUD = {"": 1, "k": 1e3, "m": 1e6, "kbaud": 1e3, "mbaud": 1e6, "baud": 1, "bd": 1}

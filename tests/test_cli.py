@@ -84,6 +84,8 @@ def test_prf_table_grid_mode_keeps_nominal_prf(capsys):
     (["sequence", "--count", "-1"], "--count must not be negative, not -1"),
     (["sequence", "--grid", "--length", "8", "--times"], "Grid mode needs the largest delay"),
     (["prf-table", "--clock=-80MHz"], "frequency must be positive"),
+    (["prf-table", "--clock", "-80MHz"], "--clock -80MHz: frequency must be positive, not "
+                                         "'-80MHz'"),
     (["sequence", "--prf", "1"], "--prf 1: give a unit: 80MHz, 1kHz or 1e6Hz"),
     (["prf-table", "--clock", "80e6"], "--clock 80e6: give a unit: 80MHz, 1kHz or 1e6Hz"),
     (["prf-table", "--lengths", "1"], "LFSR length must be an integer from 2 to 32, not 1"),

@@ -91,9 +91,7 @@ PARSE_ONLY = [
 ]
 
 #: Examples that fail by a bug being fixed elsewhere: where (the case id) -> the bug.
-KNOWN_BUGS = {
-    "fliss plot --help: --range 0ns 200ns": "plot --range refuses 0ns ('time must be positive')",
-}
+KNOWN_BUGS = {}
 
 
 def parse_only_reason(argv):

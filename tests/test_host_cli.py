@@ -99,6 +99,11 @@ def test_config_round_trip(model, capsys):
                         "or 1e6Hz)"),
     (["--integration", "1ps"], "--integration 1ps: shorter than one clock cycle (12.5 ns)"),
     (["--integration", "10"], "--integration 10: give a unit: 10ms, or 800cycles"),
+    # A negative value is the option's value, refused by its check (not argparse's "expected
+    # one argument").
+    (["--integration", "-5ms"], "--integration -5ms: time must be positive, not '-5ms'"),
+    (["--aggressor-offset", "-.5us"],
+     "--aggressor-offset -.5us: time must be positive, not '-.5us'"),
     # A frequency too: 1 would be 1 Hz, a period of 80 000 000 cycles.
     (["--prf", "1"], "--prf 1: give a unit: 80MHz, 1kHz or 1e6Hz"),
     (["--aggressor-prf", "1e6"], "--aggressor-prf 1e6: give a unit: 80MHz, 1kHz or 1e6Hz"),
@@ -387,3 +392,58 @@ def test_events_dropped_on_the_board_are_reported(capsys, tmp_path):
 def _recorded(settings):
     """What a capture file keeps of the registers: all but the write-only key."""
     return {name: value for name, value in settings.items() if not BY_NAME[name].write_only}
+
+
+def _histogram_file(path):
+    # A histogram capture of 2 rows, bins of 4 codes (200 ps): a peak at bin 300 (60 ns).
+    from fliss.host.fileformat import CaptureWriter
+    from fliss.host.stream import HistogramFrame
+    identity = {"protocol": PROTOCOL_VERSION, "gateware_version": "1.0", "registers": 1,
+                "clock_hz": CLOCK_HZ, "baud": 12_000_000}
+    writer = CaptureWriter(path, mode="histogram", identity=identity,
+                           configuration=dict(defaults(CLOCK_HZ), bin_shift=SHIFT))
+    for frame in range(2):
+        counts = np.ones(8192 >> SHIFT, np.uint32)
+        counts[300] = 50
+        writer.add_histogram(HistogramFrame(frame, SHIFT, counts, True, 0, 1.0 + frame))
+    writer.close("completed")
+
+
+def test_plot_range_is_shown(capsys, tmp_path, monkeypatch):
+    # --range 0ns 200ns, plot's own example, shows 0 to 200 ns.
+    from matplotlib.figure import Figure
+    _histogram_file(tmp_path / "h.h5")
+    limits = []
+    save = Figure.savefig
+    monkeypatch.setattr(Figure, "savefig", lambda figure, *args, **kwargs: (
+        limits.append(figure.axes[0].get_xlim()), save(figure, *args, **kwargs)))
+    output = tmp_path / "h.png"
+    status, out, err = fliss(capsys, "plot", str(tmp_path / "h.h5"), "--range", "0ns", "200ns",
+                             "-o", str(output))
+    assert (status, out, err) == (0, f"wrote {output}\n", "")
+    assert limits == [pytest.approx((0.0, 200.0))]
+
+
+def test_plot_writes_the_file_named(capsys, tmp_path):
+    # -o without a suffix writes a PNG under the very name given (matplotlib would add .png).
+    _histogram_file(tmp_path / "h.h5")
+    output = tmp_path / "outfile"
+    status, out, err = fliss(capsys, "plot", str(tmp_path / "h.h5"), "-o", str(output))
+    assert (status, out, err) == (0, f"wrote {output}\n", "")
+    assert output.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert not (tmp_path / "outfile.png").exists()
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--range", "200ns", "0ns"], "--range 200ns 0ns: START (200 ns) must be before END (0 s)"),
+    (["--range", "100ns", "100ns"],
+     "--range 100ns 100ns: START (100 ns) must be before END (100 ns)"),
+    (["--range", "0", "200ns"], "--range 0 200ns: give a unit: 10ms or 75ns"),
+    (["--range", "-5ns", "200ns"], "--range -5ns 200ns: time must not be negative, not '-5ns'"),
+])
+def test_plot_range_refusals(capsys, tmp_path, argv, message):
+    _histogram_file(tmp_path / "h.h5")
+    status, out, err = fliss(capsys, "plot", str(tmp_path / "h.h5"), *argv,
+                             "-o", str(tmp_path / "x.png"))
+    assert (status, out, err) == (1, "", f"fliss: error: {message}\n")
+    assert not (tmp_path / "x.png").exists()

@@ -163,7 +163,8 @@ def test_plots_are_written(tmp_path, capsys):
     write_image(tmp_path / "a.h5", scene.histogram_frames(3))
     write_depth(tmp_path / "d.h5", scene.depth_frames(np.tile(TRUTH_M, (3, 1))))
     runs = [("a.h5", "a.png", []), ("a.h5", "grid.png", ["--frames", "grid"]),
-            ("d.h5", "d.png", ["--shape", "2x4"]), ("d.h5", "d.gif", ["--frames", "animation"])]
+            ("d.h5", "d.png", ["--shape", "2x4"]), ("d.h5", "d.gif", ["--frames", "animation"]),
+            ("d.h5", "outfile", [])]        # a PNG under the very name given
     for source, output, extra in runs:
         status, out, err = fliss(capsys, "plot", tmp_path / source, "-o", tmp_path / output,
                                  *extra)
@@ -172,6 +173,7 @@ def test_plots_are_written(tmp_path, capsys):
         head = (tmp_path / output).read_bytes()[:6]
         assert head in (b"GIF89a", b"GIF87a") if output.endswith(".gif") else \
             head.startswith(b"\x89PNG")
+    assert not (tmp_path / "outfile.png").exists()
 
 
 @pytest.mark.parametrize("extra, message", [

@@ -8,9 +8,10 @@ import numpy as np
 
 from ..analysis import analyze
 from ..errors import UserError
-from ..imager.report import plot_imager
+from ..imager.report import image_format, plot_imager
 from ..paths import check_output_path
 from ..plotting import legend_below, mark_peaks
+from ..units import format_time, parse_time
 from .common import parse_times, read_capture_file
 
 
@@ -36,7 +37,7 @@ def register(subparsers, formatter):
                         default=argparse.SUPPRESS, help="image to write")
     parser.add_argument("--log", action="store_true", help="logarithmic count axis")
     parser.add_argument("--range", nargs=2, metavar=("START", "END"),
-                        help="time range shown (e.g. 0ns 200ns)")
+                        help="time range shown, from the TDC start (e.g. 0ns 200ns)")
     parser.add_argument("--title", default=None, help="figure title")
     parser.add_argument("--victim-tof", metavar="TIME",
                         help="position of the victim's peak (e.g. 26.7ns), as for analyze")
@@ -76,7 +77,7 @@ def run_plot(args):
     if args.frames != "summary" or args.shape:
         raise UserError("--frames and --shape are for image and depth captures (--readout "
                         "image or depth)")
-    window = parse_times(args.range, "--range") if args.range else None
+    window = _time_range(args.range) if args.range else None
     victim = parse_times([args.victim_tof], "--victim-tof")[0] if args.victim_tof else None
     aggressors = parse_times(args.aggressor_tof, "--aggressor-tof")
     figure, axes = plt.subplots(figsize=(9, 5), layout="constrained")
@@ -109,7 +110,7 @@ def run_plot(args):
     if args.title:
         axes.set_title(args.title)
     try:
-        figure.savefig(args.output, dpi=120)
+        figure.savefig(args.output, dpi=120, format=image_format(args.output))
     except OSError as error:
         raise UserError(f"cannot write {args.output}: {error.strerror or error}") from None
     finally:
@@ -139,3 +140,17 @@ def _peaks(histogram, capture, victim_s, aggressors_s):
     return f": S {'>=' if result.limited else '='} {result.s_db:.1f} dB", [
         (peak.position_s * 1e9, level + peak.height,
          f"{name} {peak.position_s * 1e9:.1f} ns{detail}") for peak, name, detail in named]
+
+
+def _time_range(texts):
+    """(start, end) in seconds of ``--range START END``: times from the TDC start, the start
+    before the end."""
+    said = f"--range {' '.join(texts)}"
+    try:
+        start, end = (parse_time(text, zero=True) for text in texts)
+    except ValueError as error:
+        raise UserError(f"{said}: {error}") from None
+    if not start < end:
+        raise UserError(f"{said}: START ({format_time(start)}) must be before END "
+                        f"({format_time(end)})")
+    return start, end

@@ -12,7 +12,7 @@ from ..errors import UserError
 from .analysis import as_records, capture_table, frame_depths
 
 
-__all__ = ["table_lines", "table_record", "parse_shape", "plot_imager"]
+__all__ = ["table_lines", "table_record", "parse_shape", "plot_imager", "image_format"]
 
 
 def table_lines(capture, rows):
@@ -205,10 +205,16 @@ def _intensity_panel(figure, axis, pixels, intensity):
     figure.colorbar(picture, ax=axis)
 
 
+def image_format(output):
+    """The image format of the file ``output``: its suffix, or PNG when it has none (then
+    written under the name given: matplotlib would add ``.png``)."""
+    return os.path.splitext(output)[1].lower().lstrip(".") or "png"
+
+
 def _save(figure, output, plt):
     figure.tight_layout()
     try:
-        figure.savefig(output, dpi=110)
+        figure.savefig(output, dpi=110, format=image_format(output))
     except OSError as error:
         raise UserError(f"cannot write {output}: {error.strerror or error}") from None
     finally:
