@@ -38,7 +38,8 @@ def test_attack_json_small_budget(capsys):
     (["--missed", "1.5"], "--missed must be a fraction"),
     (["--pulses", "1.5"], "Pulse count must be a positive whole number"),
     (["--pulses", "lots"], "Pulse count must be a whole number"),
-    (["--jitter", "100"], "time"),
+    (["--jitter", "100"], "--jitter 100: give a unit: 10ms or 75ns"),
+    (["--jitter", "-1ps"], "--jitter -1ps: time must not be negative, not '-1ps'"),
     (["--ghost-m", "-3"], "--ghost-m must be from 0 to 60 m"),
     (["--sources", "off,lfsr"], "'lfsr' is not one of"),
     (["--lengths", "40"], "L must be from 2 to 32"),
@@ -56,3 +57,18 @@ def test_attack_bad_options(capsys, argv, message):
     assert main(["attack", "--table", "-", "--figure", "-", *argv]) == 1
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and message in err, err
+
+
+def test_attack_json_writes_only_what_is_asked(tmp_path, monkeypatch, capsys):
+    # With --json the table goes to stdout: no attack.txt nor attack.png in the current folder,
+    # only the outputs named.
+    monkeypatch.chdir(tmp_path)
+    budget = ["--sources", "off", "--pulses", "2000", "--scene-pulses", "2000",
+              "--acquisition-pulses", "1000", "--no-unknown-taps"]
+    assert main(["attack", "--json", *budget]) == 0
+    rows = json.loads(capsys.readouterr().out)
+    assert [row["mode"] for row in rows] == ["off"]
+    assert list(tmp_path.iterdir()) == []
+    assert main(["attack", "--json", *budget, "--table", "t.txt"]) == 0
+    capsys.readouterr()
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["t.txt"]

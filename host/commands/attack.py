@@ -7,6 +7,7 @@ as an aggressor at the ghost's distance, and the peak finder measures the ghost'
 ``S = 10 log10(Pv / P_ghost)``. See ``docs/security.md``.
 """
 
+import argparse
 import json
 import math
 import os
@@ -365,11 +366,15 @@ def register(subparsers, formatter):
                         help="distance of the ghost target the attacker creates")
     parser.add_argument("--no-unknown-taps", action="store_true",
                         help="skip the second attacker that does not use the polynomial table")
-    parser.add_argument("--table", default="attack.txt", metavar="PATH",
-                        help="table output ('-': none)")
-    parser.add_argument("--figure", default="attack.png", metavar="PATH",
-                        help="figure output ('-': none)")
-    parser.add_argument("--json", action="store_true", help="print the table as JSON")
+    parser.add_argument("--table", default=argparse.SUPPRESS, metavar="PATH",
+                        help="table output ('-': none; attack.txt if not given, except with "
+                             "--json)")
+    parser.add_argument("--figure", default=argparse.SUPPRESS, metavar="PATH",
+                        help="figure output ('-': none; attack.png if not given, except with "
+                             "--json)")
+    parser.add_argument("--json", action="store_true",
+                        help="print the table as JSON, and write only the outputs asked for "
+                             "(--table, --figure)")
     parser.set_defaults(run=run)
 
 
@@ -391,11 +396,9 @@ def _arguments(args):
     if not math.isfinite(args.missed) or not 0 <= args.missed < 1:
         raise UserError(f"--missed must be a fraction from 0 to below 1, not {args.missed:g}")
     try:
-        args.jitter_s = parse_time(args.jitter)
+        args.jitter_s = parse_time(args.jitter, zero=True)
     except ValueError as error:
-        raise UserError(str(error)) from None
-    if args.jitter_s < 0:
-        raise UserError(f"--jitter must not be negative, not {args.jitter}")
+        raise UserError(f"--jitter {args.jitter}: {error}") from None
     args.key = _hex80(args.key, "--key", "key")
     args.iv = _hex80(args.iv, "--iv", "IV")
     try:
@@ -406,6 +409,9 @@ def _arguments(args):
 
 def run(args):
     victims = _arguments(args)
+    # Files the command writes unasked, except with --json (whose output is the table).
+    for name, default in (("table", "attack.txt"), ("figure", "attack.png")):
+        setattr(args, name, getattr(args, name, "-" if args.json else default))
     # Outputs are checked before minutes of work; they are replaced as plot's are.
     if args.table != "-":
         check_output_path(args.table, overwrite=None, flag="--table")
