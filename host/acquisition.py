@@ -190,6 +190,9 @@ def check_reset(board: BoardClient, before: dict, now: dict) -> None:
                      f"reads protocol {identity.protocol}, gateware {identity.gateware_version}")
 
 
+#: What the progress line's rates are per second of.
+_HOST_CLOCK = "(host clock)"
+
 #: Capture modes that save frames (one row each), and what a row is called.
 _FRAMED = {"histogram": "histograms", "image": "images", "depth": "depth frames"}
 
@@ -361,16 +364,17 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
             elapsed = now - started
             link = board.link_counters()
             damaged = f"{link['dropped_frames']} corrupt, {link['missing_packets']} lost"
+            # Rates are per second of the host's clock, which a simulated board lags behind.
             if mode in _FRAMED:
                 # (a depth frame carries no event count: its pace is in frames)
                 pace = (f"{rows.saved / elapsed:.1f} frames/s" if mode == "depth" and elapsed > 0
                         else rate(state["events"], elapsed))
-                bar.update(rows.saved, f"{pace}  link: {damaged}")
+                bar.update(rows.saved, f"{pace} {_HOST_CLOCK}  link: {damaged}")
                 if rows.done:
                     break
             else:
                 bar.update(min(elapsed, duration_s),
-                           f"{rate(state['events'], elapsed)}  link: {damaged}")
+                           f"{rate(state['events'], elapsed)} {_HOST_CLOCK}  link: {damaged}")
                 if elapsed >= duration_s:
                     break
             if now - heartbeat >= HEARTBEAT_S:

@@ -32,12 +32,14 @@ from typing import Any, Iterator, Mapping, Optional
 
 import numpy as np
 
+from ..hdl.delay.settings import mean_delay
 from ..hdl.protocol import DEFAULT_BAUD, HISTOGRAM_COUNT_BITS
 from ..hdl.registers import BY_NAME, AcquisitionMode
 from ..protocol.events import EVENT_DTYPE
 from .client import BoardClient, IdentityInfo
 from .errors import BoardLost, BoardMismatch, BoardRefused, SettingsError
 from .imager.results import DepthFrames, Images, acquire_depth, acquire_image
+from .paths import check_output_path
 from .results import Events, Histogram, Histograms
 from .settings import (DEFAULT_BANK_BITS, Conversion, RoundingWarning, Settings, convert, describe,
                        duration_s)
@@ -362,18 +364,23 @@ class Board:
         return acquire_depth(self, n, timeout_s=timeout_s)
 
     def acquire_raw(self, duration: str) -> Events:
-        """Every event for ``duration`` (with a unit: ``"100ms"``), in raw readout.
+        """Every event for ``duration`` (with a unit: ``"100ms"``) of the host's clock, in raw
+        readout.
 
         The board sends events in blocks of the integration time; a block in progress at the
-        end is sent when the board stops and is kept.
+        end is sent when the board stops and is kept. A simulated board, slower than real
+        time, acquires for less than ``duration``: ``duration_s`` of the result is the board's
+        time.
 
         Returns
         -------
         Events
-            The events as a structured array, with their time axis and the board's drops.
+            The events as a structured array, with their time axis, the board's drops, the
+            pulses it fired and its time they span.
         """
         duration_s = _duration(duration)
         start = self.client.status()
+        registers = self.client.read_registers()
         settings = self._start(AcquisitionMode.RAW)
         batches = []
         started = heartbeat = time.monotonic()
@@ -388,26 +395,36 @@ class Board:
                 if now - heartbeat >= HEARTBEAT_S:
                     heartbeat = now
                     self.client.status()
-        elapsed = time.monotonic() - started
         end = self.client.status()
         dropped = sum(end[name] - start[name] for name in ("dropped_fifo", "dropped_overrun"))
         events = np.concatenate(batches) if batches else np.zeros(0, EVENT_DTYPE)
-        return Events(events=events, duration_s=elapsed, dropped=int(dropped), settings=settings)
+        # (the board's pulse count starts again at START)
+        return Events(events=events, duration_s=float(end["pulses"] * _mean_interval(registers)
+                                                      / self.clock_hz),
+                      dropped=int(dropped), settings=settings, pulses=end["pulses"])
 
     def capture(self, path: str, *, acquisitions: int = 10, duration: str = "1s",
-                progress=None, image: Optional[bool] = None):
+                progress=None, image: Optional[bool] = None, overwrite: bool = False):
         """Capture into an HDF5 file (docs/file-format.md) at the board's settings: its
         readout (``acquisitions`` histograms or depth frames, or raw events for ``duration``),
         its integration time; the file records the registers used. Histograms are saved per
         pixel (``image``) when ``image`` is True, or None and a frame has several pixels.
-        ``progress`` as in :func:`fliss.host.acquisition.capture`.
+        ``progress`` as in :func:`fliss.host.acquisition.capture`. An existing file is
+        replaced only with ``overwrite``.
 
         Returns
         -------
         CaptureResult
+
+        Raises
+        ------
+        PathError
+            ``path`` exists (without ``overwrite``) or cannot be written; nothing is started.
         """
         from .acquisition import capture
 
+        check_output_path(path, overwrite=overwrite, flag="path",
+                          overwrite_flag="overwrite=True")
         duration_s = _duration(duration)
         registers = self.client.read_registers()
         readout = AcquisitionMode(registers["acquisition"]).name.lower()
@@ -421,3 +438,12 @@ class Board:
 
 def _duration(value):
     return duration_s(value, f"duration={value!r}")
+
+
+def _mean_interval(registers):
+    """Mean clock cycles between two of the victim's pulses at ``registers``: the period, plus
+    the mean delay in interval mode (in grid mode pulse ``k`` fires at ``k T + R``)."""
+    if registers["grid"]:
+        return registers["period"]
+    return registers["period"] + mean_delay(registers["delay_mode"], registers["length"],
+                                            registers["mask_width"])

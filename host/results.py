@@ -90,16 +90,22 @@ class Events:
         A structured array (:data:`fliss.protocol.events.EVENT_DTYPE`): ``timestamp`` (TDC codes),
         ``address`` (pixel), ``collision``, ``pulse`` (laser cycle index).
     duration_s : float
-        How long events were read, in seconds.
+        The board's time the acquisition spans, in seconds: the pulses it fired times their
+        mean interval (the period, plus the mean delay in interval mode). On the model board
+        and a real board about the ``duration`` asked for; a simulated board, slower than real
+        time, acquires for less.
     dropped : int
         Events the board dropped (its raw FIFO full: the link was too slow).
     settings : Settings
         The board's settings during the acquisition.
+    pulses : int
+        Laser pulses the board fired during the acquisition (its STATUS ``pulses``).
     """
     events: np.ndarray
     duration_s: float
     dropped: int
     settings: Settings
+    pulses: int = 0
 
     @property
     def time_s(self) -> np.ndarray:

@@ -12,7 +12,7 @@ from fliss.host.acquisition import capture
 from fliss.host.board import Board, Events, Histogram, Histograms
 from fliss.host.errors import UserError
 from fliss.host.client import BoardClient
-from fliss.host.errors import BoardError, BoardLost, SettingsError
+from fliss.host.errors import BoardError, BoardLost, PathError, SettingsError
 from fliss.host.fileformat import read_capture
 from fliss.host.settings import RoundingWarning
 from fliss.sim.boards.model import model_board
@@ -137,7 +137,8 @@ def test_acquire_raw_matches_the_scene(model, board, capsys):
     np.testing.assert_array_equal(result.events, expected[:len(result)])
     np.testing.assert_allclose(result.time_s, result.events["timestamp"] * 50e-12)
     assert result.time_s.min() >= 10e-9 and result.time_s.max() <= 300e-9
-    assert result.dropped == 0 and result.duration_s >= 0.2
+    # (the board's time: the model board may fall behind the wall clock)
+    assert result.dropped == 0 and 0 < result.duration_s <= 0.25
     assert board.settings["readout"] == "raw"
     with pytest.raises(SettingsError, match=r"^duration=0.2: give a unit: 100ms, or 2s$"):
         board.acquire_raw(0.2)
@@ -170,6 +171,36 @@ def test_capture_needs_no_identify_and_uses_the_board_settings(model, tmp_path, 
     assert saved.configuration["integration"] == 400_000
     assert saved.attrs["integration_s"] == pytest.approx(5e-3)
     assert capsys.readouterr() == ("", "")
+
+
+def test_capture_keeps_an_existing_file(model, board, tmp_path):
+    # As the command line refuses without --overwrite: the file is kept, the board not started.
+    path = tmp_path / "kept.h5"
+    path.write_bytes(b"precious")
+    starts = model.starts
+    with pytest.raises(PathError) as error:
+        board.capture(str(path), acquisitions=1)
+    assert str(error.value) == f"{path} exists (use overwrite=True to replace it)"
+    assert path.read_bytes() == b"precious" and model.starts == starts
+    board.configure(integration="1ms")
+    result = board.capture(str(path), acquisitions=1, overwrite=True)
+    assert result.complete and read_capture(path).histograms.shape[0] == 1
+
+
+@pytest.mark.parametrize("mode", ["off", "masked"])
+def test_acquire_raw_reports_the_board_time(model, board, mode):
+    # duration_s is the board's time its events span, not the host's time around the call
+    # (0.42 s for 100 ms): the clock cycles the model board simulated, which fires a pulse every
+    # T (+ R in interval mode) of them, and falls behind the wall clock when busy.
+    board.configure(mode=mode, mask_width=6, integration="2ms")
+    result = board.acquire_raw("100ms")
+    cycles = model._done_cycles                     # the board's time, simulated
+    assert result.pulses == model.status["pulses"] > 5_000
+    if mode == "off":
+        assert result.duration_s == result.pulses * 80 / CLOCK_HZ      # 1 µs a pulse
+    # (masked, Wm = 6: 80 + 31.5 cycles a pulse on average)
+    assert result.duration_s == pytest.approx(cycles / CLOCK_HZ, rel=0.01)
+    assert 0.005 < result.duration_s <= 0.12
 
 
 def test_context_manager_closes_the_port(model):

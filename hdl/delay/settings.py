@@ -5,6 +5,8 @@ A definitions module: it imports no gateware, so :mod:`.registers` can build the
 from it and the blocks (:mod:`.lfsr`, :mod:`.delay`, :mod:`.scheduler`) can import it.
 """
 
+from fractions import Fraction
+
 from amaranth.lib import enum
 
 
@@ -12,7 +14,7 @@ __all__ = ["MIN_LENGTH", "MAX_LENGTH", "MAX_MASK_WIDTH", "MASKED_LENGTH", "MASKE
            "KEY_BITS", "IV_BITS", "KEYED_ROUNDS", "KEYED_INIT_CYCLES", "KEYED_START_CYCLES",
            "DELAY_WIDTH", "PERIOD_WIDTH",
            "PULSE_WIDTH_WIDTH", "BANK_BITS", "MIN_BANK_BITS", "MAX_BANK_BITS", "DelayMode",
-           "check_widths"]
+           "check_widths", "mean_delay"]
 
 
 #: Shortest and longest supported register of the m-sequence source, in bits.
@@ -97,3 +99,25 @@ def check_widths(period_width, pulse_width_width):
     if not isinstance(pulse_width_width, int) or not 1 <= pulse_width_width <= PULSE_WIDTH_WIDTH:
         raise ValueError(f"Pulse width width must be an integer from 1 to {PULSE_WIDTH_WIDTH} "
                          f"bits, not {pulse_width_width!r}")
+
+
+def mean_delay(mode, length, mask_width):
+    """Mean delay of a source over one whole sequence period, in clock cycles, as an exact
+    fraction (settings as the registers hold them, not checked: see
+    :func:`fliss.sim.models.delay.mean_delay`).
+
+    ``mseq``: the states ``1 … 2**L - 1`` each once, so ``R`` averages ``2**(L-1) - 1``.
+    ``masked``: over the ``2**32 - 1`` non-zero states, each non-zero value of the low ``Wm``
+    bits occurs ``2**(32-Wm)`` times and zero ``2**(32-Wm) - 1`` times.
+    ``keyed``: that of uniform ``Wm``-bit delays, ``(2**Wm - 1) / 2`` (an ideal keystream's).
+    """
+    mode = DelayMode(mode)
+    if mode == DelayMode.KEYED:
+        return Fraction((1 << mask_width) - 1, 2)
+    if mode == DelayMode.MSEQ:
+        return Fraction((1 << length) - 2, 2)
+    if mode == DelayMode.MASKED:
+        per_value = 1 << (MASKED_LENGTH - mask_width)
+        total = per_value * ((1 << mask_width) - 1) * (1 << mask_width) // 2
+        return Fraction(total, (1 << MASKED_LENGTH) - 1)
+    return Fraction(0)

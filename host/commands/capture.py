@@ -41,7 +41,7 @@ def register(subparsers, formatter):
     parser.add_argument("--acquisitions", type=int, default=10, metavar="N",
                         help="frames to capture (histogram, image and depth readouts)")
     parser.add_argument("--duration", default="1s", metavar="TIME",
-                        help="how long to capture (raw readout)")
+                        help="how long to capture, on the host's clock (raw readout)")
     parser.add_argument("--output", "-o", required=True, metavar="FILE.h5",
                         default=argparse.SUPPRESS,
                         help="HDF5 file to write")
@@ -75,7 +75,8 @@ def run(args):
         else:
             bar = Progress(round(duration_s(args.duration, ""), 1), "s", enabled=not quiet)
         result = board.capture(args.output, acquisitions=args.acquisitions,
-                               duration=args.duration, progress=bar, image=image)
+                               duration=args.duration, progress=bar, image=image,
+                               overwrite=args.overwrite)
     try:
         return report(result, quiet=quiet)
     except OSError:     # the terminal went away (SIGHUP); the file is saved all the same

@@ -4,6 +4,7 @@ import sys
 
 import numpy as np
 
+from ...hdl.delay import settings as _settings
 from ...hdl.delay.settings import DelayMode, MAX_LENGTH, MAX_MASK_WIDTH, MASKED_LENGTH, MASKED_STEPS
 from . import lfsr, trivium
 
@@ -102,24 +103,10 @@ def sequence_period(mode, *, length=None, mask_width=None):
 
 
 def mean_delay(mode, *, length=None, mask_width=None):
-    """Mean delay over one whole sequence period, in clock cycles, as an exact fraction.
-
-    ``mseq``: the states ``1 … 2**L - 1`` each once, so ``R`` averages ``2**(L-1) - 1``.
-    ``masked``: over the ``2**32 - 1`` non-zero states, each non-zero value of the low ``Wm``
-    bits occurs ``2**(32-Wm)`` times and zero ``2**(32-Wm) - 1`` times.
-    ``keyed``: that of uniform ``Wm``-bit delays, ``(2**Wm - 1) / 2`` (an ideal keystream's).
-    """
-    from fractions import Fraction
+    """Mean delay over one whole sequence period, in clock cycles, as an exact fraction
+    (:func:`fliss.hdl.delay.settings.mean_delay`, of checked settings)."""
     mode = _check_shape(mode, length, mask_width)
-    if mode == DelayMode.KEYED:
-        return Fraction((1 << mask_width) - 1, 2)
-    if mode == DelayMode.MSEQ:
-        return Fraction((1 << length) - 2, 2)
-    if mode == DelayMode.MASKED:
-        per_value = 1 << (MASKED_LENGTH - mask_width)
-        total = per_value * ((1 << mask_width) - 1) * (1 << mask_width) // 2
-        return Fraction(total, (1 << MASKED_LENGTH) - 1)
-    return Fraction(0)
+    return _settings.mean_delay(mode, length, mask_width)
 
 
 class DelayStream:
