@@ -5,7 +5,8 @@ built once per simulator into ``build/virtual-board/<sim>/`` (a build is reused 
 and build options are unchanged) and run by cocotb with the test module
 :mod:`fliss.sim.boards.virtual` in a process group of its own. That module opens a
 pseudo-terminal carrying the gateware's UART and feeds the sensor pins from the scene simulator
-in closed loop; ``build/virtual-board/tty`` links to its pty. Host tools then use it like a
+in closed loop; ``build/virtual-board/tty`` links to its pty (``tty-2``, ... for the
+boards started while it runs). Host tools then use it like a
 real board: ``fliss capture --port /dev/pts/N``.
 
 :class:`VirtualBoard` starts and stops one; :func:`start_virtual_board` is a context manager
@@ -31,7 +32,7 @@ from .errors import VirtualBoardError
 
 
 __all__ = ["VIRTUAL_BAUD", "SIMULATORS", "build_root", "build", "VirtualBoard",
-           "start_virtual_board"]
+           "start_virtual_board", "claim_link", "release_link"]
 
 
 logger = logging.getLogger(__name__)
@@ -235,6 +236,9 @@ class VirtualBoard:
         self.root = Path(root or build_root())
         self.folder = self.root / sim
         self.path = None
+        #: The link to the pty in ``root``: ``tty``, or ``tty-2``, ... when others are taken
+        #: (None: none could be made).
+        self.link = None
         self._process = None
         # Files of this instance: several boards may run from one build side by side.
         self.name = f"board-{os.getpid()}-{next(_instances)}"
@@ -294,22 +298,8 @@ class VirtualBoard:
                                         f"{self.folder / (self.name + '.log')}")
             time.sleep(0.05)
         self.path = pty_file.read_text().strip()
-        self._link()
+        self.link = claim_link(self.root, self.path)
         return self.path
-
-    def _link(self):
-        link = self.root / "tty"
-        temporary = self.root / "tty.new"
-        with contextlib.suppress(OSError):
-            temporary.unlink(missing_ok=True)
-            temporary.symlink_to(self.path)
-            os.replace(temporary, link)
-
-    def _unlink(self):
-        link = self.root / "tty"
-        with contextlib.suppress(OSError):
-            if os.readlink(link) == self.path:
-                link.unlink()
 
     def last_log_line(self):
         """The last error line of the simulation's logs, with the log's path."""
@@ -349,8 +339,9 @@ class VirtualBoard:
                 with contextlib.suppress(ProcessLookupError):
                     os.killpg(process.pid, signal.SIGKILL)
                 process.wait()
-        if self.path is not None:
-            self._unlink()
+        if self.link is not None:
+            release_link(self.link, self.path)
+            self.link = None
         suffixes = [".pty", ".stats.json", ".results.xml", ".reset"]
         if not keep_logs:
             suffixes += [".log", ".launcher.log"]
@@ -364,6 +355,35 @@ class VirtualBoard:
 
     def __exit__(self, *exc):
         self.stop()
+
+
+def claim_link(root, path):
+    """Link ``path`` (a board's pty) as ``root/tty``, or as ``tty-2``, ``tty-3``, ... when a
+    running board holds that name (a link to a pty that is gone is taken over); returns the
+    link, or None if none can be made."""
+    for number in itertools.count(1):
+        link = Path(root) / ("tty" if number == 1 else f"tty-{number}")
+        try:
+            link.symlink_to(path)           # (atomic: two boards never take one name)
+            return link
+        except FileExistsError:
+            if link.is_symlink() and not link.exists():     # a board that is gone
+                with contextlib.suppress(FileNotFoundError):
+                    link.unlink()
+                try:
+                    link.symlink_to(path)
+                    return link
+                except FileExistsError:     # another board took it meanwhile
+                    continue
+        except OSError:
+            return None
+
+
+def release_link(link, path):
+    """Remove ``link`` if it still points to ``path``."""
+    with contextlib.suppress(OSError):
+        if os.readlink(link) == path:
+            link.unlink()
 
 
 @contextlib.contextmanager

@@ -26,7 +26,8 @@ def register(subparsers, formatter):
         description="Generates the Verilog of the FLISS top level, builds it once for the "
                     "simulator (build/virtual-board/SIM/), runs it with the scene simulator on "
                     "its sensor pins in closed loop, and prints the path of a pseudo-terminal "
-                    "carrying its UART (also linked as build/virtual-board/tty). Use that path "
+                    "carrying its UART (also linked as build/virtual-board/tty, or tty-2, ... "
+                    "while other boards run: it says which). Use that path "
                     "as --port of the other commands. Runs until Ctrl-C. The simulation runs "
                     "about a thousand times slower than a real board: keep integration times "
                     "to a few ms and use a bin shift.")
@@ -95,13 +96,13 @@ def run_board(args):
         if faults is not None:
             line = NoisyLine(path, to_host=faults[0], to_board=faults[1], seed=args.line_seed)
             print(line.open(), flush=True)
-            print(f"fliss: virtual board ({args.sim}, {baud} baud) on {path} (link "
-                  f"{board.root / 'tty'}), behind a noisy line on {line.path}; Ctrl-C stops it",
+            print(f"fliss: virtual board ({args.sim}, {baud} baud) on {path}{_link(board)}, "
+                  f"behind a noisy line on {line.path}; Ctrl-C stops it",
                   file=sys.stderr, flush=True)
         else:
             print(path, flush=True)
-            print(f"fliss: virtual board ({args.sim}, {baud} baud) on {path} "
-                  f"(link {board.root / 'tty'}); Ctrl-C stops it", file=sys.stderr, flush=True)
+            print(f"fliss: virtual board ({args.sim}, {baud} baud) on {path}{_link(board)}; "
+                  f"Ctrl-C stops it", file=sys.stderr, flush=True)
         last = time.monotonic()
         previous = {}
         while True:
@@ -128,3 +129,8 @@ def run_board(args):
             line.close()
             print(f"fliss: noisy line: {describe(line)}", file=sys.stderr)
         board.stop()
+
+
+def _link(board):
+    # " (link build/virtual-board/tty-2)": this board's own link to its pty, if it has one
+    return "" if board.link is None else f" (link {board.link})"
