@@ -1,5 +1,6 @@
 """The Python model board's STATUS against the gateware's rules."""
 
+import argparse
 import time
 
 import numpy as np
@@ -8,7 +9,8 @@ import pytest
 from fliss.host.client import BoardClient
 from fliss.host.stream import EventBatch
 from fliss.sim.models.command import CommandModel
-from fliss.sim.boards.model import main, model_board, scene_for
+from fliss.host.cli import main as fliss_main
+from fliss.sim.boards.model import build_parser, main, model_board, scene_for
 from fliss.sim.scene import Scene, line_pixels
 
 
@@ -65,3 +67,26 @@ def test_command_line_refuses_a_bad_scene(capsys):
     assert capsys.readouterr().err.splitlines()[-1] == (
         "python -m fliss.sim.boards.model: error: Object distance (m) must be a finite positive "
         "number, not 0.0")
+
+
+def _options(parser):
+    return {option for action in parser._actions for option in action.option_strings}
+
+
+def test_the_model_board_takes_the_options_of_fliss_board(capsys):
+    # One name per setting: every option of the model board is fliss board's, which has only
+    # the simulator's own besides.
+    from fliss.host.commands import board as board_command
+    commands = argparse.ArgumentParser().add_subparsers()
+    board_command.register(commands, argparse.HelpFormatter)
+    model, board = _options(build_parser()), _options(commands.choices["board"])
+    assert model - board == set()
+    assert board - model == {"--sim", "--baud"}
+    # A rate takes its unit in both.
+    message = "--ambient 1e5: give a rate with its unit, not negative: 100kHz, 1e5Hz or 0Hz"
+    with pytest.raises(SystemExit):
+        main(["--ambient", "1e5"])
+    assert capsys.readouterr().err.splitlines()[-1] == \
+        f"python -m fliss.sim.boards.model: error: {message}"
+    assert fliss_main(["board", "--ambient", "1e5"]) == 1
+    assert capsys.readouterr().err == f"fliss: error: {message}\n"

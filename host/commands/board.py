@@ -7,9 +7,9 @@ import sys
 import time
 
 from ...sim.boards.noisy_line import NoisyLine, add_line_arguments, describe, faults_from_args
-from ...sim.scene.pixels import SCENE_NAMES, SENSOR_KINDS
+from ...sim.boards.options import add_scene_arguments, rate_hz
 from ..errors import UserError
-from ..units import parse_baud, parse_frequency
+from ..units import parse_baud
 from ..virtual import SIMULATORS, VirtualBoard
 
 
@@ -34,25 +34,7 @@ def register(subparsers, formatter):
     parser.add_argument("--sim", choices=SIMULATORS, default="verilator",
                         help="simulator")
     parser.add_argument("--baud", default="12M", help="UART baud rate of the gateware")
-    parser.add_argument("--target-m", type=float, default=4.0, metavar="M",
-                        help="distance of the victim's target, metres")
-    parser.add_argument("--ambient", default="100kHz", metavar="HZ",
-                        help="background photon rate at the pixel (ambient light, dark counts)")
-    parser.add_argument("--signal", type=float, default=0.05, metavar="PHOTONS",
-                        help="mean detected echo photons per victim pulse")
-    parser.add_argument("--aggressor-signal", type=float, default=0.05, metavar="PHOTONS",
-                        help="mean detected photons per aggressor pulse")
-    parser.add_argument("--seed", type=int, default=None, help="seed of the photon statistics")
-    parser.add_argument("--scene", choices=SCENE_NAMES, default="single",
-                        help="single: one pixel looking at the target (the paper's bench); "
-                             "line: a column of 60 pixels looking at a wall --target-m away "
-                             "with an object --object-m away before pixels 20 to 39")
-    parser.add_argument("--sensor", choices=SENSOR_KINDS, default="column",
-                        help="sensor of the line scene: column (the paper's: one event per "
-                             "laser cycle, from the pixel that fired last, with a collision "
-                             "flag) or per_pixel (one TDC per pixel)")
-    parser.add_argument("--object-m", type=float, default=2.5, metavar="M",
-                        help="distance of the line scene's object, metres")
+    add_scene_arguments(parser)
     parser.add_argument("--reset-after", type=int, default=None, metavar="PACKETS",
                         help="reset the gateware (a power cycle) once, after this many data "
                              "packets to the host; SIGUSR1 to this process resets it too")
@@ -67,9 +49,9 @@ def run_board(args):
     except ValueError as error:
         raise UserError(str(error)) from None
     try:
-        ambient_hz = parse_frequency(args.ambient)
+        ambient_hz = rate_hz(args.ambient)
     except ValueError as error:
-        raise UserError(f"--ambient {args.ambient}: {error}") from None
+        raise UserError(str(error)) from None
     if args.reset_after is not None and args.reset_after < 1:
         raise UserError(f"--reset-after must be at least 1, not {args.reset_after}")
     board = VirtualBoard(args.sim, baud=baud, target_m=args.target_m, ambient_hz=ambient_hz,

@@ -46,11 +46,13 @@ from ..models.delay import DelayMode
 from ..models.depth import depth_frame
 from ...protocol.depth import depth_payload
 from .noisy_line import NoisyLine, add_line_arguments, describe, faults_from_args
+from .options import add_scene_arguments, rate_hz
 from .pty_server import PtyServer
-from ..scene import SCENE_NAMES, SENSOR_KINDS, Aggressor, Scene, pixels_named, simulation_for
+from ..scene import Aggressor, Scene, pixels_named, simulation_for
 
 
-__all__ = ["DEFAULT_BAUD", "BACKLOG_BYTES", "ModelBoard", "scene_for", "model_board", "main"]
+__all__ = ["DEFAULT_BAUD", "BACKLOG_BYTES", "ModelBoard", "scene_for", "model_board",
+           "build_parser", "main"]
 
 
 #: While more bytes than this wait to go out, the model simulates no further: a host slower
@@ -387,31 +389,23 @@ def model_board(**options):
         board.close()
 
 
-def main(argv=None):
+def build_parser():
+    """The command line of ``python -m fliss.sim.boards.model``: the scene and line options of
+    ``fliss board``, by the same names."""
     parser = argparse.ArgumentParser(
         prog="python -m fliss.sim.boards.model",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
         description="Serve a Python model of a FLISS board on a pseudo-terminal and print its "
                     "path; stop with Ctrl-C.")
-    parser.add_argument("--distance-m", type=float, default=4.0, help="target distance")
-    parser.add_argument("--signal", type=float, default=0.05,
-                        help="victim detections per pulse")
-    parser.add_argument("--aggressor-signal", type=float, default=0.05,
-                        help="aggressor detections per pulse")
-    parser.add_argument("--background-hz", type=float, default=1e5, help="background rate")
-    parser.add_argument("--seed", type=int, default=0, help="photon statistics seed")
-    parser.add_argument("--scene", choices=SCENE_NAMES, default="single",
-                        help="single: one pixel at --distance-m; line: 60 pixels looking at a "
-                             "wall --distance-m away, an object --object-m away before pixels "
-                             "20 to 39")
-    parser.add_argument("--sensor", choices=SENSOR_KINDS, default="column",
-                        help="sensor of the line scene: one TDC for the column, or one per "
-                             "pixel")
-    parser.add_argument("--object-m", type=float, default=2.5,
-                        help="distance of the line scene's object")
+    add_scene_arguments(parser, seed=0)
     parser.add_argument("--reset-after", type=int, default=None, metavar="PACKETS",
                         help="reset the board (a power cycle) after this many data packets")
     add_line_arguments(parser)
+    return parser
+
+
+def main(argv=None):
+    parser = build_parser()
     args = parser.parse_args(argv)
     try:
         faults = faults_from_args(args)
@@ -421,10 +415,10 @@ def main(argv=None):
         parser.exit(2, f"{parser.prog}: error: --reset-after must be at least 1, not "
                        f"{args.reset_after}\n")
     try:
-        pixels = pixels_named(args.scene, sensor=args.sensor, wall_m=args.distance_m,
+        pixels = pixels_named(args.scene, sensor=args.sensor, wall_m=args.target_m,
                               object_m=args.object_m)
-        scene = Scene(distance_m=args.distance_m, detections_per_pulse=args.signal,
-                      background_hz=args.background_hz, pixels=pixels)
+        scene = Scene(distance_m=args.target_m, detections_per_pulse=args.signal,
+                      background_hz=rate_hz(args.ambient), pixels=pixels)
     except ValueError as error:
         parser.exit(2, f"{parser.prog}: error: {error}\n")
     signal.signal(signal.SIGTERM, _terminate)

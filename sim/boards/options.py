@@ -1,0 +1,52 @@
+"""The scene options of a board without hardware, defined once: ``fliss board`` (the virtual
+board) and ``python -m fliss.sim.boards.model`` (the model board) take the same name for the
+same setting (``--target-m``, ``--ambient 100kHz``, ...)."""
+
+import re
+
+from ..scene import SCENE_NAMES, SENSOR_KINDS
+
+
+__all__ = ["add_scene_arguments", "rate_hz"]
+
+
+_RATE = re.compile(r"\s*((?:\d+\.?\d*|\.\d+)(?:e[-+]?\d+)?)\s*(hz|khz|mhz|ghz)\s*",
+                   flags=re.IGNORECASE)
+_SCALE = {"hz": 1, "khz": 1e3, "mhz": 1e6, "ghz": 1e9}
+
+
+def rate_hz(text, flag="--ambient"):
+    """A photon rate in Hz from ``"100kHz"``, ``"1e5Hz"``, ``"0Hz"``: with its unit, as every
+    frequency of ``fliss``; ``ValueError`` naming ``flag`` for anything else."""
+    match = _RATE.fullmatch(str(text))
+    if match is None:
+        raise ValueError(f"{flag} {text}: give a rate with its unit, not negative: 100kHz, "
+                         f"1e5Hz or 0Hz")
+    return float(match.group(1)) * _SCALE[match.group(2).lower()]
+
+
+def add_scene_arguments(parser, *, seed=None):
+    """What the board's sensor sees, as options of an argparse ``parser``; ``seed`` is the
+    default of ``--seed`` (None: a new one each run)."""
+    group = parser.add_argument_group("scene", "what the board's sensor sees (the scene "
+                                               "simulator: docs/scene.md)")
+    group.add_argument("--target-m", type=float, default=4.0, metavar="M",
+                       help="distance of the victim's target (the line scene's wall), metres")
+    group.add_argument("--ambient", default="100kHz", metavar="HZ",
+                       help="background photon rate at a pixel (ambient light, dark counts), "
+                            "with its unit")
+    group.add_argument("--signal", type=float, default=0.05, metavar="PHOTONS",
+                       help="mean detected echo photons per victim pulse")
+    group.add_argument("--aggressor-signal", type=float, default=0.05, metavar="PHOTONS",
+                       help="mean detected photons per aggressor pulse")
+    group.add_argument("--seed", type=int, default=seed, help="seed of the photon statistics")
+    group.add_argument("--scene", choices=SCENE_NAMES, default="single",
+                       help="single: one pixel looking at the target (the paper's bench); "
+                            "line: a column of 60 pixels looking at a wall --target-m away "
+                            "with an object --object-m away before pixels 20 to 39")
+    group.add_argument("--sensor", choices=SENSOR_KINDS, default="column",
+                       help="sensor of the line scene: column (the paper's: one event per "
+                            "laser cycle, from the pixel that fired last, with a collision "
+                            "flag) or per_pixel (one TDC per pixel)")
+    group.add_argument("--object-m", type=float, default=2.5, metavar="M",
+                       help="distance of the line scene's object, metres")
