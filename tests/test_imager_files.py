@@ -189,6 +189,17 @@ def test_plot_refusals(tmp_path, capsys, extra, message):
     assert not (tmp_path / "x.png").exists()
 
 
+@pytest.mark.parametrize("name, kind", [("d.h5", "a depth"), ("a.h5", "an image")])
+def test_imager_captures_are_plotted_one_at_a_time(tmp_path, capsys, name, kind):
+    write_image(tmp_path / "a.h5", scene.histogram_frames(1))
+    write_depth(tmp_path / "d.h5", scene.depth_frames(np.tile(TRUTH_M, (1, 1))))
+    other = "a.h5" if name == "d.h5" else "d.h5"
+    status, out, err = fliss(capsys, "plot", tmp_path / name, tmp_path / other,
+                             "-o", tmp_path / "x.png")
+    assert (status, out, err) == (1, "", f"fliss: error: {tmp_path / name} is {kind} capture: "
+                                         f"plot one image or depth capture at a time\n")
+
+
 def test_a_damaged_image_file_is_refused_in_one_line(tmp_path, capsys):
     write_image(tmp_path / "a.h5", scene.histogram_frames(1))
     with h5py.File(tmp_path / "a.h5", "r+") as f:

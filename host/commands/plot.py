@@ -68,7 +68,8 @@ def run_plot(args):
     captures = [(path, read_capture_file(path)) for path in args.files]
     imager = [path for path, capture in captures if capture.mode in ("image", "depth")]
     if imager and len(captures) > 1:
-        raise UserError(f"{imager[0]} is an {captures[args.files.index(imager[0])][1].mode} "
+        mode = captures[args.files.index(imager[0])][1].mode
+        raise UserError(f"{imager[0]} is {'an image' if mode == 'image' else 'a depth'} "
                         f"capture: plot one image or depth capture at a time")
     if imager:
         plot_imager(captures[0][1], args.output, frames=args.frames, shape=args.shape,
