@@ -189,6 +189,24 @@ def test_plot_refusals(tmp_path, capsys, extra, message):
     assert not (tmp_path / "x.png").exists()
 
 
+@pytest.mark.parametrize("extra", [[], ["--frames", "grid"], ["--shape", "2x4"]])
+def test_a_depth_plot_of_nothing_detected_says_so(tmp_path, capsys, monkeypatch, extra):
+    # No pixel detected a target in any frame: each depth panel says so, instead of empty axes
+    # from -0.04 to 0.04 m.
+    from matplotlib.figure import Figure
+    write_depth(tmp_path / "d.h5", scene.depth_frames(np.full((2, 8), np.nan)))
+    drawn = []
+    save = Figure.savefig
+    monkeypatch.setattr(Figure, "savefig", lambda figure, *args, **kwargs: (
+        drawn.append([[text.get_text() for text in axis.texts] for axis in figure.axes]),
+        save(figure, *args, **kwargs)))
+    status, out, err = fliss(capsys, "plot", tmp_path / "d.h5", "-o", tmp_path / "d.png", *extra)
+    assert (status, err) == (0, "")
+    # (one depth panel, or one per frame in the grid)
+    panels = 2 if extra[:1] == ["--frames"] else 1
+    assert [texts for texts in drawn[0] if texts] == [["no pixel detected a target"]] * panels
+
+
 @pytest.mark.parametrize("name, kind", [("d.h5", "a depth"), ("a.h5", "an image")])
 def test_imager_captures_are_plotted_one_at_a_time(tmp_path, capsys, name, kind):
     write_image(tmp_path / "a.h5", scene.histogram_frames(1))

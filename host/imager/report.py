@@ -154,8 +154,19 @@ def _limits(depths):
     return 0.0, float(finite.max()) * 1.15 + 0.1
 
 
+#: What a depth panel says when no pixel detected a target (rather than empty axes).
+NOTHING_DETECTED = "no pixel detected a target"
+
+
 def _depth_panel(axis, pixels, depths, shape, title, limits=None):
     depths = np.asarray(depths, dtype=float)
+    if not np.isfinite(depths).any():
+        axis.text(0.5, 0.5, NOTHING_DETECTED, ha="center", va="center",
+                  transform=axis.transAxes)
+        axis.set_xticks([])
+        axis.set_yticks([])
+        axis.set_title(title, fontsize="small")
+        return
     if shape is None:
         axis.plot(pixels, depths, "o-", markersize=3)
         axis.set_xlabel("pixel address")
