@@ -60,6 +60,11 @@ class CaptureResult:
     stream: dict
     status_start: dict
     status_end: Optional[dict]
+    #: Depth captures: pixels detected in all the frames saved, the highest peak (counts above
+    #: background) and the threshold of the last frame (None before a frame arrives).
+    detections: int = 0
+    highest: int = 0
+    threshold: Optional[int] = None
 
     @property
     def interrupted(self) -> bool:
@@ -317,7 +322,8 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
         raise PathError(f"cannot write {path}: {_strerror(error)}") from None
     bar = progress if progress is not None else _NoProgress()
 
-    state = {"events": 0, "discarded": 0, "file_error": None}
+    state = {"events": 0, "discarded": 0, "file_error": None, "detections": 0, "highest": 0,
+             "threshold": None}
     rows = _Rows(writer, acquisitions, status_start["frames"], configuration, mode)
     wanted = DepthFrame if mode == "depth" else HistogramFrame
 
@@ -328,8 +334,13 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
             if isinstance(item, (HistogramFrame, DepthFrame)):
                 if mode not in _FRAMED or not isinstance(item, wanted):
                     state["discarded"] += 1
-                elif rows.add(item) and mode != "depth":
-                    state["events"] += int(item.counts.sum())
+                elif rows.add(item):
+                    if mode == "depth":
+                        state["detections"] += int(item.detected.sum())
+                        state["highest"] = max(state["highest"], int(item.height.max()))
+                        state["threshold"] = item.threshold
+                    else:
+                        state["events"] += int(item.counts.sum())
             elif isinstance(item, EventBatch):
                 writer.add_events(item)
                 state["events"] += len(item.events)
@@ -440,6 +451,8 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
             path=str(path), mode=mode, histograms=rows.saved,
             lost_histograms=rows.lost, events=writer.events,
             batches=writer.batches, reason=reason, complete=complete, lost=lost, link=link,
-            stream=stream, status_start=status_start, status_end=status_end)
+            stream=stream, status_start=status_start, status_end=status_end,
+            detections=state["detections"], highest=state["highest"],
+            threshold=state["threshold"])
     finally:
         interrupt.restore()

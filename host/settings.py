@@ -32,6 +32,7 @@ from ..hdl.registers import (BY_NAME, AcquisitionMode, TdcSource, defaults, iv_p
                              value_of)
 from ..hdl.delay.settings import DelayMode
 from .errors import SettingsError
+from .imager.threshold import depth_threshold
 from .setting_kinds import (CHOICE, FREQUENCY, GATE, IV, KEY, MAX_PIXELS, PIXEL, PIXELS, TIME,
                             WHOLE, Context, Kind, code_s, exact_frequency, exact_time, said)
 from .units import format_frequency, format_time, parse_time
@@ -145,7 +146,10 @@ OPTIONS: Tuple[Option, ...] = (
     Option("depth_filter", "depth_filter", WHOLE, "width of the depth engine's matched filter "
            "(bins)", "N"),
     Option("depth_threshold", "depth_threshold", WHOLE, "least filtered peak height above "
-           "background for a depth (counts)", "COUNTS"),
+           "background for a depth (counts); a new pixel split (--pixels, --pixel, --bin-shift) "
+           "sets the one that suits it unless given, and it then follows the integration time, "
+           "PRF and filter: the height that background alone reaches in one of a hundred "
+           "frames of a pixel", "COUNTS"),
     Option("key", "key0", KEY, "key of the keyed source: all 20 hex digits, as the test vectors "
            "print it, or random (from the operating system's generator); write-only: the board never "
            "reads it back", "HEX|random", shown=False),
@@ -189,6 +193,12 @@ class Conversion:
     #: How the caller wrote the setting behind each changed register (``--mode keyed``).
     said: Dict[str, str] = field(default_factory=dict)
 
+
+#: The registers of the pixel split: a change sets ``depth_threshold`` (:func:`convert`).
+SPLIT = ("bin_shift", "pixel_bits")
+
+#: The registers ``depth_threshold`` is set from: a threshold that a split set follows them.
+THRESHOLD_INPUTS = SPLIT + ("integration", "period", "depth_filter")
 
 #: Address bits of the histogram bank (bins of all pixels of a frame) until the board reports
 #: its own: 16 on the ULX3S and the virtual board (64 pixels of 1024 bins), 14 on the iCEBreaker.
@@ -248,6 +258,16 @@ def convert(settings: Mapping[str, Any], clock_hz: int, current: Mapping[str, in
     split = split_problem(context.registers, bank_bits, style, labels)
     if split:
         raise SettingsError(split)
+    # A new pixel split gets the depth threshold that suits it, unless one is given with it (a
+    # threshold for 8192 bins of one pixel detects nothing in 1024 bins of each of 64); one set
+    # so follows the integration time, period and filter too.
+    changed = {name for name in THRESHOLD_INPUTS if context.registers[name] != current[name]}
+    if "depth_threshold" not in given and (changed & set(SPLIT) or changed and current[
+            "depth_threshold"] == depth_threshold(current)):
+        threshold = depth_threshold(context.registers)
+        changes["depth_threshold"] = context.registers["depth_threshold"] = threshold
+        written["depth_threshold"] = (f"{BY_OPTION['depth_threshold'].label(style)} {threshold}"
+                                      f" (for the pixel split)")
     found = _problems(context.registers, labels, context.clock_hz)
     iv = iv_problem(changes, context.registers, value_of(current, "iv"))
     if iv:

@@ -7,13 +7,16 @@ import numpy as np
 import pytest
 
 from fliss.hdl.protocol import PacketType, DepthHeader
+from fliss.host.cli import main
 from fliss.host.client import BoardClient
+from fliss.host.fileformat import read_capture
 from fliss.host.stream import DepthFrame, HistogramFrame, StreamAssembler
 from fliss.protocol.frames import Packet
 from fliss.protocol.layout import pack
 from fliss.sim.models.depth import depth_frame
 from fliss.protocol.depth import depth_payload
 from fliss.sim.boards.model import model_board
+from fliss.sim.scene import Scene, line_pixels
 
 
 def depth_packet(records, frame, **settings):
@@ -84,3 +87,48 @@ def test_model_board_depth_mode_equals_depth_of_its_histograms(shift, filter):
         assert (depth.shift, depth.filter, depth.threshold) == (shift, filter, 30)
     # the scene's victim return: one strong peak, found in every full frame
     assert all(depth.detected[0] for depth in depths[:common - 1])
+
+
+def _depth_capture(scene, tmp_path, capsys, *capture):
+    """``fliss config --pixels 64 --bin-shift 3`` (the README's split, nothing else), then a
+    depth capture, on a model board with ``scene``; (exit status, stderr, the file)."""
+    with model_board(scene=scene) as model:
+        port = ["--port", model.path, "--timeout", "2"]
+        assert main(["-q", "config", *port, "--pixels", "64", "--bin-shift", "3"]) == 0
+        status = main(["-q", "capture", *port, "--readout", "depth", "-o",
+                       str(tmp_path / "d.h5"), *capture])
+    out, err = capsys.readouterr()
+    return status, err, read_capture(tmp_path / "d.h5")
+
+
+def test_the_readme_split_detects_the_line_scene_with_default_settings(tmp_path, capsys):
+    # The model board's line scene as `python -m fliss.sim.boards.model --scene line` has it:
+    # a wall at 4 m, an object at 2.5 m before pixels 20 to 39; 10 ms frames by default.
+    scene = Scene(distance_m=4.0, detections_per_pulse=0.05, background_hz=1e5,
+                  pixels=line_pixels())
+    status, err, capture = _depth_capture(scene, tmp_path, capsys, "--acquisitions", "4")
+    assert (status, err) == (0, "")
+    truth = np.asarray(line_pixels().distance_m)
+    depth = capture.depth["depth_m"][:, :60]
+    detected = capture.depth["detected"][:, :60]
+    right = detected & (np.abs(depth - truth) < 0.15)
+    wall = np.r_[0:20, 40:60]
+    assert right[:, wall].mean() > 0.75                 # the wall, in most pixels and frames
+    assert (detected & ~right).mean() < 0.03            # few false detections
+    assert not capture.depth["detected"][:, 60:].any()  # nothing where there are no pixels
+
+
+def test_a_depth_capture_that_detects_nothing_says_so(tmp_path, capsys):
+    scene = Scene(distance_m=4.0, detections_per_pulse=1e-4, background_hz=1e2,
+                  pixels=line_pixels())
+    status, err, capture = _depth_capture(scene, tmp_path, capsys, "--acquisitions", "2",
+                                          "--integration", "1ms")
+    assert status == 0 and not capture.depth["detected"].any()
+    highest = int(capture.depth["height"].max())
+    # 64 pixels of 1024 bins, 1 ms: mu = 4 x 1000 / 65536 = 0.061 counts in a window, and of
+    # 256 windows P(X >= 3) = 3.7e-5 <= 3.9e-5 (P(X >= 2) = 1.8e-3): a threshold of 3.
+    assert err == (f"fliss: warning: no pixel detected a target in 2 depth frames: the highest "
+                   f"peak was {highest} counts above the background, --depth-threshold is 3; "
+                   f"try a longer --integration (more photons), a larger --depth-filter or "
+                   f"--bin-shift (a wider window), or a lower --depth-threshold (more false "
+                   f"detections)\n")

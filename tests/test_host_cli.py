@@ -72,9 +72,12 @@ def test_config_round_trip(model, capsys):
                              "--integration", "5ms", "--gate-end", "100ns", "--bin-shift", "2",
                              "--readout", "raw", "--grid", "--seed", "0x2b")
     assert status == 0, err
+    # The new bin shift sets the depth threshold: 2048 bins, 2500 cycles of 2 µs in 5 ms, so
+    # mu = 4 x 2500 / 2048 = 4.88 counts in a 4-bin window; of 512 windows, P(X >= k) <= 2e-5
+    # at k = 17 (P(X >= 16) = 5.3e-5, P(X >= 17) = 1.5e-5): a height of 17 - 4.88, 13.
     expected = dict(defaults(CLOCK_HZ), period=160, delay_mode=2, mask_width=5, pulse_width=2,
                     aggressor=1, aggressor_offset=8, integration=400_000, gate_end=2000,
-                    bin_shift=2, acquisition=1, grid=1, seed=0x2b)
+                    bin_shift=2, acquisition=1, grid=1, seed=0x2b, depth_threshold=13)
     assert model.model.settings == expected
     with BoardClient(model.path, timeout_s=2.0) as board:
         assert board.read_registers() == expected

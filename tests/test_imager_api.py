@@ -13,7 +13,7 @@ from fliss.host.errors import SettingsError
 from fliss.host.fileformat import read_capture
 from fliss.host.imager.results import DepthFrames, Images
 from fliss.sim.boards.model import model_board
-from fliss.sim.scene import Scene
+from fliss.sim.scene import Scene, line_pixels
 
 import imager_frames as scene
 from imager_frames import C, FIRST, TRUTH_M, FakeClient
@@ -55,8 +55,8 @@ def test_configure_refuses_a_split_for_the_boards_bank():
     with pytest.raises(SettingsError, match=r"^pixels=64 with bin_shift=0 .*\(bin_shift=3\)"):
         board.configure(pixels=64)
     assert board.client.written == []                           # nothing written
-    board.configure(pixels=64, bin_shift=3)
-    assert board.client.written == [{"bin_shift": 3, "pixel_bits": 6}]
+    board.configure(pixels=64, bin_shift=3, depth_threshold=7)
+    assert board.client.written == [{"bin_shift": 3, "pixel_bits": 6, "depth_threshold": 7}]
 
 
 def test_single_pixel_image_capture_on_the_model_board(tmp_path, capsys):
@@ -136,3 +136,18 @@ def test_frames_of_another_split_are_left_out_and_acquire_refuses_pixels():
     with pytest.raises(SettingsError, match=r"^the board histograms 8 pixels a frame: use "
                                             r"acquire_image\(n\), or configure\(pixels=1\)$"):
         board.acquire(1)
+
+
+def test_acquire_depth_says_when_nothing_is_detected(caplog):
+    # Hardly a photon: no pixel reaches the threshold, and one warning says so and what to try.
+    dim = Scene(detections_per_pulse=1e-4, background_hz=1e2, pixels=line_pixels())
+    with model_board(scene=dim) as model, fliss.connect(model.path, timeout_s=2.0) as board:
+        board.configure(pixels=64, bin_shift=3, integration="1ms")
+        depth = board.acquire_depth(2)
+    assert not depth.detected.any()
+    # (64 pixels of 1024 bins, 1 ms: the threshold 3 of tests/test_depth_host.py)
+    assert [record.getMessage() for record in caplog.records] == [
+        f"no pixel detected a target in 2 depth frames: the highest peak was "
+        f"{int(depth.height.max())} counts above the background, depth_threshold is 3; try a "
+        f"longer integration (more photons), a larger depth_filter or bin_shift (a wider "
+        f"window), or a lower depth_threshold (more false detections)"]

@@ -18,8 +18,32 @@ def _convert(style="keyword", bank_bits=16, **settings):
 
 @pytest.mark.parametrize("pixels, bits", [(1, 0), (2, 1), (8, 3), (64, 6), ("0x10", 4)])
 def test_pixels_sets_pixel_bits(pixels, bits):
-    # Bins wide enough for every split: 64 pixels x 128 bins (bin shift 6) fits 2**13.
-    assert _convert(pixels=pixels, bin_shift=6).changes == {"pixel_bits": bits, "bin_shift": 6}
+    # Bins wide enough for every split: 64 pixels x 128 bins (bin shift 6) fits 2**13. (The new
+    # split sets the depth threshold too: test_a_new_split_sets_the_depth_threshold.)
+    changes = _convert(pixels=pixels, bin_shift=6, depth_threshold=9).changes
+    assert changes == {"pixel_bits": bits, "bin_shift": 6, "depth_threshold": 9}
+
+
+def test_a_new_split_sets_the_depth_threshold():
+    # 64 pixels of 1024 bins (bin shift 3), 10 ms at 1 MHz: at most 10 000 laser cycles, so a
+    # column that fires every cycle gives a pixel b = 10 000 / 65 536 = 0.153 counts per bin,
+    # mu = 4 b = 0.610 in a window of the 4-bin filter. Of 1024 / 4 = 256 windows, background
+    # may reach the threshold in 1 % of frames: P(X >= k) <= 3.9e-5 for X ~ Poisson(0.610):
+    # P(X >= 6) = 4.3e-5, P(X >= 7) = 3.7e-6, so k = 7 counts, a height of 7 - 0.61: 7.
+    assert _convert(pixels=64, bin_shift=3).changes == {"pixel_bits": 6, "bin_shift": 3,
+                                                         "depth_threshold": 7}
+    # At 2 ms, mu = 0.122: P(X >= 3) = 2.8e-4, P(X >= 4) = 8.4e-6, a height of 4 - 0.12: 4.
+    assert _convert(pixels=64, bin_shift=3, integration="2ms").changes["depth_threshold"] == 4
+    # Set so, it follows the integration time: 2 ms later, 4.
+    current = dict(defaults(CLOCK_HZ), pixel_bits=6, bin_shift=3, depth_threshold=7)
+    assert convert({"integration": "2ms"}, CLOCK_HZ, current).changes == \
+        {"integration": 160_000, "depth_threshold": 4}
+    # Given with the split, the threshold is the one given; one set by hand stays until the
+    # next split.
+    assert _convert(pixels=64, bin_shift=3, depth_threshold=3).changes["depth_threshold"] == 3
+    current = dict(current, depth_threshold=5)
+    assert convert({"integration": "2ms", "bin_shift": 3}, CLOCK_HZ, current).changes == \
+        {"integration": 160_000, "bin_shift": 3}
 
 
 @pytest.mark.parametrize("pixels, nearest", [(3, "2 or 4"), (60, "64"), (48, "32 or 64"),

@@ -12,6 +12,7 @@ import sys
 from ..acquisition import left_running
 from ..errors import UserError
 from ..errors import BoardReset
+from ..imager.threshold import nothing_detected
 from ..paths import check_output_path
 from .common import Progress
 from .port_options import add_port_arguments, connect
@@ -122,6 +123,10 @@ def report(result, *, quiet=False, out=None):
              "rate")
         print(f"fliss: warning: {board_dropped} events dropped on the board (counted in the "
               f"file): {advice}", file=sys.stderr)
+    if result.mode == "depth" and result.threshold is not None and not result.detections:
+        arrived = result.histograms - result.lost_histograms
+        print(f"fliss: warning: "
+              f"{nothing_detected(arrived, result.highest, result.threshold)}", file=sys.stderr)
     if result.lost is not None:
         raise UserError(f"{result.lost}; saved what was received ({what}) to {path}")
     if result.interrupted:

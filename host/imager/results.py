@@ -23,6 +23,7 @@ from ..errors import SettingsError
 from ..results import FrameCounts
 from ..settings import Settings
 from ..stream import DepthFrame, HistogramFrame
+from .threshold import nothing_detected
 
 
 __all__ = ["C_M_S", "tof_s", "depth_m", "Images", "DepthFrames", "images_from_frames",
@@ -220,6 +221,9 @@ def acquire_depth(board, n: int = 1, *, timeout_s: Optional[float] = None) -> De
     frames, settings = _collect(board, n, DepthFrame, AcquisitionMode.DEPTH, timeout_s)
     result = depth_from_frames(frames, settings)
     _warn_gaps(result.frames, n)
+    if not result.detected.any():
+        _logger.warning("%s", nothing_detected(len(frames), int(result.height.max()),
+                                                frames[0].threshold, style="keyword"))
     return result
 
 
