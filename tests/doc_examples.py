@@ -55,6 +55,8 @@ PLACEHOLDERS = {
     "SPEC": "examples/sweep-quick.toml",
     "DIR": "out",
     "FILE": "capture.h5",
+    "CAPTURE": "raw.h5",               # a raw capture: every format takes one
+    "OUT": "export.out",
     "tcp://HOST:PORT": "tcp://127.0.0.1:8786",
 }
 
@@ -62,7 +64,7 @@ PLACEHOLDERS = {
 #: read; they run before each later example of their fenced block.
 SESSION_COMMANDS = ("config", "capture")
 #: The commands that use a board or capture files: they run after those of their session.
-SESSION_READERS = ("config", "capture", "analyze", "plot")
+SESSION_READERS = ("config", "capture", "analyze", "plot", "export")
 
 _PREFIX = re.compile(r"^(?:\$ )?(?:\.venv/bin/)?fliss(?= |$)")
 #: A value in a help text: a number with an optional unit, a 0x number, ROWSxCOLUMNS.

@@ -48,6 +48,7 @@ FILL = {
     "analyze": {"files": ["capture.h5"]},
     "plot": {"files": ["capture.h5"], "--output": ["plot.png"]},
     "sweep": {"spec": ["examples/sweep-quick.toml"], "--out": ["sweep"]},
+    "export": {"capture": ["raw.h5"], "--to": ["ptu"], "--output": ["export.ptu"]},
 }
 #: ... where an example needs another input than FILL's: the shape 8x8 is of 64 pixels.
 FILL_OF = {"fliss plot --help: --shape 8x8": {"files": ["depth.h5"]}}
@@ -58,6 +59,7 @@ INPUTS = {
     "capture.h5": ["capture", "--port", "/dev/pts/N", "--integration", "2ms",
                    "--acquisitions", "2"],
     "run.h5": ["capture", "--port", "/dev/pts/N", "--integration", "2ms", "--acquisitions", "2"],
+    "raw.h5": ["capture", "--port", "/dev/pts/N", "--readout", "raw", "--duration", "20ms"],
     "depth.h5": ["capture", "--port", "/dev/pts/M", "--readout", "depth", "--pixels", "64",
                  "--bin-shift", "6", "--integration", "2ms", "--acquisitions", "2"],
 }
@@ -206,8 +208,9 @@ def fliss(argv, capsys):
 
 
 def make_inputs(argv, boards, capsys):
-    """Capture the input files of an ``analyze`` or ``plot`` that are not there (INPUTS)."""
-    if argv[0] not in ("analyze", "plot"):
+    """Capture the input files of an ``analyze``, ``plot`` or ``export`` that are not there
+    (INPUTS)."""
+    if argv[0] not in ("analyze", "plot", "export"):
         return
     for name in positionals(argv[0], argv[1:]):
         if not Path(name).exists():
