@@ -1,18 +1,15 @@
 """Limits of the delay core's settings: the numbers the register map, the gateware and the models
 share.
 
-A definitions module: it imports no gateware, so :mod:`.registers` can build the register map
-from it and the blocks (:mod:`.lfsr`, :mod:`.delay`, :mod:`.scheduler`) can import it.
+A definitions module: it imports no gateware, so :mod:`fliss.hdl.registers` can build the register
+map from it and the blocks (:mod:`.lfsr`, :mod:`.source`, :mod:`.scheduler`) can import it. The
+delay modes are in :mod:`.modes`.
 """
-
-from amaranth.lib import enum
-
 
 __all__ = ["MIN_LENGTH", "MAX_LENGTH", "MAX_MASK_WIDTH", "MASKED_LENGTH", "MASKED_STEPS",
            "KEY_BITS", "IV_BITS", "KEYED_ROUNDS", "KEYED_INIT_CYCLES", "KEYED_START_CYCLES",
            "DELAY_WIDTH", "PERIOD_WIDTH",
-           "PULSE_WIDTH_WIDTH", "BANK_BITS", "MIN_BANK_BITS", "MAX_BANK_BITS", "DelayMode",
-           "check_widths"]
+           "PULSE_WIDTH_WIDTH", "BANK_BITS", "MIN_BANK_BITS", "MAX_BANK_BITS", "check_widths"]
 
 
 #: Shortest and longest supported register of the m-sequence source, in bits.
@@ -69,22 +66,6 @@ MIN_BANK_BITS = 13
 
 #: Widest bank: 64 pixels of 8192 bins.
 MAX_BANK_BITS = 19
-
-
-class DelayMode(enum.Enum, shape=2):
-    """Source of the pseudorandom delay ``T_rnd``, in clock cycles."""
-    #: No delay: the laser fires on the nominal schedule.
-    OFF    = 0
-    #: Complete m-sequence of an ``L``-bit register, one state per pulse; delay ``R = state - 1``,
-    #: so ``R`` runs over ``0 … 2**L - 2`` once per period (equation 9 and Table 2 of the paper).
-    MSEQ   = 1
-    #: The ``Wm`` least significant bits of a 32-bit register that takes ``MASKED_STEPS`` steps per
-    #: pulse; delay from ``0`` to ``2**Wm - 1``.
-    MASKED = 2
-    #: The Trivium keystream of an 80-bit key and IV (:mod:`fliss.sim.models.trivium`): pulse ``k``'s
-    #: delay is the ``Wm``-bit integer whose bit ``j`` is keystream bit ``z(k Wm + j + 1)``;
-    #: delay from ``0`` to ``2**Wm - 1``, as ``MASKED``.
-    KEYED  = 3
 
 
 def check_widths(period_width, pulse_width_width):
