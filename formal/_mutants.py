@@ -1,14 +1,17 @@
-"""Broken blocks of the delay core, for the mutants of ``formal/delay_core.py``: wrappers with
-the signature of the block they wrap (or, for the LFSR, a register without its zero guard)."""
+"""Broken blocks of the delay core, for the mutants of ``formal/delay_core.py`` and
+``formal/delay_blocks.py``: wrappers with the signature of the block they wrap, blocks that
+override some of their own statements, or, for the LFSR, a register without its zero guard."""
 
-from amaranth.hdl import Module, Mux, Signal
+from amaranth.hdl import Const, Module, Mux, Signal
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
 from ..hdl.delay.source import DelaySource
 from ..hdl.delay.laser import LaserTrigger
 from ..hdl.delay.lfsr import POLYNOMIALS, _galois_step
-from ..hdl.delay.scheduler import PulseScheduler
+from ..hdl.delay.scheduler import PulseScheduler, _Timer
+
+from ._harness import assigned
 
 
 def _past(m, value):
@@ -147,3 +150,25 @@ class _ZeroLoadingLfsr(wiring.Component):
         with m.Elif(self.advance):
             m.d.sync += state.eq(_galois_step(state, taps))
         return m
+
+
+class _MidFramePeriodScheduler(PulseScheduler):
+    """Loads a new period on ``update``, in the middle of a frame (not at the next take)."""
+
+    def elaborate(self, platform):
+        m = super().elaborate(platform)
+        period, flags = assigned(m, "active_period", "active_flags")
+        with m.If(self.update):
+            m.d.sync += [period.eq(self.settings.period),
+                         flags.eq(_Timer.flags(self.settings.period, target=2))]
+        return m
+
+
+class _LiveSettingsSource(_Wrapper):
+    """A delay source that samples the settings in every cycle, not only on ``load``."""
+
+    def __init__(self, **kwargs):
+        super().__init__(DelaySource(**kwargs))
+
+    def elaborate(self, platform):
+        return self.forward(Module(), load=Const(1))

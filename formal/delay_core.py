@@ -1,14 +1,16 @@
-"""Formal harnesses of the delay core (``hdl/delay/core.py``): laser trigger, pulse scheduler, delay
-source and LFSR.
+"""Formal harness of the delay core (``hdl/delay/core.py``): laser trigger, pulse scheduler and
+delay source wired together, and the small settings every delay harness shares (the blocks alone
+are in ``formal/delay_blocks.py``).
 
 The core is proved with small settings, as the register file would accept them: ``period`` from
 2 to :data:`MAX_PERIOD` (a 17-bit ``period``, the narrowest the scheduler takes), a 3-bit
 ``pulse_width`` from 1 to ``period - 1``, register lengths ``L`` up to :data:`MAX_L` and mask
-widths ``Wm`` up to :data:`MAX_WM`; in ``grid`` mode the largest delay plus the pulse width is
-below the period. ``enable`` and ``update`` are free in every cycle.
+widths ``Wm`` up to :data:`MAX_WM`; in ``grid`` mode the largest delay (of the table of modes,
+:mod:`fliss.hdl.delay.modes`) plus the pulse width is below the period. ``enable`` and
+``update`` are free in every cycle.
 
-Mutants swap a block of the core for a broken one (``formal/_mutants.py``, and those of the
-settings proofs below) while the core elaborates (:class:`_ProbedCore`).
+Mutants swap a block of the core for a broken one (``formal/_mutants.py``) while the core
+elaborates (:class:`_ProbedCore`).
 """
 
 from amaranth.hdl import Assert, Assume, Cat, Cover, Const, Module, Mux, ResetSignal, Signal, Value
@@ -17,17 +19,18 @@ from amaranth.lib.wiring import In
 
 import fliss.hdl.delay.core as core_module
 from ..hdl.delay.core import DelayCore
-from ..hdl.delay.source import DelayMode, DelaySource
-from ..hdl.delay.laser import LaserTrigger
-from ..hdl.delay.lfsr import POLYNOMIALS, Lfsr
+from ..hdl.delay.modes import MODES, DelayMode
 from ..hdl.registers import DelaySettings
-from ..hdl.delay.scheduler import PulseScheduler, _Timer
 
-from ._harness import assigned
+from ._harness import past
 from ._mutants import (_EagerWidthScheduler, _LateStartTrigger, _LateStopScheduler,
-                       _LongPeriodScheduler, _NoDelayScheduler, _OffByOneSource, _RuntTrigger,
-                       _Wrapper, _ZeroLoadingLfsr)
-from .runner import Proof, internals
+                       _LiveSettingsSource, _LongPeriodScheduler, _MidFramePeriodScheduler,
+                       _NoDelayScheduler, _RuntTrigger)
+from .runner import Proof
+
+
+__all__ = ["PERIOD_WIDTH", "PULSE_WIDTH_WIDTH", "MAX_PERIOD", "MAX_L", "MAX_WM", "SETTINGS",
+           "max_delay", "assume_valid", "CoreHarness", "PROOFS"]
 
 
 #: Small settings of the core harness.
@@ -35,28 +38,30 @@ PERIOD_WIDTH, PULSE_WIDTH_WIDTH, MAX_PERIOD, MAX_L, MAX_WM = 17, 3, 10, 3, 2
 SETTINGS = DelaySettings(period_width=PERIOD_WIDTH, pulse_width_width=PULSE_WIDTH_WIDTH)
 
 
-def _past(m, value):
-    """``value`` in the previous cycle (its initial value in the first)."""
-    past = Signal.like(value, name="past")
-    m.d.sync += past.eq(value)
-    return past
+def max_delay(m, mode, sizes, name):
+    """The largest delay of ``mode`` (of :data:`~fliss.hdl.delay.modes.MODES`, with its size
+    settings' values in ``sizes``: name -> value) as a 33-bit signal named ``name``; the keyed
+    mode, whose key the harnesses leave out, reads 0."""
+    largest = Signal(33, name=name)
+    with m.Switch(mode):
+        for row in MODES.values():
+            if row.size is not None and not row.keyed:
+                with m.Case(row.mode):
+                    m.d.comb += largest.eq((Const(1, 33) << sizes[row.size]) - row.less)
+    return largest
 
 
-def _assume_valid(m, settings, *, max_l=MAX_L, max_wm=MAX_WM):
-    """Settings the register file accepts, small."""
-    max_delay = Signal(33)
-    with m.Switch(settings.mode):
-        with m.Case(DelayMode.MSEQ):
-            m.d.comb += max_delay.eq((Const(1, 33) << settings.length) - 2)
-        with m.Case(DelayMode.MASKED):
-            m.d.comb += max_delay.eq((Const(1, 33) << settings.mask_width) - 1)
+def assume_valid(m, settings, *, max_l=MAX_L, max_wm=MAX_WM):
+    """Settings the register file accepts, small (and not keyed)."""
+    largest = max_delay(m, settings.mode, {"length": settings.length,
+                                           "mask_width": settings.mask_width}, "max_delay")
     m.d.comb += [
-        Assume(settings.mode.as_value() != 3),
+        Assume(settings.mode.as_value() != DelayMode.KEYED.value),
         Assume((settings.length >= 2) & (settings.length <= max_l)),
         Assume((settings.mask_width >= 1) & (settings.mask_width <= max_wm)),
         Assume((settings.period >= 2) & (settings.period <= MAX_PERIOD)),
         Assume((settings.pulse_width >= 1) & (settings.pulse_width < settings.period)),
-        Assume(~settings.grid | (max_delay + settings.pulse_width < settings.period)),
+        Assume(~settings.grid | (largest + settings.pulse_width < settings.period)),
     ]
 
 
@@ -109,13 +114,13 @@ class CoreHarness(wiring.Component):
         m.d.comb += [core.enable.eq(self.enable), core.update.eq(self.update),
                      core.settings.eq(self.settings)]
         m.d.comb += Assume(~ResetSignal())
-        _assume_valid(m, self.settings)
-        enable_d = _past(m, self.enable)
+        assume_valid(m, self.settings)
+        enable_d = past(m, self.enable)
         if self.fixed:
-            settings_d = _past(m, self.settings)
+            settings_d = past(m, self.settings)
             m.d.comb += [Assume(~self.update), Assume(~core.running | (self.settings == settings_d))]
 
-        laser_d = _past(m, core.laser)
+        laser_d = past(m, core.laser)
         rise = core.laser & ~laser_d
         fire_width = Signal(PULSE_WIDTH_WIDTH)    # width of the pulse on the laser
         with m.If(core.fire):
@@ -159,12 +164,12 @@ class CoreHarness(wiring.Component):
             pending = Signal()
             pending_width = Signal(PULSE_WIDTH_WIDTH)
             width = Signal(PULSE_WIDTH_WIDTH)
-            take_d = _past(m, core.take)
+            take_d = past(m, core.take)
             with m.If(core.take):
                 m.d.sync += [width.eq(Mux(pending, pending_width, width)), pending.eq(0)]
             with m.If(~core.running | self.update):
                 m.d.sync += [pending.eq(1), pending_width.eq(self.settings.pulse_width)]
-            width_d = _past(m, core.fire_width)
+            width_d = past(m, core.fire_width)
             m.d.comb += [Assert(take_d | (core.fire_width == width_d)),
                          Assert(core.fire_width == width),
                          Cover(self.update & core.running & (self.settings.pulse_width != width)
@@ -238,8 +243,8 @@ class CoreHarness(wiring.Component):
                     with m.Case(bits):
                         m.d.comb += [first.eq(seeded_masked[:bits]), top.eq((1 << bits) - 1)]
         expected_ok = Mux(pending, core.take_value == first, core.take_value <= top)
-        fire_delay_d = _past(m, core.fire_delay)
-        take_d = _past(m, core.take)
+        fire_delay_d = past(m, core.fire_delay)
+        take_d = past(m, core.take)
         m.d.comb += [Assert(~core.take | expected_ok),
                      Assert(take_d | (core.fire_delay == fire_delay_d))]
         changed = Signal()      # an update in this frame to other source settings
@@ -269,204 +274,13 @@ def _frame_settings(m, take, sample, *values, pending_too=False):
     return pending, active
 
 
-class _MidFramePeriodScheduler(PulseScheduler):
-    """Loads a new period on ``update``, in the middle of a frame (not at the next take)."""
-
-    def elaborate(self, platform):
-        m = super().elaborate(platform)
-        period, flags = assigned(m, "active_period", "active_flags")
-        with m.If(self.update):
-            m.d.sync += [period.eq(self.settings.period),
-                         flags.eq(_Timer.flags(self.settings.period, target=2))]
-        return m
-
-
-class _LiveSettingsSource(_Wrapper):
-    """A delay source that samples the settings in every cycle, not only on ``load``."""
-
-    def __init__(self, **kwargs):
-        super().__init__(DelaySource(**kwargs))
-
-    def elaborate(self, platform):
-        return self.forward(Module(), load=Const(1))
-
-
 def _core(check, depth, doc, swaps, *, fixed=False, mode="bmc", cover_depth=None):
     return Proof(f"delay_core.{check}", lambda: CoreHarness(check, fixed=fixed), mode, depth,
                  doc, mutant=lambda: CoreHarness(check, fixed=fixed, swaps=swaps),
                  cover_depth=cover_depth)
 
 
-# Delay source
-
-class SourceHarness(wiring.Component):
-    """The delay source with free ``load``, transfers and valid settings: every delay is within
-    ``0 … 2**L - 2`` (``mseq``), ``0 … 2**Wm - 1`` (``masked``), or zero (``off``), for the
-    settings sampled on the last load."""
-
-    load:     In(1)
-    ready:    In(1)
-    settings: In(SETTINGS)
-
-    def __init__(self, source=DelaySource):
-        self._source = source
-        super().__init__()
-
-    def elaborate(self, platform):
-        m = Module()
-        source = self._source(layout=SETTINGS)
-        invariants = self._source is DelaySource
-        if invariants:
-            m.submodules.source, (s_mode, s_mask, s_keyed_mask, s_taps, s_mseq, s_masked) = \
-                internals(source, "mode", "mask", "keyed_mask", "taps", "mseq", "masked")
-        else:
-            m.submodules.source = source
-        m.d.comb += [source.load.eq(self.load), source.settings.eq(self.settings),
-                     source.delays.ready.eq(self.ready)]
-        m.d.comb += Assume(~ResetSignal())
-        _assume_valid(m, self.settings, max_l=32, max_wm=16)
-        # transfers at least two cycles apart, as the scheduler makes them
-        m.d.comb += Assume(~(self.ready & _past(m, self.ready)))
-
-        # settings of the last load, and the largest delay and the taps they give
-        mode = Signal(DelayMode)
-        length = Signal.like(self.settings.length, init=32)
-        mask_width = Signal.like(self.settings.mask_width)
-        with m.If(self.load):
-            m.d.sync += [mode.eq(self.settings.mode), length.eq(self.settings.length),
-                         mask_width.eq(self.settings.mask_width)]
-        top = Signal(33)
-        with m.Switch(mode):
-            with m.Case(DelayMode.MSEQ):
-                m.d.comb += top.eq((Const(1, 33) << length) - 2)
-            with m.Case(DelayMode.MASKED):
-                m.d.comb += top.eq((Const(1, 33) << mask_width) - 1)
-        taps = Signal(32)
-        with m.Switch(length):
-            for bits, poly in POLYNOMIALS.items():
-                with m.Case(bits):
-                    m.d.comb += taps.eq(poly >> 1)
-        value = source.delays.payload.value
-        if invariants:
-            # the source's registers agree with the settings of the last load
-            m.d.comb += [Assert(s_mode == mode.as_value()), Assert(s_taps == taps),
-                         Assert(s_mask == Mux(mode == DelayMode.MASKED, top, 0)),
-                         Assert(s_keyed_mask == 0),     # (the keyed mode is assumed off)
-                         Assert(s_mseq <= Mux(mode == DelayMode.MSEQ, top + 1, 1)),
-                         # the masked register never holds zero (the m-sequence one holds zero
-                         # only standing for 1: `value <= top` below shows it is never 0 - 1)
-                         Assert(s_masked != 0)]
-        m.d.comb += [Assert(value <= top),
-                     Cover((mode == DelayMode.MSEQ) & (value == top) & (top == 6)),
-                     Cover((mode == DelayMode.MASKED) & (value == top) & (top == 3))]
-        return m
-
-
-# LFSR
-
-class LfsrHarness(wiring.Component):
-    """The LFSR with free ``seed``, ``load`` and ``advance``: it never holds zero, nor a bit at
-    or above its length (the length sampled on the last load)."""
-
-    seed:    In(32)
-    load:    In(1)
-    advance: In(1)
-    length:  In(range(2, 33))
-
-    def __init__(self, lfsr=Lfsr, **kwargs):
-        self._lfsr = lfsr
-        self._kwargs = kwargs
-        super().__init__()
-
-    def elaborate(self, platform):
-        m = Module()
-        lfsr = self._lfsr(**self._kwargs)
-        fixed = self._kwargs.get("length")
-        if fixed is None and self._lfsr is Lfsr:
-            m.submodules.lfsr, (l_length,) = internals(lfsr, "length")
-        else:
-            m.submodules.lfsr = lfsr
-        m.d.comb += [lfsr.seed.eq(self.seed), lfsr.load.eq(self.load),
-                     lfsr.advance.eq(self.advance)]
-        m.d.comb += Assume(~ResetSignal())
-        if fixed is None:
-            m.d.comb += lfsr.length.eq(self.length)
-            raw = Signal(range(2, 33), init=32)
-            with m.If(self.load):
-                m.d.sync += raw.eq(self.length)
-            if self._lfsr is Lfsr:
-                m.d.comb += Assert(l_length == raw)
-            length = Mux((raw >= 2) & (raw <= 32), raw, 32)
-            bound = Const(1, 33) << length
-        else:
-            bound = 1 << fixed
-        m.d.comb += [Assert(lfsr.state != 0), Assert(lfsr.state < bound),
-                     Cover(self.load & (self.seed == 0)),
-                     Cover((lfsr.state == bound - 1) & self.advance)]
-        return m
-
-
-# Laser trigger alone
-
-class TriggerHarness(wiring.Component):
-    """The laser trigger alone, with ``fire`` and ``width`` free. ``check``: ``"start"``, the
-    TDC start strobes in the cycle of every rising edge of the laser, and only while the laser is
-    on; ``"width"``, with ``fire`` only while the laser is off (the scheduler's part, proved on
-    the core by ``delay_core.pulses``), every pulse is exactly ``width`` cycles high (zero acting
-    as one)."""
-
-    fire:  In(1)
-    width: In(PULSE_WIDTH_WIDTH)
-
-    def __init__(self, trigger=LaserTrigger, check="start"):
-        self._trigger = trigger
-        self._check = check
-        super().__init__()
-
-    def elaborate(self, platform):
-        m = Module()
-        trigger = self._trigger(width_bits=PULSE_WIDTH_WIDTH)
-        if self._check == "width" and self._trigger is LaserTrigger:
-            m.submodules.trigger, (remaining,) = internals(trigger, "remaining")
-        else:
-            remaining = None
-            m.submodules.trigger = trigger
-        m.d.comb += [trigger.fire.eq(self.fire), trigger.width.eq(self.width)]
-        m.d.comb += Assume(~ResetSignal())
-        laser_d = _past(m, trigger.laser)
-        rise = trigger.laser & ~laser_d
-        if self._check == "start":
-            m.d.comb += [Assert(~rise | trigger.tdc_start),
-                         Assert(~trigger.tdc_start | trigger.laser), Cover(rise)]
-            return m
-
-        m.d.comb += Assume(~self.fire | ~trigger.laser)
-        width = Signal(PULSE_WIDTH_WIDTH)       # width of the pulse on the laser
-        with m.If(self.fire):
-            m.d.sync += width.eq(Mux(self.width == 0, 1, self.width))
-        high = Signal(PULSE_WIDTH_WIDTH)        # cycles the laser has been high before this one
-        m.d.sync += high.eq(Mux(trigger.laser, high + 1, 0))
-        fall = ~trigger.laser & laser_d
-        m.d.comb += [Assert(~trigger.laser | (high < width)),
-                     Assert(~fall | (high == width)),
-                     Cover(fall & (high == 7)), Cover(fall & (high == 1))]
-        if remaining is not None:
-            m.d.comb += Assert(Mux(trigger.laser, remaining + high == width - 1, remaining == 0))
-        return m
-
-
-def _zero_loading(**kwargs):
-    return _ZeroLoadingLfsr(length=kwargs.get("length"))
-
-
 PROOFS = [
-    Proof("delay_core.trigger_start", TriggerHarness, "prove", 2,
-          "laser trigger: a TDC start in every rising edge's cycle, and only while the laser is on",
-          mutant=lambda: TriggerHarness(_LateStartTrigger)),
-    Proof("delay_core.trigger_width", lambda: TriggerHarness(check="width"), "prove", 2,
-          "laser trigger, fired only while the laser is off: every pulse exactly width cycles "
-          "high (zero acting as one)",
-          mutant=lambda: TriggerHarness(_RuntTrigger, check="width")),
     _core("start", 40, "the laser's rising edge and the TDC start are always in the same cycle",
           {"LaserTrigger": _LateStartTrigger}),
     _core("interval", 40, "interval mode: consecutive pulses exactly T + R apart, never closer "
@@ -487,14 +301,4 @@ PROOFS = [
           {"DelaySource": _LiveSettingsSource}),
     _core("pulses", 40, "no runt, merged or doubled pulse: each exactly pulse_width cycles "
           "high, low at least one cycle between", {"LaserTrigger": _RuntTrigger}),
-    Proof("delay_core.source_range", SourceHarness, "prove", 2,
-          "delay source: R within 0 … 2^L − 2 (mseq), 0 … 2^Wm − 1 (masked), 0 (off); "
-          "its registers never hold zero (L 2 … 32, Wm 1 … 16)",
-          mutant=lambda: SourceHarness(_OffByOneSource)),
-    Proof("delay_core.lfsr_fixed", lambda: LfsrHarness(length=5, steps=3), "prove", 1,
-          "LFSR (L = 5, 3 steps per advance): never zero, nothing above bit L − 1",
-          mutant=lambda: LfsrHarness(_zero_loading, length=5)),
-    Proof("delay_core.lfsr_runtime", LfsrHarness, "prove", 1,
-          "LFSR (run-time L): never zero, nothing above bit L − 1 of the loaded L",
-          mutant=lambda: LfsrHarness(_zero_loading)),
 ]

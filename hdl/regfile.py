@@ -1,5 +1,8 @@
 """Register file: the settings, their range and consistency checks, and the commit of a WRITE."""
 
+from functools import reduce
+from operator import or_
+
 from amaranth.hdl import Array, Cat, Module, Mux, Signal
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
@@ -9,7 +12,8 @@ from .protocol import NakCode
 from .registers import (REGISTERS, GROUPS, DELAY_SETTINGS, KEYING, settings_layout, defaults,
                         register_maxima)
 from .event import ADDRESS_BITS, TIMESTAMP_BITS
-from .delay.settings import BANK_BITS, MAX_BANK_BITS, MIN_BANK_BITS, DelayMode, IV_BITS
+from .delay.modes import MODES
+from .delay.settings import BANK_BITS, MAX_BANK_BITS, MIN_BANK_BITS, IV_BITS
 
 
 __all__ = ["RegisterFile"]
@@ -214,7 +218,7 @@ class RegisterFile(wiring.Component):
         # Consistency of the candidate settings `c`, in three registered steps (the largest
         # delays and the seeds' high bits, then the sum for the grid condition); it is needed
         # three cycles after the candidate is complete. The checks of each delay core's group
-        # are made from its group definition.
+        # are made from its group definition and the table of delay modes.
 
         def below(n, width):
             # `(1 << n) - 1` in `width` bits (all ones from `n = width` on), out of a constant
@@ -223,13 +227,27 @@ class RegisterFile(wiring.Component):
             return lookup([min((1 << k) - 1, (1 << width) - 1) for k in range(1 << len(n))],
                           n, width)
 
-        def max_delay(mode, length, mask_width):
-            # `(1 << length) - 2` in 34 bits, all ones for `length = 0`; `(1 << mask_width) - 1`.
-            zero = length == 0
-            mseq = Cat(zero, below(length, 34)[1:] | zero.replicate(33))
-            return Mux(mode == DelayMode.MSEQ, mseq,
-                       Mux((mode == DelayMode.MASKED) | (mode == DelayMode.KEYED),
-                           below(mask_width, 31), 0))
+        def power_less(n, less):
+            # `2**n - less` (`less` 1 or 2) for each `n` the field holds, in at most 34 bits
+            # (all ones from there on, and where it would be negative)
+            width = min(34, (1 << len(n)) - 1)
+            if less == 1:
+                return below(n, width)
+            zero = n == 0
+            return Cat(zero, below(n, width)[1:] | zero.replicate(width - 1))
+
+        def max_delay(g):
+            # The largest delay of the mode `g["mode"]` (:meth:`Mode.max_delay`): `2**n - less`
+            # of its size setting `n`, zero without one; modes of the same size share it.
+            sized = {}
+            for row in MODES.values():
+                if row.size is not None:
+                    sized.setdefault((row.size, row.less), []).append(row.mode)
+            largest = 0
+            for (size, less), modes in reversed(sized.items()):
+                largest = Mux(reduce(or_, (g["mode"] == mode for mode in modes)),
+                              power_less(g[size], less), largest)
+            return largest
 
         def narrow_less(a, b):
             # `a < b` for a narrower `a`: the high bits of `b` need no carry chain
@@ -264,15 +282,19 @@ class RegisterFile(wiring.Component):
                 continue
             g = {r.field: c[r.name] for r in group.members}
             simple.append(narrow_less(g["pulse_width"], g["period"]))
-            mseq = Signal(name=f"{group.name}_mseq")
-            high = Signal((len(g["seed"]) + 3) // 4, name=f"{group.name}_seed_high")
-            m.d.sync += [mseq.eq(g["mode"] == DelayMode.MSEQ),
-                         high.eq(seed_high(g["seed"], g["length"]))]
-            seeds.append(mseq & high.any())
+            # a mode whose seed is a state of a register as long as a setting says
+            for row in MODES.values():
+                if not isinstance(row.seed_bits, str):
+                    continue
+                moded = Signal(name=f"{group.name}_{row.name}")
+                high = Signal((len(g["seed"]) + 3) // 4, name=f"{group.name}_seed_high")
+                m.d.sync += [moded.eq(g["mode"] == row.mode),
+                             high.eq(seed_high(g["seed"], g[row.seed_bits]))]
+                seeds.append(moded & high.any())
             if "grid" in g:
                 largest = Signal(34, name=f"{group.name}_max_delay")
                 delay_and_pulse = Signal(35, name=f"{group.name}_delay_and_pulse")
-                m.d.sync += [largest.eq(max_delay(g["mode"], g["length"], g["mask_width"])),
+                m.d.sync += [largest.eq(max_delay(g)),
                              delay_and_pulse.eq(largest + g["pulse_width"])]
                 grids.append(~g["grid"] | (delay_and_pulse < g["period"]))
 

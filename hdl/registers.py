@@ -19,11 +19,13 @@ A definitions module: it imports no gateware (the limits come from :mod:`.settin
 
 from dataclasses import dataclass, field
 
+from amaranth.hdl import Shape
 from amaranth.lib import data, enum
 
 from . import DEFAULT_PRF_HZ, period_cycles
 from .event import ADDRESS_BITS, TIMESTAMP_BITS
-from .delay.settings import (BANK_BITS, DelayMode, IV_BITS, KEY_BITS, MIN_LENGTH, MAX_LENGTH,
+from .delay.modes import DelayMode, MODES, mode_row
+from .delay.settings import (BANK_BITS, IV_BITS, KEY_BITS, MIN_LENGTH, MAX_LENGTH,
                              MAX_MASK_WIDTH, PERIOD_WIDTH, PULSE_WIDTH_WIDTH)
 
 
@@ -31,7 +33,8 @@ __all__ = ["AcquisitionMode", "TdcSource", "Register", "Setting", "RegisterGroup
            "DELAY_SETTINGS", "VICTIM", "AGGRESSOR", "AGGRESSOR_DELAY", "ACQUISITION", "GATE",
            "HISTOGRAM", "DEPTH", "KEYING", "GROUPS",
            "REGISTERS", "BY_NAME", "BY_ADDRESS", "RECORDED", "DelaySettings", "settings_layout",
-           "register_maxima", "defaults", "problems", "split_problems", "max_delay", "words_of", "value_of",
+           "register_maxima", "defaults", "group_values", "problems", "split_problems", "words_of",
+           "value_of",
            "iv_problem"]
 
 
@@ -157,10 +160,19 @@ def _period(clock_hz):
 _U32 = (1 << 32) - 1
 _MODE_MAX = max(mode.value for mode in DelayMode)
 
+#: The aggressor's largest delay mode: it has no keyed source (see :data:`AGGRESSOR_DELAY`).
+_AGGRESSOR_MODE_MAX = DelayMode.MASKED.value
+
+
+def _modes_doc(top=_MODE_MAX):
+    # "0 off, 1 mseq, …": the delay modes up to value `top`
+    return ", ".join(f"{row.mode.value} {row.name}" for row in MODES.values()
+                     if row.mode.value <= top)
+
 #: The settings of a delay core (:class:`~fliss.hdl.delay.core.DelayCore`): delay source, then
 #: scheduler and laser trigger.
 DELAY_SETTINGS = (
-    Setting("mode",        2,                 0,              _MODE_MAX),
+    Setting("mode",        Shape.cast(DelayMode).width, 0, _MODE_MAX),
     Setting("length",      6,                 MIN_LENGTH,     MAX_LENGTH, "bits"),
     Setting("mask_width",  5,                 1,              MAX_MASK_WIDTH, "bits"),
     Setting("seed",        32,                1,              _U32),
@@ -173,7 +185,7 @@ DELAY_SETTINGS = (
 #: The victim's delay core.
 VICTIM = RegisterGroup("victim", DELAY_SETTINGS, {
     "mode":        ("delay_mode", 0x01, DelayMode.MSEQ.value,
-                    "victim delay source: 0 off, 1 mseq, 2 masked, 3 keyed"),
+                    f"victim delay source: {_modes_doc()}"),
     "length":      ("length", 0x02, 6, "register length L of the mseq source"),
     "mask_width":  ("mask_width", 0x03, 6, "mask width Wm of the masked source"),
     "seed":        ("seed", 0x04, 1, "seed of the victim delay source (below 2**L for mseq)"),
@@ -191,12 +203,13 @@ AGGRESSOR_DELAY = RegisterGroup("aggressor_delay", DELAY_SETTINGS, {
     "pulse_width": ("aggressor_width", 0x0b, 1,
                     "aggressor trigger pulse width, shorter than its period"),
     "mode":        ("aggressor_delay_mode", 0x0c, DelayMode.OFF.value,
-                    "aggressor's own delay source: 0 off, 1 mseq, 2 masked (not keyed)"),
+                    f"aggressor's own delay source: {_modes_doc(_AGGRESSOR_MODE_MAX)} "
+                    f"(not keyed)"),
     "length":      ("aggressor_length", 0x0d, 6, "register length of the aggressor's mseq source"),
     "mask_width":  ("aggressor_mask_width", 0x0e, 6,
                     "mask width of the aggressor's masked source"),
     "seed":        ("aggressor_seed", 0x0f, 0xACE1, "seed of the aggressor's delay source"),
-}, fixed={"grid": 0}, limits={"mode": DelayMode.MASKED.value})
+}, fixed={"grid": 0}, limits={"mode": _AGGRESSOR_MODE_MAX})
 
 #: The aggressor emitter's own settings (:class:`~fliss.hdl.delay.aggressor.Aggressor`).
 AGGRESSOR = RegisterGroup("aggressor", (
@@ -385,35 +398,27 @@ def iv_problem(written, values, iv_in_use):
             f"new key is written with it: under one key no IV is used twice")
 
 
-def max_delay(mode, length, mask_width):
-    """Largest delay of a delay source, in cycles (as the gateware computes it)."""
-    if mode == DelayMode.MSEQ.value:
-        return (1 << length) - 2
-    if mode in (DelayMode.MASKED.value, DelayMode.KEYED.value):
-        return (1 << mask_width) - 1
-    return 0
-
-
 def group_values(group, values):
     """The fields of ``group`` from ``values`` (register name -> value), fixed ones included."""
     return {**group.fixed, **{r.field: values[r.name] for r in group.members}}
 
 
 def _delay_problems(group, values):
-    # The checks of one delay core's settings
+    # The checks of one delay core's settings (its mode's from the table of modes)
     v = group_values(group, values)
     name = {r.field: r.name for r in group.members}
+    mode = mode_row(v["mode"])
     found = []
     if v["pulse_width"] >= v["period"]:
         found.append(f"{name['pulse_width']} ({v['pulse_width']} cycles) must be shorter than "
                      f"{name['period']} ({v['period']} cycles)")
-    if v["grid"] and max_delay(v["mode"], v["length"], v["mask_width"]) + \
-            v["pulse_width"] >= v["period"]:
+    if v["grid"] and mode.max_delay(**v) + v["pulse_width"] >= v["period"]:
         found.append(f"grid mode needs the largest delay plus {name['pulse_width']} to be "
                      f"shorter than {name['period']}")
-    if v["mode"] == DelayMode.MSEQ.value and v["seed"] >> v["length"]:
-        found.append(f"{name['seed']} must be below 2**{name['length']} = "
-                     f"{1 << v['length']} for the mseq source")
+    bits = mode.seed_bits
+    if isinstance(bits, str) and v["seed"] >> v[bits]:
+        found.append(f"{name['seed']} must be below 2**{name[bits]} = "
+                     f"{1 << v[bits]} for the {mode.name} source")
     return found
 
 

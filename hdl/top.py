@@ -17,7 +17,8 @@ from .link.packetizer import EventPacketizer, FullHistogramPacketizer, Histogram
 from .protocol import DEFAULT_BAUD
 from .rawfifo import RawFifo
 from .registers import VICTIM, AGGRESSOR, AGGRESSOR_DELAY, KEYING, DEPTH, AcquisitionMode, TdcSource
-from .delay.settings import (BANK_BITS, MAX_BANK_BITS, MIN_BANK_BITS, DelayMode, PERIOD_WIDTH,
+from .delay.modes import DelayMode
+from .delay.settings import (BANK_BITS, MAX_BANK_BITS, MIN_BANK_BITS, PERIOD_WIDTH,
                              PULSE_WIDTH_WIDTH, check_widths)
 from .spram import SPRAM_DEPTH
 from .status import StatusCounters, LINK_FIELDS

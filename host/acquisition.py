@@ -299,6 +299,26 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
     if cycles < 1:
         raise SettingsError(f"--integration {format_time(integration_s)} is shorter than one "
                             f"clock cycle of the board ({format_time(1 / clock_hz)})")
+    mode, configuration, status_start = _configure(board, mode, cycles)
+    run = _Capture(board, path, mode, configuration, status_start, acquisitions=acquisitions,
+                   duration_s=duration_s, cycles=cycles, port=port, progress=progress)
+    reason, complete, lost = run.acquire()
+    run.interrupt.install()     # again: a signal while stopping and closing only sets the flag
+    try:
+        run.end_progress()
+        if lost is None:
+            reason, complete, lost = run.stop(reason, complete)
+        if lost is not None:
+            run.keep_received()
+        return run.close(reason, complete, lost)
+    finally:
+        run.interrupt.restore()
+
+
+def _configure(board, mode, cycles):
+    """Stop the board, set its readout and integration time (``cycles``); returns the capture
+    mode (``"histogram"`` becomes ``"image"`` when a frame holds several pixels), the registers
+    and the STATUS before the start."""
     board.stop()
     board.drain(quiet_s=0.1, limit_s=2.0)
     current = board.read_registers()
@@ -308,151 +328,173 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
     configuration = board.read_registers()
     if mode == "histogram" and configuration.get("pixel_bits", 0):
         mode = "image"          # several pixels a frame: saved per pixel
-    status_start = board.status()
+    return mode, configuration, board.status()
 
-    attrs = {"integration_s": cycles / clock_hz}
-    if mode in _FRAMED:
-        attrs["acquisitions_requested"] = acquisitions
-    else:
-        attrs["duration_s_requested"] = duration_s
-    try:
-        writer = CaptureWriter(path, mode=mode, identity=board.identity.as_dict(),
-                               configuration=configuration, port=port, attrs=attrs)
-    except OSError as error:
-        raise PathError(f"cannot write {path}: {_strerror(error)}") from None
-    bar = progress if progress is not None else _NoProgress()
 
-    state = {"events": 0, "discarded": 0, "file_error": None, "detections": 0, "highest": 0,
-             "threshold": None}
-    rows = _Rows(writer, acquisitions, status_start["frames"], configuration, mode)
-    wanted = DepthFrame if mode == "depth" else HistogramFrame
+class _Capture:
+    """One capture from its start: the file it writes, what it has stored, and the steps of
+    :func:`capture` (acquire, stop, close)."""
 
-    def store(item):
-        if state["file_error"] is not None:     # the file cannot take more (a full disk)
+    def __init__(self, board, path, mode, configuration, status_start, *, acquisitions,
+                 duration_s, cycles, port, progress):
+        self.board, self.path, self.mode = board, path, mode
+        self.status_start, self.status_end = status_start, None
+        self.acquisitions, self.duration_s = acquisitions, duration_s
+        self.seconds = cycles / board.identity.clock_hz     # integration time
+        attrs = {"integration_s": self.seconds}
+        if mode in _FRAMED:
+            attrs["acquisitions_requested"] = acquisitions
+        else:
+            attrs["duration_s_requested"] = duration_s
+        try:
+            self.writer = CaptureWriter(path, mode=mode, identity=board.identity.as_dict(),
+                                        configuration=configuration, port=port, attrs=attrs)
+        except OSError as error:
+            raise PathError(f"cannot write {path}: {_strerror(error)}") from None
+        self.bar = progress if progress is not None else _NoProgress()
+        self.rows = _Rows(self.writer, acquisitions, status_start["frames"], configuration, mode)
+        self.wanted = DepthFrame if mode == "depth" else HistogramFrame
+        self.events = self.discarded = 0
+        # depth captures: pixels detected, the highest peak, the last frame's threshold
+        self.detections = self.highest = 0
+        self.threshold = None
+        self.file_error = None
+        self.interrupt = _Interrupt()
+        self.started = time.monotonic()
+
+    def store(self, item):
+        """Write a histogram, frame or event batch received (unless the file cannot take more,
+        a full disk: then :attr:`file_error`)."""
+        if self.file_error is not None:
             return
         try:
             if isinstance(item, (HistogramFrame, DepthFrame)):
-                if mode not in _FRAMED or not isinstance(item, wanted):
-                    state["discarded"] += 1
-                elif rows.add(item):
-                    if mode == "depth":
-                        state["detections"] += int(item.detected.sum())
-                        state["highest"] = max(state["highest"], int(item.height.max()))
-                        state["threshold"] = item.threshold
+                if self.mode not in _FRAMED or not isinstance(item, self.wanted):
+                    self.discarded += 1
+                elif self.rows.add(item):
+                    if self.mode == "depth":
+                        self.detections += int(item.detected.sum())
+                        self.highest = max(self.highest, int(item.height.max()))
+                        self.threshold = item.threshold
                     else:
-                        state["events"] += int(item.counts.sum())
+                        self.events += int(item.counts.sum())
             elif isinstance(item, EventBatch):
-                writer.add_events(item)
-                state["events"] += len(item.events)
+                self.writer.add_events(item)
+                self.events += len(item.events)
         except OSError as error:
-            state["file_error"] = error
+            self.file_error = error
 
-    reason, complete, lost = "completed", True, None
-    interrupt = _Interrupt()
-    board.reset_counters()
-    started = time.monotonic()
-    heartbeat = started
-    status_end = None
-    idle_timeout_s = max(3.0, 3 * cycles / clock_hz + 1.0)
-    # Heartbeat replies keep the line busy: a board that stopped acquiring shows as no data.
-    data_timeout_s = max(DATA_TIMEOUT_S, 10 * cycles / clock_hz) if mode in _FRAMED \
-        else math.inf
-    try:
-        interrupt.install()
-        board.start()
-        # The pulse count starts again at START: compared between heartbeats only.
-        status_last = dict(status_start, pulses=None)
-        started = heartbeat = time.monotonic()
-        for item in board.stream(idle_timeout_s=idle_timeout_s if mode in _FRAMED
-                                 else math.inf, data_timeout_s=data_timeout_s):
-            if item is not None:
-                store(item)
-            if interrupt.requested:
-                raise KeyboardInterrupt
-            if state["file_error"] is not None:
-                break
-            now = time.monotonic()
-            elapsed = now - started
-            link = board.link_counters()
-            damaged = f"{link['dropped_frames']} corrupt, {link['missing_packets']} lost"
-            # Rates are per second of the host's clock, which a simulated board lags behind.
-            if mode in _FRAMED:
-                # (a depth frame carries no event count: its pace is in frames)
-                pace = (f"{rows.saved / elapsed:.1f} frames/s" if mode == "depth" and elapsed > 0
-                        else rate(state["events"], elapsed))
-                bar.update(rows.saved, f"{pace} {_HOST_CLOCK}  link: {damaged}")
-                if rows.done:
+    def acquire(self):
+        """Start the board and store what it sends until the capture is complete, interrupted
+        or the board lost; returns ``(reason, complete, lost)``."""
+        board, framed = self.board, self.mode in _FRAMED
+        reason, complete, lost = "completed", True, None
+        board.reset_counters()
+        idle_timeout_s = max(3.0, 3 * self.seconds + 1.0)
+        # Heartbeat replies keep the line busy: a board that stopped acquiring shows as no data.
+        data_timeout_s = max(DATA_TIMEOUT_S, 10 * self.seconds) if framed else math.inf
+        try:
+            self.interrupt.install()
+            board.start()
+            # The pulse count starts again at START: compared between heartbeats only.
+            status_last = dict(self.status_start, pulses=None)
+            self.started = heartbeat = time.monotonic()
+            for item in board.stream(idle_timeout_s=idle_timeout_s if framed else math.inf,
+                                     data_timeout_s=data_timeout_s):
+                if item is not None:
+                    self.store(item)
+                if self.interrupt.requested:
+                    raise KeyboardInterrupt
+                if self.file_error is not None or self._progress():
                     break
-            else:
-                bar.update(min(elapsed, duration_s),
-                           f"{rate(state['events'], elapsed)} {_HOST_CLOCK}  link: {damaged}")
-                if elapsed >= duration_s:
-                    break
-            if now - heartbeat >= HEARTBEAT_S:
-                heartbeat = now
-                status = board.status()    # data that arrive meanwhile are kept
-                check_reset(board, status_last, status)
-                status_last = status
-    except KeyboardInterrupt:
-        reason, complete = _interrupted(interrupt.signal), False
-    except BoardReset as error:
-        reason, complete, lost = f"board reset: {error}", False, error
-    except BoardLost as error:
-        reason, complete, lost = f"board lost: {error}", False, error
-    finally:
-        interrupt.restore()
-    interrupt.install()     # again: a signal while stopping and closing only sets the flag
-    try:
-        bar.update(rows.saved if mode in _FRAMED else
-                   min(time.monotonic() - started, duration_s), force=True)
-        bar.close()
+                now = time.monotonic()
+                if now - heartbeat >= HEARTBEAT_S:
+                    heartbeat = now
+                    status = board.status()    # data that arrive meanwhile are kept
+                    check_reset(board, status_last, status)
+                    status_last = status
+        except KeyboardInterrupt:
+            reason, complete = _interrupted(self.interrupt.signal), False
+        except BoardReset as error:
+            reason, complete, lost = f"board reset: {error}", False, error
+        except BoardLost as error:
+            reason, complete, lost = f"board lost: {error}", False, error
+        finally:
+            self.interrupt.restore()
+        return reason, complete, lost
 
-        if lost is None:
-            try:
-                board.stop()
-                for item in board.settle(frames_at_start=status_start["frames"]):
-                    store(item)
-                status_end = board.status()
-                # Histograms the board completed that never arrived, up to the last one asked
-                # for (rows of zeros, unless the file cannot take more).
-                if state["file_error"] is None:
-                    try:
-                        rows.lose_made(status_end["frames"] - status_start["frames"])
-                    except OSError as error:
-                        state["file_error"] = error
-            except BoardLost as error:
-                reason, complete, lost = f"board lost while stopping: {error}", False, error
-            except KeyboardInterrupt:
-                reason, complete = _interrupted(interrupt.signal), False
-        if lost is not None:
-            for item in board.take_data() + board.assembler.flush():
-                store(item)
+    def _progress(self):
+        # Show the progress; True once everything asked for is in. Rates are per second of the
+        # host's clock, which a simulated board lags behind.
+        elapsed = time.monotonic() - self.started
+        link = self.board.link_counters()
+        damaged = f"{link['dropped_frames']} corrupt, {link['missing_packets']} lost"
+        if self.mode in _FRAMED:
+            # (a depth frame carries no event count: its pace is in frames)
+            pace = (f"{self.rows.saved / elapsed:.1f} frames/s"
+                    if self.mode == "depth" and elapsed > 0 else rate(self.events, elapsed))
+            self.bar.update(self.rows.saved, f"{pace} {_HOST_CLOCK}  link: {damaged}")
+            return self.rows.done
+        self.bar.update(min(elapsed, self.duration_s),
+                        f"{rate(self.events, elapsed)} {_HOST_CLOCK}  link: {damaged}")
+        return elapsed >= self.duration_s
 
+    def end_progress(self):
+        self.bar.update(self.rows.saved if self.mode in _FRAMED else
+                        min(time.monotonic() - self.started, self.duration_s), force=True)
+        self.bar.close()
+
+    def stop(self, reason, complete):
+        """Stop the board and store what it still sends; rows of zeros for the histograms it
+        completed that never arrived, up to the last one asked for (unless the file cannot take
+        more). Returns ``(reason, complete, lost)``."""
+        board, start = self.board, self.status_start["frames"]
+        try:
+            board.stop()
+            for item in board.settle(frames_at_start=start):
+                self.store(item)
+            self.status_end = board.status()
+            if self.file_error is None:
+                try:
+                    self.rows.lose_made(self.status_end["frames"] - start)
+                except OSError as error:
+                    self.file_error = error
+        except BoardLost as error:
+            return f"board lost while stopping: {error}", False, error
+        except KeyboardInterrupt:
+            return _interrupted(self.interrupt.signal), False, None
+        return reason, complete, None
+
+    def keep_received(self):
+        """Store what arrived before the board was lost, the histogram in progress included."""
+        for item in self.board.take_data() + self.board.assembler.flush():
+            self.store(item)
+
+    def close(self, reason, complete, lost):
+        """Write the counters, close the file; returns the :class:`CaptureResult`."""
+        board, rows, writer = self.board, self.rows, self.writer
         link = board.link_counters()
         stream = board.assembler.counters.as_dict()
-        stream["discarded_frames"] = state["discarded"] + rows.discarded
+        stream["discarded_frames"] = self.discarded + rows.discarded
         stream["lost_rows"] = rows.lost
         stream["incomplete_rows"] = rows.incomplete
         writer.set_counters("link", link)
         writer.set_counters("stream", stream)
-        writer.set_counters("board_start", status_start)
-        if status_end is not None:
-            writer.set_counters("board_end", status_end)
-        if state["file_error"] is not None:
-            reason, complete = f"cannot write {path}: {_strerror(state['file_error'])}", False
+        writer.set_counters("board_start", self.status_start)
+        if self.status_end is not None:
+            writer.set_counters("board_end", self.status_end)
+        if self.file_error is not None:
+            reason, complete = f"cannot write {self.path}: {_strerror(self.file_error)}", False
         try:
-            writer.close(reason, complete=complete, capture_s=time.monotonic() - started)
+            writer.close(reason, complete=complete, capture_s=time.monotonic() - self.started)
         except OSError as error:
-            state["file_error"] = state["file_error"] or error
-        if state["file_error"] is not None:
-            raise PathError(f"cannot write {path}: {_strerror(state['file_error'])}; the board "
-                            f"was stopped, and the file holds what was written before")
+            self.file_error = self.file_error or error
+        if self.file_error is not None:
+            raise PathError(f"cannot write {self.path}: {_strerror(self.file_error)}; the "
+                            f"board was stopped, and the file holds what was written before")
         return CaptureResult(
-            path=str(path), mode=mode, histograms=rows.saved,
+            path=str(self.path), mode=self.mode, histograms=rows.saved,
             lost_histograms=rows.lost, events=writer.events,
             batches=writer.batches, reason=reason, complete=complete, lost=lost, link=link,
-            stream=stream, status_start=status_start, status_end=status_end,
-            detections=state["detections"], highest=state["highest"],
-            threshold=state["threshold"])
-    finally:
-        interrupt.restore()
+            stream=stream, status_start=self.status_start, status_end=self.status_end,
+            detections=self.detections, highest=self.highest, threshold=self.threshold)

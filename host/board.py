@@ -32,7 +32,7 @@ from typing import Any, Iterator, Mapping, Optional
 
 import numpy as np
 
-from ..hdl.delay.settings import mean_delay
+from ..hdl.delay.modes import mode_row
 from ..hdl.protocol import DEFAULT_BAUD, HISTOGRAM_COUNT_BITS
 from ..hdl.registers import BY_NAME, AcquisitionMode
 from ..protocol.events import EVENT_DTYPE
@@ -445,5 +445,6 @@ def _mean_interval(registers):
     the mean delay in interval mode (in grid mode pulse ``k`` fires at ``k T + R``)."""
     if registers["grid"]:
         return registers["period"]
-    return registers["period"] + mean_delay(registers["delay_mode"], registers["length"],
-                                            registers["mask_width"])
+    row = mode_row(registers["delay_mode"])
+    return registers["period"] + row.mean_delay(length=registers["length"],
+                                                mask_width=registers["mask_width"])

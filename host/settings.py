@@ -30,7 +30,7 @@ from ..hdl.event import TIMESTAMP_BITS
 from ..hdl import DEFAULT_CLOCK_HZ
 from ..hdl.registers import (BY_NAME, AcquisitionMode, TdcSource, defaults, iv_problem, problems,
                              value_of)
-from ..hdl.delay.settings import DelayMode
+from ..hdl.delay.modes import DelayMode
 from .errors import SettingsError
 from .imager.threshold import depth_threshold
 from .setting_kinds import (CHOICE, FREQUENCY, GATE, IV, KEY, MAX_PIXELS, PIXEL, PIXELS, TIME,

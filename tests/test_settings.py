@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from fliss.hdl.registers import BY_NAME, REGISTERS, defaults
-from fliss.hdl.delay.settings import DelayMode
+from fliss.hdl.delay.modes import DelayMode
 from fliss.host.errors import BoardError, SettingsError
 from fliss.host.settings import OPTIONS, convert, describe
 

@@ -1,7 +1,8 @@
 """The delay core: pseudorandom delay sources, the pulse scheduler, the laser trigger and TDC start.
 
-* :mod:`.settings`: the delay core's limits and :class:`~.settings.DelayMode`;
-* :mod:`.modes`: one table of the delay modes (maximum delay, label, settings it needs);
+* :mod:`.settings`: the delay core's limits;
+* :mod:`.modes`: :class:`~.modes.DelayMode` and the table of the delay modes (the settings each
+  needs, its largest delay, sequence period, mean delay and label);
 * :mod:`.lfsr`: Galois LFSR with a run-time or fixed length;
 * :mod:`.trivium`, :mod:`.keyed`: the keystream of the ``keyed`` source;
 * :mod:`.source`: the delay source (``off``, ``mseq``, ``masked``, ``keyed``);

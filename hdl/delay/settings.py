@@ -1,20 +1,17 @@
 """Limits of the delay core's settings: the numbers the register map, the gateware and the models
 share.
 
-A definitions module: it imports no gateware, so :mod:`.registers` can build the register map
-from it and the blocks (:mod:`.lfsr`, :mod:`.delay`, :mod:`.scheduler`) can import it.
+A definitions module: it imports no gateware, so :mod:`fliss.hdl.registers` can build the register
+map from it and the blocks (:mod:`.lfsr`, :mod:`.source`, :mod:`.scheduler`) can import it. The
+delay modes are in :mod:`.modes`.
 """
-
-from fractions import Fraction
-
-from amaranth.lib import enum
 
 
 __all__ = ["MIN_LENGTH", "MAX_LENGTH", "MAX_MASK_WIDTH", "MASKED_LENGTH", "MASKED_STEPS",
            "KEY_BITS", "IV_BITS", "KEYED_ROUNDS", "KEYED_INIT_CYCLES", "KEYED_START_CYCLES",
            "DELAY_WIDTH", "PERIOD_WIDTH",
-           "PULSE_WIDTH_WIDTH", "BANK_BITS", "MIN_BANK_BITS", "MAX_BANK_BITS", "DelayMode",
-           "check_widths", "mean_delay"]
+           "PULSE_WIDTH_WIDTH", "BANK_BITS", "MIN_BANK_BITS", "MAX_BANK_BITS", 
+           "check_widths"]
 
 
 #: Shortest and longest supported register of the m-sequence source, in bits.
@@ -73,22 +70,6 @@ MIN_BANK_BITS = 13
 MAX_BANK_BITS = 19
 
 
-class DelayMode(enum.Enum, shape=2):
-    """Source of the pseudorandom delay ``T_rnd``, in clock cycles."""
-    #: No delay: the laser fires on the nominal schedule.
-    OFF    = 0
-    #: Complete m-sequence of an ``L``-bit register, one state per pulse; delay ``R = state - 1``,
-    #: so ``R`` runs over ``0 … 2**L - 2`` once per period (equation 9 and Table 2 of the paper).
-    MSEQ   = 1
-    #: The ``Wm`` least significant bits of a 32-bit register that takes ``MASKED_STEPS`` steps per
-    #: pulse; delay from ``0`` to ``2**Wm - 1``.
-    MASKED = 2
-    #: The Trivium keystream of an 80-bit key and IV (:mod:`fliss.sim.models.trivium`): pulse ``k``'s
-    #: delay is the ``Wm``-bit integer whose bit ``j`` is keystream bit ``z(k Wm + j + 1)``;
-    #: delay from ``0`` to ``2**Wm - 1``, as ``MASKED``.
-    KEYED  = 3
-
-
 def check_widths(period_width, pulse_width_width):
     """Refuse setting widths the scheduler cannot take: a period of 17 to
     :data:`PERIOD_WIDTH` bits (its timers count in 16-bit halves), a pulse width of 1 to
@@ -99,25 +80,3 @@ def check_widths(period_width, pulse_width_width):
     if not isinstance(pulse_width_width, int) or not 1 <= pulse_width_width <= PULSE_WIDTH_WIDTH:
         raise ValueError(f"Pulse width width must be an integer from 1 to {PULSE_WIDTH_WIDTH} "
                          f"bits, not {pulse_width_width!r}")
-
-
-def mean_delay(mode, length, mask_width):
-    """Mean delay of a source over one whole sequence period, in clock cycles, as an exact
-    fraction (settings as the registers hold them, not checked: see
-    :func:`fliss.sim.models.delay.mean_delay`).
-
-    ``mseq``: the states ``1 … 2**L - 1`` each once, so ``R`` averages ``2**(L-1) - 1``.
-    ``masked``: over the ``2**32 - 1`` non-zero states, each non-zero value of the low ``Wm``
-    bits occurs ``2**(32-Wm)`` times and zero ``2**(32-Wm) - 1`` times.
-    ``keyed``: that of uniform ``Wm``-bit delays, ``(2**Wm - 1) / 2`` (an ideal keystream's).
-    """
-    mode = DelayMode(mode)
-    if mode == DelayMode.KEYED:
-        return Fraction((1 << mask_width) - 1, 2)
-    if mode == DelayMode.MSEQ:
-        return Fraction((1 << length) - 2, 2)
-    if mode == DelayMode.MASKED:
-        per_value = 1 << (MASKED_LENGTH - mask_width)
-        total = per_value * ((1 << mask_width) - 1) * (1 << mask_width) // 2
-        return Fraction(total, (1 << MASKED_LENGTH) - 1)
-    return Fraction(0)

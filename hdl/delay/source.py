@@ -5,7 +5,8 @@ from amaranth.lib.wiring import In, Out
 from .keyed import Keying, KeyedStream
 from .lfsr import POLYNOMIALS, _galois_step, _galois_steps
 from ..registers import DelaySettings
-from .settings import (DelayMode, IV_BITS, MAX_LENGTH, MAX_MASK_WIDTH, DELAY_WIDTH, MASKED_LENGTH,
+from .modes import DelayMode
+from .settings import (IV_BITS, MAX_LENGTH, MAX_MASK_WIDTH, DELAY_WIDTH, MASKED_LENGTH,
                        MASKED_STEPS)
 
 

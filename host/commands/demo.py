@@ -156,7 +156,7 @@ def run(args):
           f"{format_frequency(clock_hz / masked_period)} with masked delays).")
     print("Effective PRF of the victim, complete m-sequences (paper, Table 2): " + ", ".join(
         f"L={s['length']}: {format_frequency(closed)}"
-        for _, s, _, _, closed, _ in prf_rows(clock_hz, period, lengths=[3, 4, 5, 6, 8])))
+        for _, s, _, _, closed, _ in prf_rows(clock_hz, period, {"length": [3, 4, 5, 6, 8]})))
     started = time.monotonic()
     print(f"\nStarting the virtual board: FlissTop in {args.sim}, the scene simulator on its "
           f"sensor pins (the first run builds the simulation, about a minute)...", flush=True)

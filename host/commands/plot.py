@@ -7,6 +7,8 @@ import os
 import numpy as np
 
 from ..analysis import analyze
+from ...hdl.delay.modes import label as mode_label
+from ...hdl.registers import VICTIM
 from ..errors import UserError
 from ..imager.report import image_format, plot_imager
 from ..paths import check_output_path
@@ -15,7 +17,7 @@ from ..units import format_time, parse_time
 from .common import parse_times, read_capture_file
 
 
-__all__ = ["register", "run_plot"]
+__all__ = ["register", "run_plot", "curve_label"]
 
 
 def register(subparsers, formatter):
@@ -52,6 +54,19 @@ def register(subparsers, formatter):
     parser.set_defaults(run=run_plot)
 
 
+def curve_label(path, configuration):
+    """The legend of a capture's curve: its file name, and with the registers it was taken with
+    (``configuration``), the victim's delay mode (``"FLISS masked Wm=6"``, named by
+    :mod:`fliss.hdl.delay.modes`) and the aggressor."""
+    label = os.path.basename(path)
+    if configuration:
+        c = configuration
+        victim = {register.field: c.get(register.name) for register in VICTIM.members}
+        label += (f" (FLISS {mode_label(victim['mode'], **victim)}, "
+                  f"aggressor {'on' if c.get('aggressor') else 'off'})")
+    return label
+
+
 def run_plot(args):
     import matplotlib
     matplotlib.use("Agg")
@@ -86,15 +101,9 @@ def run_plot(args):
     for path, capture in captures:
         histogram = capture.total_histogram()
         times_ns = (np.arange(len(histogram)) + 0.5) * capture.bin_s * 1e9
-        label = os.path.basename(path)
-        if capture.configuration:
-            c = capture.configuration
-            mode = {0: "off", 1: f"mseq L={c.get('length')}",
-                    2: f"masked Wm={c.get('mask_width')}"}.get(c.get("delay_mode"), "?")
-            label += f" (FLISS {mode}, aggressor {'on' if c.get('aggressor') else 'off'})"
         line, = axes.step(times_ns, histogram, where="mid", linewidth=0.8)
         s_text, peaks = _peaks(histogram, capture, victim, aggressors)
-        line.set_label(label + s_text)
+        line.set_label(curve_label(path, capture.configuration) + s_text)
         marks += [(*peak, line.get_color()) for peak in peaks]
     axes.set_xlabel("time from TDC start (ns)")
     axes.set_ylabel("counts per bin")

@@ -4,6 +4,7 @@ import sys
 
 import numpy as np
 
+from ...hdl.delay.modes import MODES
 from ...sim.models import delay as delay_model
 from ...sim.models import scheduler as scheduler_model
 from ...sim.models import trivium
@@ -21,7 +22,7 @@ def register(subparsers, formatter):
         description="One delay in clock cycles per line, exactly as the gateware produces them "
                     "after a start; with --times, the cycle of each laser rising edge counted "
                     "from the first frame.")
-    parser.add_argument("--mode", default="mseq", choices=["off", "mseq", "masked", "keyed"],
+    parser.add_argument("--mode", default="mseq", choices=[row.name for row in MODES.values()],
                         help="delay source")
     parser.add_argument("--length", type=int, default=6, metavar="L",
                         help="register length of the mseq source, 2 to 32")
@@ -50,14 +51,15 @@ def run_sequence(args):
     if args.count < 0:
         raise UserError(f"--count must not be negative, not {args.count}")
     try:
+        mode = delay_model.parse_mode(args.mode)
         keyed = {}
-        if args.mode == "keyed":
+        if MODES[mode].keyed:
             if args.key is None or args.iv is None:
-                raise ValueError("--mode keyed needs --key and --iv")
+                raise ValueError(f"--mode {args.mode} needs --key and --iv")
             keyed = dict(key=trivium.parse_hex(args.key, "key", exact=True),
                          iv=trivium.parse_hex(args.iv, "IV"))
         settings = scheduler_model.Settings(
-            mode=delay_model.parse_mode(args.mode), length=args.length,
+            mode=mode, length=args.length,
             mask_width=args.mask_width, seed=args.seed, period=period, grid=args.grid,
             pulse_width=args.pulse_width, **keyed).check()
         delays = settings.delays(args.count)

@@ -14,7 +14,7 @@ from cocotb.triggers import ClockCycles, FallingEdge, RisingEdge
 
 from ...hdl import DEFAULT_CLOCK_HZ
 from ...hdl.delay.source import Delay
-from ...hdl.delay.settings import DelayMode
+from ...hdl.delay.modes import DelayMode
 from ...hdl.registers import DelaySettings
 from ..models.delay import delays as model_delays
 

@@ -34,7 +34,9 @@ from ...hdl import DEFAULT_CLOCK_HZ
 from ...hdl.histogram.layout import MAX_COUNT_WIDTH
 from ...hdl.protocol import (DEFAULT_BAUD, HISTOGRAM_COUNT_BITS, PacketType, STATUS_FIELDS,
                              LINK_COUNTERS, MAX_EVENTS_PER_PACKET, EVENT_BYTES)
-from ...hdl.registers import AcquisitionMode, TdcSource, value_of, words_of
+from ...hdl.delay.modes import MODES, DelayMode
+from ...hdl.registers import (AGGRESSOR_DELAY, VICTIM, AcquisitionMode, TdcSource, group_values,
+                              value_of, words_of)
 from ...protocol.frames import LinkError, Packet, encode_frame, packet_type
 from ...protocol.events import pack_events
 from ..models import scheduler as _scheduler
@@ -42,7 +44,6 @@ from ..models import histogram as _histogram
 from ..models.command import CommandModel
 from ...protocol.histograms import decode_chunk, encode_histogram, frame_bins
 from ...protocol.packets import HISTOGRAM_TYPES
-from ..models.delay import DelayMode
 from ..models.depth import depth_frame
 from ...protocol.depth import depth_payload
 from .noisy_line import NoisyLine, add_line_arguments, describe, faults_from_args
@@ -70,19 +71,24 @@ def scene_for(settings, template=None, *, aggressor_detections_per_pulse=0.05, c
     template = Scene() if template is None else template
     clock_hz = template.clock_hz if clock_hz is None else clock_hz
     s = settings
-    victim = _scheduler.Settings(mode=DelayMode(s["delay_mode"]), length=s["length"],
-                                 mask_width=s["mask_width"], seed=s["seed"], period=s["period"],
-                                 grid=bool(s["grid"]), pulse_width=s["pulse_width"],
-                                 key=value_of(s, "key"), iv=value_of(s, "iv"))
+    victim = _scheduler.Settings(**_delay_settings(s, VICTIM), key=value_of(s, "key"),
+                                 iv=value_of(s, "iv"))
     aggressors = ()
     if s["aggressor"]:
-        mode = DelayMode(s["aggressor_delay_mode"])
+        delays = _delay_settings(s, AGGRESSOR_DELAY)
+        mode = delays["mode"]
         aggressors = (Aggressor(
-            period_cycles=s["aggressor_period"], offset_s=s["aggressor_offset"] / clock_hz,
+            period_cycles=delays["period"], offset_s=s["aggressor_offset"] / clock_hz,
             detections_per_pulse=aggressor_detections_per_pulse, mode=mode,
-            length=s["aggressor_length"], mask_width=s["aggressor_mask_width"],
-            seed=s["aggressor_seed"]),)
+            **{name: delays[name] for name in MODES[mode].needs}),)
     return template.replace(victim=victim, aggressors=aggressors, clock_hz=clock_hz)
+
+
+def _delay_settings(values, group):
+    # The settings of a delay core (its register `group`) in register `values`, by field, as
+    # the models take them
+    fields = group_values(group, values)
+    return {**fields, "mode": DelayMode(fields["mode"]), "grid": bool(fields["grid"])}
 
 
 class ModelBoard(PtyServer):

@@ -5,7 +5,8 @@ from ...hdl.protocol import (PROTOCOL_VERSION, GATEWARE_MAJOR, GATEWARE_MINOR, P
                              CONSISTENCY, REGISTER_BYTES, registers_layout)
 from ...hdl.registers import (REGISTERS, BY_ADDRESS, KEYING, defaults, problems, register_maxima,
                               iv_problem, value_of, words_of)
-from ...hdl.delay.settings import BANK_BITS, DelayMode
+from ...hdl.delay.modes import DelayMode
+from ...hdl.delay.settings import BANK_BITS
 from ...protocol.layout import pack, unpack, byte_size, unpack_words
 from .delay import KeyedRestarts
 

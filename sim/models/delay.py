@@ -1,11 +1,15 @@
-"""Bit-exact model of :class:`fliss.hdl.delay.source.DelaySource`."""
+"""Bit-exact model of :class:`fliss.hdl.delay.source.DelaySource`.
+
+The settings each mode needs, its largest delay, sequence period and mean delay are those of the
+table of modes (:data:`fliss.hdl.delay.modes.MODES`); the delays of each mode are made here.
+"""
 
 import sys
 
 import numpy as np
 
-from ...hdl.delay import settings as _settings
-from ...hdl.delay.settings import DelayMode, MAX_LENGTH, MAX_MASK_WIDTH, MASKED_LENGTH, MASKED_STEPS
+from ...hdl.delay.modes import MODES, SIZES, DelayMode
+from ...hdl.delay.settings import MAX_LENGTH, MASKED_LENGTH, MASKED_STEPS
 from . import lfsr, trivium
 
 
@@ -28,30 +32,28 @@ def parse_mode(mode):
 def check_settings(mode, *, length=None, mask_width=None, seed=1, key=None, iv=None):
     """Validate delay settings as a user gives them; return the mode.
 
-    ``length`` is needed for ``mseq``, ``mask_width`` for ``masked`` and ``keyed``, ``key`` and
-    ``iv`` (10 bytes or an 80-bit integer, :mod:`fliss.sim.models.trivium`) for ``keyed``. The seed must
-    be a non-zero state of the register: from 1 to ``2**L - 1`` (``2**32 - 1`` for ``masked``).
+    A mode needs the settings its row of :data:`~fliss.hdl.delay.modes.MODES` names: ``length``
+    for ``mseq``, ``mask_width`` for ``masked`` and ``keyed``, ``key`` and ``iv`` (10 bytes or an
+    80-bit integer, :mod:`fliss.sim.models.trivium`) for ``keyed``. The seed must be a non-zero
+    state of the register: from 1 to ``2**L - 1`` (``2**32 - 1`` for ``masked``).
     """
     mode = parse_mode(mode)
-    if mode == DelayMode.KEYED:
+    row = MODES[mode]
+    if row.keyed:
         if key is None or iv is None:
-            raise ValueError("The keyed delay source needs a key and an IV")
+            raise ValueError(f"The {row.name} delay source needs a key and an IV")
         trivium.as_int(key, "key")
         trivium.as_int(iv, "IV")
-    if mode == DelayMode.MSEQ:
-        if length is None:
-            raise ValueError("The mseq delay source needs a register length L")
-        lfsr.check_length(length)
-        bits = length
-    elif mode in (DelayMode.MASKED, DelayMode.KEYED):
-        if mask_width is None:
-            raise ValueError(f"The {mode.name.lower()} delay source needs a mask width Wm")
-        if not isinstance(mask_width, (int, np.integer)) or not 1 <= mask_width <= MAX_MASK_WIDTH:
-            raise ValueError(f"Mask width must be an integer from 1 to {MAX_MASK_WIDTH}, "
-                             f"not {mask_width!r}")
-        bits = MASKED_LENGTH
-    else:
-        bits = MAX_LENGTH
+    settings = {"length": length, "mask_width": mask_width}
+    if row.size is not None:
+        value, size = settings[row.size], SIZES[row.size]
+        if value is None:
+            raise ValueError(f"The {row.name} delay source needs {size.what}")
+        if not isinstance(value, (int, np.integer)) or \
+                not size.minimum <= value <= size.maximum:
+            raise ValueError(f"{size.noun} must be an integer from {size.minimum} to "
+                             f"{size.maximum}, not {value!r}")
+    bits = settings[row.seed_bits] if isinstance(row.seed_bits, str) else MAX_LENGTH
     if not isinstance(seed, (int, np.integer)) or not 1 <= seed < (1 << bits):
         raise ValueError(f"Seed must be an integer from 1 to {(1 << bits) - 1} (a non-zero "
                          f"{bits}-bit register state), not {seed!r}")
@@ -72,41 +74,35 @@ def delays(mode, count, *, length=None, mask_width=None, seed=1, key=None, iv=No
     return np.zeros(count, dtype=np.int64)
 
 
-def max_delay(mode, *, length=None, mask_width=None):
-    """Largest delay of the source, in clock cycles."""
-    mode = _check_shape(mode, length, mask_width)
-    if mode == DelayMode.MSEQ:
-        return (1 << length) - 2
-    if mode in (DelayMode.MASKED, DelayMode.KEYED):
-        return (1 << mask_width) - 1
-    return 0
-
-
-def _check_shape(mode, length, mask_width):
-    # The settings that shape the delays (the key and IV do not)
+def _shape(mode, length, mask_width):
+    # The row of a mode and the settings that shape its delays, checked (the key and IV do not
+    # shape them)
     mode = parse_mode(mode)
-    key = iv = 0 if mode == DelayMode.KEYED else None
-    return check_settings(mode, length=length, mask_width=mask_width, key=key, iv=iv)
+    key = iv = 0 if MODES[mode].keyed else None
+    check_settings(mode, length=length, mask_width=mask_width, key=key, iv=iv)
+    return MODES[mode], {"length": length, "mask_width": mask_width}
+
+
+def max_delay(mode, *, length=None, mask_width=None):
+    """Largest delay of the source, in clock cycles
+    (:meth:`~fliss.hdl.delay.modes.Mode.max_delay`)."""
+    row, settings = _shape(mode, length, mask_width)
+    return row.max_delay(**settings)
 
 
 def sequence_period(mode, *, length=None, mask_width=None):
     """Number of pulses after which the delay sequence repeats; ``None`` for ``keyed`` (its
-    period is unknown and far beyond any run: Trivium's state has 288 bits)."""
-    mode = _check_shape(mode, length, mask_width)
-    if mode == DelayMode.KEYED:
-        return None
-    if mode == DelayMode.MSEQ:
-        return (1 << length) - 1
-    if mode == DelayMode.MASKED:
-        return (1 << MASKED_LENGTH) - 1
-    return 1
+    period is unknown and far beyond any run: Trivium's state has 288 bits)
+    (:meth:`~fliss.hdl.delay.modes.Mode.sequence_period`)."""
+    row, settings = _shape(mode, length, mask_width)
+    return row.sequence_period(**settings)
 
 
 def mean_delay(mode, *, length=None, mask_width=None):
     """Mean delay over one whole sequence period, in clock cycles, as an exact fraction
-    (:func:`fliss.hdl.delay.settings.mean_delay`, of checked settings)."""
-    mode = _check_shape(mode, length, mask_width)
-    return _settings.mean_delay(mode, length, mask_width)
+    (:meth:`~fliss.hdl.delay.modes.Mode.mean_delay`)."""
+    row, settings = _shape(mode, length, mask_width)
+    return row.mean_delay(**settings)
 
 
 class DelayStream:

@@ -12,6 +12,7 @@ from fractions import Fraction
 import numpy as np
 
 from ...hdl.delay.laser import LATENCY
+from ...hdl.delay.modes import MODES
 from ...hdl.delay.settings import KEYED_START_CYCLES, PERIOD_WIDTH, PULSE_WIDTH_WIDTH
 from . import delay as _delay
 from . import trivium as _trivium
@@ -262,12 +263,13 @@ _SEQUENCE_CHUNK = 1 << 16
 MEASURE_LIMIT = 1 << 20
 
 
-def prf_rows(clock_hz, period, lengths=(), mask_widths=(), *, grid=False):
+def prf_rows(clock_hz, period, sizes, *, grid=False):
     """Rows of the PRF table: (source, setting, max delay, mean delay, PRF closed form,
-    PRF measured or None)."""
+    PRF measured or None), for every mode of :data:`~fliss.hdl.delay.modes.MODES` sized by a
+    setting in ``sizes`` (setting name -> values: ``{"length": [3, 4]}``), in table order."""
     rows = []
-    sources = [("mseq", {"length": length}) for length in lengths] + \
-              [("masked", {"mask_width": width}) for width in mask_widths]
+    sources = [(row.name, {row.size: value}) for row in MODES.values()
+               for value in sizes.get(row.size, ())]
     for mode, setting in sources:
         max_delay = _delay.max_delay(mode, **setting)
         mean_delay = _delay.mean_delay(mode, **setting)
@@ -276,7 +278,7 @@ def prf_rows(clock_hz, period, lengths=(), mask_widths=(), *, grid=False):
         closed = effective_prf(clock_hz, period, mean_delay, grid=grid)
         pulses = _delay.sequence_period(mode, **setting)
         measured = None
-        if pulses <= MEASURE_LIMIT:
+        if pulses is not None and pulses <= MEASURE_LIMIT:
             delays = _delay.delays(mode, pulses + 1, **setting)
             measured = measured_prf(
                 clock_hz, fire_cycles(delays, period, grid=grid))

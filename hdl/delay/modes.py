@@ -1,0 +1,156 @@
+"""The delay modes, in one table: per mode, the settings it needs, its largest delay, the period
+and mean of its delay sequence, and its name in labels.
+
+The register checks read it (:func:`fliss.hdl.registers.problems`, and the gateware's, which
+:class:`~fliss.hdl.regfile.RegisterFile` generates from it per delay core), and so do the models
+(:mod:`fliss.sim.models.delay`), the formal harnesses and the host's commands and plots. The
+delays themselves come from the delay source (:mod:`.source`) and its model
+(:mod:`fliss.sim.models.delay`). A new mode is a member of :class:`DelayMode` and a row of
+:data:`MODES` here, a block of the source, and its model.
+
+A definitions module: it imports no gateware.
+"""
+
+from dataclasses import dataclass
+from fractions import Fraction
+from typing import Callable, Optional, Union
+
+from amaranth.lib import enum
+
+from .settings import MASKED_LENGTH, MAX_LENGTH, MAX_MASK_WIDTH, MIN_LENGTH
+
+
+__all__ = ["DelayMode", "Size", "SIZES", "Mode", "MODES", "mode_row", "label"]
+
+
+class DelayMode(enum.Enum, shape=2):
+    """Source of the pseudorandom delay ``T_rnd``, in clock cycles (:data:`MODES`)."""
+    #: No delay: the laser fires on the nominal schedule.
+    OFF    = 0
+    #: Complete m-sequence of an ``L``-bit register, one state per pulse; delay ``R = state - 1``,
+    #: so ``R`` runs over ``0 … 2**L - 2`` once per period (equation 9 and Table 2 of the paper).
+    MSEQ   = 1
+    #: The ``Wm`` least significant bits of a 32-bit register that takes ``MASKED_STEPS`` steps per
+    #: pulse; delay from ``0`` to ``2**Wm - 1``.
+    MASKED = 2
+    #: The Trivium keystream of an 80-bit key and IV (:mod:`fliss.sim.models.trivium`): pulse
+    #: ``k``'s delay is the ``Wm``-bit integer whose bit ``j`` is keystream bit
+    #: ``z(k Wm + j + 1)``; delay from ``0`` to ``2**Wm - 1``, as ``MASKED``.
+    KEYED  = 3
+
+
+@dataclass(frozen=True)
+class Size:
+    """A setting that sizes a mode's delays: its symbol in labels (``L`` in ``"mseq L=6"``),
+    what it is, and its range as the models check it (the register's may be wider)."""
+    symbol: str
+    what: str
+    noun: str
+    minimum: int
+    maximum: int
+
+
+#: The settings that size a mode's delays, by name.
+SIZES = {
+    "length":     Size("L", "a register length L", "LFSR length", MIN_LENGTH, MAX_LENGTH),
+    "mask_width": Size("Wm", "a mask width Wm", "Mask width", 1, MAX_MASK_WIDTH),
+}
+
+
+@dataclass(frozen=True)
+class Mode:
+    """One delay mode.
+
+    Its delays run from 0 to ``2**n - less`` cycles, ``n`` being the value of its ``size``
+    setting (one of :data:`SIZES`); without ``size`` they are all zero. ``seed_bits``: the seed
+    is a non-zero state of a register of this many bits, or of as many as the setting of that
+    name says (the register checks refuse a seed above it); None: the seed is not used.
+    (A number of bits is the seed register's 32, which its range checks.) ``keyed``: it needs
+    the key and IV. ``period`` and ``mean`` give, of ``n``, the number of
+    pulses after which the sequence repeats (None: unknown, beyond any run) and the mean delay
+    over one whole period, in cycles. (The gateware's consistency check builds ``2**n - 1`` and
+    ``2**n - 2``: ``less`` is 1 or 2.)
+    """
+    mode: DelayMode
+    size: Optional[str] = None
+    less: int = 1
+    seed_bits: Union[int, str, None] = None
+    keyed: bool = False
+    period: Callable[[int], Optional[int]] = lambda n: 1
+    mean: Callable[[int], Fraction] = lambda n: Fraction(0)
+
+    def __post_init__(self):
+        assert self.size is None or self.size in SIZES, self
+        assert self.less in (1, 2), self
+        assert self.seed_bits in (None, MAX_LENGTH) or self.seed_bits in SIZES, self
+
+    @property
+    def name(self):
+        """``"mseq"``: the mode's name in labels, settings and files."""
+        return self.mode.name.lower()
+
+    @property
+    def needs(self):
+        """The settings the mode reads, besides the scheduler's."""
+        return ((self.size,) if self.size else ()) + \
+            (("seed",) if self.seed_bits is not None else ()) + \
+            (("key", "iv") if self.keyed else ())
+
+    def max_delay(self, **settings):
+        """Largest delay in cycles, with ``settings`` by name (those it does not need are
+        ignored)."""
+        return 0 if self.size is None else (1 << settings[self.size]) - self.less
+
+    def sequence_period(self, **settings):
+        """Pulses after which the delays repeat; None if unknown (beyond any run)."""
+        return self.period(settings.get(self.size))
+
+    def mean_delay(self, **settings):
+        """Mean delay over one whole period, in cycles, as an exact fraction."""
+        return self.mean(settings.get(self.size))
+
+    def label(self, **settings):
+        """The mode and its size, as plots and tables name it: ``"mseq L=6"``, ``"off"``."""
+        if self.size is None:
+            return self.name
+        return f"{self.name} {SIZES[self.size].symbol}={settings.get(self.size)}"
+
+
+def _masked_mean(width):
+    # Over the 2**32 - 1 non-zero states of the register, each non-zero value of its low Wm
+    # bits comes 2**(32 - Wm) times and zero 2**(32 - Wm) - 1 times.
+    per_value = 1 << (MASKED_LENGTH - width)
+    total = per_value * ((1 << width) - 1) * (1 << width) // 2
+    return Fraction(total, (1 << MASKED_LENGTH) - 1)
+
+
+#: Every delay mode, by :class:`DelayMode`, in value order.
+MODES = {row.mode: row for row in (
+    Mode(DelayMode.OFF),
+    # the states 1 … 2**L - 1 once each per period: R averages 2**(L-1) - 1
+    Mode(DelayMode.MSEQ, size="length", less=2, seed_bits="length",
+         period=lambda n: (1 << n) - 1, mean=lambda n: Fraction((1 << n) - 2, 2)),
+    Mode(DelayMode.MASKED, size="mask_width", seed_bits=MASKED_LENGTH,
+         period=lambda n: (1 << MASKED_LENGTH) - 1, mean=_masked_mean),
+    # the mean of uniform Wm-bit delays (an ideal keystream's); Trivium's period is unknown,
+    # and far beyond any run (288 bits of state)
+    Mode(DelayMode.KEYED, size="mask_width", keyed=True,
+         period=lambda n: None, mean=lambda n: Fraction((1 << n) - 1, 2)),
+)}
+
+assert list(MODES) == list(DelayMode)
+
+
+def mode_row(mode):
+    """The row of ``mode`` (a :class:`DelayMode` or its value), or None if there is none."""
+    try:
+        return MODES[DelayMode(mode)]
+    except ValueError:
+        return None
+
+
+def label(mode, /, **settings):
+    """:meth:`Mode.label` of ``mode`` (a :class:`DelayMode` or its value), ``"?"`` for a value
+    that is no mode."""
+    row = mode_row(mode)
+    return "?" if row is None else row.label(**settings)
