@@ -145,7 +145,7 @@ def test_a_keyed_capture_is_labelled_keyed(tmp_path, capsys, monkeypatch):
     from fliss.host.fileformat import read_capture
     with model_board() as board:
         status, out, err = fliss(capsys, "config", "--port", board.path, "--mode", "keyed",
-                                 "--mask-width", "5", "--key", "1", "--iv", "0x10")
+                                 "--mask-width", "5", "--key", "0" * 19 + "1", "--iv", "0x10")
         assert status == 0, err
         path = tmp_path / "keyed.h5"
         status, out, err = fliss(capsys, "-q", "capture", "--port", board.path, "-o",
@@ -158,7 +158,7 @@ def test_a_keyed_capture_is_labelled_keyed(tmp_path, capsys, monkeypatch):
     save = Figure.savefig
 
     def savefig(figure, *args, **kwargs):
-        legends.append([text.get_text() for text in figure.axes[0].get_legend().get_texts()])
+        legends.append([text.get_text() for legend in figure.legends for text in legend.get_texts()])
         return save(figure, *args, **kwargs)
 
     monkeypatch.setattr(Figure, "savefig", savefig)

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...hdl.delay.settings import DelayMode
+from ...hdl.delay.modes import DelayMode
 from ...hdl.event import PULSE_BITS, TDC_LSB_S
 from ...hdl.registers import BY_NAME, value_of
 from ...protocol.events import EVENT_DTYPE
