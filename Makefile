@@ -6,7 +6,7 @@ PY      := $(VENV)/bin/python
 STAMP   := $(VENV)/.installed-stamp
 PYTEST_ARGS ?=
 
-.PHONY: all demo test lint verilog venv clean
+.PHONY: all demo test test-long lint verilog venv clean
 
 all: test
 
@@ -24,6 +24,11 @@ demo: $(STAMP)
 
 test: lint
 	$(PY) -m pytest $(PYTEST_ARGS)
+
+# The full-length runs whose shorter versions `make test` runs (marker long): the link fuzz's
+# 10 000 frames on each simulator, the demo twice. CI runs them too (.ci/run).
+test-long: $(STAMP)
+	$(PY) -m pytest -m long $(PYTEST_ARGS)
 
 lint: $(STAMP)
 	$(PY) -m ruff check .

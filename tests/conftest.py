@@ -10,9 +10,25 @@ from fliss.sim.benches.runner import SIMULATORS, prepare_path, simulator_availab
 
 _COCOTB_COUNTS = {}
 
-#: Test files whose tests run for minutes; they start first so that parallel workers finish
-#: together.
-_SLOW_FILES = ("test_cocotb_link.py", "test_cocotb_top.py", "test_cocotb_delay_core.py")
+#: Tests that run for a minute or more on a 2-core machine, longest first (node id prefixes):
+#: they start first, so that the parallel workers finish together. Each worker takes a few tests
+#: at a time (:func:`pytest_xdist_make_scheduler`), in this order, then the others.
+_LONG_FIRST = (
+    "tests/test_cocotb_link.py::test_link_fuzz[icarus-long]",
+    "tests/test_virtual_board.py::test_demo_runs_again",
+    "tests/test_cocotb_top.py::test_top[icarus]",
+    "tests/test_histogram_pixels.py::test_pixels_match_model[16-6-0-10-3300-dual]",
+    "tests/test_cocotb_top_depth.py::test_top_depth[verilator]",
+    "tests/test_cocotb_scene.py::test_line_scene_on_the_sensor_bus[icarus-",
+    "tests/test_cocotb_link.py::test_link_fuzz[verilator-long]",
+    "tests/test_virtual_board.py::test_virtual_board[verilator]",
+    "tests/test_cocotb_top.py::test_top[verilator]",
+    "tests/test_virtual_board.py::test_demo_replaces_its_files",
+    "tests/test_virtual_board.py::test_reset_mid_capture",
+    "tests/test_cocotb_delay_core.py::test_delay_core[icarus]",
+    "tests/test_cocotb_top.py::test_top_small[",
+    "tests/test_cocotb_",
+)
 
 
 def pytest_configure(config):
@@ -50,8 +66,46 @@ def construction_error():
     return message_of
 
 
+def _long_first(item):
+    for rank, prefix in enumerate(_LONG_FIRST):
+        if item.nodeid.startswith(prefix):
+            return rank
+    return len(_LONG_FIRST)
+
+
 def pytest_collection_modifyitems(items):
-    items.sort(key=lambda item: item.path.name not in _SLOW_FILES)
+    items.sort(key=_long_first)
+
+
+def _build_scope(nodeid):
+    """The runs of a cocotb test on one simulator (its parametrisations, its short and long
+    versions) share a build folder and its results file, so they must not run side by side:
+    ``tests/test_cocotb_x.py::test_y[icarus-a]`` and ``[icarus-b]`` are one scope,
+    ``tests/test_cocotb_x.py::test_y[icarus]``; any other test is a scope of its own."""
+    path, _, name = nodeid.partition("::")
+    function, _, ids = name.partition("[")
+    if path.rpartition("/")[2].startswith("test_cocotb_"):
+        for part in ids.rstrip("]").split("-"):
+            if part in SIMULATORS:
+                return f"{path}::{function}[{part}]"
+    return nodeid
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config, log):
+    """``-n`` with the default ``--dist load``: xdist's scheduler by scope, the scope of
+    :func:`_build_scope`. Each worker is handed a few tests at a time, in the collection's order
+    (longest first), and a scope's tests go to one worker. (``--dist loadgroup`` would do with
+    ``xdist_group`` marks, but under pytest 9.2 it no longer groups: pytest-xdist issue 1386.)"""
+    if config.getvalue("dist") != "load":
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    class BuildScopeScheduling(LoadScopeScheduling):
+        def _split_scope(self, nodeid):
+            return _build_scope(nodeid)
+
+    return BuildScopeScheduling(config, log)
 
 
 @pytest.fixture

@@ -410,22 +410,37 @@ def test_reset_mid_capture(tmp_path, capsys):
     assert stats["resets"] == 1
 
 
+#: The files `fliss demo` writes in its folder, and the shortest demo that makes them all.
+DEMO_FILES = ("fliss-off.h5", "fliss-on.h5", "demo.png", "imager-off.h5", "imager-on.h5",
+              "imager.png", "attack.txt", "attack.png")
+DEMO_ARGV = ["demo", "--integration", "0.5ms", "--acquisitions", "1", "--depth-frames", "1"]
+
+
+def _run_demo(folder, capsys):
+    """One short `fliss demo` into ``folder``; returns the mtimes of its files."""
+    assert main([*DEMO_ARGV, "--out", str(folder)]) == 0
+    summary = capsys.readouterr().out.split("== Summary")[-1]
+    assert summary.count("victim peak") == 2, summary
+    return {name: (folder / name).stat().st_mtime_ns for name in DEMO_FILES}
+
+
+def test_demo_replaces_its_files(tmp_path, capsys):
+    """`make demo` over the files of an earlier run replaces them instead of stopping: one run,
+    the short version of test_demo_runs_again (which `make test-long` runs)."""
+    _require_verilator()
+    for name in DEMO_FILES:
+        (tmp_path / name).write_bytes(b"an earlier run's file")
+    _run_demo(tmp_path, capsys)
+    for name in DEMO_FILES:
+        assert (tmp_path / name).read_bytes() != b"an earlier run's file", name
+    assert read_capture(tmp_path / "fliss-on.h5").histograms.shape[0] == 1
+
+
+@pytest.mark.long
 def test_demo_runs_again(tmp_path, capsys):
     """`make demo` twice: the second run replaces the demo's own files instead of stopping."""
-    if not simulator_available("verilator"):
-        message = "simulator verilator is not installed"
-        if os.environ.get("FLISS_REQUIRE_SIMULATORS"):
-            pytest.fail(message + " (FLISS_REQUIRE_SIMULATORS is set)")
-        pytest.skip(message)
-    argv = ["demo", "--out", str(tmp_path), "--integration", "0.5ms", "--acquisitions", "1",
-            "--depth-frames", "1"]
-    written = []
-    for _ in range(2):
-        assert main(argv) == 0
-        written.append({name: (tmp_path / name).stat().st_mtime_ns
-                        for name in ("fliss-off.h5", "fliss-on.h5", "demo.png")})
-        summary = capsys.readouterr().out.split("== Summary")[-1]
-        assert summary.count("victim peak") == 2, summary
+    _require_verilator()
+    written = [_run_demo(tmp_path, capsys) for _ in range(2)]
     assert all(written[1][name] > written[0][name] for name in written[0])
 
 
