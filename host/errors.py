@@ -7,7 +7,8 @@ it does with :exc:`UserError`, a mistake in what the user asked a command for.
 """
 
 __all__ = ["BoardError", "BoardLost", "BoardReset", "PortError", "BoardRefused", "BoardMismatch",
-           "SettingsError", "VirtualBoardError", "PathError", "FormatError", "UserError"]
+           "SettingsError", "VirtualBoardError", "PathError", "FormatError", "ViewError",
+           "UserError"]
 
 
 class BoardError(Exception):
@@ -78,6 +79,11 @@ class FormatError(ValueError):
     """A capture cannot be exported to the format asked for (a depth capture to PTU, a
     histogram to Photon-HDF5, a library missing), or a PTU or Photon-HDF5 file cannot be read
     as a capture; the message is one line that says why (:mod:`fliss.host.formats`)."""
+
+
+class ViewError(Exception):
+    """The live view cannot be served: its port is in use or cannot be bound, or the web
+    server does not start; the message is one line that says why (:mod:`fliss.host.view`)."""
 
 
 class UserError(Exception):
