@@ -279,7 +279,7 @@ class _Rows:
 def capture(board: BoardClient, path: str, *, mode: str = "histogram",
             integration_s: float = 10e-3, acquisitions: int = 10,
             duration_s: Optional[float] = None, port: str = "",
-            progress=None) -> CaptureResult:
+            progress=None, watch=None) -> CaptureResult:
     """Capture into ``path`` from an identified :class:`~fliss.host.client.BoardClient`.
 
     ``mode`` is ``"histogram"`` (``acquisitions`` histograms; saved as ``"image"`` when the
@@ -292,7 +292,10 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
     captured; a board lost mid-capture leaves a file with everything received. Both are told
     by the result; :exc:`~fliss.host.errors.SettingsError` for an integration time shorter
     than one clock cycle, and any :exc:`~fliss.host.errors.BoardError` before the capture
-    starts, are raised.
+    starts, are raised. ``watch``, if given, has ``add(item)``, ``add_status(status, link)``
+    and ``finish(reason)`` (a live view's :class:`fliss.host.view.feed.Feed`): it sees each
+    item as it is stored, the board's STATUS at each heartbeat and how the capture ended, and
+    must return at once without raising.
     """
     clock_hz = board.identity.clock_hz
     cycles = round(integration_s * clock_hz)
@@ -301,7 +304,8 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
                             f"clock cycle of the board ({format_time(1 / clock_hz)})")
     mode, configuration, status_start = _configure(board, mode, cycles)
     run = _Capture(board, path, mode, configuration, status_start, acquisitions=acquisitions,
-                   duration_s=duration_s, cycles=cycles, port=port, progress=progress)
+                   duration_s=duration_s, cycles=cycles, port=port, progress=progress,
+                   watch=watch)
     reason, complete, lost = run.acquire()
     run.interrupt.install()     # again: a signal while stopping and closing only sets the flag
     try:
@@ -310,6 +314,8 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
             reason, complete, lost = run.stop(reason, complete)
         if lost is not None:
             run.keep_received()
+        if watch is not None:
+            watch.finish(reason)
         return run.close(reason, complete, lost)
     finally:
         run.interrupt.restore()
@@ -336,7 +342,7 @@ class _Capture:
     :func:`capture` (acquire, stop, close)."""
 
     def __init__(self, board, path, mode, configuration, status_start, *, acquisitions,
-                 duration_s, cycles, port, progress):
+                 duration_s, cycles, port, progress, watch=None):
         self.board, self.path, self.mode = board, path, mode
         self.status_start, self.status_end = status_start, None
         self.acquisitions, self.duration_s = acquisitions, duration_s
@@ -352,6 +358,7 @@ class _Capture:
         except OSError as error:
             raise PathError(f"cannot write {path}: {_strerror(error)}") from None
         self.bar = progress if progress is not None else _NoProgress()
+        self.watch = watch
         self.rows = _Rows(self.writer, acquisitions, status_start["frames"], configuration, mode)
         self.wanted = DepthFrame if mode == "depth" else HistogramFrame
         self.events = self.discarded = 0
@@ -403,6 +410,8 @@ class _Capture:
                                      data_timeout_s=data_timeout_s):
                 if item is not None:
                     self.store(item)
+                    if self.watch is not None:
+                        self.watch.add(item)
                 if self.interrupt.requested:
                     raise KeyboardInterrupt
                 if self.file_error is not None or self._progress():
@@ -413,6 +422,8 @@ class _Capture:
                     status = board.status()    # data that arrive meanwhile are kept
                     check_reset(board, status_last, status)
                     status_last = status
+                    if self.watch is not None:
+                        self.watch.add_status(status, board.link_counters())
         except KeyboardInterrupt:
             reason, complete = _interrupted(self.interrupt.signal), False
         except BoardReset as error:

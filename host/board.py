@@ -404,13 +404,15 @@ class Board:
                       dropped=int(dropped), settings=settings, pulses=end["pulses"])
 
     def capture(self, path: str, *, acquisitions: int = 10, duration: str = "1s",
-                progress=None, image: Optional[bool] = None, overwrite: bool = False):
+                progress=None, image: Optional[bool] = None, overwrite: bool = False,
+                watch=None):
         """Capture into an HDF5 file (docs/file-format.md) at the board's settings: its
         readout (``acquisitions`` histograms or depth frames, or raw events for ``duration``),
         its integration time; the file records the registers used. Histograms are saved per
         pixel (``image``) when ``image`` is True, or None and a frame has several pixels.
-        ``progress`` as in :func:`fliss.host.acquisition.capture`. An existing file is
-        replaced only with ``overwrite``.
+        ``progress`` and ``watch`` (a live view's feed) as in
+        :func:`fliss.host.acquisition.capture`. An existing file is replaced only with
+        ``overwrite``.
 
         Returns
         -------
@@ -433,7 +435,7 @@ class Board:
         return capture(self.client, path, mode=readout,
                        integration_s=registers["integration"] / self.clock_hz,
                        acquisitions=acquisitions, duration_s=duration_s, port=self.port,
-                       progress=progress)
+                       progress=progress, watch=watch)
 
 
 def _duration(value):
