@@ -14,7 +14,7 @@ import sys
 import warnings
 
 from .. import __version__
-from .errors import BoardError, PathError, UserError
+from .errors import BoardError, PathError, UserError, ViewError
 from .settings import RoundingWarning
 
 
@@ -34,6 +34,7 @@ COMMAND_MODULES = [
     "analyze",
     "plot",
     "export",
+    "view",
     "generate",
     "board",
     "attack",
@@ -109,7 +110,7 @@ def main(argv=None):
             warnings.showwarning = _show_warning
             args.fliss = main
             return args.run(args) or 0
-    except (UserError, BoardError, PathError) as error:
+    except (UserError, BoardError, PathError, ViewError) as error:
         print(f"fliss: error: {error}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:

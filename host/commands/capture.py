@@ -17,6 +17,7 @@ from ..paths import check_output_path
 from .common import Progress
 from .port_options import add_port_arguments, connect
 from .setting_options import add_setting_arguments, settings_from_args
+from .view_options import add_view_arguments, check_bokeh, viewing
 from ..settings import check_offline, duration_s
 
 
@@ -47,6 +48,10 @@ def register(subparsers, formatter):
                         default=argparse.SUPPRESS,
                         help="HDF5 file to write")
     parser.add_argument("--overwrite", action="store_true", help="replace an existing FILE")
+    parser.add_argument("--view", action="store_true",
+                        help="show the capture live in the browser meanwhile (as `fliss view`; "
+                             "the view samples what is written and never holds it up)")
+    add_view_arguments(parser, "the live view (with --view)")
     add_setting_arguments(parser, "settings (as in `fliss config`; those not given keep the "
                                   "board's values: --readout histogram|image|depth|raw, "
                                   "--pixels N, --integration TIME, --mode for the delay "
@@ -61,6 +66,8 @@ def run(args):
     if args.acquisitions < 1:
         raise UserError(f"--acquisitions must be at least 1, not {args.acquisitions}")
     check_output_path(args.output, overwrite=args.overwrite)      # before the board
+    if args.view:
+        check_bokeh()
     quiet = getattr(args, "quiet", 0) > 0
     with connect(args) as board:
         warning = left_running(board.client, "this capture stops it and starts it again")
@@ -75,9 +82,10 @@ def run(args):
             bar = Progress(args.acquisitions, unit, enabled=not quiet)
         else:
             bar = Progress(round(duration_s(args.duration, ""), 1), "s", enabled=not quiet)
-        result = board.capture(args.output, acquisitions=args.acquisitions,
-                               duration=args.duration, progress=bar, image=image,
-                               overwrite=args.overwrite)
+        with viewing(board, args) as feed:
+            result = board.capture(args.output, acquisitions=args.acquisitions,
+                                   duration=args.duration, progress=bar, image=image,
+                                   overwrite=args.overwrite, watch=feed)
     try:
         return report(result, quiet=quiet)
     except OSError:     # the terminal went away (SIGHUP); the file is saved all the same

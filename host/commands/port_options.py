@@ -13,11 +13,13 @@ from ..port import DEFAULT_TIMEOUT_S, PTY_TIMEOUT_S
 __all__ = ["add_port_arguments", "connect"]
 
 
-def add_port_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--port``, ``--baud``, ``--timeout``, ``--retries``: how to reach a board."""
+def add_port_arguments(parser: argparse.ArgumentParser, *, required: bool = True) -> None:
+    """``--port``, ``--baud``, ``--timeout``, ``--retries``: how to reach a board. With
+    ``required=False`` ``--port`` may be left out, and ``args.port`` is then None."""
     port = os.environ.get("FLISS_PORT")
-    parser.add_argument("--port", required=port is None,
-                        default=port if port is not None else argparse.SUPPRESS,
+    parser.add_argument("--port", required=required and port is None,
+                        default=port if port is not None or not required else
+                        argparse.SUPPRESS,
                         metavar="PORT",
                         help="serial port: device (/dev/ttyUSB1, COM3), pty of a virtual board "
                              "(/dev/pts/N) or pyserial URL (socket://host:port); see "

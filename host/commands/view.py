@@ -1,0 +1,115 @@
+"""``fliss view``: a live view of a board in the browser, or the replay of a capture file.
+
+The view itself is :mod:`fliss.host.view` (a Bokeh server on a thread, fed by the acquisition);
+this module adds the command line. ``fliss capture --view`` serves the same page while it
+captures.
+"""
+
+import sys
+import time
+
+from ..board import Board
+from ..errors import UserError
+from ..settings import check_offline, duration_s
+from .common import read_capture_file, sigterm_interrupts
+from .port_options import add_port_arguments, connect
+from .setting_options import add_setting_arguments, settings_from_args
+from .view_options import add_view_arguments, check_bokeh, serving, setup_options
+
+
+__all__ = ["register", "run"]
+
+
+def register(subparsers, formatter):
+    parser = subparsers.add_parser(
+        "view", formatter_class=formatter,
+        help="watch a board (or replay a capture) in the browser, live",
+        description="Serves a page on this machine (the address is printed) that shows what "
+                    "the board sends, frame by frame, in any number of browsers: the "
+                    "histogram (linear and log), the peak table (ToF, distance, FWHM, "
+                    "height) and the suppression S, frames, count and drop rates; for the "
+                    "imager, the depth profile (an image with --shape) and the intensity. "
+                    "With --port, the board acquires at its settings (as `fliss config` left "
+                    "them, changed first by any setting flag given) until Ctrl-C, and is "
+                    "stopped then; with FILE, a capture (FLISS, PTU or Photon-HDF5) is played "
+                    "back at the pace it was captured (--speed). `fliss capture --view` "
+                    "shows a capture as it is written.")
+    parser.add_argument("file", nargs="?", metavar="FILE",
+                        help="capture file to replay (instead of --port)")
+    add_port_arguments(parser, required=False)
+    parser.add_argument("--speed", type=float, default=1.0, metavar="X",
+                        help="replay this many times faster than the capture ran")
+    parser.add_argument("--loop", action="store_true", help="replay the file again and again")
+    parser.add_argument("--for", dest="duration", metavar="TIME",
+                        help="stop after this long (default: at Ctrl-C)")
+    add_view_arguments(parser, "the page")
+    add_setting_arguments(parser, "settings of the board (as in `fliss config`; those not "
+                                  "given keep the board's values)")
+    parser.set_defaults(run=run)
+
+
+def run(args):
+    check_bokeh()
+    from ..view.feed import READOUTS, Feed, Setup
+
+    settings = settings_from_args(args)
+    limit_s = duration_s(args.duration, f"--for {args.duration}") if args.duration else None
+    if args.file is not None:
+        if settings:
+            flags = ", ".join("--" + name.replace("_", "-") for name in settings)
+            raise UserError(f"{flags}: settings are for a board, not for a file to replay")
+        if not args.speed > 0:
+            raise UserError(f"--speed must be positive, not {args.speed:g}")
+        capture = read_capture_file(args.file)
+        setup = Setup.of_capture(capture, **setup_options(args, max(len(capture.pixels), 1)))
+        return _replay(capture, Feed(setup), args, limit_s)
+    if args.port is None:
+        raise UserError("give a capture FILE to replay, or --port (or FLISS_PORT) to watch a "
+                        "board")
+    check_offline(settings)
+    with connect(args) as board:
+        board.configure(settings, style="flag")
+        registers = board.client.read_registers()
+        setup = Setup.of_registers(board.port, registers, board.clock_hz,
+                                   **setup_options(args, 1 << registers["pixel_bits"]))
+        if setup.readout not in READOUTS:
+            raise UserError(f"fliss view shows {', '.join(READOUTS)} readouts, not "
+                            f"{setup.readout}")
+        return _watch(board, Feed(setup), args, limit_s)
+
+
+def _watch(board: Board, feed, args, limit_s):
+    from ..view.live import watch
+
+    end = None if limit_s is None else time.monotonic() + limit_s
+    with serving(feed, args):
+        try:
+            with sigterm_interrupts():
+                watch(board, feed, should_stop=lambda: end is not None and
+                      time.monotonic() >= end)
+        except KeyboardInterrupt:
+            print("fliss: view stopped; the board stopped acquiring", file=sys.stderr)
+    return 0
+
+
+def _replay(capture, feed, args, limit_s):
+    from ..view.replay import Replay
+
+    end = None if limit_s is None else time.monotonic() + limit_s
+    with serving(feed, args):
+        replay = Replay(capture, feed, speed=args.speed, loop=args.loop).start()
+        said = False
+        try:
+            with sigterm_interrupts():
+                while end is None or time.monotonic() < end:
+                    if not said and replay.wait(0.1):
+                        said = True
+                        print(f"fliss: view: {feed.state}; the page stays until Ctrl-C",
+                              file=sys.stderr, flush=True)
+                    elif said:
+                        time.sleep(0.1)
+        except KeyboardInterrupt:
+            print("fliss: view stopped", file=sys.stderr)
+        finally:
+            replay.stop()
+    return 0

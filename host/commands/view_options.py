@@ -1,0 +1,88 @@
+"""The live view's options (``--view-port``, ``--view-address``, ``--victim-tof``, ``--shape``)
+for ``fliss view`` and ``fliss capture --view``, and :func:`serving`, the view they describe
+served for the length of a ``with`` block."""
+
+import argparse
+import contextlib
+import sys
+
+from ..errors import UserError
+from .common import parse_times
+
+
+__all__ = ["add_view_arguments", "setup_options", "check_bokeh", "serving", "viewing"]
+
+
+def add_view_arguments(parser: argparse.ArgumentParser, title: str) -> None:
+    """The view's options, in a group called ``title``."""
+    from ..view.server import DEFAULT_PORT
+
+    group = parser.add_argument_group(title)
+    group.add_argument("--view-port", type=int, default=DEFAULT_PORT, metavar="N",
+                       help="TCP port of the view's page (0: any free port; the address is "
+                            "printed)")
+    group.add_argument("--view-address", default="localhost", metavar="HOST",
+                       help="address the page is served on (localhost: this machine only)")
+    group.add_argument("--victim-tof", metavar="TIME",
+                       help="position of the victim's peak for S (e.g. 26.7ns); else, with "
+                            "several peaks, the tallest")
+    group.add_argument("--shape", metavar="ROWSxCOLUMNS",
+                       help="the imager's pixels as an image (8x8) rather than a profile")
+
+
+def setup_options(args, pixels: int) -> dict:
+    """``victim_s`` and ``shape`` for :class:`~fliss.host.view.feed.Setup`, from the
+    arguments (``pixels``: the frame's pixels, that ``--shape`` must hold)."""
+    from ..imager.report import parse_shape
+
+    victim = parse_times([args.victim_tof], "--victim-tof")[0] if args.victim_tof else None
+    return {"victim_s": victim, "shape": parse_shape(args.shape, pixels)}
+
+
+def check_bokeh() -> None:
+    """Refuse with one line when Bokeh, which serves the view, is not installed."""
+    try:
+        import bokeh  # noqa: F401
+    except ImportError:
+        raise UserError("the live view needs Bokeh: pip install 'fliss[view]'") from None
+
+
+@contextlib.contextmanager
+def serving(feed, args, *, quiet=False):
+    """Serve the view of ``feed`` as the arguments say, for the length of the ``with`` block
+    (yields the :class:`~fliss.host.view.server.ViewServer`); prints its address, and a line
+    when a browser opens or leaves the page (stderr)."""
+    from ..view.server import ViewServer
+
+    def notify(line):
+        if not quiet:
+            _say(f"fliss: view: {line}")
+
+    with ViewServer(feed, port=args.view_port, address=args.view_address,
+                    notify=notify) as server:
+        _say(f"fliss: view at {server.url} (Ctrl-C stops)")
+        yield server
+
+
+@contextlib.contextmanager
+def viewing(board, args):
+    """For ``fliss capture``: with ``--view``, the view of ``board`` at its settings served for
+    the length of the ``with`` block, which gets its :class:`~fliss.host.view.feed.Feed` to
+    hand the capture; None without."""
+    if not args.view:
+        yield None
+        return
+    from ..view.feed import Feed, Setup
+
+    registers = board.client.read_registers()
+    feed = Feed(Setup.of_registers(board.port, registers, board.clock_hz,
+                                   **setup_options(args, 1 << registers["pixel_bits"])))
+    with serving(feed, args, quiet=getattr(args, "quiet", 0) > 0):
+        yield feed
+
+
+def _say(line):
+    try:
+        print(line, file=sys.stderr, flush=True)
+    except OSError:         # the terminal went away: the view and the capture go on
+        pass
