@@ -11,7 +11,7 @@ import html
 import math
 
 import numpy as np
-from bokeh.layouts import column, row
+from bokeh.layouts import row
 from bokeh.models import (Button, ColumnDataSource, Div, LinearColorMapper, RadioButtonGroup,
                           Range1d)
 from bokeh.palettes import Magma256, Viridis256
@@ -27,6 +27,9 @@ __all__ = ["build_document", "status_html", "peaks_html"]
 #: several times slower. Finer histograms are drawn in wider bins (sums of neighbours).
 MAX_POINTS = 1024
 
+#: Rows of the peak table (the tallest peaks).
+MAX_PEAKS = 6
+
 #: Colours of the peak markers by role.
 _ROLE_COLOURS = {"victim": "#1b9e77", "aggressor": "#d95f02", "": "#7570b3"}
 
@@ -41,8 +44,11 @@ def build_document(doc, feed: Feed, period_s: float) -> None:
     state = {"summed": False, "seq": None, "drawn_summed": None, "bins": None}
 
     title = Div(text=_title_html(feed), styles=dict(_STYLE, **{"font-size": "16px"}))
+    # Each part is a root of its own, and the texts are of fixed height: a text that changes
+    # lays out only itself. Laying out the whole page, plots and all, at each update would
+    # take most of the browser's time.
     status = Div(text="", css_classes=["fliss-status"], styles=_STYLE,
-                 sizing_mode="stretch_width")
+                 sizing_mode="stretch_width", height=66)
     parts = [title, status]
 
     histogram = setup.readout in ("histogram", "image", "raw")
@@ -63,7 +69,8 @@ def build_document(doc, feed: Feed, period_s: float) -> None:
 
     curve = ColumnDataSource(data=dict(t=[], counts=[], positive=[]))
     marks = ColumnDataSource(data=dict(t=[], y=[], colour=[]))
-    table = Div(text="", css_classes=["fliss-peaks"], styles=_STYLE)
+    table = Div(text="", css_classes=["fliss-peaks"], styles=_STYLE,
+                sizing_mode="stretch_width", height=40 + 22 * (MAX_PEAKS + 1))
     linear = log = None
     if histogram:
         linear = _histogram_figure("histogram", "linear")
@@ -99,7 +106,8 @@ def build_document(doc, feed: Feed, period_s: float) -> None:
             doc.unhold()
 
     update()
-    doc.add_root(column(*parts, sizing_mode="stretch_width"))
+    for part in parts:
+        doc.add_root(part)
     doc.add_periodic_callback(update, max(1, round(period_s * 1000)))
 
 
@@ -238,33 +246,39 @@ def status_html(feed: Feed, status: Status, picture: Picture) -> str:
 
 
 def peaks_html(picture: Picture) -> str:
-    """The peak table and the suppression, as an HTML table."""
+    """The suppression and the table of the tallest peaks, as HTML."""
     if picture.counts is None:
         return ""
     if not picture.peaks:
         return "<i>no peak above the detection threshold</i>"
+    if picture.suppression_db is not None:
+        relation = "&ge;" if picture.suppression_limited else "="
+        suppression = (f"S {relation} <span class='n-s'>{picture.suppression_db:.2f}</span> dB"
+                       + (" (no aggressor peak above the detection threshold)"
+                          if picture.suppression_limited else "")
+                       + (f" [{html.escape(picture.note)}]" if picture.note else ""))
+    elif picture.note:
+        suppression = f"S: {html.escape(picture.note)}"
+    elif len(picture.peaks) == 1:
+        suppression = "S: one peak, no aggressor to compare it with"
+    else:
+        suppression = "S: which peak is the victim's? (--victim-tof)"
     head = ("<tr><th>peak</th><th>role</th><th>ToF (ns)</th><th>distance (m)</th>"
             "<th>FWHM (ns)</th><th>height (counts/bin)</th></tr>")
     body = "".join(
         f"<tr><td>{index + 1}</td><td>{peak.role}</td><td class='tof'>{peak.tof_ns:.3f}</td>"
         f"<td>{peak.distance_m:.3f}</td><td class='fwhm'>{peak.fwhm_ns:.3f}</td>"
         f"<td class='height'>{peak.height:.4g}</td></tr>"
-        for index, peak in enumerate(picture.peaks))
-    cell = "style='padding: 2px 14px; text-align: right'"
+        for index, peak in enumerate(picture.peaks[:MAX_PEAKS]))
+    more = len(picture.peaks) - MAX_PEAKS
+    cell = "style='padding: 1px 14px; text-align: right'"
     table = (f"<table style='border-collapse: collapse'>{head}{body}</table>"
              .replace("<td>", f"<td {cell}>").replace("<td class", f"<td {cell} class")
              .replace("<th>", f"<th {cell}>"))
-    if picture.suppression_db is None:
-        suppression = "S: " + (html.escape(picture.note) if picture.note else
-                               "one peak, no aggressor to compare it with")
-    else:
-        relation = "&ge;" if picture.suppression_limited else "="
-        suppression = (f"S {relation} <span class='n-s'>{picture.suppression_db:.2f}</span> dB"
-                       + (" (no aggressor peak above the detection threshold)"
-                          if picture.suppression_limited else "")
-                       + (f" [{html.escape(picture.note)}]" if picture.note else ""))
-    return (f"{table}<div style='margin-top: 6px'>background "
-            f"{picture.background:.4g} counts per bin &middot; {suppression}</div>")
+    return (f"<div style='margin-bottom: 4px'><b>{suppression}</b> &middot; background "
+            f"{picture.background:.4g} counts per bin"
+            + (f" &middot; the {MAX_PEAKS} tallest of {len(picture.peaks)} peaks"
+               if more > 0 else "") + f"</div>{table}")
 
 
 def _si(value):
