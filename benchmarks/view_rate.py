@@ -42,7 +42,7 @@ function find(root, cls) {
     }
     return null;
 }
-window.flissTimes = []; let last = null;
+window.flissTimes = []; window.flissSince = performance.now(); let last = null;
 const status = find(document, 'fliss-status');
 new MutationObserver(() => {
     const el = find(status.shadowRoot, 'n-frames'), now = el && el.textContent;
@@ -51,9 +51,8 @@ new MutationObserver(() => {
 """
 
 RATE = """
-const times = window.flissTimes, end = times[times.length - 1];
-const last = times.filter(t => t >= end - arguments[0]);
-return last.length > 1 ? (last.length - 1) / (end - last[0]) * 1000 : 0;
+const since = window.flissSince, until = since + arguments[0];
+return window.flissTimes.filter(t => t > since && t <= until).length / arguments[0] * 1000;
 """
 
 
@@ -88,6 +87,11 @@ def acquire(feed, seconds, pool):
     return done, int(seconds / PERIOD_S), np.array(costs)
 
 
+def loop_s(seconds):
+    """How long the acquisition runs: the pages' loading, the measurement and a margin."""
+    return seconds + 6.0
+
+
 def browser():
     from selenium import webdriver
     from selenium.webdriver.chrome.options import Options
@@ -109,7 +113,7 @@ def measure(pages, seconds, pool):
             result = {}
 
             def run():
-                result["acquired"] = acquire(feed, seconds + 6.0, pool)
+                result["acquired"] = acquire(feed, loop_s(seconds), pool)
             loop = threading.Thread(target=run)
             loop.start()
             for index in range(pages):
@@ -119,8 +123,8 @@ def measure(pages, seconds, pool):
             driver.switch_to.window(driver.window_handles[0])
             time.sleep(2.0)
             driver.execute_script(COUNT)
-            time.sleep(seconds)
-            redraws = driver.execute_script(RATE, seconds * 1000 - 500)
+            time.sleep(seconds + 0.2)
+            redraws = driver.execute_script(RATE, seconds * 1000)
             loop.join()
         finally:
             driver.quit()
@@ -134,7 +138,7 @@ def main(argv=None):
     parser.add_argument("--seconds", type=float, default=4.0)
     args = parser.parse_args(argv)
     pool = histograms()
-    done, due, _ = acquire(None, args.seconds, pool)
+    done, due, _ = acquire(None, loop_s(args.seconds), pool)
     print(f"baseline, no view: {done} of {due} histograms handed on time at 1 kHz")
     print(f"{'pages':>5} {'handed/due':>15} {'add() mean':>11} {'add() p99':>10} "
           f"{'page redraws/s':>15}")

@@ -47,7 +47,7 @@ function text(cls) { const el = find(document, cls); return el ? el.textContent 
 
 #: JavaScript: count the redraws of the status (a new count of frames received), with times.
 COUNT_UPDATES = FIND + """
-window.flissTimes = []; let last = null;
+window.flissTimes = []; window.flissSince = performance.now(); let last = null;
 const status = find(document, 'fliss-status');
 new MutationObserver(() => {
     const now = text('n-frames');
@@ -55,11 +55,10 @@ new MutationObserver(() => {
 }).observe(status.shadowRoot, {childList: true, subtree: true, characterData: true});
 """
 
-#: JavaScript: redraws a second over the last ``arguments[0]`` ms of those counted.
+#: JavaScript: redraws a second in the ``arguments[0]`` ms after counting began.
 UPDATE_RATE = """
-const times = window.flissTimes, end = times[times.length - 1];
-const last = times.filter(t => t >= end - arguments[0]);
-return last.length > 1 ? (last.length - 1) / (end - last[0]) * 1000 : 0;
+const since = window.flissSince, until = since + arguments[0];
+return window.flissTimes.filter(t => t > since && t <= until).length / arguments[0] * 1000;
 """
 
 #: JavaScript: the numbers the page shows, read at once.
@@ -118,7 +117,7 @@ def browser():
     options = Options()
     options.binary_location = _which("chromium")
     for argument in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage",
-                     "--window-size=1280,1000", "--hide-scrollbars"):
+                     "--window-size=1280,1300", "--hide-scrollbars"):
         options.add_argument(argument)
     driver = webdriver.Chrome(service=Service(_which("chromedriver")), options=options)
     driver.set_script_timeout(20)
@@ -196,21 +195,23 @@ def test_live_capture_in_two_browsers(browser, model_path_and_board, tmp_path, s
         url = fliss.url()
         browser.get(url)
         first = browser.current_window_handle
+        latest = wait_shown(browser, lambda s: s["n-frame"] and s["n-total"])
+
+        # Redraws a second, counted in the page by the browser's own clock.
+        browser.execute_script(COUNT_UPDATES)
+        time.sleep(3.2)
+        rate_hz = browser.execute_script(UPDATE_RATE, 3000)
+        print(f"page redrawn {rate_hz:.1f} times a second at 1 ms a histogram")
+        browser.save_screenshot(str(screenshots / "view-live.png"))
+        assert rate_hz >= MIN_UPDATES_HZ
+
+        # A second browser's page draws too.
         browser.switch_to.new_window("window")
         browser.get(url)
         second = browser.current_window_handle
         fliss.wait_for_line(r"fliss: view: a browser opened the page \(2 watching\)")
         frames_second = int(wait_shown(browser, lambda s: s["n-frames"])["n-frames"])
-
-        # Redraws a second, counted in the first page by the browser's own clock.
         browser.switch_to.window(first)
-        latest = wait_shown(browser, lambda s: s["n-frame"] and s["n-total"])
-        browser.execute_script(COUNT_UPDATES)
-        time.sleep(3.5)
-        rate_hz = browser.execute_script(UPDATE_RATE, 3000)
-        print(f"page redrawn {rate_hz:.1f} times a second at 1 ms a histogram")
-        browser.save_screenshot(str(screenshots / "view-live.png"))
-        assert rate_hz >= MIN_UPDATES_HZ
 
         # The sum, asked for with the page's button.
         browser.execute_script(BUTTON, "sum of frames").click()
@@ -249,7 +250,7 @@ def test_live_capture_in_two_browsers(browser, model_path_and_board, tmp_path, s
     summed_frames = int(summed["n-summed"])
     total = capture.histograms[:summed_frames].sum(axis=0, dtype=np.int64)
     assert int(summed["n-total"]) == int(total.sum())
-    peaks = analyze(total, capture.bin_s, aggressor_on=True, shift=0)[1]
+    peaks = analyze(total, capture.bin_s, aggressor_on=True, shift=0)[1][:6]     # the tallest
     assert [float(tof) for tof in summed["tof"]] == \
         pytest.approx([peak.position_s * 1e9 for peak in peaks], abs=0.0015)
     assert min(abs(float(tof) - VICTIM_NS) for tof in summed["tof"]) < 0.3
