@@ -15,6 +15,7 @@ import pytest
 pytest.importorskip("bokeh", reason="the live view needs Bokeh (pip install 'fliss[view]')")
 
 from bokeh.client import pull_session  # noqa: E402
+from bokeh.models import ColumnDataSource  # noqa: E402
 
 import fliss  # noqa: E402
 from fliss.host.cli import main  # noqa: E402
@@ -206,6 +207,66 @@ def test_setup_refuses_an_unknown_readout():
     with pytest.raises(ValueError, match=r"^readout 'sweep' is not one of histogram, image, "
                                          r"depth, raw$"):
         Feed(setup("sweep"))
+
+
+# The page (a Bokeh document, redrawn by its callback as the server would)
+
+
+def page(feed):
+    """The document of ``feed`` and a function that redraws it and returns its texts."""
+    from bokeh.document import Document
+    from bokeh.models import Div
+
+    from fliss.host.view.document import build_document
+
+    doc = Document()
+    build_document(doc, feed, 0.05)
+    update, = (callback.callback for callback in doc.session_callbacks)
+
+    def redraw():
+        update()
+        return {tuple(div.css_classes): div.text for div in doc.select({"type": Div})}
+    return doc, redraw
+
+
+def test_page_shows_frame_counts_and_peaks():
+    frames = histogram_frames([3, 4], mean_counts([(VICTIM_S, 300), (AGGRESSOR_S, 100)]))
+    feed = Feed(setup(aggressor_on=True))
+    doc, redraw = page(feed)
+    assert "showing nothing yet" in redraw()[("fliss-status",)]
+    for frame in frames:
+        feed.add(frame)
+    texts = redraw()
+    assert (f"showing frame <span class='n-frame'>4</span>, <span class='n-total'>"
+            f"{int(frames[1].counts.sum())}</span> counts") in texts[("fliss-status",)]
+    peaks = feed.picture().peaks
+    assert f"<td style='padding: 1px 14px; text-align: right' class='tof'>" \
+        f"{peaks[0].tof_ns:.3f}</td>" in texts[("fliss-peaks",)]
+    assert texts[("fliss-peaks",)].startswith(
+        f"<div style='margin-bottom: 4px'><b>S = <span class='n-s'>"
+        f"{feed.picture().suppression_db:.2f}</span> dB [victim = tallest peak]</b>")
+    curve = next(source for source in doc.select({"type": ColumnDataSource})
+                 if "positive" in source.data)
+    # 8192 bins drawn as 1024 sums of 8; the log curve's empty bins at half a count.
+    assert np.array_equal(curve.data["counts"], frames[1].counts.reshape(1024, 8).sum(axis=1))
+    assert min(curve.data["positive"]) == 0.5
+
+
+def test_page_draws_the_imager_as_an_image():
+    depths = np.tile(imager.TRUTH_M, (2, 1))
+    depths[1, 0] = np.nan
+    feed = Feed(setup("depth", shape=(2, 4)))
+    doc, redraw = page(feed)
+    for frame in imager.depth_frames(depths):
+        feed.add(frame)
+    texts = redraw()
+    assert "<span class='n-detected'>7</span> of 8 pixels detect a target" in \
+        texts[("fliss-status",)]
+    image = next(source for source in doc.select({"type": ColumnDataSource})
+                 if list(source.data) == ["image"])
+    # Row 0 on top: pixels 8 to 11, then 12 to 15.
+    assert np.allclose(image.data["image"][0], depths[1].reshape(2, 4), equal_nan=True,
+                       atol=1e-6)
 
 
 # The server

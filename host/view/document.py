@@ -12,8 +12,8 @@ import math
 
 import numpy as np
 from bokeh.layouts import row
-from bokeh.models import (Button, ColumnDataSource, Div, LinearColorMapper, RadioButtonGroup,
-                          Range1d)
+from bokeh.models import (Button, ColorBar, ColumnDataSource, Div, LinearColorMapper,
+                          RadioButtonGroup, Range1d)
 from bokeh.palettes import Magma256, Viridis256
 from bokeh.plotting import figure
 
@@ -142,16 +142,22 @@ def _imager_figures(setup, profile, depth_image, intensity_image):
         rows, columns = setup.shape
         depth = figure(title="depth (m)", height=300, sizing_mode="stretch_width",
                        x_range=Range1d(0, columns), y_range=Range1d(rows, 0),
+                       x_axis_label="column", y_axis_label="row",
                        tools="pan,box_zoom,reset,save", match_aspect=True)
-        depth.image("image", x=0, y=rows, dw=columns, dh=rows, source=depth_image,
-                    color_mapper=LinearColorMapper(palette=Viridis256, nan_color="#dddddd"))
+        # (row r of the image spans y = r to r + 1; the y axis runs down, row 0 on top)
+        mapper = LinearColorMapper(palette=Viridis256, nan_color="#dddddd")
+        depth.image("image", x=0, y=0, dw=columns, dh=rows, source=depth_image,
+                    color_mapper=mapper)
+        depth.add_layout(ColorBar(color_mapper=mapper, title="m", width=12), "right")
     figures.append(depth)
     if setup.readout == "image":
         intensity = figure(title="intensity: counts per bin and pixel", height=300,
                            sizing_mode="stretch_width", x_axis_label="time of flight (ns)",
                            y_axis_label="pixel address", tools="pan,box_zoom,reset,save")
+        mapper = LinearColorMapper(palette=Magma256)
         intensity.image("image", x="x", y="y", dw="dw", dh="dh", source=intensity_image,
-                        color_mapper=LinearColorMapper(palette=Magma256))
+                        color_mapper=mapper)
+        intensity.add_layout(ColorBar(color_mapper=mapper, width=12), "right")
     else:
         intensity = figure(title="peak height (counts)", height=300,
                            sizing_mode="stretch_width", x_axis_label="pixel address",
@@ -201,7 +207,7 @@ def _draw_imager(picture: Picture, setup, profile, depth_image, intensity_image)
     profile.data = dict(pixel=picture.pixels, depth=depth,
                         intensity=np.asarray(picture.intensity, dtype=float))
     if setup.shape is not None and len(depth) == setup.shape[0] * setup.shape[1]:
-        depth_image.data = dict(image=[depth.reshape(setup.shape)[::-1]])
+        depth_image.data = dict(image=[depth.reshape(setup.shape)])
     if picture.image is not None and picture.time_ns is not None:
         step = picture.time_ns[1] - picture.time_ns[0] if len(picture.time_ns) > 1 else 1.0
         intensity_image.data = dict(
