@@ -41,7 +41,7 @@ def register(subparsers, formatter):
                         help="replay this many times faster than the capture ran")
     parser.add_argument("--loop", action="store_true", help="replay the file again and again")
     parser.add_argument("--for", dest="duration", metavar="TIME",
-                        help="stop after this long (default: at Ctrl-C)")
+                        help="stop after this long (none: at Ctrl-C)")
     add_view_arguments(parser, "the page")
     add_setting_arguments(parser, "settings of the board (as in `fliss config`; those not "
                                   "given keep the board's values)")

@@ -22,7 +22,9 @@ def add_view_arguments(parser: argparse.ArgumentParser, title: str) -> None:
                        help="TCP port of the view's page (0: any free port; the address is "
                             "printed)")
     group.add_argument("--view-address", default="localhost", metavar="HOST",
-                       help="address the page is served on (localhost: this machine only)")
+                       help="address the page is served on, and opened at: localhost for this "
+                            "machine only; this machine's name to serve the network "
+                            "(http://NAME:PORT/)")
     group.add_argument("--victim-tof", metavar="TIME",
                        help="position of the victim's peak for S (e.g. 26.7ns); else, with "
                             "several peaks, the tallest")
