@@ -362,6 +362,19 @@ def test_capture_command_with_view(model, tmp_path, capsys):
     assert len(read_capture(path).frames) == 20
 
 
+def test_capture_command_with_view_board_unplugged(tmp_path, capsys):
+    with model_board(scene=SCENE, kill_after=30) as model:
+        status, out, err = fliss_command(capsys, "capture", "--port", model.path, "-o",
+                                         tmp_path / "run.h5", "--integration", "1ms", "--view",
+                                         "--view-port", 0, "-q", "--acquisitions", 1000)
+    lines = err.splitlines()
+    assert (status, out, len(lines)) == (1, "", 2)
+    served_at(lines[0])
+    assert lines[1].startswith(f"fliss: error: lost the connection to the board on "
+                               f"{model.path} (")
+    assert lines[1].endswith(f"; saved what was received (30 histograms) to {tmp_path}/run.h5")
+
+
 def test_view_watches_a_board(model):
     with fliss.connect(model.path, timeout_s=2.0) as board:
         board.configure(integration="2ms")
