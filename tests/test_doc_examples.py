@@ -74,6 +74,9 @@ SHORTER = {
     # as in `fliss demo`, the attacker locks onto every predictable source (it takes tens of
     # pulses) and the histograms still show the ghost.
     "attack": {"--pulses": "6000", "--scene-pulses": "6000", "--acquisition-pulses": "3000"},
+    # The live view serves until Ctrl-C: a second of it, on a free port (runs in parallel).
+    "view": {"--for": "1s", "--view-port": "0"},
+    "capture": {"--view-port": "0"},
 }
 
 #: Examples that are only parsed, and why: (command, a word of the example or "", reason);
@@ -90,6 +93,9 @@ PARSE_ONLY = [
     ("reproduce", "--quick", None),
     ("reproduce", "", "the paper's 300 acquisitions per setting, or other counts: the same "
                       "experiments as --quick, which runs"),
+    ("view", "--port", None),
+    ("view", "run.h5", None),
+    ("view", "", "names neither a board nor a file: the examples that do run"),
 ]
 
 #: Examples that fail by a bug being fixed elsewhere: where (the case id) -> the bug.
@@ -208,9 +214,9 @@ def fliss(argv, capsys):
 
 
 def make_inputs(argv, boards, capsys):
-    """Capture the input files of an ``analyze``, ``plot`` or ``export`` that are not there
-    (INPUTS)."""
-    if argv[0] not in ("analyze", "plot", "export"):
+    """Capture the input files of an ``analyze``, ``plot``, ``export`` or ``view`` that are not
+    there (INPUTS)."""
+    if argv[0] not in ("analyze", "plot", "export", "view"):
         return
     for name in positionals(argv[0], argv[1:]):
         if not Path(name).exists():
