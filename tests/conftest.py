@@ -105,6 +105,28 @@ def pytest_xdist_make_scheduler(config, log):
         def _split_scope(self, nodeid):
             return _build_scope(nodeid)
 
+        # A crashed worker, as with --dist load: its test fails, the rest of its tests go to the
+        # others and a new worker takes its place. (LoadScopeScheduling would hand the test that
+        # crashed out again, and give the new worker tests before it has collected them.)
+        def remove_node(self, node):
+            workload = self.assigned_work.pop(node)
+            for unit in workload.values():
+                crashed = next((nodeid for nodeid, done in unit.items() if not done), None)
+                if crashed is not None:
+                    unit[crashed] = True
+                    break
+            else:
+                return None
+            self.workqueue.update((scope, unit) for scope, unit in workload.items()
+                                  if not all(unit.values()))
+            for other in self.assigned_work:
+                self._reschedule(other)
+            return crashed
+
+        def _reschedule(self, node):
+            if node in self.registered_collections:
+                super()._reschedule(node)
+
     return BuildScopeScheduling(config, log)
 
 
