@@ -27,10 +27,10 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..hdl.event import TDC_LSB_S
-from ..sim.studies.detection import (FWHM_PER_SIGMA, Peak, background, find_peaks, noise_sigma,
-                                     smooth)
-from ..sim.studies.detection import check_histogram as _check_histogram
-from ..sim.studies.detection import threshold_height as _threshold
+from ..analysis.peaks import (FWHM_PER_SIGMA, Peak, background, find_peaks, noise_sigma,
+                              smooth)
+from ..analysis.peaks import check_histogram as _check_histogram
+from ..analysis.peaks import threshold_height as _threshold
 
 
 __all__ = ["analyze", "FWHM_PER_SIGMA", "Peak", "Suppression", "background", "smooth", "noise_sigma",

@@ -16,7 +16,7 @@ from typing import Any, Callable, Dict, List, Mapping
 
 from ..hdl.event import TDC_LSB_S
 from ..hdl.registers import BY_NAME, TdcSource, value_of, words_of
-from ..sim.models.trivium import as_int, parse_hex
+from ..hdl.delay.settings import as_int, parse_hex
 from .errors import SettingsError
 from .units import format_frequency, format_time, parse_frequency, parse_time
 

@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 
+from fliss.analysis import peaks
 from fliss.sim.studies import detection
 
 from test_analysis import FWHM_S, expected_histogram     # the analysis tests' histograms
@@ -62,7 +63,7 @@ def test_the_threshold_decides_what_is_detected():
     mean = expected_histogram(1.0, [(TOF_S, 3.0)])
     assert not judge(mean, threshold_sigma=5.0).miss
     # ... not when the threshold asks for more noise deviations than the peak has
-    sigma = detection.noise_sigma(1.0)
+    sigma = peaks.noise_sigma(1.0)
     assert judge(mean, threshold_sigma=3.5 / sigma).miss
 
 

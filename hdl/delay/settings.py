@@ -3,14 +3,17 @@ share.
 
 A definitions module: it imports no gateware, so :mod:`fliss.hdl.registers` can build the register
 map from it and the blocks (:mod:`.lfsr`, :mod:`.source`, :mod:`.scheduler`) can import it. The
-delay modes are in :mod:`.modes`.
+delay modes are in :mod:`.modes`. The ``keyed`` source's key and IV are read here as users and
+the test vectors write them (:func:`parse_hex`, :func:`as_int`).
 """
+
+import numbers
 
 
 __all__ = ["MIN_LENGTH", "MAX_LENGTH", "MAX_MASK_WIDTH", "MASKED_LENGTH", "MASKED_STEPS",
-           "KEY_BITS", "IV_BITS", "KEYED_ROUNDS", "KEYED_INIT_CYCLES", "KEYED_START_CYCLES",
+           "KEY_BITS", "IV_BITS", "KEY_BYTES", "as_int", "parse_hex", "KEYED_ROUNDS", "KEYED_INIT_CYCLES", "KEYED_START_CYCLES",
            "DELAY_WIDTH", "PERIOD_WIDTH",
-           "PULSE_WIDTH_WIDTH", "BANK_BITS", "MIN_BANK_BITS", "MAX_BANK_BITS", 
+           "PULSE_WIDTH_WIDTH", "BANK_BITS", "MIN_BANK_BITS", "MAX_BANK_BITS",
            "check_widths"]
 
 
@@ -32,6 +35,9 @@ MASKED_STEPS = 16
 #: Key and IV of the ``keyed`` source (Trivium), in bits.
 KEY_BITS = 80
 IV_BITS = 80
+
+#: Key and IV length in bytes, as the Trivium test vectors print them.
+KEY_BYTES = KEY_BITS // 8
 
 #: Trivium rounds per clock cycle of the ``keyed`` source: keystream bits made per cycle. Pulses
 #: are at least two cycles apart and take at most ``MAX_MASK_WIDTH`` bits, so 8 would do; 16
@@ -80,3 +86,38 @@ def check_widths(period_width, pulse_width_width):
     if not isinstance(pulse_width_width, int) or not 1 <= pulse_width_width <= PULSE_WIDTH_WIDTH:
         raise ValueError(f"Pulse width width must be an integer from 1 to {PULSE_WIDTH_WIDTH} "
                          f"bits, not {pulse_width_width!r}")
+
+
+def as_int(value, what="key"):
+    """The 80-bit integer of a key or IV given as 10 bytes or as an integer; ``ValueError`` with
+    one line for anything else."""
+    if isinstance(value, (bytes, bytearray)):
+        if len(value) != KEY_BYTES:
+            raise ValueError(f"A Trivium {what} is {KEY_BYTES} bytes (80 bits), "
+                             f"not {len(value)}")
+        return int.from_bytes(value, "big")
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise ValueError(f"A Trivium {what} is 10 bytes or an 80-bit integer, not {value!r}")
+    if not 0 <= int(value) < 1 << 80:
+        raise ValueError(f"A Trivium {what} must be an 80-bit integer (0 to 2**80 - 1), "
+                         f"not {value:#x}")
+    return int(value)
+
+
+def parse_hex(text, what="key", *, exact=False, alternative=None):
+    """The 80-bit integer of a key or IV written in hex as the test vectors print it: up to 20
+    hex digits, spaces, ``_`` and a leading ``0x`` allowed (``80 00 00 00 00 00 00 00 00 00`` is
+    ``0x80000000000000000000``); with ``exact``, all 20 digits (a key: ``12345`` would be read as
+    ``00000000000000012345``, a key nobody meant). ``ValueError`` with one line for anything
+    else, naming ``alternative`` (``"random"``) if the caller takes one."""
+    digits = str(text).replace(" ", "").replace("_", "")
+    if digits[:2].lower() == "0x":
+        digits = digits[2:]
+    hex_digits = bool(digits) and all(c in "0123456789abcdefABCDEF" for c in digits)
+    if not hex_digits or len(digits) > 2 * KEY_BYTES or \
+            (exact and len(digits) != 2 * KEY_BYTES):
+        count = f" ({len(digits)} digit{'s' * (len(digits) != 1)})" if hex_digits else ""
+        other = f" or {alternative}" if alternative else ""
+        raise ValueError(f"A Trivium {what} is {'' if exact else 'up to '}20 hex digits (80 bits, "
+                         f"as the test vectors print it){other}, not {text!r}{count}")
+    return int(digits, 16)

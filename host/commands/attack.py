@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from ...hdl import DEFAULT_CLOCK_HZ
-from ...sim.models.trivium import parse_hex
+from ...hdl.delay.settings import parse_hex
 from ...sim.studies.attacker import Attacker, Observer
 from ...sim.studies.generators import verify_pulses
 from ...sim.studies.attack_scene import SOURCES, Victim, run as run_scene

@@ -7,7 +7,7 @@ import numpy as np
 from ...hdl.delay.modes import MODES
 from ...sim.models import delay as delay_model
 from ...sim.models import scheduler as scheduler_model
-from ...sim.models import trivium
+from ...hdl.delay.settings import parse_hex
 from ..errors import UserError
 from .common import add_timing_options, timing_from_args
 
@@ -56,8 +56,8 @@ def run_sequence(args):
         if MODES[mode].keyed:
             if args.key is None or args.iv is None:
                 raise ValueError(f"--mode {args.mode} needs --key and --iv")
-            keyed = dict(key=trivium.parse_hex(args.key, "key", exact=True),
-                         iv=trivium.parse_hex(args.iv, "IV"))
+            keyed = dict(key=parse_hex(args.key, "key", exact=True),
+                         iv=parse_hex(args.iv, "IV"))
         settings = scheduler_model.Settings(
             mode=mode, length=args.length,
             mask_width=args.mask_width, seed=args.seed, period=period, grid=args.grid,

@@ -1,5 +1,5 @@
 """Per-pixel analysis of the imager's captures: one :class:`PixelResult` per pixel, from the
-per-pixel histograms of an image capture (the peak finder of :mod:`fliss.sim.studies.detection` on
+per-pixel histograms of an image capture (the peak finder of :mod:`fliss.analysis.peaks` on
 each pixel's histogram) or from the depth frames of a depth capture (their median).
 
 Conventions as in :mod:`fliss.host.analysis`: a peak's time of flight is its position from the
@@ -12,7 +12,7 @@ from typing import List, Optional
 
 import numpy as np
 
-from ...sim.studies.detection import background, find_peaks
+from ...analysis.peaks import background, find_peaks
 from .results import C_M_S
 
 

@@ -9,7 +9,7 @@ import sys
 import numpy as np
 
 from ...hdl.delay.modes import MODES, SIZES, DelayMode
-from ...hdl.delay.settings import MAX_LENGTH, MASKED_LENGTH, MASKED_STEPS
+from ...hdl.delay.settings import MAX_LENGTH, MASKED_LENGTH, MASKED_STEPS, as_int
 from . import lfsr, trivium
 
 
@@ -42,8 +42,8 @@ def check_settings(mode, *, length=None, mask_width=None, seed=1, key=None, iv=N
     if row.keyed:
         if key is None or iv is None:
             raise ValueError(f"The {row.name} delay source needs a key and an IV")
-        trivium.as_int(key, "key")
-        trivium.as_int(iv, "IV")
+        as_int(key, "key")
+        as_int(iv, "IV")
     settings = {"length": length, "mask_width": mask_width}
     if row.size is not None:
         value, size = settings[row.size], SIZES[row.size]
@@ -210,7 +210,7 @@ class DelayStream:
 def next_iv(iv):
     """The IV after ``iv`` (80-bit integer) in the ``keyed`` source's restarts: ``iv + 1``,
     modulo ``2**80``."""
-    return (trivium.as_int(iv, "IV") + 1) % (1 << 80)
+    return (as_int(iv, "IV") + 1) % (1 << 80)
 
 
 class KeyedRestarts:
@@ -234,9 +234,9 @@ class KeyedRestarts:
     def write(self, *, key=None, iv=None):
         """The host writes the key, the IV, or both."""
         if key is not None:
-            self.key = trivium.as_int(key, "key")
+            self.key = as_int(key, "key")
         if iv is not None:
-            self.written_iv = trivium.as_int(iv, "IV")
+            self.written_iv = as_int(iv, "IV")
         self._pending = True
 
     def load(self):

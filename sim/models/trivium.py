@@ -17,54 +17,18 @@ The model runs 64 rounds in one step: no tap is nearer than 66 rounds to a regis
 
 import numpy as np
 
+from ...hdl.delay.settings import KEY_BYTES, as_int
 
-__all__ = ["KEY_BYTES", "INIT_ROUNDS", "as_int", "parse_hex", "Trivium",
+
+__all__ = ["KEY_BYTES", "INIT_ROUNDS", "Trivium",
            "keystream", "keystream_bytes", "keyed_delays"]
 
-
-#: Key and IV length in bytes (80 bits each).
-KEY_BYTES = 10
 
 #: Rounds run after loading, before the first keystream bit (4 × 288).
 INIT_ROUNDS = 4 * 288
 
 _WORD = 64
 _MASK = (1 << _WORD) - 1
-
-
-def as_int(value, what="key"):
-    """The 80-bit integer of a key or IV given as 10 bytes or as an integer; ``ValueError`` with
-    one line for anything else."""
-    if isinstance(value, (bytes, bytearray)):
-        if len(value) != KEY_BYTES:
-            raise ValueError(f"A Trivium {what} is {KEY_BYTES} bytes (80 bits), "
-                             f"not {len(value)}")
-        return int.from_bytes(value, "big")
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise ValueError(f"A Trivium {what} is 10 bytes or an 80-bit integer, not {value!r}")
-    if not 0 <= int(value) < 1 << 80:
-        raise ValueError(f"A Trivium {what} must be an 80-bit integer (0 to 2**80 - 1), "
-                         f"not {value:#x}")
-    return int(value)
-
-
-def parse_hex(text, what="key", *, exact=False, alternative=None):
-    """The 80-bit integer of a key or IV written in hex as the test vectors print it: up to 20
-    hex digits, spaces, ``_`` and a leading ``0x`` allowed (``80 00 00 00 00 00 00 00 00 00`` is
-    ``0x80000000000000000000``); with ``exact``, all 20 digits (a key: ``12345`` would be read as
-    ``00000000000000012345``, a key nobody meant). ``ValueError`` with one line for anything
-    else, naming ``alternative`` (``"random"``) if the caller takes one."""
-    digits = str(text).replace(" ", "").replace("_", "")
-    if digits[:2].lower() == "0x":
-        digits = digits[2:]
-    hex_digits = bool(digits) and all(c in "0123456789abcdefABCDEF" for c in digits)
-    if not hex_digits or len(digits) > 2 * KEY_BYTES or \
-            (exact and len(digits) != 2 * KEY_BYTES):
-        count = f" ({len(digits)} digit{'s' * (len(digits) != 1)})" if hex_digits else ""
-        other = f" or {alternative}" if alternative else ""
-        raise ValueError(f"A Trivium {what} is {'' if exact else 'up to '}20 hex digits (80 bits, "
-                         f"as the test vectors print it){other}, not {text!r}{count}")
-    return int(digits, 16)
 
 
 def _reversed_bytes(value):

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...hdl import DEFAULT_CLOCK_HZ
-from ...hdl.delay.settings import MAX_MASK_WIDTH
+from ...hdl.delay.settings import MAX_MASK_WIDTH, as_int
 from ..models import delay as _delay
 from ..models import scheduler as _scheduler
 from ..models import trivium as _trivium
@@ -73,8 +73,8 @@ class Victim:
                 raise ValueError(f"Mask width must be an integer from 1 to {MAX_MASK_WIDTH}, "
                                  f"not {self.mask_width!r}")
             if self.mode == "keyed":
-                _trivium.as_int(self.key, "key")
-                _trivium.as_int(self.iv, "IV")
+                as_int(self.key, "key")
+                as_int(self.iv, "IV")
             max_delay = (1 << self.mask_width) - 1
         else:
             _delay.check_settings(self.mode, length=self.length, mask_width=self.mask_width,

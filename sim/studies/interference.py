@@ -66,7 +66,7 @@ t_int_s [0.01]
     Integration time of a frame.
 threshold_sigma [5.0]
     Detection threshold in noise deviations of the smoothed histogram (at least one count per
-    code: :func:`fliss.sim.studies.detection.threshold_height`).
+    code: :func:`fliss.analysis.peaks.threshold_height`).
 frames [1000], frames_per_run [1]
     Frames of the point, and consecutive frames per run (more per run is cheaper, fewer
     independent draws of the aggressors).

@@ -1,0 +1,183 @@
+"""Peaks in one TCSPC histogram: background estimate, threshold, and the peaks above it.
+
+The one peak finder of FLISS. It serves the host's analysis of captures (:mod:`fliss.host.analysis`,
+which gives the conventions: positions at code centres, smoothing, background clipping) and the
+models' studies (:mod:`fliss.sim.studies.detection` judges its peaks against a scene's truth).
+It takes counts per code and a bin width, nothing of a board or a simulation.
+"""
+
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ..hdl.event import TDC_LSB_S
+
+
+__all__ = ["FWHM_PER_SIGMA", "Peak", "check_histogram", "smooth", "noise_sigma", "background",
+           "smoothed_background", "threshold_height", "find_peaks", "local_maxima", "measure_peak"]
+
+
+#: FWHM of a Gaussian in units of its standard deviation.
+FWHM_PER_SIGMA = 2.0 * math.sqrt(2.0 * math.log(2.0))
+
+
+@dataclass(frozen=True)
+class Peak:
+    """One histogram peak.
+
+    Attributes
+    ----------
+    index : int
+        Code of the maximum of the smoothed histogram.
+    position_s : float
+        Time of the peak from the TDC start (the ToF for the victim's peak), interpolated.
+    fwhm_s : float
+        Full width at half maximum.
+    height : float
+        Counts per code above the background at the maximum.
+    """
+
+    index: int
+    position_s: float
+    fwhm_s: float
+    height: float
+
+
+def check_histogram(histogram):
+    histogram = np.asarray(histogram)
+    if histogram.ndim != 1 or len(histogram) < 3:
+        raise ValueError(f"A histogram must be a 1-D array of at least 3 bins, "
+                         f"not of shape {histogram.shape}")
+    return histogram.astype(np.float64)
+
+
+@lru_cache(maxsize=16)
+def _kernel(sigma_bins):
+    if not sigma_bins > 0:
+        raise ValueError(f"Smoothing width must be positive, not {sigma_bins!r}")
+    half = int(math.ceil(4 * sigma_bins))
+    x = np.arange(-half, half + 1)
+    kernel = np.exp(-0.5 * (x / sigma_bins) ** 2)
+    return kernel / kernel.sum()
+
+
+def smooth(histogram: ArrayLike, sigma_bins: float = 5.0) -> np.ndarray:
+    """The histogram convolved with a unit-area Gaussian of ``sigma_bins`` (edges: zero padding
+    corrected, so a flat histogram stays flat)."""
+    histogram = check_histogram(histogram)
+    return np.convolve(histogram, _kernel(sigma_bins), mode="same") / _edge_weight(
+        len(histogram), sigma_bins)
+
+
+@lru_cache(maxsize=16)
+def _edge_weight(length, sigma_bins):
+    return np.convolve(np.ones(length), _kernel(sigma_bins), mode="same")
+
+
+def noise_sigma(level: float, sigma_bins: float = 5.0) -> float:
+    """Standard deviation of the smoothed histogram where the raw one is Poisson of mean
+    ``level`` per code: ``sqrt(level * sum(k**2))``."""
+    return math.sqrt(max(level, 0.0) * float(np.sum(_kernel(sigma_bins) ** 2)))
+
+
+def background(histogram: ArrayLike, *, sigma_bins: float = 5.0, clip_sigma: float = 4.0,
+               guard_bins: int = 100, iterations: int = 20) -> float:
+    """Background level in counts per code: the mean of the codes left after clipping, again and
+    again, whatever the smoothed histogram lifts above ``clip_sigma`` noise deviations (plus
+    ``guard_bins`` codes either side)."""
+    histogram = check_histogram(histogram)
+    return smoothed_background(histogram, smooth(histogram, sigma_bins), sigma_bins, clip_sigma,
+                               guard_bins, iterations)
+
+
+def smoothed_background(histogram, smoothed, sigma_bins, clip_sigma=4.0, guard_bins=100,
+                        iterations=20):
+    """The background of :func:`background` from ``smoothed``, the histogram already smoothed."""
+    keep = np.ones(len(histogram), dtype=bool)
+    level = histogram.mean()
+    for _ in range(iterations):
+        threshold = level + clip_sigma * max(noise_sigma(level, sigma_bins), 1e-12)
+        # Codes within guard_bins of a high code are left out (a running sum dilates the mask)
+        high = np.concatenate(([0], np.cumsum(smoothed > threshold)))
+        lo = np.maximum(np.arange(len(histogram)) - guard_bins, 0)
+        hi = np.minimum(np.arange(len(histogram)) + guard_bins + 1, len(histogram))
+        new_keep = high[hi] == high[lo]
+        if not new_keep.any():
+            break
+        new_level = histogram[new_keep].mean()
+        if np.array_equal(new_keep, keep):
+            level = new_level
+            break
+        keep, level = new_keep, new_level
+    return float(level)
+
+
+def measure_peak(smoothed, index, level, sigma_bins, bin_s):
+    """The :class:`Peak` at code ``index`` of ``smoothed`` above the background ``level``."""
+    height = smoothed[index] - level
+    # Position: parabola through the maximum and its neighbours
+    offset = 0.0
+    if 0 < index < len(smoothed) - 1:
+        left, centre, right = smoothed[index - 1:index + 2]
+        curvature = left - 2 * centre + right
+        if curvature < 0:
+            offset = float(np.clip(0.5 * (left - right) / curvature, -0.5, 0.5))
+    half = level + height / 2
+
+    def crossing(step):
+        i = index
+        while 0 <= i + step < len(smoothed) and smoothed[i + step] > half:
+            i += step
+        if not 0 <= i + step < len(smoothed):
+            return float(i)
+        outer, inner = smoothed[i + step], smoothed[i]
+        return i + step * (inner - half) / (inner - outer)
+
+    width = crossing(+1) - crossing(-1)
+    width = math.sqrt(max(width ** 2 - (FWHM_PER_SIGMA * sigma_bins) ** 2, 0.0))
+    return Peak(index=int(index), position_s=(index + offset + 0.5) * bin_s,
+                fwhm_s=width * bin_s, height=float(height))
+
+
+def find_peaks(histogram: ArrayLike, *, bin_s: float = TDC_LSB_S, sigma_bins: float = 5.0,
+               threshold_sigma: float = 5.0, min_separation_s: float = 5e-9,
+               level: float | None = None) -> list[Peak]:
+    """Peaks of a histogram, highest first.
+
+    A peak is a maximum of the smoothed histogram at least ``threshold_sigma`` noise deviations
+    above the background (:func:`noise_sigma` of the background level, but at least one count)
+    and the highest within ``min_separation_s`` either side.
+
+    Returns
+    -------
+    list of Peak
+    """
+    histogram = check_histogram(histogram)
+    smoothed = smooth(histogram, sigma_bins)
+    if level is None:
+        level = smoothed_background(histogram, smoothed, sigma_bins)
+    chosen = local_maxima(smoothed, level + threshold_height(level, sigma_bins, threshold_sigma),
+                     max(1, int(round(min_separation_s / bin_s))))
+    return [measure_peak(smoothed, index, level, sigma_bins, bin_s) for index in chosen]
+
+
+def local_maxima(smoothed, threshold, separation):
+    """Codes of the maxima of ``smoothed`` above ``threshold``, highest first, each the highest
+    within ``separation`` codes of the ones before it."""
+    inner = smoothed[1:-1]
+    maxima = np.flatnonzero((inner >= smoothed[:-2]) & (inner > smoothed[2:]) &
+                            (inner > threshold)) + 1
+    chosen = []
+    for index in maxima[np.argsort(smoothed[maxima], kind="stable")[::-1]]:
+        if all(abs(index - other) > separation for other in chosen):
+            chosen.append(index)
+    return chosen
+
+
+def threshold_height(level, sigma_bins=5.0, threshold_sigma=5.0):
+    """Height above the background a peak must exceed: ``threshold_sigma`` noise deviations of
+    the smoothed histogram (:func:`noise_sigma`), but at least one count per code."""
+    return max(threshold_sigma * noise_sigma(level, sigma_bins), 1.0)
