@@ -21,7 +21,7 @@ from bokeh.models import ColumnDataSource  # noqa: E402
 import fliss  # noqa: E402
 from fliss.host.fileformat import read_capture  # noqa: E402
 from fliss.host.stream import HistogramFrame  # noqa: E402
-from fliss.host.view.document import build_document  # noqa: E402
+from fliss.host.view.document import WINDOW, build_document  # noqa: E402
 from fliss.host.view.feed import Feed, Setup  # noqa: E402
 from fliss.host.view.server import ViewServer  # noqa: E402
 from fliss.sim.boards.model import model_board  # noqa: E402
@@ -54,26 +54,32 @@ def test_a_page_behind_gets_the_latest_frame_and_the_count_of_updates_it_missed(
     feed.add(frames[0])
     update()
     take()
-    feed.add(frames[1])
-    update()                                # sent, never taken: the page stalls
-    assert (flow.updates, flow.behind) == (2, True)
-    for f in frames[2:]:
+    sent = 1
+    while not flow.behind:                  # the page takes nothing more: it stalls
+        feed.add(frames[sent])
+        update()
+        sent += 1
+    assert sent == flow.updates == 1 + WINDOW
+    for f in frames[sent:]:
         feed.add(f)
         update()
     update()                                # nothing new: no update missed
-    assert (flow.updates, flow.missed) == (2, 10)
-    assert "showing frame <span class='n-frame'>1</span>" in status.text
-    take()
-    update()                                # ready again: the latest frame, and the count
-    assert (flow.updates, flow.behind) == (3, True)
+    missed = len(frames) - sent
+    assert (flow.updates, flow.missed) == (sent, missed)
+    assert f"showing frame <span class='n-frame'>{sent - 1}</span>" in status.text
+    take()                                  # ready again: an update at once, not at the
+    assert flow.updates == sent + 1         # next period: the latest frame
+    update()                                # (the window has room for one more)
+    assert flow.updates == sent + 2
     assert "showing frame <span class='n-frame'>11</span>" in status.text
-    assert status.text.endswith(" &middot; this page missed <span class='n-skipped'>10</span> "
-                                "updates (too slow to draw them)")
+    assert status.text.endswith(f" &middot; this page missed <span class='n-skipped'>{missed}"
+                                f"</span> updates (too slow to draw them)")
     assert np.array_equal(curve.data["counts"], frames[11].counts.reshape(1024, 8).sum(axis=1))
     for callback in doc.session_destroyed_callbacks:
         callback(None)
-    assert lines == ["a page that left had missed 10 of 13 updates, drawing more slowly than "
-                     "they came (it was shown the latest frame each time)"]
+    assert lines == [f"a page that left had missed {missed} of {sent + 2 + missed} updates, "
+                     f"drawing more slowly than they came (it was shown the latest frame each "
+                     f"time)"]
 
 
 def test_a_page_that_takes_every_update_misses_none():
@@ -99,12 +105,12 @@ def wait_for(condition, timeout_s=10.0):
 
 
 def stalled_page(server):
-    """A page that loads, takes the first update, then reads nothing more."""
+    """A page that loads, takes the updates sent so far, then reads nothing more."""
     page = pull_session(url=server.url)
-    assert wait_for(lambda: [updates for updates, _, _ in server.pages()] == [1])
-    page.document.select_one({"name": "fliss-taken"}).tags = [1]
+    assert wait_for(lambda: [updates for updates, _, _ in server.pages()] == [WINDOW])
+    page.document.select_one({"name": "fliss-taken"}).tags = [WINDOW]
     page.request_server_info()              # (runs the client until the server answers)
-    assert wait_for(lambda: server.pages()[0][:1] == (2,))
+    assert wait_for(lambda: server.pages()[0][:1] == (2 * WINDOW,))
     return page
 
 
@@ -141,13 +147,14 @@ def test_a_stalled_page_costs_a_1ms_capture_nothing(tmp_path):
         made = result.status_end["frames"]
         sent = model.sent_histograms(BINS, whole=True)
     capture = read_capture(path)
-    # The page: one update held for it, nothing queued, every tick at a new frame missed.
-    assert (updates, behind) == (2, True)
+    # The page: the updates on the way and no more, nothing queued, every tick missed.
+    assert (updates, behind) == (2 * WINDOW, True)
     assert pending < 64 * 1024
     ticks = seconds / server.period_s
     assert 0.5 * ticks < missed <= ticks + 1
     said, = (MISSED_LINE.fullmatch(line) for line in lines if MISSED_LINE.fullmatch(line))
-    assert int(said.group(1)) >= missed and int(said.group(2)) == int(said.group(1)) + 2
+    assert int(said.group(1)) >= missed
+    assert int(said.group(2)) == int(said.group(1)) + 2 * WINDOW
     # The board made at least the 300 histograms asked for (more come before the STOP); the
     # file holds the first 300 whole, each as the board sent it, and the view got each of them.
     assert result.complete and result.lost_histograms == 0 and made >= 300

@@ -21,11 +21,16 @@ from ..units import format_time
 from .feed import Feed, Picture, Status
 
 
-__all__ = ["build_document", "PageFlow", "status_html", "peaks_html"]
+__all__ = ["WINDOW", "build_document", "PageFlow", "status_html", "peaks_html"]
 
 #: Points at most in a drawn histogram: a browser redraws 1024 many times a second, and 8192
 #: several times slower. Finer histograms are drawn in wider bins (sums of neighbours).
 MAX_POINTS = 1024
+
+#: Updates a page may have on the way (sent, not taken yet): two, so that the time an update
+#: takes to reach the page and its answer to come back (the GIL of a busy capture on one side,
+#: a page still painting the last update on the other) does not hold a page to half the rate.
+WINDOW = 2
 
 #: Rows of the peak table (the tallest peaks).
 MAX_PEAKS = 6
@@ -40,11 +45,12 @@ def build_document(doc, feed: Feed, period_s: float, notify=None) -> "PageFlow":
     """Fill ``doc`` (a new session's document) with the view of ``feed``, redrawn every
     ``period_s`` seconds.
 
-    Flow control: an update goes to the page only once the page has taken the one before (the
-    page's glue hands the number of each update back, :func:`flow_models`); until then the
-    server sends nothing, and the page gets the latest frame when it is ready again. A page
-    that cannot keep up (slow, stalled, a tab the browser keeps waiting) thus holds at most one
-    update on the server, and no acquisition ever waits for a page. The updates a page missed
+    Flow control: an update goes to the page only while the page has fewer than
+    :data:`WINDOW` updates on the way (the page's glue hands the number of each update it has
+    taken back, :class:`PageFlow`); otherwise the server sends nothing, and the page gets the
+    latest frame when it is ready again. A page that cannot keep up (slow, stalled, a tab the
+    browser keeps waiting) thus costs the server at most :data:`WINDOW` updates, and no
+    acquisition ever waits for a page. The updates a page missed
     so are counted, shown on its status line and, if ``notify`` is given, said in one line
     when the page goes. Returns the page's :class:`PageFlow`."""
     setup = feed.setup
@@ -101,9 +107,10 @@ def build_document(doc, feed: Feed, period_s: float, notify=None) -> "PageFlow":
 
     def update(first=False):
         if flow.behind:
-            # The page has not taken the last update: it will get the latest state instead.
+            # The page has yet to take the updates on the way: it gets the latest state later.
             if flow.loaded and feed.seq != state["checked"]:
                 flow.missed += 1
+                flow.held = True
             state["checked"] = feed.seq
             return
         state["checked"] = feed.seq
@@ -130,6 +137,7 @@ def build_document(doc, feed: Feed, period_s: float, notify=None) -> "PageFlow":
                    f"frame each time)")
 
     update(first=True)
+    flow.catch_up = update
     for part in parts:
         doc.add_root(part)
     doc.add_periodic_callback(update, max(1, round(period_s * 1000)))
@@ -143,7 +151,8 @@ class PageFlow:
     The server numbers each update (:meth:`send`) in ``sent.tags``; the page, once it has
     applied the update (and once it has loaded: a session's first updates may come before),
     copies the number into ``taken.tags``, which comes back to the server. ``missed`` counts
-    the updates held back, each at a new frame, while the page had not taken the one before.
+    the updates held back, each at a new frame, while the page had :data:`WINDOW` updates on
+    the way.
     """
 
     def __init__(self, doc):
@@ -155,20 +164,28 @@ class PageFlow:
         doc.js_on_event("document_ready", take)
         #: Updates sent to the page, the last the page took, updates it missed.
         self.updates = self.took = self.missed = 0
+        #: Whether an update was held back since the last one sent; then ``catch_up`` (the
+        #: document's update) is called as soon as the page takes that one, rather than at
+        #: the next period: a page a little slower than the period is not held to half of it.
+        self.held = False
+        self.catch_up = None
         self.taken.on_change("tags", self._took)
 
     def _took(self, attr, old, new):
         self.took = int(new[0]) if new else self.took
+        if self.held and not self.behind and self.catch_up is not None:
+            self.catch_up()
 
     def send(self) -> None:
         """Number the update being made (call it last, in the update's hold)."""
         self.updates += 1
+        self.held = False
         self.sent.tags = [self.updates]
 
     @property
     def behind(self) -> bool:
-        """Whether the page has yet to take the last update."""
-        return self.took != self.updates
+        """Whether the page has :data:`WINDOW` updates it has not taken yet."""
+        return self.updates - self.took >= WINDOW
 
     @property
     def loaded(self) -> bool:
