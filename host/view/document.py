@@ -50,9 +50,9 @@ def build_document(doc, feed: Feed, period_s: float, notify=None) -> "PageFlow":
     taken back, :class:`PageFlow`); otherwise the server sends nothing, and the page gets the
     latest frame when it is ready again. A page that cannot keep up (slow, stalled, a tab the
     browser keeps waiting) thus costs the server at most :data:`WINDOW` updates, and no
-    acquisition ever waits for a page. The updates a page missed
-    so are counted, shown on its status line and, if ``notify`` is given, said in one line
-    when the page goes. Returns the page's :class:`PageFlow`."""
+    acquisition ever waits for a page. The updates a page missed so are counted, shown on its
+    status line and, if ``notify`` is given, said in one line when the page goes. Returns the
+    page's :class:`PageFlow`."""
     setup = feed.setup
     doc.title = f"FLISS view: {setup.source}"
     # (seq: of the picture drawn; checked: the feed's at the last tick)
