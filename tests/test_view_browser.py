@@ -296,7 +296,7 @@ setTimeout(() => { const end = performance.now() + ms; while (performance.now() 
 
 
 def test_a_page_that_stalls_misses_updates_and_costs_the_capture_nothing(
-        browser, model_path_and_board, tmp_path):
+        browser, model_path_and_board, tmp_path, screenshots):
     path, model = model_path_and_board
     output = tmp_path / "run.h5"
     fliss = Fliss("capture", "--port", path, "--timeout", "5", "--integration", "1ms",
@@ -309,6 +309,7 @@ def test_a_page_that_stalls_misses_updates_and_costs_the_capture_nothing(
         browser.execute_script(STALL, 4000)
         time.sleep(4.5)                     # (the page's scripts wait for the stall to end)
         missed = int(wait_shown(browser, lambda s: s["n-skipped"])["n-skipped"])
+        browser.save_screenshot(str(screenshots / "view-stalled.png"))
         # Updates come every 50 ms, frames faster: about 80 missed in 4 s.
         assert 40 <= missed <= 100
         browser.close()
