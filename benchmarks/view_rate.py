@@ -13,7 +13,9 @@ Figures, per number of pages:
 * frames handed to the feed against those due at 1 kHz (the acquisition keeps its pace when
   they are equal), and the time :meth:`Feed.add` takes (mean and 99th percentile, µs);
 * redraws a second of the first page, counted by the browser's clock (a new count of frames
-  received in the status line).
+  received in the status line);
+* the updates sent to each page and those it missed, not having taken the one before (the
+  view's flow control), over the whole run, the pages' loading included.
 
 Baseline: the same loop without a view (no feed, no server, no browser).
 
@@ -126,10 +128,11 @@ def measure(pages, seconds, pool):
             time.sleep(seconds + 0.2)
             redraws = driver.execute_script(RATE, seconds * 1000)
             loop.join()
+            flows = server.pages()
         finally:
             driver.quit()
     done, due, costs = result["acquired"]
-    return done, due, costs, redraws
+    return done, due, costs, redraws, flows
 
 
 def main(argv=None):
@@ -141,11 +144,12 @@ def main(argv=None):
     done, due, _ = acquire(None, loop_s(args.seconds), pool)
     print(f"baseline, no view: {done} of {due} histograms handed on time at 1 kHz")
     print(f"{'pages':>5} {'handed/due':>15} {'add() mean':>11} {'add() p99':>10} "
-          f"{'page redraws/s':>15}")
+          f"{'page redraws/s':>15}  updates sent/missed, each page")
     for pages in args.pages:
-        done, due, costs, redraws = measure(pages, args.seconds, pool)
+        done, due, costs, redraws, flows = measure(pages, args.seconds, pool)
         print(f"{pages:>5} {done:>7}/{due:<7} {costs.mean() * 1e6:>8.1f} µs "
-              f"{np.percentile(costs, 99) * 1e6:>7.1f} µs {redraws:>15.1f}")
+              f"{np.percentile(costs, 99) * 1e6:>7.1f} µs {redraws:>15.1f}  "
+              + " ".join(f"{sent}/{missed}" for sent, missed, _ in flows))
 
 
 if __name__ == "__main__":

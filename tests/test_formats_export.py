@@ -274,3 +274,50 @@ def test_an_empty_raw_capture_exports_and_reads_back(tmp_path):
         assert export_capture(capture, tmp_path / name, to) == 0
         back = read_file(tmp_path / name)
         assert (back.mode, len(back.events), back.problems) == ("raw", 0, [])
+
+
+@pytest.mark.parametrize("to, name", [("ptu", "r.ptu"), ("photon-hdf5", "r.hdf5")])
+def test_an_export_made_run_by_run_holds_every_event(tmp_path, monkeypatch, to, name):
+    # Runs of 7 events: run edges fall on the 32-bit wrap, the gap of 3 overflow records and
+    # between events of one laser cycle; the cycles are the capture's own, worked out whole.
+    capture, cycles = raw_capture(tmp_path / "r.h5", n=3001)
+    whole = export_capture(capture, tmp_path / f"whole.{name}", to)
+    monkeypatch.setattr("fliss.host.formats.metadata.CHUNK_EVENTS", 7)
+    assert export_capture(capture, tmp_path / name, to) == whole
+    events = capture.events
+    if to == "ptu":
+        sync, dtime, channel, tags = photons_of(tmp_path / name)
+        assert tags["TTResult_NumberOfRecords"] == whole
+        header = _header_words(tmp_path / name) * 4
+        assert (tmp_path / name).read_bytes()[header:] == \
+            (tmp_path / f"whole.{name}").read_bytes()[header:]
+    else:
+        tttr = tttrlib.TTTR(str(tmp_path / name), "PHOTON-HDF5")
+        sync, dtime, channel = (tttr.macro_times.astype(np.int64), tttr.micro_times,
+                                tttr.routing_channels)
+        h5 = phconvert.hdf5.load_photon_hdf5(str(tmp_path / name), warnings=False)
+        try:
+            detectors = h5.root.setup.detectors
+            np.testing.assert_array_equal(detectors.id.read(), np.arange(64))
+            np.testing.assert_array_equal(detectors.counts.read(),
+                                          np.bincount(events["address"], minlength=64))
+            np.testing.assert_array_equal(h5.root.user.fliss.collision.read(),
+                                          events["collision"])
+        finally:
+            h5.close()
+    np.testing.assert_array_equal(sync, cycles)
+    np.testing.assert_array_equal(dtime, events["timestamp"])
+    np.testing.assert_array_equal(channel, events["address"])
+
+
+def test_events_out_of_order_at_a_run_edge_are_refused(tmp_path, monkeypatch):
+    capture, _ = raw_capture(tmp_path / "r.h5", n=10)
+    capture.events["pulse"][7] = capture.events["pulse"][6] - 1
+    monkeypatch.setattr("fliss.host.formats.metadata.CHUNK_EVENTS", 7)
+    with pytest.raises(FormatError) as error:
+        export_capture(capture, tmp_path / "r.hdf5", "photon-hdf5")
+    assert str(error.value) == (
+        f"{tmp_path / 'r.h5'}: event 7 (laser cycle {capture.events['pulse'][7]}) comes "
+        f"before event 6 (cycle {capture.events['pulse'][6]}): PTU and Photon-HDF5 hold "
+        f"records in time order")
+    assert not (tmp_path / "r.hdf5").exists()

@@ -212,8 +212,9 @@ def test_setup_refuses_an_unknown_readout():
 # The page (a Bokeh document, redrawn by its callback as the server would)
 
 
-def page(feed):
-    """The document of ``feed`` and a function that redraws it and returns its texts."""
+def page(feed, *, takes=True):
+    """The document of ``feed`` and a function that redraws it and returns its texts; the page
+    takes each update (as its glue does in a browser) unless ``takes`` is false."""
     from bokeh.document import Document
     from bokeh.models import Div
 
@@ -222,9 +223,12 @@ def page(feed):
     doc = Document()
     build_document(doc, feed, 0.05)
     update, = (callback.callback for callback in doc.session_callbacks)
+    sent, taken = (doc.select_one({"name": name}) for name in ("fliss-sent", "fliss-taken"))
 
     def redraw():
         update()
+        if takes:
+            taken.tags = list(sent.tags)
         return {tuple(div.css_classes): div.text for div in doc.select({"type": Div})}
     return doc, redraw
 

@@ -63,7 +63,8 @@ return window.flissTimes.filter(t => t > since && t <= until).length / arguments
 
 #: JavaScript: the numbers the page shows, read at once.
 SHOWN = FIND + """
-const names = ['n-state', 'n-frame', 'n-total', 'n-summed', 'n-frames', 'n-detected', 'n-s'];
+const names = ['n-state', 'n-frame', 'n-total', 'n-summed', 'n-frames', 'n-detected', 'n-s',
+               'n-skipped'];
 const shown = {};
 for (const name of names) shown[name] = text(name);
 const peaks = find(document, 'fliss-peaks');
@@ -285,3 +286,44 @@ def test_replay_of_an_imager_capture(browser, tmp_path, screenshots):
     assert int(shown["n-detected"]) == 8
     assert fliss.lines[1:] == ["fliss: view: a browser opened the page (1 watching)",
                                "fliss: view stopped"]
+
+
+#: JavaScript: keep the page's thread busy for ``arguments[0]`` ms, from its next turn on.
+STALL = """
+const ms = arguments[0];
+setTimeout(() => { const end = performance.now() + ms; while (performance.now() < end) {} }, 0);
+"""
+
+
+def test_a_page_that_stalls_misses_updates_and_costs_the_capture_nothing(
+        browser, model_path_and_board, tmp_path, screenshots):
+    path, model = model_path_and_board
+    output = tmp_path / "run.h5"
+    fliss = Fliss("capture", "--port", path, "--timeout", "5", "--integration", "1ms",
+                  "--mode", "off", "--acquisitions", 100000, "-o", output,
+                  "--view", "--view-port", 0)
+    try:
+        browser.switch_to.new_window("window")
+        browser.get(fliss.url())
+        wait_shown(browser, lambda s: s["n-frame"])
+        browser.execute_script(STALL, 4000)
+        time.sleep(4.5)                     # (the page's scripts wait for the stall to end)
+        missed = int(wait_shown(browser, lambda s: s["n-skipped"])["n-skipped"])
+        browser.save_screenshot(str(screenshots / "view-stalled.png"))
+        # Updates come every 50 ms, frames faster: about 80 missed in 4 s.
+        assert 40 <= missed <= 100
+        browser.close()
+        browser.switch_to.window(browser.window_handles[0])
+        said = fliss.wait_for_line(r"fliss: view: a page that left had missed (\d+) of (\d+) "
+                                   r"updates, drawing more slowly than they came \(it was "
+                                   r"shown the latest frame each time\)")
+        assert int(said[1]) >= missed
+        assert fliss.stop() == 128 + signal.SIGINT
+    finally:
+        fliss.kill()
+    capture = read_capture(output)
+    sent = model.sent_histograms(8192, whole=True)
+    assert capture.complete.all() and capture.counters["stream"]["lost_rows"] == 0
+    assert [int(frame) for frame in capture.frames] == sorted(sent)
+    for frame, row in zip(capture.frames, capture.histograms):
+        assert np.array_equal(row, sent[int(frame)])

@@ -2,10 +2,10 @@
 
 The timing (laser period and PRF from the ``period`` register and the clock), the settings that
 matter (:func:`settings`: delay mode, L or Wm, the seed or the IV, never the key), the laser
-cycle of each event without the 32-bit wrap of ``pulse`` (:func:`laser_cycles`), and the
-:class:`~fliss.host.fileformat.Capture` of a file read back: a FLISS export as the capture it
-came from (:func:`restored`), another program's file as one TCSPC histogram
-(:func:`imported`).
+cycle of each event without the 32-bit wrap of ``pulse`` (:func:`laser_cycles`; run by run,
+:func:`cycle_chunks`), and the :class:`~fliss.host.fileformat.Capture` of a file read back: a
+FLISS export as the capture it came from (:func:`restored`), another program's file as one
+TCSPC histogram (:func:`imported`).
 """
 
 import datetime
@@ -24,7 +24,7 @@ from ..fileformat import Capture
 
 
 __all__ = ["timing", "settings", "configuration", "metadata", "created", "laser_cycles",
-           "restored", "imported", "ImportedCapture"]
+           "cycle_chunks", "CHUNK_EVENTS", "restored", "imported", "ImportedCapture"]
 
 
 def timing(capture):
@@ -90,20 +90,37 @@ def created(capture):
     return when
 
 
+#: Events converted at a time by the exporters: what an export holds beside the capture.
+CHUNK_EVENTS = 1 << 20
+
+
 def laser_cycles(capture):
     """The laser cycle of each event (``int64``), counted on past the 32-bit wrap of
     ``pulse``; refused when the events are not in the order of their cycles."""
-    pulse = capture.events["pulse"].astype(np.int64)
-    if not len(pulse):
-        return pulse
-    steps = np.diff(pulse) % (1 << PULSE_BITS)
-    back = np.flatnonzero(steps >= 1 << (PULSE_BITS - 1))
-    if len(back):
-        i = int(back[0]) + 1
-        raise FormatError(f"{capture.path}: event {i} (laser cycle {pulse[i]}) comes before "
-                          f"event {i - 1} (cycle {pulse[i - 1]}): PTU and Photon-HDF5 hold "
-                          f"records in time order")
-    return pulse[0] + np.concatenate(([0], np.cumsum(steps)))
+    chunks = [cycles for _, cycles in cycle_chunks(capture)]
+    return np.concatenate(chunks) if chunks else np.zeros(0, dtype=np.int64)
+
+
+def cycle_chunks(capture, size=None):
+    """(first event, laser cycles) of each run of up to ``size`` events, as
+    :func:`laser_cycles` gives them whole, so that an export holds one run at a time (``size``
+    :data:`CHUNK_EVENTS` unless given)."""
+    size = size or CHUNK_EVENTS
+    pulses = capture.events["pulse"]
+    last = None                             # (pulse, cycle) of the run before
+    for start in range(0, len(pulses), size):
+        pulse = pulses[start:start + size].astype(np.int64)
+        before = pulse[:1] if last is None else np.array([last[0]], dtype=np.int64)
+        steps = np.diff(pulse, prepend=before) % (1 << PULSE_BITS)
+        back = np.flatnonzero(steps >= 1 << (PULSE_BITS - 1))
+        if len(back):
+            i = start + int(back[0])
+            raise FormatError(f"{capture.path}: event {i} (laser cycle {pulses[i]}) comes "
+                              f"before event {i - 1} (cycle {pulses[i - 1]}): PTU and "
+                              f"Photon-HDF5 hold records in time order")
+        cycles = (pulse[0] if last is None else last[1]) + np.cumsum(steps)
+        last = (int(pulse[-1]), int(cycles[-1]))
+        yield start, cycles
 
 
 def restored(path, texts, *, histograms=None, events=None, pixels=None, incomplete=(),

@@ -21,7 +21,7 @@ from ... import __version__
 from ...hdl.event import ADDRESS_BITS, TIMESTAMP_BITS
 from ...protocol.events import EVENT_DTYPE
 from ..errors import FormatError
-from .metadata import imported, laser_cycles, metadata, restored, settings, timing
+from .metadata import cycle_chunks, imported, metadata, restored, settings, timing
 
 
 __all__ = ["write_photon_hdf5", "read_photon_hdf5", "is_photon_hdf5"]
@@ -29,29 +29,75 @@ __all__ = ["write_photon_hdf5", "read_photon_hdf5", "is_photon_hdf5"]
 
 def write_photon_hdf5(capture, path):
     """Write the raw ``capture`` to the Photon-HDF5 file ``path``; returns the number of
-    photons (:func:`fliss.host.formats.export_capture` refuses the other modes)."""
+    photons (:func:`fliss.host.formats.export_capture` refuses the other modes).
+
+    The photons go into the file run by run (:func:`~.metadata.cycle_chunks`), as extendable
+    arrays with phconvert's compression (zlib, level 6); phconvert then writes the rest around
+    them and checks the file (``save_photon_hdf5`` with ``h5file``: arrays already in the file
+    are kept)."""
     try:
         import phconvert
+        import tables
     except ImportError:
         raise FormatError("Photon-HDF5 files need the phconvert package: pip install "
                           "'fliss[formats]'") from None
+    # phconvert's own default compression for the files it writes.
+    h5file = tables.open_file(str(path), mode="w",
+                              filters=tables.Filters(complevel=6, complib="zlib"))
+    try:
+        data = _photon_data(capture, h5file, tables)
+        # phconvert prints the file name and warns of optional fields (wavelengths, author).
+        with contextlib.redirect_stdout(io.StringIO()), warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            phconvert.hdf5.save_photon_hdf5(data, h5file=h5file, warnings=False)
+    except (ValueError, TypeError, phconvert.hdf5.Invalid_PhotonHDF5) as error:
+        if isinstance(error, FormatError):
+            raise
+        raise FormatError(f"{capture.path}: phconvert cannot write it ({error})") from None
+    finally:
+        if h5file.isopen:
+            h5file.close()
+    return len(capture.events)
+
+
+def _photon_data(capture, h5file, tables):
+    # The photons written run by run; the dict phconvert completes the file from.
     period_s, prf_hz = timing(capture)
-    events, codes = capture.events, 1 << TIMESTAMP_BITS
-    cycles = laser_cycles(capture)
-    user = dict(settings(capture), **metadata(capture), collision=events["collision"])
+    events, codes, n = capture.events, 1 << TIMESTAMP_BITS, len(capture.events)
+    group = h5file.create_group("/", "photon_data")
+    fliss = h5file.create_group(h5file.create_group("/", "user"), "fliss")
+    columns = {name: h5file.create_earray(where, name, tables.Atom.from_dtype(np.dtype(dtype)),
+                                          (0,), expectedrows=max(1, n))
+               for where, name, dtype in ((group, "timestamps", np.int64),
+                                          (group, "detectors", np.uint8),
+                                          (group, "nanotimes", np.uint16),
+                                          (fliss, "collision", np.uint8))}
+    detected = np.zeros(1 << ADDRESS_BITS, dtype=np.int64)
+    first = last = None
+    for start, cycles in cycle_chunks(capture):
+        run = events[start:start + len(cycles)]
+        columns["timestamps"].append(cycles)
+        columns["detectors"].append(run["address"].astype(np.uint8))
+        columns["nanotimes"].append(run["timestamp"].astype(np.uint16))
+        columns["collision"].append(run["collision"].astype(np.uint8))
+        detected += np.bincount(run["address"], minlength=len(detected))
+        first = int(cycles[0]) if first is None else first
+        last = int(cycles[-1])
+    user = dict(settings(capture), **metadata(capture), collision=columns["collision"])
     pixels = np.arange(1 << ADDRESS_BITS, dtype=np.uint8)
+    ids = np.flatnonzero(detected).astype(np.uint8)
     duration_s = capture.attrs.get("capture_s")
     if duration_s is None:
-        duration_s = float(cycles[-1] - cycles[0]) * period_s if len(cycles) else 0.0
-    data = {
+        duration_s = float(last - first) * period_s if n else 0.0
+    return {
         "description": f"FLISS raw capture {capture.path}: the laser cycle of each event "
                        f"(timestamps), its TDC code (nanotimes), its pixel address "
                        f"(detectors); the settings in /user/fliss",
         "acquisition_duration": float(duration_s),
         "photon_data": {
-            "timestamps": cycles,
-            "detectors": events["address"].astype(np.uint8),
-            "nanotimes": events["timestamp"].astype(np.uint16),
+            "timestamps": columns["timestamps"],
+            "detectors": columns["detectors"],
+            "nanotimes": columns["nanotimes"],
             "timestamps_specs": {"timestamps_unit": period_s},
             "nanotimes_specs": {"tcspc_unit": capture.code_s, "tcspc_num_bins": codes,
                                 "tcspc_range": capture.code_s * codes},
@@ -62,21 +108,14 @@ def write_photon_hdf5(capture, path):
         "setup": {"num_pixels": len(pixels), "num_spots": 1, "num_spectral_ch": 1,
                   "num_polarization_ch": 1, "num_split_ch": 1, "modulated_excitation": False,
                   "excitation_alternated": [False], "lifetime": True, "excitation_cw": [False],
-                  "laser_repetition_rates": [prf_hz]},
+                  "laser_repetition_rates": [prf_hz],
+                  # What phconvert would count from the whole detectors array.
+                  "detectors": {"id": ids, "id_hardware": ids, "counts": detected[ids]}},
         "provenance": {"filename": capture.path, "software": "fliss",
                        "software_version": __version__,
                        "creation_time": str(capture.attrs.get("created_utc", ""))},
         "user": {"fliss": user},
     }
-    # phconvert prints the file name and warns of optional fields (wavelengths, author).
-    with contextlib.redirect_stdout(io.StringIO()), warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        try:
-            phconvert.hdf5.save_photon_hdf5(data, h5_fname=str(path), overwrite=True,
-                                            warnings=False)
-        except (ValueError, TypeError, phconvert.hdf5.Invalid_PhotonHDF5) as error:
-            raise FormatError(f"{capture.path}: phconvert cannot write it ({error})") from None
-    return len(events)
 
 
 def is_photon_hdf5(path):

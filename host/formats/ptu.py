@@ -15,6 +15,7 @@ TCSPC histogram of all its photons.
 
 import json
 import logging
+import struct
 import uuid
 
 import numpy as np
@@ -23,9 +24,8 @@ from ... import __version__
 from ...hdl.event import TIMESTAMP_BITS
 from ...protocol.events import EVENT_DTYPE
 from ..errors import FormatError
-from .metadata import (created, imported, laser_cycles, metadata, restored, settings,
-                       timing)
-from .ptu_records import GENERIC_T3, header, t3_records
+from .metadata import created, cycle_chunks, imported, metadata, restored, settings, timing
+from .ptu_records import GENERIC_T3, header, number_records_at, t3_records
 
 
 __all__ = ["write_ptu", "read_ptu", "ptu_tags"]
@@ -67,9 +67,9 @@ def write_ptu(capture, path):
 
 
 def _write_events(capture, path):
+    # Run by run (metadata.CHUNK_EVENTS events), the number of records patched in at the end.
     period_s, prf_hz = timing(capture)
     events = capture.events
-    records = t3_records(laser_cycles(capture), events["timestamp"], events["address"])
     tags = {
         "File_GUID": f"{{{uuid.uuid4()}}}",
         "File_CreatingTime": created(capture),
@@ -82,7 +82,7 @@ def _write_events(capture, path):
         "MeasDesc_Resolution": float(capture.code_s),
         "MeasDesc_GlobalResolution": float(period_s),
         "TTResult_SyncRate": int(round(prf_hz)),
-        "TTResult_NumberOfRecords": len(records),
+        "TTResult_NumberOfRecords": 0,
         "TTResultFormat_TTTRRecType": GENERIC_T3,
         "TTResultFormat_BitsPerRecord": 32,
         "HW_InpChannels": 1 << 6,
@@ -90,10 +90,18 @@ def _write_events(capture, path):
     if "capture_s" in capture.attrs:
         tags["MeasDesc_AcquisitionTime"] = int(round(float(capture.attrs["capture_s"]) * 1e3))
     tags.update(ptu_tags(capture))
+    head = header(tags)
+    written, before = 0, 0
     with open(path, "wb") as f:
-        f.write(header(tags))
-        f.write(records.tobytes())
-    return len(records)
+        f.write(head)
+        for start, cycles in cycle_chunks(capture):
+            run = events[start:start + len(cycles)]
+            records = t3_records(cycles, run["timestamp"], run["address"], before)
+            f.write(records.tobytes())
+            written, before = written + len(records), int(cycles[-1])
+        f.seek(number_records_at(head))
+        f.write(struct.pack("<q", written))
+    return written
 
 
 def _write_histograms(capture, path):

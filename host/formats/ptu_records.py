@@ -19,7 +19,7 @@ import struct
 import numpy as np
 
 
-__all__ = ["GENERIC_T3", "WRAP", "tag", "header", "t3_records"]
+__all__ = ["GENERIC_T3", "WRAP", "tag", "header", "number_records_at", "t3_records"]
 
 
 #: ``TTResultFormat_TTTRRecType`` of the MultiHarp / PicoHarp 330 T3 record.
@@ -65,12 +65,20 @@ def header(tags):
         tag("Header_End", None)
 
 
-def t3_records(sync, dtime, channel):
+def number_records_at(head):
+    """Where, in the header ``head``, the 8-byte value of ``TTResult_NumberOfRecords`` is: a
+    writer that counts its records as it goes writes the count there at the end."""
+    return head.index(b"TTResult_NumberOfRecords".ljust(32, b"\0")) + 40
+
+
+def t3_records(sync, dtime, channel, before=0):
     """``GenericT3`` records (``uint32``) of photons at sync counts ``sync`` (non-decreasing,
-    from 0), with ``dtime`` (< 2**15) and ``channel`` (< 64), each preceded by the overflow
-    records that bring the sync count to it."""
+    from ``before``, the sync count of the photon before them: 0 at the start of a file), with
+    ``dtime`` (< 2**15) and ``channel`` (< 64), each preceded by the overflow records that bring
+    the sync count to it. Records made run by run, each from the last sync of the run before,
+    are those made at once."""
     sync = np.asarray(sync, dtype=np.int64)
-    wraps = np.diff(sync // WRAP, prepend=0)
+    wraps = np.diff(sync // WRAP, prepend=before // WRAP)
     overflows = -(-wraps // _MAX_WRAPS)
     ends = np.cumsum(overflows)
     records = np.empty(len(sync) + int(ends[-1] if len(ends) else 0), dtype=np.uint32)

@@ -12,8 +12,8 @@ import math
 
 import numpy as np
 from bokeh.layouts import row
-from bokeh.models import (Button, ColorBar, ColumnDataSource, Div, LinearColorMapper,
-                          RadioButtonGroup, Range1d)
+from bokeh.models import (Button, ColorBar, ColumnDataSource, CustomJS, Div,
+                          LinearColorMapper, RadioButtonGroup, Range1d)
 from bokeh.palettes import Magma256, Viridis256
 from bokeh.plotting import figure
 
@@ -21,11 +21,16 @@ from ..units import format_time
 from .feed import Feed, Picture, Status
 
 
-__all__ = ["build_document", "status_html", "peaks_html"]
+__all__ = ["WINDOW", "build_document", "PageFlow", "status_html", "peaks_html"]
 
 #: Points at most in a drawn histogram: a browser redraws 1024 many times a second, and 8192
 #: several times slower. Finer histograms are drawn in wider bins (sums of neighbours).
 MAX_POINTS = 1024
+
+#: Updates a page may have on the way (sent, not taken yet): two, so that the time an update
+#: takes to reach the page and its answer to come back (the GIL of a busy capture on one side,
+#: a page still painting the last update on the other) does not hold a page to half the rate.
+WINDOW = 2
 
 #: Rows of the peak table (the tallest peaks).
 MAX_PEAKS = 6
@@ -36,12 +41,23 @@ _ROLE_COLOURS = {"victim": "#1b9e77", "aggressor": "#d95f02", "": "#7570b3"}
 _STYLE = {"font-size": "14px", "font-family": "sans-serif"}
 
 
-def build_document(doc, feed: Feed, period_s: float) -> None:
+def build_document(doc, feed: Feed, period_s: float, notify=None) -> "PageFlow":
     """Fill ``doc`` (a new session's document) with the view of ``feed``, redrawn every
-    ``period_s`` seconds."""
+    ``period_s`` seconds.
+
+    Flow control: an update goes to the page only while the page has fewer than
+    :data:`WINDOW` updates on the way (the page's glue hands the number of each update it has
+    taken back, :class:`PageFlow`); otherwise the server sends nothing, and the page gets the
+    latest frame when it is ready again. A page that cannot keep up (slow, stalled, a tab the
+    browser keeps waiting) thus costs the server at most :data:`WINDOW` updates, and no
+    acquisition ever waits for a page. The updates a page missed so are counted, shown on its
+    status line and, if ``notify`` is given, said in one line when the page goes. Returns the
+    page's :class:`PageFlow`."""
     setup = feed.setup
     doc.title = f"FLISS view: {setup.source}"
-    state = {"summed": False, "seq": None, "drawn_summed": None, "bins": None}
+    # (seq: of the picture drawn; checked: the feed's at the last tick)
+    state = {"summed": False, "seq": None, "drawn_summed": None, "bins": None, "checked": None}
+    flow = PageFlow(doc)
 
     title = Div(text=_title_html(feed), styles=dict(_STYLE, **{"font-size": "16px"}))
     # Each part is a root of its own, and the texts are of fixed height: a text that changes
@@ -49,7 +65,7 @@ def build_document(doc, feed: Feed, period_s: float) -> None:
     # take most of the browser's time.
     status = Div(text="", css_classes=["fliss-status"], styles=_STYLE,
                  sizing_mode="stretch_width", height=66)
-    parts = [title, status]
+    parts = [title, status, flow.sent, flow.taken]
 
     histogram = setup.readout in ("histogram", "image", "raw")
     imager = setup.readout in ("image", "depth")
@@ -89,26 +105,92 @@ def build_document(doc, feed: Feed, period_s: float) -> None:
         parts.append(row(*_imager_figures(setup, profile, depth_image, intensity_image),
                          sizing_mode="stretch_width"))
 
-    def update():
-        # (the changes of an update go to the browser as one message)
+    def update(first=False):
+        if flow.behind:
+            # The page has yet to take the updates on the way: it gets the latest state later.
+            if flow.loaded and feed.seq != state["checked"]:
+                flow.missed += 1
+                flow.held = True
+            state["checked"] = feed.seq
+            return
+        state["checked"] = feed.seq
+        # (the changes of an update go to the browser as one message, its number last)
         doc.hold("combine")
         try:
             picture = feed.picture(state["summed"])
-            status.text = status_html(feed, feed.status(), picture)
-            if picture.seq == state["seq"] and picture.summed == state["drawn_summed"]:
-                return
-            state["seq"], state["drawn_summed"] = picture.seq, picture.summed
-            if histogram:
-                _draw_histogram(picture, curve, marks, table, state, (linear, log))
-            if imager:
-                _draw_imager(picture, setup, profile, depth_image, intensity_image)
+            status.text = status_html(feed, feed.status(), picture, flow.missed)
+            if picture.seq != state["seq"] or picture.summed != state["drawn_summed"]:
+                state["seq"], state["drawn_summed"] = picture.seq, picture.summed
+                if histogram:
+                    _draw_histogram(picture, curve, marks, table, state, (linear, log))
+                if imager:
+                    _draw_imager(picture, setup, profile, depth_image, intensity_image)
+            if not first:
+                flow.send()
         finally:
             doc.unhold()
 
-    update()
+    def gone(context):
+        if notify is not None and flow.missed:
+            notify(f"a page that left had missed {flow.missed} of {flow.updates + flow.missed} "
+                   f"updates, drawing more slowly than they came (it was shown the latest "
+                   f"frame each time)")
+
+    update(first=True)
+    flow.catch_up = update
     for part in parts:
         doc.add_root(part)
     doc.add_periodic_callback(update, max(1, round(period_s * 1000)))
+    doc.on_session_destroyed(gone)
+    return flow
+
+
+class PageFlow:
+    """The flow control of a page: two hidden models and counts.
+
+    The server numbers each update (:meth:`send`) in ``sent.tags``; the page, once it has
+    applied the update (and once it has loaded: a session's first updates may come before),
+    copies the number into ``taken.tags``, which comes back to the server. ``missed`` counts
+    the updates held back, each at a new frame, while the page had :data:`WINDOW` updates on
+    the way.
+    """
+
+    def __init__(self, doc):
+        self.sent = Div(visible=False, tags=[0], name="fliss-sent")
+        self.taken = Div(visible=False, tags=[0], name="fliss-taken")
+        take = CustomJS(args=dict(sent=self.sent, taken=self.taken),
+                        code="taken.tags = sent.tags.slice()")
+        self.sent.js_on_change("tags", take)
+        doc.js_on_event("document_ready", take)
+        #: Updates sent to the page, the last the page took, updates it missed.
+        self.updates = self.took = self.missed = 0
+        #: Whether an update was held back since the last one sent; then ``catch_up`` (the
+        #: document's update) is called as soon as the page takes that one, rather than at
+        #: the next period: a page a little slower than the period is not held to half of it.
+        self.held = False
+        self.catch_up = None
+        self.taken.on_change("tags", self._took)
+
+    def _took(self, attr, old, new):
+        self.took = int(new[0]) if new else self.took
+        if self.held and not self.behind and self.catch_up is not None:
+            self.catch_up()
+
+    def send(self) -> None:
+        """Number the update being made (call it last, in the update's hold)."""
+        self.updates += 1
+        self.held = False
+        self.sent.tags = [self.updates]
+
+    @property
+    def behind(self) -> bool:
+        """Whether the page has :data:`WINDOW` updates it has not taken yet."""
+        return self.updates - self.took >= WINDOW
+
+    @property
+    def loaded(self) -> bool:
+        """Whether the page has taken an update (it has loaded)."""
+        return self.took > 0
 
 
 def _title_html(feed):
@@ -216,8 +298,9 @@ def _draw_imager(picture: Picture, setup, profile, depth_image, intensity_image)
             dh=[len(picture.pixels)])
 
 
-def status_html(feed: Feed, status: Status, picture: Picture) -> str:
-    """The status lines: what is shown, frames and rates."""
+def status_html(feed: Feed, status: Status, picture: Picture, skipped: int = 0) -> str:
+    """The status lines: what is shown, frames and rates, and the updates this page missed
+    (``skipped``: it had not taken the one before)."""
     setup = feed.setup
     if not picture.frames:
         shown = "nothing yet"
@@ -246,7 +329,9 @@ def status_html(feed: Feed, status: Status, picture: Picture) -> str:
         f"incomplete {status.incomplete} &middot; "
         f"<span class='n-rate'>{status.frame_rate_hz:.1f}</span> {received}/s",
         f"{counted}dropped on the board {drops}events/s &middot; "
-        f"link: {status.corrupt} corrupt frames, {status.missing} missing packets",
+        f"link: {status.corrupt} corrupt frames, {status.missing} missing packets"
+        + (f" &middot; this page missed <span class='n-skipped'>{skipped}</span> updates "
+           f"(too slow to draw them)" if skipped else ""),
     ]
     return "<br>".join(lines)
 

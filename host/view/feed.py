@@ -230,6 +230,11 @@ class Feed:
         self._state = state
 
     @property
+    def seq(self) -> int:
+        """Items taken so far: a new number means something new to show."""
+        return self._seq
+
+    @property
     def state(self) -> str:
         """How the source is doing: ``"acquiring"``, ``"completed"``, ``"board lost: ..."``."""
         return self._state

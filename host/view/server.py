@@ -71,6 +71,7 @@ class ViewServer:
                             f"{error.strerror or error}") from None
         #: Pages open (connected) now.
         self.watching = 0
+        self._flows = {}
         self._loop = None
         self._error = None
         self._ready = threading.Event()
@@ -89,6 +90,7 @@ class ViewServer:
     def _serve(self):
         try:
             from bokeh.application import Application
+            from bokeh.application.handlers.document_lifecycle import DocumentLifecycleHandler
             from bokeh.application.handlers.function import FunctionHandler
             from bokeh.server.server import BaseServer
             from bokeh.server.tornado import BokehTornado
@@ -98,7 +100,9 @@ class ViewServer:
             asyncio.set_event_loop(asyncio.new_event_loop())
             loop = IOLoop.current()
             hosts = {self.address, "localhost", "127.0.0.1"}
-            application = Application(FunctionHandler(self._document))
+            # (the second handler runs the documents' on_session_destroyed callbacks)
+            application = Application(FunctionHandler(self._document),
+                                      DocumentLifecycleHandler())
             tornado = BokehTornado(
                 {"/": application},
                 extra_websocket_origins=[f"{host}:{self.port}" for host in sorted(hosts)],
@@ -108,6 +112,7 @@ class ViewServer:
             http.add_sockets(self._sockets)
             server = BaseServer(loop, tornado, http)
             server.start()
+            self._tornado = tornado
             PeriodicCallback(lambda: self._count(tornado), _COUNT_MS).start()
         except Exception as error:      # noqa: BLE001 -- said by the caller's thread
             self._error = f"{type(error).__name__}: {error}"
@@ -124,7 +129,15 @@ class ViewServer:
     def _document(self, doc):
         from .document import build_document
 
-        build_document(doc, self.feed, self.period_s)
+        flow = build_document(doc, self.feed, self.period_s, self._notify)
+        self._flows[id(doc)] = flow
+        doc.on_session_destroyed(lambda context: self._flows.pop(id(doc), None))
+
+    def pages(self):
+        """``(updates sent, updates missed, behind)`` of each page's session now (see
+        :class:`~fliss.host.view.document.PageFlow`); a session outlives its page by a few
+        seconds."""
+        return [(flow.updates, flow.missed, flow.behind) for flow in list(self._flows.values())]
 
     def _count(self, tornado):
         # Pages connected now (a session's websocket): an HTTP request alone is no browser.
