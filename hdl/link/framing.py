@@ -228,7 +228,6 @@ class FrameDecoder(wiring.Component):
             take.eq(crc.o.valid & crc.o.ready & ~crc.o.p.end),
             end.eq(crc.o.valid & crc.o.ready & crc.o.p.end),
         ]
-        m.d.sync += ending.eq(end)
 
         # Packet bytes: the header, then the payload into the buffer at `count - HEADER_BYTES`.
         # A registered write (`registered`: the block RAM may sit far away) lands a cycle
@@ -247,9 +246,10 @@ class FrameDecoder(wiring.Component):
             with m.Elif(count < max_bytes):
                 write += buffer_wr.en.eq(1)
 
-        # Verdict (see `_judge`), drawn in `ending` and registered: `accept`, or `drop` with
-        # its reason; the frame state is cleared. The counters and the output follow from the
+        # Verdict (see `_judge`), drawn in `ending` (the cycle after the delimiter) and
+        # registered: `accept`, or `drop` with its reason; the frame state is cleared. The counters and the output follow from the
         # verdict's registers.
+        m.d.sync += ending.eq(end)
         nonempty, good, reason = self._judge(m, crc.o, end, count, header)
         accept = Signal()
         sent_header = Signal(Header)    # the header of the accepted packet
