@@ -50,9 +50,14 @@ class StatusCounters(wiring.Component):
     def count(self, tally, **names):
         """Statements that count each strobe of a block's ``tally`` (a view of one-bit fields)
         in the counter of the same name, or of the name ``names`` gives it (``None``: not
-        counted here). A strobe with no counter is refused, so that none is left out unseen."""
+        counted here). A strobe with no counter is refused, so that none is left out unseen,
+        and so is a name in ``names`` that the tally does not have."""
+        strobes = [name for name, _ in data.Layout.cast(tally.shape())]
+        for name in names:
+            if name not in strobes:
+                raise ValueError(f"No tally strobe {name!r} to count")
         statements = []
-        for name, _ in data.Layout.cast(tally.shape()):
+        for name in strobes:
             field = names.get(name, name)
             if field is None:
                 continue

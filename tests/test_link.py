@@ -3,14 +3,11 @@ data packets out, through the UART or byte streams, decoded by the host codec an
 with the command processor's model."""
 
 import pytest
-from amaranth.hdl import Signal
-from amaranth.lib import data
 
 from fliss import protocol
 from fliss.hdl import DEFAULT_CLOCK_HZ
 from fliss.hdl.link.link import Link
 from fliss.hdl.protocol import PacketType, NakCode, LINK_FIELDS, ReadRequest
-from fliss.hdl.status import StatusCounters
 from fliss.protocol.layout import pack
 from fliss.sim.models import uart as uart_model
 from fliss.sim.models.command import CommandModel
@@ -136,16 +133,3 @@ def test_link_refuses(construction_error, kwargs, exception, message):
 def test_link_without_uart_takes_any_baud(construction_error):
     # (the baud rate is only reported in the identity then)
     assert construction_error(lambda: Link(baud=21_000_000, uart=False)) is None
-
-
-def test_status_counters_refuse_a_strobe_with_no_counter(construction_error):
-    tally = Signal(data.StructLayout({"bad_crc": 1, "refused": 1, "dropped_busy": 1}))
-
-    def count(**names):
-        return StatusCounters().count(tally, **names)
-
-    assert construction_error(lambda: count(bad_crc="bad_frames")) == \
-        "No STATUS counter 'bad_frames' for the tally strobe 'bad_crc'"
-    assert construction_error(lambda: count(bad_crc=None, refused=None)) == \
-        "No STATUS counter 'dropped_busy' for the tally strobe 'dropped_busy'"
-    assert construction_error(lambda: count(dropped_busy=None)) is None
