@@ -1,4 +1,5 @@
-"""Counter bank: snapshots against strobes counted cycle by cycle in Python."""
+"""Counter bank: snapshots against strobes counted cycle by cycle in Python; the STATUS
+counters' refusals of tally strobes they cannot count."""
 
 import numpy as np
 import pytest
