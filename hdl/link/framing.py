@@ -24,7 +24,8 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from ..block_ram import byte_ram, check_registered_read, reads_registered
-from .cobs import CobsEncoder, CobsDecoder
+from .buffer import StreamBuffer
+from .cobs import CobsEncoder, CobsDecoder, DecodedByte
 from .crc import CrcAppender, CrcChecker
 from ..protocol import (Header, HEADER_BYTES, MAX_PAYLOAD, MAX_PACKET, MAX_ENCODED, CRC_BYTES,
                         NakCode, COUNTER_BITS, LINK_COUNTERS, LINK_FIELDS)
@@ -148,7 +149,8 @@ class FrameDecoder(wiring.Component):
     The payload is kept in a buffer of :data:`~fliss.hdl.protocol.MAX_PAYLOAD` bytes and sent
     once the frame has been checked: a consumer never sees a byte of a frame that fails. While
     a packet is being sent, the next frame is received until six of its bytes are decoded
-    (header and two more); only then does ``i.ready`` fall until the packet has gone. From a
+    (header and two more, and up to two more in the register slice before the CRC check); only
+    then does ``i.ready`` fall until the packet has gone. From a
     UART at 12 Mbaud and 80 MHz (a byte every 67 cycles) that leaves over 400 cycles to read out
     a packet of at most 265 beats, so a consumer that takes a beat per cycle never stalls the
     input. The input also waits for one cycle after each delimiter, while the frame is judged.
@@ -202,8 +204,12 @@ class FrameDecoder(wiring.Component):
 
         m.submodules.cobs = cobs = CobsDecoder(max_encoded=MAX_ENCODED)
         m.submodules.crc = crc = CrcChecker()
+        # A register slice between the two: the COBS decoder's block count and the CRC
+        # register's enable were the slowest path of the iCEBreaker's build
+        m.submodules.decoded = decoded = StreamBuffer(DecodedByte)
         wiring.connect(m, wiring.flipped(self.i), cobs.i)
-        wiring.connect(m, cobs.o, crc.i)
+        wiring.connect(m, cobs.o, decoded.i)
+        wiring.connect(m, decoded.o, crc.i)
         registered = reads_registered(self.registered_read, platform)
         buffer_wr, buffer_rd = byte_ram(m, "buffer", MAX_PAYLOAD, registered,
                                         output_enable=True)
