@@ -282,7 +282,8 @@ class FlissPlatform:
     * :meth:`pll_search` (a static method): ``(f_in_hz, f_out_hz)`` -> a PLL configuration with
       ``f_out_hz``, the real frequency;
     * :meth:`fliss_io`: ``(pins, direction)`` -> ``(Pins, Attrs)`` of one FLISS signal;
-    * :attr:`clocking_class`: its :class:`PllClocking`.
+    * :attr:`clocking_class`: its :class:`PllClocking`;
+    * :attr:`synth_opts`: options of its ``synth_<family>`` yosys command, if any.
 
     Parameters
     ----------
@@ -299,6 +300,7 @@ class FlissPlatform:
 
     pins = {}
     shared_pins = {}
+    synth_opts = ()
 
     def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, **kwargs):
         super().__init__(**kwargs)

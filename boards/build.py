@@ -275,7 +275,7 @@ def build_board(board, *, clock_hz=None, build_dir=None, design=None,
 
     start = time.monotonic()
     plan = platform.prepare(BoardTop(design), name=name, nextpnr_opts=nextpnr_opts,
-                            verbose=verbose)
+                            synth_opts=list(platform.synth_opts), verbose=verbose)
     plan.extract(str(build_dir))
     script = build_dir / f"{plan.script}.sh"
     output = None if verbose else subprocess.PIPE

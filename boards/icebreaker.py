@@ -133,6 +133,11 @@ class FlissICEBreakerPlatform(FlissPlatform, ICEBreakerPlatform):
     shared_pins = SHARED_PINS
     pll_search = staticmethod(ice40_pll)
     clocking_class = _ICE40Clocking
+    # Flip-flops get a clock enable only where at least 8 share it. Each logic block's 8 cells
+    # share one clock enable, so at 89 % of the UP5K rare enables leave nextpnr's placer no
+    # legal placement ("Unable to find legal placement for all cells", with every seed tried);
+    # with this the build places, at about 60 more cells.
+    synth_opts = ("-dffe_min_ce_use", "8")
 
     @staticmethod
     def fliss_io(pins, direction):

@@ -1,14 +1,17 @@
 """Block RAM with a registered read: an ECP5 ``DP16KD`` with its output register, or a generic
 memory elsewhere."""
 
+from types import SimpleNamespace
+
 from amaranth.hdl import C, ClockSignal, Instance, MemoryData, Module, Signal
 from amaranth.lib import wiring
-from amaranth.lib.memory import Memory
+from amaranth.utils import ceil_log2
+from amaranth.lib.memory import Memory, ReadPort, WritePort
 from amaranth.lib.wiring import In, Out
 
 
 __all__ = ["DP16KD_DEPTH", "DP16KD_WIDTH", "has_dp16kd", "check_registered_read",
-           "reads_registered", "RegisteredRam"]
+           "reads_registered", "byte_ram", "RegisteredRam"]
 
 
 #: Words of one ``DP16KD`` as the histogram uses it (1024 words of 18 bits).
@@ -36,6 +39,28 @@ def reads_registered(choice, platform):
     """Whether a block with ``registered_read=choice`` reads through a :class:`RegisteredRam`
     on ``platform``: ``None`` chooses it on an ECP5 (:func:`has_dp16kd`)."""
     return has_dp16kd(platform) if choice is None else choice
+
+
+def byte_ram(m, name, depth, registered, *, output_enable=False):
+    """Add a buffer of ``depth`` bytes to ``m`` as the submodule ``name``, for a block that
+    reads it either way (:func:`reads_registered`): a :class:`RegisteredRam` if ``registered``,
+    otherwise an :class:`amaranth.lib.memory.Memory` with a plain read port, not transparent.
+    Returns its write port and its read port, both under the names of a memory port's members
+    (``addr``, ``data``, ``en``; and ``output_en``, of a :class:`RegisteredRam` with
+    ``output_enable``), so that one description drives either."""
+    if not registered:
+        m.submodules[name] = memory = Memory(shape=8, depth=depth, init=[])
+        addr_width = ceil_log2(depth)
+        write = WritePort(WritePort.Signature(shape=8, addr_width=addr_width), memory=memory,
+                          domain="sync", path=(f"{name}_wr",))
+        read = ReadPort(ReadPort.Signature(shape=8, addr_width=addr_width), memory=memory,
+                        domain="sync", path=(f"{name}_rd",))
+        return write, read
+    m.submodules[name] = ram = RegisteredRam(depth=depth, width=8, output_enable=output_enable)
+    write = SimpleNamespace(addr=ram.write_addr, data=ram.write_data, en=ram.write_en)
+    read = SimpleNamespace(addr=ram.read_addr, data=ram.read_data, en=ram.read_en,
+                           **({"output_en": ram.output_en} if output_enable else {}))
+    return write, read
 
 
 class RegisteredRam(wiring.Component):

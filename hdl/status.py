@@ -39,11 +39,32 @@ class StatusCounters(wiring.Component):
         Victim pulses since the start.
     port : In(StatusSignature)
         To the command processor's ``status``.
+
+    :meth:`count` drives ``strobes`` from the blocks' own ``tally`` strobes.
     """
 
     strobes: In(strobes_layout())
     pulses:  In(COUNTER_BITS)
     port:    In(StatusSignature)
+
+    def count(self, tally, **names):
+        """Statements that count each strobe of a block's ``tally`` (a view of one-bit fields)
+        in the counter of the same name, or of the name ``names`` gives it (``None``: not
+        counted here). A strobe with no counter is refused, so that none is left out unseen,
+        and so is a name in ``names`` that the tally does not have."""
+        strobes = [name for name, _ in data.Layout.cast(tally.shape())]
+        for name in names:
+            if name not in strobes:
+                raise ValueError(f"No tally strobe {name!r} to count")
+        statements = []
+        for name in strobes:
+            field = names.get(name, name)
+            if field is None:
+                continue
+            if field not in COUNTED_FIELDS:
+                raise ValueError(f"No STATUS counter {field!r} for the tally strobe {name!r}")
+            statements.append(self.strobes[field].eq(tally[name]))
+        return statements
 
     def elaborate(self, platform):
         m = Module()

@@ -4,15 +4,13 @@ from amaranth.lib.wiring import In, Out
 
 from . import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, period_cycles
 from .delay.aggressor import Aggressor
-from .link.arbiter import PacketArbiter
-from .link.buffer import StreamBuffer
-from .link.command import CommandProcessor
 from .delay.core import DelayCore
 from .depth.engine import DepthEngine
 from .event import TIMESTAMP_BITS, ADDRESS_BITS
-from .link.framing import FrameDecoder, FrameEncoder
 from .histogram.engine import Histogram, RAM_KINDS
+from .histogram.layout import ReadoutSplit
 from .delay.keyed import Keying
+from .link.link import Link
 from .link.packetizer import EventPacketizer, FullHistogramPacketizer, HistogramPacketizer
 from .protocol import DEFAULT_BAUD
 from .rawfifo import RawFifo
@@ -21,9 +19,9 @@ from .delay.modes import DelayMode
 from .delay.settings import (BANK_BITS, MAX_BANK_BITS, MIN_BANK_BITS, PERIOD_WIDTH,
                              PULSE_WIDTH_WIDTH, check_widths)
 from .spram import SPRAM_DEPTH
-from .status import StatusCounters, LINK_FIELDS
+from .status import StatusCounters
 from .tdc import EventFilter, TdcInterface, CoarseTdc
-from .link.uart import UartRx, UartTx, bit_cycles
+from .link.uart import bit_cycles
 
 
 __all__ = ["DEFAULT_BAUD", "SPRAM_BANK_BITS", "SMALL", "FlissTop"]
@@ -42,6 +40,20 @@ SPRAM_BANK_BITS = SPRAM_DEPTH.bit_length() - 1
 SMALL = dict(histogram_ram="single", bank_bits=SPRAM_BANK_BITS, max_pixel_bits=0,
              aggressor=False, raw_events=False, keyed=False, depth=False, period_width=24,
              pulse_width_width=8, compact_readout=False)
+
+
+def _switch_frames(m, readout, first, second, to_second):
+    """Send each frame of ``readout`` (a stream of bins, ``last`` on a frame's final bin) whole
+    to ``first`` or ``second``: to ``second`` when ``to_second`` is high at its first bin."""
+    in_frame = Signal()
+    was_second = Signal()
+    second_now = Mux(in_frame, was_second, to_second)
+    with m.If(readout.valid & readout.ready):
+        m.d.sync += [in_frame.eq(~readout.p.last), was_second.eq(second_now)]
+    for reader, selected in ((first, ~second_now), (second, second_now)):
+        m.d.comb += [reader.valid.eq(readout.valid & selected),
+                     reader.payload.eq(readout.payload)]
+    m.d.comb += readout.ready.eq(Mux(second_now, second.ready, first.ready))
 
 
 class FlissTop(wiring.Component):
@@ -217,36 +229,21 @@ class FlissTop(wiring.Component):
     def elaborate(self, platform):
         m = Module()
 
-        # Link: bytes to verified packets to commands, and back
-        m.submodules.uart_rx = uart_rx = UartRx(clock_hz=self.clock_hz, baud=self.baud)
-        m.submodules.uart_tx = uart_tx = UartTx(clock_hz=self.clock_hz, baud=self.baud)
-        m.submodules.decoder = decoder = FrameDecoder()
-        m.submodules.encoder = encoder = FrameEncoder()
-        m.submodules.command = command = CommandProcessor(
-            clock_hz=self.clock_hz, baud=self.baud, maxima=self.register_maxima(),
-            bank_bits=self.bank_bits)
-        m.submodules.arbiter = arbiter = PacketArbiter(2 + self.raw_events + self.depth)
-        m.d.comb += [
-            uart_rx.rx.eq(self.uart_rx),
-            self.uart_tx.eq(uart_tx.tx),
-            command.link_error.eq(decoder.drop),
-            command.link_error_code.eq(decoder.drop_reason),
-        ]
-        wiring.connect(m, uart_rx.o, decoder.i)
-        wiring.connect(m, decoder.o, command.packets)
-        wiring.connect(m, command.replies, arbiter.i[0])
-        wiring.connect(m, arbiter.o, encoder.i)
-        # A register slice between the encoder's run buffer (block RAM, slow output) and the
-        # transmitter, for timing; half rate is plenty for a UART and puts no multiplexer after
-        # the RAM.
-        m.submodules.tx_buffer = tx_buffer = StreamBuffer(8, full_rate=False)
-        wiring.connect(m, encoder.o, tx_buffer.i)
-        wiring.connect(m, tx_buffer.o, uart_tx.i)
-
-        registers = command.registers
+        # Link: the UART, commands and the register file; the data packets leave through it
+        # after the replies, in this order
+        kinds = ["histogram"] + ["events"] * self.raw_events + ["depth"] * self.depth
+        m.submodules.link = link = Link(
+            clock_hz=self.clock_hz, baud=self.baud, sources=len(kinds),
+            maxima=self.register_maxima(), bank_bits=self.bank_bits)
+        sources = dict(zip(kinds, link.packets))
+        registers = link.registers
         acquisition = registers.acquisition
-        running = command.running
-        m.d.comb += self.running.eq(running)
+        running = link.running
+        m.d.comb += [
+            link.rx.eq(self.uart_rx),
+            self.uart_tx.eq(link.tx),
+            self.running.eq(running),
+        ]
 
         # Victim: delay source, scheduler, laser trigger and TDC start
         m.submodules.core = core = DelayCore(clock_hz=self.clock_hz,
@@ -255,7 +252,7 @@ class FlissTop(wiring.Component):
                                              keyed=self.keyed)
         m.d.comb += [
             core.enable.eq(running),
-            core.update.eq(command.update),
+            core.update.eq(link.update),
             core.settings.eq(registers.victim),
             self.laser.eq(core.laser),
             self.tdc_start.eq(core.tdc_start),
@@ -275,7 +272,7 @@ class FlissTop(wiring.Component):
                 pulse_width_width=self.pulse_width_width)
             m.d.comb += [
                 aggressor.enable.eq(running),
-                aggressor.update.eq(command.update),
+                aggressor.update.eq(link.update),
                 aggressor.emitter.eq(registers.aggressor),
                 aggressor.settings.eq(registers.aggressor_delay),
                 self.aggressor_laser.eq(aggressor.laser),
@@ -298,8 +295,6 @@ class FlissTop(wiring.Component):
             sensor.pin_collision.eq(self.sensor_collision),
             coarse.pin_hit.eq(self.photon_hit),
             coarse.tdc_start.eq(core.tdc_start),
-        ]
-        m.d.comb += [
             event_filter.captures.eq(Mux(coarse_selected, coarse.captures, sensor.captures)),
             event_filter.gate.eq(registers.gate),
             event_filter.events.ready.eq(1),
@@ -322,38 +317,27 @@ class FlissTop(wiring.Component):
               for name, _ in data.Layout.cast(registers.histogram.shape())),
             histogram.events.valid.eq(events_valid & ~raw_mode),
             histogram.events.payload.eq(events),
-            histogram_packets.shift.eq(histogram.readout_shift),
-            histogram_packets.pixel_bits.eq(histogram.readout_pixel_bits),
-            histogram_packets.first_pixel.eq(histogram.readout_first_pixel),
             histogram_packets.full_readout.eq(registers.histogram.full_readout),
         ]
+        wiring.connect(m, histogram_packets.packets, sources["histogram"])
+        readers = [histogram_packets]
+
+        # Depth mode: the readout goes to the depth engine instead, a frame at a time (the
+        # mode is taken at a frame's first bin)
         if self.depth:
-            # Depth mode: the readout goes to the depth engine instead, a frame at a time (the
-            # mode is taken at a frame's first bin)
             m.submodules.depth = depth = DepthEngine(index_bits=len(histogram.readout.p.index))
-            in_frame = Signal()
-            to_depth = Signal()
-            depth_mode = Mux(in_frame, to_depth,
-                             acquisition.mode == AcquisitionMode.DEPTH)
-            readout = histogram.readout
-            with m.If(readout.valid & readout.ready):
-                m.d.sync += [in_frame.eq(~readout.p.last), to_depth.eq(depth_mode)]
-            for consumer, selected in ((histogram_packets.readout, ~depth_mode),
-                                       (depth.readout, depth_mode)):
-                m.d.comb += [consumer.valid.eq(readout.valid & selected),
-                             consumer.payload.eq(readout.payload)]
-            m.d.comb += [
-                readout.ready.eq(Mux(depth_mode, depth.readout.ready,
-                                     histogram_packets.readout.ready)),
-                depth.shift.eq(histogram.readout_shift),
-                depth.pixel_bits.eq(histogram.readout_pixel_bits),
-                depth.first_pixel.eq(histogram.readout_first_pixel),
-                depth.settings.eq(registers.depth),
-            ]
-            wiring.connect(m, depth.packets, arbiter.i[2 + self.raw_events])
+            readers.append(depth)
+            _switch_frames(m, histogram.readout, histogram_packets.readout, depth.readout,
+                           acquisition.mode == AcquisitionMode.DEPTH)
+            m.d.comb += depth.settings.eq(registers.depth)
+            wiring.connect(m, depth.packets, sources["depth"])
         else:
             wiring.connect(m, histogram.readout, histogram_packets.readout)
-        wiring.connect(m, histogram_packets.packets, arbiter.i[1])
+
+        # The split of the frame being read out, to each block that reads it
+        for reader in readers:
+            m.d.comb += [getattr(reader, name).eq(histogram.readout_split[name])
+                         for name, _ in data.Layout.cast(ReadoutSplit)]
 
         # Raw mode
         if self.raw_events:
@@ -366,32 +350,19 @@ class FlissTop(wiring.Component):
                 event_packets.flush.eq(~running),
             ]
             wiring.connect(m, raw_fifo.output, event_packets.events)
-            wiring.connect(m, event_packets.packets, arbiter.i[2])
+            wiring.connect(m, event_packets.packets, sources["events"])
 
-        # Status counters: strobes into a counter bank in block RAM
+        # Status counters: each block's tally strobes, by the STATUS counter each one counts
         m.submodules.status = status = StatusCounters()
-        wiring.connect(m, command.status, status.port)
-        strobes = status.strobes
+        wiring.connect(m, link.status, status.port)
         m.d.comb += [
             status.pulses.eq(core.pulse_index),
-            strobes.frames.eq(histogram.tally.frames),
-            strobes.events.eq(event_filter.tally.accepted),
-            strobes.dropped_stopped.eq(event_filter.tally.dropped_stopped),
-            strobes.dropped_gate.eq(event_filter.tally.dropped_gate),
-            strobes.dropped_collision.eq(event_filter.tally.dropped_collision),
-            strobes.dropped_overflow.eq(event_filter.tally.dropped_overflow),
-            strobes.dropped_overrun.eq(event_filter.tally.dropped_overrun),
-            strobes.dropped_histogram.eq(histogram.tally.dropped),
-            strobes.dropped_pixel.eq(histogram.tally.dropped_pixel),
-            strobes.histogram_overflow.eq(histogram.tally.overflow),
-            strobes.uart_framing_errors.eq(uart_rx.framing_error),
-            strobes.uart_overruns.eq(uart_rx.overrun),
-            *(strobes[name].eq(decoder.tally[name]) for name in LINK_FIELDS),
-            strobes.commands.eq(command.tally.commands),
-            strobes.refused.eq(command.tally.refused),
+            *status.count(link.tally),
+            *status.count(event_filter.tally, accepted="events"),
+            *status.count(histogram.tally, dropped="dropped_histogram", dropped_busy=None,
+                          overflow="histogram_overflow"),
         ]
-
         if self.raw_events:
-            m.d.comb += strobes.dropped_fifo.eq(raw_fifo.tally.dropped)
+            m.d.comb += status.count(raw_fifo.tally, accepted=None, dropped="dropped_fifo")
 
         return m

@@ -101,7 +101,7 @@ def test_top_register_file_takes_what_the_top_runs(options):
         warnings.simplefilter("ignore", UnusedElaboratable)    # elaborated, never converted
         flisstop = FlissTop(**options)
         top = flisstop.elaborate(None)
-        maxima = top.submodules.command.maxima
+        maxima = top.submodules.link.maxima
         core = top.submodules.core
         lowered = {}
         for name in ("period", "aggressor_period"):

@@ -1,10 +1,13 @@
-"""Counter bank: snapshots against strobes counted cycle by cycle in Python."""
+"""Counter bank: snapshots against strobes counted cycle by cycle in Python; the STATUS
+counters' refusals of tally strobes they cannot count."""
 
 import numpy as np
 import pytest
 from amaranth.hdl import ResetInserter, Signal
+from amaranth.lib import data
 
 from fliss.hdl.counters import CounterBank
+from fliss.hdl.status import StatusCounters
 
 from simulation import simulate
 
@@ -125,3 +128,18 @@ def test_strobes_from_the_first_cycle():
 ])
 def test_refuses(construction_error, kwargs, message):
     assert construction_error(lambda: CounterBank(**kwargs)) == message
+
+
+def test_status_counters_refuse_a_strobe_with_no_counter(construction_error):
+    tally = Signal(data.StructLayout({"bad_crc": 1, "refused": 1, "dropped_busy": 1}))
+
+    def count(**names):
+        return StatusCounters().count(tally, **names)
+
+    assert construction_error(lambda: count(bad_crc="bad_frames")) == \
+        "No STATUS counter 'bad_frames' for the tally strobe 'bad_crc'"
+    assert construction_error(lambda: count(bad_crc=None, refused=None)) == \
+        "No STATUS counter 'dropped_busy' for the tally strobe 'dropped_busy'"
+    assert construction_error(lambda: count(dropped_busy=None, accepted="events")) == \
+        "No tally strobe 'accepted' to count"
+    assert construction_error(lambda: count(dropped_busy=None)) is None

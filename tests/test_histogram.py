@@ -124,8 +124,9 @@ def run_histogram(dut, valid, timestamps, *, integration, shift, ready=None, set
                 ctx.set(dut.readout.ready, 1)
             _, _, got, rdy, index, count, last, *split = await ctx.tick().sample(
                 dut.readout.valid, dut.readout.ready, dut.readout.payload.index,
-                dut.readout.payload.count, dut.readout.payload.last, dut.readout_shift,
-                dut.readout_pixel_bits, dut.readout_first_pixel)
+                dut.readout.payload.count, dut.readout.payload.last,
+                dut.readout_split.shift, dut.readout_split.pixel_bits,
+                dut.readout_split.first_pixel)
             cycle += 1
             if got and rdy:
                 assert index == len(counts)

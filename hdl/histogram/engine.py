@@ -14,8 +14,8 @@ from .banks import SINGLE_LATENCY, SinglePortBanks
 from .dual import LATENCY, DualPortBanks
 from .frames import FrameSequencer
 from .layout import (BANK_BITS, BIN_BITS, COUNT_WIDTH, INTEGRATION_WIDTH, MAX_BANK_BITS,
-                     MAX_COUNT_WIDTH, MAX_SHIFT, MIN_COUNT_WIDTH, PIXEL_BITS, PIXEL_SETTING_BITS,
-                     HistogramSettings, readout_layout)
+                     MAX_COUNT_WIDTH, MAX_SHIFT, MIN_COUNT_WIDTH, PIXEL_BITS, HistogramSettings,
+                     ReadoutSplit, readout_layout)
 from .readout import READOUT_CYCLES_PER_BIN, BankReadout, readout_cycles_per_bin
 from ..tdc import COUNTER_WIDTH
 from ..counters import count_event
@@ -24,7 +24,7 @@ from ..counters import count_event
 __all__ = ["BANK_BITS", "MAX_BANK_BITS", "BIN_BITS", "COUNT_WIDTH", "MIN_COUNT_WIDTH",
            "MAX_COUNT_WIDTH", "MAX_SHIFT",
            "INTEGRATION_WIDTH", "LATENCY", "SINGLE_LATENCY", "READOUT_CYCLES_PER_BIN",
-           "RAM_KINDS", "HistogramSettings", "readout_layout", "Histogram"]
+           "RAM_KINDS", "HistogramSettings", "ReadoutSplit", "readout_layout", "Histogram"]
 
 
 #: Values of the ``ram`` parameter of :class:`Histogram`.
@@ -110,8 +110,8 @@ class Histogram(wiring.Component):
     Readout
     ~~~~~~~
     A full bank is read out in flat index order, ``0 … P N - 1`` (pixel after pixel, each
-    bin after bin); ``last`` marks the frame's final bin. ``readout_shift``,
-    ``readout_pixel_bits`` and ``readout_first_pixel`` give the frame's settings meanwhile.
+    bin after bin); ``last`` marks the frame's final bin. ``readout_split`` gives
+    the frame's settings meanwhile.
     Each bin is cleared as it is transferred, so the bank is empty when it fills again. The
     readout starts once the last events of the frame have left the pipeline and takes at least
     :attr:`readout_cycles_per_bin` cycles per bin: 4 (one read, one clearing write), plus the
@@ -148,12 +148,9 @@ class Histogram(wiring.Component):
         Reset ``dropped``, ``dropped_busy``, ``dropped_pixel`` and ``overflow``.
     readout : Out(stream.Signature(readout_layout(bank_bits, count_width)))
         Bins of the frame being read out: flat ``index``, ``count``, ``last``.
-    readout_shift : Out(range(14))
-        Bin shift of the frame being read out.
-    readout_pixel_bits : Out(3)
-        Its ``pixel_bits`` (``q``: the setting, unless the split does not fit the bank).
-    readout_first_pixel : Out(6)
-        Its ``first_pixel``.
+    readout_split : Out(ReadoutSplit)
+        Bin ``shift``, ``pixel_bits`` (``q``: the setting, unless the split does not fit the
+        bank) and ``first_pixel`` of the frame being read out.
     filling : Out(1)
         A frame is filling in this cycle: an event that arrives now is counted (with
         ``ram="single"``: unless the engine took an event in the previous cycle).
@@ -241,9 +238,7 @@ class Histogram(wiring.Component):
             "settings":            In(HistogramSettings),
             "clear":               In(1),
             "readout":             Out(stream.Signature(readout_layout(bank_bits, count_width))),
-            "readout_shift":       Out(range(MAX_SHIFT + 1)),
-            "readout_pixel_bits":  Out(PIXEL_SETTING_BITS),
-            "readout_first_pixel": Out(PIXEL_BITS),
+            "readout_split":       Out(ReadoutSplit),
             "filling":             Out(1),
             "pending":             Out(1),
             "frames":              Out(COUNTER_WIDTH),
@@ -279,9 +274,9 @@ class Histogram(wiring.Component):
             self.frames.eq(sequencer.frames),
             self.tally.frames.eq(sequencer.swap),
             self.pending.eq(sequencer.read_full),
-            self.readout_shift.eq(sequencer.read_shift),
-            self.readout_pixel_bits.eq(sequencer.read_pixel_bits),
-            self.readout_first_pixel.eq(sequencer.read_first),
+            self.readout_split.shift.eq(sequencer.read_shift),
+            self.readout_split.pixel_bits.eq(sequencer.read_pixel_bits),
+            self.readout_split.first_pixel.eq(sequencer.read_first),
         ]
         arrive = Signal()
         m.d.comb += [

@@ -10,7 +10,7 @@ from ..delay.settings import BANK_BITS, MAX_BANK_BITS
 
 __all__ = ["BANK_BITS", "MAX_BANK_BITS", "PIXEL_BITS", "PIXEL_SETTING_BITS", "BIN_BITS",
            "COUNT_WIDTH", "MIN_COUNT_WIDTH", "MAX_COUNT_WIDTH", "MAX_SHIFT",
-           "INTEGRATION_WIDTH", "HistogramSettings", "readout_layout"]
+           "INTEGRATION_WIDTH", "HistogramSettings", "ReadoutSplit", "readout_layout"]
 
 
 #: Widest bin index of a pixel: one bin per timestamp code, 8192 bins.
@@ -35,6 +35,15 @@ INTEGRATION_WIDTH = 32
 #: layout of the register group :data:`~fliss.hdl.registers.HISTOGRAM`.
 HistogramSettings = HISTOGRAM.layout()
 assert HistogramSettings.size >= (MAX_SHIFT.bit_length() + INTEGRATION_WIDTH)
+
+
+class ReadoutSplit(data.Struct):
+    """How the frame being read out splits its bank: bins ``2**shift`` timestamp codes wide,
+    ``2**pixel_bits`` pixels from address ``first_pixel``
+    (:attr:`~fliss.hdl.histogram.engine.Histogram` ``readout_split``)."""
+    shift:       range(MAX_SHIFT + 1)
+    pixel_bits:  PIXEL_SETTING_BITS
+    first_pixel: PIXEL_BITS
 
 
 def readout_layout(bank_bits=BANK_BITS, count_width=COUNT_WIDTH):

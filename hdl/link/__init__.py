@@ -8,5 +8,7 @@ command processor and the data packetizers.
 * :mod:`.buffer`: a stream buffer in block RAM;
 * :mod:`.command`: the command processor (register file access, status, NAKs);
 * :mod:`.packetizer`: EVENTS packets and full histogram chunks;
-* :mod:`.arbiter`: merges packet streams onto the link.
+* :mod:`.arbiter`: merges packet streams onto the link;
+* :mod:`.link`: :class:`~.link.Link`, the UART, the frames, the command processor and the
+  arbiter as one block.
 """

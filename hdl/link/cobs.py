@@ -12,14 +12,11 @@ software model; the tests compare the two bit for bit.
 it found (:class:`DecodedByte`). Neither checks a CRC: :mod:`.crc` does, in the stage beside.
 """
 
-from types import SimpleNamespace
-
 from amaranth.hdl import C, Cat, Module, Mux, Signal
 from amaranth.lib import data, stream, wiring
-from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
-from ..block_ram import RegisteredRam, check_registered_read, reads_registered
+from ..block_ram import byte_ram, check_registered_read, reads_registered
 from .buffer import StreamBuffer
 from ..protocol import DELIMITER, COBS_MAX_RUN
 
@@ -98,19 +95,11 @@ class CobsEncoder(wiring.Component):
     def elaborate(self, platform):
         m = Module()
 
+        # Run buffer: two banks of a run each
         registered = reads_registered(self.registered_read, platform)
-        if registered:
-            m.submodules.run = run = RegisteredRam(
-                depth=2 << (COBS_MAX_RUN - 1).bit_length(), width=8)   # two banks
-            m.d.comb += run.read_en.eq(1)
-            # (its signals under the names of a memory port's: one description drives either)
-            run_wr = SimpleNamespace(addr=run.write_addr, data=run.write_data, en=run.write_en)
-            run_rd = SimpleNamespace(addr=run.read_addr, data=run.read_data)
-        else:
-            m.submodules.run = run = Memory(shape=8, depth=2 << (COBS_MAX_RUN - 1).bit_length(),
-                                            init=[])   # two banks
-            run_wr = run.write_port()
-            run_rd = run.read_port(transparent_for=())
+        bank_bits = (COBS_MAX_RUN - 1).bit_length()
+        run_wr, run_rd = byte_ram(m, "run", 2 << bank_bits, registered)
+        m.d.comb += run_rd.en.eq(1)
 
         # Input slice, with the zero test on the way in
         m.submodules.byte_buffer = byte_buffer = StreamBuffer(
@@ -122,10 +111,7 @@ class CobsEncoder(wiring.Component):
             byte_buffer.i.p.zero.eq(self.i.p.data == 0),
             self.i.ready.eq(byte_buffer.i.ready),
         ]
-        u_data = byte_buffer.o.p.data
-        u_valid = byte_buffer.o.valid
-        u_last = byte_buffer.o.p.last
-        u_ready = byte_buffer.o.ready
+        upstream = byte_buffer.o
 
         # Filler: collect a run of non-zero bytes in one bank of the run buffer. A zero byte, a
         # full run or the end of the packet closes the block: its code byte, length and bank go
@@ -133,7 +119,6 @@ class CobsEncoder(wiring.Component):
         # block. The end of the packet closes the last run like a zero byte does (the run after
         # a final zero byte is empty: code 1), unless the packet ended with a full run, as in
         # `fliss.protocol.cobs_encode`.
-        bank_bits = (COBS_MAX_RUN - 1).bit_length()
         run_len = Signal(range(COBS_MAX_RUN + 1))
         fill_bank = Signal()
         ending = Signal()           # the last packet byte is in, its final block is not closed
@@ -158,26 +143,26 @@ class CobsEncoder(wiring.Component):
 
         m.d.comb += [
             run_wr.addr.eq(Cat(run_len[:bank_bits], fill_bank)),
-            run_wr.data.eq(u_data),
+            run_wr.data.eq(upstream.p.data),
         ]
         with m.If(ending):
             with m.If(~pending):
                 close(run_len + 1, run_len, final=1)
                 m.d.sync += ending.eq(0)
         with m.Else():
-            m.d.comb += u_ready.eq(~pending & ~(emitting & (e_bank == fill_bank)))
-            with m.If(u_valid & u_ready):
-                with m.If(byte_buffer.o.p.zero):
+            m.d.comb += upstream.ready.eq(~pending & ~(emitting & (e_bank == fill_bank)))
+            with m.If(upstream.valid & upstream.ready):
+                with m.If(upstream.p.zero):
                     close(run_len + 1, run_len, final=0)
-                    m.d.sync += ending.eq(u_last)
+                    m.d.sync += ending.eq(upstream.p.last)
                 with m.Else():
                     m.d.comb += run_wr.en.eq(1)
                     with m.If(run_len == COBS_MAX_RUN - 1):
-                        close(COBS_MAX_RUN + 1, COBS_MAX_RUN, final=u_last)
+                        close(COBS_MAX_RUN + 1, COBS_MAX_RUN, final=upstream.p.last)
                     with m.Else():
                         m.d.sync += [
                             run_len.eq(run_len + 1),
-                            ending.eq(u_last),
+                            ending.eq(upstream.p.last),
                         ]
 
         # Emitter: the code byte, the run, and after the last block the delimiter

@@ -21,11 +21,11 @@ payload is empty). Each direction is a chain of stream stages:
 
 from amaranth.hdl import Cat, Module, Mux, Signal
 from amaranth.lib import data, stream, wiring
-from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
-from ..block_ram import RegisteredRam, check_registered_read, reads_registered
-from .cobs import CobsEncoder, CobsDecoder
+from ..block_ram import byte_ram, check_registered_read, reads_registered
+from .buffer import StreamBuffer
+from .cobs import CobsEncoder, CobsDecoder, DecodedByte
 from .crc import CrcAppender, CrcChecker
 from ..protocol import (Header, HEADER_BYTES, MAX_PAYLOAD, MAX_PACKET, MAX_ENCODED, CRC_BYTES,
                         NakCode, COUNTER_BITS, LINK_COUNTERS, LINK_FIELDS)
@@ -149,7 +149,8 @@ class FrameDecoder(wiring.Component):
     The payload is kept in a buffer of :data:`~fliss.hdl.protocol.MAX_PAYLOAD` bytes and sent
     once the frame has been checked: a consumer never sees a byte of a frame that fails. While
     a packet is being sent, the next frame is received until six of its bytes are decoded
-    (header and two more); only then does ``i.ready`` fall until the packet has gone. From a
+    (header and two more, and up to two more in the register slice before the CRC check); only
+    then does ``i.ready`` fall until the packet has gone. From a
     UART at 12 Mbaud and 80 MHz (a byte every 67 cycles) that leaves over 400 cycles to read out
     a packet of at most 265 beats, so a consumer that takes a beat per cycle never stalls the
     input. The input also waits for one cycle after each delimiter, while the frame is judged.
@@ -203,16 +204,15 @@ class FrameDecoder(wiring.Component):
 
         m.submodules.cobs = cobs = CobsDecoder(max_encoded=MAX_ENCODED)
         m.submodules.crc = crc = CrcChecker()
+        # A register slice between the two: the COBS decoder's block count and the CRC
+        # register's enable were the slowest path of the iCEBreaker's build
+        m.submodules.decoded = decoded = StreamBuffer(DecodedByte)
         wiring.connect(m, wiring.flipped(self.i), cobs.i)
-        wiring.connect(m, cobs.o, crc.i)
+        wiring.connect(m, cobs.o, decoded.i)
+        wiring.connect(m, decoded.o, crc.i)
         registered = reads_registered(self.registered_read, platform)
-        if registered:
-            m.submodules.buffer = buffer = RegisteredRam(depth=MAX_PAYLOAD, width=8,
-                                                         output_enable=True)
-        else:
-            m.submodules.buffer = buffer = Memory(shape=8, depth=MAX_PAYLOAD, init=[])
-            buf_wr = buffer.write_port()
-            buf_rd = buffer.read_port(transparent_for=())
+        buffer_wr, buffer_rd = byte_ram(m, "buffer", MAX_PAYLOAD, registered,
+                                        output_enable=True)
 
         sending = Signal()      # a checked packet is on its way out
         max_bytes = MAX_PACKET - CRC_BYTES                  # header and payload
@@ -220,10 +220,10 @@ class FrameDecoder(wiring.Component):
         header = Signal(Header)
 
         # Input: stall when a payload byte would overwrite the packet being sent, and for the
-        # cycle after each delimiter, while the frame is judged. (`early` is registered, for
-        # timing, so it holds a cycle late: it ends a byte early, as a byte in that cycle may
-        # decode to one more. The CRC checker holds the last CRC_BYTES bytes back, so it ends
-        # when six bytes are decoded.)
+        # cycle after each delimiter (`ending`), while the frame is judged. (`early` is
+        # registered, for timing, so it holds a cycle late: it ends a byte early, as a byte in
+        # that cycle may decode to one more. The CRC checker holds the last CRC_BYTES bytes
+        # back, so it ends when six bytes are decoded.)
         ending = Signal()
         early = Signal(init=1)
         m.d.sync += early.eq(count < HEADER_BYTES - 1)
@@ -238,68 +238,25 @@ class FrameDecoder(wiring.Component):
         # Packet bytes: the header, then the payload into the buffer at `count - HEADER_BYTES`.
         # A registered write (`registered`: the block RAM may sit far away) lands a cycle
         # later, still before the buffer is first read, in `ending`.
-        if registered:
-            m.d.sync += [
-                buffer.write_addr.eq(count - HEADER_BYTES),
-                buffer.write_data.eq(crc.o.p.data),
-                buffer.write_en.eq(0),
-            ]
-        else:
-            m.d.comb += [
-                buf_wr.addr.eq(count - HEADER_BYTES),
-                buf_wr.data.eq(crc.o.p.data),
-            ]
+        write = m.d.sync if registered else m.d.comb
+        write += [
+            buffer_wr.addr.eq(count - HEADER_BYTES),
+            buffer_wr.data.eq(crc.o.p.data),
+            buffer_wr.en.eq(0),
+        ]
         with m.If(take):
             with m.If(count <= max_bytes):
                 m.d.sync += count.eq(count + 1)
             with m.If(count < HEADER_BYTES):
                 m.d.sync += header.eq(Cat(header.as_value()[8:], crc.o.p.data))
             with m.Elif(count < max_bytes):
-                if registered:
-                    m.d.sync += buffer.write_en.eq(1)
-                else:
-                    m.d.comb += buf_wr.en.eq(1)
+                write += buffer_wr.en.eq(1)
 
-        # Checks, in two steps for timing: at the delimiter each check is registered; in the next
-        # cycle (`ending`, when the input waits) the verdict is drawn from them and registered
-        # (`accept`, or `drop` with its reason), and the frame state is cleared. The counters
-        # and the output follow from the verdict's registers.
-        nonempty = Signal()
-        raw_oversize = Signal()
-        cut_block = Signal()
-        oversize = Signal()
-        short = Signal()
-        crc_bad = Signal()
-        length_bad = Signal()
-        verdict = crc.o.p.verdict
+        # Verdict (see `_judge`), drawn in `ending` (the cycle after the delimiter) and
+        # registered: `accept`, or `drop` with its reason; the frame state is cleared. The counters and the output follow from the
+        # verdict's registers.
         m.d.sync += ending.eq(end)
-        with m.If(end):
-            m.d.sync += [
-                nonempty.eq(~verdict.empty),
-                raw_oversize.eq(verdict.oversize),
-                cut_block.eq(verdict.truncated),
-                oversize.eq(count > max_bytes),
-                short.eq(crc.o.p.short | (count < HEADER_BYTES)),
-                crc_bad.eq(crc.o.p.bad_crc),
-                length_bad.eq(header.length != count - HEADER_BYTES),
-            ]
-        good = Signal()
-        reason = Signal(NakCode, init=NakCode.BAD_CRC)
-        with m.If(raw_oversize):
-            m.d.comb += reason.eq(NakCode.OVERSIZE)
-        with m.Elif(cut_block):
-            m.d.comb += reason.eq(NakCode.TRUNCATED)
-        with m.Elif(oversize):
-            m.d.comb += reason.eq(NakCode.OVERSIZE)
-        with m.Elif(short):
-            m.d.comb += reason.eq(NakCode.TRUNCATED)
-        with m.Elif(crc_bad):
-            m.d.comb += reason.eq(NakCode.BAD_CRC)
-        with m.Elif(length_bad):
-            m.d.comb += reason.eq(NakCode.BAD_LENGTH)
-        with m.Else():
-            m.d.comb += good.eq(1)
-
+        nonempty, good, reason = self._judge(m, crc.o, end, count, header)
         accept = Signal()
         sent_header = Signal(Header)    # the header of the accepted packet
         m.d.sync += [self.drop.eq(0), accept.eq(0)]
@@ -324,11 +281,11 @@ class FrameDecoder(wiring.Component):
                         m.d.comb += getattr(self.tally, name).eq(1)
 
         # Output: a header beat, then the payload from the buffer; every output is a register.
-        # `beat` counts beats sent. `read_data` holds the byte of the next beat, ready to be
-        # loaded into the output when this one is taken:
+        # `beat` counts beats sent. The buffer's read data holds the byte of the next beat,
+        # ready to be loaded into the output when this one is taken:
         # - plain read: the buffer is read a beat ahead;
         # - registered read: the buffer is a two-stage pipeline that moves on each read, read
-        #   two beats ahead, so the stage behind `read_data` holds the byte after. The two
+        #   two beats ahead, so the stage behind its read data holds the byte after. The two
         #   reads that fill it are made while the frame is judged (bytes 0 and 1, in `ending`
         #   and at `accept`: every byte is written by then). A frame can end while a packet is
         #   sent only if it is too short to pass, so its `ending` makes no read then.
@@ -342,18 +299,16 @@ class FrameDecoder(wiring.Component):
         ]
         if registered:
             m.d.comb += [
-                buffer.read_en.eq((ending & ~sending) | accept | advance),
-                buffer.output_en.eq(buffer.read_en),
-                buffer.read_addr.eq(Mux(sending, beat + 2, Mux(accept, 1, 0))),
+                buffer_rd.en.eq((ending & ~sending) | accept | advance),
+                buffer_rd.output_en.eq(buffer_rd.en),
+                buffer_rd.addr.eq(Mux(sending, beat + 2, Mux(accept, 1, 0))),
             ]
-            read_data = buffer.read_data
         else:
-            m.d.comb += buf_rd.addr.eq(Mux(start, 0, Mux(advance, beat + 1, beat)))
-            read_data = buf_rd.data
+            m.d.comb += buffer_rd.addr.eq(Mux(start, 0, Mux(advance, beat + 1, beat)))
         with m.If(advance):
             m.d.sync += [
                 beat.eq(beat + 1),
-                self.o.payload.data.eq(read_data),
+                self.o.payload.data.eq(buffer_rd.data),
                 self.o.payload.first.eq(0),
                 self.o.payload.last.eq(beat + 1 == self.o.payload.header.length),
             ]
@@ -370,3 +325,46 @@ class FrameDecoder(wiring.Component):
             ]
 
         return m
+
+    @staticmethod
+    def _judge(m, checked, end, count, header):
+        """The checks of a frame, in two steps for timing: at its delimiter (``end``, taken
+        from the CRC checker's output ``checked``) each check is registered; in the next cycle
+        the verdict is drawn from them. Returns ``nonempty`` (the frame had bytes), ``good``
+        (it passed every check) and ``reason``, the :class:`NakCode` of the first check it
+        failed (in the order of the class's list)."""
+        nonempty = Signal()
+        raw_oversize = Signal()
+        cut_block = Signal()
+        oversize = Signal()
+        short = Signal()
+        crc_bad = Signal()
+        length_bad = Signal()
+        verdict = checked.p.verdict
+        with m.If(end):
+            m.d.sync += [
+                nonempty.eq(~verdict.empty),
+                raw_oversize.eq(verdict.oversize),
+                cut_block.eq(verdict.truncated),
+                oversize.eq(count > MAX_PACKET - CRC_BYTES),
+                short.eq(checked.p.short | (count < HEADER_BYTES)),
+                crc_bad.eq(checked.p.bad_crc),
+                length_bad.eq(header.length != count - HEADER_BYTES),
+            ]
+        good = Signal()
+        reason = Signal(NakCode, init=NakCode.BAD_CRC)
+        with m.If(raw_oversize):
+            m.d.comb += reason.eq(NakCode.OVERSIZE)
+        with m.Elif(cut_block):
+            m.d.comb += reason.eq(NakCode.TRUNCATED)
+        with m.Elif(oversize):
+            m.d.comb += reason.eq(NakCode.OVERSIZE)
+        with m.Elif(short):
+            m.d.comb += reason.eq(NakCode.TRUNCATED)
+        with m.Elif(crc_bad):
+            m.d.comb += reason.eq(NakCode.BAD_CRC)
+        with m.Elif(length_bad):
+            m.d.comb += reason.eq(NakCode.BAD_LENGTH)
+        with m.Else():
+            m.d.comb += good.eq(1)
+        return nonempty, good, reason
