@@ -43,7 +43,8 @@ def raw(threads, cycles=2_000_000):
     """Verilator on the top level in the harness, nothing attached: cycles/s idle, and
     acquiring (START through the UART)."""
     from fliss.sim.boards import harness
-    library = harness.build(build_root() / "fast", baud=VIRTUAL_BAUD, threads=threads)
+    folder = build_root() / ("fast" if threads == 1 else f"fast-threads-{threads}")
+    library = harness.build(folder, baud=VIRTUAL_BAUD, threads=threads)
     board = harness.Harness(library, 80e6 / VIRTUAL_BAUD)
     figures = {}
     began = time.perf_counter()

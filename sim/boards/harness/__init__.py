@@ -139,7 +139,7 @@ _I64, _I32, _P = ctypes.c_int64, ctypes.c_int, ctypes.c_void_p
 _SIGNATURES = {
     "fh_new": (_P, [ctypes.c_double]), "fh_free": (None, [_P]), "fh_cycle": (_I64, [_P]),
     "fh_running": (_I32, [_P]), "fh_set_record": (None, [_P, _I32]),
-    "fh_run": (_I64, [_P, _I64, _I32, _I32]), "fh_set_reset": (None, [_P, _I32]),
+    "fh_set_window": (None, [_P, _I64]), "fh_run": (_I64, [_P, _I64, _I32]), "fh_set_reset": (None, [_P, _I32]),
     "fh_write": (None, [_P, ctypes.c_char_p, _I32]), "fh_to_board": (_I32, [_P]),
     "fh_read": (_I32, [_P, _P, _I32]), "fh_edges": (_I32, [_P, _P, _P, _I32]),
     "fh_window": (None, [_P, _P, _P, _P, _I32]), "fh_counter": (_I64, [_P, _I32]),
@@ -188,11 +188,14 @@ class Harness:
         """The top level's ``running`` pin."""
         return bool(self._lib.fh_running(self._handle))
 
-    def run(self, until, *, stop_on_edge=False, stop_on_byte=False):
-        """Clock the model up to cycle ``until``, stopping early after an edge of
-        ``tdc_start`` or ``aggressor_laser`` or a byte for the host if asked; returns the cycles
-        run."""
-        return self._lib.fh_run(self._handle, int(until), int(stop_on_edge), int(stop_on_byte))
+    def run(self, until, *, window_cycles=None):
+        """Clock the model up to cycle ``until``; with ``window_cycles`` (a TDC window's range)
+        stop early when the sensor model has a window to simulate: after a ``tdc_start`` edge
+        less than ``window_cycles + 2`` cycles after the previous one, or ``window_cycles + 1``
+        cycles after the last. Returns the cycles run."""
+        if window_cycles is not None:
+            self._lib.fh_set_window(self._handle, int(window_cycles))
+        return self._lib.fh_run(self._handle, int(until), int(window_cycles is not None))
 
     def set_reset(self, level):
         """The level of the top level's ``rst`` from the next cycle on."""
@@ -219,9 +222,17 @@ class Harness:
     def edges(self):
         """The rising edges recorded since the last call: ``(cycles, kinds)``, kind 0 for
         ``tdc_start``, 1 for ``aggressor_laser``, in order."""
-        count = self._lib.fh_edges(self._handle, self._cycles.ctypes.data,
-                                   self._kinds.ctypes.data, len(self._cycles))
-        return self._cycles[:count].copy(), self._kinds[:count].copy()
+        cycles, kinds = [], []
+        while True:
+            count = self._lib.fh_edges(self._handle, self._cycles.ctypes.data,
+                                       self._kinds.ctypes.data, len(self._cycles))
+            cycles.append(self._cycles[:count].copy())
+            kinds.append(self._kinds[:count].copy())
+            if count < len(self._cycles):
+                break
+        if len(cycles) == 1:
+            return cycles[0], kinds[0]
+        return np.concatenate(cycles), np.concatenate(kinds)
 
     def window(self, timestamps, addresses, collisions):
         """A window read out now: its events go on the bus, one every 6 cycles, from the next

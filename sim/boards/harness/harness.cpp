@@ -56,6 +56,9 @@ struct Harness {
     // Edges of tdc_start and aggressor_laser
     std::vector<Edge> edges;
     uint8_t start_previous = 0, aggressor_previous = 0;
+    int64_t window_cycles = 0;    // a TDC window's conversion range, in cycles
+    int64_t last_start = -1;      // cycle of the last tdc_start edge
+    bool cut = false;             // the last start came before the previous window's end
 
     // Sensor bus: windows read out, each a list of events
     std::deque<std::vector<Event>> windows;
@@ -110,6 +113,9 @@ struct Harness {
         }
     }
 
+    // The cycle the sensor model closes the last start's window: one after its range.
+    int64_t window_end() const { return last_start + window_cycles + 1; }
+
     int64_t edge_of(int64_t bits) const {
         return static_cast<int64_t>(bits * bit_cycles + 0.5);
     }
@@ -141,7 +147,11 @@ struct Harness {
     }
 
     void sample() {
-        if (top->tdc_start && !start_previous) edges.push_back({cycle, 0});
+        if (top->tdc_start && !start_previous) {
+            edges.push_back({cycle, 0});
+            cut = last_start >= 0 && cycle <= window_end();
+            last_start = cycle;
+        }
         if (top->aggressor_laser && !aggressor_previous) edges.push_back({cycle, 1});
         start_previous = top->tdc_start;
         aggressor_previous = top->aggressor_laser;
@@ -174,16 +184,22 @@ void fh_free(Harness* h) { delete h; }
 int64_t fh_cycle(Harness* h) { return h->cycle; }
 int fh_running(Harness* h) { return h->top->running; }
 void fh_set_record(Harness* h, int record) { h->record = record != 0; }
+void fh_set_window(Harness* h, int64_t cycles) { h->window_cycles = cycles; }
 
-// Run until `until` (a cycle), or until an edge is recorded when `stop_on_edge`, or until a
-// byte for the host arrives when `stop_on_byte`; returns the cycles run.
-int64_t fh_run(Harness* h, int64_t until, int stop_on_edge, int stop_on_byte) {
+// Run until `until` (a cycle) or, with `stop_on_window`, until the sensor model has a window
+// to simulate: a start cut the previous window short, or the last start's window ended.
+// Returns the cycles run.
+int64_t fh_run(Harness* h, int64_t until, int stop_on_window) {
     int64_t begin = h->cycle;
-    size_t edges = h->edges.size(), bytes = h->to_host.size();
+    size_t edges = h->edges.size();
     while (h->cycle < until) {
         h->tick();
-        if (stop_on_edge && h->edges.size() != edges) break;
-        if (stop_on_byte && h->to_host.size() != bytes) break;
+        if (!stop_on_window || h->last_start < 0) continue;
+        if (h->cycle == h->window_end()) break;
+        if (h->edges.size() != edges) {
+            if (h->cut && h->cycle == h->last_start) break;
+            edges = h->edges.size();
+        }
     }
     return h->cycle - begin;
 }
