@@ -31,7 +31,7 @@ from pathlib import Path
 from .errors import VirtualBoardError
 
 
-__all__ = ["VIRTUAL_BAUD", "SIMULATORS", "build_root", "build", "VirtualBoard",
+__all__ = ["VIRTUAL_BAUD", "SIMULATORS", "ENGINES", "default_engine", "build_root", "build", "VirtualBoard",
            "start_virtual_board", "claim_link", "release_link"]
 
 
@@ -43,6 +43,10 @@ VIRTUAL_BAUD = 12_000_000
 
 #: Simulators that can run the virtual board.
 SIMULATORS = ("verilator", "icarus")
+
+#: How the simulation is run: ``fast``, the Verilated model in a C++ harness (Verilator only);
+#: ``cocotb``, the cocotb module :mod:`fliss.sim.boards.virtual` (any simulator).
+ENGINES = ("fast", "cocotb")
 
 TOPLEVEL = "fliss_top"
 TEST_MODULE = "fliss.sim.boards.virtual"
@@ -70,6 +74,12 @@ def _check_simulator(sim):
                 else "install Icarus Verilog 12 (apt install iverilog)")
         raise VirtualBoardError(f"simulator {sim} is not installed: {hint}, or use --sim "
                                 f"{'icarus' if sim == 'verilator' else 'verilator'}")
+
+
+def default_engine(sim):
+    """``fast`` for Verilator when a C++ compiler is there, else ``cocotb``."""
+    from ..sim.boards import harness
+    return "fast" if sim == "verilator" and harness.available() else "cocotb"
 
 
 def _build_args(sim):
@@ -190,6 +200,9 @@ class VirtualBoard:
     ----------
     sim : str
         ``"verilator"`` or ``"icarus"``.
+    engine : str or None
+        ``"fast"`` (the C++ harness, Verilator only) or ``"cocotb"``; None:
+        :func:`default_engine`.
     baud : int
         UART baud rate of the gateware.
     target_m : float
@@ -221,7 +234,7 @@ class VirtualBoard:
         Build folder (default ``build/virtual-board``).
     """
 
-    def __init__(self, sim="verilator", *, baud=VIRTUAL_BAUD, target_m=4.0, ambient_hz=1e5,
+    def __init__(self, sim="verilator", *, engine=None, baud=VIRTUAL_BAUD, target_m=4.0, ambient_hz=1e5,
                  signal=0.05, aggressor_signal=0.05, aggressor_tof_s=None, seed=None,
                  scene="single", sensor="column", object_m=2.5, reset_after=None, root=None):
         from ..sim.scene.pixels import SCENE_NAMES, SENSOR_KINDS
@@ -231,10 +244,18 @@ class VirtualBoard:
         if sensor not in SENSOR_KINDS:
             raise VirtualBoardError(f"unknown sensor kind {sensor!r}: choose one of "
                                     f"{', '.join(SENSOR_KINDS)}")
+        engine = default_engine(sim) if engine is None else engine
+        if engine not in ENGINES:
+            raise VirtualBoardError(f"unknown engine {engine!r}: choose one of "
+                                    f"{', '.join(ENGINES)}")
+        if engine == "fast" and sim != "verilator":
+            raise VirtualBoardError(f"the fast engine runs Verilator, not {sim}: use --engine "
+                                    f"cocotb with --sim {sim}")
         self.sim = sim
+        self.engine = engine
         self.baud = baud
         self.root = Path(root or build_root())
-        self.folder = self.root / sim
+        self.folder = self.root / ("fast" if engine == "fast" else sim)
         self.path = None
         #: The link to the pty in ``root``: ``tty``, or ``tty-2``, ... when others are taken
         #: (None: none could be made).
@@ -273,17 +294,24 @@ class VirtualBoard:
 
     def start(self, *, timeout_s=STARTUP_TIMEOUT_S):
         """Build if needed, start the simulation and wait for its pty; returns the pty path."""
-        build(self.sim, baud=self.baud, root=self.root)
+        if self.engine == "fast":
+            command = self._fast_command()
+        else:
+            build(self.sim, baud=self.baud, root=self.root)
+            code = ("import sys; from fliss.host.virtual import _simulate; "
+                    "_simulate(sys.argv[1])")
+            command = [sys.executable, "-c", code, json.dumps({
+                "sim": self.sim, "folder": str(self.folder), "env": self.env,
+                "name": self.name})]
         pty_file = Path(self.env["FLISS_BOARD_PTY_FILE"])
         pty_file.unlink(missing_ok=True)
         Path(self.env["FLISS_BOARD_STATS_FILE"]).unlink(missing_ok=True)
         Path(self.env["FLISS_BOARD_RESET_FILE"]).unlink(missing_ok=True)
-        code = "import sys; from fliss.host.virtual import _simulate; _simulate(sys.argv[1])"
-        arguments = json.dumps({"sim": self.sim, "folder": str(self.folder), "env": self.env,
-                                "name": self.name})
-        with open(self.folder / f"{self.name}.launcher.log", "w") as log:
+        environment = dict(os.environ, **self.env) if self.engine == "fast" else None
+        log_name = f"{self.name}.log" if self.engine == "fast" else f"{self.name}.launcher.log"
+        with open(self.folder / log_name, "w") as log:
             self._process = subprocess.Popen(
-                [sys.executable, "-c", code, arguments], start_new_session=True,
+                command, start_new_session=True, env=environment,
                 stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT)
         deadline = time.monotonic() + timeout_s
         while not pty_file.exists():
@@ -300,6 +328,17 @@ class VirtualBoard:
         self.path = pty_file.read_text().strip()
         self.link = claim_link(self.root, self.path)
         return self.path
+
+    def _fast_command(self):
+        from ..sim.boards import harness
+        _check_simulator(self.sim)
+        try:
+            library = harness.build(self.folder, baud=self.baud)
+        except harness.HarnessBuildError as error:
+            raise VirtualBoardError(str(error)) from None
+        except ValueError as error:         # a baud rate the gateware cannot make
+            raise VirtualBoardError(str(error)) from None
+        return [sys.executable, "-m", "fliss.sim.boards.fast", str(library)]
 
     def last_log_line(self):
         """The last error line of the simulation's logs, with the log's path."""
