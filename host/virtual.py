@@ -107,6 +107,8 @@ def build(sim, *, baud=VIRTUAL_BAUD, root=None):
     """
     from ..hdl import verilog
     from ..hdl.top import FlissTop
+    from ..sim.benches.runner import TIMESCALE
+    from ..sim.boards.harness import gateware_sources
 
     _check_simulator(sim)
     try:
@@ -115,26 +117,28 @@ def build(sim, *, baud=VIRTUAL_BAUD, root=None):
         raise VirtualBoardError(str(error)) from None
     folder = Path(root or build_root()) / sim
     folder.mkdir(parents=True, exist_ok=True)
-    text = verilog.convert(top, TOPLEVEL)
+    # Keyed by the gateware's sources: generating the Verilog to compare it would take longer
+    # than the board's start-up may.
+    digest = hashlib.sha256("\n".join([gateware_sources(), str(baud), sim, *_build_args(sim),
+                                       *TIMESCALE]).encode()).hexdigest()
     # One build at a time per folder (tests and the demo may start boards side by side).
     with open(folder / "build.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
-        _build_locked(sim, folder, text)
+        _build_locked(sim, folder, lambda: verilog.convert(top, TOPLEVEL), digest)
     return folder
 
 
-def _build_locked(sim, folder, text):
+def _build_locked(sim, folder, make_text, digest):
     from ..sim.benches.runner import TIMESCALE, prepare_path
 
     source = folder / f"{TOPLEVEL}.v"
-    digest = hashlib.sha256("\n".join([text, sim, *_build_args(sim), *TIMESCALE]).encode())
-    digest = digest.hexdigest()
     stamp = folder / "build.stamp"
     product = folder / (TOPLEVEL if sim == "verilator" else "sim.vvp")
     if product.exists() and stamp.exists() and stamp.read_text() == digest:
         logger.info("reusing the %s build in %s", sim, folder)
         return
     stamp.unlink(missing_ok=True)
+    text = make_text()
     _write_if_changed(source, text)
     logger.warning("building the virtual board for %s (once; about a minute for Verilator)",
                    sim)
@@ -330,13 +334,13 @@ class VirtualBoard:
         return self.path
 
     def _fast_command(self):
+        from ..hdl.top import FlissTop
         from ..sim.boards import harness
         _check_simulator(self.sim)
         try:
+            FlissTop(baud=self.baud)        # a baud rate the gateware cannot make raises
             library = harness.build(self.folder, baud=self.baud)
-        except harness.HarnessBuildError as error:
-            raise VirtualBoardError(str(error)) from None
-        except ValueError as error:         # a baud rate the gateware cannot make
+        except (harness.HarnessBuildError, ValueError) as error:
             raise VirtualBoardError(str(error)) from None
         return [sys.executable, "-m", "fliss.sim.boards.fast", str(library)]
 

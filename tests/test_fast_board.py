@@ -21,6 +21,7 @@ from fliss.sim import scene
 from fliss.sim.boards import harness
 from fliss.sim.boards.fast import AGGRESSOR, START, FastBoard
 from fliss.sim.boards.virtual import SensorModel
+from fliss.host.cli import main
 from fliss.host.virtual import VIRTUAL_BAUD, build_root
 
 
@@ -118,3 +119,9 @@ def test_same_events_as_the_cocotb_order(case):
     assert np.all(np.diff(pulses) >= 0)
     if sensor_kind is None:
         assert len(np.unique(pulses)) == len(pulses)
+
+
+def test_the_fast_engine_runs_verilator_only(capsys):
+    assert main(["board", "--sim", "icarus", "--engine", "fast"]) == 1
+    assert capsys.readouterr().err == ("fliss: error: the fast engine runs Verilator, not "
+                                       "icarus: use --engine cocotb with --sim icarus\n")

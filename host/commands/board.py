@@ -24,7 +24,7 @@ def register(subparsers, formatter):
         "board", formatter_class=formatter,
         help="run the virtual board: the real gateware in a simulator, behind a pty",
         description="Generates the Verilog of the FLISS top level, builds it once for the "
-                    "simulator (build/virtual-board/SIM/), runs it with the scene simulator on "
+                    "engine (build/virtual-board/fast/ or SIM/), runs it with the scene simulator on "
                     "its sensor pins in closed loop, and prints the path of a pseudo-terminal "
                     "carrying its UART (also linked as build/virtual-board/tty, or tty-2, ... "
                     "while other boards run: it says which). Use that path "

@@ -220,7 +220,8 @@ def _stats(board, counts, wall_s, cycles):
             f'"bytes_to_host": {counts["bytes_to_host"]}, "dropped": {counts["dropped"]}, '
             f'"tdc_starts": {sensor.starts}, "events": {harness.presented}, '
             f'"late_windows": {sensor.late}, "busy_drops": {harness.busy_drops}, '
-            f'"scene_s": {sensor.python_s:.3f}, "resets": {board.resets}}}\n')
+            f'"scene_s": {sensor.python_s:.3f}, "resets": {board.resets}, '
+            f'"cpu_s": {time.process_time():.3f}}}\n')
 
 
 if __name__ == "__main__":

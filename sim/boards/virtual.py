@@ -444,7 +444,8 @@ async def virtual_board(dut):
                     f'"bytes_to_host": {bridge.bytes_to_host}, "dropped": {bridge.dropped}, '
                     f'"tdc_starts": {sensor.starts}, "events": {sensor.events}, '
                     f'"late_windows": {sensor.late}, "busy_drops": {sensor.busy_drops}, '
-                    f'"scene_s": {sensor.python_s:.3f}, "resets": {resets}}}\n'))
+                    f'"scene_s": {sensor.python_s:.3f}, "resets": {resets}, '
+                    f'"cpu_s": {time.process_time():.3f}}}\n'))
         if reset:
             resets += 1
             dut._log.info("reset %d after %d data packets to the host", resets,

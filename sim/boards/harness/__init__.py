@@ -24,8 +24,8 @@ import numpy as np
 from ....hdl import verilog
 
 
-__all__ = ["SOURCE", "TOPLEVEL", "VERILATOR_ARGS", "HarnessBuildError", "available", "build",
-           "Harness"]
+__all__ = ["SOURCE", "TOPLEVEL", "VERILATOR_ARGS", "HarnessBuildError", "gateware_sources",
+           "available", "build", "Harness"]
 
 
 logger = logging.getLogger(__name__)
@@ -63,7 +63,7 @@ def build(folder, *, baud, threads=1):
     # the gateware's sources instead (and made again whenever one changes); the library by the
     # model and the harness's source.
     options = VERILATOR_ARGS + CXXFLAGS + [f"threads={threads}", f"baud={baud}"]
-    model = hashlib.sha256("\n".join([_sources(), *options]).encode()).hexdigest()[:16]
+    model = hashlib.sha256("\n".join([gateware_sources(), *options]).encode()).hexdigest()[:16]
     digest = hashlib.sha256(f"{model}\n{SOURCE.read_text()}".encode()).hexdigest()[:16]
     library = folder / f"harness-{digest}.so"
     with open(folder / "build.lock", "w") as lock:
@@ -80,7 +80,7 @@ def build(folder, *, baud, threads=1):
     return library
 
 
-def _sources():
+def gateware_sources():
     """The gateware's Python sources and the Amaranth version, as one text."""
     import amaranth
     root = Path(verilog.__file__).resolve().parent
