@@ -38,8 +38,9 @@ TOPLEVEL = "fliss_top"
 VERILATOR_ARGS = ["-Wno-fatal", "-Wno-WIDTHEXPAND", "-Wno-WIDTHTRUNC", "-O3",
                   "--x-assign", "fast", "--x-initial", "fast", "--noassert"]
 
-#: Compiler options of the model and the harness.
-CXXFLAGS = ["-O2", "-fPIC"]
+#: Compiler options of the model and the harness (``-march=native``: the build is made on the
+#: machine that runs it; a third faster than ``-O2`` alone here).
+CXXFLAGS = ["-O3", "-march=native", "-fPIC"]
 
 
 class HarnessBuildError(Exception):
