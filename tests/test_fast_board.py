@@ -93,8 +93,8 @@ def test_same_events_as_the_cocotb_order(case):
     board.run(200_000)                  # the raw FIFO through the UART
 
     # The same events as the cocotb board's order of calls gives, window by window
-    reference = _replayed(board_scene, board.edges, seed=13)
-    starts = sum(kind == START for _, kind in board.edges)
+    reference = _replayed(board_scene, board.sensor.edges, seed=13)
+    starts = sum(kind == START for _, kind in board.sensor.edges)
     assert starts > 200 and board.sensor.starts == reference.starts == starts
     assert board.sensor.fed_windows == reference.fed_windows
     assert board.sensor.fed == reference.fed and len(reference.fed) > 200

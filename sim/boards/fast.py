@@ -59,9 +59,9 @@ class _Pins:
 class FastBoard:
     """The top level in the harness ``library``, its sensor fed from ``scene`` with ``seed``.
 
-    With ``record``, :attr:`edges` keeps every edge told to the sensor model (``(cycle, kind)``,
-    kind :data:`START` or :data:`AGGRESSOR`), ``sensor.fed`` every event the scene gave, and
-    ``harness.take_presented()`` gives the events put on the bus."""
+    With ``record``, ``sensor.edges`` keeps every edge told to the sensor model (``(cycle,
+    kind)``, kind :data:`START` or :data:`AGGRESSOR`), ``sensor.fed`` every event the scene
+    gave, and ``harness.take_presented()`` gives the events put on the bus."""
 
     def __init__(self, library, scene, *, baud, seed=None, record=False):
         self.harness = Harness(library, DEFAULT_CLOCK_HZ / baud, record=record)
@@ -69,7 +69,6 @@ class FastBoard:
         self._closes = deque()      # (cycle, start): window ends to tell the sensor model
         self._reset_until = None
         self.resets = 0
-        self.edges = [] if record else None
 
     def start(self):
         """The power-on reset, as the cocotb board: ``rst`` for 4 cycles, then 4 cycles."""
@@ -98,8 +97,6 @@ class FastBoard:
             # sees it: in one cycle, starts, aggressor edges, then window ends.
             harness.run(until, window_cycles=window_cycles)
             for cycle, kind in zip(*(values.tolist() for values in harness.edges())):
-                if self.edges is not None:
-                    self.edges.append((cycle, kind))
                 while closes and closes[0][0] < cycle:
                     sensor.on_window_end(closes.popleft()[1])
                 if kind == START:

@@ -216,7 +216,7 @@ class Harness:
         out = bytearray()
         while True:
             count = self._lib.fh_read(self._handle, self._bytes, len(self._bytes))
-            out += self._bytes.raw[:count]
+            out += ctypes.string_at(self._bytes, count)
             if count < len(self._bytes):
                 return bytes(out)
 
