@@ -129,7 +129,8 @@ def main(argv=None):
             now = on_board(engine, scene, args.seconds)
             before = BEFORE.get(("cocotb", scene), {})
             print(f"{engine:8} {scene:7} {now['cycles_per_s']:>10.3g} "
-                  f"{now['cycles_per_cpu_s']:>10.3g} {_figure(before.get('cycles_per_s')):>10} {now['startup_s']:>11.1f} "
+                  f"{now['cycles_per_cpu_s']:>10.3g} {_figure(before.get('cycles_per_s')):>10} "
+                  f"{now['startup_s']:>11.1f} "
                   f"{_figure(before.get('startup_s'), 2):>7} {now['scene_share']:>12.0%}",
                   flush=True)
 

@@ -31,8 +31,8 @@ from pathlib import Path
 from .errors import VirtualBoardError
 
 
-__all__ = ["VIRTUAL_BAUD", "SIMULATORS", "ENGINES", "default_engine", "build_root", "build", "VirtualBoard",
-           "start_virtual_board", "claim_link", "release_link"]
+__all__ = ["VIRTUAL_BAUD", "SIMULATORS", "ENGINES", "default_engine", "build_root", "build",
+           "VirtualBoard", "start_virtual_board", "claim_link", "release_link"]
 
 
 logger = logging.getLogger(__name__)
@@ -238,9 +238,10 @@ class VirtualBoard:
         Build folder (default ``build/virtual-board``).
     """
 
-    def __init__(self, sim="verilator", *, engine=None, baud=VIRTUAL_BAUD, target_m=4.0, ambient_hz=1e5,
-                 signal=0.05, aggressor_signal=0.05, aggressor_tof_s=None, seed=None,
-                 scene="single", sensor="column", object_m=2.5, reset_after=None, root=None):
+    def __init__(self, sim="verilator", *, engine=None, baud=VIRTUAL_BAUD, target_m=4.0,
+                 ambient_hz=1e5, signal=0.05, aggressor_signal=0.05, aggressor_tof_s=None,
+                 seed=None, scene="single", sensor="column", object_m=2.5, reset_after=None,
+                 root=None):
         from ..sim.scene.pixels import SCENE_NAMES, SENSOR_KINDS
         if scene not in SCENE_NAMES:
             raise VirtualBoardError(f"unknown scene {scene!r}: choose one of "

@@ -24,9 +24,10 @@ def register(subparsers, formatter):
         "board", formatter_class=formatter,
         help="run the virtual board: the real gateware in a simulator, behind a pty",
         description="Generates the Verilog of the FLISS top level, builds it once for the "
-                    "engine (build/virtual-board/fast/ or SIM/), runs it with the scene simulator on "
-                    "its sensor pins in closed loop, and prints the path of a pseudo-terminal "
-                    "carrying its UART (also linked as build/virtual-board/tty, or tty-2, ... "
+                    "engine (build/virtual-board/fast/ or SIM/), runs it with the scene "
+                    "simulator on its sensor pins in closed loop, and prints the path of a "
+                    "pseudo-terminal carrying its UART (also linked as build/virtual-board/tty, "
+                    "or tty-2, ... "
                     "while other boards run: it says which). Use that path "
                     "as --port of the other commands. Runs until Ctrl-C. The simulation runs "
                     "some hundred times slower than a real board: keep integration times "
@@ -58,10 +59,11 @@ def run_board(args):
         raise UserError(str(error)) from None
     if args.reset_after is not None and args.reset_after < 1:
         raise UserError(f"--reset-after must be at least 1, not {args.reset_after}")
-    board = VirtualBoard(args.sim, engine=args.engine, baud=baud, target_m=args.target_m, ambient_hz=ambient_hz,
-                         signal=args.signal, aggressor_signal=args.aggressor_signal,
-                         seed=args.seed, scene=args.scene, sensor=args.sensor,
-                         object_m=args.object_m, reset_after=args.reset_after)
+    board = VirtualBoard(args.sim, engine=args.engine, baud=baud, target_m=args.target_m,
+                         ambient_hz=ambient_hz, signal=args.signal,
+                         aggressor_signal=args.aggressor_signal, seed=args.seed,
+                         scene=args.scene, sensor=args.sensor, object_m=args.object_m,
+                         reset_after=args.reset_after)
 
     def terminate(number, frame):
         raise KeyboardInterrupt

@@ -140,7 +140,8 @@ _I64, _I32, _P = ctypes.c_int64, ctypes.c_int, ctypes.c_void_p
 _SIGNATURES = {
     "fh_new": (_P, [ctypes.c_double]), "fh_free": (None, [_P]), "fh_cycle": (_I64, [_P]),
     "fh_running": (_I32, [_P]), "fh_set_record": (None, [_P, _I32]),
-    "fh_set_window": (None, [_P, _I64]), "fh_run": (_I64, [_P, _I64, _I32]), "fh_set_reset": (None, [_P, _I32]),
+    "fh_set_window": (None, [_P, _I64]), "fh_run": (_I64, [_P, _I64, _I32]),
+    "fh_set_reset": (None, [_P, _I32]),
     "fh_write": (None, [_P, ctypes.c_char_p, _I32]), "fh_to_board": (_I32, [_P]),
     "fh_read": (_I32, [_P, _P, _I32]), "fh_edges": (_I32, [_P, _P, _P, _I32]),
     "fh_window": (None, [_P, _P, _P, _P, _I32]), "fh_counter": (_I64, [_P, _I32]),
