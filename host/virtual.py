@@ -31,8 +31,8 @@ from pathlib import Path
 from .errors import VirtualBoardError
 
 
-__all__ = ["VIRTUAL_BAUD", "SIMULATORS", "build_root", "build", "VirtualBoard",
-           "start_virtual_board", "claim_link", "release_link"]
+__all__ = ["VIRTUAL_BAUD", "SIMULATORS", "ENGINES", "default_engine", "build_root", "build",
+           "VirtualBoard", "start_virtual_board", "claim_link", "release_link"]
 
 
 logger = logging.getLogger(__name__)
@@ -43,6 +43,10 @@ VIRTUAL_BAUD = 12_000_000
 
 #: Simulators that can run the virtual board.
 SIMULATORS = ("verilator", "icarus")
+
+#: How the simulation is run: ``fast``, the Verilated model in a C++ harness (Verilator only);
+#: ``cocotb``, the cocotb module :mod:`fliss.sim.boards.virtual` (any simulator).
+ENGINES = ("fast", "cocotb")
 
 TOPLEVEL = "fliss_top"
 TEST_MODULE = "fliss.sim.boards.virtual"
@@ -72,6 +76,12 @@ def _check_simulator(sim):
                                 f"{'icarus' if sim == 'verilator' else 'verilator'}")
 
 
+def default_engine(sim):
+    """``fast`` for Verilator when a C++ compiler is there, else ``cocotb``."""
+    from ..sim.boards import harness
+    return "fast" if sim == "verilator" and harness.available() else "cocotb"
+
+
 def _build_args(sim):
     if sim == "verilator":
         # As in fliss.sim.benches.runner: Amaranth's Verilog is not lint-clean for -Wall. The
@@ -97,6 +107,8 @@ def build(sim, *, baud=VIRTUAL_BAUD, root=None):
     """
     from ..hdl import verilog
     from ..hdl.top import FlissTop
+    from ..sim.benches.runner import TIMESCALE
+    from ..sim.boards.harness import gateware_sources
 
     _check_simulator(sim)
     try:
@@ -105,26 +117,28 @@ def build(sim, *, baud=VIRTUAL_BAUD, root=None):
         raise VirtualBoardError(str(error)) from None
     folder = Path(root or build_root()) / sim
     folder.mkdir(parents=True, exist_ok=True)
-    text = verilog.convert(top, TOPLEVEL)
+    # Keyed by the gateware's sources: generating the Verilog to compare it would take longer
+    # than the board's start-up may.
+    digest = hashlib.sha256("\n".join([gateware_sources(), str(baud), sim, *_build_args(sim),
+                                       *TIMESCALE]).encode()).hexdigest()
     # One build at a time per folder (tests and the demo may start boards side by side).
     with open(folder / "build.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
-        _build_locked(sim, folder, text)
+        _build_locked(sim, folder, lambda: verilog.convert(top, TOPLEVEL), digest)
     return folder
 
 
-def _build_locked(sim, folder, text):
+def _build_locked(sim, folder, make_text, digest):
     from ..sim.benches.runner import TIMESCALE, prepare_path
 
     source = folder / f"{TOPLEVEL}.v"
-    digest = hashlib.sha256("\n".join([text, sim, *_build_args(sim), *TIMESCALE]).encode())
-    digest = digest.hexdigest()
     stamp = folder / "build.stamp"
     product = folder / (TOPLEVEL if sim == "verilator" else "sim.vvp")
     if product.exists() and stamp.exists() and stamp.read_text() == digest:
         logger.info("reusing the %s build in %s", sim, folder)
         return
     stamp.unlink(missing_ok=True)
+    text = make_text()
     _write_if_changed(source, text)
     logger.warning("building the virtual board for %s (once; about a minute for Verilator)",
                    sim)
@@ -190,6 +204,9 @@ class VirtualBoard:
     ----------
     sim : str
         ``"verilator"`` or ``"icarus"``.
+    engine : str or None
+        ``"fast"`` (the C++ harness, Verilator only) or ``"cocotb"``; None:
+        :func:`default_engine`.
     baud : int
         UART baud rate of the gateware.
     target_m : float
@@ -221,9 +238,10 @@ class VirtualBoard:
         Build folder (default ``build/virtual-board``).
     """
 
-    def __init__(self, sim="verilator", *, baud=VIRTUAL_BAUD, target_m=4.0, ambient_hz=1e5,
-                 signal=0.05, aggressor_signal=0.05, aggressor_tof_s=None, seed=None,
-                 scene="single", sensor="column", object_m=2.5, reset_after=None, root=None):
+    def __init__(self, sim="verilator", *, engine=None, baud=VIRTUAL_BAUD, target_m=4.0,
+                 ambient_hz=1e5, signal=0.05, aggressor_signal=0.05, aggressor_tof_s=None,
+                 seed=None, scene="single", sensor="column", object_m=2.5, reset_after=None,
+                 root=None):
         from ..sim.scene.pixels import SCENE_NAMES, SENSOR_KINDS
         if scene not in SCENE_NAMES:
             raise VirtualBoardError(f"unknown scene {scene!r}: choose one of "
@@ -231,10 +249,18 @@ class VirtualBoard:
         if sensor not in SENSOR_KINDS:
             raise VirtualBoardError(f"unknown sensor kind {sensor!r}: choose one of "
                                     f"{', '.join(SENSOR_KINDS)}")
+        engine = default_engine(sim) if engine is None else engine
+        if engine not in ENGINES:
+            raise VirtualBoardError(f"unknown engine {engine!r}: choose one of "
+                                    f"{', '.join(ENGINES)}")
+        if engine == "fast" and sim != "verilator":
+            raise VirtualBoardError(f"the fast engine runs Verilator, not {sim}: use --engine "
+                                    f"cocotb with --sim {sim}")
         self.sim = sim
+        self.engine = engine
         self.baud = baud
         self.root = Path(root or build_root())
-        self.folder = self.root / sim
+        self.folder = self.root / ("fast" if engine == "fast" else sim)
         self.path = None
         #: The link to the pty in ``root``: ``tty``, or ``tty-2``, ... when others are taken
         #: (None: none could be made).
@@ -273,17 +299,24 @@ class VirtualBoard:
 
     def start(self, *, timeout_s=STARTUP_TIMEOUT_S):
         """Build if needed, start the simulation and wait for its pty; returns the pty path."""
-        build(self.sim, baud=self.baud, root=self.root)
+        if self.engine == "fast":
+            command = self._fast_command()
+        else:
+            build(self.sim, baud=self.baud, root=self.root)
+            code = ("import sys; from fliss.host.virtual import _simulate; "
+                    "_simulate(sys.argv[1])")
+            command = [sys.executable, "-c", code, json.dumps({
+                "sim": self.sim, "folder": str(self.folder), "env": self.env,
+                "name": self.name})]
         pty_file = Path(self.env["FLISS_BOARD_PTY_FILE"])
         pty_file.unlink(missing_ok=True)
         Path(self.env["FLISS_BOARD_STATS_FILE"]).unlink(missing_ok=True)
         Path(self.env["FLISS_BOARD_RESET_FILE"]).unlink(missing_ok=True)
-        code = "import sys; from fliss.host.virtual import _simulate; _simulate(sys.argv[1])"
-        arguments = json.dumps({"sim": self.sim, "folder": str(self.folder), "env": self.env,
-                                "name": self.name})
-        with open(self.folder / f"{self.name}.launcher.log", "w") as log:
+        environment = dict(os.environ, **self.env) if self.engine == "fast" else None
+        log_name = f"{self.name}.log" if self.engine == "fast" else f"{self.name}.launcher.log"
+        with open(self.folder / log_name, "w") as log:
             self._process = subprocess.Popen(
-                [sys.executable, "-c", code, arguments], start_new_session=True,
+                command, start_new_session=True, env=environment,
                 stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT)
         deadline = time.monotonic() + timeout_s
         while not pty_file.exists():
@@ -300,6 +333,17 @@ class VirtualBoard:
         self.path = pty_file.read_text().strip()
         self.link = claim_link(self.root, self.path)
         return self.path
+
+    def _fast_command(self):
+        from ..hdl.top import FlissTop
+        from ..sim.boards import harness
+        _check_simulator(self.sim)
+        try:
+            FlissTop(baud=self.baud)        # a baud rate the gateware cannot make raises
+            library = harness.build(self.folder, baud=self.baud)
+        except (harness.HarnessBuildError, ValueError) as error:
+            raise VirtualBoardError(str(error)) from None
+        return [sys.executable, "-m", "fliss.sim.boards.fast", str(library)]
 
     def last_log_line(self):
         """The last error line of the simulation's logs, with the log's path."""

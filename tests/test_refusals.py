@@ -86,7 +86,8 @@ CASES = {
               "{d}/file.txt -o {d}/file.txt"],
     "board": ["--baud 0", "--target-m -1", "--ambient x", "--signal -1", "--reset-after -1",
               "--line-errors 2", "--line-stall-s -1", "--scene square", "--sensor row",
-              "--object-m -1", "--scene line --object-m 0", "--scene line --target-m 0"],
+              "--object-m -1", "--scene line --object-m 0", "--scene line --target-m 0",
+              "--sim icarus --engine fast", "--engine slow"],
 }
 
 

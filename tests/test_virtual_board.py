@@ -16,7 +16,7 @@ from fliss.hdl.protocol import (EVENT_BYTES, PROTOCOL_VERSION, NakCode, PacketTy
                                 ReadRequest, Status, registers_layout)
 from fliss.hdl.registers import BY_NAME, REGISTERS
 from fliss import protocol
-from fliss.host.virtual import SIMULATORS, VirtualBoard
+from fliss.host.virtual import ENGINES, SIMULATORS, VirtualBoard
 from fliss.host.cli import main
 from fliss.host.client import BoardClient
 from fliss.host.fileformat import read_capture
@@ -329,24 +329,24 @@ def check_raw_events(link, pulses):
 
 
 #: Icarus runs the virtual board some six times slower than Verilator: several minutes for this
-#: test, so it runs only when FLISS_SLOW_TESTS is set.
-_BOARD_SIMULATORS = [pytest.param(sim, marks=pytest.mark.skipif(
+#: test, so it runs only when FLISS_SLOW_TESTS is set. Verilator runs with each engine.
+_BOARD_SIMULATORS = [pytest.param(sim, engine, id=f"{sim}-{engine}", marks=pytest.mark.skipif(
     sim == "icarus" and not os.environ.get("FLISS_SLOW_TESTS"),
     reason="the virtual board on Icarus takes minutes: set FLISS_SLOW_TESTS=1"))
-    for sim in SIMULATORS]
+    for sim in SIMULATORS for engine in ENGINES if sim == "verilator" or engine == "cocotb"]
 
 
-@pytest.mark.parametrize("sim", _BOARD_SIMULATORS)
-def test_virtual_board(sim):
-    """One board per simulator (a build takes a minute, the start a few seconds), all checks
-    in turn, each on a freshly opened port as a host tool would do."""
+@pytest.mark.parametrize("sim, engine", _BOARD_SIMULATORS)
+def test_virtual_board(sim, engine):
+    """One board per simulator and engine (a build takes a minute or more, the start a few
+    seconds), all checks in turn, each on a freshly opened port as a host tool would do."""
     if not simulator_available(sim):
         message = f"simulator {sim} is not installed"
         if os.environ.get("FLISS_REQUIRE_SIMULATORS"):
             pytest.fail(message + " (FLISS_REQUIRE_SIMULATORS is set)")
         pytest.skip(message)
-    board = VirtualBoard(sim, baud=BAUD, target_m=TARGET_M, ambient_hz=1e5, signal=0.1,
-                         aggressor_signal=0.1, seed=7)
+    board = VirtualBoard(sim, engine=engine, baud=BAUD, target_m=TARGET_M, ambient_hz=1e5,
+                         signal=0.1, aggressor_signal=0.1, seed=7)
     board.start()
     try:
         for check in (check_ping_identify, check_register_round_trip,
@@ -358,8 +358,8 @@ def test_virtual_board(sim):
                 link.close()
         stats = board.stats()
         assert stats["bytes_to_board"] > 0 and stats["dropped"] == 0
-        print(f"\n{sim}: {stats['cycles'] / stats['wall_s']:.0f} cycles/s simulated over "
-              f"{stats['wall_s']:.1f} s, {stats['bytes_to_host']} bytes to the host")
+        print(f"\n{sim}, {engine} engine: {stats['cycles'] / stats['wall_s']:.0f} cycles/s "
+              f"simulated over {stats['wall_s']:.1f} s, {stats['bytes_to_host']} bytes to the host")
     finally:
         board.stop()
 

@@ -10,7 +10,7 @@ from ...sim.boards.noisy_line import NoisyLine, add_line_arguments, describe, fa
 from ...sim.boards.options import add_scene_arguments, rate_hz
 from ..errors import UserError
 from ..units import parse_baud
-from ..virtual import SIMULATORS, VirtualBoard
+from ..virtual import ENGINES, SIMULATORS, VirtualBoard
 
 
 __all__ = ["register", "run_board"]
@@ -24,15 +24,20 @@ def register(subparsers, formatter):
         "board", formatter_class=formatter,
         help="run the virtual board: the real gateware in a simulator, behind a pty",
         description="Generates the Verilog of the FLISS top level, builds it once for the "
-                    "simulator (build/virtual-board/SIM/), runs it with the scene simulator on "
-                    "its sensor pins in closed loop, and prints the path of a pseudo-terminal "
-                    "carrying its UART (also linked as build/virtual-board/tty, or tty-2, ... "
+                    "engine (build/virtual-board/fast/ or SIM/), runs it with the scene "
+                    "simulator on its sensor pins in closed loop, and prints the path of a "
+                    "pseudo-terminal carrying its UART (also linked as build/virtual-board/tty, "
+                    "or tty-2, ... "
                     "while other boards run: it says which). Use that path "
                     "as --port of the other commands. Runs until Ctrl-C. The simulation runs "
-                    "about a thousand times slower than a real board: keep integration times "
+                    "some hundred times slower than a real board: keep integration times "
                     "to a few ms and use a bin shift.")
     parser.add_argument("--sim", choices=SIMULATORS, default="verilator",
                         help="simulator")
+    parser.add_argument("--engine", choices=ENGINES, default=None,
+                        help="fast: the Verilated model in a C++ harness (Verilator only); "
+                             "cocotb: the cocotb module (any simulator); default fast with "
+                             "Verilator when a C++ compiler is installed, else cocotb")
     parser.add_argument("--baud", default="12M", help="UART baud rate of the gateware")
     add_scene_arguments(parser)
     parser.add_argument("--reset-after", type=int, default=None, metavar="PACKETS",
@@ -54,10 +59,11 @@ def run_board(args):
         raise UserError(str(error)) from None
     if args.reset_after is not None and args.reset_after < 1:
         raise UserError(f"--reset-after must be at least 1, not {args.reset_after}")
-    board = VirtualBoard(args.sim, baud=baud, target_m=args.target_m, ambient_hz=ambient_hz,
-                         signal=args.signal, aggressor_signal=args.aggressor_signal,
-                         seed=args.seed, scene=args.scene, sensor=args.sensor,
-                         object_m=args.object_m, reset_after=args.reset_after)
+    board = VirtualBoard(args.sim, engine=args.engine, baud=baud, target_m=args.target_m,
+                         ambient_hz=ambient_hz, signal=args.signal,
+                         aggressor_signal=args.aggressor_signal, seed=args.seed,
+                         scene=args.scene, sensor=args.sensor, object_m=args.object_m,
+                         reset_after=args.reset_after)
 
     def terminate(number, frame):
         raise KeyboardInterrupt
@@ -78,12 +84,12 @@ def run_board(args):
         if faults is not None:
             line = NoisyLine(path, to_host=faults[0], to_board=faults[1], seed=args.line_seed)
             print(line.open(), flush=True)
-            print(f"fliss: virtual board ({args.sim}, {baud} baud) on {path}{_link(board)}, "
+            print(f"fliss: virtual board ({_what(board)}, {baud} baud) on {path}{_link(board)}, "
                   f"behind a noisy line on {line.path}; Ctrl-C stops it",
                   file=sys.stderr, flush=True)
         else:
             print(path, flush=True)
-            print(f"fliss: virtual board ({args.sim}, {baud} baud) on {path}{_link(board)}; "
+            print(f"fliss: virtual board ({_what(board)}, {baud} baud) on {path}{_link(board)}; "
                   f"Ctrl-C stops it", file=sys.stderr, flush=True)
         last = time.monotonic()
         previous = {}
@@ -111,6 +117,11 @@ def run_board(args):
             line.close()
             print(f"fliss: noisy line: {describe(line)}", file=sys.stderr)
         board.stop()
+
+
+def _what(board):
+    # "verilator, fast engine"
+    return f"{board.sim}, {board.engine} engine"
 
 
 def _link(board):

