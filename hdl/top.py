@@ -107,7 +107,7 @@ class FlissTop(wiring.Component):
 
     compact_readout : bool
         Build the histogram packetizer that sends compact chunks where shorter
-        (:class:`~fliss.hdl.histogram.packetizer.HistogramPacketizer`). Without it (some 560
+        (:class:`~fliss.hdl.histogram.packetizer.HistogramPacketizer`). Without it (some 590
         LUTs and two block RAMs less on an iCE40), every histogram goes out in full HISTOGRAM
         chunks (:class:`~fliss.hdl.link.packetizer.FullHistogramPacketizer`), whatever
         ``full_readout`` says; hosts read both forms alike.

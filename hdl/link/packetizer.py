@@ -5,25 +5,20 @@ The histogram packetizer that chooses compact chunks lives in
 only, for the smallest builds."""
 
 from amaranth.hdl import Module, Mux, Signal
-from amaranth.lib import data, stream, wiring
+from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from .. import lookup
 from ..event import Event, TIMESTAMP_BITS
 from .framing import PacketBeat
-from ..histogram.layout import BIN_BITS, COUNT_WIDTH
+from ..histogram.chunk import CHUNK_HEADER_BYTES, COUNT_BYTES, ChunkEmitter
+from ..histogram.layout import BIN_BITS
 from ..histogram.packetizer import HistogramPacketizer, histogram_packetizer_members
-from ..protocol import (PacketType, HistogramChunk, HISTOGRAM_COUNT_BITS, CHUNK_BINS, EVENT_BYTES,
-                        MAX_EVENTS_PER_PACKET, MAX_FRAME_BITS)
+from ..protocol import PacketType, CHUNK_BINS, EVENT_BYTES, MAX_EVENTS_PER_PACKET, MAX_FRAME_BITS
 
 
 __all__ = ["BATCH_TIMEOUT", "EventPacketizer", "HistogramPacketizer",
            "FullHistogramPacketizer"]
-
-#: Bytes per bin count, and of a chunk's header.
-COUNT_BYTES = HISTOGRAM_COUNT_BITS // 8
-_CHUNK_HEADER = data.Layout.cast(HistogramChunk).size // 8
-assert COUNT_WIDTH == HISTOGRAM_COUNT_BITS, "the readout's counts go out as they are"
 
 #: Cycles an incomplete event batch waits for more events before it is sent anyway.
 BATCH_TIMEOUT = 1 << 14
@@ -128,8 +123,9 @@ class FullHistogramPacketizer(wiring.Component):
     the same ports, for builds without room for compact chunks (it ignores ``full_readout``).
 
     Each frame of ``2**(pixel_bits + 13 - shift)`` bins is sent as chunks of :data:`CHUNK_BINS`
-    bins (all of them when there are fewer) as they come: a :class:`HistogramChunk`, then one
-    u16 count per bin, little-endian; the packets of
+    bins (all of them when there are fewer) as they come, by a
+    :class:`~fliss.hdl.histogram.chunk.ChunkEmitter`: a :class:`HistogramChunk`, then one u16
+    count per bin, little-endian; the packets of
     :func:`fliss.protocol.histograms.encode_histogram` with ``full_readout``.
 
     Parameters
@@ -161,21 +157,13 @@ class FullHistogramPacketizer(wiring.Component):
     def elaborate(self, platform):
         m = Module()
 
+        m.submodules.chunk = chunk = ChunkEmitter()
         frame = Signal(32)
-        last_chunk = Signal()
-        bins = Signal(range(CHUNK_BINS + 1))   # bins in this chunk
-        sent = Signal.like(bins)
-        byte = Signal(range(max(_CHUNK_HEADER, COUNT_BYTES)))
-        count = Signal(COUNT_WIDTH)
-        last_of_frame = Signal()
-        # (registered ahead, for timing: the packet's length and "this is its last bin")
-        length = Signal(16)
-        last_bin = Signal()
 
         # Sizes that follow from the frame's bins, 2**frame_bits, out of constant tables indexed
         # by frame_bits (a LUT per bit, where shifts, comparisons and sums would be carry
         # chains): bins in a chunk, its packet length, and the first bin of the frame's last
-        # chunk.
+        # chunk. They are registered as a chunk starts (for timing).
         frame_bits = Signal(range(MAX_FRAME_BITS + 1))
         m.d.comb += frame_bits.eq(self.pixel_bits + TIMESTAMP_BITS - self.shift)
 
@@ -183,78 +171,44 @@ class FullHistogramPacketizer(wiring.Component):
             values = [function(1 << bits) for bits in range(MAX_FRAME_BITS + 1)]
             return lookup(values, frame_bits, fill=values[-1])
         chunk_bins = table(lambda frame_bins: min(frame_bins, CHUNK_BINS))
-        chunk_length = table(lambda frame_bins: _CHUNK_HEADER +
+        chunk_length = table(lambda frame_bins: CHUNK_HEADER_BYTES +
                              min(frame_bins, CHUNK_BINS) * COUNT_BYTES)
         last_first_bin = table(lambda frame_bins: max(frame_bins - CHUNK_BINS, 0))
+        bins = Signal.like(chunk.size)
+        length = Signal.like(chunk.length)
+        last_chunk = Signal()
+        with m.If(self.readout.valid & ~chunk.busy):
+            m.d.sync += [
+                bins.eq(chunk_bins),
+                length.eq(chunk_length),
+                last_chunk.eq(self.readout.p.index >= last_first_bin),
+            ]
 
+        # A chunk starts at the first bin that waits for one. Its header is made from the values
+        # it describes: they hold until the chunk's first bin is taken (the bin waits on
+        # `readout`; the frame's settings and number change only after its last bin), so none
+        # is copied into a register.
         m.d.comb += [
-            self.packets.p.header.type.eq(PacketType.HISTOGRAM),
-            self.packets.p.header.length.eq(length),
+            chunk.start.eq(self.readout.valid),
+            chunk.size.eq(bins),
+            chunk.length.eq(length),
+            chunk.header.frame.eq(frame),
+            chunk.header.first_bin.eq(self.readout.p.index),
+            chunk.header.shift.eq(self.shift),
+            chunk.header.pixel_bits.eq(self.pixel_bits),
+            chunk.header.first_pixel.eq(self.first_pixel),
+            chunk.header.last.eq(last_chunk),
+            chunk.items.valid.eq(self.readout.valid),
+            chunk.items.payload.eq(self.readout.p.count),
+            self.readout.ready.eq(chunk.items.ready),
         ]
+        wiring.connect(m, chunk.packets, wiring.flipped(self.packets))
 
-        with m.FSM():
-            with m.State("WAIT"):
-                with m.If(self.readout.valid):
-                    m.d.sync += [
-                        last_chunk.eq(self.readout.p.index >= last_first_bin),
-                        bins.eq(chunk_bins),
-                        length.eq(chunk_length),
-                    ]
-                    m.next = "HEADER"
-
-            with m.State("HEADER"):
-                m.d.comb += [self.packets.valid.eq(1), self.packets.p.first.eq(1)]
-                with m.If(self.packets.ready):
-                    m.d.sync += byte.eq(0), sent.eq(0)
-                    m.next = "PREFIX"
-
-            with m.State("PREFIX"):
-                # The header from the values it describes: they hold until the chunk's first
-                # bin is taken (the bin waits on `readout`; the frame's settings and number
-                # change only after its last bin), so none is copied into a register.
-                chunk = Signal(HistogramChunk)
-                m.d.comb += [
-                    chunk.frame.eq(frame),
-                    chunk.first_bin.eq(self.readout.p.index),
-                    chunk.shift.eq(self.shift),
-                    chunk.pixel_bits.eq(self.pixel_bits),
-                    chunk.first_pixel.eq(self.first_pixel),
-                    chunk.last.eq(last_chunk),
-                ]
-                m.d.comb += [
-                    self.packets.valid.eq(1),
-                    self.packets.p.data.eq(chunk.as_value().word_select(byte, 8)),
-                ]
-                with m.If(self.packets.ready):
-                    m.d.sync += byte.eq(byte + 1)
-                    with m.If(byte == _CHUNK_HEADER - 1):
-                        m.d.sync += byte.eq(0)
-                        m.next = "TAKE"
-
-            with m.State("TAKE"):
-                m.d.comb += self.readout.ready.eq(1)
-                with m.If(self.readout.valid):
-                    m.d.sync += [count.eq(self.readout.p.count),
-                                 last_of_frame.eq(self.readout.p.last),
-                                 last_bin.eq(sent == bins - 1)]
-                    m.next = "COUNT"
-
-            with m.State("COUNT"):
-                last_byte = byte == COUNT_BYTES - 1
-                m.d.comb += [
-                    self.packets.valid.eq(1),
-                    self.packets.p.data.eq(count.word_select(byte, 8)),
-                    self.packets.p.last.eq(last_byte & last_bin),
-                ]
-                with m.If(self.packets.ready):
-                    m.d.sync += byte.eq(byte + 1)
-                    with m.If(last_byte):
-                        m.d.sync += byte.eq(0), sent.eq(sent + 1)
-                        with m.If(last_bin):
-                            with m.If(last_of_frame):
-                                m.d.sync += frame.eq(frame + 1)
-                            m.next = "WAIT"
-                        with m.Else():
-                            m.next = "TAKE"
+        # The frame ends with the chunk that holds its last bin
+        last_of_frame = Signal()
+        with m.If(self.readout.valid & self.readout.ready):
+            m.d.sync += last_of_frame.eq(self.readout.p.last)
+        with m.If(chunk.done & last_of_frame):
+            m.d.sync += frame.eq(frame + 1)
 
         return m
