@@ -8,7 +8,7 @@ import pytest
 from fliss.hdl.histogram.engine import Histogram
 from fliss.sim.models import histogram as model
 
-from test_histogram import check_against_model, hazard_stimulus, run_histogram, spaced
+from histogram_bench import check_against_model, hazard_stimulus, run_histogram, spaced
 
 
 def pixel_stimulus(rng, cycles, *, shift, pixel_bits, first_pixel, outside=0.15, ram="dual"):
