@@ -42,7 +42,9 @@ MAXIMA = json.loads(os.environ.get("FLISS_TB_MAXIMA", "{}"))
 BANK_BITS = int(os.environ.get("FLISS_TB_BANK_BITS", BANK_BITS))
 #: Cycles after reset before the histogram can start a frame (single-port banks are cleared).
 INIT_CYCLES = int(os.environ.get("FLISS_TB_INIT_CYCLES", 0))
-CLOCK_PERIOD_PS = round(1e12 / DEFAULT_CLOCK_HZ)
+#: The design's clock, in Hz (a board build's: its netlist runs at the board's clock).
+CLOCK_HZ = float(os.environ.get("FLISS_TB_CLOCK_HZ", DEFAULT_CLOCK_HZ))
+CLOCK_PERIOD_PS = round(1e12 / CLOCK_HZ)
 
 
 def read_payload(address, count):
@@ -60,7 +62,7 @@ class TopTB:
         self.dut = dut
         self.encoder = protocol.PacketEncoder()
         self.decoder = protocol.FrameDecoder(synced=True)
-        self.model = CommandModel(DEFAULT_CLOCK_HZ, BAUD, maxima=MAXIMA, keyed_source=True,
+        self.model = CommandModel(CLOCK_HZ, BAUD, maxima=MAXIMA, keyed_source=True,
                                   bank_bits=BANK_BITS)
         self.packets = []
         self.link_reports = []
