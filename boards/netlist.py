@@ -310,8 +310,9 @@ def _models(board, dest, toolchain):
 def _wrapper(netlist):
     # The wrapper module: FlissTop's ports (and rst), wired to the board's pins.
     platform = platform_class(netlist.board)
+    board = platform(clock_hz=netlist.clock_hz)
     shared = getattr(platform, "shared_pins", {})
-    ports, pins, inputs = [], {}, {}
+    ports, pins, inputs, inverted = [], {}, {}, set()
     for port_name, member in netlist.design.signature.members.items():
         width = _width(netlist, port_name)
         name = _pin_name(port_name)
@@ -320,6 +321,9 @@ def _wrapper(netlist):
         elif name in BOARD_PINS:
             resource, subsignal, _, _ = BOARD_PINS[name]
             pin = f"{resource}_0__{subsignal}__io" if subsignal else f"{resource}_0__io"
+            ios = board.lookup(resource, 0).ios
+            if subsignal is None and getattr(ios[0], "invert", False):
+                inverted.add(pin)   # (an active-low LED: the pin is the port's complement)
         else:
             continue
         direction = "input" if member.flow == In else "output"
@@ -345,6 +349,10 @@ def _wrapper(netlist):
             lines.append(f"  wire [{_width(netlist, inputs[pin][0])}-1:0] {pin} = "
                          + " | ".join(inputs[pin]) + ";")
             connections.append(f"    .{pin}({pin})")
+        elif pin in inverted:
+            lines.append(f"  wire {pin};")
+            lines.append(f"  assign {pins[pin]} = ~{pin};")
+            connections.append(f"    .{pin}({pin})")
         else:
             connections.append(f"    .{pin}({pins[pin]})")
     lines.append(f"  wire {clock_pin} = clk;")
@@ -356,10 +364,11 @@ def _width(netlist, port_name):
     return len(getattr(netlist.design, port_name))
 
 
-def simulation_sources(netlist, *, toolchain="yowasp"):
+def simulation_sources(netlist, *, toolchain="yowasp", sim_dir=None):
     """``(sources, defines)`` to simulate ``netlist`` with cocotb's runner, top level
     :data:`WRAPPER`: the wrapper, the netlist and the patched cell models."""
-    sim_dir = netlist.path.parent / "sim"
+    sim_dir = Path(sim_dir or netlist.path.parent / "sim")
+    sim_dir.mkdir(parents=True, exist_ok=True)
     models = _models(netlist.board, sim_dir / "models", toolchain)
     wrapper = sim_dir / f"{WRAPPER}.v"
     _write(wrapper, _wrapper(netlist))
@@ -388,3 +397,70 @@ if __name__ == "__main__":  # pragma: no cover - a manual check of the flow
         result = synthesize(board)
         print(board, result.path, f"{result.synthesis_s:.0f} s",
               [str(p) for p in simulation_sources(result)[0]], os.linesep)
+
+
+#: Models of the iCE40 cells that nextpnr's routed design has and Yosys's models lack: its PLL
+#: (as the synthesized netlist's, locked by the wrapper) and its SPRAM, the SB_SPRAM256KA with
+#: its buses split into bits.
+ROUTED_ICE40_CELLS = f"""module ICESTORM_PLL(input BYPASS, input RESETB, output LOCK);
+    parameter DELAY_ADJMODE_FB = 0, DELAY_ADJMODE_REL = 0, DIVF = 0, DIVQ = 0, DIVR = 0,
+              ENABLE_ICEGATE_PORTA = 0, ENABLE_ICEGATE_PORTB = 0, FDA_FEEDBACK = 0,
+              FDA_RELATIVE = 0, FEEDBACK_PATH = 0, FILTER_RANGE = 0, PLLOUT_SELECT_A = 0,
+              PLLOUT_SELECT_B = 0, PLLTYPE = 0, SHIFTREG_DIVMODE = 0, TEST_MODE = 0;
+    assign LOCK = {_PLL_LOCK};
+endmodule
+
+module ICESTORM_SPRAM({", ".join(
+    [f"ADDRESS_{n}" for n in range(14)] + [f"DATAIN_{n}" for n in range(16)] +
+    [f"MASKWREN_{n}" for n in range(4)] + [f"DATAOUT_{n}" for n in range(16)] +
+    ["WREN", "CHIPSELECT", "CLOCK", "STANDBY", "SLEEP", "POWEROFF"])});
+    input {", ".join([f"ADDRESS_{n}" for n in range(14)] + [f"DATAIN_{n}" for n in range(16)] +
+                     [f"MASKWREN_{n}" for n in range(4)])};
+    input WREN, CHIPSELECT, CLOCK, STANDBY, SLEEP, POWEROFF;
+    output {", ".join(f"DATAOUT_{n}" for n in range(16))};
+    SB_SPRAM256KA spram (
+        .ADDRESS({_bits("ADDRESS_", 14)}), .DATAIN({_bits("DATAIN_", 16)}),
+        .MASKWREN({_bits("MASKWREN_", 4)}), .WREN(WREN), .CHIPSELECT(CHIPSELECT),
+        .CLOCK(CLOCK), .STANDBY(STANDBY), .SLEEP(SLEEP), .POWEROFF(POWEROFF),
+        .DATAOUT({_bits("DATAOUT_", 16)}));
+endmodule
+"""
+
+
+def place_and_route(netlist):
+    """Place and route ``netlist`` (the iCEBreaker's) as its bitstream build does, and read the
+    routed design back as Verilog; returns a :class:`Netlist` of it (top level ``top``).
+
+    nextpnr writes the routed design (``--write``) and its delays (``--sdf``); the routed
+    design's PLL has no output and the clock's global buffer no input (the dedicated path
+    between them is not in the JSON), so :func:`routed_simulation_sources` drives that net from
+    the wrapper's clock; and its constant-one net has no driver, so it is tied to 1 here."""
+    if netlist.board != "icebreaker":
+        raise ValueError("Only the iCEBreaker's routed design is read back here")
+    folder = netlist.path.parent
+    name = f"fliss_{netlist.board}"
+    routed = folder / f"{name}.routed.v"
+    env = toolchain_env(netlist.board)
+    if not routed.exists() or routed.stat().st_mtime < netlist.path.stat().st_mtime:
+        subprocess.run([env["NEXTPNR_ICE40"], "--quiet", "--log", f"{name}.routed.log",
+                        "--up5k", "--package", "sg48", "--json", f"{name}.json",
+                        "--pcf", f"{name}.pcf", "--timing-allow-fail",
+                        "--write", f"{name}.routed.json", "--sdf", f"{name}.routed.sdf"],
+                       cwd=folder, env=env, check=True, capture_output=True)
+        # (nextpnr's constant-one net has no driver in the JSON: the fabric ties it high)
+        subprocess.run([env["YOSYS"], "-q", "-p", f"read_json {name}.routed.json; "
+                        f"connect -set $PACKER_VCC_NET 1'1; write_verilog -noattr {name}.routed.v"],
+                       cwd=folder, env=env, check=True, capture_output=True)
+    return Netlist(netlist.board, routed, "top", netlist.design, netlist.clock_hz, 0.0)
+
+
+def routed_simulation_sources(routed):
+    """:func:`simulation_sources` of a routed design from :func:`place_and_route`."""
+    sources, defines = simulation_sources(routed, sim_dir=routed.path.parent / "sim_routed")
+    wrapper, extra = sources[0], sources[0].with_name("routed_cells.v")
+    text = wrapper.read_text().replace(
+        "endmodule", "  // (the routed design's clock net, driven by a path its JSON leaves out)\n"
+        "  initial force board.clk = clk;\nendmodule")
+    _write(wrapper.with_name(f"{WRAPPER}_routed.v"), text)
+    _write(extra, ROUTED_ICE40_CELLS)
+    return [wrapper.with_name(f"{WRAPPER}_routed.v"), *sources[1:], extra], defines

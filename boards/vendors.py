@@ -103,6 +103,8 @@ def _yosys():
 def _stat(log):
     # Cell counts of the last `stat` of a Yosys log.
     text = log[log.rindex("Printing statistics"):]
+    if "=== design hierarchy ===" in text:     # (the totals of a design kept hierarchical)
+        text = text[text.rindex("=== design hierarchy ==="):]
     cells = {}
     for match in re.finditer(r"^\s+(\d+)\s+(?:[\d.]+\s+)?\$?([A-Za-z_][\w$]*)\s*$", text, re.M):
         cells[match.group(2)] = cells.get(match.group(2), 0) + int(match.group(1))

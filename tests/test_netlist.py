@@ -32,6 +32,9 @@ FUZZ_FRAMES = 40
 #: (compact readout), pixel histograms, a depth frame; on Verilator, which runs its netlist at
 #: some 5 000 to 9 000 cycles/s. Icarus, at about 90 cycles/s on it, runs power-up to the
 #: first PING: the run that can see X (Verilator has none) on the outputs from configuration on.
+#: The iCEBreaker's smaller netlist runs on Icarus (some 1 000 cycles/s): power-up, the delay
+#: modes it has (off, mseq, masked), a histogram and its pixel histogram; Verilator is not used
+#: on it, whose pads (SB_IO) are tristate on the top level's pins, which Verilator does not take.
 RUNS = {
     "ulx3s": [
         ("icarus", "fliss.sim.benches.netlist_top", ["test_power_up"], {"FLISS_TB_SHORT": "1"}),
@@ -43,6 +46,9 @@ RUNS = {
     ],
     "icebreaker": [
         ("icarus", "fliss.sim.benches.netlist_top", ["test_power_up"], {"FLISS_TB_SHORT": "1"}),
+        ("icarus", "fliss.sim.benches.netlist_top", ["test_delay_modes"], {}),
+        ("icarus", "fliss.sim.benches.top",
+         ["test_histogram_closed_loop", "test_pixel_histograms"], {}),
     ],
 }
 
