@@ -61,10 +61,14 @@ test-boards: $(BOARDS_STAMP)
 # Gate-level: each board's netlist, synthesized by its bitstream build's Yosys script, under the
 # top level's cocotb tests with Yosys's cell models (docs/verification.md), and the Verilog of
 # `fliss generate` through Yosys for Xilinx, Intel and Gowin (docs/boards.md).
-.PHONY: test-netlist
+# `make test-vendors` (some 10 minutes, not in .ci/run) runs the other vendors' syntheses.
+.PHONY: test-netlist test-vendors
 
 test-netlist: $(BOARDS_STAMP)
-	FLISS_NETLIST=1 $(PY) -m pytest -n 0 tests/test_netlist.py tests/test_vendors.py $(PYTEST_ARGS)
+	FLISS_NETLIST=1 $(PY) -m pytest -n 0 tests/test_netlist.py $(PYTEST_ARGS)
+
+test-vendors: $(BOARDS_STAMP)
+	FLISS_NETLIST=1 $(PY) -m pytest -n 0 tests/test_vendors.py $(PYTEST_ARGS)
 
 # Formal proofs with SymbiYosys from PyPI: the runner's own tests (skipped by `make test`, which
 # lacks the formal extra), then every proof, its covers and its mutant (docs/verification.md). FORMAL_ARGS: e.g. `-j 1`, or proof names.

@@ -1,7 +1,7 @@
 """`fliss generate`'s Verilog through Yosys for other vendors' FPGAs: it synthesizes, and the
 histogram banks become block RAM, not LUTs or flip-flops (:mod:`fliss.boards.vendors`).
 
-The syntheses take minutes: they run with ``FLISS_NETLIST=1`` (``make test-netlist``)."""
+The syntheses take minutes: they run with ``FLISS_NETLIST=1`` (``make test-vendors``)."""
 
 import os
 
