@@ -61,11 +61,13 @@ test-boards: $(BOARDS_STAMP)
 # Gate-level: each board's netlist, synthesized by its bitstream build's Yosys script, under the
 # top level's cocotb tests with Yosys's cell models (docs/verification.md), and the Verilog of
 # `fliss generate` through Yosys for Xilinx, Intel and Gowin (docs/boards.md).
+# `make test-netlist NETLIST=full` adds the longer runs CI leaves out (tests/test_netlist.py).
 # `make test-vendors` (some 10 minutes, not in .ci/run) runs the other vendors' syntheses.
 .PHONY: test-netlist test-vendors
 
+NETLIST ?= 1
 test-netlist: $(BOARDS_STAMP)
-	FLISS_NETLIST=1 $(PY) -m pytest -n 0 tests/test_netlist.py $(PYTEST_ARGS)
+	FLISS_NETLIST=$(NETLIST) $(PY) -m pytest -n 0 tests/test_netlist.py $(PYTEST_ARGS)
 
 test-vendors: $(BOARDS_STAMP)
 	FLISS_NETLIST=1 $(PY) -m pytest -n 0 tests/test_vendors.py $(PYTEST_ARGS)

@@ -122,7 +122,7 @@ def check(block, family="ecp5", *, mutant=False, build_dir=BUILD_DIR):
     dead = sorted(set(re.findall(r"^\s*assign \\?(\S+)(?: \[\d+\])? = \d+'hx;", gate, re.M)))
     (folder / "dead.txt").write_text("".join(f"{name}\n" for name in dead))
     script = "\n".join([
-        "read_rtlil gold.il", "proc", "flatten", "rename top gold", "design -stash gold",
+        "read_rtlil gold.il", "proc", "flatten", "memory", "rename top gold", "design -stash gold",
         "read_verilog gate.v", "rename top gate", models, "hierarchy -top gate", "proc",
         "flatten -wb", "opt_clean", "design -stash gate",
         "design -copy-from gold -as gold gold", "design -copy-from gate -as gate gate",

@@ -16,7 +16,10 @@ import pytest
 from fliss.sim.benches.runner import run_cocotb, simulator_available
 
 
-NETLIST = os.environ.get("FLISS_NETLIST") == "1"
+NETLIST = os.environ.get("FLISS_NETLIST") in ("1", "full")
+#: ``FLISS_NETLIST=full`` runs every run of :data:`RUNS`; ``1`` (``.ci/run``) those that fit
+#: CI's time.
+FULL = os.environ.get("FLISS_NETLIST") == "full"
 pytestmark = pytest.mark.skipif(
     not NETLIST, reason="gate-level runs take minutes: set FLISS_NETLIST=1 to run them")
 
@@ -27,7 +30,7 @@ BUILD = Path(__file__).resolve().parent.parent / "build" / "netlist"
 FUZZ_FRAMES = 40
 
 #: The runs of each board's netlist: (simulator, bench module, its tests or None for all, more
-#: environment). The ULX3S carries the full top level: power-up, the delay sequences of every
+#: environment, whether only ``FLISS_NETLIST=full`` runs it). The ULX3S carries the full top level: power-up, the delay sequences of every
 #: mode (keyed too), link and registers with refusals, fuzz (NAKs), raw events, histograms
 #: (compact readout), pixel histograms, a depth frame; on Verilator, which runs its netlist at
 #: some 5 000 to 9 000 cycles/s. Icarus, at about 90 cycles/s on it, runs power-up to the
@@ -37,18 +40,21 @@ FUZZ_FRAMES = 40
 #: on it, whose pads (SB_IO) are tristate on the top level's pins, which Verilator does not take.
 RUNS = {
     "ulx3s": [
-        ("icarus", "fliss.sim.benches.netlist_top", ["test_power_up"], {"FLISS_TB_SHORT": "1"}),
-        ("verilator", "fliss.sim.benches.netlist_top", None, {}),
+        ("icarus", "fliss.sim.benches.netlist_top", ["test_power_up"], {"FLISS_TB_SHORT": "1"},
+         False),
+        ("verilator", "fliss.sim.benches.netlist_top", None, {}, False),
         ("verilator", "fliss.sim.benches.top",
          ["test_identify_and_registers", "test_fuzz", "test_raw_events_closed_loop",
-          "test_histogram_closed_loop", "test_pixel_histograms"], {}),
-        ("verilator", "fliss.sim.benches.top_depth", None, {}),
+          "test_histogram_closed_loop"], {}, False),
+        ("verilator", "fliss.sim.benches.top", ["test_pixel_histograms"], {}, True),
+        ("verilator", "fliss.sim.benches.top_depth", None, {}, False),
     ],
     "icebreaker": [
-        ("icarus", "fliss.sim.benches.netlist_top", ["test_power_up"], {"FLISS_TB_SHORT": "1"}),
-        ("icarus", "fliss.sim.benches.netlist_top", ["test_delay_modes"], {}),
-        ("icarus", "fliss.sim.benches.top",
-         ["test_histogram_closed_loop", "test_pixel_histograms"], {}),
+        ("icarus", "fliss.sim.benches.netlist_top", ["test_power_up"], {"FLISS_TB_SHORT": "1"},
+         False),
+        ("icarus", "fliss.sim.benches.top", ["test_histogram_closed_loop"], {}, False),
+        ("icarus", "fliss.sim.benches.netlist_top", ["test_delay_modes"], {}, True),
+        ("icarus", "fliss.sim.benches.top", ["test_pixel_histograms"], {}, True),
     ],
 }
 
@@ -102,10 +108,12 @@ def run_netlist(board, simulator, test_module, testcase=None, env=None):
     return results, speed
 
 
-@pytest.mark.parametrize("board, simulator, test_module, testcase, env", [
+@pytest.mark.parametrize("board, simulator, test_module, testcase, env, full_only", [
     (board, *run) for board, runs in RUNS.items() for run in runs],
     ids=lambda value: value.rsplit(".", 1)[-1] if isinstance(value, str) else None)
-def test_netlist(board, simulator, test_module, testcase, env, cocotb_counts):
+def test_netlist(board, simulator, test_module, testcase, env, full_only, cocotb_counts):
+    if full_only and not FULL:
+        pytest.skip("a longer run: FLISS_NETLIST=full (make test-netlist NETLIST=full)")
     results, _ = run_netlist(board, simulator, test_module, testcase, env)
     cocotb_counts(simulator, results)
     assert results.failed == []

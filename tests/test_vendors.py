@@ -10,7 +10,7 @@ import pytest
 from fliss.boards.vendors import FAMILIES, main
 
 
-NETLIST = os.environ.get("FLISS_NETLIST") == "1"
+NETLIST = os.environ.get("FLISS_NETLIST") in ("1", "full")
 
 
 def test_vendors_refuses_unknown_family(capsys):

@@ -44,6 +44,7 @@ BANK_BITS = int(os.environ.get("FLISS_TB_BANK_BITS", BANK_BITS))
 INIT_CYCLES = int(os.environ.get("FLISS_TB_INIT_CYCLES", 0))
 #: The design's clock, in Hz (a board build's: its netlist runs at the board's clock).
 CLOCK_HZ = float(os.environ.get("FLISS_TB_CLOCK_HZ", DEFAULT_CLOCK_HZ))
+CLOCK_HZ = int(CLOCK_HZ) if CLOCK_HZ.is_integer() else CLOCK_HZ
 CLOCK_PERIOD_PS = round(1e12 / CLOCK_HZ)
 
 
