@@ -58,6 +58,20 @@ program: $(BOARDS_STAMP)
 test-boards: $(BOARDS_STAMP)
 	FLISS_BUILD_BOARDS=1 $(PY) -m pytest tests/test_boards.py tests/test_block_ram.py $(PYTEST_ARGS)
 
+# Gate-level: each board's netlist, synthesized by its bitstream build's Yosys script, under the
+# top level's cocotb tests with Yosys's cell models (docs/verification.md), and the Verilog of
+# `fliss generate` through Yosys for Xilinx, Intel and Gowin (docs/boards.md).
+# `make test-netlist NETLIST=full` adds the longer runs CI leaves out (tests/test_netlist.py).
+# `make test-vendors` (some 10 minutes, not in .ci/run) runs the other vendors' syntheses.
+.PHONY: test-netlist test-vendors
+
+NETLIST ?= 1
+test-netlist: $(BOARDS_STAMP)
+	FLISS_NETLIST=$(NETLIST) $(PY) -m pytest -n 0 tests/test_netlist.py $(PYTEST_ARGS)
+
+test-vendors: $(BOARDS_STAMP)
+	FLISS_NETLIST=1 $(PY) -m pytest -n 0 tests/test_vendors.py $(PYTEST_ARGS)
+
 # Formal proofs with SymbiYosys from PyPI: the runner's own tests (skipped by `make test`, which
 # lacks the formal extra), then every proof, its covers and its mutant (docs/verification.md). FORMAL_ARGS: e.g. `-j 1`, or proof names.
 FORMAL_STAMP := $(VENV)/.formal-stamp
@@ -72,3 +86,4 @@ $(FORMAL_STAMP): pyproject.toml $(STAMP)
 formal: $(FORMAL_STAMP)
 	$(PY) -m pytest -n 0 tests/test_formal.py tests/test_formal_link.py $(PYTEST_ARGS)
 	$(PY) -m fliss.formal --mutants $(FORMAL_ARGS)
+	$(PY) -m fliss.formal.equivalence --mutant --family ecp5 crc cobs_decoder uart_tx

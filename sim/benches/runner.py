@@ -128,8 +128,12 @@ def _outcomes(results_xml):
 
 
 def run_cocotb(simulator, *, verilog_path, toplevel, test_module, build_dir, testcase=None,
-               extra_env=None):
+               extra_env=None, sources=(), defines=None, includes=(), extra_build_args=()):
     """Build (once per build folder) and run ``test_module`` on ``toplevel``.
+
+    ``sources`` are more Verilog files after ``verilog_path`` (cell models beside a netlist),
+    ``defines`` Verilog macros for all of them, ``includes`` folders of their included
+    files, ``extra_build_args`` more simulator options.
 
     Returns a :class:`CocotbResults`: the tests of the results file by outcome, and the tests
     the module defines. Every test passed when ``passed == expected`` and ``failed`` is empty.
@@ -152,8 +156,9 @@ def run_cocotb(simulator, *, verilog_path, toplevel, test_module, build_dir, tes
         flags = os.environ.get("MAKEFLAGS", "")
         if "CFG_CXXFLAGS_PCH_I" not in flags:
             os.environ["MAKEFLAGS"] = f"{flags} CFG_CXXFLAGS_PCH_I=-include".strip()
-    runner.build(sources=[verilog_path], hdl_toplevel=toplevel, build_dir=build_dir,
-                 timescale=TIMESCALE, build_args=build_args)
+    runner.build(sources=[verilog_path, *sources], hdl_toplevel=toplevel, build_dir=build_dir,
+                 timescale=TIMESCALE, build_args=[*build_args, *extra_build_args],
+                 defines=defines or {}, includes=list(includes))
     # The runner deletes an old results file first, so a run that writes none counts nothing.
     results = runner.test(hdl_toplevel=toplevel, test_module=test_module, build_dir=build_dir,
                           testcase=testcase,

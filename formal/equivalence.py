@@ -1,0 +1,173 @@
+"""Equivalence of small blocks' RTL and their synthesized netlists, proved with Yosys's
+``equiv_*`` passes (``make formal``)::
+
+    python -m fliss.formal.equivalence [BLOCK ...] [--family ecp5|ice40] [--mutant]
+
+Each block (:data:`BLOCKS`) is converted to RTLIL, synthesized by the board flow's command
+(``synth_ecp5`` of the ULX3S, ``synth_ice40`` of the iCEBreaker) and written as a Verilog netlist,
+as :mod:`fliss.boards.netlist` does for the whole top level. A second Yosys run reads that
+netlist with Yosys's cell models of the family (flattened into logic), pairs its signals with
+the RTL's by name (``equiv_make``) and proves every pair equal, cycle by cycle from the same
+state (``equiv_simple`` then ``equiv_induct``, 5 cycles deep); ``equiv_status -assert`` fails on
+any pair left unproven. Signals that synthesis found dead and left undriven (``x`` in the
+netlist) are not paired. ``--mutant`` breaks the netlist first (the first LUT's truth
+table inverted) and expects the proof to fail.
+"""
+
+import argparse
+import re
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+
+__all__ = ["BLOCKS", "FAMILIES", "EquivalenceError", "check", "main"]
+
+
+def _crc():
+    from ..hdl.link.crc import Crc16
+    return Crc16()
+
+
+def _cobs_encoder():
+    from ..hdl.link.cobs import CobsEncoder
+    return CobsEncoder()
+
+
+def _cobs_decoder():
+    from ..hdl.link.cobs import CobsDecoder
+    from ..hdl.protocol import MAX_ENCODED
+    return CobsDecoder(max_encoded=MAX_ENCODED)
+
+
+def _uart_tx():
+    from ..hdl.link.uart import UartTx
+    return UartTx(clock_hz=80_000_000, baud=3_000_000)
+
+
+def _uart_rx():
+    from ..hdl.link.uart import UartRx
+    return UartRx(clock_hz=80_000_000, baud=3_000_000)
+
+
+def _delay_core():
+    from ..hdl.delay.core import DelayCore
+    return DelayCore(keyed=False)
+
+
+#: Blocks proved equivalent to their netlists: name -> factory.
+BLOCKS = {
+    "crc": _crc,
+    "cobs_encoder": _cobs_encoder,
+    "cobs_decoder": _cobs_decoder,
+    "uart_tx": _uart_tx,
+    "uart_rx": _uart_rx,
+    "delay_core": _delay_core,
+}
+
+#: Family -> (synthesis command of its board's flow, cell models, LUT cell of the mutant).
+FAMILIES = {
+    "ecp5":  ("synth_ecp5", "read_verilog -DNO_INCLUDES +/ecp5/cells_sim.v", "LUT4"),
+    "ice40": ("synth_ice40", "read_verilog -DICE40_U +/ice40/cells_sim.v", "SB_LUT4"),
+}
+
+BUILD_DIR = Path("build") / "equivalence"
+
+#: Cycles of equiv_simple's and equiv_induct's unrolling.
+SEQ = 5
+
+
+class EquivalenceError(Exception):
+    pass
+
+
+def _yosys():
+    from ..boards.vendors import _yosys
+    return _yosys()
+
+
+def _run(script, folder, log):
+    (folder / f"{log}.ys").write_text(script)
+    return subprocess.run([_yosys(), "-q", "-l", f"{log}.log", f"{log}.ys"], cwd=folder,
+                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+
+
+def _mutate(netlist, lut):
+    # Invert the first LUT's truth table.
+    match = re.search(rf"{lut} #\(\s*\.(LUT_)?INIT\(16'h([0-9a-fA-F]{{4}})\)", netlist)
+    if match is None:
+        raise EquivalenceError("no LUT to break in the netlist")
+    flipped = f"{int(match.group(2), 16) ^ 0xFFFF:04x}"
+    return netlist[:match.start(2)] + flipped + netlist[match.end(2):]
+
+
+def check(block, family="ecp5", *, mutant=False, build_dir=BUILD_DIR):
+    """Prove ``block``'s RTL equivalent to its ``family`` netlist; returns the seconds taken.
+    Raises :exc:`EquivalenceError` when the proof fails (with ``mutant``: when it passes)."""
+    from amaranth.back import rtlil
+    synth, models, lut = FAMILIES[family]
+    folder = Path(build_dir) / family / (block + ("_mutant" if mutant else ""))
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "gold.il").write_text(rtlil.convert(BLOCKS[block](), name="top"))
+    start = time.monotonic()
+    process = _run(f"read_rtlil gold.il\n{synth} -top top\nwrite_verilog -noattr gate.v\n",
+                   folder, "synth")
+    if process.returncode != 0:
+        raise EquivalenceError(f"{block}: synthesis failed; log in {folder}")
+    gate = (folder / "gate.v").read_text()
+    if mutant:
+        (folder / "gate.v").write_text(_mutate(gate, lut))
+    # Signals (bits) that synthesis found dead and left undriven have no pair to prove.
+    dead = sorted(set(re.findall(r"^\s*assign \\?(\S+)(?: \[\d+\])? = \d+'hx;", gate, re.M)))
+    (folder / "dead.txt").write_text("".join(f"{name}\n" for name in dead))
+    script = "\n".join([
+        "read_rtlil gold.il", "proc", "flatten", "memory", "rename top gold", "design -stash gold",
+        "read_verilog gate.v", "rename top gate", models, "hierarchy -top gate", "proc",
+        "flatten -wb", "opt_clean", "design -stash gate",
+        "design -copy-from gold -as gold gold", "design -copy-from gate -as gate gate",
+        "equiv_make -blacklist dead.txt gold gate equiv", "hierarchy -top equiv", "async2sync",
+        f"equiv_simple -seq {SEQ}", f"equiv_induct -seq {SEQ}", "equiv_status -assert", ""])
+    process = _run(script, folder, "equiv")
+    proven = process.returncode == 0
+    if proven == mutant:
+        raise EquivalenceError(f"{block} ({family}{', mutant' if mutant else ''}): "
+                               f"{'proved equivalent' if proven else 'not proved equivalent'}; "
+                               f"log in {folder / 'equiv.log'}")
+    return time.monotonic() - start
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(prog="python -m fliss.formal.equivalence",
+                                     description="RTL and synthesized netlist of small blocks "
+                                                 "proved equivalent with Yosys")
+    parser.add_argument("blocks", nargs="*", default=list(BLOCKS), metavar="BLOCK",
+                        help=f"one or more of {', '.join(BLOCKS)} (default: all)")
+    parser.add_argument("--family", choices=list(FAMILIES), action="append",
+                        help="synthesis flow (default: both)")
+    parser.add_argument("--mutant", action="store_true",
+                        help="break each netlist first: the proofs must fail")
+    args = parser.parse_args(argv)
+    unknown = [block for block in args.blocks if block not in BLOCKS]
+    if unknown:
+        print(f"error: unknown block {unknown[0]!r}; choose from {', '.join(BLOCKS)}",
+              file=sys.stderr)
+        return 2
+    failed = 0
+    for family in args.family or list(FAMILIES):
+        for block in args.blocks:
+            for mutant in ([False, True] if args.mutant else [False]):
+                label = f"{block} [{family}{', mutant' if mutant else ''}]"
+                try:
+                    seconds = check(block, family, mutant=mutant)
+                except EquivalenceError as error:
+                    print(f"WRONG   {error}", flush=True)
+                    failed += 1
+                    continue
+                print(f"{'FAIL' if mutant else 'PASS'} (ok) {seconds:6.1f} s  {label}",
+                      flush=True)
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
