@@ -20,7 +20,7 @@ from fliss.protocol.events import EVENT_DTYPE
 from fliss.sim import scene
 from fliss.sim.boards import harness
 from fliss.sim.boards.fast import AGGRESSOR, START, FastBoard
-from fliss.sim.boards.virtual import SensorModel
+from fliss.sim.boards.virtual import SensorModel, StandInPins
 from fliss.host.cli import main
 from fliss.host.virtual import VIRTUAL_BAUD, build_root
 
@@ -52,7 +52,7 @@ def _write(encoder, name, value):
 
 def _replayed(board_scene, edges, seed):
     """A sensor model told ``edges`` as the cocotb board tells them; its windows."""
-    sensor = SensorModel(_Pins(), board_scene, seed=seed, record=True)
+    sensor = SensorModel(StandInPins(), board_scene, seed=seed, record=True)
     happenings = []
     for cycle, kind in edges:
         if kind == START:
@@ -64,17 +64,6 @@ def _replayed(board_scene, edges, seed):
     for _, _, handler, cycle in sorted(happenings, key=lambda item: item[:2]):
         handler(cycle)
     return sensor
-
-
-class _Pin:
-    value = 0
-
-
-class _Pins:
-    def __getattr__(self, name):
-        pin = _Pin()
-        setattr(self, name, pin)
-        return pin
 
 
 @pytest.mark.parametrize("case", CASES)

@@ -24,7 +24,7 @@ from fliss.sim import scene
 from fliss.sim.benches.runner import simulator_available
 from fliss.protocol.histograms import assemble
 from fliss.protocol.packets import HISTOGRAM_TYPES
-from fliss.sim.boards.virtual import SensorModel
+from fliss.sim.boards.virtual import SensorModel, StandInPins
 
 
 BAUD = 12_000_000
@@ -38,17 +38,6 @@ REPLY_TYPES = {PacketType.ACK, PacketType.NAK, PacketType.IDENTITY, PacketType.R
                PacketType.STATUS}
 
 
-class _Pin:
-    value = 0
-
-
-class _Pins:
-    def __getattr__(self, name):
-        pin = _Pin()
-        setattr(self, name, pin)
-        return pin
-
-
 def _sensor(period, aggressor_cycles, starts, **scene_options):
     """The sensor model driven by hand: a start every ``period`` cycles, an aggressor edge
     ``aggressor_cycles`` after each, each window closed when its range is over; returns the
@@ -57,7 +46,7 @@ def _sensor(period, aggressor_cycles, starts, **scene_options):
                    aggressors=(scene.Aggressor(period_cycles=period, offset_s=0.0,
                                                detections_per_pulse=0.1),))
     options.update(scene_options)
-    sensor = SensorModel(_Pins(), scene.Scene(**options), seed=5)
+    sensor = SensorModel(StandInPins(), scene.Scene(**options), seed=5)
     # What the coroutines see, in time order (in one cycle: starts, edges, then window ends).
     happenings = []
     for index in range(starts):
@@ -107,7 +96,7 @@ def _line_sensor(sensor_kind, starts=3000, **options):
                     aggressors=(scene.Aggressor(period_cycles=80, offset_s=0.0,
                                                 detections_per_pulse=0.0),))
     settings.update(options)
-    sensor = SensorModel(_Pins(), scene.Scene(**settings), seed=7, record=True)
+    sensor = SensorModel(StandInPins(), scene.Scene(**settings), seed=7, record=True)
     for index in range(starts):
         cycle = 100 + index * 80
         sensor.on_start(cycle)

@@ -24,7 +24,8 @@ from ...protocol.frames import FrameDecoder, Packet
 from ...protocol.packets import DATA_TYPES
 from .harness import Harness
 from .virtual import (IDLE_POLLS, IDLE_WAIT_S, MAX_BACKLOG, POLL_US, RESET_CYCLES, SensorModel,
-                      _env, _parent_alive, _publish, _reset_requested, _scene_from_environment)
+                      StandInPins, env_setting, parent_alive, publish_file, reset_requested,
+                      scene_from_environment)
 from .pty_server import close_pty
 
 import select
@@ -43,19 +44,6 @@ POLL_CYCLES = round(POLL_US * 1e-6 * DEFAULT_CLOCK_HZ)
 START, AGGRESSOR = 0, 1
 
 
-class _Pin:
-    value = 0
-
-
-class _Pins:
-    """Stands in for the cocotb handle the sensor model sets its pins to 0 through."""
-
-    def __getattr__(self, name):
-        pin = _Pin()
-        setattr(self, name, pin)
-        return pin
-
-
 class FastBoard:
     """The top level in the harness ``library``, its sensor fed from ``scene`` with ``seed``.
 
@@ -65,7 +53,7 @@ class FastBoard:
 
     def __init__(self, library, scene, *, baud, seed=None, record=False):
         self.harness = Harness(library, DEFAULT_CLOCK_HZ / baud, record=record)
-        self.sensor = SensorModel(_Pins(), scene, seed=seed, record=record)
+        self.sensor = SensorModel(StandInPins(), scene, seed=seed, record=record)
         self._closes = deque()      # (cycle, start): window ends to tell the sensor model
         self._reset_until = None
         self.resets = 0
@@ -119,14 +107,14 @@ def main(argv=None):
     :mod:`fliss.sim.boards.virtual`); ``argv``: the path of the harness library."""
     argv = sys.argv[1:] if argv is None else argv
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
-    baud = _env("FLISS_BOARD_BAUD", 12_000_000, int)
-    parent = _env("FLISS_BOARD_PARENT_PID", None, int)
+    baud = env_setting("FLISS_BOARD_BAUD", 12_000_000, int)
+    parent = env_setting("FLISS_BOARD_PARENT_PID", None, int)
     pty_file = os.environ.get("FLISS_BOARD_PTY_FILE")
     stats_file = os.environ.get("FLISS_BOARD_STATS_FILE")
-    reset_after = _env("FLISS_BOARD_RESET_AFTER", None, int)
+    reset_after = env_setting("FLISS_BOARD_RESET_AFTER", None, int)
     reset_file = os.environ.get("FLISS_BOARD_RESET_FILE")
-    board = FastBoard(argv[0], _scene_from_environment(), baud=baud,
-                      seed=_env("FLISS_BOARD_SEED", None, int))
+    board = FastBoard(argv[0], scene_from_environment(), baud=baud,
+                      seed=env_setting("FLISS_BOARD_SEED", None, int))
     board.start()
     harness = board.harness
     master, slave = os.openpty()
@@ -134,7 +122,7 @@ def main(argv=None):
     os.set_blocking(master, False)
     path = os.ttyname(slave)
     if pty_file:
-        _publish(pty_file, path + "\n")
+        publish_file(pty_file, path + "\n")
     logger.info("virtual board (fast harness) on %s at %d baud", path, baud)
     to_host = bytearray()
     decoder = FrameDecoder(synced=True) if reset_after is not None else None
@@ -157,12 +145,12 @@ def main(argv=None):
             now = time.monotonic()
             if now - last_check >= 1.0:
                 last_check = now
-                reset = reset or _reset_requested(reset_file)
-                if not _parent_alive(parent):
+                reset = reset or reset_requested(reset_file)
+                if not parent_alive(parent):
                     logger.info("launcher gone: stopping")
                     break
                 if stats_file:
-                    _publish(stats_file, _stats(board, counts, now - wall_start,
+                    publish_file(stats_file, _stats(board, counts, now - wall_start,
                                                 harness.cycle - first_cycle))
             if reset:
                 logger.info("reset %d after %d data packets to the host", board.resets + 1,

@@ -79,7 +79,7 @@ from ...protocol.packets import DATA_TYPES
 from ..benches.uart_bfm import UartSink, UartSource
 
 
-__all__ = ["POLL_US", "RESET_CYCLES", "EVENT_BUS_CYCLES", "SensorModel", "PtyBridge",
+__all__ = ["POLL_US", "RESET_CYCLES", "EVENT_BUS_CYCLES", "SensorModel", "StandInPins", "PtyBridge",
            "virtual_board"]
 
 
@@ -109,9 +109,21 @@ EVENT_BUS_CYCLES = 6
 CLOCK_PERIOD_PS = round(1e12 / DEFAULT_CLOCK_HZ)
 
 
-def _env(name, default, convert=float):
+def env_setting(name, default, convert=float):
+    """Environment variable ``name`` through ``convert``; ``default`` when unset or empty."""
     value = os.environ.get(name)
     return default if value in (None, "") else convert(value)
+
+
+class StandInPins:
+    """Stands in for the cocotb handle whose pins :class:`SensorModel` sets (to 0 at its
+    start), where no cocotb runs: the fast board and the tests. Any pin name gives an object
+    with a ``value``."""
+
+    def __getattr__(self, name):
+        pin = type("Pin", (), {"value": 0})()
+        setattr(self, name, pin)
+        return pin
 
 
 class SensorModel:
@@ -343,14 +355,16 @@ class PtyBridge:
         select.select([self.master], [], [], seconds)
 
 
-def _publish(path, text):
+def publish_file(path, text):
+    """Write ``text`` to ``path`` whole (through a temporary file and a rename)."""
     temporary = f"{path}.tmp"
     with open(temporary, "w") as file:
         file.write(text)
     os.replace(temporary, path)
 
 
-def _parent_alive(pid):
+def parent_alive(pid):
+    """Whether process ``pid`` (the launching ``fliss board``) still runs; true for ``None``."""
     if pid is None:
         return True
     try:
@@ -362,20 +376,21 @@ def _parent_alive(pid):
     return True
 
 
-def _scene_from_environment():
-    target_m = _env("FLISS_BOARD_TARGET_M", 4.0)
+def scene_from_environment():
+    """The scene that ``fliss board``'s options describe (``FLISS_BOARD_*``)."""
+    target_m = env_setting("FLISS_BOARD_TARGET_M", 4.0)
     aggressor_tof = os.environ.get("FLISS_BOARD_AGGRESSOR_TOF_S")
     aggressor = _scene.Aggressor(
         period_cycles=80, offset_s=0.0,
-        detections_per_pulse=_env("FLISS_BOARD_AGGRESSOR_SIGNAL", 0.05),
+        detections_per_pulse=env_setting("FLISS_BOARD_AGGRESSOR_SIGNAL", 0.05),
         tof_s=None if aggressor_tof in (None, "") else float(aggressor_tof))
     pixels = _scene.pixels_named(os.environ.get("FLISS_BOARD_SCENE") or "single",
                                  sensor=os.environ.get("FLISS_BOARD_SENSOR") or "column",
-                                 wall_m=target_m, object_m=_env("FLISS_BOARD_OBJECT_M", 2.5))
+                                 wall_m=target_m, object_m=env_setting("FLISS_BOARD_OBJECT_M", 2.5))
     return _scene.Scene(
         distance_m=target_m,
-        detections_per_pulse=_env("FLISS_BOARD_SIGNAL", 0.05),
-        background_hz=_env("FLISS_BOARD_AMBIENT_HZ", 1e5),
+        detections_per_pulse=env_setting("FLISS_BOARD_SIGNAL", 0.05),
+        background_hz=env_setting("FLISS_BOARD_AMBIENT_HZ", 1e5),
         aggressors=(aggressor,), pixels=pixels)
 
 
@@ -386,7 +401,8 @@ async def _reset(dut):
     dut.rst.value = 0
 
 
-def _reset_requested(path):
+def reset_requested(path):
+    """Whether the file ``path``, a reset request, exists; it is removed, the request taken."""
     if not path:
         return False
     try:
@@ -399,18 +415,18 @@ def _reset_requested(path):
 @cocotb.test()
 async def virtual_board(dut):
     """Serve the board on a pseudo-terminal until the launcher goes away."""
-    baud = _env("FLISS_BOARD_BAUD", 12_000_000, int)
-    seed = _env("FLISS_BOARD_SEED", None, int)
-    parent = _env("FLISS_BOARD_PARENT_PID", None, int)
+    baud = env_setting("FLISS_BOARD_BAUD", 12_000_000, int)
+    seed = env_setting("FLISS_BOARD_SEED", None, int)
+    parent = env_setting("FLISS_BOARD_PARENT_PID", None, int)
     pty_file = os.environ.get("FLISS_BOARD_PTY_FILE")
     stats_file = os.environ.get("FLISS_BOARD_STATS_FILE")
-    reset_after = _env("FLISS_BOARD_RESET_AFTER", None, int)
+    reset_after = env_setting("FLISS_BOARD_RESET_AFTER", None, int)
     reset_file = os.environ.get("FLISS_BOARD_RESET_FILE")
     resets = 0
 
     Clock(dut.clk, CLOCK_PERIOD_PS, unit="ps").start()
     dut.uart_rx.value = 1
-    sensor = SensorModel(dut, _scene_from_environment(), seed=seed)
+    sensor = SensorModel(dut, scene_from_environment(), seed=seed)
     dut.rst.value = 1
     await ClockCycles(dut.clk, 4)
     dut.rst.value = 0
@@ -419,7 +435,7 @@ async def virtual_board(dut):
     bridge = PtyBridge(dut, baud, count_data=reset_after is not None)
     bridge.start()
     if pty_file:
-        _publish(pty_file, bridge.path + "\n")
+        publish_file(pty_file, bridge.path + "\n")
     dut._log.info("virtual board on %s at %d baud", bridge.path, baud)
 
     idle = 0
@@ -438,13 +454,13 @@ async def virtual_board(dut):
         now = time.monotonic()
         if now - last_check >= 1.0:
             last_check = now
-            reset = reset or _reset_requested(reset_file)
-            if not _parent_alive(parent):
+            reset = reset or reset_requested(reset_file)
+            if not parent_alive(parent):
                 dut._log.info("launcher gone: stopping")
                 break
             if stats_file:
                 cycles = round((get_sim_time("ps") - sim_start_ps) / CLOCK_PERIOD_PS)
-                _publish(stats_file, (
+                publish_file(stats_file, (
                     f'{{"wall_s": {now - wall_start:.3f}, "cycles": {cycles}, '
                     f'"bytes_to_board": {bridge.bytes_to_board}, '
                     f'"bytes_to_host": {bridge.bytes_to_host}, "dropped": {bridge.dropped}, '
