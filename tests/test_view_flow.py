@@ -27,6 +27,7 @@ from fliss.host.view.server import ViewServer  # noqa: E402
 from fliss.sim.boards.model import model_board  # noqa: E402
 
 from test_host_cli import SCENE  # noqa: E402
+from test_view import wait_for  # noqa: E402
 
 BINS = 8192
 MISSED_LINE = re.compile(r"a page that left had missed (\d+) of (\d+) updates, drawing more "
@@ -93,15 +94,6 @@ def test_a_page_that_takes_every_update_misses_none():
         flow.taken.tags = list(flow.sent.tags)
     assert (flow.updates, flow.missed) == (5, 0)
     assert "missed" not in doc.select_one({"css_classes": ["fliss-status"]}).text
-
-
-def wait_for(condition, timeout_s=10.0):
-    end = time.monotonic() + timeout_s
-    while not condition():
-        if time.monotonic() > end:
-            return False
-        time.sleep(0.02)
-    return True
 
 
 def stalled_page(server):
