@@ -312,14 +312,15 @@ def test_a_page_that_stalls_misses_updates_and_costs_the_capture_nothing(
         time.sleep(4.5)                     # (the page's scripts wait for the stall to end)
         missed = int(wait_shown(browser, lambda s: s["n-skipped"])["n-skipped"])
         browser.save_screenshot(str(screenshots / "view-stalled.png"))
-        # Updates come every 50 ms, frames faster: about 80 missed in 4 s.
-        assert 40 <= missed <= 100
+        # Updates come every 50 ms, frames faster: about 80 missed in 4 s on a quiet machine
+        # (more under load, the stall lasting longer); at least a quarter of them.
+        assert missed >= 20
         browser.close()
         browser.switch_to.window(browser.window_handles[0])
         said = fliss.wait_for_line(r"fliss: view: a page that left had missed (\d+) of (\d+) "
                                    r"updates, drawing more slowly than they came \(it was "
                                    r"shown the latest frame each time\)")
-        assert int(said[1]) >= missed
+        assert int(said[2]) >= int(said[1]) >= missed
         assert fliss.stop() == 128 + signal.SIGINT
     finally:
         fliss.kill()
