@@ -109,10 +109,13 @@ def _cobs_keeps_block(block, module):
 
 
 class DecoderHarness(wiring.Component):
-    """The frame decoder on free bytes and backpressure: two cycles after it takes a delimiter,
-    every part of it is at the start of a frame (COBS block and count, CRC and its delay line,
-    the frame's byte count), and a cycle later it takes input again (unless that cycle judges
-    another frame): whatever came before, it resynchronises at the next delimiter."""
+    """The frame decoder on free bytes and backpressure, with the input resting for the
+    three cycles after a delimiter (a UART gives a byte at most every ten bit times, at least
+    40 cycles): three cycles after it takes a delimiter while no packet goes out (a delimiter
+    taken behind a stalled register slice waits there), every part of it is at the start of a
+    frame (COBS block and count, the register slice between COBS and CRC, CRC and its delay
+    line, the frame's byte count), and a cycle later it takes input again (unless that cycle
+    judges another frame): whatever came before, it resynchronises at the next delimiter."""
 
     valid:   In(1)
     payload: In(8)
@@ -129,6 +132,8 @@ class DecoderHarness(wiring.Component):
         m.submodules.dut = module = open_block(dut, platform=platform)
         _, cobs = open_submodule(module, "cobs", self.mutate, platform)
         crc_block, crc = open_submodule(module, "crc", platform=platform)
+        decoded, slice_module = open_submodule(module, "decoded", platform=platform)
+        skid_valid, = assigned(slice_module, "skid_valid")
         m.d.comb += [
             dut.i.valid.eq(self.valid), dut.i.payload.eq(self.payload),
             dut.o.ready.eq(self.ready),
@@ -140,24 +145,35 @@ class DecoderHarness(wiring.Component):
         held, = assigned(crc, "held")
         engine = crc._named_submodules["engine"][0]
 
+        # A delimiter taken while no packet goes out and the register slice is empty (taken
+        # behind a stalled slice, it waits there for the packet to go)
+        sending, = assigned(module, "sending")
         delimiter = Signal()
-        m.d.comb += delimiter.eq(dut.i.valid & dut.i.ready & (dut.i.payload == DELIMITER))
+        m.d.comb += delimiter.eq(dut.i.valid & dut.i.ready & (dut.i.payload == DELIMITER) &
+                                 ~sending & ~decoded.o.valid)
+        resting = Signal()      # within three cycles after a delimiter
+        m.d.comb += [
+            resting.eq(past(m, delimiter, 1) | past(m, delimiter, 2) | past(m, delimiter, 3)),
+            Assume(~resting | ~self.valid),
+        ]
         fresh = Signal()
         m.d.comb += fresh.eq((count == 0) & (cobs_count == 0) & (code_left == 0) & at_code &
-                             ~block_ff & (held == 0) & (engine.crc == CRC_INIT))
+                             ~block_ff & ~decoded.o.valid & (held == 0) &
+                             (engine.crc == CRC_INIT))
         m.d.comb += [
-            Assert(~past(m, delimiter, 2) | fresh),
-            Assert(~past(m, delimiter, 3) | dut.i.ready | ending),
+            Assert(~past(m, delimiter, 3) | fresh),
+            Assert(~past(m, delimiter, 4) | dut.i.ready | ending),
         ]
-        # Invariant (for the induction): the COBS block's register `at_code` is `code_left == 0`
-        m.d.comb += inv(at_code == (code_left == 0))
+        # Invariants (for the induction): the COBS block's register `at_code` is
+        # `code_left == 0`; the register slice holds a second beat only behind a first
+        m.d.comb += [inv(at_code == (code_left == 0)), inv(~skid_valid | decoded.o.valid)]
 
         # A frame cut short in a COBS block, then a good packet after the delimiter
         cut = Signal()
         with m.If(delimiter & ~at_code & (cobs_count != 0)):
             m.d.sync += cut.eq(1)
         m.d.comb += [
-            Cover(past(m, delimiter, 2) & fresh & cut),
+            Cover(past(m, delimiter, 3) & fresh & cut),
             Cover(dut.o.valid & dut.o.p.first & cut),
         ]
         return m
@@ -429,9 +445,10 @@ PROOFS = [
           f"UART receiver: idle (ready for a start bit) after {UART_IDLE_CYCLES} cycles of a "
           f"high line, from any state",
           mutant=lambda: UartRxHarness(_uart_break_stuck), cover_depth=60, mutant_depth=90),
-    Proof("link.decoder_resync", DecoderHarness, "prove", 4,
-          "frame decoder: from any state, at the start of a frame two cycles after a delimiter "
-          "and taking input a cycle later",
+    Proof("link.decoder_resync", DecoderHarness, "prove", 8,
+          "frame decoder: from any state, at the start of a frame three cycles after a "
+          "delimiter taken while no packet goes out (the input resting) and taking input a "
+          "cycle later",
           mutant=lambda: DecoderHarness(_cobs_keeps_block), cover_depth=20, mutant_depth=10),
     Proof("link.decoder_checks", DecoderChecksHarness, "prove", 3,
           "frame decoder: a packet is accepted only from a frame with a good CRC and length",
