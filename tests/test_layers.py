@@ -27,7 +27,7 @@ ALLOWED = {
     "sim": {"hdl", "protocol", "analysis"},
     "host": {"hdl", "protocol", "analysis", "sim", "boards"},
     "boards": {"hdl"},
-    "formal": {"hdl"},
+    "formal": {"hdl", "boards"},
 }
 
 #: The host's modules on the path of a real board: the Python API, the client and the captures.
