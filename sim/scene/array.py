@@ -23,7 +23,7 @@ import numpy as np
 from ...hdl.event import PULSE_BITS, TDC_LSB_S
 from ...protocol.events import EVENT_DTYPE
 from .description import COUNTERS, SPEED_OF_LIGHT, TDC_CODES
-from .photons import Chunk, Simulation, _non_paralysable, _spans
+from .photons import Chunk, Simulation, non_paralysable, spans
 
 
 __all__ = ["PixelChunk", "PixelSimulation", "simulation_for"]
@@ -119,7 +119,7 @@ class PixelSimulation(Simulation):
         owner = np.concatenate((np.arange(pixels), pixel[order]))
         sentinel = np.concatenate((np.ones(pixels, dtype=bool), np.zeros(count, dtype=bool)))
         block = np.lexsort((keyed, owner))
-        result = _non_paralysable(keyed[block], dead, -np.inf)
+        result = non_paralysable(keyed[block], dead, -np.inf)
         detected = np.empty(count, dtype=bool)
         detected[order] = result[~sentinel[block]]
         return detected
@@ -142,7 +142,7 @@ class PixelSimulation(Simulation):
         times, sources, pixel = times[now][order], sources[now][order], pixel[now][order]
 
         # Which span each photon is in: the TDC window of `span`, or the dead time before it
-        span, in_span, in_window = _spans(times, starts, span_starts, ends, self._dead,
+        span, in_span, in_window = spans(times, starts, span_starts, ends, self._dead,
                                           self._separated)
 
         # Detection: each pixel's dead time, then the sensor's TDCs

@@ -18,7 +18,7 @@ from .description import COUNTERS, FWHM_PER_SIGMA, TDC_CODES, TRUNCATION_SIGMAS,
 from .pulses import EdgeBuffer, EdgeSchedule, PulseTrain
 
 
-__all__ = ["Chunk", "Simulation"]
+__all__ = ["Chunk", "Simulation", "spans", "non_paralysable"]
 
 
 _GENERATED, _OUTSIDE, _DEAD, _OVERWRITTEN, _RECORDED = range(len(COUNTERS))
@@ -50,7 +50,7 @@ class Chunk:
         return len(self.start_cycles)
 
 
-def _spans(times, starts, span_starts, ends, dead, separated):
+def spans(times, starts, span_starts, ends, dead, separated):
     """``(span, in_span, in_window)`` of photons at ``times`` (sorted): the span each is in (the
     TDC window from ``starts[span]``, or the dead time before it), whether it is in one, and
     whether in its window. ``separated``: spans do not overlap, each its window and the dead
@@ -68,7 +68,7 @@ def _spans(times, starts, span_starts, ends, dead, separated):
     return span, in_span, in_window
 
 
-def _non_paralysable(times, dead, last):
+def non_paralysable(times, dead, last):
     """Which photons (sorted ``times``) a non-paralysable detector detects; ``last`` is the time
     of the last detection before them."""
     count = len(times)
@@ -363,14 +363,14 @@ class Simulation:
         sources = sources[order]
 
         # Which span each photon is in: the TDC window of `span`, or the dead time before it
-        span, in_span, in_window = _spans(times, starts, span_starts, ends, self._dead,
+        span, in_span, in_window = spans(times, starts, span_starts, ends, self._dead,
                                           self._separated)
 
         # Detection: which span, dead time, single-hit TDC
         counts = np.zeros_like(self.counts)
         counts[:, _GENERATED] = np.bincount(sources, minlength=self._sources)
         span_times = times[in_span]
-        detected = _non_paralysable(span_times, self._dead, self._last_detection)
+        detected = non_paralysable(span_times, self._dead, self._last_detection)
         if detected.any():
             self._last_detection = float(span_times[detected][-1])
         window = in_window[in_span]
