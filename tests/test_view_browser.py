@@ -188,6 +188,18 @@ def wait_shown(driver, condition, timeout_s=20.0):
     raise AssertionError(f"the page never showed what was waited for: {shown}")
 
 
+def check_file_holds_what_was_sent(output, model):
+    """Every histogram the model board sent whole is in the capture file ``output``, in order
+    and complete; returns the capture."""
+    capture = read_capture(output)
+    sent = model.sent_histograms(8192, whole=True)
+    assert capture.complete.all() and capture.counters["stream"]["lost_rows"] == 0
+    assert [int(frame) for frame in capture.frames] == sorted(sent)
+    for frame, row in zip(capture.frames, capture.histograms):
+        assert np.array_equal(row, sent[int(frame)])
+    return capture
+
+
 def test_live_capture_in_two_browsers(browser, model_path_and_board, tmp_path, screenshots):
     path, model = model_path_and_board
     output = tmp_path / "run.h5"
@@ -240,12 +252,7 @@ def test_live_capture_in_two_browsers(browser, model_path_and_board, tmp_path, s
                         "fliss: interrupted; acquisition stopped, capture saved"]
 
     # Nothing lost from the file: every histogram the board sent whole, in order, complete.
-    capture = read_capture(output)
-    sent = model.sent_histograms(8192, whole=True)
-    assert capture.complete.all() and capture.counters["stream"]["lost_rows"] == 0
-    assert [int(frame) for frame in capture.frames] == sorted(sent)
-    for frame, row in zip(capture.frames, capture.histograms):
-        assert np.array_equal(row, sent[int(frame)])
+    capture = check_file_holds_what_was_sent(output, model)
 
     # What the pages showed, against the file.
     row = list(capture.frames).index(int(latest["n-frame"]))
@@ -324,9 +331,4 @@ def test_a_page_that_stalls_misses_updates_and_costs_the_capture_nothing(
         assert fliss.stop() == 128 + signal.SIGINT
     finally:
         fliss.kill()
-    capture = read_capture(output)
-    sent = model.sent_histograms(8192, whole=True)
-    assert capture.complete.all() and capture.counters["stream"]["lost_rows"] == 0
-    assert [int(frame) for frame in capture.frames] == sorted(sent)
-    for frame, row in zip(capture.frames, capture.histograms):
-        assert np.array_equal(row, sent[int(frame)])
+    check_file_holds_what_was_sent(output, model)
