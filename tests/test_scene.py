@@ -336,3 +336,34 @@ def test_starts_that_do_not_fire_only_close_a_window():
     assert np.all(events["pulse"] % 2 == 0)
     tof_codes = scene.tof_s / TDC_LSB_S
     assert abs(np.median(events["timestamp"]) - tof_codes) < 5
+
+
+@pytest.mark.parametrize("keep, fed", [("last", True), ("first", True), ("last", False)])
+def test_steps_of_few_photons_in_plain_python_give_what_numpy_gives(keep, fed):
+    # One to three laser cycles a step, as in closed loop: the plain-Python detection (steps
+    # of a few photons) and numpy's, on the same draws. A strong echo, background and an aggressor put
+    # several photons in a window and the dead time blocks some; fed starts 20 to 120 cycles
+    # apart cut some windows short (with the scheduler's starts, spans never meet).
+    scene = Scene(detections_per_pulse=1.5, background_hz=1e7, keep=keep, address=3,
+                  aggressors=(Aggressor(period_cycles=95, detections_per_pulse=1.0),))
+    steps = 3000
+    starts = 100 + np.cumsum(np.random.default_rng(7).integers(20, 121, 3 * steps + 1))
+    runs = []
+    for few_photons in (Simulation.few_photons, -1):
+        simulation = Simulation(scene, seed=4, chunk_cycles=64, external_starts=fed)
+        simulation.few_photons = few_photons
+        if fed:
+            simulation.feed(starts)
+        plain = 0
+        events = []
+        for index in range(steps):
+            chunk = simulation.step(1 + index % 3)
+            events.append(chunk.events)
+            plain += chunk.counts[:, COUNTERS.index("generated")].sum() <= few_photons
+        runs.append((np.concatenate(events), simulation.counts.copy(), plain))
+    (events, counts, plain), (reference, reference_counts, _) = runs
+    assert steps // 4 < plain < steps            # both paths taken
+    assert len(reference) > steps // 2
+    assert counts[:, COUNTERS.index("dead")].sum() > 100
+    assert np.array_equal(events, reference)
+    assert np.array_equal(counts, reference_counts)

@@ -15,6 +15,7 @@ from ..models import delay as _delay
 from ..models import scheduler as _scheduler
 from ...protocol.events import EVENT_DTYPE
 from .description import COUNTERS, FWHM_PER_SIGMA, TDC_CODES, TRUNCATION_SIGMAS, Scene
+from . import few
 from .pulses import EdgeBuffer, EdgeSchedule, PulseTrain
 
 
@@ -137,6 +138,10 @@ class Simulation:
         then a pulse ``offset_s + tof`` after each trigger edge, and its own period and delay
         settings are not used.
     """
+
+    #: Steps with at most this many photons are resolved in plain Python (:mod:`.few`), the
+    #: others with numpy; the results are the same.
+    few_photons = few.FEW_PHOTONS
 
     def __init__(self, scene, *, seed=None, chunk_cycles=1 << 16, external_starts=False,
                  external_aggressors=False):
@@ -278,6 +283,8 @@ class Simulation:
                 pixel = np.repeat(np.arange(array, dtype=np.int16), number)
                 number = len(pixel)
                 owners.append(pixel)
+            if number == 0:
+                continue                    # (no draws: the generator's stream is unchanged)
             spread = np.clip(rng.standard_normal(number), -TRUNCATION_SIGMAS, TRUNCATION_SIGMAS)
             arrivals = centres[rng.integers(0, len(centres), number)]
             if extra is not None:
@@ -296,6 +303,8 @@ class Simulation:
             if array is not None:
                 mean = mean * array
             number = rng.poisson(mean)
+            if number == 0:
+                return self._gathered(times, sources, owners)
             span = rng.integers(0, count, number)
             offset = rng.uniform(0.0, longest, number)
             if array is not None:
@@ -311,8 +320,13 @@ class Simulation:
             sources.append(np.full(number, 1, dtype=np.int8))
             if array is not None:
                 owners.append(pixel)
+        return self._gathered(times, sources, owners)
+
+    def _gathered(self, times, sources, owners):
+        if len(times) == 1:
+            return times[0], sources[0], owners[0]
         return (np.concatenate(times), np.concatenate(sources),
-                None if array is None else np.concatenate(owners))
+                None if self._pixel_count is None else np.concatenate(owners))
 
     def _cycles(self, max_cycles, until_cycle):
         """The TDC start cycles from the next laser cycle on, and how many of them the next step
@@ -358,6 +372,8 @@ class Simulation:
             times, sources = times[now], sources[now]
         else:
             self._carry_times, self._carry_sources = times[:0], sources[:0]
+        if len(times) <= self.few_photons:
+            return self._few(times, sources, cycles, count, starts, span_starts, ends)
         order = np.argsort(times)
         times = times[order]
         sources = sources[order]
@@ -397,6 +413,10 @@ class Simulation:
         events["address"] = self.scene.address
         events["pulse"] = (self.pulse + cycle) & ((1 << PULSE_BITS) - 1)
 
+        return self._advance(cycles, count, starts, ends, events, counts)
+
+    def _advance(self, cycles, count, starts, ends, events, counts):
+        """The chunk of a step over ``count`` laser cycles; moves on past them."""
         chunk = Chunk(self.pulse, cycles[:count].copy(), events, counts)
         self.pulse += count
         self._starts.trim(self.pulse if self.external_starts else
@@ -404,6 +424,28 @@ class Simulation:
         self._previous_end = float(starts[-1] + TDC_CODES if self._separated else ends[-1])
         self.counts += counts
         return chunk
+
+    def _few(self, times, sources, cycles, count, starts, span_starts, ends):
+        """The rest of :meth:`step` for a few photons (``times`` not sorted), in plain Python
+        (:func:`~fliss.sim.scene.few.detect`: the same results)."""
+        times, sources = times.tolist(), sources.tolist()
+        order = sorted(range(len(times)), key=times.__getitem__)
+        begins = starts.tolist()
+        windows = (begins, None, None, True) if self._separated else \
+            (begins, span_starts.tolist(), ends.tolist(), False)
+        recorded, counts, last = few.detect([times[i] for i in order],
+                                            [sources[i] for i in order], windows, self._dead,
+                                            self._last_detection, self.scene.keep == "last",
+                                            self._sources)
+        self._last_detection = last
+        events = np.zeros(len(recorded), dtype=EVENT_DTYPE)
+        if recorded:
+            events["timestamp"] = [few.timestamp(time, begins[span]) for span, time in recorded]
+            events["address"] = self.scene.address
+            events["pulse"] = [(self.pulse + span) & ((1 << PULSE_BITS) - 1)
+                               for span, _ in recorded]
+        return self._advance(cycles, count, starts, ends, events,
+                             np.array(counts, dtype=np.int64))
 
     def chunks(self, cycles):
         """Chunks covering the next ``cycles`` laser cycles (fewer if the TDC starts fed so far

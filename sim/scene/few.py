@@ -1,0 +1,85 @@
+"""The detection of a step with few photons, in plain Python.
+
+In closed loop (the virtual boards) the scene simulator steps one TDC window at a time: a
+handful of photons, most often none, where numpy's cost per call (a microsecond or more, some
+thirty calls a step) outweighs the work. :func:`detect` does what the vectorised code of
+:meth:`~fliss.sim.scene.photons.Simulation.step` does after the photons are drawn (spans, the
+non-paralysable SPAD, the single-hit TDC, the counters) with the same float64 arithmetic on
+Python floats, so it gives the same events and counters, bit for bit; ``tests/test_scene.py``
+runs both on the same draws.
+"""
+
+from bisect import bisect_right
+import math
+
+from .description import COUNTERS, TDC_CODES
+
+
+__all__ = ["FEW_PHOTONS", "detect"]
+
+
+#: Largest number of photons a step resolves in plain Python (beyond, numpy is cheaper).
+FEW_PHOTONS = 12
+
+_GENERATED, _OUTSIDE, _DEAD, _OVERWRITTEN, _RECORDED = range(len(COUNTERS))
+
+
+def detect(times, sources, windows, dead, last_detection, keep_last, source_count):
+    """Which of the photons ``times`` (Python floats, in time order; ``sources`` their source
+    indices) the SPAD detects and the TDC records, as
+    :meth:`~fliss.sim.scene.photons.Simulation.step` does.
+
+    ``windows`` is ``(starts, span_starts, ends, separated)`` as Python lists (``span_starts``
+    and ``ends`` ``None`` when ``separated``), ``dead`` the dead time and ``last_detection`` the
+    time of the last detection before them, in LSBs; ``keep_last``: the TDC keeps the last
+    photon of a window (else the first). Returns ``(recorded, counts, last_detection)``:
+    ``(span, time)`` of each photon recorded, in time order, the ``(source_count,
+    len(COUNTERS))`` counters as nested lists, and the time of the last detection."""
+    starts, span_starts, ends, separated = windows
+    counts = [[0] * len(COUNTERS) for _ in range(source_count)]
+    fires = []                      # (span, time, source) of detections in a window
+    reference = last_detection
+    for time, source in zip(times, sources):
+        row = counts[source]
+        row[_GENERATED] += 1
+        # Which span the photon is in: the TDC window of `span`, or the dead time before it
+        if separated:
+            span = bisect_right(starts, time + dead) - 1
+            offset = time - starts[max(span, 0)]
+            in_span = span >= 0 and offset < TDC_CODES
+            in_window = in_span and offset >= 0
+        else:
+            span = bisect_right(span_starts, time) - 1
+            clipped = max(span, 0)
+            in_span = span >= 0 and time < ends[clipped]
+            in_window = in_span and time >= starts[clipped]
+        if not in_window:
+            row[_OUTSIDE] += 1
+        if not in_span:
+            continue
+        # The non-paralysable SPAD: blind for `dead` after each detection
+        if dead > 0 and time - reference < dead:
+            if in_window:
+                row[_DEAD] += 1
+            continue
+        reference = time
+        if in_window:
+            fires.append((span, time, source))
+    # The single-hit TDC: one detection per window, the last (first) one
+    recorded = []
+    for index, (span, time, source) in enumerate(fires):
+        if keep_last:
+            kept = index + 1 == len(fires) or fires[index + 1][0] != span
+        else:
+            kept = index == 0 or fires[index - 1][0] != span
+        if kept:
+            recorded.append((span, time))
+            counts[source][_RECORDED] += 1
+        else:
+            counts[source][_OVERWRITTEN] += 1
+    return recorded, counts, reference
+
+
+def timestamp(time, start):
+    """The TDC code of a photon at ``time`` in the window from ``start`` (LSBs)."""
+    return min(math.floor(time - start), TDC_CODES - 1)
