@@ -14,7 +14,8 @@ from fliss.sim.models import delay as delay_model
 from fliss.sim.models import scheduler
 from fliss.sim.models.delay import DelayStream
 from fliss.protocol.events import EVENT_DTYPE, pack
-from fliss.sim.scene import COUNTERS, Aggressor, Scene, Simulation, acquire, histogram
+from fliss.sim.scene import (COUNTERS, Aggressor, Scene, Simulation, acquire, histogram,
+                             line_pixels, simulation_for)
 from fliss.sim.models.scheduler import Settings
 
 
@@ -338,19 +339,28 @@ def test_starts_that_do_not_fire_only_close_a_window():
     assert abs(np.median(events["timestamp"]) - tof_codes) < 5
 
 
-@pytest.mark.parametrize("keep, fed", [("last", True), ("first", True), ("last", False)])
-def test_steps_of_few_photons_in_plain_python_give_what_numpy_gives(keep, fed):
+@pytest.mark.parametrize("keep, fed, sensor", [
+    ("last", True, None), ("first", True, None), ("last", False, None),
+    ("last", True, "column"), ("first", True, "column"), ("last", False, "per_pixel"),
+    ("first", True, "per_pixel")])
+def test_steps_of_few_photons_in_plain_python_give_what_numpy_gives(keep, fed, sensor):
     # One to three laser cycles a step, as in closed loop: the plain-Python detection (steps
-    # of a few photons) and numpy's, on the same draws. A strong echo, background and an aggressor put
-    # several photons in a window and the dead time blocks some; fed starts 20 to 120 cycles
-    # apart cut some windows short (with the scheduler's starts, spans never meet).
-    scene = Scene(detections_per_pulse=1.5, background_hz=1e7, keep=keep, address=3,
+    # of a few photons) and numpy's, on the same draws, for one pixel and for 6 pixels (two
+    # at 2.5 m, the others at 4 m: collisions on the column). A strong echo, background and an
+    # aggressor put several photons in a window and the dead time blocks some; fed starts 20
+    # to 120 cycles apart cut some windows short (with the scheduler's starts, spans never
+    # meet).
+    pixels = None if sensor is None else line_pixels(pixels=6, object_pixels=(2, 4),
+                                                     sensor=sensor)
+    scene = Scene(detections_per_pulse=1.5 if sensor is None else 0.6,
+                  background_hz=6e7 if sensor is None else 3e6, keep=keep, address=3,
+                  pixels=pixels, dead_time_s=150e-9,
                   aggressors=(Aggressor(period_cycles=95, detections_per_pulse=1.0),))
-    steps = 3000
+    steps = 1500
     starts = 100 + np.cumsum(np.random.default_rng(7).integers(20, 121, 3 * steps + 1))
     runs = []
     for few_photons in (Simulation.few_photons, -1):
-        simulation = Simulation(scene, seed=4, chunk_cycles=64, external_starts=fed)
+        simulation = simulation_for(scene, seed=4, chunk_cycles=64, external_starts=fed)
         simulation.few_photons = few_photons
         if fed:
             simulation.feed(starts)
@@ -365,5 +375,7 @@ def test_steps_of_few_photons_in_plain_python_give_what_numpy_gives(keep, fed):
     assert steps // 4 < plain < steps            # both paths taken
     assert len(reference) > steps // 2
     assert counts[:, COUNTERS.index("dead")].sum() > 100
+    if sensor == "column":
+        assert reference["collision"].sum() > 50
     assert np.array_equal(events, reference)
     assert np.array_equal(counts, reference_counts)

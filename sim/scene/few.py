@@ -19,7 +19,7 @@ __all__ = ["FEW_PHOTONS", "detect"]
 
 
 #: Largest number of photons a step resolves in plain Python (beyond, numpy is cheaper).
-FEW_PHOTONS = 12
+FEW_PHOTONS = 40
 
 _GENERATED, _OUTSIDE, _DEAD, _OVERWRITTEN, _RECORDED = range(len(COUNTERS))
 
@@ -83,3 +83,98 @@ def detect(times, sources, windows, dead, last_detection, keep_last, source_coun
 def timestamp(time, start):
     """The TDC code of a photon at ``time`` in the window from ``start`` (LSBs)."""
     return min(math.floor(time - start), TDC_CODES - 1)
+
+
+def detect_pixels(times, sources, pixels, windows, dead, last_detections, options):
+    """:func:`detect` for a pixel array, as
+    :meth:`~fliss.sim.scene.array.PixelSimulation.step` does: ``pixels`` gives each photon's
+    pixel, ``last_detections`` (a list, updated) each pixel's last detection, ``options`` is
+    ``(keep_last, column, collision window in LSBs, sources)``. Returns ``(recorded, what)``:
+    ``(span, time, pixel, collision flag)`` of each event, in the sensor's order, and what
+    became of each photon (the index of its counter)."""
+    keep_last, column, collision, source_count = options
+    starts, span_starts, ends, separated = windows
+    what = [_OUTSIDE] * len(times)
+    located = [_locate(time, windows, dead) for time in times]
+    spanned = [index for index, (_, in_span, _) in enumerate(located) if in_span]
+    # Each pixel's SPAD, as PixelSimulation._detect lays the pixels' photons on one axis
+    # (blocks `stride` apart, each from the pixel's last detection): the same arithmetic.
+    detected = {}
+    if spanned and dead > 0:
+        origin = times[spanned[0]]
+        stride = (times[spanned[-1]] - origin) + 4.0 * dead + 1.0
+        references = {}
+        for index in spanned:
+            pixel = pixels[index]
+            if pixel not in references:
+                references[pixel] = max(last_detections[pixel] - origin, -2.0 * dead) \
+                    + pixel * stride
+            keyed = (times[index] - origin) + pixel * stride
+            if keyed - references[pixel] >= dead:
+                references[pixel] = keyed
+                detected[index] = True
+    else:
+        detected = dict.fromkeys(spanned, True)
+    for index in detected:
+        pixel = pixels[index]
+        last_detections[pixel] = max(last_detections[pixel], times[index])
+    fires = []
+    for index in spanned:
+        if located[index][2]:
+            if index in detected:
+                fires.append(index)
+                what[index] = _OVERWRITTEN
+            else:
+                what[index] = _DEAD
+    if column:
+        recorded = _column(fires, times, pixels, located, keep_last, collision)
+    else:
+        # One TDC per pixel: per (window, pixel) the last (first) detection, in address order
+        groups = {}
+        for index in fires:
+            key = (located[index][0], pixels[index])
+            if keep_last or key not in groups:
+                groups[key] = index
+        recorded = [(key[0], times[index], key[1], 0, index)
+                    for key, index in sorted(groups.items())]
+    for *_, index in recorded:
+        what[index] = _RECORDED
+    return [event[:4] for event in recorded], what
+
+
+def _locate(time, windows, dead):
+    """``(span, in_span, in_window)`` of a photon at ``time`` (see ``spans``)."""
+    starts, span_starts, ends, separated = windows
+    if separated:
+        span = bisect_right(starts, time + dead) - 1
+        offset = time - starts[max(span, 0)]
+        in_span = span >= 0 and offset < TDC_CODES
+        return span, in_span, in_span and offset >= 0
+    span = bisect_right(span_starts, time) - 1
+    clipped = max(span, 0)
+    in_span = span >= 0 and time < ends[clipped]
+    return span, in_span, in_span and time >= starts[clipped]
+
+
+def _column(fires, times, pixels, located, keep_last, collision):
+    """The column's TDC: per window the last (first) detection of any pixel, with the
+    collision flag (another pixel's detection in the same window less than ``collision``
+    before (after) it)."""
+    recorded = []
+    count = len(fires)
+    for position, index in enumerate(fires):
+        span = located[index][0]
+        neighbour = position + (1 if keep_last else -1)
+        if 0 <= neighbour < count and located[fires[neighbour]][0] == span:
+            continue                            # not the last (first) of its window
+        step = -1 if keep_last else 1
+        other = position + step
+        while 0 <= other < count and pixels[fires[other]] == pixels[index]:
+            other += step
+        near = 0
+        if 0 <= other < count:
+            neighbour = fires[other]
+            near = int(located[neighbour][0] == span
+                       and abs(times[index] - times[neighbour]) < collision)
+        recorded.append((span, times[index], pixels[index], near, index))
+    return recorded

@@ -270,23 +270,28 @@ class Simulation:
             source = index if index == 0 else index + 1
             extra, lowest = None, 0.0
             if array is not None:
-                mean, extra, lowest = self._per_pixel[index]
+                mean, extra, lowest, shares = self._per_pixel[index]
             centres = pulses.until(boundary + TRUNCATION_SIGMAS * (sigma + wander) + 1.0
                                    - lowest)
-            if not np.any(mean) or len(centres) == 0:
+            if not mean or len(centres) == 0:
                 continue
             if wander > 0:
-                centres = centres + wander * np.clip(rng.standard_normal(len(centres)),
-                                                     -TRUNCATION_SIGMAS, TRUNCATION_SIGMAS)
+                centres = centres + wander * rng.standard_normal(len(centres)).clip(
+                    -TRUNCATION_SIGMAS, TRUNCATION_SIGMAS)
             number = rng.poisson(mean * len(centres))
-            if array is not None:
-                pixel = np.repeat(np.arange(array, dtype=np.int16), number)
-                number = len(pixel)
-                owners.append(pixel)
             if number == 0:
                 continue                    # (no draws: the generator's stream is unchanged)
-            spread = np.clip(rng.standard_normal(number), -TRUNCATION_SIGMAS, TRUNCATION_SIGMAS)
-            arrivals = centres[rng.integers(0, len(centres), number)]
+            if array is not None:
+                # Each pixel's Poisson number of photons (of its own mean), drawn as the
+                # Poisson number of the array's shared out by the pixels' means: the same law
+                pixel = np.searchsorted(shares, rng.random(number), side="right")
+                pixel = np.minimum(pixel, array - 1).astype(np.int16)
+                owners.append(pixel)
+            spread = rng.standard_normal(number).clip(-TRUNCATION_SIGMAS, TRUNCATION_SIGMAS)
+            if len(centres) == 1:           # (no draw: the generator's stream is unchanged)
+                arrivals = np.full(number, centres[0])
+            else:
+                arrivals = centres[rng.integers(0, len(centres), number)]
             if extra is not None:
                 arrivals = arrivals + extra[pixel]
             times.append(arrivals + sigma * spread)
