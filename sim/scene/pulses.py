@@ -135,6 +135,10 @@ class EdgeBuffer:
             self._base = lo
 
 
+_NO_PULSES = np.zeros(0)
+_NO_PULSES.flags.writeable = False
+
+
 class PulseTrain:
     """Arrival times (pulse centres, LSBs) of one pulsed source, handed out in increasing order."""
 
@@ -156,8 +160,10 @@ class PulseTrain:
         count = self._guess
         while True:
             cycles = self._buffer.get(self._next, self._next + count)
+            if not len(cycles):
+                return _NO_PULSES
             centres = cycles * self._scale + self._shift
-            found = int(np.searchsorted(centres, limit, side="left"))
+            found = int(centres.searchsorted(limit, side="left"))
             if found < len(centres) or len(centres) < count:
                 break                       # past the limit, or no more pulses known yet
             count *= 2
