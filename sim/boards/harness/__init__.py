@@ -46,6 +46,10 @@ VERILATOR_ARGS = ["-Wno-fatal", "-Wno-WIDTHEXPAND", "-Wno-WIDTHTRUNC", "-O3",
 #: machine that runs it; a third faster than ``-O2`` alone here).
 CXXFLAGS = ["-O3", "-march=native", "-fPIC"]
 
+#: Compiler options of the model alone: its functions are not exported from the library, so
+#: their calls go straight to them, not through the procedure linkage table (some 6 % faster).
+MODEL_CXXFLAGS = ["-fvisibility=hidden"]
+
 #: Clock cycles of the training run of the profile-guided build (:mod:`.training`: the paper's
 #: set-up, past the first histogram's readout). The model is compiled with
 #: ``-fprofile-generate``, run, and compiled again with ``-fprofile-use``: a fifth faster.
@@ -75,8 +79,8 @@ def build(folder, *, baud, threads=1):
     # Generating the Verilog takes longer than the board's start-up may: the model is keyed by
     # the gateware's sources instead (and made again whenever one changes); the library by the
     # model and the harness's source.
-    options = VERILATOR_ARGS + CXXFLAGS + [f"threads={threads}", f"baud={baud}",
-                                           f"training={TRAINING_CYCLES}"]
+    options = [*VERILATOR_ARGS, *CXXFLAGS, *MODEL_CXXFLAGS, f"threads={threads}", f"baud={baud}",
+               f"training={TRAINING_CYCLES}"]
     model = hashlib.sha256("\n".join([gateware_sources(), *options]).encode()).hexdigest()[:16]
     digest = hashlib.sha256(f"{model}\n{SOURCE.read_text()}".encode()).hexdigest()[:16]
     library = folder / f"harness-{digest}.so"
@@ -128,7 +132,7 @@ def _verilate(folder, objects, text, threads):
     environment["MAKEFLAGS"] = f"{os.environ.get('MAKEFLAGS', '')} CFG_CXXFLAGS_PCH_I=-include"
     _run(folder, [[str(verilator_bin() / "verilator"), "--cc", "--build", "--Mdir",
                    str(objects), "--top-module", TOPLEVEL, *VERILATOR_ARGS,
-                   "-CFLAGS", " ".join(CXXFLAGS + _PROFILE_GENERATE),
+                   "-CFLAGS", " ".join(CXXFLAGS + MODEL_CXXFLAGS + _PROFILE_GENERATE),
                    *(["--threads", str(threads)] if threads > 1 else []), str(source)]],
          environment)
     for old in folder.glob("model-*"):
@@ -154,7 +158,8 @@ def _train(folder, objects, baud):
     environment = dict(os.environ, PATH=f"{verilator_bin()}{os.pathsep}{os.environ['PATH']}")
     environment["MAKEFLAGS"] = f"{os.environ.get('MAKEFLAGS', '')} CFG_CXXFLAGS_PCH_I=-include"
     _run(folder, [["make", "-C", str(objects), "-f", f"V{TOPLEVEL}.mk",
-                   f"VM_USER_CFLAGS={' '.join(CXXFLAGS + _PROFILE_USE)}"]], environment)
+                   f"VM_USER_CFLAGS={' '.join(CXXFLAGS + MODEL_CXXFLAGS + _PROFILE_USE)}"]],
+         environment)
     for path in objects.glob("*.gcda"):
         path.unlink()
     (objects / "model.stamp").touch()
