@@ -433,6 +433,9 @@ class Simulation:
     def _few(self, times, sources, cycles, count, starts, span_starts, ends):
         """The rest of :meth:`step` for a few photons (``times`` not sorted), in plain Python
         (:func:`~fliss.sim.scene.few.detect`: the same results)."""
+        if not len(times):
+            return self._advance(cycles, count, starts, ends, np.zeros(0, dtype=EVENT_DTYPE),
+                                 np.zeros_like(self.counts))
         times, sources = times.tolist(), sources.tolist()
         order = sorted(range(len(times)), key=times.__getitem__)
         begins = starts.tolist()
