@@ -102,6 +102,20 @@ def non_paralysable(times, dead, last):
     return detected
 
 
+_LABELS = {}
+
+
+def _labels(source, number):
+    """``number`` times the source index ``source`` (``int8``; a read-only view of a
+    constant when short: a step's few photons cost no new array)."""
+    if number > 4096:
+        return np.full(number, source, dtype=np.int8)
+    if source not in _LABELS:
+        _LABELS[source] = np.full(4096, source, dtype=np.int8)
+        _LABELS[source].flags.writeable = False
+    return _LABELS[source][:number]
+
+
 def _cycles(values, what):
     values = np.asarray(values)
     if values.ndim != 1 or (len(values) and values.dtype.kind not in "iu"):
@@ -295,7 +309,7 @@ class Simulation:
             if extra is not None:
                 arrivals = arrivals + extra[pixel]
             times.append(arrivals + sigma * spread)
-            sources.append(np.full(number, source, dtype=np.int8))
+            sources.append(_labels(source, number))
         if self._background > 0:
             # A Poisson process on each span: drawn on spans all as long as the longest, then
             # thinned to each span's true length.
@@ -322,7 +336,7 @@ class Simulation:
                 number = int(inside.sum())
                 if array is not None:
                     pixel = pixel[inside]
-            sources.append(np.full(number, 1, dtype=np.int8))
+            sources.append(_labels(1, number))
             if array is not None:
                 owners.append(pixel)
         return self._gathered(times, sources, owners)
