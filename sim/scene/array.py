@@ -201,7 +201,7 @@ class PixelSimulation(Simulation):
         last = self._last_detections.tolist()
         recorded, what = few.detect_pixels(
             times.tolist(), sources.tolist(), pixel.tolist(), windows, self._dead, last,
-            (self.scene.keep == "last", self._column, self._collision, self._sources))
+            (self.scene.keep == "last", self._column, self._collision))
         self._last_detections[:] = last
         events = np.zeros(len(recorded), dtype=EVENT_DTYPE)
         if recorded:

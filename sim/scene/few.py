@@ -5,8 +5,9 @@ handful of photons, most often none, where numpy's cost per call (a microsecond 
 thirty calls a step) outweighs the work. :func:`detect` does what the vectorised code of
 :meth:`~fliss.sim.scene.photons.Simulation.step` does after the photons are drawn (spans, the
 non-paralysable SPAD, the single-hit TDC, the counters) with the same float64 arithmetic on
-Python floats, so it gives the same events and counters, bit for bit; ``tests/test_scene.py``
-runs both on the same draws.
+Python floats, so it gives the same events and counters, bit for bit; :func:`detect_pixels`
+does the same for a pixel array (:meth:`~fliss.sim.scene.array.PixelSimulation.step`, both
+sensors). ``tests/test_scene.py`` runs both paths on the same draws.
 """
 
 from bisect import bisect_right
@@ -15,10 +16,10 @@ import math
 from .description import COUNTERS, TDC_CODES
 
 
-__all__ = ["FEW_PHOTONS", "detect"]
+__all__ = ["FEW_PHOTONS", "detect", "detect_pixels", "timestamp"]
 
 
-#: Largest number of photons a step resolves in plain Python (beyond, numpy is cheaper).
+#: Largest number of photons a step resolves in plain Python (beyond, numpy is as cheap).
 FEW_PHOTONS = 40
 
 _GENERATED, _OUTSIDE, _DEAD, _OVERWRITTEN, _RECORDED = range(len(COUNTERS))
@@ -89,11 +90,10 @@ def detect_pixels(times, sources, pixels, windows, dead, last_detections, option
     """:func:`detect` for a pixel array, as
     :meth:`~fliss.sim.scene.array.PixelSimulation.step` does: ``pixels`` gives each photon's
     pixel, ``last_detections`` (a list, updated) each pixel's last detection, ``options`` is
-    ``(keep_last, column, collision window in LSBs, sources)``. Returns ``(recorded, what)``:
+    ``(keep_last, column, collision window in LSBs)``. Returns ``(recorded, what)``:
     ``(span, time, pixel, collision flag)`` of each event, in the sensor's order, and what
     became of each photon (the index of its counter)."""
-    keep_last, column, collision, source_count = options
-    starts, span_starts, ends, separated = windows
+    keep_last, column, collision = options
     what = [_OUTSIDE] * len(times)
     located = [_locate(time, windows, dead) for time in times]
     spanned = [index for index, (_, in_span, _) in enumerate(located) if in_span]

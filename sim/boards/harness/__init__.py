@@ -2,8 +2,9 @@
 loaded with :mod:`ctypes`.
 
 :func:`build` generates the top level's Verilog, Verilates it with the harness into a shared
-library under ``build/virtual-board/fast/`` (once: it is rebuilt only when the Verilog, the
-harness or the options change) and returns its path; :class:`Harness` drives one instance.
+library under ``build/virtual-board/fast/``, the model compiled with a profile of a training run
+(:mod:`.training`), once: it is rebuilt only when the gateware, the harness or the options
+change; it returns the library's path. :class:`Harness` drives one instance.
 
 Why ctypes: the harness's interface is a dozen C functions of numbers and byte buffers, called
 once per laser cycle at most, so a binding generator (pybind11, nanobind) would add a build
