@@ -121,7 +121,7 @@ class EdgeBuffer:
         return self._base + len(self._data)
 
     def feed(self, values):
-        self._data = np.concatenate((self._data, values))
+        self._data = np.concatenate((self._data, values)) if len(self._data) else values
 
     def get(self, lo, hi):
         while self._base + len(self._data) < hi and self._blocks is not None:
