@@ -200,7 +200,7 @@ class PixelSimulation(Simulation):
             (begins, span_starts.tolist(), ends.tolist(), False)
         last = self._last_detections.tolist()
         recorded, what = few.detect_pixels(
-            times.tolist(), sources.tolist(), pixel.tolist(), windows, self._dead, last,
+            times.tolist(), pixel.tolist(), windows, self._dead, last,
             (self.scene.keep == "last", self._column, self._collision))
         self._last_detections[:] = last
         events = np.zeros(len(recorded), dtype=EVENT_DTYPE)

@@ -36,7 +36,6 @@ def detect(times, sources, windows, dead, last_detection, keep_last, source_coun
     photon of a window (else the first). Returns ``(recorded, counts, last_detection)``:
     ``(span, time)`` of each photon recorded, in time order, the ``(source_count,
     len(COUNTERS))`` counters as nested lists, and the time of the last detection."""
-    starts, span_starts, ends, separated = windows
     counts = [[0] * len(COUNTERS) for _ in range(source_count)]
     fires = []                      # (span, time, source) of detections in a window
     reference = last_detection
@@ -44,16 +43,7 @@ def detect(times, sources, windows, dead, last_detection, keep_last, source_coun
         row = counts[source]
         row[_GENERATED] += 1
         # Which span the photon is in: the TDC window of `span`, or the dead time before it
-        if separated:
-            span = bisect_right(starts, time + dead) - 1
-            offset = time - starts[max(span, 0)]
-            in_span = span >= 0 and offset < TDC_CODES
-            in_window = in_span and offset >= 0
-        else:
-            span = bisect_right(span_starts, time) - 1
-            clipped = max(span, 0)
-            in_span = span >= 0 and time < ends[clipped]
-            in_window = in_span and time >= starts[clipped]
+        span, in_span, in_window = _locate(time, windows, dead)
         if not in_window:
             row[_OUTSIDE] += 1
         if not in_span:
@@ -86,7 +76,7 @@ def timestamp(time, start):
     return min(math.floor(time - start), TDC_CODES - 1)
 
 
-def detect_pixels(times, sources, pixels, windows, dead, last_detections, options):
+def detect_pixels(times, pixels, windows, dead, last_detections, options):
     """:func:`detect` for a pixel array, as
     :meth:`~fliss.sim.scene.array.PixelSimulation.step` does: ``pixels`` gives each photon's
     pixel, ``last_detections`` (a list, updated) each pixel's last detection, ``options`` is
