@@ -295,9 +295,10 @@ def test_fed_tdc_starts_give_the_same_run_as_the_scheduler_model():
     events = np.concatenate([chunk.events for chunk in chunks])
     assert np.array_equal(np.concatenate([c.start_cycles for c in chunks]), starts)
     assert np.array_equal(events, reference)
-    with pytest.raises(ValueError, match=r"^TDC starts must increase strictly, also across "
-                                         r"calls to feed\(\)$"):
-        fed.feed([int(edges[-1])])
+    for late in ([int(edges[-1])], int(edges[-1]), np.int64(edges[0])):   # array or integer
+        with pytest.raises(ValueError, match=r"^TDC starts must increase strictly, also "
+                                             r"across calls to feed\(\)$"):
+            fed.feed(late)
 
 
 def test_fed_aggressor_triggers_give_the_same_run_as_its_settings():
@@ -315,8 +316,9 @@ def test_fed_aggressor_triggers_give_the_same_run_as_its_settings():
     assert np.array_equal(fed.counts, reference_counts)
     assert reference_counts[2].sum() > 100      # the aggressor's photons are in the run
     for late in (int(edges[-1]), int(edges[0])):    # also after the edges were used
-        with pytest.raises(ValueError, match=r"^Aggressor trigger edges must increase "):
-            fed.feed_aggressor(0, [late])
+        for given in ([late], late):
+            with pytest.raises(ValueError, match=r"^Aggressor trigger edges must increase "):
+                fed.feed_aggressor(0, given)
     with pytest.raises(ValueError, match=r"^Aggressor index must be from 0 to 0, not 1$"):
         fed.feed_aggressor(1, [int(edges[-1]) + 1])
     with pytest.raises(ValueError, match=r"^This simulation takes its aggressors from their "

@@ -16,7 +16,7 @@ from ..models import scheduler as _scheduler
 from ...protocol.events import EVENT_DTYPE
 from .description import COUNTERS, FWHM_PER_SIGMA, TDC_CODES, TRUNCATION_SIGMAS, Scene
 from . import few
-from .pulses import EdgeBuffer, EdgeSchedule, PulseTrain
+from .pulses import EdgeBuffer, EdgeSchedule, PulseTrain, fed_edges
 
 
 __all__ = ["Chunk", "Simulation", "spans", "non_paralysable"]
@@ -116,23 +116,6 @@ def _labels(source, number):
     return _LABELS[source][:number]
 
 
-def _cycles(values, what):
-    values = np.asarray(values)
-    if values.ndim != 1 or (len(values) and values.dtype.kind not in "iu"):
-        raise ValueError(f"{what} must be a 1-D array of whole clock cycles")
-    return values.astype(np.int64)
-
-
-def _not_increasing(previous, values):
-    """Whether ``values`` fail to increase strictly, from after the last of ``previous`` on
-    (cheap for the one value at a time the virtual board feeds)."""
-    if len(values) == 0:
-        return False
-    if len(previous) and values[0] <= previous[-1]:
-        return True
-    return len(values) > 1 and bool(np.any(values[1:] <= values[:-1]))
-
-
 class Simulation:
     """The scene, laser cycle after laser cycle, in chunks.
 
@@ -190,7 +173,6 @@ class Simulation:
         self._pulsed.append((self._signal, scene.detections_per_pulse, sigma, 0.0))
         self.external_aggressors = bool(external_aggressors)
         self._aggressor_edges = []
-        self._last_edges = [np.zeros(0, dtype=np.int64) for _ in scene.aggressors]
         for aggressor in scene.aggressors:
             tof = scene.tof_s if aggressor.tof_s is None else aggressor.tof_s
             shift = (aggressor.offset_s + tof) / TDC_LSB_S
@@ -238,38 +220,32 @@ class Simulation:
         return known[0].item() if len(known) else None
 
     def feed(self, start_cycles, *, fired=True):
-        """Give the next TDC starts, in clock cycles, with ``external_starts``: integers,
-        increasing, after every start given before. With ``fired``, the victim laser fires with
-        them (its echo follows); without, they only close the previous TDC window."""
+        """Give the next TDC starts, in clock cycles, with ``external_starts``: integers (an
+        array, or one integer), increasing, after every start given before. With ``fired``, the
+        victim laser fires with them (its echo follows); without, they only close the previous
+        TDC window."""
         if not self.external_starts:
             raise ValueError("This simulation takes its TDC starts from the scheduler model; "
                              "create it with external_starts=True to feed them")
-        values = _cycles(start_cycles, "TDC starts")
-        previous = self._starts.get(self._starts.end - 1, self._starts.end)
-        if _not_increasing(previous, values):
-            raise ValueError("TDC starts must increase strictly, also across calls to feed()")
+        values = fed_edges(start_cycles, self._starts.last, "TDC starts", "feed")
         self._starts.feed(values)
         if fired:
             self._fired.feed(values)
 
     def feed_aggressor(self, index, edge_cycles):
         """Give the next rising edges of aggressor ``index``'s laser trigger, in clock cycles,
-        with ``external_aggressors``: integers, increasing, after every edge given before. Give
-        each edge before :meth:`step` simulates the laser cycles its photons fall in: photons of
-        an edge given later are not simulated."""
+        with ``external_aggressors``: integers (an array, or one integer), increasing, after
+        every edge given before. Give each edge before :meth:`step` simulates the laser cycles
+        its photons fall in: photons of an edge given later are not simulated."""
         if not self.external_aggressors:
             raise ValueError("This simulation takes its aggressors from their settings; create "
                              "it with external_aggressors=True to feed their triggers")
         if not isinstance(index, (int, np.integer)) or not 0 <= index < len(self._aggressor_edges):
             raise ValueError(f"Aggressor index must be from 0 to "
                              f"{len(self._aggressor_edges) - 1}, not {index!r}")
-        values = _cycles(edge_cycles, "Aggressor trigger edges")
-        if _not_increasing(self._last_edges[index], values):
-            raise ValueError("Aggressor trigger edges must increase strictly, also across calls "
-                             "to feed_aggressor()")
-        self._aggressor_edges[index].feed(values)
-        if len(values):
-            self._last_edges[index] = values[-1:]
+        edges = self._aggressor_edges[index]
+        edges.feed(fed_edges(edge_cycles, edges.last, "Aggressor trigger edges",
+                             "feed_aggressor"))
 
     def _photons(self, boundary, count, starts, span_starts, ends):
         """Photons up to ``boundary`` (and of the pulses near it, after it): carried over, from
