@@ -84,7 +84,7 @@ class FastBoard:
             # one, a window's end); what came before is told in order, as the cocotb board
             # sees it: in one cycle, starts, aggressor edges, then window ends.
             harness.run(until, window_cycles=window_cycles)
-            for cycle, kind in zip(*(values.tolist() for values in harness.edges())):
+            for cycle, kind in zip(*harness.edges()):
                 while closes and closes[0][0] < cycle:
                     sensor.on_window_end(closes.popleft()[1])
                 if kind == START:
@@ -95,8 +95,7 @@ class FastBoard:
             while closes and closes[0][0] <= harness.cycle:
                 sensor.on_window_end(closes.popleft()[1])
             while sensor._queue:
-                window = sensor._queue.popleft()
-                harness.window(*zip(*window))
+                harness.window(sensor._queue.popleft())
             if self._reset_until is not None and harness.cycle >= self._reset_until:
                 harness.set_reset(0)
                 self._reset_until = None

@@ -178,7 +178,7 @@ class SensorModel:
         """A rising edge of the aggressor's trigger in clock cycle ``cycle``."""
         if self.edges is not None:
             self.edges.append((cycle, 1))
-        self.simulation.feed_aggressor(0, [cycle])
+        self.simulation.feed_aggressor(0, cycle)
 
     async def _starts(self):
         while True:
@@ -198,7 +198,7 @@ class SensorModel:
             self.edges.append((cycle, 0))
         self.starts += 1
         cut = self._open is not None
-        self.simulation.feed([cycle])
+        self.simulation.feed(cycle)
         if cut:
             # The previous window ends at this start: simulate it now.
             self.late += 1
@@ -210,7 +210,7 @@ class SensorModel:
         if self._open != cycle:
             return                      # a later start has cut this window already
         self._closing.add(cycle + self.window_cycles)
-        self.simulation.feed([cycle + self.window_cycles], fired=False)
+        self.simulation.feed(cycle + self.window_cycles, fired=False)
         self._emit()
 
     def _emit(self):

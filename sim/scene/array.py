@@ -23,6 +23,7 @@ import numpy as np
 from ...hdl.event import PULSE_BITS, TDC_LSB_S
 from ...protocol.events import EVENT_DTYPE
 from .description import COUNTERS, SPEED_OF_LIGHT, TDC_CODES
+from . import few
 from .photons import Chunk, Simulation, non_paralysable, spans
 
 
@@ -86,9 +87,10 @@ class PixelSimulation(Simulation):
         self._addresses = pixels.addresses
         self._column = pixels.sensor == "column"
         self._collision = pixels.collision_window_s / TDC_LSB_S
-        # Per pulsed source: mean detections of each pixel, each pixel's arrival time after the
-        # base time the source's pulse train gives (the single pixel's time of flight), and the
-        # earliest of those (see Simulation._photons).
+        # Per pulsed source: mean detections of the array, each pixel's arrival time after the
+        # base time the source's pulse train gives (the single pixel's time of flight), the
+        # earliest of those, and the pixels' cumulated shares of the detections (see
+        # Simulation._photons).
         tof = 2.0 * pixels.distance_m / SPEED_OF_LIGHT / TDC_LSB_S
         own = tof - scene.tof_s / TDC_LSB_S
         means = [pixels.echo(scene.detections_per_pulse)]
@@ -96,7 +98,9 @@ class PixelSimulation(Simulation):
         for aggressor in scene.aggressors:
             means.append(np.full(count, float(aggressor.detections_per_pulse)))
             extras.append(own if aggressor.tof_s is None else np.zeros(count))
-        self._per_pixel = [(mean, extra, float(extra.min())) for mean, extra in zip(means, extras)]
+        self._per_pixel = [(float(mean.sum()), extra, float(extra.min()),
+                            np.cumsum(mean) / max(float(mean.sum()), 1e-300))
+                           for mean, extra in zip(means, extras)]
         self._last_detections = np.full(count, -np.inf)
         self._carry_pixels = np.zeros(0, dtype=np.int16)
         self.pixel_counts = np.zeros((count, self._sources, len(COUNTERS)), dtype=np.int64)
@@ -140,6 +144,9 @@ class PixelSimulation(Simulation):
         now = ~later
         order = np.argsort(times[now], kind="stable")
         times, sources, pixel = times[now][order], sources[now][order], pixel[now][order]
+        if len(times) <= self.few_photons:
+            return self._few_pixels(times, sources, pixel, cycles, count, starts, span_starts,
+                                    ends)
 
         # Which span each photon is in: the TDC window of `span`, or the dead time before it
         span, in_span, in_window = spans(times, starts, span_starts, ends, self._dead,
@@ -155,18 +162,10 @@ class PixelSimulation(Simulation):
         fires = spanned[window & detected]          # time order
         recorded, collision = self._tdc(fires, span, pixel, times)
 
-        # Photon counters: one bincount over (pixel, source, counter)
         what = np.full(len(times), _OUTSIDE, dtype=np.int64)
         what[spanned[window & ~detected]] = _DEAD
         what[fires] = _OVERWRITTEN
         what[recorded] = _RECORDED
-        counters = len(COUNTERS)
-        key = (pixel.astype(np.int64) * self._sources + sources) * counters + what
-        pixel_counts = np.bincount(key, minlength=self.pixel_counts.size).reshape(
-            self.pixel_counts.shape)
-        pixel_counts[:, :, _GENERATED] = pixel_counts.sum(axis=2)
-        counts = pixel_counts.sum(axis=0)
-
         events = np.zeros(len(recorded), dtype=EVENT_DTYPE)
         cycle = span[recorded]
         stamps = np.floor(times[recorded] - starts[cycle]).astype(np.int64)
@@ -174,7 +173,16 @@ class PixelSimulation(Simulation):
         events["address"] = self._addresses[pixel[recorded]]
         events["collision"] = collision
         events["pulse"] = (self.pulse + cycle) & ((1 << PULSE_BITS) - 1)
+        return self._advance_pixels(cycles, count, starts, ends, events, pixel, sources, what)
 
+    def _advance_pixels(self, cycles, count, starts, ends, events, pixel, sources, what):
+        # Photon counters: one bincount over (pixel, source, counter)
+        counters = len(COUNTERS)
+        key = (pixel.astype(np.int64) * self._sources + sources) * counters + what
+        pixel_counts = np.bincount(key, minlength=self.pixel_counts.size).reshape(
+            self.pixel_counts.shape)
+        pixel_counts[:, :, _GENERATED] = pixel_counts.sum(axis=2)
+        counts = pixel_counts.sum(axis=0)
         chunk = PixelChunk(self.pulse, cycles[:count].copy(), events, counts, pixel_counts)
         self.pulse += count
         self._starts.trim(self.pulse if self.external_starts else
@@ -183,6 +191,28 @@ class PixelSimulation(Simulation):
         self.counts += counts
         self.pixel_counts += pixel_counts
         return chunk
+
+    def _few_pixels(self, times, sources, pixel, cycles, count, starts, span_starts, ends):
+        """The rest of :meth:`step` for a few photons (in time order), in plain Python
+        (:func:`~fliss.sim.scene.few.detect_pixels`: the same results)."""
+        begins = starts.tolist()
+        windows = (begins, None, None, True) if self._separated else \
+            (begins, span_starts.tolist(), ends.tolist(), False)
+        last = self._last_detections.tolist()
+        recorded, what = few.detect_pixels(
+            times.tolist(), pixel.tolist(), windows, self._dead, last,
+            (self.scene.keep == "last", self._column, self._collision))
+        self._last_detections[:] = last
+        events = np.zeros(len(recorded), dtype=EVENT_DTYPE)
+        if recorded:
+            cycle, stamps, pixels, collisions = zip(*recorded)
+            events["timestamp"] = [few.timestamp(time, begins[index])
+                                   for index, time in zip(cycle, stamps)]
+            events["address"] = self._addresses[list(pixels)]
+            events["collision"] = collisions
+            events["pulse"] = [(self.pulse + index) & ((1 << PULSE_BITS) - 1) for index in cycle]
+        return self._advance_pixels(cycles, count, starts, ends, events, pixel, sources,
+                                    np.array(what, dtype=np.int64))
 
     def _tdc(self, fires, span, pixel, times):
         """The detections the sensor's TDCs keep, of ``fires`` (indices in time order): the

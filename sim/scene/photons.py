@@ -15,7 +15,8 @@ from ..models import delay as _delay
 from ..models import scheduler as _scheduler
 from ...protocol.events import EVENT_DTYPE
 from .description import COUNTERS, FWHM_PER_SIGMA, TDC_CODES, TRUNCATION_SIGMAS, Scene
-from .pulses import EdgeBuffer, EdgeSchedule, PulseTrain
+from . import few
+from .pulses import EdgeBuffer, EdgeSchedule, PulseTrain, fed_edges
 
 
 __all__ = ["Chunk", "Simulation", "spans", "non_paralysable"]
@@ -101,21 +102,18 @@ def non_paralysable(times, dead, last):
     return detected
 
 
-def _cycles(values, what):
-    values = np.asarray(values)
-    if values.ndim != 1 or (len(values) and values.dtype.kind not in "iu"):
-        raise ValueError(f"{what} must be a 1-D array of whole clock cycles")
-    return values.astype(np.int64)
+_LABELS = {}
 
 
-def _not_increasing(previous, values):
-    """Whether ``values`` fail to increase strictly, from after the last of ``previous`` on
-    (cheap for the one value at a time the virtual board feeds)."""
-    if len(values) == 0:
-        return False
-    if len(previous) and values[0] <= previous[-1]:
-        return True
-    return len(values) > 1 and bool(np.any(values[1:] <= values[:-1]))
+def _labels(source, number):
+    """``number`` times the source index ``source`` (``int8``; a read-only view of a
+    constant when short: a step's few photons cost no new array)."""
+    if number > 4096:
+        return np.full(number, source, dtype=np.int8)
+    if source not in _LABELS:
+        _LABELS[source] = np.full(4096, source, dtype=np.int8)
+        _LABELS[source].flags.writeable = False
+    return _LABELS[source][:number]
 
 
 class Simulation:
@@ -137,6 +135,10 @@ class Simulation:
         then a pulse ``offset_s + tof`` after each trigger edge, and its own period and delay
         settings are not used.
     """
+
+    #: Steps with at most this many photons are resolved in plain Python (:mod:`.few`), the
+    #: others with numpy; the results are the same.
+    few_photons = few.FEW_PHOTONS
 
     def __init__(self, scene, *, seed=None, chunk_cycles=1 << 16, external_starts=False,
                  external_aggressors=False):
@@ -171,7 +173,6 @@ class Simulation:
         self._pulsed.append((self._signal, scene.detections_per_pulse, sigma, 0.0))
         self.external_aggressors = bool(external_aggressors)
         self._aggressor_edges = []
-        self._last_edges = [np.zeros(0, dtype=np.int64) for _ in scene.aggressors]
         for aggressor in scene.aggressors:
             tof = scene.tof_s if aggressor.tof_s is None else aggressor.tof_s
             shift = (aggressor.offset_s + tof) / TDC_LSB_S
@@ -219,38 +220,32 @@ class Simulation:
         return known[0].item() if len(known) else None
 
     def feed(self, start_cycles, *, fired=True):
-        """Give the next TDC starts, in clock cycles, with ``external_starts``: integers,
-        increasing, after every start given before. With ``fired``, the victim laser fires with
-        them (its echo follows); without, they only close the previous TDC window."""
+        """Give the next TDC starts, in clock cycles, with ``external_starts``: integers (an
+        array, or one integer), increasing, after every start given before. With ``fired``, the
+        victim laser fires with them (its echo follows); without, they only close the previous
+        TDC window."""
         if not self.external_starts:
             raise ValueError("This simulation takes its TDC starts from the scheduler model; "
                              "create it with external_starts=True to feed them")
-        values = _cycles(start_cycles, "TDC starts")
-        previous = self._starts.get(self._starts.end - 1, self._starts.end)
-        if _not_increasing(previous, values):
-            raise ValueError("TDC starts must increase strictly, also across calls to feed()")
+        values = fed_edges(start_cycles, self._starts.last, "TDC starts", "feed")
         self._starts.feed(values)
         if fired:
             self._fired.feed(values)
 
     def feed_aggressor(self, index, edge_cycles):
         """Give the next rising edges of aggressor ``index``'s laser trigger, in clock cycles,
-        with ``external_aggressors``: integers, increasing, after every edge given before. Give
-        each edge before :meth:`step` simulates the laser cycles its photons fall in: photons of
-        an edge given later are not simulated."""
+        with ``external_aggressors``: integers (an array, or one integer), increasing, after
+        every edge given before. Give each edge before :meth:`step` simulates the laser cycles
+        its photons fall in: photons of an edge given later are not simulated."""
         if not self.external_aggressors:
             raise ValueError("This simulation takes its aggressors from their settings; create "
                              "it with external_aggressors=True to feed their triggers")
         if not isinstance(index, (int, np.integer)) or not 0 <= index < len(self._aggressor_edges):
             raise ValueError(f"Aggressor index must be from 0 to "
                              f"{len(self._aggressor_edges) - 1}, not {index!r}")
-        values = _cycles(edge_cycles, "Aggressor trigger edges")
-        if _not_increasing(self._last_edges[index], values):
-            raise ValueError("Aggressor trigger edges must increase strictly, also across calls "
-                             "to feed_aggressor()")
-        self._aggressor_edges[index].feed(values)
-        if len(values):
-            self._last_edges[index] = values[-1:]
+        edges = self._aggressor_edges[index]
+        edges.feed(fed_edges(edge_cycles, edges.last, "Aggressor trigger edges",
+                             "feed_aggressor"))
 
     def _photons(self, boundary, count, starts, span_starts, ends):
         """Photons up to ``boundary`` (and of the pulses near it, after it): carried over, from
@@ -265,25 +260,32 @@ class Simulation:
             source = index if index == 0 else index + 1
             extra, lowest = None, 0.0
             if array is not None:
-                mean, extra, lowest = self._per_pixel[index]
+                mean, extra, lowest, shares = self._per_pixel[index]
             centres = pulses.until(boundary + TRUNCATION_SIGMAS * (sigma + wander) + 1.0
                                    - lowest)
-            if not np.any(mean) or len(centres) == 0:
+            if not mean or len(centres) == 0:
                 continue
             if wander > 0:
-                centres = centres + wander * np.clip(rng.standard_normal(len(centres)),
-                                                     -TRUNCATION_SIGMAS, TRUNCATION_SIGMAS)
+                centres = centres + wander * rng.standard_normal(len(centres)).clip(
+                    -TRUNCATION_SIGMAS, TRUNCATION_SIGMAS)
             number = rng.poisson(mean * len(centres))
+            if number == 0:
+                continue                    # (no draws: the generator's stream is unchanged)
             if array is not None:
-                pixel = np.repeat(np.arange(array, dtype=np.int16), number)
-                number = len(pixel)
+                # Each pixel's Poisson number of photons (of its own mean), drawn as the
+                # Poisson number of the array's shared out by the pixels' means: the same law
+                pixel = np.searchsorted(shares, rng.random(number), side="right")
+                pixel = np.minimum(pixel, array - 1).astype(np.int16)
                 owners.append(pixel)
-            spread = np.clip(rng.standard_normal(number), -TRUNCATION_SIGMAS, TRUNCATION_SIGMAS)
-            arrivals = centres[rng.integers(0, len(centres), number)]
+            spread = rng.standard_normal(number).clip(-TRUNCATION_SIGMAS, TRUNCATION_SIGMAS)
+            if len(centres) == 1:           # (no draw: the generator's stream is unchanged)
+                arrivals = np.full(number, centres[0])
+            else:
+                arrivals = centres[rng.integers(0, len(centres), number)]
             if extra is not None:
                 arrivals = arrivals + extra[pixel]
             times.append(arrivals + sigma * spread)
-            sources.append(np.full(number, source, dtype=np.int8))
+            sources.append(_labels(source, number))
         if self._background > 0:
             # A Poisson process on each span: drawn on spans all as long as the longest, then
             # thinned to each span's true length.
@@ -296,6 +298,8 @@ class Simulation:
             if array is not None:
                 mean = mean * array
             number = rng.poisson(mean)
+            if number == 0:
+                return self._gathered(times, sources, owners)
             span = rng.integers(0, count, number)
             offset = rng.uniform(0.0, longest, number)
             if array is not None:
@@ -308,11 +312,16 @@ class Simulation:
                 number = int(inside.sum())
                 if array is not None:
                     pixel = pixel[inside]
-            sources.append(np.full(number, 1, dtype=np.int8))
+            sources.append(_labels(1, number))
             if array is not None:
                 owners.append(pixel)
+        return self._gathered(times, sources, owners)
+
+    def _gathered(self, times, sources, owners):
+        if len(times) == 1:
+            return times[0], sources[0], owners[0]
         return (np.concatenate(times), np.concatenate(sources),
-                None if array is None else np.concatenate(owners))
+                None if self._pixel_count is None else np.concatenate(owners))
 
     def _cycles(self, max_cycles, until_cycle):
         """The TDC start cycles from the next laser cycle on, and how many of them the next step
@@ -358,6 +367,8 @@ class Simulation:
             times, sources = times[now], sources[now]
         else:
             self._carry_times, self._carry_sources = times[:0], sources[:0]
+        if len(times) <= self.few_photons:
+            return self._few(times, sources, cycles, count, starts, span_starts, ends)
         order = np.argsort(times)
         times = times[order]
         sources = sources[order]
@@ -397,6 +408,10 @@ class Simulation:
         events["address"] = self.scene.address
         events["pulse"] = (self.pulse + cycle) & ((1 << PULSE_BITS) - 1)
 
+        return self._advance(cycles, count, starts, ends, events, counts)
+
+    def _advance(self, cycles, count, starts, ends, events, counts):
+        """The chunk of a step over ``count`` laser cycles; moves on past them."""
         chunk = Chunk(self.pulse, cycles[:count].copy(), events, counts)
         self.pulse += count
         self._starts.trim(self.pulse if self.external_starts else
@@ -404,6 +419,31 @@ class Simulation:
         self._previous_end = float(starts[-1] + TDC_CODES if self._separated else ends[-1])
         self.counts += counts
         return chunk
+
+    def _few(self, times, sources, cycles, count, starts, span_starts, ends):
+        """The rest of :meth:`step` for a few photons (``times`` not sorted), in plain Python
+        (:func:`~fliss.sim.scene.few.detect`: the same results)."""
+        if not len(times):
+            return self._advance(cycles, count, starts, ends, np.zeros(0, dtype=EVENT_DTYPE),
+                                 np.zeros_like(self.counts))
+        times, sources = times.tolist(), sources.tolist()
+        order = sorted(range(len(times)), key=times.__getitem__)
+        begins = starts.tolist()
+        windows = (begins, None, None, True) if self._separated else \
+            (begins, span_starts.tolist(), ends.tolist(), False)
+        recorded, counts, last = few.detect([times[i] for i in order],
+                                            [sources[i] for i in order], windows, self._dead,
+                                            self._last_detection, self.scene.keep == "last",
+                                            self._sources)
+        self._last_detection = last
+        events = np.zeros(len(recorded), dtype=EVENT_DTYPE)
+        if recorded:
+            events["timestamp"] = [few.timestamp(time, begins[span]) for span, time in recorded]
+            events["address"] = self.scene.address
+            events["pulse"] = [(self.pulse + span) & ((1 << PULSE_BITS) - 1)
+                               for span, _ in recorded]
+        return self._advance(cycles, count, starts, ends, events,
+                             np.array(counts, dtype=np.int64))
 
     def chunks(self, cycles):
         """Chunks covering the next ``cycles`` laser cycles (fewer if the TDC starts fed so far

@@ -16,7 +16,7 @@ from ..models import scheduler as _scheduler
 from ..models.delay import DelayMode, DelayStream
 
 
-__all__ = ["MaskedDelays", "EdgeSchedule", "EdgeBuffer", "PulseTrain"]
+__all__ = ["MaskedDelays", "EdgeSchedule", "EdgeBuffer", "PulseTrain", "fed_edges"]
 
 
 @lru_cache(maxsize=4)
@@ -106,6 +106,25 @@ class EdgeSchedule:
         return self._edges(self._delays.block())
 
 
+def fed_edges(values, last, what, caller):
+    """``values``, edges fed from outside (one integer, or a 1-D array of integers) after
+    ``last`` (``None``: none before), checked: an ``int``, or an ``int64`` array; the
+    ``ValueError`` names them as ``what`` and the method as ``caller``."""
+    if isinstance(values, (int, np.integer)) and not isinstance(values, bool):
+        values = int(values)
+        if last is not None and values <= last:
+            raise ValueError(f"{what} must increase strictly, also across calls to {caller}()")
+        return values
+    values = np.asarray(values)
+    if values.ndim != 1 or (len(values) and values.dtype.kind not in "iu"):
+        raise ValueError(f"{what} must be a 1-D array of whole clock cycles")
+    values = values.astype(np.int64)
+    if len(values) and ((last is not None and values[0] <= last)
+                        or np.any(values[1:] <= values[:-1])):
+        raise ValueError(f"{what} must increase strictly, also across calls to {caller}()")
+    return values
+
+
 class EdgeBuffer:
     """An increasing sequence read by global index, made block by block by ``blocks()`` or, when
     ``blocks`` is ``None``, fed from outside (then ``get`` returns what is known)."""
@@ -114,25 +133,49 @@ class EdgeBuffer:
         self._blocks = blocks
         self._data = np.zeros(0, dtype=np.int64)
         self._base = 0
+        self._pending = []          # values fed one by one, not in _data yet
+        #: The last value fed (``None`` before any).
+        self.last = None
 
     @property
     def end(self):
         """Index after the last value known."""
-        return self._base + len(self._data)
+        return self._base + len(self._data) + len(self._pending)
 
     def feed(self, values):
-        self._data = np.concatenate((self._data, values))
+        """Feed values (as :func:`fed_edges` returns them: an ``int`` is kept aside, and joined
+        to the others when read)."""
+        if isinstance(values, int):
+            self._pending.append(values)
+            self.last = values
+            return
+        self._gather()
+        self._data = np.concatenate((self._data, values)) if len(self._data) else values
+        if len(values):
+            self.last = int(values[-1])
+
+    def _gather(self):
+        if self._pending:
+            values = np.array(self._pending, dtype=np.int64)
+            self._pending = []
+            self._data = np.concatenate((self._data, values)) if len(self._data) else values
 
     def get(self, lo, hi):
+        self._gather()
         while self._base + len(self._data) < hi and self._blocks is not None:
             self._data = np.concatenate((self._data[lo - self._base:], self._blocks()))
             self._base = lo
         return self._data[lo - self._base:hi - self._base]
 
     def trim(self, lo):
+        self._gather()
         if lo > self._base:
             self._data = self._data[lo - self._base:]
             self._base = lo
+
+
+_NO_PULSES = np.zeros(0)
+_NO_PULSES.flags.writeable = False
 
 
 class PulseTrain:
@@ -156,8 +199,10 @@ class PulseTrain:
         count = self._guess
         while True:
             cycles = self._buffer.get(self._next, self._next + count)
+            if not len(cycles):
+                return _NO_PULSES
             centres = cycles * self._scale + self._shift
-            found = int(np.searchsorted(centres, limit, side="left"))
+            found = int(centres.searchsorted(limit, side="left"))
             if found < len(centres) or len(centres) < count:
                 break                       # past the limit, or no more pulses known yet
             count *= 2

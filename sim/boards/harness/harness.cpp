@@ -181,7 +181,6 @@ extern "C" {
 
 Harness* fh_new(double bit_cycles) { return new Harness(bit_cycles); }
 void fh_free(Harness* h) { delete h; }
-int64_t fh_cycle(Harness* h) { return h->cycle; }
 int fh_running(Harness* h) { return h->top->running; }
 void fh_set_record(Harness* h, int record) { h->record = record != 0; }
 void fh_set_window(Harness* h, int64_t cycles) { h->window_cycles = cycles; }
@@ -230,11 +229,14 @@ int fh_edges(Harness* h, int64_t* cycles, int32_t* kinds, int space) {
     return count;
 }
 
-// A window read out now: its events go on the bus from the next cycle on.
-void fh_window(Harness* h, const uint16_t* timestamps, const uint8_t* addresses,
-               const uint8_t* collisions, int count) {
+// A window read out now: its events go on the bus from the next cycle on. Each event is
+// packed in a word: timestamp in bits 0-15, address in bits 16-23, collision flag in bit 24.
+void fh_window(Harness* h, const uint32_t* events, int count) {
     std::vector<Event> window(count);
-    for (int i = 0; i < count; ++i) window[i] = {timestamps[i], addresses[i], collisions[i]};
+    for (int i = 0; i < count; ++i) {
+        window[i] = {static_cast<uint16_t>(events[i]), static_cast<uint8_t>(events[i] >> 16),
+                     static_cast<uint8_t>(events[i] >> 24)};
+    }
     h->windows.push_back(std::move(window));
 }
 
