@@ -301,10 +301,26 @@ def _models(board, dest, toolchain):
         (dest / "cells_sim.v").write_text(_with_behaviour(cells, "DP16KD"))
         (dest / "fliss_cells.v").write_text(extra)
         return [dest / "cells_sim.v", dest / "fliss_cells.v"]
-        return [dest / "cells_sim.v", dest / "fliss_cells.v"]
-    cells = (dest / "cells_sim.v").read_text()
+    cells = _ice40_pads_at_power_up((dest / "cells_sim.v").read_text())
     (dest / "cells_sim.v").write_text(_with_behaviour(cells, "SB_PLL40_PAD"))
     return [dest / "cells_sim.v"]
+
+
+def _ice40_pads_at_power_up(cells):
+    """The iCE40 pads (``SB_IO``, ``SB_IO_I3C``, ``SB_IO_OD``) as the silicon powers up: their
+    registers at 0 (configuration clears every flip-flop), and their pin logic evaluated from
+    time 0. Yosys's models compute the pin in an ``always @*``, which runs only when an input
+    changes: a pad whose output comes straight from a flip-flop that holds its initial 0 and
+    an output enable tied to 1 (the routed design's ``laser`` and ``tdc_start``) stays ``X``
+    until the flip-flop first changes. ``always_comb`` runs at time 0 too."""
+    registers = "\treg din_q_0, din_q_1;\n\treg dout_q_0, dout_q_1;\n\treg outena_q;\n"
+    count = cells.count(registers)
+    cells = cells.replace(registers, "\treg din_q_0 = 0, din_q_1 = 0;\n"
+                          "\treg dout_q_0 = 0, dout_q_1 = 0;\n\treg outena_q = 0;\n")
+    combinational = cells.count("\talways @* begin\n")
+    cells = cells.replace("\talways @* begin\n", "\talways_comb begin\n")
+    assert (count, combinational) == (3, 6), "the iCE40 pads' models changed: check the patch"
+    return cells
 
 
 def _wrapper(netlist):

@@ -30,31 +30,30 @@ BUILD = Path(__file__).resolve().parent.parent / "build" / "netlist"
 FUZZ_FRAMES = 40
 
 #: The runs of each board's netlist: (simulator, bench module, its tests or None for all, more
-#: environment, whether only ``FLISS_NETLIST=full`` runs it). The ULX3S carries the full top level: power-up, the delay sequences of every
-#: mode (keyed too), link and registers with refusals, fuzz (NAKs), raw events, histograms
-#: (compact readout), pixel histograms, a depth frame; on Verilator, which runs its netlist at
-#: some 5 000 to 9 000 cycles/s. Icarus, at about 90 cycles/s on it, runs power-up to the
-#: first PING: the run that can see X (Verilator has none) on the outputs from configuration on.
-#: The iCEBreaker's smaller netlist runs on Icarus (some 1 000 cycles/s): power-up, the delay
-#: modes it has (off, mseq, masked), a histogram and its pixel histogram; Verilator is not used
-#: on it, whose pads (SB_IO) are tristate on the top level's pins, which Verilator does not take.
+#: environment, whether only ``FLISS_NETLIST=full`` runs it). The default runs (CI's) cover on
+#: each board: power-up (outputs never X from configuration on, on Icarus; the first frames),
+#: the link (a register of every group written and read back, a refusal, a NAK), the delay
+#: sequences of every mode the build has against the model, and a histogram of injected events
+#: in compact readout (:mod:`fliss.sim.benches.netlist_top`); on the ULX3S, a depth frame too.
+#: The ULX3S runs on Verilator (some 5 000 to 9 000 cycles/s on its netlist) but for the
+#: power-up's X check, which needs Icarus (about 90 cycles/s on it: only to the first PING).
+#: The iCEBreaker's smaller netlist runs on Icarus (some 1 000 cycles/s); Verilator does not
+#: take its pads (SB_IO), tristate on the top level's pins. ``full`` adds the RTL's longer
+#: benches: every register with refusals, fuzz, raw events, closed-loop and pixel histograms.
 RUNS = {
     "ulx3s": [
-        ("icarus", "fliss.sim.benches.netlist_top", ["test_power_up"], {"FLISS_TB_SHORT": "1"},
-         False),
+        ("icarus", "fliss.sim.benches.netlist_top", ["test_power_up"],
+         {"FLISS_TB_SHORT": "1", "FLISS_TB_UNLOCKED_CYCLES": "20"}, False),
         ("verilator", "fliss.sim.benches.netlist_top", None, {}, False),
-        ("verilator", "fliss.sim.benches.top",
-         ["test_identify_and_registers", "test_fuzz", "test_raw_events_closed_loop",
-          "test_histogram_closed_loop"], {}, False),
-        ("verilator", "fliss.sim.benches.top", ["test_pixel_histograms"], {}, True),
         ("verilator", "fliss.sim.benches.top_depth", None, {}, False),
+        ("verilator", "fliss.sim.benches.top", None, {}, True),
     ],
     "icebreaker": [
-        ("icarus", "fliss.sim.benches.netlist_top", ["test_power_up"], {"FLISS_TB_SHORT": "1"},
-         False),
-        ("icarus", "fliss.sim.benches.top", ["test_histogram_closed_loop"], {}, False),
-        ("icarus", "fliss.sim.benches.netlist_top", ["test_delay_modes"], {}, True),
-        ("icarus", "fliss.sim.benches.top", ["test_pixel_histograms"], {}, True),
+        ("icarus", "fliss.sim.benches.netlist_top", None,
+         {"FLISS_TB_PULSES": "200", "FLISS_TB_UNLOCKED_CYCLES": "20"}, False),
+        ("icarus", "fliss.sim.benches.top",
+         ["test_identify_and_registers", "test_histogram_closed_loop", "test_pixel_histograms"],
+         {}, True),
     ],
 }
 
@@ -96,7 +95,8 @@ def run_netlist(board, simulator, test_module, testcase=None, env=None):
                  "FLISS_TB_MAXIMA": json.dumps(design.register_maxima()),
                  "FLISS_TB_BANK_BITS": str(design.bank_bits),
                  "FLISS_TB_INIT_CYCLES": str(init), "FLISS_TB_FUZZ_FRAMES": str(FUZZ_FRAMES),
-                 "FLISS_TB_KEYED": str(int(design.keyed)), **(env or {})}
+                 "FLISS_TB_KEYED": str(int(design.keyed)),
+                 "FLISS_TB_COMPACT": str(int(design.compact_readout)), **(env or {})}
     build_dir = BUILD / board / "cocotb"
     results = run_cocotb(simulator, verilog_path=sources[0], sources=sources[1:],
                          defines=defines, includes=[sources[-1].parent], toplevel=WRAPPER,
