@@ -66,19 +66,11 @@ BLOCKS = {
     "delay_core": _delay_core,
 }
 
-#: Family -> (synthesis command of its board's flow, cell models, LUT cell of the mutant,
-#: the synthesis options that map memories to flip-flops).
+#: Family -> (synthesis command of its board's flow, cell models, LUT cell of the mutant).
 FAMILIES = {
-    "ecp5":  ("synth_ecp5", "read_verilog -DNO_INCLUDES +/ecp5/cells_sim.v", "LUT4",
-              "-nobram -nolutram"),
-    "ice40": ("synth_ice40", "read_verilog -DICE40_U +/ice40/cells_sim.v", "SB_LUT4", "-nobram"),
+    "ecp5":  ("synth_ecp5", "read_verilog -DNO_INCLUDES +/ecp5/cells_sim.v", "LUT4"),
+    "ice40": ("synth_ice40", "read_verilog -DICE40_U +/ice40/cells_sim.v", "SB_LUT4"),
 }
-
-#: Blocks with memories (the COBS encoder's run buffer, the delay core's tables): synthesized
-#: with their memories as flip-flops, as the RTL's side maps them (``memory``), so that the two
-#: sides pair bit by bit; the block and LUT RAM the board builds use are the gate-level
-#: simulation's to check.
-MEMORY_BLOCKS = {"cobs_encoder", "delay_core"}
 
 BUILD_DIR = Path("build") / "equivalence"
 
@@ -114,9 +106,7 @@ def check(block, family="ecp5", *, mutant=False, build_dir=BUILD_DIR):
     """Prove ``block``'s RTL equivalent to its ``family`` netlist; returns the seconds taken.
     Raises :exc:`EquivalenceError` when the proof fails (with ``mutant``: when it passes)."""
     from amaranth.back import rtlil
-    synth, models, lut, flat_memories = FAMILIES[family]
-    if block in MEMORY_BLOCKS:
-        synth = f"{synth} {flat_memories}"
+    synth, models, lut = FAMILIES[family]
     folder = Path(build_dir) / family / (block + ("_mutant" if mutant else ""))
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "gold.il").write_text(rtlil.convert(BLOCKS[block](), name="top"))

@@ -58,12 +58,22 @@ RUNS = {
 }
 
 
-def _netlist(board):
+#: Routed netlists (nextpnr's placed and routed design read back), and whether only
+#: ``FLISS_NETLIST=full`` runs them: the iCEBreaker's power-up to the first PING, on Icarus.
+ROUTED = {"icebreaker": True, "ulx3s": True}
+
+
+def _netlist(board, routed=False):
     pytest.importorskip("amaranth_boards", reason="needs the boards extra: "
                                                   "pip install -e '.[boards]'")
     from fliss.boards.netlist import simulation_sources, synthesize
+    from fliss.boards.routed import place_and_route, routed_simulation_sources
     netlist = synthesize(board)
-    sources, defines = simulation_sources(netlist)
+    if routed:
+        routed_netlist = place_and_route(netlist)
+        sources, defines = routed_simulation_sources(routed_netlist)
+    else:
+        sources, defines = simulation_sources(netlist)
     return netlist, sources, defines
 
 
@@ -77,14 +87,15 @@ def _speed(results_xml, clock_hz):
     return sim_ns * 1e-9 * clock_hz / wall_s if wall_s else 0.0, wall_s
 
 
-def run_netlist(board, simulator, test_module, testcase=None, env=None):
-    """Run ``test_module`` (the tests ``testcase``) on ``board``'s netlist; returns the
-    :class:`~fliss.sim.benches.runner.CocotbResults` and the speed in cycles per second."""
+def run_netlist(board, simulator, test_module, testcase=None, env=None, *, routed=False):
+    """Run ``test_module`` (the tests ``testcase``) on ``board``'s netlist (its routed netlist
+    if ``routed``); returns the :class:`~fliss.sim.benches.runner.CocotbResults` and the speed
+    in cycles per second."""
     if not simulator_available(simulator):
         pytest.fail(f"simulator {simulator} is not installed")
     from fliss.boards.netlist import WRAPPER
     from fliss.boards import PllClocking
-    netlist, sources, defines = _netlist(board)
+    netlist, sources, defines = _netlist(board, routed)
     design = netlist.design
     # Cycles from the PLL's lock to the end of the design's reset: the board's hold, and the
     # two resynchronisers; then, for single-port banks, their clearing.
@@ -97,13 +108,14 @@ def run_netlist(board, simulator, test_module, testcase=None, env=None):
                  "FLISS_TB_INIT_CYCLES": str(init), "FLISS_TB_FUZZ_FRAMES": str(FUZZ_FRAMES),
                  "FLISS_TB_KEYED": str(int(design.keyed)),
                  "FLISS_TB_COMPACT": str(int(design.compact_readout)), **(env or {})}
-    build_dir = BUILD / board / "cocotb"
+    build_dir = BUILD / board / ("cocotb_routed" if routed else "cocotb")
     results = run_cocotb(simulator, verilog_path=sources[0], sources=sources[1:],
                          defines=defines, includes=[sources[-1].parent], toplevel=WRAPPER,
                          test_module=test_module, build_dir=build_dir, testcase=testcase,
                          extra_env=extra_env)
     speed, wall_s = _speed(build_dir / simulator / f"{WRAPPER}.results.xml", netlist.clock_hz)
-    print(f"{board} netlist, {simulator}, {test_module}: {results.counts} in {wall_s:.0f} s, "
+    print(f"{board} {'routed ' if routed else ''}netlist, {simulator}, {test_module}: "
+          f"{results.counts} in {wall_s:.0f} s, "
           f"{speed:.0f} cycles/s")
     return results, speed
 
@@ -116,5 +128,19 @@ def test_netlist(board, simulator, test_module, testcase, env, full_only, cocotb
         pytest.skip("a longer run: FLISS_NETLIST=full (make test-netlist NETLIST=full)")
     results, _ = run_netlist(board, simulator, test_module, testcase, env)
     cocotb_counts(simulator, results)
+    assert results.failed == []
+    assert results.passed == results.expected
+
+
+@pytest.mark.parametrize("board, full_only", ROUTED.items())
+def test_routed_power_up(board, full_only, cocotb_counts):
+    """The routed netlist from configuration on: outputs at their idle levels, never X, through
+    the PLL's lock and the reset hold; then it answers PING."""
+    if full_only and not FULL:
+        pytest.skip("a longer run: FLISS_NETLIST=full (make test-netlist NETLIST=full)")
+    results, _ = run_netlist(board, "icarus", "fliss.sim.benches.netlist_top", ["test_power_up"],
+                             {"FLISS_TB_SHORT": "1", "FLISS_TB_UNLOCKED_CYCLES": "20"},
+                             routed=True)
+    cocotb_counts("icarus", results)
     assert results.failed == []
     assert results.passed == results.expected
