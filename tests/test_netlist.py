@@ -36,16 +36,19 @@ FUZZ_FRAMES = 40
 #: sequences of every mode the build has against the model, and a histogram of injected events
 #: in compact readout (:mod:`fliss.sim.benches.netlist_top`); on the ULX3S, a depth frame too.
 #: The ULX3S runs on Verilator (some 5 000 to 9 000 cycles/s on its netlist) but for the
-#: power-up's X check, which needs Icarus (about 90 cycles/s on it: only to the first PING).
+#: power-up's X check, which needs Icarus (40 to 90 cycles/s on it): through the reset hold,
+#: to the first PING with ``full``.
 #: The iCEBreaker's smaller netlist runs on Icarus (some 1 000 cycles/s); Verilator does not
 #: take its pads (SB_IO), tristate on the top level's pins. ``full`` adds the RTL's longer
 #: benches: every register with refusals, fuzz, raw events, closed-loop and pixel histograms.
 RUNS = {
     "ulx3s": [
         ("icarus", "fliss.sim.benches.netlist_top", ["test_power_up"],
-         {"FLISS_TB_SHORT": "1", "FLISS_TB_UNLOCKED_CYCLES": "20"}, False),
+         {"FLISS_TB_SHORT": "levels", "FLISS_TB_UNLOCKED_CYCLES": "20"}, False),
         ("verilator", "fliss.sim.benches.netlist_top", None, {}, False),
         ("verilator", "fliss.sim.benches.top_depth", None, {}, False),
+        ("icarus", "fliss.sim.benches.netlist_top", ["test_power_up"],
+         {"FLISS_TB_SHORT": "1"}, True),
         ("verilator", "fliss.sim.benches.top", None, {}, True),
     ],
     "icebreaker": [
