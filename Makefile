@@ -88,4 +88,4 @@ $(FORMAL_STAMP): pyproject.toml $(STAMP)
 formal: $(FORMAL_STAMP)
 	$(PY) -m pytest -n 0 tests/test_formal.py tests/test_formal_link.py $(PYTEST_ARGS)
 	$(PY) -m fliss.formal --mutants $(FORMAL_ARGS)
-	$(PY) -m fliss.formal.equivalence --mutant --family ecp5 crc cobs_decoder uart_tx
+	$(PY) -m fliss.formal.equivalence --mutant crc cobs_decoder uart_tx uart_rx

@@ -103,10 +103,13 @@ def place_and_route(netlist):
 
 def routed_simulation_sources(routed):
     """:func:`~fliss.boards.netlist.simulation_sources` of a routed design from
-    :func:`place_and_route`."""
-    sources, defines = simulation_sources(routed, sim_dir=routed.path.parent / "sim_routed")
+    :func:`place_and_route`: the iCEBreaker's only (the ECP5's raises :exc:`ValueError`)."""
     if routed.board != "icebreaker":
-        return sources, defines
+        # (nextpnr's ECP5 design splits LUT RAM into TRELLIS_COMB in DPRAM mode and a
+        # TRELLIS_RAMW, and leaves its constant-zero net, the pads' T, without a driver)
+        raise ValueError("The ECP5's routed design is not simulated: Yosys's ECP5 models have "
+                         "no TRELLIS_RAMW")
+    sources, defines = simulation_sources(routed, sim_dir=routed.path.parent / "sim_routed")
     wrapper, extra = sources[0], sources[0].with_name("routed_cells.v")
     text = wrapper.read_text().replace(
         "endmodule", "  // (the routed design's clock net, driven by a path its JSON leaves out)\n"
