@@ -61,7 +61,7 @@ test-boards: $(BOARDS_STAMP)
 # Gate-level: each board's netlist, synthesized by its bitstream build's Yosys script, under the
 # top level's cocotb tests with Yosys's cell models (docs/verification.md), and the Verilog of
 # `fliss generate` through Yosys for Xilinx, Intel and Gowin (docs/boards.md).
-# `make test-netlist` (in .ci/run, about seven minutes on two cores) runs the benches sized for
+# `make test-netlist` (in .ci/run, about 7.5 minutes on two cores) runs the benches sized for
 # gate level; `make test-netlist NETLIST=full` adds the top level's longer benches and the
 # routed netlists (tests/test_netlist.py).
 # `make test-vendors` (some 10 minutes, not in .ci/run) runs the other vendors' syntheses.
