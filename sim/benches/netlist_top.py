@@ -108,8 +108,9 @@ LINK_WRITES = {"pulse_width": 9, "aggressor_offset": 3, "aggressor_period": 40, 
 @cocotb.test()
 async def test_link(dut):
     """The link and the register file: a register of every group written and all read back
-    (the values written, 0 for the key's, and the command model's reply); a value above a register's maximum
-    refused; a frame with a damaged CRC answered by a NAK of its reason and counted."""
+    (the values written, 0 for the key's, and the command model's reply); a value above a
+    register's maximum refused; a frame with a damaged CRC answered by a NAK of its reason and
+    counted."""
     tb = TopTB(dut)
     await tb.start()
     writes = {name: min(value, MAXIMA.get(name, value)) for name, value in LINK_WRITES.items()}
