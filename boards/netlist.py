@@ -1,8 +1,8 @@
 """Gate-level netlists of the board builds, for simulation with Yosys's own cell models.
 
 :func:`synthesize` runs the Yosys half of a board's bitstream build (:mod:`.build`): the same
-board top level, design factory, clock, platform and synthesis script, to which it adds one
-``write_verilog -noattr`` beside the JSON that nextpnr would read. :func:`simulation_sources`
+board top level, design factory, clock, platform, synthesis options and script, to which it adds
+one ``write_verilog -noattr`` beside the JSON that nextpnr would read. :func:`simulation_sources`
 gives what a simulator needs around that netlist:
 
 * copies of Yosys's cell models (``share/ecp5``, ``share/ice40`` of the installed Yosys),
@@ -35,8 +35,8 @@ from . import BOARD_PINS, FLISS_PINS, BoardTop, _pin_name, platform_class
 from .build import BOARD_CLOCK_HZ, BOARD_DESIGN, TOOLS, load_design, toolchain_env
 
 
-__all__ = ["NETLIST_BUILD", "WRAPPER", "Netlist", "synthesize", "cell_model_dir",
-           "simulation_sources"]
+__all__ = ["NETLIST_BUILD", "WRAPPER", "PLL_LOCK", "Netlist", "synthesize", "cell_model_dir",
+           "simulation_sources", "bit_vector", "write_if_changed"]
 
 
 #: Where the netlists are built and cached.
@@ -78,7 +78,7 @@ def synthesize(board, *, build_dir=None, toolchain="yowasp"):
 
     build_dir = Path(build_dir if build_dir is not None else NETLIST_BUILD / board)
     name = f"fliss_{board}"
-    plan = platform.prepare(BoardTop(design), name=name)
+    plan = platform.prepare(BoardTop(design), name=name, synth_opts=list(platform.synth_opts))
     files = dict(plan.files)
     script = files[f"{name}.ys"]
     if isinstance(script, bytes):
@@ -131,19 +131,21 @@ def cell_model_dir(board, toolchain="yowasp"):
     return share / family
 
 
+#: The PLL models' lock: the wrapper's ``pll_lock``.
+PLL_LOCK = f"({WRAPPER}.pll_lock === 1'b1)"
+
 # Behaviour inserted before the `endmodule` of the black boxes, by cell name.
-_PLL_LOCK = f"({WRAPPER}.pll_lock === 1'b1)"
 _BEHAVIOUR = {
     "EHXPLLL": f"""
     // FLISS simulation model: the output is the input clock; locked when the wrapper says so.
     assign CLKOP = CLKI;
-    assign LOCK = {_PLL_LOCK};
+    assign LOCK = {PLL_LOCK};
 """,
     "SB_PLL40_PAD": f"""
     // FLISS simulation model: the output is the pad's clock; locked when the wrapper says so.
     assign PLLOUTGLOBAL = PACKAGEPIN;
     assign PLLOUTCORE = PACKAGEPIN;
-    assign LOCK = {_PLL_LOCK};
+    assign LOCK = {PLL_LOCK};
 """,
     "MULT18X18D": """
     // FLISS simulation model: the multiplier without registers, as Yosys maps a `*`.
@@ -166,8 +168,8 @@ _BEHAVIOUR = {
 }
 
 
-def _bits(prefix, count):
-    # "{P17, ..., P0}": the one-bit ports of a cell as a vector, MSB first.
+def bit_vector(prefix, count):
+    """``"{P17, ..., P0}"``: the one-bit ports of a cell as a vector, MSB first."""
     return "{" + ", ".join(f"{prefix}{n}" for n in reversed(range(count))) + "}"
 
 
@@ -239,7 +241,7 @@ for _port in "AB":
     DP16KD_MODEL = DP16KD_MODEL.replace(f"@AD{_port}@", "{" + ", ".join(
         f"AD{_port}{n}" for n in reversed(range(4, 14))) + "}")
     for _name in ("DI", "DO"):
-        DP16KD_MODEL = DP16KD_MODEL.replace(f"@{_name}{_port}@", _bits(f"{_name}{_port}", 18))
+        DP16KD_MODEL = DP16KD_MODEL.replace(f"@{_name}{_port}@", bit_vector(f"{_name}{_port}", 18))
 DP16KD_MODEL = DP16KD_MODEL.replace("@INITVAL@", " | ".join(
     f"INITVAL_{n:02X}" for n in range(64)))
 _BEHAVIOUR["DP16KD"] = DP16KD_MODEL
@@ -301,10 +303,26 @@ def _models(board, dest, toolchain):
         (dest / "cells_sim.v").write_text(_with_behaviour(cells, "DP16KD"))
         (dest / "fliss_cells.v").write_text(extra)
         return [dest / "cells_sim.v", dest / "fliss_cells.v"]
-        return [dest / "cells_sim.v", dest / "fliss_cells.v"]
-    cells = (dest / "cells_sim.v").read_text()
+    cells = _ice40_pads_at_power_up((dest / "cells_sim.v").read_text())
     (dest / "cells_sim.v").write_text(_with_behaviour(cells, "SB_PLL40_PAD"))
     return [dest / "cells_sim.v"]
+
+
+def _ice40_pads_at_power_up(cells):
+    """The iCE40 pads (``SB_IO``, ``SB_IO_I3C``, ``SB_IO_OD``) as the silicon powers up: their
+    registers at 0 (configuration clears every flip-flop), and their pin logic evaluated from
+    time 0. Yosys's models compute the pin in an ``always @*``, which runs only when an input
+    changes: a pad whose output comes straight from a flip-flop that holds its initial 0 and
+    an output enable tied to 1 (the routed design's ``laser`` and ``tdc_start``) stays ``X``
+    until the flip-flop first changes. ``always_comb`` runs at time 0 too."""
+    registers = "\treg din_q_0, din_q_1;\n\treg dout_q_0, dout_q_1;\n\treg outena_q;\n"
+    count = cells.count(registers)
+    cells = cells.replace(registers, "\treg din_q_0 = 0, din_q_1 = 0;\n"
+                          "\treg dout_q_0 = 0, dout_q_1 = 0;\n\treg outena_q = 0;\n")
+    combinational = cells.count("\talways @* begin\n")
+    cells = cells.replace("\talways @* begin\n", "\talways_comb begin\n")
+    assert (count, combinational) == (3, 6), "the iCE40 pads' models changed: check the patch"
+    return cells
 
 
 def _wrapper(netlist):
@@ -371,7 +389,7 @@ def simulation_sources(netlist, *, toolchain="yowasp", sim_dir=None):
     sim_dir.mkdir(parents=True, exist_ok=True)
     models = _models(netlist.board, sim_dir / "models", toolchain)
     wrapper = sim_dir / f"{WRAPPER}.v"
-    _write(wrapper, _wrapper(netlist))
+    write_if_changed(wrapper, _wrapper(netlist))
     # The top level's input pins are the B pins of ECP5 pads, declared inout by the cell
     # model: Verilator refuses a pad on an input port, so the copy simulated declares them
     # inout (as Yosys declares the iCE40's).
@@ -381,12 +399,13 @@ def simulation_sources(netlist, *, toolchain="yowasp", sim_dir=None):
         raise ValueError("A pad of the netlist uses its tristate: the Verilator pad model "
                          "has none")
     copy = sim_dir / netlist.path.name
-    _write(copy, text)
+    write_if_changed(copy, text)
     return [wrapper, copy, *models], dict(MODEL_DEFINES[netlist.board])
 
 
-def _write(path, text):
-    # Write `text` to `path` unless it holds it already (the simulators rebuild on a new date).
+def write_if_changed(path, text):
+    """Write ``text`` to ``path`` unless it holds it already (the simulators rebuild on a new
+    date)."""
     if not path.exists() or path.read_text() != text:
         path.write_text(text)
 
@@ -397,70 +416,3 @@ if __name__ == "__main__":  # pragma: no cover - a manual check of the flow
         result = synthesize(board)
         print(board, result.path, f"{result.synthesis_s:.0f} s",
               [str(p) for p in simulation_sources(result)[0]], os.linesep)
-
-
-#: Models of the iCE40 cells that nextpnr's routed design has and Yosys's models lack: its PLL
-#: (as the synthesized netlist's, locked by the wrapper) and its SPRAM, the SB_SPRAM256KA with
-#: its buses split into bits.
-ROUTED_ICE40_CELLS = f"""module ICESTORM_PLL(input BYPASS, input RESETB, output LOCK);
-    parameter DELAY_ADJMODE_FB = 0, DELAY_ADJMODE_REL = 0, DIVF = 0, DIVQ = 0, DIVR = 0,
-              ENABLE_ICEGATE_PORTA = 0, ENABLE_ICEGATE_PORTB = 0, FDA_FEEDBACK = 0,
-              FDA_RELATIVE = 0, FEEDBACK_PATH = 0, FILTER_RANGE = 0, PLLOUT_SELECT_A = 0,
-              PLLOUT_SELECT_B = 0, PLLTYPE = 0, SHIFTREG_DIVMODE = 0, TEST_MODE = 0;
-    assign LOCK = {_PLL_LOCK};
-endmodule
-
-module ICESTORM_SPRAM({", ".join(
-    [f"ADDRESS_{n}" for n in range(14)] + [f"DATAIN_{n}" for n in range(16)] +
-    [f"MASKWREN_{n}" for n in range(4)] + [f"DATAOUT_{n}" for n in range(16)] +
-    ["WREN", "CHIPSELECT", "CLOCK", "STANDBY", "SLEEP", "POWEROFF"])});
-    input {", ".join([f"ADDRESS_{n}" for n in range(14)] + [f"DATAIN_{n}" for n in range(16)] +
-                     [f"MASKWREN_{n}" for n in range(4)])};
-    input WREN, CHIPSELECT, CLOCK, STANDBY, SLEEP, POWEROFF;
-    output {", ".join(f"DATAOUT_{n}" for n in range(16))};
-    SB_SPRAM256KA spram (
-        .ADDRESS({_bits("ADDRESS_", 14)}), .DATAIN({_bits("DATAIN_", 16)}),
-        .MASKWREN({_bits("MASKWREN_", 4)}), .WREN(WREN), .CHIPSELECT(CHIPSELECT),
-        .CLOCK(CLOCK), .STANDBY(STANDBY), .SLEEP(SLEEP), .POWEROFF(POWEROFF),
-        .DATAOUT({_bits("DATAOUT_", 16)}));
-endmodule
-"""
-
-
-def place_and_route(netlist):
-    """Place and route ``netlist`` (the iCEBreaker's) as its bitstream build does, and read the
-    routed design back as Verilog; returns a :class:`Netlist` of it (top level ``top``).
-
-    nextpnr writes the routed design (``--write``) and its delays (``--sdf``); the routed
-    design's PLL has no output and the clock's global buffer no input (the dedicated path
-    between them is not in the JSON), so :func:`routed_simulation_sources` drives that net from
-    the wrapper's clock; and its constant-one net has no driver, so it is tied to 1 here."""
-    if netlist.board != "icebreaker":
-        raise ValueError("Only the iCEBreaker's routed design is read back here")
-    folder = netlist.path.parent
-    name = f"fliss_{netlist.board}"
-    routed = folder / f"{name}.routed.v"
-    env = toolchain_env(netlist.board)
-    if not routed.exists() or routed.stat().st_mtime < netlist.path.stat().st_mtime:
-        subprocess.run([env["NEXTPNR_ICE40"], "--quiet", "--log", f"{name}.routed.log",
-                        "--up5k", "--package", "sg48", "--json", f"{name}.json",
-                        "--pcf", f"{name}.pcf", "--timing-allow-fail",
-                        "--write", f"{name}.routed.json", "--sdf", f"{name}.routed.sdf"],
-                       cwd=folder, env=env, check=True, capture_output=True)
-        # (nextpnr's constant-one net has no driver in the JSON: the fabric ties it high)
-        subprocess.run([env["YOSYS"], "-q", "-p", f"read_json {name}.routed.json; "
-                        f"connect -set $PACKER_VCC_NET 1'1; write_verilog -noattr {name}.routed.v"],
-                       cwd=folder, env=env, check=True, capture_output=True)
-    return Netlist(netlist.board, routed, "top", netlist.design, netlist.clock_hz, 0.0)
-
-
-def routed_simulation_sources(routed):
-    """:func:`simulation_sources` of a routed design from :func:`place_and_route`."""
-    sources, defines = simulation_sources(routed, sim_dir=routed.path.parent / "sim_routed")
-    wrapper, extra = sources[0], sources[0].with_name("routed_cells.v")
-    text = wrapper.read_text().replace(
-        "endmodule", "  // (the routed design's clock net, driven by a path its JSON leaves out)\n"
-        "  initial force board.clk = clk;\nendmodule")
-    _write(wrapper.with_name(f"{WRAPPER}_routed.v"), text)
-    _write(extra, ROUTED_ICE40_CELLS)
-    return [wrapper.with_name(f"{WRAPPER}_routed.v"), *sources[1:], extra], defines

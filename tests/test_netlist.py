@@ -30,41 +30,54 @@ BUILD = Path(__file__).resolve().parent.parent / "build" / "netlist"
 FUZZ_FRAMES = 40
 
 #: The runs of each board's netlist: (simulator, bench module, its tests or None for all, more
-#: environment, whether only ``FLISS_NETLIST=full`` runs it). The ULX3S carries the full top level: power-up, the delay sequences of every
-#: mode (keyed too), link and registers with refusals, fuzz (NAKs), raw events, histograms
-#: (compact readout), pixel histograms, a depth frame; on Verilator, which runs its netlist at
-#: some 5 000 to 9 000 cycles/s. Icarus, at about 90 cycles/s on it, runs power-up to the
-#: first PING: the run that can see X (Verilator has none) on the outputs from configuration on.
-#: The iCEBreaker's smaller netlist runs on Icarus (some 1 000 cycles/s): power-up, the delay
-#: modes it has (off, mseq, masked), a histogram and its pixel histogram; Verilator is not used
-#: on it, whose pads (SB_IO) are tristate on the top level's pins, which Verilator does not take.
+#: environment, whether only ``FLISS_NETLIST=full`` runs it). The default runs (CI's) cover on
+#: each board: power-up (outputs never X from configuration on, on Icarus; the first frames),
+#: the link (a register of every group written and read back, a refusal, a NAK), the delay
+#: sequences of every mode the build has against the model, and a histogram of injected events
+#: in compact readout (:mod:`fliss.sim.benches.netlist_top`); on the ULX3S, a depth frame too.
+#: The ULX3S runs on Verilator (some 5 000 to 9 000 cycles/s on its netlist) but for the
+#: power-up's X check, which needs Icarus (40 to 90 cycles/s on it): through the reset hold,
+#: to the first PING with ``full``.
+#: The iCEBreaker's smaller netlist runs on Icarus (some 1 000 cycles/s); Verilator does not
+#: take its pads (SB_IO), tristate on the top level's pins. ``full`` adds the RTL's longer
+#: benches: every register with refusals, fuzz, raw events, closed-loop and pixel histograms.
 RUNS = {
     "ulx3s": [
-        ("icarus", "fliss.sim.benches.netlist_top", ["test_power_up"], {"FLISS_TB_SHORT": "1"},
-         False),
+        ("icarus", "fliss.sim.benches.netlist_top", ["test_power_up"],
+         {"FLISS_TB_SHORT": "levels", "FLISS_TB_UNLOCKED_CYCLES": "20"}, False),
         ("verilator", "fliss.sim.benches.netlist_top", None, {}, False),
-        ("verilator", "fliss.sim.benches.top",
-         ["test_identify_and_registers", "test_fuzz", "test_raw_events_closed_loop",
-          "test_histogram_closed_loop"], {}, False),
-        ("verilator", "fliss.sim.benches.top", ["test_pixel_histograms"], {}, True),
         ("verilator", "fliss.sim.benches.top_depth", None, {}, False),
+        ("icarus", "fliss.sim.benches.netlist_top", ["test_power_up"],
+         {"FLISS_TB_SHORT": "1"}, True),
+        ("verilator", "fliss.sim.benches.top", None, {}, True),
     ],
     "icebreaker": [
-        ("icarus", "fliss.sim.benches.netlist_top", ["test_power_up"], {"FLISS_TB_SHORT": "1"},
-         False),
-        ("icarus", "fliss.sim.benches.top", ["test_histogram_closed_loop"], {}, False),
-        ("icarus", "fliss.sim.benches.netlist_top", ["test_delay_modes"], {}, True),
-        ("icarus", "fliss.sim.benches.top", ["test_pixel_histograms"], {}, True),
+        ("icarus", "fliss.sim.benches.netlist_top", None,
+         {"FLISS_TB_PULSES": "200", "FLISS_TB_UNLOCKED_CYCLES": "20"}, False),
+        ("icarus", "fliss.sim.benches.top",
+         ["test_identify_and_registers", "test_histogram_closed_loop", "test_pixel_histograms"],
+         {}, True),
     ],
 }
 
 
-def _netlist(board):
+#: Routed netlists (nextpnr's placed and routed design read back; ``FLISS_NETLIST=full``
+#: only), and how far their power-up test goes on Icarus (``FLISS_TB_SHORT``). The ULX3S's
+#: routed design is read back but not simulated (:mod:`fliss.boards.routed`).
+ROUTED = {"icebreaker": "1"}
+
+
+def _netlist(board, routed=False):
     pytest.importorskip("amaranth_boards", reason="needs the boards extra: "
                                                   "pip install -e '.[boards]'")
     from fliss.boards.netlist import simulation_sources, synthesize
+    from fliss.boards.routed import place_and_route, routed_simulation_sources
     netlist = synthesize(board)
-    sources, defines = simulation_sources(netlist)
+    if routed:
+        routed_netlist = place_and_route(netlist)
+        sources, defines = routed_simulation_sources(routed_netlist)
+    else:
+        sources, defines = simulation_sources(netlist)
     return netlist, sources, defines
 
 
@@ -78,14 +91,15 @@ def _speed(results_xml, clock_hz):
     return sim_ns * 1e-9 * clock_hz / wall_s if wall_s else 0.0, wall_s
 
 
-def run_netlist(board, simulator, test_module, testcase=None, env=None):
-    """Run ``test_module`` (the tests ``testcase``) on ``board``'s netlist; returns the
-    :class:`~fliss.sim.benches.runner.CocotbResults` and the speed in cycles per second."""
+def run_netlist(board, simulator, test_module, testcase=None, env=None, *, routed=False):
+    """Run ``test_module`` (the tests ``testcase``) on ``board``'s netlist (its routed netlist
+    if ``routed``); returns the :class:`~fliss.sim.benches.runner.CocotbResults` and the speed
+    in cycles per second."""
     if not simulator_available(simulator):
         pytest.fail(f"simulator {simulator} is not installed")
     from fliss.boards.netlist import WRAPPER
     from fliss.boards import PllClocking
-    netlist, sources, defines = _netlist(board)
+    netlist, sources, defines = _netlist(board, routed)
     design = netlist.design
     # Cycles from the PLL's lock to the end of the design's reset: the board's hold, and the
     # two resynchronisers; then, for single-port banks, their clearing.
@@ -96,14 +110,16 @@ def run_netlist(board, simulator, test_module, testcase=None, env=None):
                  "FLISS_TB_MAXIMA": json.dumps(design.register_maxima()),
                  "FLISS_TB_BANK_BITS": str(design.bank_bits),
                  "FLISS_TB_INIT_CYCLES": str(init), "FLISS_TB_FUZZ_FRAMES": str(FUZZ_FRAMES),
-                 "FLISS_TB_KEYED": str(int(design.keyed)), **(env or {})}
-    build_dir = BUILD / board / "cocotb"
+                 "FLISS_TB_KEYED": str(int(design.keyed)),
+                 "FLISS_TB_COMPACT": str(int(design.compact_readout)), **(env or {})}
+    build_dir = BUILD / board / ("cocotb_routed" if routed else "cocotb")
     results = run_cocotb(simulator, verilog_path=sources[0], sources=sources[1:],
                          defines=defines, includes=[sources[-1].parent], toplevel=WRAPPER,
                          test_module=test_module, build_dir=build_dir, testcase=testcase,
                          extra_env=extra_env)
     speed, wall_s = _speed(build_dir / simulator / f"{WRAPPER}.results.xml", netlist.clock_hz)
-    print(f"{board} netlist, {simulator}, {test_module}: {results.counts} in {wall_s:.0f} s, "
+    print(f"{board} {'routed ' if routed else ''}netlist, {simulator}, {test_module}: "
+          f"{results.counts} in {wall_s:.0f} s, "
           f"{speed:.0f} cycles/s")
     return results, speed
 
@@ -116,5 +132,19 @@ def test_netlist(board, simulator, test_module, testcase, env, full_only, cocotb
         pytest.skip("a longer run: FLISS_NETLIST=full (make test-netlist NETLIST=full)")
     results, _ = run_netlist(board, simulator, test_module, testcase, env)
     cocotb_counts(simulator, results)
+    assert results.failed == []
+    assert results.passed == results.expected
+
+
+@pytest.mark.parametrize("board, short", ROUTED.items())
+def test_routed_power_up(board, short, cocotb_counts):
+    """The routed netlist from configuration on: outputs at their idle levels, never X, through
+    the PLL's lock and the reset hold; then it answers PING."""
+    if not FULL:
+        pytest.skip("a longer run: FLISS_NETLIST=full (make test-netlist NETLIST=full)")
+    results, _ = run_netlist(board, "icarus", "fliss.sim.benches.netlist_top", ["test_power_up"],
+                             {"FLISS_TB_SHORT": short, "FLISS_TB_UNLOCKED_CYCLES": "20"},
+                             routed=True)
+    cocotb_counts("icarus", results)
     assert results.failed == []
     assert results.passed == results.expected

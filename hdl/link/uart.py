@@ -221,8 +221,10 @@ class UartRx(_Uart):
 
         # Bit timing: a vote is taken when `cycle` (from the start edge) reaches `edge` + 1,
         # kept in `target` (so that the sum is not on the path to the vote's decisions)
+        # (`edge` is read up to the stop bit's vote, at `last_vote`; the value written at that
+        # vote, a bit later, is never read and may wrap)
         cycle = Signal(range((last_vote >> FRACTION_BITS) + 2))
-        edge = Signal(range(last_vote + step + 1))
+        edge = Signal(range(last_vote + 1))
         target = Signal.like(cycle)
         bit = Signal(range(CHARACTER_BITS))
         shreg = Signal(DATA_BITS)

@@ -365,7 +365,7 @@ async def test_histogram_closed_loop(dut):
     assert np.array_equal(counts, want)
 
 
-async def _sensor_events(tb, rng, count, *, pixel_bits, first_pixel):
+async def inject_events(tb, rng, count, *, pixel_bits, first_pixel):
     """Drive ``count`` random events straight onto the sensor bus, at least 5 cycles apart
     (the strobe high 2 cycles, low at least 3): addresses mostly those of the frame, some
     others; timestamps over all codes; one in five flagged as a collision. Returns them as
@@ -389,7 +389,7 @@ async def _sensor_events(tb, rng, count, *, pixel_bits, first_pixel):
     return tuple(np.array(column, dtype=np.int64) for column in zip(*events))
 
 
-async def _frame(tb, frame, bins, *, timeout_us=20_000, split=None):
+async def histogram_frame(tb, frame, bins, *, timeout_us=20_000, split=None):
     """The counts of histogram ``frame``, from its chunks (full or compact, as the board chose),
     once all ``bins`` have come. ``split``, if given, is the ``(pixel_bits, first_pixel)`` the
     frame's header must carry."""
@@ -441,12 +441,13 @@ async def test_pixel_histograms(dut):
             values=[values[name] for name in names]))
         assert reply.type == PacketType.ACK, reply
         await tb.command(PacketType.START)
-        timestamps, addresses, collisions = await _sensor_events(
+        timestamps, addresses, collisions = await inject_events(
             tb, rng, 300, pixel_bits=pixel_bits, first_pixel=first_pixel)
         await ClockCycles(dut.clk, 50)
         await tb.command(PacketType.STOP)
         bins = 1 << (13 - shift)
-        counts = await _frame(tb, frame, bins << pixel_bits, split=(pixel_bits, first_pixel))
+        counts = await histogram_frame(tb, frame, bins << pixel_bits,
+                                       split=(pixel_bits, first_pixel))
         # Independently of the models: drop the flagged events if asked, then the other
         # addresses; the rest by pixel and bin.
         kept = collisions == 0 if drop else np.ones(len(timestamps), dtype=bool)
