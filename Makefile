@@ -69,7 +69,7 @@ test-boards: $(BOARDS_STAMP)
 
 NETLIST ?= 1
 test-netlist: $(BOARDS_STAMP)
-	FLISS_NETLIST=$(NETLIST) $(PY) -m pytest -n 0 tests/test_netlist.py $(PYTEST_ARGS)
+	FLISS_NETLIST=$(NETLIST) $(PY) -m pytest -n 2 tests/test_netlist.py $(PYTEST_ARGS)
 
 test-vendors: $(BOARDS_STAMP)
 	FLISS_NETLIST=1 $(PY) -m pytest -n 0 tests/test_vendors.py $(PYTEST_ARGS)

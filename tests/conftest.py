@@ -82,9 +82,14 @@ def _build_scope(nodeid):
     """The runs of a cocotb test on one simulator (its parametrisations, its short and long
     versions) share a build folder and its results file, so they must not run side by side:
     ``tests/test_cocotb_x.py::test_y[icarus-a]`` and ``[icarus-b]`` are one scope,
-    ``tests/test_cocotb_x.py::test_y[icarus]``; any other test is a scope of its own."""
+    ``tests/test_cocotb_x.py::test_y[icarus]``; a board's gate-level runs
+    (``tests/test_netlist.py::test_x[board-...]``) are one scope, ``tests/test_netlist.py::board``;
+    any other test is a scope of its own."""
     path, _, name = nodeid.partition("::")
     function, _, ids = name.partition("[")
+    if path == "tests/test_netlist.py" and ids:
+        # A board's runs share its synthesized netlist and its simulators' build folders.
+        return f"{path}::{ids.split('-')[0]}"
     if path.rpartition("/")[2].startswith("test_cocotb_"):
         for part in ids.rstrip("]").split("-"):
             if part in SIMULATORS:

@@ -31,20 +31,22 @@ FUZZ_FRAMES = 40
 
 #: The runs of each board's netlist: (simulator, bench module, its tests or None for all, more
 #: environment, whether only ``FLISS_NETLIST=full`` runs it). The default runs (CI's) cover on
-#: each board: power-up (outputs never X from configuration on, on Icarus; the first frames),
-#: the link (a register of every group written and read back, a refusal, a NAK), the delay
-#: sequences of every mode the build has against the model, and a histogram of injected events
-#: in compact readout (:mod:`fliss.sim.benches.netlist_top`); on the ULX3S, a depth frame too.
-#: The ULX3S runs on Verilator (some 5 000 to 9 000 cycles/s on its netlist) but for the
-#: power-up's X check, which needs Icarus (40 to 90 cycles/s on it): through the reset hold,
-#: to the first PING with ``full``.
+#: each board: power-up (the first frames; on the iCEBreaker, outputs never X from
+#: configuration on), the link (a register of every group written and read back, a refusal, a
+#: NAK), the delay sequences of every mode the build has against the model, and a histogram of
+#: injected events in compact readout (:mod:`fliss.sim.benches.netlist_top`); on the ULX3S, a
+#: depth frame too. The ULX3S runs on Verilator (some 5 000 to 9 000 cycles/s on its netlist);
+#: its power-up's X check needs Icarus (40 to 90 cycles/s on it, and some 3 minutes to compile),
+#: so only ``full`` runs it: through the reset hold, and to the first PING.
+#: A board's runs are one scope for pytest-xdist (``tests/conftest.py``): the two boards run
+#: side by side.
 #: The iCEBreaker's smaller netlist runs on Icarus (some 1 000 cycles/s); Verilator does not
 #: take its pads (SB_IO), tristate on the top level's pins. ``full`` adds the RTL's longer
 #: benches: every register with refusals, fuzz, raw events, closed-loop and pixel histograms.
 RUNS = {
     "ulx3s": [
         ("icarus", "fliss.sim.benches.netlist_top", ["test_power_up"],
-         {"FLISS_TB_SHORT": "levels", "FLISS_TB_UNLOCKED_CYCLES": "20"}, False),
+         {"FLISS_TB_SHORT": "levels", "FLISS_TB_UNLOCKED_CYCLES": "20"}, True),
         ("verilator", "fliss.sim.benches.netlist_top", None, {}, False),
         ("verilator", "fliss.sim.benches.top_depth", None, {}, False),
         ("icarus", "fliss.sim.benches.netlist_top", ["test_power_up"],
@@ -53,7 +55,7 @@ RUNS = {
     ],
     "icebreaker": [
         ("icarus", "fliss.sim.benches.netlist_top", None,
-         {"FLISS_TB_PULSES": "200", "FLISS_TB_UNLOCKED_CYCLES": "20"}, False),
+         {"FLISS_TB_PULSES": "100", "FLISS_TB_UNLOCKED_CYCLES": "20"}, False),
         ("icarus", "fliss.sim.benches.top",
          ["test_identify_and_registers", "test_histogram_closed_loop", "test_pixel_histograms"],
          {}, True),
