@@ -80,19 +80,21 @@ class Line:
             code = code + np.where(near, random.astype(np.int64) - settled, 0)
         return code
 
-    def samples(self, tau_s, rng):
+    def samples(self, tau_s, rng, *, width_s=np.inf):
         """The sampled taps, ``(len(tau_s), taps)`` booleans, for hits ``tau_s`` before the
-        clock edge (``tau_s`` <= 0: no hit, all zero)."""
+        clock edge, each high for ``width_s`` (its fall has passed the taps below
+        ``tau_s - width_s``)."""
         tau = np.asarray(tau_s, dtype=np.float64)[:, None]
         edges = self.thresholds_s[None, :]
-        bits = tau > edges
-        near = np.abs(tau - edges) < self.metastable_s / 2
+        bits = (tau > edges) & ~(tau - width_s > edges)
+        half = self.metastable_s / 2
+        near = (np.abs(tau - edges) < half) | (np.abs(tau - width_s - edges) < half)
         bits = np.where(near, rng.random(bits.shape) < 0.5, bits)
-        # A bubble: the last one and the first zero swapped
-        first_zero = bits.sum(axis=1)
+        # A bubble at the rising edge: the last one and the first zero swapped
+        front = np.searchsorted(self.thresholds_s, tau[:, 0], side="left")
         rows = np.flatnonzero((rng.random(len(bits)) < self.bubble_probability) &
-                              (first_zero > 0) & (first_zero < self.taps))
-        last = first_zero[rows] - 1
+                              (front > 0) & (front < self.taps))
+        last = front[rows] - 1
         bits[rows, last], bits[rows, last + 1] = bits[rows, last + 1], bits[rows, last]
         return bits
 
