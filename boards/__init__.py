@@ -24,7 +24,8 @@ from ..hdl import DEFAULT_CLOCK_HZ
 
 
 __all__ = ["BOARDS", "FLISS_PINS", "BOARD_PINS", "PIN_ALIASES", "platform_class", "BoardTop",
-           "PllClocking", "FlissPlatform", "fliss_top", "fliss_top_spram", "fliss_top_up5k"]
+           "PllClocking", "FlissPlatform", "fliss_top", "fliss_top_fine", "fliss_top_spram",
+           "fliss_top_up5k"]
 
 
 #: Supported boards: name on the command line -> ``module:class`` of its platform.
@@ -43,7 +44,7 @@ FLISS_PINS = {
     "address":   (6,  "i"),   # sensor: pixel address
     "valid":     (1,  "i"),   # sensor: event strobe
     "collision": (1,  "i"),   # sensor: collision flag
-    "photon":    (1,  "i"),   # coarse photon-hit input (photodiode / SPAD comparator)
+    "photon":    (1,  "i"),   # photon-hit input of the coarse and fine TDCs (SPAD module)
 }
 
 #: On-board signals: design port name -> (resource name, subsignal or None, width or None,
@@ -209,6 +210,13 @@ def fliss_top(clock_hz):
     :class:`BoardTop`: histogram banks in block RAM."""
     from ..hdl.top import FlissTop
     return FlissTop(clock_hz=clock_hz)
+
+
+def fliss_top_fine(clock_hz):
+    """:func:`fliss_top` with the fine TDC (:mod:`fliss.hdl.finetdc`) on the photon pin: the
+    ULX3S's design (an ECP5, whose carry chain makes the delay line)."""
+    from ..hdl.top import FlissTop
+    return FlissTop(clock_hz=clock_hz, fine_tdc=True)
 
 
 def fliss_top_spram(clock_hz):

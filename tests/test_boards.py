@@ -155,7 +155,7 @@ def test_pin_aliases(tmp_path):
     assert top.unwired == ["status"]
 
 
-@pytest.mark.parametrize("board,factory,spram", [("ulx3s", "fliss_top", 0),
+@pytest.mark.parametrize("board,factory,spram", [("ulx3s", "fliss_top_fine", 0),
                                                   ("icebreaker", "fliss_top_up5k", 2)])
 def test_fliss_top_on_the_board(board, factory, spram, tmp_path):
     # The whole instrument: every port reaches a pin (through the aliases), and on the
