@@ -55,9 +55,9 @@ def popcount_stages(taps=TAPS):
 
 
 #: Cycles from the cycle the line's first flip-flops hold a hit's first non-zero taps to the
-#: cycle its capture is presented: the second flip-flop stage, the ones count, the table read
-#: and the output register.
-LATENCY = 1 + popcount_stages() + 2
+#: cycle its capture is presented: the second flip-flop stage, the ones count, the table read,
+#: the subtraction of the fine time, and the output register.
+LATENCY = 1 + popcount_stages() + 3
 
 
 def lsb_s(select):

@@ -30,7 +30,7 @@ class FineTdc(wiring.Component):
     (negative) or beyond 13 bits is flagged ``overflow`` (the event filter drops and counts it).
     With ``raw`` the timestamp is the raw code instead, never overflowing: the code-density
     histogram for the calibration. ``pulse`` is ``pulse_index - 1`` as it was in cycle ``c``;
-    ``enable`` is sampled :data:`~fliss.hdl.finetdc.LATENCY` ``- 2`` cycles after ``c``. The
+    ``enable`` is sampled :data:`~fliss.hdl.finetdc.LATENCY` ``- 3`` cycles after ``c``. The
     capture is presented in cycle ``c +`` :data:`~fliss.hdl.finetdc.LATENCY`, in the layout of
     :class:`~fliss.hdl.tdc.CoarseTdc`'s, for the same :class:`~fliss.hdl.tdc.EventFilter`.
 
@@ -124,34 +124,45 @@ class FineTdc(wiring.Component):
         m.d.comb += now.eq(Mux(start, 0, elapsed))
         m.d.sync += elapsed.eq(Mux(now == never, never, now + 1))
 
-        # While the table is read: the hit, its cycle count and raw code
+        # While the table is read: the hit, its raw code, its cycle count in table units
         hit = Signal()
-        cycles = Signal.like(now)
         code = Signal.like(encoder.code)
+        base = Signal(range((never + 1) * self.units))
+        late = Signal()
         event_pulse = Signal(PULSE_BITS)
         enabled = Signal()
         m.d.sync += hit.eq(encoder.hit)
         with m.If(encoder.hit):
-            m.d.sync += [cycles.eq(now), code.eq(encoder.code), event_pulse.eq(pulse - 1),
-                         enabled.eq(self.enable)]
+            m.d.sync += [base.eq(now * self.units), late.eq(now == never), code.eq(encoder.code),
+                         event_pulse.eq(pulse - 1), enabled.eq(self.enable)]
+
+        # The fine time subtracted
+        ticks = Signal(range(-(1 << TABLE_BITS), (never + 1) * self.units))
+        ticked = Signal()
+        ticks_late = Signal()
+        ticks_code = Signal.like(code)
+        ticks_pulse = Signal(PULSE_BITS)
+        ticks_enabled = Signal()
+        m.d.sync += ticked.eq(hit)
+        with m.If(hit):
+            m.d.sync += [ticks.eq(base - table.fine), ticks_late.eq(late), ticks_code.eq(code),
+                         ticks_pulse.eq(event_pulse), ticks_enabled.eq(enabled)]
 
         # Timestamp at the LSB, and the capture
-        ticks = Signal(range(-(1 << TABLE_BITS), (never + 1) * self.units))
-        m.d.comb += ticks.eq(cycles * self.units - table.fine)
         timestamp = Signal(len(ticks))
         m.d.comb += timestamp.eq(Mux(self.lsb == 2, ticks, Mux(self.lsb == 1, ticks[1:],
                                                                   ticks[2:])))
         captures = self.captures
-        m.d.sync += captures.valid.eq(hit)
-        with m.If(hit):
+        m.d.sync += captures.valid.eq(ticked)
+        with m.If(ticked):
             m.d.sync += [
-                captures.event.timestamp.eq(Mux(self.raw, code, timestamp)),
+                captures.event.timestamp.eq(Mux(self.raw, ticks_code, timestamp)),
                 captures.event.address.eq(self.address),
                 captures.event.collision.eq(0),
-                captures.event.pulse.eq(event_pulse),
-                captures.overflow.eq(~self.raw & ((cycles == never) | (ticks < 0) |
+                captures.event.pulse.eq(ticks_pulse),
+                captures.overflow.eq(~self.raw & (ticks_late | (ticks < 0) |
                                                   (timestamp[TIMESTAMP_BITS:] != 0))),
-                captures.enabled.eq(enabled),
+                captures.enabled.eq(ticks_enabled),
             ]
 
         return m
