@@ -147,3 +147,16 @@ def test_nominal_table_and_clock():
     with pytest.raises(ValueError, match=r"^The fine TDC needs a clock period that is a "
                                          r"whole multiple of 12.5 ps, not 36000000.0 Hz$"):
         cycle_units(36e6)
+
+
+def test_calibration_meets_the_goals():
+    # The model line's calibrated times: taps of at most 30 ps on average, single-shot RMS of at
+    # most 20 ps, each code's mean error within one tap; without calibration, none of that.
+    from fliss.sim.studies.finetdc import evaluate
+    result = evaluate(model.Line(tile_extra_s=30e-12), calibration_hits=1 << 21,
+                      test_hits=200_000)
+    tap = result["mean_tap_s"]
+    assert tap <= 30e-12
+    assert result["rms_after_s"] <= 20e-12 < result["rms_before_s"]
+    assert np.abs(result["code_inl_after_s"]).max() < tap < np.abs(
+        result["code_inl_before_s"]).max()

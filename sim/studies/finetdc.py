@@ -20,7 +20,8 @@ from ...hdl.finetdc import TABLE_BITS, TAP_S, UNIT_S, cycle_units, lsb_s
 from ..models.finetdc import Line
 
 
-__all__ = ["first_sample", "calibrate", "timestamps", "evaluate", "scene_timestamps"]
+__all__ = ["READOUTS", "first_sample", "calibrate", "timestamps", "evaluate", "scene_timestamps",
+           "scene_comparison"]
 
 
 def first_sample(line, period_s, tau_s, rng):
@@ -93,8 +94,8 @@ def evaluate(line=None, clock_hz=80e6, *, calibration_hits=1 << 22, test_hits=10
 
 def scene_timestamps(events, line, table, clock_hz, *, lsb_select=0, rng):
     """The timestamps the scene's photons (``events``, 50 ps codes from the TDC start at a clock
-    edge) get from the fine TDC (at ``lsb_select``) and from the coarse TDC (whole cycles), as
-    ``(fine, coarse)``: each photon's time is its code plus a uniform fraction of it (the scene's
+    edge) get from the fine TDC (at ``lsb_select``; -1 where it overflows, an event the filter
+    drops) and from the coarse TDC (whole cycles), as ``(fine, coarse)``: each photon's time is its code plus a uniform fraction of it (the scene's
     pulses are much wider than 50 ps), then it goes through the line."""
     period = 1 / clock_hz
     t = (np.asarray(events["timestamp"], dtype=np.float64) + rng.random(len(events))) * TDC_LSB_S
@@ -102,5 +103,62 @@ def scene_timestamps(events, line, table, clock_hz, *, lsb_select=0, rng):
     tau, codes = first_sample(line, period, after * period - t, rng)
     cycles = after + np.rint((tau - (after * period - t)) / period).astype(np.int64)
     fine = timestamps(table, codes, cycles, clock_hz, lsb_select)
-    fine = np.clip(fine, 0, (1 << TIMESTAMP_BITS) - 1)
+    fine[(fine < 0) | (fine >> TIMESTAMP_BITS != 0)] = -1
     return fine, cycles
+
+
+#: The scene comparison's readouts: name -> (TDC, fine LSB select or None).
+READOUTS = {"sensor 50 ps": ("sensor", None), "fine 50 ps": ("fine", 0),
+            "fine 12.5 ps": ("fine", 2), "coarse 12.5 ns": ("coarse", None)}
+
+
+def scene_comparison(*, line=None, clock_hz=80e6, t_int_s=20e-3, seed=0):
+    """A target at 4 m and an aggressor 75 ns later, FLISS off (both at the same fixed period)
+    and on (the victim's mseq delays, the aggressor at its mean period), each read by the
+    paper's sensor, the fine TDC and the coarse TDC.
+
+    Returns a list of dicts: ``fliss`` (``"off"`` or ``"on"``), ``readout`` (a key of
+    :data:`READOUTS`), ``tof_s`` and ``fwhm_s`` of the strongest peak (NaN if none; the fine
+    TDC's with the line's fixed input delay taken off, as a range calibration would),
+    ``truth_tof_s``, ``truth_fwhm_s``, ``peaks`` (how many).
+    """
+    from ...analysis.peaks import find_peaks
+    from ..models.scheduler import Settings
+    from ..scene.acquisition import acquire
+    from ..scene.description import Aggressor, Scene
+
+    line = Line() if line is None else line
+    rng = np.random.default_rng(seed)
+    _, table = calibrate(line, clock_hz, 1 << 22, rng)
+    rows = []
+    for fliss, victim, aggressor_period in (("off", Settings(period=80), 80),
+                                            ("on", Settings(mode="mseq", length=6, period=80),
+                                             80 + 32)):
+        scene = Scene(victim=victim, clock_hz=clock_hz,
+                      aggressors=(Aggressor(period_cycles=aggressor_period),))
+        events = acquire(scene, t_int_s, 1, seed=seed, keep_events=True).events[0]
+        fine_codes = {}
+        for readout, (kind, select) in READOUTS.items():
+            if kind == "sensor":
+                stamps, bin_s, offset = events["timestamp"], TDC_LSB_S, 0.0
+            elif kind == "fine":
+                if select not in fine_codes:
+                    fine_codes[select] = scene_timestamps(events, line, table, clock_hz,
+                                                          lsb_select=select, rng=rng)[0]
+                stamps, bin_s = fine_codes[select], lsb_s(select)
+                offset = float(line.thresholds_s[0])
+            else:
+                stamps = scene_timestamps(events, line, table, clock_hz, rng=rng)[1]
+                bin_s, offset = 1 / clock_hz, 0.0
+            stamps = np.asarray(stamps, dtype=np.int64)
+            histogram = np.bincount(stamps[stamps >= 0],
+                                    minlength=int(round(409.6e-9 / bin_s)))
+            peaks = find_peaks(histogram, bin_s=bin_s, sigma_bins=max(250e-12 / bin_s, 0.05))
+            best = peaks[0] if peaks else None
+            rows.append({"fliss": fliss, "readout": readout,
+                         "tof_s": best.position_s - offset if best else float("nan"),
+                         "fwhm_s": best.fwhm_s if best else float("nan"),
+                         "truth_tof_s": scene.tof_s,
+                         "truth_fwhm_s": float(np.hypot(scene.fwhm_s, scene.jitter_fwhm_s)),
+                         "peaks": len(peaks)})
+    return rows
