@@ -250,7 +250,7 @@ FINE_TDC = RegisterGroup("fine_tdc", (
 ), {
     "lsb":   ("fine_lsb", 0x1b, 0, "fine TDC timestamp LSB: 50 ps / 2**fine_lsb (0 to 2)"),
     "input": ("tdc_input", 0x1c, 0,
-              "fine TDC input: 0 photon pin, 1 ring oscillator, 2 laser trigger looped back"),
+              "fine TDC input: 0 photon pin, 1 on-chip oscillator, 2 laser trigger looped back"),
     "table_address": ("table_address", 0x1d, 0,
                       "fine TDC calibration table: a write moves the table's pointer here"),
     "table_data": ("table_data", 0x1e, 0,
