@@ -291,7 +291,9 @@ class FlissPlatform:
       ``f_out_hz``, the real frequency;
     * :meth:`fliss_io`: ``(pins, direction)`` -> ``(Pins, Attrs)`` of one FLISS signal;
     * :attr:`clocking_class`: its :class:`PllClocking`;
-    * :attr:`synth_opts`: options of its ``synth_<family>`` yosys command, if any.
+    * :attr:`synth_opts`: options of its ``synth_<family>`` yosys command, if any;
+    * :attr:`script_after_synth`: yosys commands after it, if any (every build of the platform
+      runs them).
 
     Parameters
     ----------
@@ -309,6 +311,7 @@ class FlissPlatform:
     pins = {}
     shared_pins = {}
     synth_opts = ()
+    script_after_synth = ""
 
     def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, **kwargs):
         super().__init__(**kwargs)
@@ -321,6 +324,12 @@ class FlissPlatform:
             assert len(ios.names) == width, name
             resources.append(Resource(f"fliss_{name}", 0, ios, attrs))
         self.add_resources(resources)
+
+    def toolchain_prepare(self, fragment, name, **kwargs):
+        # The board's own yosys commands after synthesis, unless the caller gives some
+        if self.script_after_synth:
+            kwargs.setdefault("script_after_synth", self.script_after_synth)
+        return super().toolchain_prepare(fragment, name, **kwargs)
 
     def fliss_resource(self, name):
         """Resource name of the FLISS pin ``name``."""

@@ -7,7 +7,7 @@ from amaranth.lib.wiring import In, Out
 from . import TAPS
 
 
-__all__ = ["is_ecp5", "DelayLine"]
+__all__ = ["is_ecp5", "CARRY_BOX", "CARRY_BOX_FILE", "SCRIPT_AFTER_SYNTH", "DelayLine"]
 
 
 def is_ecp5(platform):
@@ -15,6 +15,25 @@ def is_ecp5(platform):
     ``family``); the simulators and the other families have no carry chain to use."""
     return getattr(platform, "family", None) == "ecp5"
 
+
+#: The carry cells' type while yosys synthesises: an opaque box. Yosys knows what a ``CCU2C``
+#: computes, and to it every tap is the same function of the hit (a delay line is, logically, a
+#: wire): it would drive all the flip-flops from the hit and leave the chain unconnected. The
+#: box hides that; :data:`SCRIPT_AFTER_SYNTH` gives the cells their real type for nextpnr.
+CARRY_BOX = "FLISS_CCU2C"
+#: The box's declaration, a Verilog file for the platform to read before synthesis.
+CARRY_BOX_FILE = ("fliss_carry_box.v", f"""(* blackbox *)
+module {CARRY_BOX} (input CIN, input A0, input B0, input C0, input D0, input A1, input B1,
+                    input C1, input D1, output S0, output S1, output COUT);
+  parameter [15:0] INIT0 = 16'h0000;
+  parameter [15:0] INIT1 = 16'h0000;
+  parameter INJECT1_0 = "YES";
+  parameter INJECT1_1 = "YES";
+endmodule
+""")
+#: Yosys commands after synthesis (the platform's ``script_after_synth``): the boxes become
+#: ``CCU2C`` cells.
+SCRIPT_AFTER_SYNTH = f"chtype -set CCU2C t:{CARRY_BOX}"
 
 # A CCU2C half passes its carry in to its carry out when its LUT4 reads 1 (INIT all ones), and
 # its sum output is then the carry in inverted. The first half of the first cell injects the
@@ -27,7 +46,8 @@ _INJECT = 0x000A
 class DelayLine(wiring.Component):
     """Tapped delay line, sampled into flip-flops at every clock edge, then once more.
 
-    On an ECP5 (:func:`is_ecp5`) the hit enters a chain of ``CCU2C`` carry cells through the
+    On an ECP5 (:func:`is_ecp5`; the platform must run :data:`SCRIPT_AFTER_SYNTH` after
+    synthesis, and reads :data:`CARRY_BOX_FILE`, which this block adds) the hit enters a chain of ``CCU2C`` carry cells through the
     first cell's first half; every later half is one tap (about 21.5 ps in nextpnr's timing
     model), its sum output sampled by a flip-flop at every rising clock edge (the *first stage*:
     tap ``j`` reads 1 once the hit has reached it), then by a second flip-flop against
@@ -61,6 +81,8 @@ class DelayLine(wiring.Component):
         m = Module()
 
         if is_ecp5(platform):
+            if CARRY_BOX_FILE[0] not in platform.extra_files:
+                platform.add_file(*CARRY_BOX_FILE)
             # The chain: cell 0's second half is tap 0, cell k's halves taps 2k - 1 and 2k
             sums = []
             carry = C(0)
@@ -69,7 +91,7 @@ class DelayLine(wiring.Component):
                 s0, s1, cout = Signal(name=f"line_s0_{cell}"), Signal(name=f"line_s1_{cell}"), \
                     Signal(name=f"line_carry_{cell}")
                 m.submodules[f"line_{cell}"] = Instance(
-                    "CCU2C",
+                    CARRY_BOX,
                     p_INIT0=C(_INJECT if first else _PROPAGATE, 16),
                     p_INIT1=C(_PROPAGATE, 16),
                     p_INJECT1_0="NO", p_INJECT1_1="NO",
