@@ -244,13 +244,13 @@ ACQUISITION = RegisterGroup("acquisition", (
 #: pointer there, each WRITE of ``table_data`` writes the entry at the pointer and moves it on.
 FINE_TDC = RegisterGroup("fine_tdc", (
     Setting("lsb",   2, 0, FINE_LSB_SELECTS - 1),
-    Setting("input", 2, 0, 2),
+    Setting("input", 1, 0, 1),
     Setting("table_address", FINE_CODE_BITS, 0, (1 << FINE_CODE_BITS) - 1),
     Setting("table_data", FINE_TABLE_BITS, 0, (1 << FINE_TABLE_BITS) - 1),
 ), {
     "lsb":   ("fine_lsb", 0x1b, 0, "fine TDC timestamp LSB: 50 ps / 2**fine_lsb (0 to 2)"),
     "input": ("tdc_input", 0x1c, 0,
-              "fine TDC input: 0 photon pin, 1 on-chip oscillator, 2 laser trigger looped back"),
+              "fine TDC input: 0 photon pin, 1 on-chip oscillator"),
     "table_address": ("table_address", 0x1d, 0,
                       "fine TDC calibration table: a write moves the table's pointer here"),
     "table_data": ("table_data", 0x1e, 0,

@@ -393,7 +393,6 @@ class FlissTop(wiring.Component):
         settings = registers.fine_tdc
         m.d.comb += [
             fine.pin_hit.eq(self.photon_hit),
-            fine.laser.eq(core.laser),
             fine.input.eq(settings.input),
             fine.tdc_start.eq(core.tdc_start),
             fine.pulse_index.eq(core.pulse_index),

@@ -127,9 +127,8 @@ OPTIONS: Tuple[Option, ...] = (
            choices=_names(TdcSource)),
     Option("fine_lsb", "fine_lsb", CHOICE, "fine TDC timestamp LSB (range 409.6, 204.8, "
            "102.4 ns)", choices={"50ps": 0, "25ps": 1, "12.5ps": 2}),
-    Option("tdc_input", "tdc_input", CHOICE, "fine TDC input: the photon pin, the on-chip "
-           "oscillator (calibration), the laser trigger looped back (self-test)",
-           choices={"pin": 0, "oscillator": 1, "laser": 2}),
+    Option("tdc_input", "tdc_input", CHOICE, "fine TDC input: the photon pin, or the on-chip "
+           "oscillator (calibration)", choices={"pin": 0, "oscillator": 1}),
     Option("table_address", "table_address", WHOLE, "fine TDC calibration table: move its "
            "pointer to entry N", "N"),
     Option("table_data", "table_data", WHOLE, "fine TDC calibration table: write N (12.5 ps "

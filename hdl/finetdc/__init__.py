@@ -8,8 +8,8 @@ One block per module:
   the cycle a hit arrives;
 * :mod:`.table`: :class:`~.table.CalibrationTable`, raw code -> fine time, in block RAM, written
   by the host;
-* :mod:`.source`: :class:`~.source.HitSource`, what drives the line (photon pin, on-chip oscillator,
-  laser loopback);
+* :mod:`.source`: :class:`~.source.HitSource`, what drives the line (photon pin or on-chip
+  oscillator);
 * :mod:`.tdc`: :class:`~.tdc.FineTdc`, all of it with the coarse count since the TDC start,
   giving :class:`~fliss.hdl.tdc.Capture` records.
 

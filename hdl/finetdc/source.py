@@ -1,6 +1,6 @@
-"""What drives the delay line: the photon pin, the on-chip oscillator, or the laser trigger."""
+"""What drives the delay line: the photon pin or the on-chip oscillator."""
 
-from amaranth.hdl import Instance, Module, Signal
+from amaranth.hdl import ClockDomain, ClockSignal, Instance, Module, Mux, Signal
 from amaranth.lib import enum, wiring
 from amaranth.lib.wiring import In, Out
 
@@ -10,16 +10,13 @@ from .line import is_ecp5
 __all__ = ["HitInput", "OSCILLATOR_DIV", "HitSource"]
 
 
-class HitInput(enum.Enum, shape=2):
+class HitInput(enum.Enum, shape=1):
     """The fine TDC's input (register ``tdc_input``)."""
     #: The photon pin (a SPAD module's pulses).
     PIN = 0
     #: The ECP5's on-chip oscillator: hits uncorrelated with the clock, for the code-density
     #: calibration with no light.
     OSCILLATOR = 1
-    #: The victim's laser trigger, looped back inside: a self-test with no jumper (hits at a
-    #: fixed phase of the clock, so one code).
-    LASER = 2
 
 
 #: Divider of the ECP5's internal oscillator (``OSCG``, nominally 310 MHz): about 2.4 MHz, high
@@ -39,37 +36,40 @@ class HitSource(wiring.Component):
     analyse the timing of a design with a combinational loop.) The multiplexer is
     combinational (a LUT in front of the line: a fixed delay, the same for every hit).
 
+    Nothing clocked by the design clock may drive the line: nextpnr has no false paths, and a
+    flip-flop's path through the 14 ns line would be timed against the clock period. So the
+    selection is taken through a flip-flop clocked by the oscillator (a setting that stays put:
+    no synchroniser needed), and there is no loopback of the laser trigger (it would need the
+    laser pin's pad read back through its input buffer).
+
     Members
     -------
     pin : In(1)
         The photon pin, asynchronous.
-    laser : In(1)
-        The victim's laser trigger.
     select : In(HitInput)
     hit : Out(1)
         To the delay line.
     """
 
     pin:    In(1)
-    laser:  In(1)
     select: In(HitInput)
     hit:    Out(1)
 
     def elaborate(self, platform):
         m = Module()
 
-        # The on-chip oscillator
+        # The on-chip oscillator, and the selection in its clock domain
         oscillator = Signal()
+        select = Signal(HitInput)
         if is_ecp5(platform):
             m.submodules.oscillator = Instance("OSCG", p_DIV=OSCILLATOR_DIV, o_OSC=oscillator)
+            m.domains.oscillator = ClockDomain("oscillator", local=True, reset_less=True)
+            m.d.comb += ClockSignal("oscillator").eq(oscillator)
+            m.d.oscillator += select.eq(self.select)
+        else:
+            m.d.comb += select.eq(self.select)
 
         # Selection
-        with m.Switch(self.select):
-            with m.Case(HitInput.PIN):
-                m.d.comb += self.hit.eq(self.pin)
-            with m.Case(HitInput.OSCILLATOR):
-                m.d.comb += self.hit.eq(oscillator)
-            with m.Case(HitInput.LASER):
-                m.d.comb += self.hit.eq(self.laser)
+        m.d.comb += self.hit.eq(Mux(select == HitInput.OSCILLATOR, oscillator, self.pin))
 
         return m

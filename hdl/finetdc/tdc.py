@@ -48,8 +48,6 @@ class FineTdc(wiring.Component):
     -------
     pin_hit : In(1)
         Photon hit, asynchronous, active high.
-    laser : In(1)
-        The victim's laser trigger (loopback input).
     input : In(HitInput)
         What drives the line.
     sampled : In(taps)
@@ -73,7 +71,6 @@ class FineTdc(wiring.Component):
         self.taps = taps
         super().__init__({
             "pin_hit":       In(1),
-            "laser":         In(1),
             "input":         In(HitInput),
             "sampled":       In(taps),
             "tdc_start":     In(1),
@@ -99,7 +96,7 @@ class FineTdc(wiring.Component):
         m.submodules.encoder = encoder = Encoder(self.taps)
         m.submodules.table = table = CalibrationTable()
         m.d.comb += [
-            source.pin.eq(self.pin_hit), source.laser.eq(self.laser),
+            source.pin.eq(self.pin_hit),
             source.select.eq(self.input),
             line.hit.eq(source.hit), line.sampled.eq(self.sampled),
             encoder.taps.eq(line.taps),
