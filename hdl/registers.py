@@ -23,10 +23,10 @@ from amaranth.hdl import Shape
 from amaranth.lib import data, enum
 
 from . import DEFAULT_PRF_HZ, period_cycles
-from .event import ADDRESS_BITS, TDC_LSB_S, TIMESTAMP_BITS
+from .event import ADDRESS_BITS, TIMESTAMP_BITS
 from .delay.modes import DelayMode, MODES, mode_row
 from .finetdc import CODE_BITS as FINE_CODE_BITS, LSB_SELECTS as FINE_LSB_SELECTS, \
-    TABLE_BITS as FINE_TABLE_BITS, TAP_S as FINE_TAP_S, lsb_s as fine_lsb_s
+    TABLE_BITS as FINE_TABLE_BITS
 from .delay.settings import (BANK_BITS, IV_BITS, KEY_BITS, MIN_LENGTH, MAX_LENGTH,
                              MAX_MASK_WIDTH, PERIOD_WIDTH, PULSE_WIDTH_WIDTH)
 
@@ -37,7 +37,7 @@ __all__ = ["AcquisitionMode", "TdcSource", "Register", "Setting", "RegisterGroup
            "REGISTERS", "BY_NAME", "BY_ADDRESS", "RECORDED", "DelaySettings", "settings_layout",
            "register_maxima", "defaults", "group_values", "problems", "split_problems", "words_of",
            "value_of",
-           "iv_problem", "code_s"]
+           "iv_problem"]
 
 
 class AcquisitionMode(enum.Enum, shape=2):
@@ -396,20 +396,6 @@ def register_maxima(maxima, clock_hz):
                              f"value or minimum to {register.maximum}, not {maximum!r}")
         result[name] = maximum
     return result
-
-
-def code_s(values, clock_hz):
-    """Seconds per timestamp code with the settings ``values`` (register name -> value; missing
-    ones at their reset values): the sensor's LSB, a clock cycle (coarse TDC), the fine TDC's
-    LSB ``50 ps / 2**fine_lsb``, or, for its raw codes, a tap of the timing model."""
-    source = values.get("tdc_source", TdcSource.SENSOR.value)
-    if source == TdcSource.COARSE.value:
-        return 1 / clock_hz
-    if source == TdcSource.FINE.value:
-        return fine_lsb_s(values.get("fine_lsb", 0))
-    if source == TdcSource.FINE_RAW.value:
-        return FINE_TAP_S
-    return TDC_LSB_S
 
 
 def defaults(clock_hz):

@@ -20,7 +20,7 @@ import numpy as np
 from .. import __version__
 from ..hdl.event import TDC_LSB_S, TIMESTAMP_BITS
 from ..hdl.registers import BY_NAME
-from ..hdl.registers import code_s as timestamp_code_s
+from ..hdl.codes import code_s as timestamp_code_s
 from ..protocol.events import EVENT_DTYPE
 from .imager.files import (IMAGE_MODES, append_depth, append_image, create_depth, create_image,
                            read_imager)
@@ -291,7 +291,7 @@ class Capture:
     @property
     def code_s(self):
         """Width of one timestamp code in seconds: 50 ps (sensor), a clock cycle (coarse), the
-        fine TDC's LSB (:func:`fliss.hdl.registers.code_s`)."""
+        fine TDC's LSB (:func:`fliss.hdl.codes.code_s`)."""
         if self.clock_hz:
             return timestamp_code_s(self.configuration, self.clock_hz)
         return TDC_LSB_S

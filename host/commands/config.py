@@ -4,7 +4,8 @@ import sys
 
 from ...hdl.delay.source import DelayMode
 from ...hdl.event import TIMESTAMP_BITS
-from ...hdl.registers import REGISTERS, BY_NAME, AcquisitionMode, TdcSource, code_s, value_of
+from ...hdl.codes import code_s
+from ...hdl.registers import REGISTERS, BY_NAME, AcquisitionMode, TdcSource, value_of
 from .port_options import add_port_arguments, connect
 from .setting_options import add_setting_arguments, settings_from_args
 from ..settings import check_offline
