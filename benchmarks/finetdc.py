@@ -1,7 +1,8 @@
 """The fine TDC's figures from its model: the tables of docs/finetdc.md.
 
-For two model lines (the timing model's 21.5 ps taps with 5 ps of random variation; the same
-with 30 ps more at every eighth tap, a hop between logic tiles): the mean tap width, DNL and INL
+For three model lines (the ``CCU2C`` cell model's 21.5 ps taps with 5 ps of random variation;
+the same with 30 ps more at every eighth tap, a hop between logic tiles; nextpnr's routed line,
+taps of 8.4 and 62.5 ps in turn with 20 ps of variation): the mean tap width, DNL and INL
 of the raw codes, each raw code's error against the truth with nominal and with calibrated
 times, DNL and INL of the calibrated 50 ps timestamps, and the single-shot RMS error over
 ``--hits`` hits (calibration from 2**22 other hits). Then the scene simulator's photons (a
@@ -22,7 +23,11 @@ from fliss.sim.studies.finetdc import evaluate, scene_comparison
 
 
 LINES = {"timing model, 5 ps sigma": Line(),
-         "+ 30 ps every 8th tap": Line(tile_extra_s=30e-12)}
+         "+ 30 ps every 8th tap": Line(tile_extra_s=30e-12),
+         # nextpnr's routed ULX3S line (benchmarks/finetdc_chain.py): 8.4 ps within a cell,
+         # 62.5 ps to the next, 39 ps of spread from the routes to the flip-flops
+         "nextpnr: 8.4 / 62.5 ps": Line(tap_s=8.4e-12, tile_taps=2, tile_extra_s=54.1e-12,
+                                        sigma_s=20e-12)}
 
 
 def main():

@@ -7,10 +7,10 @@ routes the same way: see the usage) and its timing report ``fliss_ulx3s.report.j
 * the chain's cells in order with their sites: whether each next cell sits in the next slice
   (one carry chain, four cells to a logic tile), and the breaks if not;
 * where each tap's first flip-flop sits against its carry cell (same tile, or how far);
-* every tap's delay from nextpnr's timing model: the carry's arrival at each cell from the
-  longest path through the line (the report's ``<async>`` path, pin to the last tap), split
-  evenly between a cell's two taps, plus each tap's route from its sum output to its
-  flip-flop; the mean, spread and extremes, and the line's length against the clock period.
+* every tap's delay from nextpnr's timing model: each tap's arrival at its flip-flop (carry
+  chain, sum output and its route, from the report's per-net timing), and the differences
+  between neighbours; the mean, spread and extremes, and the line's length against the clock
+  period.
 
 Usage::
 
@@ -103,44 +103,76 @@ def neighbours(cells, nets_of, sites):
           f"(largest {distances.max() if len(distances) else 0} tiles)")
 
 
-def tap_delays(report, period_s, csv=None):
-    """Print each tap's delay from the longest path through the line."""
+def longest_async(report):
+    """The longest ``<async>`` path of the report (the line's, pin to its last tap)."""
     paths = [p for p in report["critical_paths"] if p["from"] == "<async>"]
-    best = max(paths, key=lambda p: sum(seg["delay"] for seg in p["path"]), default=None)
-    if best is None:
+    if not paths:
         sys.exit("error: the report has no <async> path")
-    arrival = {}
-    elapsed = 0.0
-    for segment in best["path"]:
-        elapsed += segment["delay"]
-        match = CELL.match(segment["to"]["cell"])
-        if match and segment["to"]["port"] in ("FCI", "CIN"):
-            arrival.setdefault(int(match.group(1)), elapsed)
-    if len(arrival) < 2:
-        sys.exit("error: the longest <async> path does not run along the line")
-    cells = sorted(arrival)
-    per_cell = np.diff([arrival[c] for c in cells]) * 1e-9
-    taps = np.repeat(per_cell / 2, 2)
-    routes = []
+    return max(paths, key=lambda p: sum(seg["delay"] for seg in p["path"]))
+
+
+def path_tiles(report):
+    """Print the tiles of the line's cells along the longest path."""
+    tiles = {}
+    for segment in longest_async(report)["path"]:
+        for end in ("from", "to"):
+            match = CELL.match(segment[end]["cell"])
+            if match:
+                tiles.setdefault(int(match.group(1)), tuple(segment[end]["loc"]))
+    cells = sorted(tiles)
+    steps = [(tiles[b][0] - tiles[a][0], tiles[b][1] - tiles[a][1])
+             for a, b in zip(cells, cells[1:])]
+    jumps = [(a, tiles[a], tiles[b]) for (a, b), step in zip(zip(cells, cells[1:]), steps)
+             if abs(step[0]) + abs(step[1]) > 1]
+    print(f"carry cells on the path: {len(cells)}, tiles {tiles[cells[0]]} to "
+          f"{tiles[cells[-1]]}; steps of at most one tile: {len(steps) - len(jumps)} of "
+          f"{len(steps)}")
+    for a, here, there in jumps[:20]:
+        print(f"  after cell {a}: tile {here} -> {there}")
+
+
+HALF = re.compile(r"design\.fine\.line\.line_(\d+)\$CCU2_COMB([01])")
+
+
+def tap_arrivals(report):
+    """Each tap's arrival at its first flip-flop's input, in ns from the photon pin (the report's
+    per-net timing: the earliest of the arrivals it lists, the pin's; the slow corner)."""
+    arrivals = {}
     for net in report["detailed_net_timings"]:
-        if CELL.match(net["driver"]) and net["port"].startswith("F"):
-            routes += [max(e["delay"]) * 1e-9 for e in net["endpoints"]
-                       if "fine.line" in e["cell"]]
-    print(f"carry arrival known at {len(cells)} cells (cells {cells[0]} to {cells[-1]})")
-    print(f"tap delay (carry, half a cell): mean {taps.mean() * 1e12:.1f} ps, sigma "
-          f"{taps.std() * 1e12:.1f} ps, min {taps.min() * 1e12:.1f} ps, max "
-          f"{taps.max() * 1e12:.1f} ps")
-    print(f"line from cell {cells[0]} to cell {cells[-1]}: {per_cell.sum() * 1e9:.2f} ns, "
-          f"{per_cell.sum() / period_s:.2f} clock periods")
-    if routes:
-        routes = np.array(routes)
-        print(f"sum output to flip-flop: {len(routes)} routes, mean {routes.mean() * 1e12:.0f} "
-              f"ps, min {routes.min() * 1e12:.0f} ps, max {routes.max() * 1e12:.0f} ps")
+        match = HALF.match(net["driver"])
+        if not match or net["port"] != "F":
+            continue
+        cell, half = int(match.group(1)), int(match.group(2))
+        tap = 2 * cell - 1 + half
+        times = [max(e["delay"]) for e in net["endpoints"] if "fine.line" in e["cell"]]
+        if tap >= 0 and times:
+            arrivals[tap] = min(times)
+    return arrivals
+
+
+def tap_delays(report, period_s, csv=None):
+    """Print every tap's delay: the differences of the taps' arrivals at their flip-flops."""
+    arrivals = tap_arrivals(report)
+    taps = sorted(arrivals)
+    times = np.array([arrivals[t] for t in taps]) * 1e-9
+    widths = np.diff(times)
+    print(f"taps with a timed route to their flip-flop: {len(taps)} (taps {taps[0]} to "
+          f"{taps[-1]})")
+    print(f"first tap {times[0] * 1e9:.2f} ns after the pin, last {times[-1] * 1e9:.2f} ns: "
+          f"the line {(times[-1] - times[0]) * 1e9:.2f} ns, "
+          f"{(times[-1] - times[0]) / period_s:.2f} clock periods")
+    print(f"tap delay: mean {widths.mean() * 1e12:.1f} ps, sigma {widths.std() * 1e12:.1f} ps, "
+          f"min {widths.min() * 1e12:.1f} ps, max {widths.max() * 1e12:.1f} ps; "
+          f"out of order (negative): {np.count_nonzero(widths < 0)}")
+    for parity, name in ((0, "tap 2k to 2k + 1 (to the next cell)"),
+                         (1, "tap 2k - 1 to 2k (in a cell)")):
+        part = widths[parity::2]
+        print(f"  {name}: mean {part.mean() * 1e12:.1f} ps, sigma {part.std() * 1e12:.1f} ps")
     if csv:
         with open(csv, "w") as f:
-            f.write("cell,carry_arrival_ns\n")
-            for c in cells:
-                f.write(f"{c},{arrival[c]:.4f}\n")
+            f.write("tap,arrival_ns\n")
+            for tap in taps:
+                f.write(f"{tap},{arrivals[tap]:.4f}\n")
 
 
 def main():
@@ -148,18 +180,22 @@ def main():
     parser.add_argument("build_dir", type=Path)
     parser.add_argument("--name", default="fliss_ulx3s")
     parser.add_argument("--clock", type=float, default=100e6, help="design clock, Hz")
-    parser.add_argument("--csv", help="write each cell's carry arrival here")
+    parser.add_argument("--csv", help="write each tap's arrival here")
     args = parser.parse_args()
     routed = args.build_dir / f"{args.name}.routed.json"
     report = args.build_dir / f"{args.name}.report.json"
-    for path in (routed, report):
-        if not path.exists():
-            sys.exit(f"error: no {path} (see the usage in this script's help)")
-    netlist = json.loads(routed.read_text())
-    top = next(m for m in netlist["modules"].values() if m["cells"])
-    sites = placement(top["cells"])
-    neighbours(top["cells"], None, sites)
-    tap_delays(json.loads(report.read_text()), 1 / args.clock, args.csv)
+    if not report.exists():
+        sys.exit(f"error: no {report} (see the usage in this script's help)")
+    report = json.loads(report.read_text())
+    if routed.exists():
+        netlist = json.loads(routed.read_text())
+        top = next(m for m in netlist["modules"].values() if m["cells"])
+        sites = placement(top["cells"])
+        neighbours(top["cells"], None, sites)
+    else:
+        print(f"(no {routed.name}: the chain's tiles from the report's path only)")
+        path_tiles(report)
+    tap_delays(report, 1 / args.clock, args.csv)
 
 
 if __name__ == "__main__":

@@ -16,7 +16,7 @@ import numpy as np
 
 from ...analysis import calibration
 from ...hdl.event import TDC_LSB_S, TIMESTAMP_BITS
-from ...hdl.finetdc import TABLE_BITS, UNIT_S, cycle_units, lsb_s
+from ...hdl.finetdc import TABLE_BITS, TAP_S, UNIT_S, cycle_units, lsb_s
 from ..models.finetdc import Line
 
 
@@ -71,7 +71,7 @@ def evaluate(line=None, clock_hz=80e6, *, calibration_hits=1 << 22, test_hits=10
     cycles = 10
     truth = cycles * period - tau
     measured = timestamps(table, codes, cycles, clock_hz, lsb_select) * lsb_s(lsb_select)
-    nominal = cycles * period - (codes - 0.5) * line.tap_s
+    nominal = cycles * period - (codes - 0.5) * TAP_S     # the reset table's times
     result = {"counts": counts, "table": table,
               "mean_tap_s": period / np.count_nonzero(counts)}
     for name, times in (("before", nominal), ("after", measured)):
