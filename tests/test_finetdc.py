@@ -160,3 +160,42 @@ def test_calibration_meets_the_goals():
     assert result["rms_after_s"] <= 20e-12 < result["rms_before_s"]
     assert np.abs(result["code_inl_after_s"]).max() < tap < np.abs(
         result["code_inl_before_s"]).max()
+
+
+def test_model_board_fine_sources(tmp_path):
+    # The model board's fine TDC: the target's peak where the sensor puts it (in seconds) at
+    # 50 and 12.5 ps, and in raw codes at the taps (21.5 ps each) the echo passes before the
+    # next clock edge.
+    from fliss.host.acquisition import capture
+    from fliss.host.client import BoardClient
+    from fliss.host.fileformat import read_capture
+    from fliss.sim.boards.model import model_board
+    counts = {}
+    with model_board() as board_model, BoardClient(board_model.path, timeout_s=1) as board:
+        board.identify()
+        for source, lsb in ((0, 0), (2, 0), (2, 2), (3, 0)):
+            board.write_registers({"tdc_source": source, "fine_lsb": lsb})
+            path = tmp_path / f"{source}-{lsb}.h5"
+            capture(board, path, integration_s=5e-3, acquisitions=2)
+            data = read_capture(path)
+            counts[source, lsb] = (np.asarray(data.histograms).sum(axis=0), data.code_s)
+
+    def centre(key, around_s):
+        # centroid of the counts above the background (the median over the codes in use)
+        # within 3 ns of `around_s`, in seconds
+        histogram, code_s = counts[key]
+        used = histogram[:np.flatnonzero(histogram)[-1] + 1].astype(np.float64)
+        times = np.arange(len(used)) * code_s
+        near = np.abs(times - around_s) < 3e-9
+        signal = used[near] - np.median(used)
+        return float((times[near] * signal).sum() / signal.sum())
+
+    assert counts[2, 2][1] == 12.5e-12 and counts[3, 0][1] == 21.5e-12
+    sensor = centre((0, 0), 26.7e-9)
+    for key in ((2, 0), (2, 2)):
+        assert abs(centre(key, 26.7e-9) - sensor) < 0.2e-9, key
+    # raw codes: the time from the echo to the next clock edge, at the timing model's taps
+    # (the pulse's tail wraps round the cycle: a looser bound, still far from the 1.7 ns after
+    # the edge that a wrong sense would give)
+    before = 12.5e-9 - sensor % 12.5e-9
+    assert abs(centre((3, 0), before) - before) < 0.4e-9
