@@ -180,22 +180,25 @@ def test_model_board_fine_sources(tmp_path):
             data = read_capture(path)
             counts[source, lsb] = (np.asarray(data.histograms).sum(axis=0), data.code_s)
 
-    def centre(key, around_s):
-        # centroid of the counts above the background (the median over the codes in use)
-        # within 3 ns of `around_s`, in seconds
+    def centre(key):
+        # the peak: the maximum of the counts over 1 ns windows, then the centroid of the
+        # counts above the background (the median over the codes in use) within 3 ns of it
         histogram, code_s = counts[key]
         used = histogram[:np.flatnonzero(histogram)[-1] + 1].astype(np.float64)
         times = np.arange(len(used)) * code_s
-        near = np.abs(times - around_s) < 3e-9
+        width = max(1, int(round(1e-9 / code_s)))
+        around = times[np.argmax(np.convolve(used, np.ones(width), mode="same"))]
+        near = np.abs(times - around) < 3e-9
         signal = used[near] - np.median(used)
         return float((times[near] * signal).sum() / signal.sum())
 
     assert counts[2, 2][1] == 12.5e-12 and counts[3, 0][1] == 21.5e-12
-    sensor = centre((0, 0), 26.7e-9)
+    sensor = centre((0, 0))
+    assert abs(sensor - 26.7e-9) < 0.5e-9
     for key in ((2, 0), (2, 2)):
-        assert abs(centre(key, 26.7e-9) - sensor) < 0.2e-9, key
+        assert abs(centre(key) - sensor) < 0.2e-9, key
     # raw codes: the time from the echo to the next clock edge, at the timing model's taps
     # (the pulse's tail wraps round the cycle: a looser bound, still far from the 1.7 ns after
     # the edge that a wrong sense would give)
     before = 12.5e-9 - sensor % 12.5e-9
-    assert abs(centre((3, 0), before) - before) < 0.4e-9
+    assert abs(centre((3, 0)) - before) < 0.4e-9
