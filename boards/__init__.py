@@ -24,7 +24,8 @@ from ..hdl import DEFAULT_CLOCK_HZ
 
 
 __all__ = ["BOARDS", "FLISS_PINS", "BOARD_PINS", "PIN_ALIASES", "platform_class", "BoardTop",
-           "PllClocking", "FlissPlatform", "fliss_top", "fliss_top_spram", "fliss_top_up5k"]
+           "PllClocking", "FlissPlatform", "fliss_top", "fliss_top_fine", "fliss_top_spram",
+           "fliss_top_up5k"]
 
 
 #: Supported boards: name on the command line -> ``module:class`` of its platform.
@@ -43,7 +44,7 @@ FLISS_PINS = {
     "address":   (6,  "i"),   # sensor: pixel address
     "valid":     (1,  "i"),   # sensor: event strobe
     "collision": (1,  "i"),   # sensor: collision flag
-    "photon":    (1,  "i"),   # coarse photon-hit input (photodiode / SPAD comparator)
+    "photon":    (1,  "i"),   # photon-hit input of the coarse and fine TDCs (SPAD module)
 }
 
 #: On-board signals: design port name -> (resource name, subsignal or None, width or None,
@@ -211,6 +212,13 @@ def fliss_top(clock_hz):
     return FlissTop(clock_hz=clock_hz)
 
 
+def fliss_top_fine(clock_hz):
+    """:func:`fliss_top` with the fine TDC (:mod:`fliss.hdl.finetdc`) on the photon pin: the
+    ULX3S's design (an ECP5, whose carry chain makes the delay line)."""
+    from ..hdl.top import FlissTop
+    return FlissTop(clock_hz=clock_hz, fine_tdc=True)
+
+
 def fliss_top_spram(clock_hz):
     """:func:`fliss_top` with the histogram banks in single-port RAM (the iCE40UP5K's SPRAM)."""
     from ..hdl.top import FlissTop
@@ -283,7 +291,9 @@ class FlissPlatform:
       ``f_out_hz``, the real frequency;
     * :meth:`fliss_io`: ``(pins, direction)`` -> ``(Pins, Attrs)`` of one FLISS signal;
     * :attr:`clocking_class`: its :class:`PllClocking`;
-    * :attr:`synth_opts`: options of its ``synth_<family>`` yosys command, if any.
+    * :attr:`synth_opts`: options of its ``synth_<family>`` yosys command, if any;
+    * :attr:`script_after_synth`: yosys commands after it, if any (every build of the platform
+      runs them).
 
     Parameters
     ----------
@@ -301,6 +311,7 @@ class FlissPlatform:
     pins = {}
     shared_pins = {}
     synth_opts = ()
+    script_after_synth = ""
 
     def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, **kwargs):
         super().__init__(**kwargs)
@@ -313,6 +324,12 @@ class FlissPlatform:
             assert len(ios.names) == width, name
             resources.append(Resource(f"fliss_{name}", 0, ios, attrs))
         self.add_resources(resources)
+
+    def toolchain_prepare(self, fragment, name, **kwargs):
+        # The board's own yosys commands after synthesis, unless the caller gives some
+        if self.script_after_synth:
+            kwargs.setdefault("script_after_synth", self.script_after_synth)
+        return super().toolchain_prepare(fragment, name, **kwargs)
 
     def fliss_resource(self, name):
         """Resource name of the FLISS pin ``name``."""

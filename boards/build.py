@@ -38,10 +38,11 @@ __all__ = ["BOARD_DESIGN", "BOARD_CLOCK_HZ", "TOOLS", "BuildResult", "toolchain_
 
 #: The design each board carries, as ``module:factory``; the factory takes the clock frequency in
 #: Hz and returns a :class:`wiring.Component` (see :class:`fliss.boards.BoardTop`). The
-#: iCEBreaker carries the smaller build that fits its iCE40UP5K (``docs/boards.md``).
+#: iCEBreaker carries the smaller build that fits its iCE40UP5K (``docs/boards.md``); the ULX3S
+#: the full one with the fine TDC.
 BOARD_DESIGN = {
     "icebreaker": "fliss.boards:fliss_top_up5k",
-    "ulx3s":      "fliss.boards:fliss_top",
+    "ulx3s":      "fliss.boards:fliss_top_fine",
 }
 
 #: Design clock asked of each board's PLL, in Hz: the default of ``--clock`` and of the timing

@@ -14,6 +14,7 @@ except ImportError as error:  # pragma: no cover - depends on the installed extr
     raise ImportError("The ULX3S platform needs amaranth-boards: "
                       "pip install -e '.[boards]'") from error
 
+from ..hdl.finetdc.line import SCRIPT_AFTER_SYNTH
 from . import FlissPlatform, PllClocking
 
 
@@ -168,6 +169,8 @@ class FlissULX3SPlatform(FlissPlatform, ULX3S_85F_Platform):
     block_ram_quads = _ecp5_85_block_ram_quads()
     pll_search = staticmethod(ecp5_pll)
     clocking_class = _ECP5Clocking
+    #: The fine TDC's carry chain, hidden from yosys as boxes, becomes ``CCU2C`` cells.
+    script_after_synth = SCRIPT_AFTER_SYNTH
 
     @staticmethod
     def fliss_io(pins, direction):

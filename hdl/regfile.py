@@ -9,8 +9,8 @@ from amaranth.lib.wiring import In, Out
 
 from . import DEFAULT_CLOCK_HZ, lookup
 from .protocol import NakCode
-from .registers import (REGISTERS, GROUPS, DELAY_SETTINGS, KEYING, settings_layout, defaults,
-                        register_maxima)
+from .registers import (REGISTERS, GROUPS, DELAY_SETTINGS, FINE_TDC, KEYING, settings_layout,
+                        defaults, register_maxima)
 from .event import ADDRESS_BITS, TIMESTAMP_BITS
 from .delay.modes import MODES
 from .delay.settings import BANK_BITS, MAX_BANK_BITS, MIN_BANK_BITS, IV_BITS
@@ -71,10 +71,13 @@ class RegisterFile(wiring.Component):
         maxima hold the key and IV at 0 (a build without the keyed source).
     rekey : Out(1)
         A commit writes the key or the IV (to the keyed source).
+    table_seek, table_write : Out(1)
+        A commit writes ``table_address``, ``table_data`` (to the fine TDC's calibration table).
     settings : Out(settings_layout(maxima))
         Every register, each as wide as its maximum needs.
-    victim, aggressor, aggressor_delay, acquisition, gate, histogram : Out(group.layout(maxima))
-        The registers of each group of :data:`~fliss.hdl.registers.GROUPS`, as its struct.
+    victim, aggressor, aggressor_delay, acquisition, gate, histogram, depth, fine_tdc, keying
+        The registers of each group of :data:`~fliss.hdl.registers.GROUPS`, as its struct
+        (``Out(group.layout(maxima))``).
     """
 
     def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, maxima=None, bank_bits=BANK_BITS):
@@ -101,6 +104,8 @@ class RegisterFile(wiring.Component):
             "read_data":     Out(32),
             "iv":            In(IV_BITS),
             "rekey":         Out(1),
+            "table_seek":    Out(1),
+            "table_write":   Out(1),
             "settings":      Out(settings_layout(self.maxima), init=defaults(self.clock_hz)),
             **{group.name: Out(group.layout(self.maxima)) for group in GROUPS},
         })
@@ -206,6 +211,9 @@ class RegisterFile(wiring.Component):
         if self._keyed:
             m.d.comb += self.rekey.eq(self.commit & Cat(written[r.address]
                                                         for r in KEYING.members).any())
+        fine = {r.field: r.address for r in FINE_TDC.members}
+        m.d.comb += [self.table_seek.eq(self.commit & written[fine["table_address"]]),
+                     self.table_write.eq(self.commit & written[fine["table_data"]])]
         with m.If(self.commit):
             m.d.sync += settings.eq(candidate)
 

@@ -10,7 +10,7 @@ Registers come in groups (:class:`RegisterGroup`, :data:`GROUPS`) that travel to
 struct to the block that uses them: the victim's and the aggressor's delay cores (both from one
 definition, :data:`DELAY_SETTINGS`, whose layout is :class:`DelaySettings`), the aggressor
 emitter's own settings, the event filter's gate, the histogram's frames, and the top level's
-own choices (acquisition), and the key and IV of the victim's keyed delay source (keying).
+own choices (acquisition), the fine TDC's (fine_tdc), and the key and IV of the victim's keyed delay source (keying).
 The link has no settings. A new field of a group is
 added here and used in its block; the register file, its checks and the top level follow.
 
@@ -25,13 +25,15 @@ from amaranth.lib import data, enum
 from . import DEFAULT_PRF_HZ, period_cycles
 from .event import ADDRESS_BITS, TIMESTAMP_BITS
 from .delay.modes import DelayMode, MODES, mode_row
+from .finetdc import CODE_BITS as FINE_CODE_BITS, LSB_SELECTS as FINE_LSB_SELECTS, \
+    TABLE_BITS as FINE_TABLE_BITS
 from .delay.settings import (BANK_BITS, IV_BITS, KEY_BITS, MIN_LENGTH, MAX_LENGTH,
                              MAX_MASK_WIDTH, PERIOD_WIDTH, PULSE_WIDTH_WIDTH)
 
 
 __all__ = ["AcquisitionMode", "TdcSource", "Register", "Setting", "RegisterGroup",
            "DELAY_SETTINGS", "VICTIM", "AGGRESSOR", "AGGRESSOR_DELAY", "ACQUISITION", "GATE",
-           "HISTOGRAM", "DEPTH", "KEYING", "GROUPS",
+           "HISTOGRAM", "DEPTH", "FINE_TDC", "KEYING", "GROUPS",
            "REGISTERS", "BY_NAME", "BY_ADDRESS", "RECORDED", "DelaySettings", "settings_layout",
            "register_maxima", "defaults", "group_values", "problems", "split_problems", "words_of",
            "value_of",
@@ -49,12 +51,17 @@ class AcquisitionMode(enum.Enum, shape=2):
     DEPTH     = 2
 
 
-class TdcSource(enum.Enum, shape=1):
+class TdcSource(enum.Enum, shape=2):
     """Where events come from."""
     #: The sensor's timestamp bus (13-bit codes of 50 ps).
     SENSOR = 0
     #: The built-in coarse TDC on the photon-hit pin (codes of one clock cycle).
     COARSE = 1
+    #: The fine TDC in the fabric (:mod:`fliss.hdl.finetdc`), calibrated: codes of
+    #: ``50 ps / 2**fine_lsb``.
+    FINE = 2
+    #: The fine TDC's raw tap codes, for its code-density calibration.
+    FINE_RAW = 3
 
 
 @dataclass(frozen=True)
@@ -224,11 +231,31 @@ AGGRESSOR = RegisterGroup("aggressor", (
 #: What is acquired, and from where (the top level's own choices).
 ACQUISITION = RegisterGroup("acquisition", (
     Setting("mode",       2, 0, max(mode.value for mode in AcquisitionMode)),
-    Setting("tdc_source", 1, 0, 1),
+    Setting("tdc_source", 2, 0, max(source.value for source in TdcSource)),
 ), {
     "mode":       ("acquisition", 0x00, 0, "acquisition mode: 0 histogram, 1 raw events, 2 depth frames"),
     "tdc_source": ("tdc_source", 0x10, 0,
-                   "event source: 0 sensor timestamp bus, 1 built-in coarse TDC"),
+                   "event source: 0 sensor timestamp bus, 1 built-in coarse TDC, 2 fine TDC, "
+                   "3 fine TDC raw tap codes"),
+})
+
+#: The fine TDC (:class:`~fliss.hdl.finetdc.tdc.FineTdc`): its timestamp LSB, its input, and
+#: the host's way into its calibration table: a WRITE of ``table_address`` moves the table's
+#: pointer there, each WRITE of ``table_data`` writes the entry at the pointer and moves it on.
+FINE_TDC = RegisterGroup("fine_tdc", (
+    Setting("lsb",   2, 0, FINE_LSB_SELECTS - 1),
+    Setting("input", 1, 0, 1),
+    Setting("table_address", FINE_CODE_BITS, 0, (1 << FINE_CODE_BITS) - 1),
+    Setting("table_data", FINE_TABLE_BITS, 0, (1 << FINE_TABLE_BITS) - 1),
+), {
+    "lsb":   ("fine_lsb", 0x1b, 0, "fine TDC timestamp LSB: 50 ps / 2**fine_lsb (0 to 2)"),
+    "input": ("tdc_input", 0x1c, 0,
+              "fine TDC input: 0 photon pin, 1 on-chip oscillator"),
+    "table_address": ("table_address", 0x1d, 0,
+                      "fine TDC calibration table: a write moves the table's pointer here"),
+    "table_data": ("table_data", 0x1e, 0,
+                   "fine TDC calibration table: a write puts the entry (12.5 ps units) at the "
+                   "pointer and moves the pointer on"),
 })
 
 #: The event filter's gate (:class:`~fliss.hdl.tdc.EventFilter`): the timestamps it accepts,
@@ -290,16 +317,17 @@ KEYING = RegisterGroup("keying", (
     Setting("key1", 32,           0, _U32),
     Setting("key2", KEY_BITS - 64, 0, (1 << (KEY_BITS - 64)) - 1),
 ), {
-    "iv0":  ("iv0", 0x1b, 0, "IV of the keyed source, bits 0-31 (reads: the IV in use)"),
-    "iv1":  ("iv1", 0x1c, 0, "IV of the keyed source, bits 32-63"),
-    "iv2":  ("iv2", 0x1d, 0, "IV of the keyed source, bits 64-79"),
-    "key0": ("key0", 0x1e, 0, "key of the keyed source, bits 0-31 (write-only: reads 0)"),
-    "key1": ("key1", 0x1f, 0, "key of the keyed source, bits 32-63 (write-only)"),
-    "key2": ("key2", 0x20, 0, "key of the keyed source, bits 64-79 (write-only)"),
+    "iv0":  ("iv0", 0x1f, 0, "IV of the keyed source, bits 0-31 (reads: the IV in use)"),
+    "iv1":  ("iv1", 0x20, 0, "IV of the keyed source, bits 32-63"),
+    "iv2":  ("iv2", 0x21, 0, "IV of the keyed source, bits 64-79"),
+    "key0": ("key0", 0x22, 0, "key of the keyed source, bits 0-31 (write-only: reads 0)"),
+    "key1": ("key1", 0x23, 0, "key of the keyed source, bits 32-63 (write-only)"),
+    "key2": ("key2", 0x24, 0, "key of the keyed source, bits 64-79 (write-only)"),
 }, write_only=frozenset({"key0", "key1", "key2"}), in_use=frozenset({"iv0", "iv1", "iv2"}))
 
 #: Every group; the link has no settings, so it has no group.
-GROUPS = (VICTIM, AGGRESSOR, AGGRESSOR_DELAY, ACQUISITION, GATE, HISTOGRAM, DEPTH, KEYING)
+GROUPS = (VICTIM, AGGRESSOR, AGGRESSOR_DELAY, ACQUISITION, GATE, HISTOGRAM, DEPTH, FINE_TDC,
+          KEYING)
 
 #: The registers, in address order.
 REGISTERS = tuple(sorted((r for group in GROUPS for r in group.members),

@@ -14,13 +14,16 @@ from .link.link import Link
 from .link.packetizer import EventPacketizer, FullHistogramPacketizer, HistogramPacketizer
 from .protocol import DEFAULT_BAUD
 from .rawfifo import RawFifo
-from .registers import VICTIM, AGGRESSOR, AGGRESSOR_DELAY, KEYING, DEPTH, AcquisitionMode, TdcSource
+from .registers import (VICTIM, AGGRESSOR, AGGRESSOR_DELAY, KEYING, DEPTH, FINE_TDC,
+                        AcquisitionMode, TdcSource)
 from .delay.modes import DelayMode
 from .delay.settings import (BANK_BITS, MAX_BANK_BITS, MIN_BANK_BITS, PERIOD_WIDTH,
                              PULSE_WIDTH_WIDTH, check_widths)
 from .spram import SPRAM_DEPTH
 from .status import StatusCounters
 from .tdc import EventFilter, TdcInterface, CoarseTdc
+from .finetdc import cycle_units
+from .finetdc.tdc import FineTdc
 from .link.uart import bit_cycles
 
 
@@ -111,6 +114,12 @@ class FlissTop(wiring.Component):
         LUTs and two block RAMs less on an iCE40), every histogram goes out in full HISTOGRAM
         chunks (:class:`~fliss.hdl.link.packetizer.FullHistogramPacketizer`), whatever
         ``full_readout`` says; hosts read both forms alike.
+    fine_tdc : bool
+        Build the fine TDC (:class:`~fliss.hdl.finetdc.tdc.FineTdc`: a delay line of ECP5 carry
+        cells on ``photon_hit``, ``tdc_source`` 2 and 3); the clock period must be a whole
+        number of 12.5 ps. Without it (the default: some 1300 flip-flops, 700 LUTs, 320 carry
+        cells and a block RAM; only the ECP5 has the chain), a write of ``tdc_source`` above 1,
+        or of the fine TDC's registers other than 0, is refused as out of range.
 
     Smaller builds answer every command as the full one does, except for the refusals above:
     the host finds what is missing from a NAK ``OUT_OF_RANGE`` with the register's address.
@@ -131,7 +140,7 @@ class FlissTop(wiring.Component):
     sensor_collision : In(1)
         The sensor's TDC output bus, captured on ``sensor_valid``.
     photon_hit : In(1)
-        Photon detector pulse for the built-in coarse TDC.
+        Photon detector pulse for the built-in coarse TDC and the fine TDC.
     running : Out(1)
         Acquisition running (for an LED).
     """
@@ -152,7 +161,7 @@ class FlissTop(wiring.Component):
                  histogram_ram="dual", bank_bits=None, max_pixel_bits=ADDRESS_BITS,
                  aggressor_delays=True, aggressor=True, raw_events=True, keyed=True, depth=True,
                  period_width=PERIOD_WIDTH, pulse_width_width=PULSE_WIDTH_WIDTH,
-                 compact_readout=True):
+                 compact_readout=True, fine_tdc=False):
         self.clock_hz = clock_hz
         self.baud = baud
         self.raw_depth = raw_depth
@@ -173,7 +182,7 @@ class FlissTop(wiring.Component):
         self.max_pixel_bits = max_pixel_bits
         for name, value in (("aggressor_delays", aggressor_delays), ("aggressor", aggressor),
                             ("raw_events", raw_events), ("keyed", keyed), ("depth", depth),
-                            ("compact_readout", compact_readout)):
+                            ("compact_readout", compact_readout), ("fine_tdc", fine_tdc)):
             if not isinstance(value, bool):
                 raise TypeError(f"{name} must be True or False, not {value!r}")
         if depth and not raw_events:
@@ -186,6 +195,9 @@ class FlissTop(wiring.Component):
         self.keyed = keyed
         self.compact_readout = compact_readout
         self.depth = depth
+        if fine_tdc:
+            cycle_units(clock_hz)
+        self.fine_tdc = fine_tdc
         check_widths(period_width, pulse_width_width)
         self.period_width = period_width
         self.pulse_width_width = pulse_width_width
@@ -220,6 +232,10 @@ class FlissTop(wiring.Component):
             maxima["acquisition"] = AcquisitionMode.HISTOGRAM.value
         if self.max_pixel_bits < ADDRESS_BITS:
             maxima["pixel_bits"] = self.max_pixel_bits
+        if not self.fine_tdc:
+            maxima["tdc_source"] = TdcSource.COARSE.value
+            for register in FINE_TDC.members:
+                maxima[register.name] = register.reset_value(self.clock_hz)
         if not self.keyed:
             maxima[VICTIM.register("mode").name] = DelayMode.MASKED.value
             for register in KEYING.members:
@@ -295,10 +311,13 @@ class FlissTop(wiring.Component):
             sensor.pin_collision.eq(self.sensor_collision),
             coarse.pin_hit.eq(self.photon_hit),
             coarse.tdc_start.eq(core.tdc_start),
-            event_filter.captures.eq(Mux(coarse_selected, coarse.captures, sensor.captures)),
             event_filter.gate.eq(registers.gate),
             event_filter.events.ready.eq(1),
         ]
+        captures = Mux(coarse_selected, coarse.captures, sensor.captures)
+        if self.fine_tdc:
+            captures = self._fine_tdc(m, registers, core, link, captures)
+        m.d.comb += event_filter.captures.eq(captures)
         events = event_filter.events.payload
         events_valid = event_filter.events.valid
 
@@ -366,3 +385,23 @@ class FlissTop(wiring.Component):
             m.d.comb += status.count(raw_fifo.tally, accepted=None, dropped="dropped_fifo")
 
         return m
+
+    def _fine_tdc(self, m, registers, core, link, captures):
+        # The fine TDC on the photon pin; its captures when `tdc_source` selects it
+        m.submodules.fine = fine = FineTdc(clock_hz=self.clock_hz)
+        source = registers.acquisition.tdc_source
+        settings = registers.fine_tdc
+        m.d.comb += [
+            fine.pin_hit.eq(self.photon_hit),
+            fine.input.eq(settings.input),
+            fine.tdc_start.eq(core.tdc_start),
+            fine.pulse_index.eq(core.pulse_index),
+            fine.enable.eq(link.running),
+            fine.lsb.eq(settings.lsb),
+            fine.raw.eq(source == TdcSource.FINE_RAW),
+            fine.table_seek.eq(registers.table_seek),
+            fine.table_address.eq(settings.table_address),
+            fine.table_write.eq(registers.table_write),
+            fine.table_data.eq(settings.table_data),
+        ]
+        return Mux(source[1], fine.captures, captures)

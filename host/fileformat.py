@@ -19,7 +19,8 @@ import numpy as np
 
 from .. import __version__
 from ..hdl.event import TDC_LSB_S, TIMESTAMP_BITS
-from ..hdl.registers import BY_NAME, TdcSource
+from ..hdl.registers import BY_NAME
+from ..hdl.codes import code_s as timestamp_code_s
 from ..protocol.events import EVENT_DTYPE
 from .imager.files import (IMAGE_MODES, append_depth, append_image, create_depth, create_image,
                            read_imager)
@@ -126,8 +127,8 @@ class CaptureWriter:
                                      chunks=(1024,))
         self.histograms = 0
         self.mode, self._pixels = mode, None
-        code_s = (1 / identity["clock_hz"] if configuration.get("tdc_source") ==
-                  TdcSource.COARSE.value and identity.get("clock_hz") else TDC_LSB_S)
+        code_s = (timestamp_code_s(configuration, identity["clock_hz"])
+                  if identity.get("clock_hz") else TDC_LSB_S)
         if mode == "image":
             self._bins = create_image(f, configuration, code_s)
         elif mode == "depth":
@@ -289,9 +290,10 @@ class Capture:
 
     @property
     def code_s(self):
-        """Width of one timestamp code in seconds: 50 ps (sensor) or a clock cycle (coarse)."""
-        if self.configuration.get("tdc_source") == TdcSource.COARSE.value and self.clock_hz:
-            return 1.0 / self.clock_hz
+        """Width of one timestamp code in seconds: 50 ps (sensor), a clock cycle (coarse), the
+        fine TDC's LSB (:func:`fliss.hdl.codes.code_s`)."""
+        if self.clock_hz:
+            return timestamp_code_s(self.configuration, self.clock_hz)
         return TDC_LSB_S
 
     @property

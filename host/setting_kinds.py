@@ -14,8 +14,8 @@ import secrets
 from dataclasses import dataclass, field
 from typing import Any, Callable, Dict, List, Mapping
 
-from ..hdl.event import TDC_LSB_S
-from ..hdl.registers import BY_NAME, TdcSource, value_of, words_of
+from ..hdl.registers import BY_NAME, value_of, words_of
+from ..hdl.codes import code_s as timestamp_code_s
 from ..hdl.delay.settings import as_int, parse_hex
 from .errors import SettingsError
 from .units import format_frequency, format_time, parse_frequency, parse_time
@@ -199,9 +199,9 @@ def _show_frequency(option, registers, clock_hz):
 
 
 def code_s(registers: Mapping[str, int], clock_hz: int) -> float:
-    """Seconds per timestamp code: the sensor TDC's LSB, or a clock cycle for the coarse
-    TDC."""
-    return 1 / clock_hz if registers["tdc_source"] == TdcSource.COARSE.value else TDC_LSB_S
+    """Seconds per timestamp code: the sensor TDC's LSB, a clock cycle for the coarse TDC, the
+    fine TDC's LSB (:func:`fliss.hdl.codes.code_s`)."""
+    return timestamp_code_s(registers, clock_hz)
 
 
 def _convert_gate(option, value, context):

@@ -88,8 +88,8 @@ def _after_reset(register):
 _MODES = _names(DelayMode)
 _ON_OFF = {"off": 0, "on": 1}
 
-#: Every setting, in the order they are converted (``tdc`` before the gate, which depends on
-#: it) and shown.
+#: Every setting, in the order they are converted (``tdc`` and ``fine_lsb`` before the gate,
+#: which depends on them) and shown.
 OPTIONS: Tuple[Option, ...] = (
     Option("readout", "acquisition", CHOICE, "what the board sends: histograms made on the "
            "board (image: the same, saved per pixel), every event (raw), or depth frames",
@@ -122,8 +122,17 @@ OPTIONS: Tuple[Option, ...] = (
     Option("aggressor_mask_width", "aggressor_mask_width", WHOLE, "aggressor mask width (bits)",
            "WM"),
     Option("aggressor_seed", "aggressor_seed", WHOLE, "aggressor delay source seed", "S"),
-    Option("tdc", "tdc_source", CHOICE, "event source: the sensor's timestamp bus or the "
-           "built-in coarse TDC", choices=_names(TdcSource)),
+    Option("tdc", "tdc_source", CHOICE, "event source: the sensor's timestamp bus, the "
+           "built-in coarse TDC, the fine TDC (calibrated) or its raw tap codes",
+           choices=_names(TdcSource)),
+    Option("fine_lsb", "fine_lsb", CHOICE, "fine TDC timestamp LSB (range 409.6, 204.8, "
+           "102.4 ns)", choices={"50ps": 0, "25ps": 1, "12.5ps": 2}),
+    Option("tdc_input", "tdc_input", CHOICE, "fine TDC input: the photon pin, or the on-chip "
+           "oscillator (calibration)", choices={"pin": 0, "oscillator": 1}),
+    Option("table_address", "table_address", WHOLE, "fine TDC calibration table: move its "
+           "pointer to entry N", "N"),
+    Option("table_data", "table_data", WHOLE, "fine TDC calibration table: write N (12.5 ps "
+           "units) at the pointer and move it on", "N"),
     Option("gate_start", "gate_start", GATE, "first timestamp accepted (time from the TDC "
            "start: 100ns, or 2000codes)", "TIME"),
     Option("gate_end", "gate_end", GATE, "last timestamp accepted (100ns, or 2000codes)",

@@ -155,9 +155,9 @@ def test_pin_aliases(tmp_path):
     assert top.unwired == ["status"]
 
 
-@pytest.mark.parametrize("board,factory,spram", [("ulx3s", "fliss_top", 0),
-                                                  ("icebreaker", "fliss_top_up5k", 2)])
-def test_fliss_top_on_the_board(board, factory, spram, tmp_path):
+@pytest.mark.parametrize("board,factory,spram,carry", [("ulx3s", "fliss_top_fine", 0, 321),
+                                                        ("icebreaker", "fliss_top_up5k", 2, 0)])
+def test_fliss_top_on_the_board(board, factory, spram, carry, tmp_path):
     # The whole instrument: every port reaches a pin (through the aliases), and on the
     # iCEBreaker the histogram banks are the two SPRAMs.
     _boards_extra()
@@ -169,6 +169,10 @@ def test_fliss_top_on_the_board(board, factory, spram, tmp_path):
     plan.extract(str(tmp_path))
     rtlil = (tmp_path / "top.il").read_text()
     assert rtlil.count("cell \\SB_SPRAM256KA ") == spram
+    # the fine TDC's line: one carry box per cell, declared for yosys, renamed after synthesis
+    assert rtlil.count("cell \\FLISS_CCU2C ") == carry
+    assert (tmp_path / "fliss_carry_box.v").exists() == bool(carry)
+    assert ("chtype -set CCU2C" in (tmp_path / "top.ys").read_text()) == bool(carry)
 
 
 class _WideLaser(wiring.Component):

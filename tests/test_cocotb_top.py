@@ -9,7 +9,7 @@ import pytest
 from amaranth.hdl import UnusedElaboratable
 
 from fliss.hdl.delay.source import DelayMode
-from fliss.hdl.registers import REGISTERS, AcquisitionMode
+from fliss.hdl.registers import REGISTERS, AcquisitionMode, TdcSource
 from fliss.hdl.delay.settings import BANK_BITS
 from fliss.hdl.top import FlissTop, SMALL
 from fliss.sim.benches.runner import run_cocotb, write_verilog
@@ -34,12 +34,14 @@ TOP_BANK_BITS = {"icarus": 13, "verilator": BANK_BITS}
 
 def test_top(simulator, cocotb_counts):
     bank_bits = TOP_BANK_BITS[simulator]
-    verilog = write_verilog(FlissTop(baud=BAUD, bank_bits=bank_bits), "fliss_top",
-                            BUILD / simulator / "fliss_top.v")
+    top = FlissTop(baud=BAUD, bank_bits=bank_bits)
+    maxima = top.register_maxima()      # (no fine TDC: tdc_source up to 1)
+    verilog = write_verilog(top, "fliss_top", BUILD / simulator / "fliss_top.v")
     results = run_cocotb(
         simulator, verilog_path=verilog, toplevel="fliss_top",
         test_module="fliss.sim.benches.top", build_dir=BUILD,
         extra_env={"FLISS_TB_BAUD": str(BAUD), "FLISS_TB_BANK_BITS": str(bank_bits),
+                   "FLISS_TB_MAXIMA": json.dumps(maxima),
                    "FLISS_TB_FUZZ_FRAMES": str(FUZZ_FRAMES[simulator])})
     cocotb_counts(simulator, results)
     assert results.failed == []
@@ -89,8 +91,9 @@ def _built(module, name):
     return True
 
 
-@pytest.mark.parametrize("options", [{}, dict(aggressor_delays=False), SMALL],
-                         ids=["full", "no-aggressor-delays", "small"])
+@pytest.mark.parametrize("options", [{}, dict(aggressor_delays=False), SMALL,
+                                     dict(fine_tdc=True)],
+                         ids=["full", "no-aggressor-delays", "small", "fine-tdc"])
 def test_top_register_file_takes_what_the_top_runs(options):
     # The register file accepts every value the blocks the top level builds can take, and only
     # those: aggressor delay modes its aggressor can run (none without an aggressor), periods
@@ -131,6 +134,12 @@ def test_top_register_file_takes_what_the_top_runs(options):
                     assert reset <= maxima[register.name] < 2 * max(reset, register.minimum, 1)
                     lowered[register.name] = maxima[register.name]
         lowered["pixel_bits"] = top.submodules.histogram.max_pixel_bits
+        if not _built(top, "fine"):
+            # no fine TDC: the coarse TDC at most, and its registers 0
+            lowered["tdc_source"] = TdcSource.COARSE.value
+            for register in REGISTERS:
+                if register.group == "fine_tdc":
+                    lowered[register.name] = 0
         if not core.keyed:
             # no keyed source: delay modes up to masked, and no key or IV but 0
             lowered["delay_mode"] = DelayMode.MASKED.value

@@ -1,14 +1,16 @@
 """Command processor in Amaranth's simulator against its model, packet by packet."""
 
 import random
+import warnings
 
 import pytest
-from amaranth.hdl import ResetInserter, Signal
+from amaranth.hdl import ResetInserter, Signal, UnusedElaboratable
 
 from fliss.hdl.link.command import CommandProcessor
 from fliss.hdl.protocol import (PacketType, NakCode, STATUS_FIELDS, Identity, Nak, ReadRequest,
                                 registers_layout)
 from fliss.hdl.registers import REGISTERS, BY_NAME, defaults, problems
+from fliss.hdl.top import FlissTop
 from fliss.protocol.layout import pack, unpack
 from fliss.sim.models.command import CommandModel
 from simulation import simulate
@@ -271,3 +273,25 @@ def test_reset_restores_the_registers():
     assert replies[-1] == (PacketType.REGISTERS.value, fresh.command(*read_all)[1])
     assert replies[-1] != replies[len(writes)]
     assert settings[-1] == defaults(CLOCK_HZ)
+
+
+@pytest.mark.parametrize("name, refused", [("tdc_source", (2, 3)), ("fine_lsb", (1, 2)),
+                                           ("tdc_input", (1, 1)), ("table_data", (1, 4095))])
+def test_builds_without_the_fine_tdc_refuse_it(name, refused):
+    # A build without the fine TDC takes tdc_source 0 and 1, and its registers 0 only, like the
+    # model; the full register map takes them.
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnusedElaboratable)     # built, never elaborated
+        maxima = FlissTop().register_maxima()
+        assert not {"tdc_source", "fine_lsb"} & set(FlissTop(fine_tdc=True).register_maxima())
+    address = BY_NAME[name].address
+    values = [refused[0], 0, refused[1], 1 if name == "tdc_source" else 0]
+    packets = [(PacketType.WRITE.value, seq, _write(address, value))
+               for seq, value in enumerate(values)]
+    replies, _, _ = run_commands(packets, maxima=maxima)
+    model = CommandModel(CLOCK_HZ, BAUD, maxima=maxima)
+    assert replies == [(t.value, p) for t, p in (model.command(*packet) for packet in packets)]
+    out_of_range = [(PacketType.NAK.value, pack(Nak, seq=seq, code=NakCode.OUT_OF_RANGE,
+                                                detail=address)) for seq in (0, 2)]
+    assert [replies[0], replies[2]] == out_of_range
+    assert [replies[1], replies[3]] == [(PacketType.ACK.value, bytes([seq])) for seq in (1, 3)]

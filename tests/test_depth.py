@@ -320,7 +320,10 @@ def test_builds_without_the_engine_refuse_depth_mode(construction_error):
         small = FlissTop(**SMALL).register_maxima()
         gc.collect()
     # (its settings stay, as wide as their resets need: 4 in 3 bits, 16 in 5)
-    assert maxima == {"acquisition": 1, "depth_filter": 0b111, "depth_threshold": 0b11111}
+    # (and, as in every build without the fine TDC, tdc_source up to 1 and its registers 0)
+    fine = {"tdc_source": 1, "fine_lsb": 0, "tdc_input": 0, "table_address": 0, "table_data": 0}
+    assert maxima == {"acquisition": 1, "depth_filter": 0b111, "depth_threshold": 0b11111,
+                      **fine}
     assert small["acquisition"] == 0
     assert construction_error(lambda: FlissTop(depth="yes"), TypeError) == \
         "depth must be True or False, not 'yes'"

@@ -3,7 +3,8 @@
 import sys
 
 from ...hdl.delay.source import DelayMode
-from ...hdl.event import TDC_LSB_S, TIMESTAMP_BITS
+from ...hdl.event import TIMESTAMP_BITS
+from ...hdl.codes import code_s
 from ...hdl.registers import REGISTERS, BY_NAME, AcquisitionMode, TdcSource, value_of
 from .port_options import add_port_arguments, connect
 from .setting_options import add_setting_arguments, settings_from_args
@@ -34,7 +35,7 @@ def describe(name, value, settings, clock_hz):
         modes = {mode.value: mode.name.lower() for mode in AcquisitionMode}
         return modes.get(value, "?")
     if name == "tdc_source":
-        return TdcSource(value).name.lower() if value in (0, 1) else "?"
+        return TdcSource(value).name.lower() if value in {s.value for s in TdcSource} else "?"
     if name in ("grid",):
         return "grid" if value else "interval"
     if name == "aggressor":
@@ -68,8 +69,8 @@ def describe(name, value, settings, clock_hz):
 
 
 def _code_s(settings, clock_hz):
-    # Seconds per timestamp code: a clock cycle with the coarse TDC, else the sensor's LSB.
-    return 1 / clock_hz if settings.get("tdc_source") == TdcSource.COARSE.value else TDC_LSB_S
+    # Seconds per timestamp code (the coarse TDC's, the fine TDC's or the sensor's)
+    return code_s(settings, clock_hz)
 
 
 def register(subparsers, formatter):

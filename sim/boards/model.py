@@ -35,6 +35,9 @@ from ...hdl.histogram.layout import MAX_COUNT_WIDTH
 from ...hdl.protocol import (DEFAULT_BAUD, HISTOGRAM_COUNT_BITS, PacketType, STATUS_FIELDS,
                              LINK_COUNTERS, MAX_EVENTS_PER_PACKET, EVENT_BYTES)
 from ...hdl.delay.modes import MODES, DelayMode
+from ...hdl.event import TDC_LSB_S
+from ...hdl.finetdc import TAP_S as FINE_TAP_S
+from ...hdl.tdc import MAX_TIMESTAMP
 from ...hdl.registers import (AGGRESSOR_DELAY, VICTIM, AcquisitionMode, TdcSource, group_values,
                               value_of, words_of)
 from ...protocol.frames import LinkError, Packet, encode_frame, packet_type
@@ -296,6 +299,18 @@ class ModelBoard(PtyServer):
         if s["tdc_source"] == TdcSource.COARSE.value:
             lsb_per_cycle = int(round(self.simulation.scene.lsb_per_cycle))
             events["timestamp"] //= lsb_per_cycle
+        elif s["tdc_source"] == TdcSource.FINE.value:
+            # The fine TDC, ideal: the scene's 50 ps codes at its LSB (the scene has no finer
+            # detail); beyond 13 bits the event filter drops them as overflows
+            stamps = events["timestamp"].astype(np.int64) << s["fine_lsb"]
+            events = events[stamps <= MAX_TIMESTAMP]
+            events["timestamp"] = stamps[stamps <= MAX_TIMESTAMP]
+        elif s["tdc_source"] == TdcSource.FINE_RAW.value:
+            # Its raw codes with taps as the timing model has them: the taps a photon passed
+            # before the next clock edge
+            lsb_per_cycle = self.simulation.scene.lsb_per_cycle
+            before = (-events["timestamp"].astype(np.float64) - 0.5) % lsb_per_cycle
+            events["timestamp"] = 1 + np.floor(before * TDC_LSB_S / FINE_TAP_S).astype(np.int64)
         if s["collisions"]:     # (the event filter drops flagged events before the gate)
             flagged = events["collision"] != 0
             self.status["dropped_collision"] += int(np.count_nonzero(flagged))

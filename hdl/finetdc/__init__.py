@@ -1,0 +1,81 @@
+"""A fine TDC in the FPGA fabric: a tapped delay line of carry cells, sampled at every clock edge.
+
+One block per module:
+
+* :mod:`.line`: :class:`~.line.DelayLine`, the carry chain and its two flip-flop stages (on the
+  ECP5), or the sampled taps from a port (simulation, other families);
+* :mod:`.encoder`: :class:`~.encoder.Encoder`, ones count of the sampled taps (the raw code) and
+  the cycle a hit arrives;
+* :mod:`.table`: :class:`~.table.CalibrationTable`, raw code -> fine time, in block RAM, written
+  by the host;
+* :mod:`.source`: :class:`~.source.HitSource`, what drives the line (photon pin or on-chip
+  oscillator);
+* :mod:`.tdc`: :class:`~.tdc.FineTdc`, all of it with the coarse count since the TDC start,
+  giving :class:`~fliss.hdl.tdc.Capture` records.
+
+The numbers below describe the hardware; the model (:mod:`fliss.sim.models.finetdc`) and the
+host read them from here.
+"""
+
+import math
+
+from ..event import TDC_LSB_S, TIMESTAMP_BITS
+
+
+__all__ = ["TAPS", "TAP_S", "CODE_BITS", "TABLE_BITS", "UNIT_S", "LSB_SELECTS", "POPCOUNT_FANIN",
+           "popcount_stages", "LATENCY", "cycle_units", "elapsed_limit", "lsb_s"]
+
+
+#: Taps of the delay line: 320 ``CCU2C`` cells, two taps each, about 13.8 ns at the timing
+#: model's 21.5 ps a tap: a 12.5 ns clock period (80 MHz) with 10 % margin.
+TAPS = 640
+#: Delay of one tap in nextpnr's ECP5 timing model: ``CIN -> COUT`` of a ``CCU2C`` is 43 ps,
+#: two taps.
+TAP_S = 21.5e-12
+#: Width of a raw code (number of taps passed, 0 to :data:`TAPS`).
+CODE_BITS = TAPS.bit_length()
+#: Width of a calibration table entry, in :data:`UNIT_S` units (up to 51 ns).
+TABLE_BITS = 12
+#: The table's unit: the finest timestamp LSB.
+UNIT_S = TDC_LSB_S / 4
+#: The timestamp LSBs on offer (register ``fine_lsb``): ``TDC_LSB_S / 2**k`` for ``k`` in
+#: 0, 1, 2 (50, 25 and 12.5 ps; 409.6, 204.8 and 102.4 ns of range).
+LSB_SELECTS = 3
+#: Sampled taps summed per pipeline stage of the ones count.
+POPCOUNT_FANIN = 8
+
+
+def popcount_stages(taps=TAPS):
+    """Pipeline stages of the ones count of ``taps`` bits."""
+    stages, width = 0, taps
+    while width > 1:
+        width = -(-width // POPCOUNT_FANIN)
+        stages += 1
+    return stages
+
+
+#: Cycles from the cycle the line's first flip-flops hold a hit's first non-zero taps to the
+#: cycle its capture is presented: the second flip-flop stage, the ones count, the table read,
+#: the subtraction of the fine time, and the output register.
+LATENCY = 1 + popcount_stages() + 3
+
+
+def lsb_s(select):
+    """The timestamp LSB of ``fine_lsb`` = ``select``, in seconds."""
+    return TDC_LSB_S / (1 << select)
+
+
+def cycle_units(clock_hz):
+    """The clock period in table units (:data:`UNIT_S`); refused unless whole."""
+    units = 1 / (clock_hz * UNIT_S)
+    if not clock_hz > 0 or abs(units - round(units)) > 1e-6:
+        raise ValueError(f"The fine TDC needs a clock period that is a whole multiple of "
+                         f"{UNIT_S * 1e12:g} ps, not {clock_hz!r} Hz")
+    return round(units)
+
+
+def elapsed_limit(clock_hz):
+    """Largest count of whole cycles since the TDC start that can still give a timestamp of
+    13 bits at the coarsest LSB (a later hit overflows)."""
+    units = cycle_units(clock_hz)
+    return math.ceil(((1 << TIMESTAMP_BITS) * 4 + (1 << TABLE_BITS)) / units) + 1

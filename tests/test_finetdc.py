@@ -1,0 +1,204 @@
+"""The fine TDC's gateware against its model, bit for bit, with the model line's samples
+(bubbles, metastable taps) injected; the calibration table's computation against worked
+cases."""
+
+import numpy as np
+import pytest
+
+from fliss.analysis import calibration
+from fliss.hdl import DEFAULT_CLOCK_HZ
+from fliss.hdl.finetdc import CODE_BITS, LATENCY, TAPS, UNIT_S, cycle_units
+from fliss.hdl.finetdc.table import nominal_table
+from fliss.hdl.finetdc.tdc import FineTdc
+from fliss.sim.models import finetdc as model
+from simulation import simulate
+
+
+PERIOD_S = 1 / DEFAULT_CLOCK_HZ
+
+
+def hit_train(rng, line, hits):
+    """First-stage samples per cycle for ``hits`` hits at random times and widths, some too
+    close for the line to empty between them; and the number of cycles."""
+    times = np.cumsum(rng.uniform(1.5, 6.0, hits)) * PERIOD_S + 5 * PERIOD_S
+    widths = rng.uniform(0.5e-9, 12e-9, hits)
+    cycles = int(times[-1] / PERIOD_S) + 8
+    samples = np.zeros((cycles, line.taps), dtype=bool)
+    reach = line.thresholds_s[-1] + 15e-9
+    for t, width in zip(times, widths):
+        first = int(np.ceil(t / PERIOD_S))
+        edges = np.arange(first, min(cycles, first + int(reach / PERIOD_S) + 2))
+        samples[edges] |= line.samples(edges * PERIOD_S - t, rng, width_s=width)
+    return samples, cycles
+
+
+def run_fine(samples, starts, pulse_index, table, lsb, raw):
+    dut = FineTdc(clock_hz=DEFAULT_CLOCK_HZ)
+    found = []
+    read_back = []
+    weights = 1 << np.arange(samples.shape[1], dtype=object)
+
+    async def testbench(ctx):
+        ctx.set(dut.lsb, lsb)
+        ctx.set(dut.raw, raw)
+        ctx.set(dut.address, 5)
+        ctx.set(dut.enable, 1)
+        # The table, from address 0 up, then three entries read back
+        ctx.set(dut.table_seek, 1)
+        ctx.set(dut.table_address, 0)
+        for entry in table:
+            ctx.set(dut.table_write, 1)
+            ctx.set(dut.table_data, int(entry))
+            await ctx.tick()
+            ctx.set(dut.table_seek, 0)
+        ctx.set(dut.table_write, 0)
+        for address in (1, 17, len(table) - 1):
+            ctx.set(dut.table_seek, 1)
+            ctx.set(dut.table_address, address)
+            await ctx.tick()
+            ctx.set(dut.table_seek, 0)
+            await ctx.tick().repeat(2)
+            read_back.append(ctx.get(dut.table_read))
+        await ctx.tick().repeat(4)
+        for cycle in range(len(samples) + LATENCY + 2):
+            if cycle < len(samples):
+                ctx.set(dut.sampled, int(np.dot(samples[cycle], weights)))
+                ctx.set(dut.tdc_start, int(starts[cycle]))
+                ctx.set(dut.pulse_index, int(pulse_index[cycle]))
+            else:
+                ctx.set(dut.sampled, 0)
+            _, _, valid, ts, over, pulse, address = await ctx.tick().sample(
+                dut.captures.valid, dut.captures.event.timestamp, dut.captures.overflow,
+                dut.captures.event.pulse, dut.captures.event.address)
+            if valid:
+                assert address == 5
+                found.append({"cycle": cycle, "timestamp": ts, "overflow": bool(over),
+                              "pulse": pulse})
+
+    simulate(dut, testbench)
+    return found, read_back
+
+
+@pytest.mark.parametrize("lsb,raw", [(0, 0), (1, 0), (2, 0), (0, 1)])
+def test_fine_tdc_matches_model(lsb, raw):
+    rng = np.random.default_rng(20 + lsb + 3 * raw)
+    line = model.Line(seed=7, bubble_probability=0.3, metastable_s=4e-12)
+    samples, cycles = hit_train(rng, line, 700)
+    starts = np.zeros(cycles, dtype=bool)
+    starts[np.cumsum(rng.integers(3, 45, cycles))[:cycles // 3].clip(max=cycles - 1)] = True
+    pulse_index = np.cumsum(starts) + 1000
+    counts = rng.integers(50, 150, TAPS + 1)
+    table = np.zeros(1 << CODE_BITS, dtype=np.int64)
+    table[:TAPS + 1] = calibration.table(counts, PERIOD_S, UNIT_S)
+    table[TAPS + 1:] = rng.integers(0, 4096, len(table) - TAPS - 1)
+    found, read_back = run_fine(samples, starts, pulse_index, table, lsb, raw)
+    expected = model.captures(samples.sum(axis=1), starts, table, clock_hz=DEFAULT_CLOCK_HZ,
+                              lsb_select=lsb, raw=bool(raw), pulse_index=pulse_index)
+    assert read_back == [table[1], table[17], table[-1]]
+    assert len(expected) > 300
+    assert sum(not e["overflow"] for e in expected) > 100
+    assert [e["cycle"] for e in found] == [e["cycle"] for e in expected]
+    for got, want in zip(found, expected):
+        assert got["overflow"] == want["overflow"], (got, want)
+        assert got["pulse"] == want["pulse"], (got, want)
+        if not want["overflow"]:
+            assert got["timestamp"] == want["timestamp"], (got, want)
+
+
+def test_bubbles_leave_the_code():
+    # The ones count of a sample with a bubble is that of the sample without one
+    line = model.Line(seed=3, bubble_probability=1.0, metastable_s=0.0)
+    tau = np.linspace(1e-9, 12e-9, 200)
+    clean = model.Line(seed=3, bubble_probability=0.0, metastable_s=0.0)
+    rng = np.random.default_rng(1)
+    bubbled = line.samples(tau, rng)
+    assert np.any(np.diff(bubbled.astype(int), axis=1) > 0)     # some 0 -> 1 inside
+    assert np.array_equal(bubbled.sum(axis=1), clean.samples(tau, rng).sum(axis=1))
+    assert np.array_equal(bubbled.sum(axis=1), clean.codes(tau, rng))
+
+
+def test_table_of_known_widths():
+    # Codes of 10, 20, 30 and 40 ps in a 100 ps period: centres 5, 20, 45 and 80 ps; in
+    # 12.5 ps units 0.4, 1.6, 3.6, 6.4 -> 0, 2, 4, 6
+    counts = [100, 200, 300, 400]
+    assert np.allclose(calibration.code_widths(counts, 100e-12), [10e-12, 20e-12, 30e-12,
+                                                                  40e-12])
+    assert np.allclose(calibration.code_centres(counts, 100e-12),
+                       [5e-12, 20e-12, 45e-12, 80e-12])
+    assert calibration.table(counts, 100e-12, 12.5e-12).tolist() == [0, 2, 4, 6]
+    # Equal codes: no non-linearity; one code twice as wide: DNL +1 there
+    assert np.allclose(calibration.dnl([0, 5, 5, 5, 5, 0]), 0)
+    assert np.allclose(calibration.inl([0, 5, 5, 5, 5, 0]), 0)
+    assert np.allclose(calibration.dnl([4, 4, 8, 4]), [-0.2, -0.2, 0.6, -0.2])
+    # centres 2, 6, 12, 18 against 5 * (k + 1/2) = 2.5, 7.5, 12.5, 17.5
+    assert np.allclose(calibration.inl([4, 4, 8, 4]), [-0.1, -0.3, -0.1, 0.1])
+
+
+def test_table_refusals():
+    with pytest.raises(ValueError, match=r"^A code-density histogram needs at least one hit$"):
+        calibration.table([0, 0, 0], 1e-9, 1e-12)
+    with pytest.raises(ValueError, match=r"^Calibration entries up to 120 do not fit 6 bits$"):
+        calibration.table([1, 1], 1e-9, 6.25e-12, width=6)   # 250 and 750 ps
+
+
+def test_nominal_table_and_clock():
+    assert nominal_table()[:3] == [0, 1, 3]     # 10.75, 32.25 ps at 12.5 ps
+    assert cycle_units(80e6) == 1000 and cycle_units(100e6) == 800
+    with pytest.raises(ValueError, match=r"^The fine TDC needs a clock period that is a "
+                                         r"whole multiple of 12.5 ps, not 36000000.0 Hz$"):
+        cycle_units(36e6)
+
+
+def test_calibration_meets_the_goals():
+    # The model line's calibrated times: taps of at most 30 ps on average, single-shot RMS of at
+    # most 20 ps, each code's mean error within one tap; without calibration, none of that.
+    from fliss.sim.studies.finetdc import evaluate
+    result = evaluate(model.Line(tile_extra_s=30e-12), calibration_hits=1 << 21,
+                      test_hits=200_000)
+    tap = result["mean_tap_s"]
+    assert tap <= 30e-12
+    assert result["rms_after_s"] <= 20e-12 < result["rms_before_s"]
+    assert np.abs(result["code_inl_after_s"]).max() < tap < np.abs(
+        result["code_inl_before_s"]).max()
+
+
+def test_model_board_fine_sources(tmp_path):
+    # The model board's fine TDC: the target's peak where the sensor puts it (in seconds) at
+    # 50 and 12.5 ps, and in raw codes at the taps (21.5 ps each) the echo passes before the
+    # next clock edge.
+    from fliss.host.acquisition import capture
+    from fliss.host.client import BoardClient
+    from fliss.host.fileformat import read_capture
+    from fliss.sim.boards.model import model_board
+    counts = {}
+    with model_board() as board_model, BoardClient(board_model.path, timeout_s=1) as board:
+        board.identify()
+        for source, lsb in ((0, 0), (2, 0), (2, 2), (3, 0)):
+            board.write_registers({"tdc_source": source, "fine_lsb": lsb})
+            path = tmp_path / f"{source}-{lsb}.h5"
+            capture(board, path, integration_s=5e-3, acquisitions=2)
+            data = read_capture(path)
+            counts[source, lsb] = (np.asarray(data.histograms).sum(axis=0), data.code_s)
+
+    def centre(key):
+        # the peak: the maximum of the counts over 1 ns windows, then the centroid of the
+        # counts above the background (the median over the codes in use) within 3 ns of it
+        histogram, code_s = counts[key]
+        used = histogram[:np.flatnonzero(histogram)[-1] + 1].astype(np.float64)
+        times = np.arange(len(used)) * code_s
+        width = max(1, int(round(1e-9 / code_s)))
+        around = times[np.argmax(np.convolve(used, np.ones(width), mode="same"))]
+        near = np.abs(times - around) < 3e-9
+        signal = used[near] - np.median(used)
+        return float((times[near] * signal).sum() / signal.sum())
+
+    assert counts[2, 2][1] == 12.5e-12 and counts[3, 0][1] == 21.5e-12
+    sensor = centre((0, 0))
+    assert abs(sensor - 26.7e-9) < 0.5e-9
+    for key in ((2, 0), (2, 2)):
+        assert abs(centre(key) - sensor) < 0.2e-9, key
+    # raw codes: the time from the echo to the next clock edge, at the timing model's taps
+    # (the pulse's tail wraps round the cycle: a looser bound, still far from the 1.7 ns after
+    # the edge that a wrong sense would give)
+    before = 12.5e-9 - sensor % 12.5e-9
+    assert abs(centre((3, 0)) - before) < 0.4e-9
