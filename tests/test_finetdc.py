@@ -202,3 +202,44 @@ def test_model_board_fine_sources(tmp_path):
     # the edge that a wrong sense would give)
     before = 12.5e-9 - sensor % 12.5e-9
     assert abs(centre((3, 0)) - before) < 0.4e-9
+
+
+@pytest.mark.parametrize("name, strobe, value", [("table_address", "table_seek", 517),
+                                                 ("table_data", "table_write", 3001)])
+def test_table_strobes_come_with_the_values_written(name, strobe, value):
+    # The calibration table takes its address and data from the fine_tdc group in the cycle its
+    # strobe is high: they must be the values the WRITE wrote, not the ones before it
+    from amaranth.sim import Simulator
+    from fliss.hdl.regfile import RegisterFile
+    from fliss.hdl.registers import BY_NAME
+
+    dut = RegisterFile()
+    seen = []
+
+    async def bench(ctx):
+        ctx.set(dut.begin, 1)
+        await ctx.tick()
+        ctx.set(dut.begin, 0)
+        ctx.set(dut.start, 1)
+        ctx.set(dut.start_address, BY_NAME[name].address)
+        await ctx.tick()
+        ctx.set(dut.start, 0)
+        ctx.set(dut.value, value)
+        await ctx.tick()
+        ctx.set(dut.check, 1)
+        await ctx.tick()
+        ctx.set(dut.check, 0)
+        await ctx.tick().repeat(5)
+        assert ctx.get(dut.consistent) and not ctx.get(dut.error)
+        ctx.set(dut.commit, 1)
+        for _ in range(4):
+            await ctx.tick()
+            ctx.set(dut.commit, 0)
+            if ctx.get(getattr(dut, strobe)):
+                seen.append(ctx.get(getattr(dut.fine_tdc, BY_NAME[name].field)))
+
+    sim = Simulator(dut)
+    sim.add_clock(1e-8)
+    sim.add_testbench(bench)
+    sim.run()
+    assert seen == [value]
