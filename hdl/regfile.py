@@ -13,6 +13,7 @@ from .registers import (REGISTERS, GROUPS, DELAY_SETTINGS, FINE_TDC, KEYING, set
                         defaults, register_maxima)
 from .event import ADDRESS_BITS, TIMESTAMP_BITS
 from .delay.modes import MODES
+from .finetdc import TABLE_BITS as FINE_TABLE_BITS
 from .delay.settings import BANK_BITS, MAX_BANK_BITS, MIN_BANK_BITS, IV_BITS
 
 
@@ -73,6 +74,8 @@ class RegisterFile(wiring.Component):
         A commit writes the key or the IV (to the keyed source).
     table_seek, table_write : Out(1)
         A commit writes ``table_address``, ``table_data`` (to the fine TDC's calibration table).
+    table_read : In(TABLE_BITS)
+        The calibration table's entry at its pointer, read as ``table_data``.
     settings : Out(settings_layout(maxima))
         Every register, each as wide as its maximum needs.
     victim, aggressor, aggressor_delay, acquisition, gate, histogram, depth, fine_tdc, keying
@@ -106,6 +109,7 @@ class RegisterFile(wiring.Component):
             "rekey":         Out(1),
             "table_seek":    Out(1),
             "table_write":   Out(1),
+            "table_read":    In(FINE_TABLE_BITS),
             "settings":      Out(settings_layout(self.maxima), init=defaults(self.clock_hz)),
             **{group.name: Out(group.layout(self.maxima)) for group in GROUPS},
         })
@@ -131,6 +135,8 @@ class RegisterFile(wiring.Component):
             if register.in_use:
                 index = int(register.field[-1])
                 m.d.comb += word.eq(self.iv[32 * index:32 * index + register.width])
+            elif register.name == "table_data":
+                m.d.comb += word.eq(self.table_read)
             else:
                 m.d.comb += word.eq(settings[register.name])
         m.d.comb += self.read_data.eq(words[self.read_address])
