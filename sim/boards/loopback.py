@@ -17,13 +17,14 @@ edge after the hit and looks the raw code up in the board's calibration table, a
 them (:func:`fliss.sim.models.scheduler.fire_cycles`, the delays of
 :mod:`fliss.sim.models.delay` from the seed at each START); the aggressor with no delays of its
 own fires ``aggressor_offset + 1 + k T`` cycles after the start. ``wrong_delay_every`` (a fault,
-for tests) adds a cycle to every n-th delay of the victim.
+for tests) adds a cycle to every n-th delay of the victim while its delays are on.
 """
 
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from ...hdl.delay.modes import DelayMode
 from ...hdl.event import PULSE_BITS, TIMESTAMP_BITS
 from ...hdl.finetdc import cycle_units
 from ...hdl.registers import TdcSource
@@ -102,7 +103,7 @@ class LoopbackRun:
         while not len(self.starts) or self.starts[-1] < end:
             delays = victim.delays(count)
             every = self.loopback.wrong_delay_every
-            if every:
+            if every and victim.mode != DelayMode.OFF:
                 delays = delays.copy()
                 delays[every - 1::every] += 1
             self.delays = delays
