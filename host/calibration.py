@@ -85,15 +85,16 @@ class Calibration:
 
 def has_fine_tdc(client: BoardClient, current: Optional[dict] = None) -> bool:
     """Whether the board's build has the fine TDC: it takes a move of the table's pointer
-    (which it leaves at 0)."""
+    (which it puts back)."""
     current = client.read_registers() if current is None else current
+    address = current["table_address"]
     try:
-        client.write_registers({"table_address": 1}, current=current)
+        client.write_registers({"table_address": 1 - min(address, 1)}, current=current)
     except BoardRefused as error:
         if error.code != NakCode.OUT_OF_RANGE:
             raise
         return False
-    client.write_registers({"table_address": 0}, current=current)
+    client.write_registers({"table_address": address}, current=current)
     return True
 
 

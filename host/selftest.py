@@ -90,6 +90,9 @@ class SelfTest:
     loop: str
     checks: List[Check] = field(default_factory=list)
     elapsed_s: float = 0.0
+    #: The loopback's delay (less the aggressor's offset) and its RMS jitter, if measured.
+    delay_s: Optional[float] = None
+    jitter_s: Optional[float] = None
     calibration: Optional[Calibration] = None
 
     @property
@@ -202,6 +205,7 @@ class _Test:
         said = (f"{hits} hits of {pulses} pulses at {_ns(delay_s)} (RMS jitter "
                 f"{rms_s * 1e12:.0f} ps)")
         self.delay_codes, self.allowed = median, allowed
+        self.result.delay_s, self.result.jitter_s = delay_s, rms_s
         if not one_each:
             return Check("same time", "fail", f"{said}: not one hit a pulse")
         if far.any():
@@ -237,9 +241,9 @@ class _Test:
             wrong = np.flatnonzero(seen != reference)
             if len(wrong):
                 k = wrong[0]
-                return Check("delays", "fail", f"{len(wrong)} of {len(pulse)} delays in "
-                             f"{mode.name.lower()} differ from the model's (pulse {pulse[k]}: "
-                             f"{seen[k]} cycles, the model's {reference[k]})")
+                return Check("delays", "fail", f"in {mode.name.lower()}, pulse {pulse[k]} "
+                             f"is delayed {seen[k]} cycles, the model's {reference[k]} "
+                             f"(the first that differs)")
             checked.append(f"{len(pulse)} pulses in {mode.name.lower()}")
         self.write({"delay_mode": DelayMode.OFF.value})
         if not checked:
