@@ -202,3 +202,29 @@ def test_aggressor_offset_above_the_longest_delay():
     # The aggressor's hits land after their own start only if the offset exceeds every delay
     assert AGGRESSOR_OFFSET > max(delays("mseq", 15, length=4).max(),
                                   delays("masked", 1 << 12, mask_width=4).max())
+
+
+def test_register_file_reads_table_data_from_the_table():
+    # A READ of table_data gives the table's entry at the pointer, not the value last written
+    from amaranth.sim import Simulator
+    from fliss.hdl.regfile import RegisterFile
+    from fliss.hdl.registers import BY_NAME, REGISTERS
+
+    dut = RegisterFile()
+    index = {r.name: n for n, r in enumerate(REGISTERS)}
+    seen = {}
+
+    async def bench(ctx):
+        for value in (0x5a5, 0xfff, 0):
+            ctx.set(dut.table_read, value)
+            ctx.set(dut.read_address, index["table_data"])
+            seen[value] = ctx.get(dut.read_data)
+        ctx.set(dut.read_address, index["table_address"])
+        seen["table_address"] = ctx.get(dut.read_data)
+
+    sim = Simulator(dut)
+    sim.add_clock(1e-8)
+    sim.add_testbench(bench)
+    sim.run()
+    assert seen == {0x5a5: 0x5a5, 0xfff: 0xfff, 0: 0,
+                    "table_address": BY_NAME["table_address"].reset_value(CLOCK_HZ)}
