@@ -137,6 +137,7 @@ def code_counts(board, duration_s: float = 1.0, *, integration_s: float = 0.1) -
     if not has_fine_tdc(client, before):
         raise CalibrationError(f"the board on {client.port_name} has no fine TDC (its build "
                                f"refuses the fine TDC's registers; only the ULX3S's has one)")
+    integration_s = min(integration_s, duration_s)
     cycles = max(1, round(integration_s * board.clock_hz))
     frames = max(1, round(duration_s / integration_s))
     board.stop()

@@ -54,7 +54,7 @@ from .errors import BoardRefused, SettingsError
 
 
 __all__ = ["JUMPERS", "PERIOD_CYCLES", "AGGRESSOR_OFFSET", "SEQUENCE_BITS", "SPREAD_S",
-           "PEAK_SHARE", "CHECKS", "Check", "SelfTest", "selftest"]
+           "PEAK_SHARE", "DURATIONS_S", "CHECKS", "Check", "SelfTest", "selftest"]
 
 
 #: What a jumper wire can carry to the photon input.
@@ -72,7 +72,7 @@ PEAK_SHARE = 0.9
 #: The fine TDC's internal loopback (``tdc_input``).
 _INTERNAL_INPUT = 2
 #: Seconds of each raw acquisition, of each histogram, of the oscillator's codes.
-_RAW_S, _HISTOGRAM_S, _CALIBRATION_S = 0.05, 0.05, 0.5
+DURATIONS_S = {"raw": 0.05, "histogram": 0.05, "calibration": 0.5}
 
 
 @dataclass(frozen=True)
@@ -112,8 +112,9 @@ class SelfTest:
 class _Test:
     """The state of one run of :func:`selftest`."""
 
-    def __init__(self, board, jumper, reference):
+    def __init__(self, board, jumper, reference, durations_s):
         self.board, self.client = board, board.client
+        self.durations_s = durations_s
         self.jumper, self.reference = jumper, reference
         self.before = self.client.read_registers()
         self.current = dict(self.before)
@@ -153,7 +154,7 @@ class _Test:
             "period": PERIOD_CYCLES, "grid": int(aggressor), "pulse_width": 1,
             "tdc_source": source.value, "gate_start": 0, "gate_end": (1 << TIMESTAMP_BITS) - 1,
             "collisions": 0, "pixel_bits": 0, "bin_shift": 0,
-            "integration": max(1, round(_HISTOGRAM_S * self.board.clock_hz)),
+            "integration": max(1, round(self.durations_s["histogram"] * self.board.clock_hz)),
             "length": SEQUENCE_BITS, "mask_width": SEQUENCE_BITS, "aggressor": int(aggressor),
         }
         if aggressor:
@@ -170,7 +171,7 @@ class _Test:
         return None
 
     def raw(self):
-        result = self.board.acquire_raw(f"{_RAW_S}s")
+        result = self.board.acquire_raw(f"{self.durations_s['raw']}s")
         events = result.events
         _, first = np.unique(events["pulse"], return_index=True)
         return events[np.sort(first)], len(events), result.pulses
@@ -281,7 +282,7 @@ class _Test:
     def calibration(self):
         if not self.fine:
             return Check("calibration", "skipped", "no fine TDC in this build")
-        counts = code_counts(self.board, _CALIBRATION_S)
+        counts = code_counts(self.board, self.durations_s["calibration"])
         calibration = Calibration(counts, np.zeros(0), self.board.clock_hz)
         self.result.calibration = calibration
         if not counts.sum():
@@ -314,18 +315,19 @@ CHECKS = ("same time", "delays", "histogram", "calibration", "link")
 
 
 def selftest(board, *, jumper: Optional[str] = None, reference: Optional[Callable] = None,
-             progress=None) -> SelfTest:
+             progress=None, durations_s: Optional[dict] = None) -> SelfTest:
     """Run the self-test on ``board`` (a :class:`~fliss.host.board.Board`); ``jumper`` says what
     the photon input carries (see the module), ``reference`` is the model's sequence of delays,
     ``reference(mode, count, length=..., mask_width=..., seed=...)``; ``progress``, if given,
-    has ``update(done, extra)`` (called after each check, with its name)."""
+    has ``update(done, extra)`` (called after each check, with its name); ``durations_s``
+    changes some of :data:`DURATIONS_S` (a simulated board, slower than real time)."""
     if jumper is not None and jumper not in JUMPERS:
         raise SettingsError(f"jumper must be one of {', '.join(JUMPERS)} or None, "
                             f"not {jumper!r}")
     started = time.monotonic()
     board.stop()
     errors_before = _link_errors(board)
-    test = _Test(board, jumper, reference)
+    test = _Test(board, jumper, reference, {**DURATIONS_S, **(durations_s or {})})
     test.result = result = SelfTest(loop=test.kind or "none")
     try:
         if test.kind is None:

@@ -412,6 +412,14 @@ def reset_requested(path):
     return True
 
 
+def _start_fine_loopback(dut, seed):
+    """With ``FLISS_BOARD_FINE_TDC`` (a build of :class:`~fliss.sim.boards.fine_loopback.FineTdcTop`),
+    the fine TDC's delay line driven from the model: the internal loopback and the oscillator."""
+    if os.environ.get("FLISS_BOARD_FINE_TDC") == "1":
+        from .fine_loopback import FineLoopback
+        FineLoopback(dut, DEFAULT_CLOCK_HZ, seed=seed).start()
+
+
 @cocotb.test()
 async def virtual_board(dut):
     """Serve the board on a pseudo-terminal until the launcher goes away."""
@@ -432,6 +440,7 @@ async def virtual_board(dut):
     dut.rst.value = 0
     await ClockCycles(dut.clk, 4)
     sensor.start()
+    _start_fine_loopback(dut, seed)
     bridge = PtyBridge(dut, baud, count_data=reset_after is not None)
     bridge.start()
     if pty_file:

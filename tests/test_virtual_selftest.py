@@ -1,0 +1,63 @@
+"""``fliss selftest`` on the virtual board with the fine TDC (cocotb engine, the top level in
+Verilator), its delay line driven from the model (:mod:`fliss.sim.boards.fine_loopback`): the
+internal loopback's delay against the one the driver states, the code-density calibration of the
+oscillator's hits, the table written and read back through the gateware's registers.
+
+A missing Verilator skips these tests, or fails them when ``FLISS_REQUIRE_SIMULATORS`` is set.
+"""
+
+import os
+
+import numpy as np
+import pytest
+
+from fliss.host.board import connect
+from fliss.host.calibration import calibrate, read_table
+from fliss.host.selftest import selftest
+from fliss.host.virtual import VirtualBoard
+from fliss.sim.benches.runner import simulator_available
+from fliss.sim.models.delay import delays
+from fliss.sim.models.finetdc import Line
+
+
+#: The driver's internal loopback delay and line (FineLoopback's defaults).
+INTERNAL_DELAY_S = 1.1e-9
+LINE = Line()
+#: A simulated board is slower than real time: short acquisitions.
+DURATIONS_S = {"raw": 0.3, "histogram": 0.0005, "calibration": 0.004}
+
+
+@pytest.fixture(scope="module")
+def board():
+    if not simulator_available("verilator"):
+        if os.environ.get("FLISS_REQUIRE_SIMULATORS"):
+            pytest.fail("Verilator is missing")
+        pytest.skip("Verilator is missing")
+    virtual = VirtualBoard("verilator", engine="cocotb", fine_tdc=True, seed=3)
+    virtual.start(timeout_s=1800)
+    try:
+        yield virtual
+    finally:
+        virtual.stop()
+
+
+def test_internal_loopback_on_the_gateware(board):
+    with connect(board.path, timeout_s=10.0) as client:
+        result = selftest(client, reference=delays, durations_s=DURATIONS_S)
+    outcomes = {check.name: check.outcome for check in result.checks}
+    assert outcomes == {"same time": "pass", "delays": "skipped", "histogram": "pass",
+                        "calibration": "pass", "link": "pass"}, result.table()
+    # The nominal table: the hit's time from the line's input, within the taps' drift
+    assert abs(result.delay_s - (INTERNAL_DELAY_S + LINE.offset_s)) < 250e-12
+    assert result.jitter_s < LINE.tap_s
+
+
+def test_calibration_through_the_gateware(board):
+    with connect(board.path, timeout_s=10.0) as client:
+        result = calibrate(client, 0.004)
+        back = read_table(client.client)
+        after = selftest(client, reference=delays, durations_s=DURATIONS_S)
+    assert np.array_equal(back, result.table)
+    assert len(result.empty_codes) == 0
+    # Calibrated: from the hit to the line's first tap, within a tap and the table's rounding
+    assert abs(after.delay_s - (INTERNAL_DELAY_S + LINE.thresholds_s[0])) < 35e-12
