@@ -153,10 +153,10 @@ def code_counts(board, duration_s: float = 1.0, *, integration_s: float = 0.1) -
     return counts[:TABLE_ENTRIES]
 
 
-def calibrate(board, duration_s: float = 1.0) -> Calibration:
-    """Calibrate the board's fine TDC by code density and store the table on the board (read
-    back and compared); returns the :class:`Calibration`."""
-    counts = code_counts(board, duration_s)
+def calibrate(board, duration_s: float = 1.0, *, integration_s: float = 0.1) -> Calibration:
+    """Calibrate the board's fine TDC by code density (histograms of ``integration_s``) and store
+    the table on the board (read back and compared); returns the :class:`Calibration`."""
+    counts = code_counts(board, duration_s, integration_s=integration_s)
     if not counts.sum():
         raise CalibrationError(f"the fine TDC of the board on {board.port} saw no hits from "
                                f"its oscillator in {duration_s:g} s")

@@ -285,7 +285,8 @@ class _Test:
     def calibration(self):
         if not self.fine:
             return Check("calibration", "skipped", "no fine TDC in this build")
-        counts = code_counts(self.board, self.durations_s["calibration"])
+        counts = code_counts(self.board, self.durations_s["calibration"],
+                             integration_s=self.durations_s["histogram"])
         calibration = Calibration(counts, np.zeros(0), self.board.clock_hz)
         self.result.calibration = calibration
         if not counts.sum():

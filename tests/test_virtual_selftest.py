@@ -53,7 +53,8 @@ def test_internal_loopback_on_the_gateware(board):
 
 def test_calibration_through_the_gateware(board):
     with connect(board.path, timeout_s=10.0) as client:
-        result = calibrate(client, 0.004)       # (the table read back and compared)
+        # (the table read back and compared)
+        result = calibrate(client, 0.004, integration_s=DURATIONS_S["histogram"])
         after = selftest(client, reference=delays, durations_s=DURATIONS_S)
     assert len(result.empty_codes) == 0
     # Calibrated: from the hit to the line's first tap, within a tap and the table's rounding
