@@ -73,7 +73,8 @@ class RegisterFile(wiring.Component):
     rekey : Out(1)
         A commit writes the key or the IV (to the keyed source).
     table_seek, table_write : Out(1)
-        A commit writes ``table_address``, ``table_data`` (to the fine TDC's calibration table).
+        A commit wrote ``table_address``, ``table_data`` (to the fine TDC's calibration table):
+        high in the cycle after the commit, when ``fine_tdc`` holds the values written.
     table_read : In(TABLE_BITS)
         The calibration table's entry at its pointer, read as ``table_data``.
     settings : Out(settings_layout(maxima))
@@ -218,7 +219,8 @@ class RegisterFile(wiring.Component):
             m.d.comb += self.rekey.eq(self.commit & Cat(written[r.address]
                                                         for r in KEYING.members).any())
         fine = {r.field: r.address for r in FINE_TDC.members}
-        m.d.comb += [self.table_seek.eq(self.commit & written[fine["table_address"]]),
+        # (the cycle after the commit, when `settings` hold the values written)
+        m.d.sync += [self.table_seek.eq(self.commit & written[fine["table_address"]]),
                      self.table_write.eq(self.commit & written[fine["table_data"]])]
         with m.If(self.commit):
             m.d.sync += settings.eq(candidate)

@@ -10,6 +10,7 @@ import os
 
 import pytest
 
+from fliss.hdl import DEFAULT_CLOCK_HZ
 from fliss.host.board import connect
 from fliss.host.calibration import calibrate
 from fliss.host.selftest import selftest
@@ -23,7 +24,7 @@ from fliss.sim.models.finetdc import Line
 INTERNAL_DELAY_S = 1.1e-9
 LINE = Line()
 #: A simulated board is slower than real time: short acquisitions.
-DURATIONS_S = {"raw": 0.3, "histogram": 0.0005, "calibration": 0.004}
+DURATIONS_S = {"raw": 0.3, "histogram": 0.0005, "calibration": 0.012}
 
 
 @pytest.fixture(scope="module")
@@ -54,8 +55,15 @@ def test_internal_loopback_on_the_gateware(board):
 def test_calibration_through_the_gateware(board):
     with connect(board.path, timeout_s=10.0) as client:
         # (the table read back and compared)
-        result = calibrate(client, 0.004, integration_s=DURATIONS_S["histogram"])
+        result = calibrate(client, DURATIONS_S["calibration"],
+                           integration_s=DURATIONS_S["histogram"])
         after = selftest(client, reference=delays, durations_s=DURATIONS_S)
     assert len(result.empty_codes) == 0
-    # Calibrated: from the hit to the line's first tap, within a tap and the table's rounding
-    assert abs(after.delay_s - (INTERNAL_DELAY_S + LINE.thresholds_s[0])) < 35e-12
+    # Calibrated: from the hit to the line's first tap, within a tap and the table's rounding,
+    # and three standard deviations of the code density's estimate at the loopback's code
+    # (the share p of the hits below it, of N: sqrt(p (1 - p) / N) of a period)
+    period_s = 1 / DEFAULT_CLOCK_HZ
+    share = (period_s - INTERNAL_DELAY_S - LINE.thresholds_s[0]) / period_s
+    sigma_s = period_s * (share * (1 - share) / result.counts.sum()) ** 0.5
+    assert abs(after.delay_s - (INTERNAL_DELAY_S + LINE.thresholds_s[0])) < \
+        3 * sigma_s + LINE.tap_s + 12.5e-12
