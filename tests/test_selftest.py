@@ -228,3 +228,44 @@ def test_register_file_reads_table_data_from_the_table():
     sim.run()
     assert seen == {0x5a5: 0x5a5, 0xfff: 0xfff, 0: 0,
                     "table_address": BY_NAME["table_address"].reset_value(CLOCK_HZ)}
+
+
+@pytest.mark.parametrize("name, strobe, value", [("table_address", "table_seek", 517),
+                                                 ("table_data", "table_write", 3001)])
+def test_table_strobes_come_with_the_values_written(name, strobe, value):
+    # The calibration table takes its address and data from the fine_tdc group in the cycle its
+    # strobe is high: they must be the values that WRITE wrote, not the ones before
+    from amaranth.sim import Simulator
+    from fliss.hdl.regfile import RegisterFile
+    from fliss.hdl.registers import BY_NAME
+
+    dut = RegisterFile()
+    seen = []
+
+    async def bench(ctx):
+        ctx.set(dut.begin, 1)
+        await ctx.tick()
+        ctx.set(dut.begin, 0)
+        ctx.set(dut.start, 1)
+        ctx.set(dut.start_address, BY_NAME[name].address)
+        await ctx.tick()
+        ctx.set(dut.start, 0)
+        ctx.set(dut.value, value)
+        await ctx.tick()
+        ctx.set(dut.check, 1)
+        await ctx.tick()
+        ctx.set(dut.check, 0)
+        await ctx.tick().repeat(5)
+        assert ctx.get(dut.consistent) and not ctx.get(dut.error)
+        ctx.set(dut.commit, 1)
+        for _ in range(4):
+            await ctx.tick()
+            ctx.set(dut.commit, 0)
+            if ctx.get(getattr(dut, strobe)):
+                seen.append(ctx.get(getattr(dut.fine_tdc, BY_NAME[name].field)))
+
+    sim = Simulator(dut)
+    sim.add_clock(1e-8)
+    sim.add_testbench(bench)
+    sim.run()
+    assert seen == [value]
