@@ -247,12 +247,15 @@ class VirtualBoard:
         Build the top level with the fine TDC, its delay line driven from the model
         (:mod:`fliss.sim.boards.fine_loopback`: the internal loopback and the on-chip
         oscillator); the cocotb engine only.
+    jumper : str or None
+        With ``fine_tdc``: a jumper wire from the ``"laser"`` or ``"aggressor"`` output to the
+        photon input, seen by the fine TDC.
     """
 
     def __init__(self, sim="verilator", *, engine=None, baud=VIRTUAL_BAUD, target_m=4.0,
                  ambient_hz=1e5, signal=0.05, aggressor_signal=0.05, aggressor_tof_s=None,
                  seed=None, scene="single", sensor="column", object_m=2.5, reset_after=None,
-                 root=None, fine_tdc=False):
+                 root=None, fine_tdc=False, jumper=None):
         from ..sim.scene.pixels import SCENE_NAMES, SENSOR_KINDS
         if scene not in SCENE_NAMES:
             raise VirtualBoardError(f"unknown scene {scene!r}: choose one of "
@@ -274,6 +277,9 @@ class VirtualBoard:
         if fine_tdc and engine != "cocotb":
             raise VirtualBoardError("the fine TDC runs on the cocotb engine only: use --engine "
                                     "cocotb")
+        if jumper not in (None, "laser", "aggressor") or (jumper and not fine_tdc):
+            raise VirtualBoardError(f"a jumper is laser or aggressor, on the board with the fine "
+                                    f"TDC, not {jumper!r}")
         self.fine_tdc = bool(fine_tdc)
         self.folder = self.root / ("fast" if engine == "fast" else
                                    f"{sim}-fine" if fine_tdc else sim)
@@ -302,6 +308,7 @@ class VirtualBoard:
             "FLISS_BOARD_RESET_AFTER": "" if reset_after is None else str(int(reset_after)),
             "FLISS_BOARD_RESET_FILE": str(self.folder / f"{self.name}.reset"),
             "FLISS_BOARD_FINE_TDC": "1" if fine_tdc else "",
+            "FLISS_BOARD_JUMPER": jumper or "",
         }
         if reset_after is not None and not reset_after >= 1:
             raise VirtualBoardError(f"reset_after must be at least 1, not {reset_after}")

@@ -14,7 +14,9 @@ shows the register ``tdc_input`` (a simulation build only: the board has neither
   average, each high for two clock cycles (shorter than the real one's some 200 ns, which the
   line would show no differently: the encoder counts a hit when a sample follows an all-zero
   one);
-* ``tdc_input`` 0: nothing (the photon pin gets no photons on the virtual board).
+* ``tdc_input`` 0, the photon pin: with ``jumper`` (``"laser"`` or ``"aggressor"``), a jumper
+  wire from that trigger output, ``jumper_delay_s`` after its clock edge; else nothing (the pin
+  gets no photons on the virtual board). The coarse TDC's pin is not driven.
 
 The samples of a hit go to the port from the clock edge after it until the line has emptied.
 """
@@ -54,7 +56,7 @@ class FineLoopback:
     """Drives ``dut.fine_sampled`` of a :class:`FineTdcTop` (see the module's description)."""
 
     def __init__(self, dut, clock_hz, *, line=None, internal_delay_s=1.1e-9,
-                 oscillator_hz=2.4e6, seed=None):
+                 oscillator_hz=2.4e6, jumper=None, jumper_delay_s=3.2e-9, seed=None):
         self.dut = dut
         self.cycle_s = 1 / clock_hz
         self.line = Line() if line is None else line
@@ -62,6 +64,8 @@ class FineLoopback:
         self.oscillator_hz = oscillator_hz
         self.rng = np.random.default_rng(seed)
         self.hits = 0
+        self.jumper = {None: None, "laser": dut.laser, "aggressor": dut.aggressor_laser}[jumper]
+        self.jumper_delay_s = jumper_delay_s
         dut.fine_sampled.value = 0
 
     def start(self):
@@ -87,13 +91,15 @@ class FineLoopback:
         dut = self.dut
         while True:
             source = int(dut.fine_input.value)
-            if source == 2:
-                edge = RisingEdge(dut.laser)
+            looped = {2: (dut.laser, self.internal_delay_s),
+                      0: (self.jumper, self.jumper_delay_s)}.get(source)
+            if looped is not None and looped[0] is not None:
+                edge = RisingEdge(looped[0])
                 if await First(edge, ClockCycles(dut.clk, 64)) is not edge:
                     continue
                 await RisingEdge(dut.clk)
                 self.hits += 1
-                await self._drive(self.cycle_s - self.internal_delay_s, 1 * self.cycle_s)
+                await self._drive(self.cycle_s - looped[1], 1 * self.cycle_s)
             elif source == 1:
                 gap = self.rng.exponential(1 / (self.oscillator_hz * self.cycle_s))
                 await ClockCycles(dut.clk, max(1, int(gap)))
