@@ -13,6 +13,7 @@ from .registers import (REGISTERS, GROUPS, DELAY_SETTINGS, FINE_TDC, KEYING, set
                         defaults, register_maxima)
 from .event import ADDRESS_BITS, TIMESTAMP_BITS
 from .delay.modes import MODES
+from .finetdc import TABLE_BITS as FINE_TABLE_BITS
 from .delay.settings import BANK_BITS, MAX_BANK_BITS, MIN_BANK_BITS, IV_BITS
 
 
@@ -74,6 +75,8 @@ class RegisterFile(wiring.Component):
     table_seek, table_write : Out(1)
         A commit wrote ``table_address``, ``table_data`` (to the fine TDC's calibration table):
         high in the cycle after the commit, when ``fine_tdc`` holds the values written.
+    table_read : In(TABLE_BITS)
+        The calibration table's entry at its pointer, read as ``table_data``.
     settings : Out(settings_layout(maxima))
         Every register, each as wide as its maximum needs.
     victim, aggressor, aggressor_delay, acquisition, gate, histogram, depth, fine_tdc, keying
@@ -107,6 +110,7 @@ class RegisterFile(wiring.Component):
             "rekey":         Out(1),
             "table_seek":    Out(1),
             "table_write":   Out(1),
+            "table_read":    In(FINE_TABLE_BITS),
             "settings":      Out(settings_layout(self.maxima), init=defaults(self.clock_hz)),
             **{group.name: Out(group.layout(self.maxima)) for group in GROUPS},
         })
@@ -132,6 +136,8 @@ class RegisterFile(wiring.Component):
             if register.in_use:
                 index = int(register.field[-1])
                 m.d.comb += word.eq(self.iv[32 * index:32 * index + register.width])
+            elif register.name == "table_data":
+                m.d.comb += word.eq(self.table_read)
             else:
                 m.d.comb += word.eq(settings[register.name])
         m.d.comb += self.read_data.eq(words[self.read_address])

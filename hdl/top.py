@@ -403,5 +403,6 @@ class FlissTop(wiring.Component):
             fine.table_address.eq(settings.table_address),
             fine.table_write.eq(registers.table_write),
             fine.table_data.eq(settings.table_data),
+            registers.table_read.eq(fine.table_read),
         ]
         return Mux(source[1], fine.captures, captures)

@@ -11,7 +11,8 @@ import time
 from dataclasses import dataclass
 from typing import Optional
 
-from ..hdl.registers import AcquisitionMode
+from ..hdl.registers import AcquisitionMode, TdcSource
+from .calibration import read_table
 from .client import BoardClient
 from .errors import BoardLost, BoardReset, PathError, SettingsError
 from .fileformat import CaptureWriter
@@ -226,9 +227,12 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
         raise SettingsError(f"--integration {format_time(integration_s)} is shorter than one "
                             f"clock cycle of the board ({format_time(1 / clock_hz)})")
     mode, configuration, status_start = _configure(board, mode, cycles)
+    # The fine TDC's calibration table, as the board holds it
+    table = read_table(board, configuration) \
+        if configuration["tdc_source"] == TdcSource.FINE.value else None
     run = _Capture(board, path, mode, configuration, status_start, acquisitions=acquisitions,
                    duration_s=duration_s, cycles=cycles, port=port, progress=progress,
-                   watch=watch)
+                   watch=watch, table=table)
     reason, complete, lost = run.acquire()
     run.interrupt.install()     # again: a signal while stopping and closing only sets the flag
     try:
@@ -265,7 +269,7 @@ class _Capture:
     :func:`capture` (acquire, stop, close)."""
 
     def __init__(self, board, path, mode, configuration, status_start, *, acquisitions,
-                 duration_s, cycles, port, progress, watch=None):
+                 duration_s, cycles, port, progress, watch=None, table=None):
         self.board, self.path, self.mode = board, path, mode
         self.status_start, self.status_end = status_start, None
         self.acquisitions, self.duration_s = acquisitions, duration_s
@@ -275,6 +279,8 @@ class _Capture:
             attrs["acquisitions_requested"] = acquisitions
         else:
             attrs["duration_s_requested"] = duration_s
+        if table is not None:
+            attrs["calibration_table"] = table
         try:
             self.writer = CaptureWriter(path, mode=mode, identity=board.identity.as_dict(),
                                         configuration=configuration, port=port, attrs=attrs)

@@ -30,6 +30,8 @@ COMMAND_MODULES = [
     "sweep",
     "ports",
     "config",
+    "selftest",
+    "calibrate",
     "capture",
     "analyze",
     "plot",

@@ -7,7 +7,7 @@ it does with :exc:`UserError`, a mistake in what the user asked a command for.
 """
 
 __all__ = ["BoardError", "BoardLost", "BoardReset", "PortError", "BoardRefused", "BoardMismatch",
-           "SettingsError", "VirtualBoardError", "PathError", "FormatError", "ViewError",
+           "SettingsError", "CalibrationError", "VirtualBoardError", "PathError", "FormatError", "ViewError",
            "UserError"]
 
 
@@ -60,6 +60,11 @@ class BoardMismatch(BoardError):
 class SettingsError(BoardError, ValueError):
     """Settings refused on the host before they were sent: an unknown register, a value out of
     its range, or settings that are not consistent."""
+
+
+class CalibrationError(BoardError):
+    """The fine TDC cannot be calibrated: the board has none, its oscillator gave no hits, or
+    the board did not keep the table written (:mod:`fliss.host.calibration`)."""
 
 
 class VirtualBoardError(BoardError):

@@ -283,6 +283,13 @@ class Capture:
         return int(self.identity.get("clock_hz", 0)) or None
 
     @property
+    def calibration_table(self):
+        """The fine TDC's calibration table the board held (raw code -> 12.5 ps units), or
+        None (a capture without the fine TDC)."""
+        table = self.attrs.get("calibration_table")
+        return None if table is None else np.asarray(table, dtype=np.int64)
+
+    @property
     def shift(self):
         if len(self.shifts):
             return int(self.shifts[0])

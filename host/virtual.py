@@ -98,8 +98,10 @@ def _write_if_changed(path, text):
     path.write_text(text)
 
 
-def build(sim, *, baud=VIRTUAL_BAUD, root=None):
-    """Generate the Verilog and build it for ``sim`` unless an identical build exists.
+def build(sim, *, baud=VIRTUAL_BAUD, root=None, fine_tdc=False):
+    """Generate the Verilog and build it for ``sim`` unless an identical build exists; with
+    ``fine_tdc``, of the top level with the fine TDC whose delay line the simulation drives
+    (:class:`~fliss.sim.boards.fine_loopback.FineTdcTop`), in a folder of its own.
 
     Returns the build folder. Raises :exc:`~fliss.host.errors.VirtualBoardError` if the
     simulator is missing, the baud rate cannot be made, or the build fails (with the path of
@@ -112,15 +114,20 @@ def build(sim, *, baud=VIRTUAL_BAUD, root=None):
 
     _check_simulator(sim)
     try:
-        top = FlissTop(baud=baud)
+        if fine_tdc:
+            from ..sim.boards.fine_loopback import FineTdcTop
+            top = FineTdcTop(baud=baud)
+        else:
+            top = FlissTop(baud=baud)
     except ValueError as error:
         raise VirtualBoardError(str(error)) from None
-    folder = Path(root or build_root()) / sim
+    folder = Path(root or build_root()) / (f"{sim}-fine" if fine_tdc else sim)
     folder.mkdir(parents=True, exist_ok=True)
     # Keyed by the gateware's sources: generating the Verilog to compare it would take longer
     # than the board's start-up may.
     digest = hashlib.sha256("\n".join([gateware_sources(), str(baud), sim, *_build_args(sim),
-                                       *TIMESCALE]).encode()).hexdigest()
+                                       *TIMESCALE, f"fine_tdc={fine_tdc}"]).encode()
+                            ).hexdigest()
     # One build at a time per folder (tests and the demo may start boards side by side).
     with open(folder / "build.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
@@ -236,12 +243,19 @@ class VirtualBoard:
         packets (HISTOGRAM, EVENTS) have gone to the host.
     root : path or None
         Build folder (default ``build/virtual-board``).
+    fine_tdc : bool
+        Build the top level with the fine TDC, its delay line driven from the model
+        (:mod:`fliss.sim.boards.fine_loopback`: the internal loopback and the on-chip
+        oscillator); the cocotb engine only.
+    jumper : str or None
+        With ``fine_tdc``: a jumper wire from the ``"laser"`` or ``"aggressor"`` output to the
+        photon input, seen by the fine TDC.
     """
 
     def __init__(self, sim="verilator", *, engine=None, baud=VIRTUAL_BAUD, target_m=4.0,
                  ambient_hz=1e5, signal=0.05, aggressor_signal=0.05, aggressor_tof_s=None,
                  seed=None, scene="single", sensor="column", object_m=2.5, reset_after=None,
-                 root=None):
+                 root=None, fine_tdc=False, jumper=None):
         from ..sim.scene.pixels import SCENE_NAMES, SENSOR_KINDS
         if scene not in SCENE_NAMES:
             raise VirtualBoardError(f"unknown scene {scene!r}: choose one of "
@@ -260,7 +274,15 @@ class VirtualBoard:
         self.engine = engine
         self.baud = baud
         self.root = Path(root or build_root())
-        self.folder = self.root / ("fast" if engine == "fast" else sim)
+        if fine_tdc and engine != "cocotb":
+            raise VirtualBoardError("the fine TDC runs on the cocotb engine only: use --engine "
+                                    "cocotb")
+        if jumper not in (None, "laser", "aggressor") or (jumper and not fine_tdc):
+            raise VirtualBoardError(f"a jumper is laser or aggressor, on the board with the fine "
+                                    f"TDC, not {jumper!r}")
+        self.fine_tdc = bool(fine_tdc)
+        self.folder = self.root / ("fast" if engine == "fast" else
+                                   f"{sim}-fine" if fine_tdc else sim)
         self.path = None
         #: The link to the pty in ``root``: ``tty``, or ``tty-2``, ... when others are taken
         #: (None: none could be made).
@@ -285,6 +307,8 @@ class VirtualBoard:
             "FLISS_BOARD_STATS_FILE": str(self.folder / f"{self.name}.stats.json"),
             "FLISS_BOARD_RESET_AFTER": "" if reset_after is None else str(int(reset_after)),
             "FLISS_BOARD_RESET_FILE": str(self.folder / f"{self.name}.reset"),
+            "FLISS_BOARD_FINE_TDC": "1" if fine_tdc else "",
+            "FLISS_BOARD_JUMPER": jumper or "",
         }
         if reset_after is not None and not reset_after >= 1:
             raise VirtualBoardError(f"reset_after must be at least 1, not {reset_after}")
@@ -302,7 +326,7 @@ class VirtualBoard:
         if self.engine == "fast":
             command = self._fast_command()
         else:
-            build(self.sim, baud=self.baud, root=self.root)
+            build(self.sim, baud=self.baud, root=self.root, fine_tdc=self.fine_tdc)
             code = ("import sys; from fliss.host.virtual import _simulate; "
                     "_simulate(sys.argv[1])")
             command = [sys.executable, "-c", code, json.dumps({

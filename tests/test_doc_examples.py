@@ -44,6 +44,8 @@ SCENES = {"single": Scene(detections_per_pulse=0.1, background_hz=1e5),
 #: given so that the rest of it can be checked and run.
 FILL = {
     "config": {"--port": ["/dev/pts/N"]},
+    "selftest": {"--port": ["/dev/pts/N"]},
+    "calibrate": {"--port": ["/dev/pts/N"]},
     "capture": {"--port": ["/dev/pts/N"], "--output": ["capture.h5"]},
     "analyze": {"files": ["capture.h5"]},
     "plot": {"files": ["capture.h5"], "--output": ["plot.png"]},
@@ -93,6 +95,10 @@ PARSE_ONLY = [
     ("reproduce", "--quick", None),
     ("reproduce", "", "the paper's 300 acquisitions per setting, or other counts: the same "
                       "experiments as --quick, which runs"),
+    ("selftest", "", "needs a board with a loopback; tests/test_selftest.py runs it on the "
+                     "model board's"),
+    ("calibrate", "", "needs a board whose fine TDC has a delay line; tests/test_selftest.py "
+                      "runs it on the model board's loopback"),
     ("view", "--port", None),
     ("view", "run.h5", None),
     ("view", "", "names neither a board nor a file: the examples that do run"),

@@ -33,7 +33,7 @@ ALLOWED = {
 #: The host's modules on the path of a real board: the Python API, the client and the captures.
 REAL_BOARD = ["board", "client", "link", "port", "stream", "bulk", "settings", "setting_kinds",
               "units", "acquisition", "rows", "fileformat", "results", "analysis", "errors",
-              "plotting"]
+              "plotting", "calibration", "selftest"]
 
 
 def _module_name(path):

@@ -43,6 +43,10 @@ def register(subparsers, formatter):
     parser.add_argument("--reset-after", type=int, default=None, metavar="PACKETS",
                         help="reset the gateware (a power cycle) once, after this many data "
                              "packets to the host; SIGUSR1 to this process resets it too")
+    parser.add_argument("--fine-tdc", action="store_true",
+                        help="build the top level with the fine TDC, its delay line driven from "
+                             "the model (its internal loopback and on-chip oscillator: `fliss "
+                             "selftest` and `fliss calibrate` run on it); cocotb engine only")
     add_line_arguments(parser)
     parser.set_defaults(run=run_board)
 
@@ -63,7 +67,7 @@ def run_board(args):
                          ambient_hz=ambient_hz, signal=args.signal,
                          aggressor_signal=args.aggressor_signal, seed=args.seed,
                          scene=args.scene, sensor=args.sensor, object_m=args.object_m,
-                         reset_after=args.reset_after)
+                         reset_after=args.reset_after, fine_tdc=args.fine_tdc)
 
     def terminate(number, frame):
         raise KeyboardInterrupt

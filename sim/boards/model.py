@@ -122,13 +122,16 @@ class ModelBoard(PtyServer):
         in ``dropped_fifo``, as the gateware does. (A pty itself carries anything.)
     maxima : dict
         Register maxima of a smaller build (:meth:`fliss.hdl.top.FlissTop.register_maxima`).
+    loopback : Loopback or None
+        The photon input looped back to a laser trigger (:mod:`fliss.sim.boards.loopback`):
+        while it drives the TDC, its hits replace the scene's photons.
     """
 
     def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, baud=DEFAULT_BAUD, scene=None,
                  aggressor_detections_per_pulse=0.05, photon_seed=0, time_scale=1.0,
                  kill_after=None, hang_after=None, reset_after=None, corrupt_every=None,
                  corrupt_seed=1, corrupt_types=None, corrupt_commands_every=None,
-                 protocol_version=None, line_limited=False, maxima=None):
+                 protocol_version=None, line_limited=False, maxima=None, loopback=None):
         super().__init__(kill_after=kill_after, hang_after=hang_after, reset_after=reset_after,
                          corrupt_every=corrupt_every, corrupt_seed=corrupt_seed,
                          corrupt_types=corrupt_types,
@@ -142,6 +145,8 @@ class ModelBoard(PtyServer):
         self.protocol_version = protocol_version
         self.line_limited = line_limited
         self.maxima = maxima
+        self.loopback = loopback
+        self._looped = None
         self.model = CommandModel(self.clock_hz, self.baud, maxima=maxima, keyed_source=True)
         self.status = dict.fromkeys(STATUS_FIELDS, 0)
         #: Acquisitions started so far (each START while stopped).
@@ -242,6 +247,8 @@ class ModelBoard(PtyServer):
         self._pending_events = []
         self._raw = settings["acquisition"] == AcquisitionMode.RAW.value
         self._depth = settings["acquisition"] == AcquisitionMode.DEPTH.value
+        self._looped = None if self.loopback is None else self.loopback.run(
+            settings, scene.victim, self.clock_hz, self.model.table, self.seed_for(self.starts))
 
     def _cycles_at(self, now):
         return int((now - self._t0) * self.time_scale * self.clock_hz)
@@ -286,6 +293,11 @@ class ModelBoard(PtyServer):
             chunk = simulation.step(until_cycle=end)
             self.status["pulses"] += chunk.cycles
             pieces.append(chunk.events)
+        looped = self._looped and self._looped.events(self._done_cycles, end)
+        if looped:
+            events, overflow = looped
+            self.status["dropped_overflow"] += overflow
+            return events
         if not pieces:
             return None
         return np.concatenate(pieces)
@@ -296,7 +308,7 @@ class ModelBoard(PtyServer):
             return events
         s = self.settings
         events = events.copy()
-        if s["tdc_source"] == TdcSource.COARSE.value:
+        if s["tdc_source"] == TdcSource.COARSE.value and not (self._looped and self._looped.kind):
             lsb_per_cycle = int(round(self.simulation.scene.lsb_per_cycle))
             events["timestamp"] //= lsb_per_cycle
         elif s["tdc_source"] == TdcSource.FINE.value:

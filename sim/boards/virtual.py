@@ -412,6 +412,16 @@ def reset_requested(path):
     return True
 
 
+def _start_fine_loopback(dut, seed):
+    """With ``FLISS_BOARD_FINE_TDC`` (a build of :class:`~fliss.sim.boards.fine_loopback.FineTdcTop`),
+    the fine TDC's delay line driven from the model: the internal loopback, the oscillator, and
+    the jumper wire of ``FLISS_BOARD_JUMPER`` (``laser`` or ``aggressor``) if any."""
+    if os.environ.get("FLISS_BOARD_FINE_TDC") == "1":
+        from .fine_loopback import FineLoopback
+        FineLoopback(dut, DEFAULT_CLOCK_HZ, seed=seed,
+                     jumper=os.environ.get("FLISS_BOARD_JUMPER") or None).start()
+
+
 @cocotb.test()
 async def virtual_board(dut):
     """Serve the board on a pseudo-terminal until the launcher goes away."""
@@ -432,6 +442,7 @@ async def virtual_board(dut):
     dut.rst.value = 0
     await ClockCycles(dut.clk, 4)
     sensor.start()
+    _start_fine_loopback(dut, seed)
     bridge = PtyBridge(dut, baud, count_data=reset_after is not None)
     bridge.start()
     if pty_file:

@@ -8,6 +8,7 @@ from ...hdl.registers import (REGISTERS, BY_ADDRESS, KEYING, defaults, problems,
 from ...hdl.delay.modes import DelayMode
 from ...hdl.delay.settings import BANK_BITS
 from ...protocol.layout import pack, unpack, byte_size, unpack_words
+from ...hdl.finetdc.table import nominal_table
 from .delay import KeyedRestarts
 
 
@@ -32,6 +33,11 @@ class CommandModel:
     command side alone, whose IV in use stays 0). The IV registers read its IV in use
     (:attr:`restarts`, :class:`~fliss.sim.models.delay.KeyedRestarts`); a run in keyed mode is taken
     to use its keystream (commands take far longer than a start).
+
+    The fine TDC's calibration table (:attr:`table`, a build with the fine TDC: ``tdc_source``
+    up to 3) is reached as in the gateware: a WRITE of ``table_address`` moves its pointer, each
+    WRITE of ``table_data`` writes the entry at the pointer and moves it on, and a READ of
+    ``table_data`` gives the entry at the pointer.
     """
 
     def __init__(self, clock_hz, baud, maxima=None, keyed_source=False, bank_bits=BANK_BITS):
@@ -44,6 +50,8 @@ class CommandModel:
         self.refused = 0
         self.keyed_source = keyed_source
         self.restarts = KeyedRestarts()
+        self.table = nominal_table()
+        self.table_pointer = 0
 
     @property
     def iv_in_use(self):
@@ -62,7 +70,17 @@ class CommandModel:
             return 0
         if register.in_use:
             return words_of(self.iv_in_use, "iv")[register.name]
+        if register.name == "table_data":
+            return self.table[self.table_pointer]
         return self.settings[register.name]
+
+    def _table_access(self, written):
+        # The calibration table's pointer (moved first when a WRITE has both) and entry
+        if "table_address" in written:
+            self.table_pointer = self.settings["table_address"]
+        if "table_data" in written:
+            self.table[self.table_pointer] = self.settings["table_data"]
+            self.table_pointer = (self.table_pointer + 1) % len(self.table)
 
     def _nak(self, seq, code, detail=0):
         self.refused += 1
@@ -122,6 +140,7 @@ class CommandModel:
                     keyed and iv_problem(written, candidate, self.iv_in_use):
                 return self._nak(seq, NakCode.OUT_OF_RANGE, CONSISTENCY)
             self.settings = candidate
+            self._table_access(written)
             if {r.name for r in KEYING.members} & set(written):
                 self.restarts.write(key=value_of(candidate, "key"), iv=value_of(candidate, "iv"))
             self._keyed_load()

@@ -1,0 +1,367 @@
+"""The board's self-test: a laser trigger looped back to the TDC, and what it must show.
+
+What reaches the photon input (``jumper``):
+
+* ``None``: nothing on the pin; the fine TDC's internal loopback (``tdc_input`` 2) gives it the
+  victim's laser trigger (a build with the fine TDC only);
+* ``"laser"``: a jumper wire from the victim's laser output to the photon input;
+* ``"aggressor"``: a jumper wire from the aggressor's trigger output to the photon input.
+
+The checks (:func:`selftest`), one :class:`Check` each:
+
+``same time``
+    Every laser pulse of a raw acquisition gives one hit, all at the same time from the TDC
+    start (within :data:`SPREAD_S` of their median with the fine TDC, one code with the coarse
+    one): the loopback delay and its RMS jitter.
+``delays``
+    The victim's delays, seen through the aggressor (``"aggressor"`` only). With the victim in
+    ``grid`` mode, pulse ``k`` fires ``R[k]`` cycles after its slot and its TDC start with it;
+    the aggressor, with no delays, the same period and an offset of :data:`AGGRESSOR_OFFSET`
+    cycles, fires ``AGGRESSOR_OFFSET`` cycles after the slot, so its hit lands
+    ``AGGRESSOR_OFFSET - R[k]`` cycles (plus the jumper's delay) after start ``k``. The raw
+    events' pulse index gives ``k``: the delays must be the reference model's sequence from the
+    seed, pulse for pulse (the victim's own hits cannot show it: they are timed from a start
+    delayed by the same ``R[k]``). Checked in ``mseq`` and ``masked``; ``keyed`` depends on the
+    IV in use, which moves on at each start.
+``histogram``
+    In every delay mode the build has, the board's histogram of the loopback, in bins as wide as
+    the spread allowed (at most), has its tallest bin at the loopback delay or next to it, and
+    those three bins hold at least :data:`PEAK_SHARE` of its counts: the victim's own pulses
+    stay put whatever the delays (not with ``"aggressor"``).
+``calibration``
+    A code-density histogram of the on-chip oscillator (:func:`fliss.host.calibration.code_counts`)
+    hits every code from the first to the last: the calibration covers every tap (the fine TDC
+    only; the table on the board is left as it is).
+``link``
+    The link's error counters, the board's and the host's, did not move during the test.
+
+The settings changed are put back at the end. The reference sequence of the delays
+(:mod:`fliss.sim.models.delay` ``delays``) is given by the caller (``reference``), as the code
+that talks to a real board does not import the simulator.
+"""
+
+import time
+from dataclasses import dataclass, field
+from typing import Callable, List, Optional
+
+import numpy as np
+
+from ..hdl.delay.modes import DelayMode
+from ..hdl.event import TIMESTAMP_BITS
+from ..hdl.protocol import LINK_FIELDS, NakCode
+from ..hdl.registers import AcquisitionMode, TdcSource, code_s
+from .calibration import Calibration, code_counts, has_fine_tdc
+from .errors import BoardRefused, SettingsError
+
+
+__all__ = ["JUMPERS", "PERIOD_CYCLES", "AGGRESSOR_OFFSET", "SEQUENCE_BITS", "SPREAD_S",
+           "PEAK_SHARE", "DURATIONS_S", "CHECKS", "Check", "SelfTest", "selftest"]
+
+
+#: What a jumper wire can carry to the photon input.
+JUMPERS = ("laser", "aggressor")
+#: The laser's period during the test (long enough for one hit a pulse on any link).
+PERIOD_CYCLES = 800
+#: The aggressor's offset after the victim's slot, in cycles (above the longest delay).
+AGGRESSOR_OFFSET = 20
+#: ``length`` and ``mask_width`` of the delays during the test (delays up to 15 cycles).
+SEQUENCE_BITS = 4
+#: Largest distance of a fine TDC's loopback hit from the median of them all.
+SPREAD_S = 200e-12
+#: Share of a histogram's counts that must lie within the spread of the loopback delay.
+PEAK_SHARE = 0.9
+#: The fine TDC's internal loopback (``tdc_input``).
+_INTERNAL_INPUT = 2
+#: Seconds of each raw acquisition, of each histogram, of the oscillator's codes.
+DURATIONS_S = {"raw": 0.05, "histogram": 0.05, "calibration": 0.5}
+
+
+@dataclass(frozen=True)
+class Check:
+    """One line of the self-test: ``name``, ``outcome`` (``"pass"``, ``"fail"`` or
+    ``"skipped"``) and what it found (or why it was skipped)."""
+    name: str
+    outcome: str
+    detail: str
+
+
+@dataclass
+class SelfTest:
+    """The self-test's result: its checks in order, what the photon input carried."""
+    loop: str
+    checks: List[Check] = field(default_factory=list)
+    elapsed_s: float = 0.0
+    #: The loopback's delay (less the aggressor's offset) and its RMS jitter, if measured.
+    delay_s: Optional[float] = None
+    jitter_s: Optional[float] = None
+    calibration: Optional[Calibration] = None
+
+    @property
+    def passed(self) -> bool:
+        """No check failed (skipped ones do not fail)."""
+        return all(check.outcome != "fail" for check in self.checks)
+
+    def table(self) -> str:
+        """The checks as a table, one line each."""
+        width = max(len(check.name) for check in self.checks)
+        lines = [f"{'check':<{width}}  result   detail"]
+        lines += [f"{check.name:<{width}}  {check.outcome:<7}  {check.detail}"
+                  for check in self.checks]
+        return "\n".join(lines)
+
+
+class _Test:
+    """The state of one run of :func:`selftest`."""
+
+    def __init__(self, board, jumper, reference, durations_s):
+        self.board, self.client = board, board.client
+        self.durations_s = durations_s
+        self.jumper, self.reference = jumper, reference
+        self.before = self.client.read_registers()
+        self.current = dict(self.before)
+        self.changed = set()
+        self.fine = has_fine_tdc(self.client, self.before)
+        self.kind = jumper or ("internal" if self.fine else None)
+        self.delay_codes = None
+
+    def write(self, changes):
+        """Write ``changes``; False if the build refuses a value."""
+        try:
+            self.current = self.client.write_registers(changes, current=self.current)
+        except BoardRefused as error:
+            if error.code != NakCode.OUT_OF_RANGE:
+                raise
+            return False
+        self.changed |= set(changes)
+        return True
+
+    def restore(self):
+        names = sorted(self.changed - {"table_address", "table_data"})
+        self.board.stop()
+        self.client.write_registers({name: self.before[name] for name in names},
+                                    current=self.current)
+
+    @property
+    def code_s(self):
+        return code_s(self.current, self.board.clock_hz)
+
+    def base(self):
+        """Set up the loopback: no delays, one hit a pulse in range, raw events if the build has
+        them; the reason if the build does not take it."""
+        source = TdcSource.FINE if self.fine else TdcSource.COARSE
+        aggressor = self.kind == "aggressor"
+        changes = {
+            "delay_mode": DelayMode.OFF.value,
+            "period": PERIOD_CYCLES, "grid": int(aggressor), "pulse_width": 1,
+            "tdc_source": source.value, "gate_start": 0, "gate_end": (1 << TIMESTAMP_BITS) - 1,
+            "collisions": 0, "pixel_bits": 0, "bin_shift": 0,
+            "integration": max(1, round(self.durations_s["histogram"] * self.board.clock_hz)),
+            "length": SEQUENCE_BITS, "mask_width": SEQUENCE_BITS, "aggressor": int(aggressor),
+        }
+        if aggressor:
+            changes.update(aggressor_period=PERIOD_CYCLES, aggressor_offset=AGGRESSOR_OFFSET,
+                           aggressor_delay_mode=DelayMode.OFF.value, aggressor_width=1)
+        if self.fine:
+            changes.update(tdc_input=0 if self.jumper else _INTERNAL_INPUT,
+                           fine_lsb=0 if aggressor else 2)
+        if aggressor and not self.write({"aggressor": 1}):
+            return "no aggressor emitter in this build"
+        if not self.write(changes):
+            return "this build does not take the loopback's settings"
+        self.raw_events = self.write({"acquisition": AcquisitionMode.RAW.value})
+        return None
+
+    def raw(self):
+        result = self.board.acquire_raw(f"{self.durations_s['raw']}s")
+        events = result.events
+        _, first = np.unique(events["pulse"], return_index=True)
+        return events[np.sort(first)], len(events), result.pulses
+
+    # The checks
+
+    def samples(self):
+        """The loopback's timestamps, hits and laser pulses, and whether each pulse gave one
+        hit: from raw events, or from a histogram in a build without them."""
+        if self.raw_events:
+            events, hits, pulses = self.raw()
+            return events["timestamp"].astype(np.int64), hits, pulses, \
+                hits == len(events) and hits >= pulses - 1
+        self.write({"acquisition": AcquisitionMode.HISTOGRAM.value})
+        counts = np.asarray(self.board.acquire(1).counts[0], dtype=np.int64)
+        pulses = self.current["integration"] // PERIOD_CYCLES
+        return np.repeat(np.arange(len(counts)), counts), int(counts.sum()), pulses, \
+            abs(int(counts.sum()) - pulses) <= 1
+
+    def same_time(self):
+        stamps, hits, pulses, one_each = self.samples()
+        if not hits:
+            return Check("same time", "fail", f"no hits in {pulses} laser pulses: is the "
+                                              f"{self._what()} on the photon input?")
+        median = int(np.median(stamps))
+        offset = AGGRESSOR_OFFSET if self.kind == "aggressor" else 0
+        lsb = self.code_s
+        allowed = 1 if not self.fine else max(1, round(SPREAD_S / lsb))
+        far = np.abs(stamps - median) > allowed
+        delay_s = median * lsb - offset / self.board.clock_hz
+        rms_s = float(np.std(stamps)) * lsb
+        said = (f"{hits} hits of {pulses} pulses at {_ns(delay_s)} (RMS jitter "
+                f"{rms_s * 1e12:.0f} ps)")
+        self.delay_codes, self.allowed = median, allowed
+        self.result.delay_s, self.result.jitter_s = delay_s, rms_s
+        if not one_each:
+            return Check("same time", "fail", f"{said}: not one hit a pulse")
+        if far.any():
+            return Check("same time", "fail", f"{said}: {int(far.sum())} hits more than "
+                                              f"{_ns(allowed * lsb)} from the others")
+        return Check("same time", "pass", said)
+
+    def delays(self):
+        if self.kind != "aggressor":
+            return Check("delays", "skipped", "the victim's own hits are timed from its own "
+                         "delayed start, so its delays do not show: loop the aggressor's trigger "
+                         "to the photon input (--jumper aggressor)")
+        if not self.raw_events:
+            return Check("delays", "skipped", "no raw events in this build (the pulse index "
+                                              "of each hit is needed)")
+        if self.reference is None:
+            return Check("delays", "skipped", "no reference model of the delays given")
+        checked = []
+        for mode in (DelayMode.MSEQ, DelayMode.MASKED):
+            if not self.write({"delay_mode": mode.value, "grid": 1}):
+                continue
+            events, hits, pulses = self.raw()
+            if not hits:
+                return Check("delays", "fail", f"no hits in {mode.name.lower()}")
+            pulse = events["pulse"].astype(np.int64)
+            reference = self.reference(mode.name.lower(), int(pulse.max()) + 1,
+                                       length=SEQUENCE_BITS, mask_width=SEQUENCE_BITS,
+                                       seed=self.current["seed"])[pulse]
+            cycles = events["timestamp"] * self.code_s * self.board.clock_hz
+            measured = AGGRESSOR_OFFSET - cycles
+            jumper = np.median(measured - reference)
+            seen = np.rint(measured - jumper).astype(np.int64)
+            wrong = np.flatnonzero(seen != reference)
+            if len(wrong):
+                k = wrong[0]
+                return Check("delays", "fail", f"in {mode.name.lower()}, pulse {pulse[k]} "
+                             f"is delayed {seen[k]} cycles, the model's {reference[k]} "
+                             f"(the first that differs)")
+            checked.append(f"{len(pulse)} pulses in {mode.name.lower()}")
+        self.write({"delay_mode": DelayMode.OFF.value})
+        if not checked:
+            return Check("delays", "skipped", "this build has no delay mode with a sequence")
+        return Check("delays", "pass", f"delays as the model's ({', '.join(checked)})")
+
+    def histogram(self):
+        if self.kind == "aggressor":
+            return Check("histogram", "skipped", "the photon input carries the aggressor's "
+                                                 "trigger, not the victim's laser")
+        if self.delay_codes is None:
+            return Check("histogram", "skipped", "no loopback delay measured")
+        lsb = self.code_s
+        # Bins as wide as the spread allowed, at most: the peak's bin and its neighbours
+        shift = self.allowed.bit_length() - 1
+        expected = self.delay_codes >> shift
+        checked, absent = [], []
+        for mode in DelayMode:
+            if not self.write({"delay_mode": mode.value, "grid": 0, "bin_shift": shift,
+                               "acquisition": AcquisitionMode.HISTOGRAM.value}):
+                absent.append(mode.name.lower())
+                continue
+            counts = np.asarray(self.board.acquire(1).counts[0], dtype=np.int64)
+            peak = int(np.argmax(counts))
+            share = counts[max(0, expected - 1):expected + 2].sum() / max(1, counts.sum())
+            if abs(peak - expected) > 1 or share < PEAK_SHARE:
+                return Check("histogram", "fail", f"in {mode.name.lower()} the peak is at "
+                             f"{_ns((peak << shift) * lsb)} with {share:.0%} of the counts, "
+                             f"not at {_ns(self.delay_codes * lsb)}")
+            checked.append(mode.name.lower())
+        self.write({"delay_mode": DelayMode.OFF.value})
+        detail = f"peak at {_ns(self.delay_codes * lsb)} in {', '.join(checked)}"
+        if absent:
+            detail += f" ({', '.join(absent)} not in this build)"
+        return Check("histogram", "pass", detail)
+
+    def calibration(self):
+        if not self.fine:
+            return Check("calibration", "skipped", "no fine TDC in this build")
+        counts = code_counts(self.board, self.durations_s["calibration"],
+                             integration_s=self.durations_s["histogram"])
+        calibration = Calibration(counts, np.zeros(0), self.board.clock_hz)
+        self.result.calibration = calibration
+        if not counts.sum():
+            return Check("calibration", "fail", "no hits from the on-chip oscillator")
+        empty = calibration.empty_codes
+        said = (f"{int(counts.sum())} hits on codes {calibration.first_code}-"
+                f"{calibration.last_code}, mean {calibration.mean_code_s * 1e12:.1f} ps, "
+                f"DNL {calibration.dnl_max:.2f}")
+        if len(empty):
+            return Check("calibration", "fail", f"{said}: {len(empty)} codes without a hit "
+                                                f"(first {int(empty[0])})")
+        return Check("calibration", "pass", f"{said}: every tap covered")
+
+    def _what(self):
+        return {"internal": "internal loopback", "laser": "laser output",
+                "aggressor": "aggressor's trigger"}[self.kind]
+
+
+def _link_errors(board):
+    status = board.status()
+    link = board.client.link
+    return {**{name: status[name] for name in ("uart_framing_errors", "uart_overruns",
+                                               *LINK_FIELDS)},
+            "host_dropped_frames": link.dropped_frames,
+            "host_missing_packets": link.missing_packets}
+
+
+#: The checks, in order.
+CHECKS = ("same time", "delays", "histogram", "calibration", "link")
+
+
+def selftest(board, *, jumper: Optional[str] = None, reference: Optional[Callable] = None,
+             progress=None, durations_s: Optional[dict] = None) -> SelfTest:
+    """Run the self-test on ``board`` (a :class:`~fliss.host.board.Board`); ``jumper`` says what
+    the photon input carries (see the module), ``reference`` is the model's sequence of delays,
+    ``reference(mode, count, length=..., mask_width=..., seed=...)``; ``progress``, if given,
+    has ``update(done, extra)`` (called after each check, with its name); ``durations_s``
+    changes some of :data:`DURATIONS_S` (a simulated board, slower than real time)."""
+    if jumper is not None and jumper not in JUMPERS:
+        raise SettingsError(f"jumper must be one of {', '.join(JUMPERS)} or None, "
+                            f"not {jumper!r}")
+    started = time.monotonic()
+    board.stop()
+    errors_before = _link_errors(board)
+    test = _Test(board, jumper, reference, {**DURATIONS_S, **(durations_s or {})})
+    test.result = result = SelfTest(loop=test.kind or "none")
+    try:
+        if test.kind is None:
+            why = "no internal loopback without the fine TDC: loop the laser output to the " \
+                  "photon input (--jumper laser)"
+            result.checks += [Check(name, "skipped", why)
+                              for name in ("same time", "delays", "histogram")]
+        elif (why := test.base()) is not None:
+            result.checks += [Check(name, "skipped", why)
+                              for name in ("same time", "delays", "histogram")]
+        else:
+            for check in (test.same_time, test.delays, test.histogram):
+                result.checks.append(check())
+                _report(progress, result)
+        result.checks.append(test.calibration())
+        _report(progress, result)
+    finally:
+        test.restore()
+    errors = {name: value - errors_before[name] for name, value in _link_errors(board).items()}
+    moved = [f"{name} {value}" for name, value in errors.items() if value]
+    result.checks.append(Check("link", "fail" if moved else "pass",
+                               ", ".join(moved) if moved else "no link errors, board or host"))
+    result.elapsed_s = time.monotonic() - started
+    return result
+
+
+def _report(progress, result):
+    if progress is not None:
+        progress.update(len(result.checks), result.checks[-1].name)
+
+
+def _ns(seconds):
+    return f"{seconds * 1e9:.3f} ns"

@@ -1,0 +1,165 @@
+"""The photon input of the model board looped back to a laser trigger: the self-test's bench.
+
+A :class:`Loopback` says what reaches the TDCs' photon input and with what delay and jitter:
+
+* the jumper wire (``jumper``): the victim's laser trigger (``"laser"``), the aggressor's
+  (``"aggressor"``) or nothing (``None``: the scene's photons, as without a loopback);
+* inside the FPGA (the fine TDC's ``tdc_input`` 2): the victim's laser trigger, with
+  ``internal_delay_s`` and ``internal_jitter_s``;
+* the on-chip oscillator (``tdc_input`` 1): hits uniform over the clock period, at
+  ``oscillator_hz``, for the code-density calibration.
+
+:meth:`Loopback.events` gives the events of a run of clock cycles as the board's TDC makes them:
+the coarse TDC (``tdc_source`` 1) counts the clock edges from the TDC start to the hit; the fine
+TDC (2 and 3) samples the modelled line (:class:`fliss.sim.models.finetdc.Line`) at the first
+edge after the hit and looks the raw code up in the board's calibration table, as
+:func:`fliss.sim.models.finetdc.captures` does. The pulses fire as the pulse scheduler fires
+them (:func:`fliss.sim.models.scheduler.fire_cycles`, the delays of
+:mod:`fliss.sim.models.delay` from the seed at each START); the aggressor with no delays of its
+own fires ``aggressor_offset + 1 + k T`` cycles after the start. ``wrong_delay_every`` (a fault,
+for tests) adds a cycle to every n-th delay of the victim while its delays are on.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ...hdl.delay.modes import DelayMode
+from ...hdl.event import PULSE_BITS, TIMESTAMP_BITS
+from ...hdl.finetdc import cycle_units
+from ...hdl.registers import TdcSource
+from ...protocol.events import EVENT_DTYPE
+from ..models import scheduler as _scheduler
+from ..models.finetdc import Line
+
+
+__all__ = ["JUMPERS", "Loopback"]
+
+
+#: What a jumper wire can carry to the photon input.
+JUMPERS = ("laser", "aggressor")
+
+
+@dataclass(frozen=True)
+class Loopback:
+    """A loopback of the model board (see the module's description)."""
+    jumper: object = "laser"
+    delay_s: float = 3.2e-9
+    jitter_s: float = 20e-12
+    internal_delay_s: float = 1.1e-9
+    internal_jitter_s: float = 3e-12
+    oscillator_hz: float = 2.4e6
+    line: Line = field(default_factory=Line)
+    wrong_delay_every: object = None
+    seed: int = 5
+
+    def __post_init__(self):
+        if self.jumper is not None and self.jumper not in JUMPERS:
+            raise ValueError(f"A jumper carries one of {', '.join(JUMPERS)} or nothing, "
+                             f"not {self.jumper!r}")
+        for name in ("delay_s", "jitter_s", "internal_delay_s", "internal_jitter_s",
+                     "oscillator_hz"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"{name} must not be negative, not {getattr(self, name)!r}")
+
+    def hits(self, settings):
+        """What drives the TDC with register ``settings``: ``"laser"``, ``"aggressor"``,
+        ``"internal"``, ``"oscillator"``, or None (the scene's photons)."""
+        source = settings["tdc_source"]
+        if source == TdcSource.SENSOR.value:
+            return None
+        fine = source in (TdcSource.FINE.value, TdcSource.FINE_RAW.value)
+        if fine and settings["tdc_input"] == 1:
+            return "oscillator"
+        if fine and settings["tdc_input"] == 2:
+            return "internal"
+        return self.jumper
+
+    def run(self, settings, victim, clock_hz, table, seed):
+        """A :class:`LoopbackRun` for one acquisition (``victim``: the victim's
+        :class:`fliss.sim.models.scheduler.Settings`; ``table``: the board's calibration
+        table)."""
+        return LoopbackRun(self, settings, victim, clock_hz, table, seed)
+
+
+class LoopbackRun:
+    """The loopback's hits of one acquisition, a run of clock cycles at a time."""
+
+    def __init__(self, loopback, settings, victim, clock_hz, table, seed):
+        self.loopback = loopback
+        self.settings = dict(settings)
+        self.victim = victim
+        self.clock_hz = clock_hz
+        self.table = np.asarray(table, dtype=np.int64)
+        self.rng = np.random.default_rng([loopback.seed, *seed.generate_state(2)])
+        self.kind = loopback.hits(settings)
+        self.starts = np.zeros(0, dtype=np.int64)
+        self._fires_until = 0
+
+    def _extend_starts(self, end):
+        # Victim start cycles up to `end` (delays restart from the seed at each START)
+        victim = self.victim
+        count = max(16, len(self.starts) * 2)
+        while not len(self.starts) or self.starts[-1] < end:
+            delays = victim.delays(count)
+            every = self.loopback.wrong_delay_every
+            if every and victim.mode != DelayMode.OFF:
+                delays = delays.copy()
+                delays[every - 1::every] += 1
+            self.delays = delays
+            self.starts = _scheduler.fire_cycles(delays, victim.period, grid=victim.grid)
+            count *= 2
+
+    def events(self, begin, end):
+        """The events of hits in clock cycles ``[begin, end)``, or None if the loopback does
+        not drive the TDC (then the scene's photons do)."""
+        if self.kind is None:
+            return None
+        cycle_s = 1 / self.clock_hz
+        self._extend_starts(end + 1)
+        rng = self.rng
+        if self.kind == "oscillator":
+            count = rng.poisson((end - begin) * cycle_s * self.loopback.oscillator_hz)
+            hits_s = np.sort(rng.uniform(begin, end, count)) * cycle_s
+        else:
+            if self.kind == "aggressor":
+                s = self.settings
+                fires = s["aggressor_offset"] + 1 + \
+                    np.arange(end // s["aggressor_period"] + 2) * s["aggressor_period"]
+            else:
+                fires = self.starts
+            fires = fires[(fires >= begin) & (fires < end)]
+            internal = self.kind == "internal"
+            delay = self.loopback.internal_delay_s if internal else self.loopback.delay_s
+            jitter = self.loopback.internal_jitter_s if internal else self.loopback.jitter_s
+            hits_s = fires * cycle_s + delay + rng.normal(0, jitter, len(fires))
+        return self._timestamps(hits_s, cycle_s)
+
+    def _timestamps(self, hits_s, cycle_s):
+        # Sampled at the first edge after the hit, timed from the last start at or before it
+        sampled = np.floor(hits_s / cycle_s).astype(np.int64) + 1
+        tau_s = sampled * cycle_s - hits_s
+        s = self.settings
+        if s["tdc_source"] != TdcSource.COARSE.value:
+            # A hit that has not reached the first tap by the edge is the next edge's
+            codes = self.loopback.line.codes(tau_s, self.rng)
+            late = codes == 0
+            sampled[late] += 1
+            codes[late] = self.loopback.line.codes(tau_s[late] + cycle_s, self.rng)
+            codes = np.clip(codes, 0, len(self.table) - 1)
+        index = np.searchsorted(self.starts, sampled, side="right") - 1
+        started = index >= 0
+        start = self.starts[np.maximum(index, 0)]
+        if s["tdc_source"] == TdcSource.COARSE.value:
+            stamps = sampled - start
+        elif s["tdc_source"] == TdcSource.FINE_RAW.value:
+            stamps, started = codes, np.ones(len(codes), bool)
+        else:
+            ticks = (sampled - start) * cycle_units(self.clock_hz) - self.table[codes]
+            started &= ticks >= 0
+            stamps = np.maximum(ticks, 0) >> (2 - s["fine_lsb"])
+        kept = started & (stamps < (1 << TIMESTAMP_BITS))
+        events = np.zeros(int(np.count_nonzero(kept)), dtype=EVENT_DTYPE)
+        events["timestamp"] = stamps[kept]
+        events["pulse"] = index[kept] % (1 << PULSE_BITS)
+        return events, int(np.count_nonzero(~kept))

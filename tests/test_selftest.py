@@ -1,0 +1,271 @@
+"""``fliss selftest`` and ``fliss calibrate`` on the model board with a loopback
+(:mod:`fliss.sim.boards.loopback`): the figures against the loopback's stated delay and jitter
+and the modelled line's own tap delays, a fault of each kind against its exact line, refusals."""
+
+import numpy as np
+import pytest
+
+from fliss.analysis import calibration as analysis
+from fliss.boards import fliss_top_up5k
+from fliss.hdl.finetdc import UNIT_S
+from fliss.hdl.finetdc.table import nominal_table
+from fliss.host.board import connect
+from fliss.host.calibration import calibrate, read_table
+from fliss.host.cli import main
+from fliss.host.fileformat import read_capture
+from fliss.host.selftest import AGGRESSOR_OFFSET, CHECKS, selftest
+from fliss.sim.boards.loopback import Loopback
+from fliss.sim.boards.model import model_board
+from fliss.sim.models.delay import delays
+from fliss.sim.models.finetdc import Line
+from fliss.sim.scene import Scene
+
+
+CLOCK_HZ = 80_000_000
+LINE = Line()
+#: The line's input delay: in every fine timestamp (the table leaves it out).
+INPUT_S = LINE.offset_s
+#: The time from the line's input to its first tap: in every calibrated fine timestamp.
+FIRST_TAP_S = LINE.thresholds_s[0]
+
+
+def fliss(capsys, *argv):
+    status = main([*argv, "--timeout", "2"])
+    out, err = capsys.readouterr()
+    return status, out, err
+
+
+def outcomes(result):
+    return [check.outcome for check in result.checks]
+
+
+def line_of(result, name):
+    return next(check for check in result.checks if check.name == name)
+
+
+@pytest.fixture(scope="module")
+def up5k_maxima():
+    return fliss_top_up5k(CLOCK_HZ).register_maxima()
+
+
+@pytest.mark.parametrize("jumper, delay_s, jitter_s", [
+    (None, 1.1e-9, 3e-12),            # the internal loopback
+    ("laser", 3.2e-9, 20e-12),
+    ("laser", 5.7e-9, 40e-12),
+])
+def test_victim_loopback(jumper, delay_s, jitter_s):
+    loopback = Loopback(jumper=jumper, delay_s=delay_s, jitter_s=jitter_s,
+                        internal_delay_s=delay_s, internal_jitter_s=jitter_s, line=LINE)
+    with model_board(loopback=loopback) as board, connect(board.path) as client:
+        nominal = selftest(client, jumper=jumper, reference=delays)
+        calibrate(client, 0.3)
+        before = client.registers
+        result = selftest(client, jumper=jumper, reference=delays)
+        after = client.registers
+    assert [c.name for c in result.checks] == list(CHECKS)
+    assert outcomes(nominal) == outcomes(result) == ["pass", "skipped", "pass", "pass", "pass"]
+    # With the nominal table, the taps' drift from the timing model's 21.5 ps (a random walk
+    # of 5 ps a tap) puts the time off by up to some 200 ps
+    assert abs(nominal.delay_s - (delay_s + INPUT_S)) < 250e-12
+    # Calibrated: the time from the hit to the line's first tap, within a tap
+    assert abs(result.delay_s - (delay_s + FIRST_TAP_S)) < 25e-12
+    if jitter_s > LINE.tap_s / 2:    # (with the 12.5 ps LSB's quantisation)
+        assert abs(result.jitter_s - jitter_s) < 0.2 * jitter_s + 4e-12
+    else:   # (a hit at a fixed phase: one code, or two)
+        assert result.jitter_s < LINE.tap_s
+    assert line_of(result, "histogram").detail.endswith("in off, mseq, masked, keyed")
+    assert result.elapsed_s < 10
+    # Put back as they were; the IV reads as the IV in use, which the keyed run moved on
+    assert {k: v for k, v in after.items() if before[k] != v} == {"iv0": before["iv0"] + 1}
+
+
+def test_aggressor_loopback_shows_the_delays():
+    loopback = Loopback(jumper="aggressor", delay_s=4.1e-9, jitter_s=20e-12, line=LINE)
+    with model_board(loopback=loopback) as board, connect(board.path) as client:
+        result = selftest(client, jumper="aggressor", reference=delays)
+    assert outcomes(result) == ["pass", "pass", "skipped", "pass", "pass"]
+    # (the nominal table, and a 50 ps LSB, rounded down)
+    assert abs(result.delay_s - (4.1e-9 + INPUT_S)) < 250e-12
+    assert line_of(result, "delays").detail.startswith("delays as the model's (")
+    assert result.elapsed_s < 10
+
+
+@pytest.mark.parametrize("every", [7, 3])
+def test_wrong_delays_fail_with_the_first_wrong_pulse(capsys, every):
+    loopback = Loopback(jumper="aggressor", wrong_delay_every=every, line=LINE)
+    # The fault: every n-th delay a cycle long; the first, pulse n - 1, in mseq (seed 1)
+    model = delays("mseq", every, length=4, seed=1)[every - 1]
+    with model_board(loopback=loopback) as board:
+        status, out, err = fliss(capsys, "selftest", "--port", board.path, "--jumper",
+                                 "aggressor", "-q")
+    assert status == 1
+    assert f"delays       fail     in mseq, pulse {every - 1} is delayed {model + 1} cycles, " \
+           f"the model's {model} (the first that differs)" in out.splitlines()
+    assert err == "fliss selftest: failed: delays\n"
+
+
+def test_link_errors_fail(capsys):
+    with model_board(loopback=Loopback(), corrupt_commands_every=9) as board:
+        status, out, err = fliss(capsys, "selftest", "--port", board.path, "--jumper",
+                                 "laser", "-q")
+        counted = {name: board.status[name] for name in ("bad_crc", "truncated", "oversize",
+                                                         "bad_length") if board.status[name]}
+    assert counted
+    assert status == 1
+    detail = ", ".join(f"{name} {count}" for name, count in counted.items())
+    assert f"link         fail     {detail}" in out.splitlines()
+    assert err == "fliss selftest: failed: link\n"
+
+
+def test_no_jumper_on_the_laser(capsys):
+    # The jumper is said to carry the laser, but the pin is not looped: no hits
+    dark = Scene(clock_hz=CLOCK_HZ, detections_per_pulse=0, background_hz=0)
+    with model_board(scene=dark, loopback=Loopback(jumper=None)) as board:
+        status, out, _ = fliss(capsys, "selftest", "--port", board.path, "--jumper", "laser")
+    assert status == 1
+    assert out.splitlines()[1].startswith("same time    fail     no hits in ")
+    assert out.splitlines()[1].endswith(" laser pulses: is the laser output on the photon input?")
+
+
+def test_icebreaker_build_skips_what_it_cannot_run(capsys, up5k_maxima):
+    reason = "no internal loopback without the fine TDC: loop the laser output to the photon " \
+             "input (--jumper laser)"
+    with model_board(loopback=Loopback(), maxima=up5k_maxima) as board:
+        status, out, _ = fliss(capsys, "selftest", "--port", board.path, "-q")
+        assert status == 0
+        assert out.splitlines()[1:] == [
+            f"same time    skipped  {reason}", f"delays       skipped  {reason}",
+            f"histogram    skipped  {reason}",
+            "calibration  skipped  no fine TDC in this build",
+            "link         pass     no link errors, board or host"]
+        # On the jumper: the coarse TDC, hits in the cycle after the laser's (delay < 1 cycle)
+        with connect(board.path) as client:
+            result = selftest(client, jumper="laser", reference=delays)
+    assert outcomes(result) == ["pass", "skipped", "pass", "skipped", "pass"]
+    assert result.delay_s == 1 / CLOCK_HZ
+    assert line_of(result, "histogram").detail.endswith("(keyed not in this build)")
+    with model_board(loopback=Loopback(jumper="aggressor"), maxima=up5k_maxima) as board, \
+            connect(board.path) as client:
+        result = selftest(client, jumper="aggressor", reference=delays)
+    assert [c.detail for c in result.checks[:3]] == ["no aggressor emitter in this build"] * 3
+
+
+def test_calibrate_stores_the_table_and_captures_record_it(capsys, tmp_path):
+    with model_board(loopback=Loopback(line=LINE)) as board:
+        status, _, err = fliss(capsys, "calibrate", "--port", board.path, "--duration",
+                               "500ms")
+        assert status == 0, err
+        table = np.array(board.model.table)
+        path = tmp_path / "fine.h5"
+        status, _, err = fliss(capsys, "capture", "--port", board.path, "--tdc", "fine",
+                               "--readout", "raw", "--duration", "50ms", "-o", str(path), "-q")
+        assert status == 0, err
+        with connect(board.path) as client:
+            assert np.array_equal(read_table(client.client), table)
+    assert not np.array_equal(table, nominal_table())
+    assert np.array_equal(read_capture(path).calibration_table, table)
+    # Against the line's own taps: code c is the hit between thresholds c - 1 and c
+    edges = LINE.thresholds_s
+    true = (edges[:-1] + edges[1:]) / 2                 # centre of code 1, 2, ...
+    codes = np.arange(2, 560)
+    error = table[codes] * UNIT_S - true[codes - 1]
+    error -= np.median(error)
+    assert np.abs(error).max() < 20e-12
+
+
+def test_calibration_table_from_the_histogram():
+    # The library's table is the analysis's table of the codes it histogrammed
+    with model_board(loopback=Loopback(line=LINE)) as board, connect(board.path) as client:
+        result = calibrate(client, 0.2)
+        assert np.array_equal(board.model.table, result.table)
+    expected = analysis.table(result.counts, 1 / CLOCK_HZ, 12.5e-12, width=12)
+    assert np.array_equal(result.table, expected)
+    assert result.first_code == 1 and len(result.empty_codes) == 0
+
+
+def test_calibrate_refuses_a_board_without_the_fine_tdc(capsys, up5k_maxima):
+    with model_board(maxima=up5k_maxima) as board:
+        status, out, err = fliss(capsys, "calibrate", "--port", board.path)
+    assert (status, out) == (1, "")
+    assert err == f"fliss: error: the board on {board.path} has no fine TDC (its build refuses " \
+                  f"the fine TDC's registers; only the ULX3S's has one)\n"
+
+
+@pytest.mark.parametrize("command", ["selftest", "calibrate"])
+def test_unknown_port(capsys, command):
+    status, out, err = fliss(capsys, command, "--port", "/dev/fliss-no-such-port")
+    assert (status, out) == (1, "")
+    assert err == "fliss: error: no serial port '/dev/fliss-no-such-port' (see `fliss ports`)\n"
+
+
+def test_aggressor_offset_above_the_longest_delay():
+    # The aggressor's hits land after their own start only if the offset exceeds every delay
+    assert AGGRESSOR_OFFSET > max(delays("mseq", 15, length=4).max(),
+                                  delays("masked", 1 << 12, mask_width=4).max())
+
+
+def test_register_file_reads_table_data_from_the_table():
+    # A READ of table_data gives the table's entry at the pointer, not the value last written
+    from amaranth.sim import Simulator
+    from fliss.hdl.regfile import RegisterFile
+    from fliss.hdl.registers import BY_NAME, REGISTERS
+
+    dut = RegisterFile()
+    index = {r.name: n for n, r in enumerate(REGISTERS)}
+    seen = {}
+
+    async def bench(ctx):
+        for value in (0x5a5, 0xfff, 0):
+            ctx.set(dut.table_read, value)
+            ctx.set(dut.read_address, index["table_data"])
+            seen[value] = ctx.get(dut.read_data)
+        ctx.set(dut.read_address, index["table_address"])
+        seen["table_address"] = ctx.get(dut.read_data)
+
+    sim = Simulator(dut)
+    sim.add_clock(1e-8)
+    sim.add_testbench(bench)
+    sim.run()
+    assert seen == {0x5a5: 0x5a5, 0xfff: 0xfff, 0: 0,
+                    "table_address": BY_NAME["table_address"].reset_value(CLOCK_HZ)}
+
+
+@pytest.mark.parametrize("name, strobe, value", [("table_address", "table_seek", 517),
+                                                 ("table_data", "table_write", 3001)])
+def test_table_strobes_come_with_the_values_written(name, strobe, value):
+    # The calibration table takes its address and data from the fine_tdc group in the cycle its
+    # strobe is high: they must be the values that WRITE wrote, not the ones before
+    from amaranth.sim import Simulator
+    from fliss.hdl.regfile import RegisterFile
+    from fliss.hdl.registers import BY_NAME
+
+    dut = RegisterFile()
+    seen = []
+
+    async def bench(ctx):
+        ctx.set(dut.begin, 1)
+        await ctx.tick()
+        ctx.set(dut.begin, 0)
+        ctx.set(dut.start, 1)
+        ctx.set(dut.start_address, BY_NAME[name].address)
+        await ctx.tick()
+        ctx.set(dut.start, 0)
+        ctx.set(dut.value, value)
+        await ctx.tick()
+        ctx.set(dut.check, 1)
+        await ctx.tick()
+        ctx.set(dut.check, 0)
+        await ctx.tick().repeat(5)
+        assert ctx.get(dut.consistent) and not ctx.get(dut.error)
+        ctx.set(dut.commit, 1)
+        for _ in range(4):
+            await ctx.tick()
+            ctx.set(dut.commit, 0)
+            if ctx.get(getattr(dut, strobe)):
+                seen.append(ctx.get(getattr(dut.fine_tdc, BY_NAME[name].field)))
+
+    sim = Simulator(dut)
+    sim.add_clock(1e-8)
+    sim.add_testbench(bench)
+    sim.run()
+    assert seen == [value]
