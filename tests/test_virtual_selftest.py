@@ -1,6 +1,6 @@
 """``fliss selftest`` on the virtual board with the fine TDC (cocotb engine, the top level in
-Verilator), its delay line driven from the model (:mod:`fliss.sim.boards.fine_loopback`): the
-internal loopback's delay against the one the driver states, the code-density calibration of the
+Verilator), its delay line driven from the model (:mod:`fliss.sim.boards.fine_loopback`): a
+jumper's delay from the laser output against the one the driver states, the code-density calibration of the
 oscillator's hits, the table written and read back through the gateware's registers, and the
 victim's delays against the reference model through the aggressor's jumper.
 
@@ -21,8 +21,7 @@ from fliss.sim.models.delay import delays
 from fliss.sim.models.finetdc import Line
 
 
-#: The driver's internal loopback and jumper delays and line (FineLoopback's defaults).
-INTERNAL_DELAY_S = 1.1e-9
+#: The driver's jumper delay and line (FineLoopback's defaults).
 JUMPER_DELAY_S = 3.2e-9
 LINE = Line()
 #: A simulated board is slower than real time: short acquisitions.
@@ -35,7 +34,8 @@ def board():
         if os.environ.get("FLISS_REQUIRE_SIMULATORS"):
             pytest.fail("Verilator is missing")
         pytest.skip("Verilator is missing")
-    virtual = VirtualBoard("verilator", engine="cocotb", fine_tdc=True, seed=3)
+    virtual = VirtualBoard("verilator", engine="cocotb", fine_tdc=True, jumper="laser",
+                           seed=3)
     virtual.start(timeout_s=1800)
     try:
         yield virtual
@@ -43,14 +43,14 @@ def board():
         virtual.stop()
 
 
-def test_internal_loopback_on_the_gateware(board):
+def test_laser_jumper_on_the_gateware(board):
     with connect(board.path, timeout_s=10.0) as client:
-        result = selftest(client, reference=delays, durations_s=DURATIONS_S)
+        result = selftest(client, jumper="laser", reference=delays, durations_s=DURATIONS_S)
     outcomes = {check.name: check.outcome for check in result.checks}
     assert outcomes == {"same time": "pass", "delays": "skipped", "histogram": "pass",
                         "calibration": "pass", "link": "pass"}, result.table()
     # The nominal table: the hit's time from the line's input, within the taps' drift
-    assert abs(result.delay_s - (INTERNAL_DELAY_S + LINE.offset_s)) < 250e-12
+    assert abs(result.delay_s - (JUMPER_DELAY_S + LINE.offset_s)) < 250e-12
     assert result.jitter_s < LINE.tap_s
 
 
@@ -59,15 +59,15 @@ def test_calibration_through_the_gateware(board):
         # (the table read back and compared)
         result = calibrate(client, DURATIONS_S["calibration"],
                            integration_s=DURATIONS_S["histogram"])
-        after = selftest(client, reference=delays, durations_s=DURATIONS_S)
+        after = selftest(client, jumper="laser", reference=delays, durations_s=DURATIONS_S)
     assert len(result.empty_codes) == 0
     # Calibrated: from the hit to the line's first tap, within a tap and the table's rounding,
     # and three standard deviations of the code density's estimate at the loopback's code
     # (the share p of the hits below it, of N: sqrt(p (1 - p) / N) of a period)
     period_s = 1 / DEFAULT_CLOCK_HZ
-    share = (period_s - INTERNAL_DELAY_S - LINE.thresholds_s[0]) / period_s
+    share = (period_s - JUMPER_DELAY_S - LINE.thresholds_s[0]) / period_s
     sigma_s = period_s * (share * (1 - share) / result.counts.sum()) ** 0.5
-    assert abs(after.delay_s - (INTERNAL_DELAY_S + LINE.thresholds_s[0])) < \
+    assert abs(after.delay_s - (JUMPER_DELAY_S + LINE.thresholds_s[0])) < \
         3 * sigma_s + LINE.tap_s + 12.5e-12
 
 

@@ -45,8 +45,12 @@ def register(subparsers, formatter):
                              "packets to the host; SIGUSR1 to this process resets it too")
     parser.add_argument("--fine-tdc", action="store_true",
                         help="build the top level with the fine TDC, its delay line driven from "
-                             "the model (its internal loopback and on-chip oscillator: `fliss "
-                             "selftest` and `fliss calibrate` run on it); cocotb engine only")
+                             "the model (the on-chip oscillator, and a jumper with --jumper: "
+                             "`fliss selftest` and `fliss calibrate` run on it); cocotb engine "
+                             "only")
+    parser.add_argument("--jumper", choices=("laser", "aggressor"), default=None,
+                        help="with --fine-tdc: a jumper wire from the laser output or the "
+                             "aggressor's trigger to the photon input")
     add_line_arguments(parser)
     parser.set_defaults(run=run_board)
 
@@ -67,7 +71,8 @@ def run_board(args):
                          ambient_hz=ambient_hz, signal=args.signal,
                          aggressor_signal=args.aggressor_signal, seed=args.seed,
                          scene=args.scene, sensor=args.sensor, object_m=args.object_m,
-                         reset_after=args.reset_after, fine_tdc=args.fine_tdc)
+                         reset_after=args.reset_after, fine_tdc=args.fine_tdc,
+                         jumper=args.jumper)
 
     def terminate(number, frame):
         raise KeyboardInterrupt

@@ -15,18 +15,17 @@ def register(subparsers, formatter):
     parser = subparsers.add_parser(
         "selftest", formatter_class=formatter,
         help="check the board on a loopback: TDC, delays, histograms, calibration, link",
-        description="Runs the self-test (docs/bring-up.md) in some seconds: with no --jumper, "
-                    "on the fine TDC's internal loopback (the victim's laser trigger inside "
-                    "the FPGA; builds with the fine TDC only), else on a jumper wire from the "
-                    "victim's laser output (--jumper laser) or the aggressor's trigger "
-                    "(--jumper aggressor) to the photon input. Prints one line per check: "
+        description="Runs the self-test (docs/bring-up.md) in some seconds, on a jumper wire "
+                    "from the victim's laser output (--jumper laser) or the aggressor's "
+                    "trigger (--jumper aggressor) to the photon input; with no --jumper, only "
+                    "the calibration's coverage and the link. Prints one line per check: "
                     "pass, fail, or skipped with the reason. The delays are checked with the "
                     "aggressor's trigger on the input only (the victim's own hits cannot show "
                     "them). The settings it changes are put back.")
     add_port_arguments(parser)
     parser.add_argument("--jumper", choices=JUMPERS, default=None,
-                        help="what a jumper wire carries to the photon input (none: the fine "
-                             "TDC's internal loopback)")
+                        help="what a jumper wire carries to the photon input (none: the "
+                             "checks that need hits are skipped)")
     parser.set_defaults(run=run)
 
 

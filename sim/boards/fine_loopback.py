@@ -7,9 +7,6 @@ level with the fine TDC whose ``fine_sampled`` port drives it, and whose ``fine_
 shows the register ``tdc_input`` (a simulation build only: the board has neither).
 :class:`FineLoopback` drives ``fine_sampled`` with :meth:`fliss.sim.models.finetdc.Line.samples`:
 
-* ``tdc_input`` 2, the internal loopback: each rising edge of the victim's ``laser`` output
-  reaches the line ``internal_delay_s`` after the clock edge that set it (the multiplexer and
-  the routing), high for the laser's pulse;
 * ``tdc_input`` 1, the on-chip oscillator: hits at a random phase, ``oscillator_hz`` on
   average, each high for two clock cycles (shorter than the real one's some 200 ns, which the
   line would show no differently: the encoder counts a hit when a sample follows an all-zero
@@ -55,12 +52,11 @@ class FineTdcTop(FlissTop):
 class FineLoopback:
     """Drives ``dut.fine_sampled`` of a :class:`FineTdcTop` (see the module's description)."""
 
-    def __init__(self, dut, clock_hz, *, line=None, internal_delay_s=1.1e-9,
-                 oscillator_hz=2.4e6, jumper=None, jumper_delay_s=3.2e-9, seed=None):
+    def __init__(self, dut, clock_hz, *, line=None, oscillator_hz=2.4e6, jumper=None,
+                 jumper_delay_s=3.2e-9, seed=None):
         self.dut = dut
         self.cycle_s = 1 / clock_hz
         self.line = Line() if line is None else line
-        self.internal_delay_s = internal_delay_s
         self.oscillator_hz = oscillator_hz
         self.rng = np.random.default_rng(seed)
         self.hits = 0
@@ -91,15 +87,13 @@ class FineLoopback:
         dut = self.dut
         while True:
             source = int(dut.fine_input.value)
-            looped = {2: (dut.laser, self.internal_delay_s),
-                      0: (self.jumper, self.jumper_delay_s)}.get(source)
-            if looped is not None and looped[0] is not None:
-                edge = RisingEdge(looped[0])
+            if source == 0 and self.jumper is not None:
+                edge = RisingEdge(self.jumper)
                 if await First(edge, ClockCycles(dut.clk, 64)) is not edge:
                     continue
                 await RisingEdge(dut.clk)
                 self.hits += 1
-                await self._drive(self.cycle_s - looped[1], 1 * self.cycle_s)
+                await self._drive(self.cycle_s - self.jumper_delay_s, 1 * self.cycle_s)
             elif source == 1:
                 gap = self.rng.exponential(1 / (self.oscillator_hz * self.cycle_s))
                 await ClockCycles(dut.clk, max(1, int(gap)))

@@ -4,8 +4,6 @@ A :class:`Loopback` says what reaches the TDCs' photon input and with what delay
 
 * the jumper wire (``jumper``): the victim's laser trigger (``"laser"``), the aggressor's
   (``"aggressor"``) or nothing (``None``: the scene's photons, as without a loopback);
-* inside the FPGA (the fine TDC's ``tdc_input`` 2): the victim's laser trigger, with
-  ``internal_delay_s`` and ``internal_jitter_s``;
 * the on-chip oscillator (``tdc_input`` 1): hits uniform over the clock period, at
   ``oscillator_hz``, for the code-density calibration.
 
@@ -46,8 +44,6 @@ class Loopback:
     jumper: object = "laser"
     delay_s: float = 3.2e-9
     jitter_s: float = 20e-12
-    internal_delay_s: float = 1.1e-9
-    internal_jitter_s: float = 3e-12
     oscillator_hz: float = 2.4e6
     line: Line = field(default_factory=Line)
     wrong_delay_every: object = None
@@ -57,22 +53,19 @@ class Loopback:
         if self.jumper is not None and self.jumper not in JUMPERS:
             raise ValueError(f"A jumper carries one of {', '.join(JUMPERS)} or nothing, "
                              f"not {self.jumper!r}")
-        for name in ("delay_s", "jitter_s", "internal_delay_s", "internal_jitter_s",
-                     "oscillator_hz"):
+        for name in ("delay_s", "jitter_s", "oscillator_hz"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must not be negative, not {getattr(self, name)!r}")
 
     def hits(self, settings):
         """What drives the TDC with register ``settings``: ``"laser"``, ``"aggressor"``,
-        ``"internal"``, ``"oscillator"``, or None (the scene's photons)."""
+        ``"oscillator"``, or None (the scene's photons)."""
         source = settings["tdc_source"]
         if source == TdcSource.SENSOR.value:
             return None
         fine = source in (TdcSource.FINE.value, TdcSource.FINE_RAW.value)
         if fine and settings["tdc_input"] == 1:
             return "oscillator"
-        if fine and settings["tdc_input"] == 2:
-            return "internal"
         return self.jumper
 
     def run(self, settings, victim, clock_hz, table, seed):
@@ -129,10 +122,8 @@ class LoopbackRun:
             else:
                 fires = self.starts
             fires = fires[(fires >= begin) & (fires < end)]
-            internal = self.kind == "internal"
-            delay = self.loopback.internal_delay_s if internal else self.loopback.delay_s
-            jitter = self.loopback.internal_jitter_s if internal else self.loopback.jitter_s
-            hits_s = fires * cycle_s + delay + rng.normal(0, jitter, len(fires))
+            hits_s = fires * cycle_s + self.loopback.delay_s + \
+                rng.normal(0, self.loopback.jitter_s, len(fires))
         return self._timestamps(hits_s, cycle_s)
 
     def _timestamps(self, hits_s, cycle_s):

@@ -308,7 +308,9 @@ class ModelBoard(PtyServer):
             return events
         s = self.settings
         events = events.copy()
-        if s["tdc_source"] == TdcSource.COARSE.value and not (self._looped and self._looped.kind):
+        if self._looped is not None and self._looped.kind is not None:
+            pass    # (a loopback's events are already the selected TDC's codes)
+        elif s["tdc_source"] == TdcSource.COARSE.value:
             lsb_per_cycle = int(round(self.simulation.scene.lsb_per_cycle))
             events["timestamp"] //= lsb_per_cycle
         elif s["tdc_source"] == TdcSource.FINE.value:
