@@ -277,9 +277,11 @@ class VirtualBoard:
         if fine_tdc and engine != "cocotb":
             raise VirtualBoardError("the fine TDC runs on the cocotb engine only: use --engine "
                                     "cocotb")
-        if jumper not in (None, "laser", "aggressor") or (jumper and not fine_tdc):
-            raise VirtualBoardError(f"a jumper is laser or aggressor, on the board with the fine "
-                                    f"TDC, not {jumper!r}")
+        if jumper not in (None, "laser", "aggressor"):
+            raise VirtualBoardError(f"a jumper is laser or aggressor, not {jumper!r}")
+        if jumper and not fine_tdc:
+            raise VirtualBoardError("a jumper needs the board with the fine TDC (--fine-tdc): "
+                                    "nothing drives the coarse TDC's pin")
         self.fine_tdc = bool(fine_tdc)
         self.folder = self.root / ("fast" if engine == "fast" else
                                    f"{sim}-fine" if fine_tdc else sim)

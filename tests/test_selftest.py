@@ -240,3 +240,10 @@ def test_register_file_reads_table_data_from_the_table():
     sim.run()
     assert seen == {0x5a5: 0x5a5, 0xfff: 0xfff, 0: 0,
                     "table_address": BY_NAME["table_address"].reset_value(CLOCK_HZ)}
+
+
+def test_virtual_board_jumper_needs_the_fine_tdc(capsys):
+    # (refused before anything is built)
+    assert main(["board", "--jumper", "laser"]) == 1
+    assert capsys.readouterr().err == "fliss: error: a jumper needs the board with the fine TDC " \
+                                      "(--fine-tdc): nothing drives the coarse TDC's pin\n"
