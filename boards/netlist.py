@@ -12,8 +12,9 @@ gives what a simulator needs around that netlist:
   ``ICE40_U`` (the UP5K);
 * models of the cells the installed models leave as black boxes: the PLL (its output is its
   input, the oscillator pin, which the testbench clocks at the design clock; it locks when the
-  wrapper's ``rst`` falls), the ECP5's ``MULT18X18D`` (without registers, as Yosys maps it) and
-  its ``DP16KD`` block RAM (in the modes the design uses, :data:`DP16KD_MODEL`);
+  wrapper's ``rst`` falls), the ECP5's ``MULT18X18D`` (without registers, as Yosys maps it),
+  its ``DP16KD`` block RAM (in the modes the design uses, :data:`DP16KD_MODEL`) and its on-chip
+  oscillator ``OSCG`` (held low: no gate-level bench calibrates the fine TDC);
 * a wrapper module, ``fliss_netlist``, with the ports of :class:`fliss.hdl.top.FlissTop` (and
   ``rst``), wired to the board's pins as :class:`~fliss.boards.BoardTop` wires them, so that the
   cocotb testbenches of the top level run unchanged on the netlist.
@@ -146,6 +147,11 @@ _BEHAVIOUR = {
     assign PLLOUTGLOBAL = PACKAGEPIN;
     assign PLLOUTCORE = PACKAGEPIN;
     assign LOCK = {PLL_LOCK};
+""",
+    "OSCG": """
+    // FLISS simulation model: the on-chip oscillator held low (no gate-level bench uses it: the
+    // fine TDC's calibration source, `tdc_input` 1).
+    assign OSC = 1'b0;
 """,
     "MULT18X18D": """
     // FLISS simulation model: the multiplier without registers, as Yosys maps a `*`.
@@ -296,7 +302,7 @@ def _models(board, dest, toolchain):
         (dest / "common_sim.vh").write_text(common)
         blackboxes = (dest / "cells_bb.v").read_text()
         extra = "".join(blackboxes[slice(*_module(blackboxes, name))] + _BEHAVIOUR[name] +
-                        "endmodule\n\n" for name in ("EHXPLLL", "MULT18X18D"))
+                        "endmodule\n\n" for name in ("EHXPLLL", "MULT18X18D", "OSCG"))
         # DP16KD: a black box in cells_sim.v too; the behaviour goes into its declaration.
         cells = (dest / "cells_sim.v").read_text().replace("(* blackbox *)\nmodule DP16KD(",
                                                            "module DP16KD(")

@@ -101,7 +101,7 @@ async def _write_many(tb, **values):
 #: One register of each group and a value for it other than its reset value (capped at a
 #: smaller build's maximum), which the settings' checks accept with the others at reset.
 LINK_WRITES = {"pulse_width": 9, "aggressor_offset": 3, "aggressor_period": 40, "tdc_source": 1,
-               "gate_end": 5000, "integration": 123_456, "depth_threshold": 9,
+               "gate_end": 5000, "integration": 123_456, "depth_threshold": 9, "fine_lsb": 2,
                "key1": 0x89ABCDEF}
 
 
