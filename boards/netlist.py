@@ -183,9 +183,10 @@ def bit_vector(prefix, count):
 #: uses, from Lattice's sysMEM usage guide (TN1264): 1024 words of 18 bits on both ports
 #: (the word address on AD[13:4], the byte write enables on AD[1:0]); chip selects decoded
 #: against CSDECODE; CE enables a port's array access, OCE its output register (REGMODE
-#: "OUTREG"); WRITEMODE NORMAL holds the port's output during a write. Contents and registers
-#: are zero after configuration (INITVAL must be zero here). A read of the word that the other
-#: port writes at the same edge gives X: the block does not define it.
+#: "OUTREG"); WRITEMODE NORMAL holds the port's output during a write. The contents after
+#: configuration are INITVAL's (word ``16 k + i`` in bits ``20 i`` to ``20 i + 17`` of
+#: ``INITVAL_k``, as Yosys's memory mapping lays them out), the registers zero. A read of the
+#: word that the other port writes at the same edge gives X: the block does not define it.
 DP16KD_MODEL = """
     // FLISS simulation model (see fliss.boards.netlist.DP16KD_MODEL)
     reg [17:0] fliss_mem [0:1023];
@@ -195,15 +196,15 @@ DP16KD_MODEL = """
     wire fliss_cs_a = ({CSA2, CSA1, CSA0} == {CSDECODE_A[16] , CSDECODE_A[8], CSDECODE_A[0]});
     wire fliss_cs_b = ({CSB2, CSB1, CSB0} == {CSDECODE_B[16] , CSDECODE_B[8], CSDECODE_B[0]});
     wire fliss_we_a = CEA && fliss_cs_a && WEA, fliss_we_b = CEB && fliss_cs_b && WEB;
+    localparam [20479:0] FLISS_INIT = @INITVAL@;
     integer fliss_i;
     initial begin
         for (fliss_i = 0; fliss_i < 1024; fliss_i = fliss_i + 1)
-            fliss_mem[fliss_i] = 18'd0;
+            fliss_mem[fliss_i] = FLISS_INIT[fliss_i * 20 +: 18];
         if (DATA_WIDTH_A != 18 || DATA_WIDTH_B != 18 ||
             (REGMODE_A != "NOREG" && REGMODE_A != "OUTREG") ||
             (REGMODE_B != "NOREG" && REGMODE_B != "OUTREG") ||
-            WRITEMODE_A != "NORMAL" || WRITEMODE_B != "NORMAL" || RESETMODE != "SYNC" ||
-            (@INITVAL@) != 0) begin
+            WRITEMODE_A != "NORMAL" || WRITEMODE_B != "NORMAL" || RESETMODE != "SYNC") begin
             $display("DP16KD: a mode the FLISS model does not have");
             $finish;
         end
@@ -248,8 +249,8 @@ for _port in "AB":
         f"AD{_port}{n}" for n in reversed(range(4, 14))) + "}")
     for _name in ("DI", "DO"):
         DP16KD_MODEL = DP16KD_MODEL.replace(f"@{_name}{_port}@", bit_vector(f"{_name}{_port}", 18))
-DP16KD_MODEL = DP16KD_MODEL.replace("@INITVAL@", " | ".join(
-    f"INITVAL_{n:02X}" for n in range(64)))
+DP16KD_MODEL = DP16KD_MODEL.replace("@INITVAL@", "{" + ", ".join(
+    f"INITVAL_{n:02X}" for n in reversed(range(64))) + "}")
 _BEHAVIOUR["DP16KD"] = DP16KD_MODEL
 
 

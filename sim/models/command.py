@@ -3,8 +3,8 @@
 from ...hdl.protocol import (PROTOCOL_VERSION, GATEWARE_MAJOR, GATEWARE_MINOR, PacketType, NakCode,
                              Identity, Nak, ReadRequest, Status, STATUS_FIELDS, READ_MAX,
                              CONSISTENCY, REGISTER_BYTES, registers_layout)
-from ...hdl.registers import (REGISTERS, BY_ADDRESS, KEYING, defaults, problems, register_maxima,
-                              iv_problem, value_of, words_of)
+from ...hdl.registers import (REGISTERS, BY_ADDRESS, KEYING, TdcSource, defaults, problems,
+                              register_maxima, iv_problem, value_of, words_of)
 from ...hdl.delay.modes import DelayMode
 from ...hdl.delay.settings import BANK_BITS
 from ...protocol.layout import pack, unpack, byte_size, unpack_words
@@ -50,6 +50,8 @@ class CommandModel:
         self.refused = 0
         self.keyed_source = keyed_source
         self.restarts = KeyedRestarts()
+        # The table: a build with the fine TDC (one without it reads table_data as its 0)
+        self.fine_tdc = self.maxima["tdc_source"] >= TdcSource.FINE.value
         self.table = nominal_table()
         self.table_pointer = 0
 
@@ -70,7 +72,7 @@ class CommandModel:
             return 0
         if register.in_use:
             return words_of(self.iv_in_use, "iv")[register.name]
-        if register.name == "table_data":
+        if register.name == "table_data" and self.fine_tdc:
             return self.table[self.table_pointer]
         return self.settings[register.name]
 
