@@ -183,7 +183,9 @@ def bit_vector(prefix, count):
 #: uses, from Lattice's sysMEM usage guide (TN1264): 1024 words of 18 bits on both ports
 #: (the word address on AD[13:4], the byte write enables on AD[1:0]); chip selects decoded
 #: against CSDECODE; CE enables a port's array access, OCE its output register (REGMODE
-#: "OUTREG"); WRITEMODE NORMAL holds the port's output during a write. The contents after
+#: "OUTREG"); WRITEMODE NORMAL holds the port's output during a write, READBEFOREWRITE gives
+#: the word before it; RESETMODE ASYNC stops the simulation if a reset ever rises (the design
+#: ties those resets low). The contents after
 #: configuration are INITVAL's (word ``16 k + i`` in bits ``20 i`` to ``20 i + 17`` of
 #: ``INITVAL_k``, as Yosys's memory mapping lays them out), the registers zero. A read of the
 #: word that the other port writes at the same edge gives X: the block does not define it.
@@ -204,11 +206,19 @@ DP16KD_MODEL = """
         if (DATA_WIDTH_A != 18 || DATA_WIDTH_B != 18 ||
             (REGMODE_A != "NOREG" && REGMODE_A != "OUTREG") ||
             (REGMODE_B != "NOREG" && REGMODE_B != "OUTREG") ||
-            WRITEMODE_A != "NORMAL" || WRITEMODE_B != "NORMAL" || RESETMODE != "SYNC") begin
+            (WRITEMODE_A != "NORMAL" && WRITEMODE_A != "READBEFOREWRITE") ||
+            (WRITEMODE_B != "NORMAL" && WRITEMODE_B != "READBEFOREWRITE") ||
+            (RESETMODE != "SYNC" && RESETMODE != "ASYNC")) begin
             $display("DP16KD: a mode the FLISS model does not have");
             $finish;
         end
     end
+    // (an ASYNC reset is modelled at the clock edge: the design never raises it)
+    always @(posedge RSTA or posedge RSTB)
+        if (RESETMODE == "ASYNC") begin
+            $display("DP16KD: an asynchronous reset the FLISS model does not have");
+            $finish;
+        end
     always @(posedge CLKA) begin
         if (RSTA)
             fliss_la <= 18'd0;
@@ -216,6 +226,8 @@ DP16KD_MODEL = """
             if (WEA) begin
                 if (ADA0) fliss_mem[fliss_ad_a][8:0] <= fliss_di_a[8:0];
                 if (ADA1) fliss_mem[fliss_ad_a][17:9] <= fliss_di_a[17:9];
+                if (WRITEMODE_A == "READBEFOREWRITE")
+                    fliss_la <= fliss_mem[fliss_ad_a];
             end else
                 fliss_la <= (fliss_we_b && fliss_ad_b == fliss_ad_a) ? 18'bx
                                                                       : fliss_mem[fliss_ad_a];
@@ -232,6 +244,8 @@ DP16KD_MODEL = """
             if (WEB) begin
                 if (ADB0) fliss_mem[fliss_ad_b][8:0] <= fliss_di_b[8:0];
                 if (ADB1) fliss_mem[fliss_ad_b][17:9] <= fliss_di_b[17:9];
+                if (WRITEMODE_B == "READBEFOREWRITE")
+                    fliss_lb <= fliss_mem[fliss_ad_b];
             end else
                 fliss_lb <= (fliss_we_a && fliss_ad_a == fliss_ad_b) ? 18'bx
                                                                       : fliss_mem[fliss_ad_b];
