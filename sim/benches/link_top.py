@@ -1,12 +1,14 @@
 """The link of :class:`fliss.hdl.top.FlissTop` without the UART, for fuzzing at one byte per
 cycle: :class:`fliss.hdl.link.link.Link` with byte streams for its serial lines and no data
-packets, and the STATUS counters of its strobes."""
+packets, the STATUS counters of its strobes, and the fine TDC's calibration table (the register
+file reads ``table_data`` from it, as in a build with the fine TDC)."""
 
 from amaranth.hdl import Module
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from ...hdl import DEFAULT_CLOCK_HZ
+from ...hdl.finetdc.table import CalibrationTable
 from ...hdl.link.link import Link
 from ...hdl.protocol import DEFAULT_BAUD
 from ...hdl.status import StatusCounters
@@ -41,4 +43,13 @@ class LinkTop(wiring.Component):
         wiring.connect(m, link.tx, wiring.flipped(self.tx))
         wiring.connect(m, link.status, status.port)
         m.d.comb += status.count(link.tally)
+        m.submodules.table = table = CalibrationTable()
+        registers = link.registers
+        m.d.comb += [
+            table.seek.eq(registers.table_seek),
+            table.seek_address.eq(registers.fine_tdc.table_address),
+            table.write.eq(registers.table_write),
+            table.write_data.eq(registers.fine_tdc.table_data),
+            registers.table_read.eq(table.read_data),
+        ]
         return m
