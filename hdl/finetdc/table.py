@@ -25,8 +25,11 @@ class CalibrationTable(wiring.Component):
 
     The host reaches it through a pointer: ``seek`` sets the pointer to ``seek_address``;
     ``write`` writes ``write_data`` at the pointer (the one just set, if both come in one
-    cycle) and moves the pointer on by one. ``read_data`` is the entry at the pointer two cycles
-    after the pointer last moved.
+    cycle) and moves the pointer on by one. ``read_data`` is a register loaded from the block
+    RAM at every clock edge: from the third cycle after a ``seek`` or a ``write`` (the strobe's
+    cycle counted as 0) it holds the entry at the new pointer. (A register, so that the block
+    RAM's output, slow on the ECP5, does not go straight into the register file's read
+    multiplexer.)
 
     Members
     -------
@@ -70,8 +73,9 @@ class CalibrationTable(wiring.Component):
         back = memory.read_port(transparent_for=[write])
         m.d.comb += [
             write.addr.eq(address), write.data.eq(self.write_data), write.en.eq(self.write),
-            back.addr.eq(address), self.read_data.eq(back.data),
+            back.addr.eq(address),
         ]
+        m.d.sync += self.read_data.eq(back.data)
         with m.If(self.seek | self.write):
             m.d.sync += pointer.eq(address + self.write)
 
