@@ -23,9 +23,9 @@ from amaranth.lib.wiring import In
 from ..hdl import DEFAULT_CLOCK_HZ
 
 
-__all__ = ["BOARDS", "FLISS_PINS", "BOARD_PINS", "PIN_ALIASES", "platform_class", "BoardTop",
-           "PllClocking", "FlissPlatform", "fliss_top", "fliss_top_fine", "fliss_top_spram",
-           "fliss_top_up5k"]
+__all__ = ["BOARDS", "FLISS_PINS", "BOARD_PINS", "PIN_ALIASES", "PAD_SUFFIX", "pad_read_back",
+           "platform_class", "BoardTop", "PllClocking", "FlissPlatform", "fliss_top",
+           "fliss_top_fine", "fliss_top_spram", "fliss_top_up5k"]
 
 
 #: Supported boards: name on the command line -> ``module:class`` of its platform.
@@ -71,6 +71,20 @@ PIN_ALIASES = {
 }
 
 
+#: A design input named after an output of :data:`FLISS_PINS` (or an alias of one) with this
+#: suffix reads that output's pad back (``laser_pad``, ``aggressor_laser_pad``).
+PAD_SUFFIX = "_pad"
+
+
+def pad_read_back(port_name):
+    """The output of :data:`FLISS_PINS` whose pad a design port named ``port_name`` reads back
+    (``"laser"`` for ``laser_pad``), or None."""
+    if not port_name.endswith(PAD_SUFFIX):
+        return None
+    name = _pin_name(port_name[:-len(PAD_SUFFIX)])
+    return name if FLISS_PINS.get(name, (0, ""))[1] == "o" else None
+
+
 def _pin_name(port_name):
     # Design port name -> name in FLISS_PINS or BOARD_PINS (or the name itself if it is neither).
     name = port_name[len("pin_"):] if port_name.startswith("pin_") else port_name
@@ -99,7 +113,10 @@ class BoardTop(Elaboratable):
 
     * a name of :data:`FLISS_PINS` to the FLISS pins of the board;
     * a name of :data:`BOARD_PINS` to the on-board UART, button or LEDs;
-    * the same with a ``pin_`` prefix, or an alias of :data:`PIN_ALIASES` (``hit``).
+    * the same with a ``pin_`` prefix, or an alias of :data:`PIN_ALIASES` (``hit``);
+    * an input named after an output with :data:`PAD_SUFFIX` (``laser_pad``) to that output's
+      pad as its input buffer reads it back: the output's buffer is then bidirectional, its
+      output always enabled (the board's pins must allow it: the ULX3S's outputs do).
 
     Every input goes through a plain :class:`io.Buffer`: synchronising it is the design's job.
     Unwired inputs stay at their reset value; unwired outputs are left open. Both are listed in
@@ -144,11 +161,22 @@ class BoardTop(Elaboratable):
                 ports[name, number] = platform.request(name, number, dir="-")
             return ports[name, number]
 
+        # The pads read back: output pin name -> the design's input
+        pads = {}
+        for port_name, member in design.signature.members.items():
+            if (name := pad_read_back(port_name)) is not None and member.is_port:
+                if member.flow != In or len(getattr(design, port_name)) != 1:
+                    raise ValueError(f"Port {port_name!r} of the design reads the {name} "
+                                     f"pin's pad back: it must be an input of one bit")
+                pads[name] = port_name
+
         for port_name, member in design.signature.members.items():
             if not member.is_port:
                 raise TypeError(f"Port {port_name!r} of the design is an interface; the board "
                                 f"top level wires plain signals only")
             port = getattr(design, port_name)
+            if pad_read_back(port_name) is not None:
+                continue        # (with its output, below)
             name = _pin_name(port_name)
             width = len(port)
             direction = "i" if member.flow == In else "o"
@@ -185,6 +213,15 @@ class BoardTop(Elaboratable):
                 # Pins shared by two inputs (see `shared_pins` of the platform)
                 assert direction == "i"
                 buffer = buffers[key]
+            elif name in pads:
+                # An output read back: a bidirectional buffer, always driving
+                pad_port = pads.pop(name)
+                if pins[0].direction != io.Direction.Bidir:
+                    raise ValueError(f"Port {pad_port!r} of the design reads the {name} pin's "
+                                     f"pad back, but the board's {name} pin is an output only")
+                buffer = io.Buffer("io", pins[0])
+                m.submodules[f"{name}_buffer"] = buffers[key] = buffer
+                m.d.comb += [buffer.oe.eq(1), getattr(design, pad_port).eq(buffer.i)]
             else:
                 pin_io = pins[0] if len(pins) == 1 else _cat_ports(pins)
                 buffer = io.Buffer(direction, pin_io)
@@ -193,6 +230,10 @@ class BoardTop(Elaboratable):
                 m.d.comb += port.eq(buffer.i)
             else:
                 m.d.comb += buffer.o.eq(port)
+        if pads:
+            name, pad_port = next(iter(pads.items()))
+            raise ValueError(f"Port {pad_port!r} of the design reads the {name} pin's pad back, "
+                             f"but the design has no {name} output")
 
         return m
 

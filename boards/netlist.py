@@ -32,7 +32,7 @@ from pathlib import Path
 
 from amaranth.lib.wiring import In
 
-from . import BOARD_PINS, FLISS_PINS, BoardTop, _pin_name, platform_class
+from . import BOARD_PINS, FLISS_PINS, BoardTop, _pin_name, pad_read_back, platform_class
 from .build import BOARD_CLOCK_HZ, BOARD_DESIGN, TOOLS, load_design, toolchain_env
 
 
@@ -268,7 +268,8 @@ DP16KD_MODEL = DP16KD_MODEL.replace("@INITVAL@", "{" + ", ".join(
 _BEHAVIOUR["DP16KD"] = DP16KD_MODEL
 
 
-#: The ECP5 pad for Verilator: no tristate (T must be unconnected).
+#: The ECP5 pad for Verilator: no tristate (T must be unconnected or tied low); a
+#: bidirectional pad (an output read back) always drives.
 TRELLIS_IO_VERILATOR = """module TRELLIS_IO(inout B, input I, input T, output O);
     parameter DIR = "INPUT";
     generate
@@ -276,6 +277,10 @@ TRELLIS_IO_VERILATOR = """module TRELLIS_IO(inout B, input I, input T, output O)
             assign O = B;
         else if (DIR == "OUTPUT")
             assign B = I;
+        else if (DIR == "BIDIR") begin
+            assign B = I;
+            assign O = B;
+        end
     endgenerate
 endmodule
 """
@@ -353,6 +358,8 @@ def _wrapper(netlist):
     shared = getattr(platform, "shared_pins", {})
     ports, pins, inputs, inverted = [], {}, {}, set()
     for port_name, member in netlist.design.signature.members.items():
+        if pad_read_back(port_name) is not None:
+            continue        # (a pad read back: inside the netlist)
         width = _width(netlist, port_name)
         name = _pin_name(port_name)
         if name in FLISS_PINS:

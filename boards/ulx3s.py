@@ -174,11 +174,14 @@ class FlissULX3SPlatform(FlissPlatform, ULX3S_85F_Platform):
 
     @staticmethod
     def fliss_io(pins, direction):
-        # Inputs have pull-downs, so that an unconnected sensor bus reads as idle.
+        # Inputs have pull-downs, so that an unconnected sensor bus reads as idle. Outputs may
+        # be read back (a design input `<output>_pad`, the fine TDC's internal loopback): their
+        # pins are bidirectional, the buffer an output one unless a design reads the pad.
         if direction == "i":
             attrs = Attrs(IO_TYPE="LVCMOS33", PULLMODE="DOWN")
         else:
             attrs = Attrs(IO_TYPE="LVCMOS33", DRIVE="8", SLEWRATE="FAST")
+            direction = "io"
         return Pins(pins, dir=direction, conn=("gpio", 0)), attrs
 
     @property

@@ -26,7 +26,7 @@ from . import DEFAULT_PRF_HZ, period_cycles
 from .event import ADDRESS_BITS, TIMESTAMP_BITS
 from .delay.modes import DelayMode, MODES, mode_row
 from .finetdc import CODE_BITS as FINE_CODE_BITS, LSB_SELECTS as FINE_LSB_SELECTS, \
-    TABLE_BITS as FINE_TABLE_BITS
+    TABLE_BITS as FINE_TABLE_BITS, HitInput
 from .delay.settings import (BANK_BITS, IV_BITS, KEY_BITS, MIN_LENGTH, MAX_LENGTH,
                              MAX_MASK_WIDTH, PERIOD_WIDTH, PULSE_WIDTH_WIDTH)
 
@@ -245,13 +245,14 @@ ACQUISITION = RegisterGroup("acquisition", (
 #: a READ of ``table_data`` gives the entry at the pointer.
 FINE_TDC = RegisterGroup("fine_tdc", (
     Setting("lsb",   2, 0, FINE_LSB_SELECTS - 1),
-    Setting("input", 1, 0, 1),
+    Setting("input", Shape.cast(HitInput).width, 0, max(i.value for i in HitInput)),
     Setting("table_address", FINE_CODE_BITS, 0, (1 << FINE_CODE_BITS) - 1),
     Setting("table_data", FINE_TABLE_BITS, 0, (1 << FINE_TABLE_BITS) - 1),
 ), {
     "lsb":   ("fine_lsb", 0x1b, 0, "fine TDC timestamp LSB: 50 ps / 2**fine_lsb (0 to 2)"),
     "input": ("tdc_input", 0x1c, 0,
-              "fine TDC input: 0 photon pin, 1 on-chip oscillator"),
+              "fine TDC input: 0 photon pin, 1 on-chip oscillator, 2 laser output's pad read "
+              "back, 3 aggressor's trigger's pad read back"),
     "table_address": ("table_address", 0x1d, 0,
                       "fine TDC calibration table: a write moves the table's pointer here"),
     "table_data": ("table_data", 0x1e, 0,

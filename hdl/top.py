@@ -22,7 +22,7 @@ from .delay.settings import (BANK_BITS, MAX_BANK_BITS, MIN_BANK_BITS, PERIOD_WID
 from .spram import SPRAM_DEPTH
 from .status import StatusCounters
 from .tdc import EventFilter, TdcInterface, CoarseTdc
-from .finetdc import cycle_units
+from .finetdc import HitInput, cycle_units
 from .finetdc.tdc import FineTdc
 from .link.uart import bit_cycles
 
@@ -116,10 +116,12 @@ class FlissTop(wiring.Component):
         ``full_readout`` says; hosts read both forms alike.
     fine_tdc : bool
         Build the fine TDC (:class:`~fliss.hdl.finetdc.tdc.FineTdc`: a delay line of ECP5 carry
-        cells on ``photon_hit``, ``tdc_source`` 2 and 3); the clock period must be a whole
-        number of 12.5 ps. Without it (the default: some 1300 flip-flops, 700 LUTs, 320 carry
-        cells and a block RAM; only the ECP5 has the chain), a write of ``tdc_source`` above 1,
-        or of the fine TDC's registers other than 0, is refused as out of range.
+        cells on ``photon_hit``, ``tdc_source`` 2 and 3), with its internal loopback (the
+        ports ``laser_pad`` and, with the aggressor, ``aggressor_laser_pad``: ``tdc_input`` 2
+        and 3); the clock period must be a whole number of 12.5 ps. Without it (the default:
+        some 1300 flip-flops, 700 LUTs, 320 carry cells and a block RAM; only the ECP5 has the
+        chain), a write of ``tdc_source`` above 1, or of the fine TDC's registers other than 0,
+        is refused as out of range; without the aggressor, a write of ``tdc_input`` 3.
 
     Smaller builds answer every command as the full one does, except for the refusals above:
     the host finds what is missing from a NAK ``OUT_OF_RANGE`` with the register's address.
@@ -143,19 +145,11 @@ class FlissTop(wiring.Component):
         Photon detector pulse for the built-in coarse TDC and the fine TDC.
     running : Out(1)
         Acquisition running (for an LED).
+    laser_pad, aggressor_laser_pad : In(1)
+        With the fine TDC (the second with the aggressor too): the pads of ``laser`` and
+        ``aggressor_laser`` read back, for its internal loopback (a board makes the pad
+        bidirectional, its output always enabled: :class:`~fliss.boards.BoardTop`).
     """
-
-    uart_rx:          In(1, init=1)
-    uart_tx:          Out(1, init=1)
-    laser:            Out(1)
-    tdc_start:        Out(1)
-    aggressor_laser:  Out(1)
-    sensor_valid:     In(1)
-    sensor_timestamp: In(TIMESTAMP_BITS)
-    sensor_address:   In(ADDRESS_BITS)
-    sensor_collision: In(1)
-    photon_hit:       In(1)
-    running:          Out(1)
 
     def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, baud=DEFAULT_BAUD, raw_depth=512,
                  histogram_ram="dual", bank_bits=None, max_pixel_bits=ADDRESS_BITS,
@@ -203,7 +197,29 @@ class FlissTop(wiring.Component):
         self.pulse_width_width = pulse_width_width
         period_cycles(clock_hz, DEFAULT_PRF_HZ)
         bit_cycles(clock_hz, baud)
-        super().__init__()
+        super().__init__(self._ports())
+
+    def _ports(self):
+        # The signature: the fixed ports, and the pads read back for the fine TDC's internal
+        # loopback
+        ports = {
+            "uart_rx":          In(1, init=1),
+            "uart_tx":          Out(1, init=1),
+            "laser":            Out(1),
+            "tdc_start":        Out(1),
+            "aggressor_laser":  Out(1),
+            "sensor_valid":     In(1),
+            "sensor_timestamp": In(TIMESTAMP_BITS),
+            "sensor_address":   In(ADDRESS_BITS),
+            "sensor_collision": In(1),
+            "photon_hit":       In(1),
+            "running":          Out(1),
+        }
+        if self.fine_tdc:
+            ports["laser_pad"] = In(1)
+            if self.aggressor:
+                ports["aggressor_laser_pad"] = In(1)
+        return ports
 
     def register_maxima(self):
         """Register maxima lowered for this build (see :class:`CommandProcessor`)."""
@@ -236,6 +252,8 @@ class FlissTop(wiring.Component):
             maxima["tdc_source"] = TdcSource.COARSE.value
             for register in FINE_TDC.members:
                 maxima[register.name] = register.reset_value(self.clock_hz)
+        elif not self.aggressor:
+            maxima[FINE_TDC.register("input").name] = HitInput.LASER.value
         if not self.keyed:
             maxima[VICTIM.register("mode").name] = DelayMode.MASKED.value
             for register in KEYING.members:
@@ -387,12 +405,14 @@ class FlissTop(wiring.Component):
         return m
 
     def _fine_tdc(self, m, registers, core, link, captures):
-        # The fine TDC on the photon pin; its captures when `tdc_source` selects it
+        # The fine TDC on the photon pin (or the oscillator, or a trigger's pad: `tdc_input`);
+        # its captures when `tdc_source` selects it
         m.submodules.fine = fine = FineTdc(clock_hz=self.clock_hz)
         source = registers.acquisition.tdc_source
         settings = registers.fine_tdc
         m.d.comb += [
             fine.pin_hit.eq(self.photon_hit),
+            fine.laser_pad.eq(self.laser_pad),
             fine.input.eq(settings.input),
             fine.tdc_start.eq(core.tdc_start),
             fine.pulse_index.eq(core.pulse_index),
@@ -405,4 +425,6 @@ class FlissTop(wiring.Component):
             fine.table_data.eq(settings.table_data),
             registers.table_read.eq(fine.table_read),
         ]
+        if self.aggressor:
+            m.d.comb += fine.aggressor_pad.eq(self.aggressor_laser_pad)
         return Mux(source[1], fine.captures, captures)

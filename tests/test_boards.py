@@ -155,11 +155,12 @@ def test_pin_aliases(tmp_path):
     assert top.unwired == ["status"]
 
 
-@pytest.mark.parametrize("board,factory,spram,carry", [("ulx3s", "fliss_top_fine", 0, 321),
-                                                        ("icebreaker", "fliss_top_up5k", 2, 0)])
-def test_fliss_top_on_the_board(board, factory, spram, carry, tmp_path):
+@pytest.mark.parametrize("board,factory,spram,carry,pads", [
+    ("ulx3s", "fliss_top_fine", 0, 321, 2), ("icebreaker", "fliss_top_up5k", 2, 0, 0)])
+def test_fliss_top_on_the_board(board, factory, spram, carry, pads, tmp_path):
     # The whole instrument: every port reaches a pin (through the aliases), and on the
-    # iCEBreaker the histogram banks are the two SPRAMs.
+    # iCEBreaker the histogram banks are the two SPRAMs. With the fine TDC, the laser's and the
+    # aggressor's pads are read back through bidirectional buffers (ECP5 `BB`).
     _boards_extra()
     import fliss.boards
     platform = platform_class(board)()
@@ -169,6 +170,7 @@ def test_fliss_top_on_the_board(board, factory, spram, carry, tmp_path):
     plan.extract(str(tmp_path))
     rtlil = (tmp_path / "top.il").read_text()
     assert rtlil.count("cell \\SB_SPRAM256KA ") == spram
+    assert rtlil.count("cell \\BB ") == pads
     # the fine TDC's line: one carry box per cell, declared for yosys, renamed after synthesis
     assert rtlil.count("cell \\FLISS_CCU2C ") == carry
     assert (tmp_path / "fliss_carry_box.v").exists() == bool(carry)
@@ -192,6 +194,49 @@ def test_board_top_width_mismatch():
         with pytest.raises(ValueError, match=r"^Port 'laser' of the design is 2 bits wide, but "
                                              r"its pins are 1 bits wide$"):
             platform.prepare(BoardTop(_WideLaser), name="wide")
+
+
+class _LaserPad(wiring.Component):
+    laser:     Out(1)
+    laser_pad: In(1)
+
+    def __init__(self, clock_hz):
+        super().__init__()
+
+    def elaborate(self, platform):
+        m = Module()
+        m.d.sync += self.laser.eq(~self.laser_pad)
+        return m
+
+
+class _PadOnly(wiring.Component):
+    aggressor_laser_pad: In(1)
+    laser:               Out(1)
+
+    def __init__(self, clock_hz):
+        super().__init__()
+
+    def elaborate(self, platform):
+        return Module()
+
+
+def test_board_top_pads_read_back(tmp_path):
+    # An input named after an output with `_pad`: the output's pin bidirectional, driving, on
+    # the ULX3S; refused where the pins are outputs only, and without the output
+    _boards_extra()
+    top = BoardTop(_LaserPad)
+    platform_class("ulx3s")().prepare(top, name="pad").extract(str(tmp_path))
+    rtlil = (tmp_path / "pad.il").read_text()
+    assert rtlil.count("cell \\BB ") == 1 and top.unwired == []
+    with _unused_elaboratables():
+        with pytest.raises(ValueError, match=r"^Port 'laser_pad' of the design reads the laser "
+                                             r"pin's pad back, but the board's laser pin is an "
+                                             r"output only$"):
+            platform_class("icebreaker")().prepare(BoardTop(_LaserPad), name="pad")
+        with pytest.raises(ValueError, match=r"^Port 'aggressor_laser_pad' of the design reads "
+                                             r"the aggressor pin's pad back, but the design has "
+                                             r"no aggressor output$"):
+            platform_class("ulx3s")().prepare(BoardTop(_PadOnly), name="pad")
 
 
 def test_board_top_rejects_non_component():

@@ -9,6 +9,7 @@ import pytest
 from amaranth.hdl import UnusedElaboratable
 
 from fliss.hdl.delay.source import DelayMode
+from fliss.hdl.finetdc import HitInput
 from fliss.hdl.registers import REGISTERS, AcquisitionMode, TdcSource
 from fliss.hdl.delay.settings import BANK_BITS
 from fliss.hdl.top import FlissTop, SMALL
@@ -92,8 +93,9 @@ def _built(module, name):
 
 
 @pytest.mark.parametrize("options", [{}, dict(aggressor_delays=False), SMALL,
-                                     dict(fine_tdc=True)],
-                         ids=["full", "no-aggressor-delays", "small", "fine-tdc"])
+                                     dict(fine_tdc=True), dict(fine_tdc=True, aggressor=False)],
+                         ids=["full", "no-aggressor-delays", "small", "fine-tdc",
+                              "fine-tdc-no-aggressor"])
 def test_top_register_file_takes_what_the_top_runs(options):
     # The register file accepts every value the blocks the top level builds can take, and only
     # those: aggressor delay modes its aggressor can run (none without an aggressor), periods
@@ -140,6 +142,10 @@ def test_top_register_file_takes_what_the_top_runs(options):
             for register in REGISTERS:
                 if register.group == "fine_tdc":
                     lowered[register.name] = 0
+        elif "aggressor_laser_pad" not in flisstop.signature.members:
+            # the fine TDC's internal loopback reads the laser's pad only
+            assert "laser_pad" in flisstop.signature.members
+            lowered["tdc_input"] = HitInput.LASER.value
         if not core.keyed:
             # no keyed source: delay modes up to masked, and no key or IV but 0
             lowered["delay_mode"] = DelayMode.MASKED.value

@@ -276,7 +276,7 @@ def test_reset_restores_the_registers():
 
 
 @pytest.mark.parametrize("name, refused", [("tdc_source", (2, 3)), ("fine_lsb", (1, 2)),
-                                           ("tdc_input", (1, 1)), ("table_data", (1, 4095))])
+                                           ("tdc_input", (2, 1)), ("table_data", (1, 4095))])
 def test_builds_without_the_fine_tdc_refuse_it(name, refused):
     # A build without the fine TDC takes tdc_source 0 and 1, and its registers 0 only, like the
     # model; the full register map takes them.
@@ -295,3 +295,20 @@ def test_builds_without_the_fine_tdc_refuse_it(name, refused):
                                                 detail=address)) for seq in (0, 2)]
     assert [replies[0], replies[2]] == out_of_range
     assert [replies[1], replies[3]] == [(PacketType.ACK.value, bytes([seq])) for seq in (1, 3)]
+
+
+def test_fine_tdc_without_the_aggressor_refuses_its_pad():
+    # The internal loopback reads the aggressor's pad as tdc_input 3: a build with the fine
+    # TDC and no aggressor refuses it, and takes the laser's pad (2), like the model
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnusedElaboratable)     # built, never elaborated
+        maxima = FlissTop(fine_tdc=True, aggressor=False).register_maxima()
+    address = BY_NAME["tdc_input"].address
+    packets = [(PacketType.WRITE.value, seq, _write(address, value))
+               for seq, value in enumerate((3, 2))]
+    replies, _, _ = run_commands(packets, maxima=maxima)
+    model = CommandModel(CLOCK_HZ, BAUD, maxima=maxima)
+    assert replies == [(t.value, p) for t, p in (model.command(*packet) for packet in packets)]
+    assert replies == [(PacketType.NAK.value, pack(Nak, seq=0, code=NakCode.OUT_OF_RANGE,
+                                                   detail=address)),
+                       (PacketType.ACK.value, bytes([1]))]

@@ -204,6 +204,31 @@ def test_model_board_fine_sources(tmp_path):
     assert abs(centre((3, 0)) - before) < 0.4e-9
 
 
+def test_hit_source_selects_each_input():
+    # Each `tdc_input` drives the line from its own input, and from no other (the oscillator is
+    # the ECP5's: 0 in simulation)
+    from fliss.hdl.finetdc import HitInput
+    from fliss.hdl.finetdc.source import HitSource
+    dut = HitSource()
+    inputs = {HitInput.PIN: dut.pin, HitInput.LASER: dut.laser, HitInput.AGGRESSOR: dut.aggressor}
+    seen = {}
+
+    async def testbench(ctx):
+        for select in HitInput:
+            ctx.set(dut.select, select)
+            for name, signal in inputs.items():
+                for signal_ in inputs.values():
+                    ctx.set(signal_, signal_ is signal)
+                await ctx.delay(1e-9)
+                seen[select, name] = ctx.get(dut.hit)
+
+    from amaranth.sim import Simulator
+    sim = Simulator(dut)        # (no clock: the selection is combinational off the ECP5)
+    sim.add_testbench(testbench)
+    sim.run()
+    assert seen == {(select, name): int(select == name) for select in HitInput for name in inputs}
+
+
 def test_table_read_back_follows_the_pointer():
     # Seeks and writes (alone, both in one cycle, back to back), then `read_data` three cycles
     # after the last strobe: the entry at the pointer, as the host's model of the table has it

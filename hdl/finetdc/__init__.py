@@ -8,8 +8,8 @@ One block per module:
   the cycle a hit arrives;
 * :mod:`.table`: :class:`~.table.CalibrationTable`, raw code -> fine time, in block RAM, written
   by the host;
-* :mod:`.source`: :class:`~.source.HitSource`, what drives the line (photon pin or on-chip
-  oscillator);
+* :mod:`.source`: :class:`~.source.HitSource`, what drives the line (:class:`HitInput`: the
+  photon pin, the on-chip oscillator, or a trigger output's pad read back);
 * :mod:`.tdc`: :class:`~.tdc.FineTdc`, all of it with the coarse count since the TDC start,
   giving :class:`~fliss.hdl.tdc.Capture` records.
 
@@ -19,11 +19,28 @@ host read them from here.
 
 import math
 
+from amaranth.lib import enum
+
 from ..event import TDC_LSB_S, TIMESTAMP_BITS
 
 
-__all__ = ["TAPS", "TAP_S", "CODE_BITS", "TABLE_BITS", "UNIT_S", "LSB_SELECTS", "POPCOUNT_FANIN",
-           "popcount_stages", "LATENCY", "cycle_units", "elapsed_limit", "lsb_s"]
+__all__ = ["HitInput", "TAPS", "TAP_S", "CODE_BITS", "TABLE_BITS", "UNIT_S", "LSB_SELECTS",
+           "POPCOUNT_FANIN", "popcount_stages", "LATENCY", "cycle_units", "elapsed_limit",
+           "lsb_s"]
+
+
+class HitInput(enum.Enum, shape=2):
+    """The fine TDC's input (register ``tdc_input``)."""
+    #: The photon pin (a SPAD module's pulses).
+    PIN = 0
+    #: The ECP5's on-chip oscillator: hits uncorrelated with the clock, for the code-density
+    #: calibration with no light.
+    OSCILLATOR = 1
+    #: The victim's laser output, its pad read back: the self-test with no jumper wire.
+    LASER = 2
+    #: The aggressor's trigger output, its pad read back: the self-test of the victim's delays
+    #: with no jumper wire.
+    AGGRESSOR = 3
 
 
 #: Taps of the delay line: 320 ``CCU2C`` cells, two taps each, about 13.8 ns at the timing

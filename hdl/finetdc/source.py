@@ -1,22 +1,15 @@
-"""What drives the delay line: the photon pin or the on-chip oscillator."""
+"""What drives the delay line: the photon pin, the on-chip oscillator, or a trigger output's pad
+read back."""
 
-from amaranth.hdl import ClockDomain, ClockSignal, Instance, Module, Mux, Signal
-from amaranth.lib import enum, wiring
+from amaranth.hdl import ClockDomain, ClockSignal, Instance, Module, Signal
+from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
+from . import HitInput
 from .line import is_ecp5
 
 
-__all__ = ["HitInput", "OSCILLATOR_DIV", "HitSource"]
-
-
-class HitInput(enum.Enum, shape=1):
-    """The fine TDC's input (register ``tdc_input``)."""
-    #: The photon pin (a SPAD module's pulses).
-    PIN = 0
-    #: The ECP5's on-chip oscillator: hits uncorrelated with the clock, for the code-density
-    #: calibration with no light.
-    OSCILLATOR = 1
+__all__ = ["OSCILLATOR_DIV", "HitSource"]
 
 
 #: Divider of the ECP5's internal oscillator (``OSCG``, nominally 310 MHz): about 2.4 MHz, high
@@ -34,26 +27,38 @@ class HitSource(wiring.Component):
     drifts with its jitter and temperature: over many hits, uniform, as the code-density
     calibration needs. (A ring of LUTs in the fabric would do the same, but nextpnr refuses to
     analyse the timing of a design with a combinational loop.) The multiplexer is
-    combinational (a LUT in front of the line: a fixed delay, the same for every hit).
+    combinational (LUTs in front of the line: a fixed delay for each input).
+
+    The internal loopback (``LASER``, ``AGGRESSOR``) takes a trigger output's pad as its input
+    buffer reads it back (a bidirectional pad with its output always enabled, made by
+    :class:`~fliss.boards.BoardTop` for a design input named after the output with ``_pad``):
+    the output's edge after the output buffer, the pad and the input buffer, a fixed delay.
 
     Nothing clocked by the design clock may drive the line: nextpnr has no false paths, and a
     flip-flop's path through the 14 ns line would be timed against the clock period. So the
     selection is taken through a flip-flop clocked by the oscillator (a setting that stays put:
-    no synchroniser needed), and there is no loopback of the laser trigger (it would need the
-    laser pin's pad read back through its input buffer).
+    no synchroniser needed). The pads break the trigger's path: in nextpnr's ECP5 timing model
+    (``ecp5/arch.cc``, ``Arch::getPortTimingClass``) a pad's (``TRELLIS_IO``) output ``I`` and
+    enable ``T`` are endpoints and its input ``O`` a startpoint, and ``Arch::getCellDelay``
+    gives it no arc from ``I`` to ``O``: the trigger's flip-flop is timed to the pad only, and
+    the path from the pad into the line starts unclocked (``<async>``), outside the Fmax.
 
     Members
     -------
     pin : In(1)
         The photon pin, asynchronous.
+    laser, aggressor : In(1)
+        The victim's laser output and the aggressor's trigger output, their pads read back.
     select : In(HitInput)
     hit : Out(1)
         To the delay line.
     """
 
-    pin:    In(1)
-    select: In(HitInput)
-    hit:    Out(1)
+    pin:       In(1)
+    laser:     In(1)
+    aggressor: In(1)
+    select:    In(HitInput)
+    hit:       Out(1)
 
     def elaborate(self, platform):
         m = Module()
@@ -70,6 +75,11 @@ class HitSource(wiring.Component):
             m.d.comb += select.eq(self.select)
 
         # Selection
-        m.d.comb += self.hit.eq(Mux(select == HitInput.OSCILLATOR, oscillator, self.pin))
+        inputs = {HitInput.PIN: self.pin, HitInput.OSCILLATOR: oscillator,
+                  HitInput.LASER: self.laser, HitInput.AGGRESSOR: self.aggressor}
+        with m.Switch(select):
+            for value, signal in inputs.items():
+                with m.Case(value):
+                    m.d.comb += self.hit.eq(signal)
 
         return m

@@ -7,10 +7,10 @@ from amaranth.lib.wiring import In, Out
 
 from ..event import ADDRESS_BITS, PULSE_BITS, TIMESTAMP_BITS
 from ..tdc import Capture
-from . import CODE_BITS, LSB_SELECTS, TABLE_BITS, TAPS, cycle_units, elapsed_limit
+from . import CODE_BITS, LSB_SELECTS, TABLE_BITS, TAPS, HitInput, cycle_units, elapsed_limit
 from .encoder import Encoder
 from .line import DelayLine
-from .source import HitInput, HitSource
+from .source import HitSource
 from .table import CalibrationTable
 
 
@@ -48,6 +48,8 @@ class FineTdc(wiring.Component):
     -------
     pin_hit : In(1)
         Photon hit, asynchronous, active high.
+    laser_pad, aggressor_pad : In(1)
+        The trigger outputs' pads read back (the internal loopback, :class:`~.source.HitSource`).
     input : In(HitInput)
         What drives the line.
     sampled : In(taps)
@@ -71,6 +73,8 @@ class FineTdc(wiring.Component):
         self.taps = taps
         super().__init__({
             "pin_hit":       In(1),
+            "laser_pad":     In(1),
+            "aggressor_pad": In(1),
             "input":         In(HitInput),
             "sampled":       In(taps),
             "tdc_start":     In(1),
@@ -97,6 +101,7 @@ class FineTdc(wiring.Component):
         m.submodules.table = table = CalibrationTable()
         m.d.comb += [
             source.pin.eq(self.pin_hit),
+            source.laser.eq(self.laser_pad), source.aggressor.eq(self.aggressor_pad),
             source.select.eq(self.input),
             line.hit.eq(source.hit), line.sampled.eq(self.sampled),
             encoder.taps.eq(line.taps),

@@ -21,7 +21,7 @@ The samples of a hit go to the port from the clock edge after it until the line 
 import numpy as np
 from cocotb.triggers import ClockCycles, First, RisingEdge
 
-from ...hdl.finetdc import TAPS
+from ...hdl.finetdc import TAPS, HitInput
 from ...hdl.top import FlissTop
 from ..models.finetdc import Line
 from amaranth.lib.wiring import In, Out
@@ -35,11 +35,11 @@ class FineTdcTop(FlissTop):
     the port ``fine_sampled`` (``In(TAPS)``), ``tdc_input`` on ``fine_input`` (``Out(2)``): for
     simulations only."""
 
-    fine_sampled: In(TAPS)
-    fine_input:   Out(2)
-
     def __init__(self, **options):
         super().__init__(fine_tdc=True, **options)
+
+    def _ports(self):
+        return {**super()._ports(), "fine_sampled": In(TAPS), "fine_input": Out(HitInput)}
 
     def _fine_tdc(self, m, registers, core, link, captures):
         selected = super()._fine_tdc(m, registers, core, link, captures)
