@@ -19,7 +19,7 @@ from typing import Optional
 import numpy as np
 
 from ..analysis import calibration as _analysis
-from ..hdl.finetdc import CODE_BITS, TABLE_BITS, UNIT_S
+from ..hdl.finetdc import CODE_BITS, TABLE_BITS, UNIT_S, HitInput
 from ..hdl.protocol import NakCode
 from ..hdl.registers import AcquisitionMode, TdcSource
 from .client import BoardClient
@@ -33,7 +33,7 @@ __all__ = ["TABLE_ENTRIES", "OSCILLATOR_INPUT", "Calibration", "has_fine_tdc", "
 #: Entries of the calibration table (raw codes 0 to ``2**CODE_BITS - 1``).
 TABLE_ENTRIES = 1 << CODE_BITS
 #: ``tdc_input`` of the on-chip oscillator.
-OSCILLATOR_INPUT = 1
+OSCILLATOR_INPUT = HitInput.OSCILLATOR.value
 #: The registers :func:`code_counts` changes, and puts back.
 _CHANGED = ("acquisition", "tdc_source", "tdc_input", "bin_shift", "integration", "pixel_bits")
 

@@ -1,10 +1,10 @@
 """The board's self-test: a laser trigger looped back to the TDC, and what it must show.
 
-What reaches the photon input (``jumper``):
+What reaches the TDC (``jumper``):
 
-* ``None``: nothing: the checks that need hits are skipped (the fine TDC has no internal
-  loopback: a path from the laser's flip-flop into the delay line would be timed through the
-  line's 14 ns, and nextpnr has no false paths);
+* ``None``: the fine TDC's internal loopback, with no wire: the laser's output read back at its
+  pad (``tdc_input`` 2) for ``same time`` and ``histogram``, the aggressor's (3) for
+  ``delays``. A build without it (no fine TDC) skips the checks that need hits;
 * ``"laser"``: a jumper wire from the victim's laser output to the photon input;
 * ``"aggressor"``: a jumper wire from the aggressor's trigger output to the photon input.
 
@@ -15,11 +15,11 @@ The checks (:func:`selftest`), one :class:`Check` each:
     start (within :data:`SPREAD_S` of their median with the fine TDC, one code with the coarse
     one): the loopback delay and its RMS jitter.
 ``delays``
-    The victim's delays, seen through the aggressor (``"aggressor"`` only). With the victim in
+    The victim's delays, seen through the aggressor (its jumper or its pad). With the victim in
     ``grid`` mode, pulse ``k`` fires ``R[k]`` cycles after its slot and its TDC start with it;
     the aggressor, with no delays, the same period and an offset of :data:`AGGRESSOR_OFFSET`
     cycles, fires ``AGGRESSOR_OFFSET`` cycles after the slot, so its hit lands
-    ``AGGRESSOR_OFFSET - R[k]`` cycles (plus the jumper's delay) after start ``k``. The raw
+    ``AGGRESSOR_OFFSET - R[k]`` cycles (plus the loopback's delay) after start ``k``. The raw
     events' pulse index gives ``k``: the delays must be the reference model's sequence from the
     seed, pulse for pulse (the victim's own hits cannot show it: they are timed from a start
     delayed by the same ``R[k]``). Checked in ``mseq`` and ``masked``; ``keyed`` depends on the
@@ -28,7 +28,7 @@ The checks (:func:`selftest`), one :class:`Check` each:
     In every delay mode the build has, the board's histogram of the loopback, in bins as wide as
     the spread allowed (at most), has its tallest bin at the loopback delay or next to it, and
     those three bins hold at least :data:`PEAK_SHARE` of its counts: the victim's own pulses
-    stay put whatever the delays (not with ``"aggressor"``).
+    stay put whatever the delays (not with the aggressor's jumper).
 ``calibration``
     A code-density histogram of the on-chip oscillator (:func:`fliss.host.calibration.code_counts`)
     hits every code from the first to the last: the calibration covers every tap (the fine TDC
@@ -51,17 +51,24 @@ from ..hdl.delay.modes import DelayMode
 from ..hdl.event import TIMESTAMP_BITS
 from ..hdl.protocol import LINK_FIELDS, NakCode
 from ..hdl.codes import code_s
+from ..hdl.finetdc import HitInput
 from ..hdl.registers import AcquisitionMode, TdcSource
 from .calibration import Calibration, code_counts, has_fine_tdc
 from .errors import BoardRefused, SettingsError
 
 
-__all__ = ["JUMPERS", "PERIOD_CYCLES", "AGGRESSOR_OFFSET", "SEQUENCE_BITS", "SPREAD_S",
-           "PEAK_SHARE", "DURATIONS_S", "CHECKS", "Check", "SelfTest", "selftest"]
+__all__ = ["JUMPERS", "NO_LOOPBACK", "PERIOD_CYCLES", "AGGRESSOR_OFFSET", "SEQUENCE_BITS",
+           "SPREAD_S", "PEAK_SHARE", "DURATIONS_S", "CHECKS", "Check", "SelfTest", "selftest"]
 
 
 #: What a jumper wire can carry to the photon input.
 JUMPERS = ("laser", "aggressor")
+#: Why the checks that need hits are skipped with no jumper on a build without the internal
+#: loopback.
+NO_LOOPBACK = ("no jumper, and this build has no internal loopback (the fine TDC's): loop the "
+               "laser output to the photon input (--jumper laser)")
+#: ``tdc_input`` of each trigger's pad read back (the internal loopback), and of the pin.
+_PAD_INPUTS = {"laser": HitInput.LASER.value, "aggressor": HitInput.AGGRESSOR.value}
 #: The laser's period during the test (long enough for one hit a pulse on any link).
 PERIOD_CYCLES = 800
 #: The aggressor's offset after the victim's slot, in cycles (above the longest delay).
@@ -87,7 +94,8 @@ class Check:
 
 @dataclass
 class SelfTest:
-    """The self-test's result: its checks in order, what the photon input carried."""
+    """The self-test's result: its checks in order, and the loopback: ``"internal"``,
+    ``"laser"`` or ``"aggressor"`` (a jumper), or ``"none"``."""
     loop: str
     checks: List[Check] = field(default_factory=list)
     elapsed_s: float = 0.0
@@ -121,7 +129,9 @@ class _Test:
         self.current = dict(self.before)
         self.changed = set()
         self.fine = has_fine_tdc(self.client, self.before)
-        self.kind = jumper
+        # the internal loopback: with no jumper, on a build with the fine TDC
+        self.internal = jumper is None and self.fine
+        self.kind = jumper      # the trigger looped back: "laser", "aggressor" or None
         self.delay_codes = None
 
     def write(self, changes):
@@ -145,9 +155,11 @@ class _Test:
     def code_s(self):
         return code_s(self.current, self.board.clock_hz)
 
-    def base(self):
-        """Set up the loopback: no delays, one hit a pulse in range, raw events if the build has
-        them; the reason if the build does not take it."""
+    def base(self, kind):
+        """Set up the loopback of trigger ``kind`` (``"laser"`` or ``"aggressor"``): no delays,
+        one hit a pulse in range, raw events if the build has them; the reason if the build
+        does not take it."""
+        self.kind = kind
         source = TdcSource.FINE if self.fine else TdcSource.COARSE
         aggressor = self.kind == "aggressor"
         changes = {
@@ -162,10 +174,13 @@ class _Test:
             changes.update(aggressor_period=PERIOD_CYCLES, aggressor_offset=AGGRESSOR_OFFSET,
                            aggressor_delay_mode=DelayMode.OFF.value, aggressor_width=1)
         if self.fine:
-            changes.update(tdc_input=0,
+            changes.update(tdc_input=_PAD_INPUTS[kind] if self.internal else HitInput.PIN.value,
                            fine_lsb=0 if aggressor else 2)
         if aggressor and not self.write({"aggressor": 1}):
             return "no aggressor emitter in this build"
+        if self.internal and not self.write({"tdc_input": _PAD_INPUTS[kind]}):
+            return f"this build does not read the {self._what()} back (tdc_input " \
+                   f"{_PAD_INPUTS[kind]})"
         if not self.write(changes):
             return "this build does not take the loopback's settings"
         self.raw_events = self.write({"acquisition": AcquisitionMode.RAW.value})
@@ -194,6 +209,9 @@ class _Test:
 
     def same_time(self):
         stamps, hits, pulses, one_each = self.samples()
+        if not hits and self.internal:
+            return Check("same time", "fail", f"no hits in {pulses} laser pulses from the "
+                                              f"{self._what()} read back at its pad")
         if not hits:
             return Check("same time", "fail", f"no hits in {pulses} laser pulses: is the "
                                               f"{self._what()} on the photon input?")
@@ -301,8 +319,7 @@ class _Test:
         return Check("calibration", "pass", f"{said}: every tap covered")
 
     def _what(self):
-        return {"laser": "laser output",
-                "aggressor": "aggressor's trigger"}[self.kind]
+        return {"laser": "laser output", "aggressor": "aggressor's trigger"}[self.kind]
 
 
 def _link_errors(board):
@@ -332,17 +349,24 @@ def selftest(board, *, jumper: Optional[str] = None, reference: Optional[Callabl
     board.stop()
     errors_before = _link_errors(board)
     test = _Test(board, jumper, reference, {**DURATIONS_S, **(durations_s or {})})
-    test.result = result = SelfTest(loop=test.kind or "none")
+    test.result = result = SelfTest(loop="internal" if test.internal else jumper or "none")
+    # The loopbacks, each with its checks: a jumper carries one trigger; the internal loopback
+    # reads the laser's pad, then the aggressor's for the delays
+    if test.internal:
+        loops = [("laser", (test.same_time, test.histogram)), ("aggressor", (test.delays,))]
+    elif jumper is not None:
+        loops = [(jumper, (test.same_time, test.delays, test.histogram))]
+    else:
+        loops = [(None, ())]
+        result.checks += [Check(name, "skipped", NO_LOOPBACK)
+                          for name in ("same time", "delays", "histogram")]
     try:
-        if test.kind is None:
-            why = "no jumper: loop the laser output to the photon input (--jumper laser)"
-            result.checks += [Check(name, "skipped", why)
-                              for name in ("same time", "delays", "histogram")]
-        elif (why := test.base()) is not None:
-            result.checks += [Check(name, "skipped", why)
-                              for name in ("same time", "delays", "histogram")]
-        else:
-            for check in (test.same_time, test.delays, test.histogram):
+        for kind, checks in loops:
+            if checks and (why := test.base(kind)) is not None:
+                result.checks += [Check(check.__name__.replace("_", " "), "skipped", why)
+                                  for check in checks]
+                continue
+            for check in checks:
                 result.checks.append(check())
                 _report(progress, result)
         result.checks.append(test.calibration())
@@ -353,6 +377,7 @@ def selftest(board, *, jumper: Optional[str] = None, reference: Optional[Callabl
     moved = [f"{name} {value}" for name, value in errors.items() if value]
     result.checks.append(Check("link", "fail" if moved else "pass",
                                ", ".join(moved) if moved else "no link errors, board or host"))
+    result.checks.sort(key=lambda check: CHECKS.index(check.name))
     result.elapsed_s = time.monotonic() - started
     return result
 

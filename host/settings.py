@@ -31,6 +31,7 @@ from ..hdl import DEFAULT_CLOCK_HZ
 from ..hdl.registers import (BY_NAME, AcquisitionMode, TdcSource, defaults, iv_problem, problems,
                              value_of)
 from ..hdl.delay.modes import DelayMode
+from ..hdl.finetdc import HitInput
 from .errors import SettingsError
 from .imager.threshold import depth_threshold
 from .setting_kinds import (CHOICE, FREQUENCY, GATE, IV, KEY, MAX_PIXELS, PIXEL, PIXELS, TIME,
@@ -127,8 +128,10 @@ OPTIONS: Tuple[Option, ...] = (
            choices=_names(TdcSource)),
     Option("fine_lsb", "fine_lsb", CHOICE, "fine TDC timestamp LSB (range 409.6, 204.8, "
            "102.4 ns)", choices={"50ps": 0, "25ps": 1, "12.5ps": 2}),
-    Option("tdc_input", "tdc_input", CHOICE, "fine TDC input: the photon pin, or the on-chip "
-           "oscillator (calibration)", choices={"pin": 0, "oscillator": 1}),
+    Option("tdc_input", "tdc_input", CHOICE, "fine TDC input: the photon pin, the on-chip "
+           "oscillator (calibration), or the laser's or the aggressor's output read back at its "
+           "pad (the self-test)",
+           choices=_names(HitInput)),
     Option("table_address", "table_address", WHOLE, "fine TDC calibration table: move its "
            "pointer to entry N", "N"),
     Option("table_data", "table_data", WHOLE, "fine TDC calibration table: write N (12.5 ps "

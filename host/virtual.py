@@ -245,8 +245,8 @@ class VirtualBoard:
         Build folder (default ``build/virtual-board``).
     fine_tdc : bool
         Build the top level with the fine TDC, its delay line driven from the model
-        (:mod:`fliss.sim.boards.fine_loopback`: the on-chip oscillator, and a jumper); the
-        cocotb engine only.
+        (:mod:`fliss.sim.boards.fine_loopback`: the on-chip oscillator, the internal loopback,
+        and a jumper); the cocotb engine only.
     jumper : str or None
         With ``fine_tdc``: a jumper wire from the ``"laser"`` or ``"aggressor"`` output to the
         photon input, seen by the fine TDC.

@@ -2,13 +2,17 @@
 (:mod:`fliss.sim.boards.loopback`): the figures against the loopback's stated delay and jitter
 and the modelled line's own tap delays, a fault of each kind against its exact line, refusals."""
 
+import warnings
+
 import numpy as np
 import pytest
+from amaranth.hdl import UnusedElaboratable
 
 from fliss.analysis import calibration as analysis
 from fliss.boards import fliss_top_up5k
 from fliss.hdl.finetdc import UNIT_S
 from fliss.hdl.finetdc.table import nominal_table
+from fliss.hdl.top import FlissTop
 from fliss.host.board import connect
 from fliss.host.calibration import calibrate, read_table
 from fliss.host.cli import main
@@ -126,22 +130,81 @@ def test_no_jumper_on_the_laser(capsys):
     assert out.splitlines()[1].endswith(" laser pulses: is the laser output on the photon input?")
 
 
-def test_no_jumper_checks_the_calibration_and_the_link(capsys):
-    # No jumper on the fine TDC's build: no internal loopback, only the checks without hits
-    reason = "no jumper: loop the laser output to the photon input (--jumper laser)"
-    with model_board(loopback=Loopback(jumper=None, line=LINE)) as board:
+@pytest.mark.parametrize("pad_delay_s, jitter_s", [(2.5e-9, 20e-12), (1.7e-9, 35e-12)])
+def test_internal_loopback_runs_every_check(capsys, pad_delay_s, jitter_s):
+    # No jumper on the fine TDC's build: the laser's pad read back, then the aggressor's for the
+    # delays; the pads' delay, not the jumper's (a jumper on the pin is left out)
+    loopback = Loopback(jumper="laser", delay_s=5.7e-9, pad_delay_s=pad_delay_s,
+                        jitter_s=jitter_s, line=LINE)
+    with model_board(loopback=loopback) as board:
+        status, out, err = fliss(capsys, "selftest", "--port", board.path)
+        with connect(board.path) as client:
+            calibrate(client, 0.3)
+            result = selftest(client, reference=delays)
+    assert status == 0
+    lines = out.splitlines()[1:]
+    assert [line[:22] for line in lines] == [
+        "same time    pass     ", "delays       pass     ", "histogram    pass     ",
+        "calibration  pass     ", "link         pass     "]
+    assert lines[1].startswith("delays       pass     delays as the model's (")
+    assert lines[2].endswith(" in off, mseq, masked, keyed")
+    assert err.splitlines()[-1].endswith(" s (loopback: internal)")
+    assert result.loop == "internal" and outcomes(result) == ["pass"] * 5
+    # Calibrated: the pad's delay to the line's first tap, within a tap; the jitter stated
+    assert abs(result.delay_s - (pad_delay_s + FIRST_TAP_S)) < 25e-12
+    assert abs(result.jitter_s - jitter_s) < 0.2 * jitter_s + 4e-12
+    assert result.elapsed_s < 10
+
+
+def test_internal_loopback_finds_wrong_delays():
+    loopback = Loopback(jumper=None, wrong_delay_every=5, line=LINE)
+    with model_board(loopback=loopback) as board, connect(board.path) as client:
+        result = selftest(client, reference=delays)
+    model = delays("mseq", 5, length=4, seed=1)[4]
+    assert outcomes(result) == ["pass", "fail", "pass", "pass", "pass"]
+    assert line_of(result, "delays").detail == f"in mseq, pulse 4 is delayed {model + 1} " \
+                                               f"cycles, the model's {model} (the first that " \
+                                               f"differs)"
+
+
+def test_internal_loopback_without_the_aggressor(capsys):
+    # A fine TDC's build without the aggressor reads the laser's pad only: no delays
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnusedElaboratable)     # built, never elaborated
+        maxima = FlissTop(fine_tdc=True, aggressor=False).register_maxima()
+    with model_board(loopback=Loopback(jumper=None, line=LINE), maxima=maxima) as board:
         status, out, _ = fliss(capsys, "selftest", "--port", board.path, "-q")
     assert status == 0
     lines = out.splitlines()[1:]
-    assert lines[:3] == [f"same time    skipped  {reason}", f"delays       skipped  {reason}",
-                         f"histogram    skipped  {reason}"]
-    assert lines[3].startswith("calibration  pass     ")
-    assert lines[3].endswith(": every tap covered")
-    assert lines[4] == "link         pass     no link errors, board or host"
+    assert [line[:22] for line in lines] == [
+        "same time    pass     ", "delays       skipped  ", "histogram    pass     ",
+        "calibration  pass     ", "link         pass     "]
+    assert lines[1] == "delays       skipped  no aggressor emitter in this build"
+
+
+def test_internal_loopback_without_hits(capsys):
+    # The pads read back give nothing (a model whose pads are not looped: its oscillator only)
+    class Unlooped(Loopback):
+        def hits(self, settings):
+            kind, delay_s = super().hits(settings)
+            return (None, None) if settings["tdc_input"] in (2, 3) else (kind, delay_s)
+
+    dark = Scene(clock_hz=CLOCK_HZ, detections_per_pulse=0, background_hz=0)
+    with model_board(scene=dark, aggressor_detections_per_pulse=0,
+                     loopback=Unlooped(jumper=None, line=LINE)) as board:
+        status, out, err = fliss(capsys, "selftest", "--port", board.path)
+    assert status == 1
+    lines = out.splitlines()[1:]
+    assert lines[0].startswith("same time    fail     no hits in ")
+    assert lines[0].endswith(" laser pulses from the laser output read back at its pad")
+    assert lines[1] == "delays       fail     no hits in mseq"
+    assert err.splitlines()[-1] == "fliss selftest: failed: same time, delays"
 
 
 def test_icebreaker_build_skips_what_it_cannot_run(capsys, up5k_maxima):
-    reason = "no jumper: loop the laser output to the photon input (--jumper laser)"
+    # No fine TDC, so no internal loopback: with no jumper, the checks that need hits skipped
+    reason = "no jumper, and this build has no internal loopback (the fine TDC's): loop the " \
+             "laser output to the photon input (--jumper laser)"
     with model_board(loopback=Loopback(), maxima=up5k_maxima) as board:
         status, out, _ = fliss(capsys, "selftest", "--port", board.path, "-q")
         assert status == 0

@@ -45,9 +45,9 @@ def register(subparsers, formatter):
                              "packets to the host; SIGUSR1 to this process resets it too")
     parser.add_argument("--fine-tdc", action="store_true",
                         help="build the top level with the fine TDC, its delay line driven from "
-                             "the model (the on-chip oscillator, and a jumper with --jumper: "
-                             "`fliss selftest` and `fliss calibrate` run on it); cocotb engine "
-                             "only")
+                             "the model (the on-chip oscillator, the internal loopback of the "
+                             "trigger outputs' pads, and a jumper with --jumper: `fliss "
+                             "selftest` and `fliss calibrate` run on it); cocotb engine only")
     parser.add_argument("--jumper", choices=("laser", "aggressor"), default=None,
                         help="with --fine-tdc: a jumper wire from the laser output or the "
                              "aggressor's trigger to the photon input")

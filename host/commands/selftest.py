@@ -15,17 +15,21 @@ def register(subparsers, formatter):
     parser = subparsers.add_parser(
         "selftest", formatter_class=formatter,
         help="check the board on a loopback: TDC, delays, histograms, calibration, link",
-        description="Runs the self-test (docs/bring-up.md) in some seconds, on a jumper wire "
-                    "from the victim's laser output (--jumper laser) or the aggressor's "
-                    "trigger (--jumper aggressor) to the photon input; with no --jumper, only "
-                    "the calibration's coverage and the link. Prints one line per check: "
-                    "pass, fail, or skipped with the reason. The delays are checked with the "
-                    "aggressor's trigger on the input only (the victim's own hits cannot show "
-                    "them). The settings it changes are put back.")
+        description="Runs the self-test (docs/bring-up.md) in some seconds. With no --jumper, "
+                    "on the fine TDC's internal loopback (the laser's and the aggressor's "
+                    "outputs read back at their pads: every check, no wire); a build without "
+                    "it (no fine TDC) checks only the link then. Or on a jumper wire from the "
+                    "victim's laser output (--jumper laser) or the aggressor's trigger "
+                    "(--jumper aggressor) to the photon input. Prints one line per check: "
+                    "pass, fail, or skipped with the reason. The delays are checked through "
+                    "the aggressor only (the victim's own hits cannot show them). The trigger "
+                    "outputs pulse during the test: disconnect laser drivers. The settings it "
+                    "changes are put back.")
     add_port_arguments(parser)
     parser.add_argument("--jumper", choices=JUMPERS, default=None,
                         help="what a jumper wire carries to the photon input (none: the "
-                             "checks that need hits are skipped)")
+                             "internal loopback, or the checks that need hits are skipped on a "
+                             "build without it)")
     parser.set_defaults(run=run)
 
 

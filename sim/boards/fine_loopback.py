@@ -14,6 +14,11 @@ shows the register ``tdc_input`` (a simulation build only: the board has neither
 * ``tdc_input`` 0, the photon pin: with ``jumper`` (``"laser"`` or ``"aggressor"``), a jumper
   wire from that trigger output, ``jumper_delay_s`` after its clock edge; else nothing (the pin
   gets no photons on the virtual board). The coarse TDC's pin is not driven.
+* ``tdc_input`` 2 and 3, the internal loopback: the laser's or the aggressor's output read back
+  at its pad, ``pad_delay_s`` after its clock edge (the model board's,
+  :data:`~fliss.sim.boards.loopback.PAD_DELAY_S`).
+
+Both loopbacks have a Gaussian jitter of ``jitter_s``.
 
 The samples of a hit go to the port from the clock edge after it until the line has emptied.
 """
@@ -24,6 +29,7 @@ from cocotb.triggers import ClockCycles, First, RisingEdge
 from ...hdl.finetdc import TAPS, HitInput
 from ...hdl.top import FlissTop
 from ..models.finetdc import Line
+from .loopback import JUMPER_DELAY_S, PAD_DELAY_S
 from amaranth.lib.wiring import In, Out
 
 
@@ -53,15 +59,21 @@ class FineLoopback:
     """Drives ``dut.fine_sampled`` of a :class:`FineTdcTop` (see the module's description)."""
 
     def __init__(self, dut, clock_hz, *, line=None, oscillator_hz=2.4e6, jumper=None,
-                 jumper_delay_s=3.2e-9, seed=None):
+                 jumper_delay_s=JUMPER_DELAY_S, pad_delay_s=PAD_DELAY_S, jitter_s=20e-12,
+                 seed=None):
         self.dut = dut
         self.cycle_s = 1 / clock_hz
         self.line = Line() if line is None else line
         self.oscillator_hz = oscillator_hz
         self.rng = np.random.default_rng(seed)
         self.hits = 0
-        self.jumper = {None: None, "laser": dut.laser, "aggressor": dut.aggressor_laser}[jumper]
-        self.jumper_delay_s = jumper_delay_s
+        triggers = {None: None, "laser": dut.laser, "aggressor": dut.aggressor_laser}
+        # tdc_input -> (the trigger output that drives the line, its delay)
+        self.loops = {HitInput.LASER.value: (dut.laser, pad_delay_s),
+                      HitInput.AGGRESSOR.value: (dut.aggressor_laser, pad_delay_s)}
+        if jumper is not None:
+            self.loops[HitInput.PIN.value] = (triggers[jumper], jumper_delay_s)
+        self.jitter_s = jitter_s
         dut.fine_sampled.value = 0
 
     def start(self):
@@ -87,14 +99,16 @@ class FineLoopback:
         dut = self.dut
         while True:
             source = int(dut.fine_input.value)
-            if source == 0 and self.jumper is not None:
-                edge = RisingEdge(self.jumper)
+            if source in self.loops:
+                trigger, delay_s = self.loops[source]
+                edge = RisingEdge(trigger)
                 if await First(edge, ClockCycles(dut.clk, 64)) is not edge:
                     continue
                 await RisingEdge(dut.clk)
                 self.hits += 1
-                await self._drive(self.cycle_s - self.jumper_delay_s, 1 * self.cycle_s)
-            elif source == 1:
+                delay_s += self.rng.normal(0, self.jitter_s)
+                await self._drive(self.cycle_s - delay_s, 1 * self.cycle_s)
+            elif source == HitInput.OSCILLATOR.value:
                 gap = self.rng.exponential(1 / (self.oscillator_hz * self.cycle_s))
                 await ClockCycles(dut.clk, max(1, int(gap)))
                 self.hits += 1

@@ -1,11 +1,16 @@
 """The photon input of the model board looped back to a laser trigger: the self-test's bench.
 
-A :class:`Loopback` says what reaches the TDCs' photon input and with what delay and jitter:
+A :class:`Loopback` says what reaches the TDCs and with what delay and jitter:
 
-* the jumper wire (``jumper``): the victim's laser trigger (``"laser"``), the aggressor's
-  (``"aggressor"``) or nothing (``None``: the scene's photons, as without a loopback);
-* the on-chip oscillator (``tdc_input`` 1): hits uniform over the clock period, at
-  ``oscillator_hz``, for the code-density calibration.
+* the jumper wire (``jumper``) on the photon input: the victim's laser trigger (``"laser"``),
+  the aggressor's (``"aggressor"``) or nothing (``None``: the scene's photons), ``delay_s``
+  after the trigger's clock edge;
+* the fine TDC's on-chip oscillator (``tdc_input`` 1): hits uniform over the clock period, at
+  ``oscillator_hz``, for the code-density calibration;
+* the fine TDC's internal loopback (``tdc_input`` 2, the laser's pad read back; 3, the
+  aggressor's): the trigger's edge ``pad_delay_s`` after its clock edge, no jumper needed.
+
+Both loopbacks have the Gaussian jitter ``jitter_s``.
 
 :meth:`Loopback.events` gives the events of a run of clock cycles as the board's TDC makes them:
 the coarse TDC (``tdc_source`` 1) counts the clock edges from the TDC start to the hit; the fine
@@ -24,27 +29,39 @@ import numpy as np
 
 from ...hdl.delay.modes import DelayMode
 from ...hdl.event import PULSE_BITS, TIMESTAMP_BITS
-from ...hdl.finetdc import cycle_units
+from ...hdl.finetdc import HitInput, cycle_units
 from ...hdl.registers import TdcSource
 from ...protocol.events import EVENT_DTYPE
 from ..models import scheduler as _scheduler
 from ..models.finetdc import Line
 
 
-__all__ = ["JUMPERS", "Loopback"]
+__all__ = ["JUMPERS", "JUMPER_DELAY_S", "PAD_DELAY_S", "Loopback"]
 
 
 #: What a jumper wire can carry to the photon input.
 JUMPERS = ("laser", "aggressor")
+#: The models' jumper wire: from the trigger's clock edge through its flip-flop, the output
+#: buffer, some centimetres of wire and the photon pin's input buffer to the fine TDC's
+#: multiplexer.
+JUMPER_DELAY_S = 3.2e-9
+#: The models' internal loopback: from the trigger's clock edge through its flip-flop, the
+#: output buffer and the same pad's input buffer to the fine TDC's multiplexer: the jumper's
+#: path without the wire and the second pad's routing (a stated model value: the board's own
+#: is what the self-test prints).
+PAD_DELAY_S = 2.5e-9
+#: ``tdc_input`` -> the trigger its internal loopback reads back.
+_PADS = {HitInput.LASER.value: "laser", HitInput.AGGRESSOR.value: "aggressor"}
 
 
 @dataclass(frozen=True)
 class Loopback:
     """A loopback of the model board (see the module's description)."""
     jumper: object = "laser"
-    delay_s: float = 3.2e-9
+    delay_s: float = JUMPER_DELAY_S
     jitter_s: float = 20e-12
     oscillator_hz: float = 2.4e6
+    pad_delay_s: float = PAD_DELAY_S
     line: Line = field(default_factory=Line)
     wrong_delay_every: object = None
     seed: int = 5
@@ -53,20 +70,23 @@ class Loopback:
         if self.jumper is not None and self.jumper not in JUMPERS:
             raise ValueError(f"A jumper carries one of {', '.join(JUMPERS)} or nothing, "
                              f"not {self.jumper!r}")
-        for name in ("delay_s", "jitter_s", "oscillator_hz"):
+        for name in ("delay_s", "jitter_s", "oscillator_hz", "pad_delay_s"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must not be negative, not {getattr(self, name)!r}")
 
     def hits(self, settings):
-        """What drives the TDC with register ``settings``: ``"laser"``, ``"aggressor"``,
-        ``"oscillator"``, or None (the scene's photons)."""
+        """What drives the TDC with register ``settings``, and with what delay after the
+        trigger's clock edge: ``("laser", delay)``, ``("aggressor", delay)``,
+        ``("oscillator", None)``, or ``(None, None)`` (the scene's photons)."""
         source = settings["tdc_source"]
         if source == TdcSource.SENSOR.value:
-            return None
-        fine = source in (TdcSource.FINE.value, TdcSource.FINE_RAW.value)
-        if fine and settings["tdc_input"] == 1:
-            return "oscillator"
-        return self.jumper
+            return None, None
+        if source in (TdcSource.FINE.value, TdcSource.FINE_RAW.value):
+            if settings["tdc_input"] == HitInput.OSCILLATOR.value:
+                return "oscillator", None
+            if settings["tdc_input"] in _PADS:
+                return _PADS[settings["tdc_input"]], self.pad_delay_s
+        return self.jumper, (self.delay_s if self.jumper else None)
 
     def run(self, settings, victim, clock_hz, table, seed):
         """A :class:`LoopbackRun` for one acquisition (``victim``: the victim's
@@ -85,7 +105,7 @@ class LoopbackRun:
         self.clock_hz = clock_hz
         self.table = np.asarray(table, dtype=np.int64)
         self.rng = np.random.default_rng([loopback.seed, *seed.generate_state(2)])
-        self.kind = loopback.hits(settings)
+        self.kind, self.delay_s = loopback.hits(settings)
         self.starts = np.zeros(0, dtype=np.int64)
         self._fires_until = 0
 
@@ -122,7 +142,7 @@ class LoopbackRun:
             else:
                 fires = self.starts
             fires = fires[(fires >= begin) & (fires < end)]
-            hits_s = fires * cycle_s + self.loopback.delay_s + \
+            hits_s = fires * cycle_s + self.delay_s + \
                 rng.normal(0, self.loopback.jitter_s, len(fires))
         return self._timestamps(hits_s, cycle_s)
 

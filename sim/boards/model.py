@@ -49,6 +49,7 @@ from ...protocol.histograms import decode_chunk, encode_histogram, frame_bins
 from ...protocol.packets import HISTOGRAM_TYPES
 from ..models.depth import depth_frame
 from ...protocol.depth import depth_payload
+from .loopback import Loopback
 from .noisy_line import NoisyLine, add_line_arguments, describe, faults_from_args
 from .options import add_scene_arguments, rate_hz
 from .pty_server import PtyServer
@@ -123,8 +124,9 @@ class ModelBoard(PtyServer):
     maxima : dict
         Register maxima of a smaller build (:meth:`fliss.hdl.top.FlissTop.register_maxima`).
     loopback : Loopback or None
-        The photon input looped back to a laser trigger (:mod:`fliss.sim.boards.loopback`):
-        while it drives the TDC, its hits replace the scene's photons.
+        What reaches the TDCs besides the scene (:mod:`fliss.sim.boards.loopback`): a jumper
+        wire, the fine TDC's on-chip oscillator and internal loopback; while it drives the TDC,
+        its hits replace the scene's photons. None: ``Loopback(jumper=None)``, no jumper wire.
     """
 
     def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, baud=DEFAULT_BAUD, scene=None,
@@ -145,7 +147,7 @@ class ModelBoard(PtyServer):
         self.protocol_version = protocol_version
         self.line_limited = line_limited
         self.maxima = maxima
-        self.loopback = loopback
+        self.loopback = Loopback(jumper=None) if loopback is None else loopback
         self._looped = None
         self.model = CommandModel(self.clock_hz, self.baud, maxima=maxima, keyed_source=True)
         self.status = dict.fromkeys(STATUS_FIELDS, 0)
@@ -247,8 +249,8 @@ class ModelBoard(PtyServer):
         self._pending_events = []
         self._raw = settings["acquisition"] == AcquisitionMode.RAW.value
         self._depth = settings["acquisition"] == AcquisitionMode.DEPTH.value
-        self._looped = None if self.loopback is None else self.loopback.run(
-            settings, scene.victim, self.clock_hz, self.model.table, self.seed_for(self.starts))
+        self._looped = self.loopback.run(settings, scene.victim, self.clock_hz,
+                                         self.model.table, self.seed_for(self.starts))
 
     def _cycles_at(self, now):
         return int((now - self._t0) * self.time_scale * self.clock_hz)

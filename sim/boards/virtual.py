@@ -414,7 +414,8 @@ def reset_requested(path):
 
 def _start_fine_loopback(dut, seed):
     """With ``FLISS_BOARD_FINE_TDC`` (a build of :class:`~fliss.sim.boards.fine_loopback.FineTdcTop`),
-    the fine TDC's delay line driven from the model: the oscillator, and the jumper wire of ``FLISS_BOARD_JUMPER`` (``laser`` or ``aggressor``) if any."""
+    the fine TDC's delay line driven from the model: the oscillator, the internal loopback, and
+    the jumper wire of ``FLISS_BOARD_JUMPER`` (``laser`` or ``aggressor``) if any."""
     if os.environ.get("FLISS_BOARD_FINE_TDC") == "1":
         from .fine_loopback import FineLoopback
         FineLoopback(dut, DEFAULT_CLOCK_HZ, seed=seed,
