@@ -8,6 +8,8 @@ What reaches the TDC (``jumper``):
 * ``"laser"``: a jumper wire from the victim's laser output to the photon input;
 * ``"aggressor"``: a jumper wire from the aggressor's trigger output to the photon input.
 
+The laser fires every :func:`period_cycles` cycles: one raw event a pulse must fit the link.
+
 The checks (:func:`selftest`), one :class:`Check` each:
 
 ``same time``
@@ -31,8 +33,9 @@ The checks (:func:`selftest`), one :class:`Check` each:
     stay put whatever the delays (not with the aggressor's jumper).
 ``calibration``
     A code-density histogram of the on-chip oscillator (:func:`fliss.host.calibration.code_counts`)
-    hits every code from the first to the last: the calibration covers every tap (the fine TDC
-    only; the table on the board is left as it is).
+    hits every code from the first to the last, with at least :data:`COVERAGE_HITS` hits a code
+    on average: the calibration covers every tap (the fine TDC only; the table on the board is
+    left as it is).
 ``link``
     The link's error counters, the board's and the host's, did not move during the test.
 
@@ -41,6 +44,7 @@ The settings changed are put back at the end. The reference sequence of the dela
 that talks to a real board does not import the simulator.
 """
 
+import math
 import time
 from dataclasses import dataclass, field
 from typing import Callable, List, Optional
@@ -53,12 +57,14 @@ from ..hdl.protocol import LINK_FIELDS, NakCode
 from ..hdl.codes import code_s
 from ..hdl.finetdc import HitInput
 from ..hdl.registers import AcquisitionMode, TdcSource
+from ..protocol.events import link_events_per_s
 from .calibration import Calibration, code_counts, has_fine_tdc
 from .errors import BoardRefused, SettingsError
 
 
-__all__ = ["JUMPERS", "NO_LOOPBACK", "PERIOD_CYCLES", "AGGRESSOR_OFFSET", "SEQUENCE_BITS",
-           "SPREAD_S", "PEAK_SHARE", "DURATIONS_S", "CHECKS", "Check", "SelfTest", "selftest"]
+__all__ = ["JUMPERS", "NO_LOOPBACK", "PERIOD_CYCLES", "LINK_SHARE", "AGGRESSOR_OFFSET",
+           "SEQUENCE_BITS", "SPREAD_S", "PEAK_SHARE", "COVERAGE_HITS", "DURATIONS_S", "CHECKS",
+           "Check", "SelfTest", "period_cycles", "selftest"]
 
 
 #: What a jumper wire can carry to the photon input.
@@ -69,8 +75,12 @@ NO_LOOPBACK = ("no jumper, and this build has no internal loopback (the fine TDC
                "laser output to the photon input (--jumper laser)")
 #: ``tdc_input`` of each trigger's pad read back (the internal loopback), and of the pin.
 _PAD_INPUTS = {"laser": HitInput.LASER.value, "aggressor": HitInput.AGGRESSOR.value}
-#: The laser's period during the test (long enough for one hit a pulse on any link).
+#: The laser's least period during the test, in cycles (longer on a link that could not carry
+#: one raw event a pulse at that rate: :func:`period_cycles`).
 PERIOD_CYCLES = 800
+#: Share of the link's capacity in EVENTS frames that the loopback's hits may take (the rest
+#: for the commands' replies; the raw FIFO takes the bursts).
+LINK_SHARE = 0.8
 #: The aggressor's offset after the victim's slot, in cycles (above the longest delay).
 AGGRESSOR_OFFSET = 20
 #: ``length`` and ``mask_width`` of the delays during the test (delays up to 15 cycles).
@@ -79,8 +89,19 @@ SEQUENCE_BITS = 4
 SPREAD_S = 200e-12
 #: Share of a histogram's counts that must lie within the spread of the loopback delay.
 PEAK_SHARE = 0.9
-#: Seconds of each raw acquisition, of each histogram, of the oscillator's codes.
-DURATIONS_S = {"raw": 0.05, "histogram": 0.05, "calibration": 0.5}
+#: Least hits a code on average for the calibration's coverage to mean something: a code a
+#: quarter of the mean wide is then left empty by chance with a probability below 0.2 %.
+COVERAGE_HITS = 25
+#: Seconds of each raw acquisition, of each histogram, of the oscillator's codes and of each
+#: histogram of them (some 2000 hits a code at 2.4 MHz: far more than :data:`COVERAGE_HITS`).
+DURATIONS_S = {"raw": 0.05, "histogram": 0.05, "calibration": 0.2, "calibration_frame": 0.2}
+
+
+def period_cycles(clock_hz, baud):
+    """The laser's period during the test at ``clock_hz`` on a link of ``baud``: at least
+    :data:`PERIOD_CYCLES`, and long enough that one raw event a pulse takes at most
+    :data:`LINK_SHARE` of the link (the raw FIFO would drop the rest)."""
+    return max(PERIOD_CYCLES, math.ceil(clock_hz / (LINK_SHARE * link_events_per_s(baud))))
 
 
 @dataclass(frozen=True)
@@ -132,6 +153,7 @@ class _Test:
         # the internal loopback: with no jumper, on a build with the fine TDC
         self.internal = jumper is None and self.fine
         self.kind = jumper      # the trigger looped back: "laser", "aggressor" or None
+        self.period = period_cycles(board.clock_hz, board.identity.baud)
         self.delay_codes = None
 
     def write(self, changes):
@@ -164,14 +186,14 @@ class _Test:
         aggressor = self.kind == "aggressor"
         changes = {
             "delay_mode": DelayMode.OFF.value,
-            "period": PERIOD_CYCLES, "grid": int(aggressor), "pulse_width": 1,
+            "period": self.period, "grid": int(aggressor), "pulse_width": 1,
             "tdc_source": source.value, "gate_start": 0, "gate_end": (1 << TIMESTAMP_BITS) - 1,
             "collisions": 0, "pixel_bits": 0, "bin_shift": 0,
             "integration": max(1, round(self.durations_s["histogram"] * self.board.clock_hz)),
             "length": SEQUENCE_BITS, "mask_width": SEQUENCE_BITS, "aggressor": int(aggressor),
         }
         if aggressor:
-            changes.update(aggressor_period=PERIOD_CYCLES, aggressor_offset=AGGRESSOR_OFFSET,
+            changes.update(aggressor_period=self.period, aggressor_offset=AGGRESSOR_OFFSET,
                            aggressor_delay_mode=DelayMode.OFF.value, aggressor_width=1)
         if self.fine:
             changes.update(tdc_input=_PAD_INPUTS[kind] if self.internal else HitInput.PIN.value,
@@ -203,7 +225,7 @@ class _Test:
                 hits == len(events) and hits >= pulses - 1
         self.write({"acquisition": AcquisitionMode.HISTOGRAM.value})
         counts = np.asarray(self.board.acquire(1).counts[0], dtype=np.int64)
-        pulses = self.current["integration"] // PERIOD_CYCLES
+        pulses = self.current["integration"] // self.period
         return np.repeat(np.arange(len(counts)), counts), int(counts.sum()), pulses, \
             abs(int(counts.sum()) - pulses) <= 1
 
@@ -304,7 +326,7 @@ class _Test:
         if not self.fine:
             return Check("calibration", "skipped", "no fine TDC in this build")
         counts = code_counts(self.board, self.durations_s["calibration"],
-                             integration_s=self.durations_s["histogram"])
+                             integration_s=self.durations_s["calibration_frame"])
         calibration = Calibration(counts, np.zeros(0), self.board.clock_hz)
         self.result.calibration = calibration
         if not counts.sum():
@@ -313,6 +335,10 @@ class _Test:
         said = (f"{int(counts.sum())} hits on codes {calibration.first_code}-"
                 f"{calibration.last_code}, mean {calibration.mean_code_s * 1e12:.1f} ps, "
                 f"DNL {calibration.dnl_max:.2f}")
+        codes = calibration.last_code - calibration.first_code + 1
+        if counts.sum() < COVERAGE_HITS * codes:
+            return Check("calibration", "fail", f"{said}: too few hits to check the cover "
+                         f"(at least {COVERAGE_HITS} a code)")
         if len(empty):
             return Check("calibration", "fail", f"{said}: {len(empty)} codes without a hit "
                                                 f"(first {int(empty[0])})")

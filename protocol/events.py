@@ -5,10 +5,11 @@ import numpy as np
 from amaranth.lib import data
 
 from ..hdl.event import Event
-from ..hdl.protocol import EVENT_BYTES
+from ..hdl.protocol import EVENT_BYTES, MAX_EVENTS_PER_PACKET, PacketType
+from .frames import encode_frame
 
 
-__all__ = ["EVENT_DTYPE", "pack", "unpack", "pack_events", "unpack_events"]
+__all__ = ["EVENT_DTYPE", "pack", "unpack", "pack_events", "unpack_events", "link_events_per_s"]
 
 
 _LAYOUT = data.Layout.cast(Event)
@@ -60,3 +61,11 @@ def unpack_events(payload):
     words = np.array([int.from_bytes(payload[i:i + EVENT_BYTES], "little")
                       for i in range(0, len(payload), EVENT_BYTES)], dtype=np.uint64)
     return unpack(words)
+
+
+def link_events_per_s(baud):
+    """Events a second that a link of ``baud`` carries in full EVENTS frames (8N1 characters:
+    10 bits a byte), with nothing else on it."""
+    payload = bytes(MAX_EVENTS_PER_PACKET * EVENT_BYTES)
+    frame_bytes = len(encode_frame(PacketType.EVENTS, 0, payload))
+    return baud / 10 / frame_bytes * MAX_EVENTS_PER_PACKET

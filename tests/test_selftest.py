@@ -17,7 +17,8 @@ from fliss.host.board import connect
 from fliss.host.calibration import calibrate, read_table
 from fliss.host.cli import main
 from fliss.host.fileformat import read_capture
-from fliss.host.selftest import AGGRESSOR_OFFSET, CHECKS, selftest
+from fliss.host.selftest import (AGGRESSOR_OFFSET, CHECKS, PERIOD_CYCLES, period_cycles,
+                                 selftest)
 from fliss.sim.boards.loopback import Loopback
 from fliss.sim.boards.model import model_board
 from fliss.sim.models.delay import delays
@@ -154,6 +155,34 @@ def test_internal_loopback_runs_every_check(capsys, pad_delay_s, jitter_s):
     assert abs(result.delay_s - (pad_delay_s + FIRST_TAP_S)) < 25e-12
     assert abs(result.jitter_s - jitter_s) < 0.2 * jitter_s + 4e-12
     assert result.elapsed_s < 10
+
+
+def test_raw_events_fit_the_link():
+    # At the board's 3 Mbaud, one event a pulse every 800 cycles (100 kHz) is twice what the
+    # link carries: the period is made longer, so the line-limited model drops nothing
+    events_per_s = 168_500 / 4      # docs/protocol.md: full EVENTS packets at 12 Mbaud
+    assert abs(period_cycles(CLOCK_HZ, 3_000_000) - CLOCK_HZ / (0.8 * events_per_s)) < 1.5
+    assert period_cycles(CLOCK_HZ, 12_000_000) == PERIOD_CYCLES
+    with model_board(line_limited=True) as board, connect(board.path) as client:
+        result = selftest(client, reference=delays)
+        dropped = board.status["dropped_fifo"]
+    assert outcomes(result) == ["pass"] * 5 and dropped == 0
+    hits, pulses = map(int, line_of(result, "same time").detail.split()[:4:3])
+    assert hits == pulses
+    # (50 ms of raw events at the longer period)
+    assert abs(pulses - 0.05 * CLOCK_HZ / period_cycles(CLOCK_HZ, 3_000_000)) < 0.2 * pulses
+
+
+def test_calibration_needs_enough_hits_to_mean_something():
+    # A calibration too short for its cover to mean anything fails, whatever it covered
+    with model_board(loopback=Loopback(line=LINE)) as board, connect(board.path) as client:
+        result = selftest(client, reference=delays,
+                          durations_s={"calibration": 0.002, "calibration_frame": 0.002})
+    detail = line_of(result, "calibration").detail
+    assert line_of(result, "calibration").outcome == "fail"
+    assert detail.endswith(": too few hits to check the cover (at least 25 a code)")
+    hits = int(detail.split()[0])
+    assert hits < 25 * 585
 
 
 def test_internal_loopback_finds_wrong_delays():

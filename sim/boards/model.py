@@ -33,15 +33,15 @@ import numpy as np
 from ...hdl import DEFAULT_CLOCK_HZ
 from ...hdl.histogram.layout import MAX_COUNT_WIDTH
 from ...hdl.protocol import (DEFAULT_BAUD, HISTOGRAM_COUNT_BITS, PacketType, STATUS_FIELDS,
-                             LINK_COUNTERS, MAX_EVENTS_PER_PACKET, EVENT_BYTES)
+                             LINK_COUNTERS, MAX_EVENTS_PER_PACKET)
 from ...hdl.delay.modes import MODES, DelayMode
 from ...hdl.event import TDC_LSB_S
 from ...hdl.finetdc import TAP_S as FINE_TAP_S
 from ...hdl.tdc import MAX_TIMESTAMP
 from ...hdl.registers import (AGGRESSOR_DELAY, VICTIM, AcquisitionMode, TdcSource, group_values,
                               value_of, words_of)
-from ...protocol.frames import LinkError, Packet, encode_frame, packet_type
-from ...protocol.events import pack_events
+from ...protocol.frames import LinkError, Packet, packet_type
+from ...protocol.events import link_events_per_s, pack_events
 from ..models import scheduler as _scheduler
 from ..models import histogram as _histogram
 from ..models.command import CommandModel
@@ -346,11 +346,8 @@ class ModelBoard(PtyServer):
 
     def _line_events(self, count):
         """Events the line carries in one block, in full EVENTS frames (8N1 characters)."""
-        frame_bytes = len(encode_frame(PacketType.EVENTS, 0,
-                                       bytes(MAX_EVENTS_PER_PACKET * EVENT_BYTES)))
         seconds = self.settings["integration"] / self.clock_hz
-        budget = int(seconds * self.baud / 10 / frame_bytes * MAX_EVENTS_PER_PACKET)
-        return min(count, budget)
+        return min(count, int(seconds * link_events_per_s(self.baud)))
 
     def _accumulate(self, events):
         # Per-pixel histograms, flat in readout order (pixel << (13 - bin_shift) | bin);
