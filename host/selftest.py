@@ -73,7 +73,7 @@ JUMPERS = ("laser", "aggressor")
 #: loopback.
 NO_LOOPBACK = ("no jumper, and this build has no internal loopback (the fine TDC's): loop the "
                "laser output to the photon input (--jumper laser)")
-#: ``tdc_input`` of each trigger's pad read back (the internal loopback), and of the pin.
+#: ``tdc_input`` of each trigger's pad read back (the internal loopback).
 _PAD_INPUTS = {"laser": HitInput.LASER.value, "aggressor": HitInput.AGGRESSOR.value}
 #: The laser's least period during the test, in cycles (longer on a link that could not carry
 #: one raw event a pulse at that rate: :func:`period_cycles`).
@@ -383,12 +383,12 @@ def selftest(board, *, jumper: Optional[str] = None, reference: Optional[Callabl
     elif jumper is not None:
         loops = [(jumper, (test.same_time, test.delays, test.histogram))]
     else:
-        loops = [(None, ())]
+        loops = []
         result.checks += [Check(name, "skipped", NO_LOOPBACK)
                           for name in ("same time", "delays", "histogram")]
     try:
         for kind, checks in loops:
-            if checks and (why := test.base(kind)) is not None:
+            if (why := test.base(kind)) is not None:
                 result.checks += [Check(check.__name__.replace("_", " "), "skipped", why)
                                   for check in checks]
                 continue
