@@ -88,4 +88,5 @@ $(FORMAL_STAMP): pyproject.toml $(STAMP)
 formal: $(FORMAL_STAMP)
 	$(PY) -m pytest -n 0 tests/test_formal.py tests/test_formal_link.py $(PYTEST_ARGS)
 	$(PY) -m fliss.formal --mutants $(FORMAL_ARGS)
-	$(PY) -m fliss.formal.equivalence --mutant crc cobs_decoder uart_tx uart_rx
+	$(PY) -m fliss.formal.equivalence --mutant -j 2 crc cobs_encoder cobs_decoder uart_tx uart_rx
+	$(PY) -m fliss.formal.equivalence --mutant -j 2 --family ecp5 delay_core

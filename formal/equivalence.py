@@ -1,7 +1,7 @@
 """Equivalence of small blocks' RTL and their synthesized netlists, proved with Yosys's
 ``equiv_*`` passes (``make formal``)::
 
-    python -m fliss.formal.equivalence [BLOCK ...] [--family ecp5|ice40] [--mutant]
+    python -m fliss.formal.equivalence [BLOCK ...] [--family ecp5|ice40] [--mutant] [-j N]
 
 Each block (:data:`BLOCKS`) is converted to RTLIL, synthesized by the board flow's command
 (``synth_ecp5`` of the ULX3S, ``synth_ice40`` of the iCEBreaker) and written as a Verilog netlist,
@@ -19,6 +19,7 @@ import re
 import subprocess
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 
@@ -66,11 +67,16 @@ BLOCKS = {
     "delay_core": _delay_core,
 }
 
-#: Family -> (synthesis command of its board's flow, cell models, LUT cell of the mutant).
+#: Family -> (synthesis command of its board's flow, cell models, LUT cell of the mutant, the
+#: family's RAM cells).
 FAMILIES = {
-    "ecp5":  ("synth_ecp5", "read_verilog -DNO_INCLUDES +/ecp5/cells_sim.v", "LUT4"),
+    "ecp5":  ("synth_ecp5",
+              "read_verilog -DNO_INCLUDES +/ecp5/cells_sim.v\n"
+              "read_verilog -lib -DNO_INCLUDES +/ecp5/cells_bb.v",
+              "LUT4", ("DP16KD", "TRELLIS_DPR16X4")),
     # (EQUIV leaves out the SPRAM's body, 256 kbit of registers that Yosys reads slowly)
-    "ice40": ("synth_ice40", "read_verilog -DICE40_U -DEQUIV +/ice40/cells_sim.v", "SB_LUT4"),
+    "ice40": ("synth_ice40", "read_verilog -DICE40_U -DEQUIV +/ice40/cells_sim.v", "SB_LUT4",
+              ("SB_RAM40_4K", "SB_SPRAM256KA")),
 }
 
 BUILD_DIR = Path("build") / "equivalence"
@@ -107,7 +113,7 @@ def check(block, family="ecp5", *, mutant=False, build_dir=BUILD_DIR):
     """Prove ``block``'s RTL equivalent to its ``family`` netlist; returns the seconds taken.
     Raises :exc:`EquivalenceError` when the proof fails (with ``mutant``: when it passes)."""
     from amaranth.back import rtlil
-    synth, models, lut = FAMILIES[family]
+    synth, models, lut, rams = FAMILIES[family]
     folder = Path(build_dir) / family / (block + ("_mutant" if mutant else ""))
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "gold.il").write_text(rtlil.convert(BLOCKS[block](), name="top"))
@@ -119,12 +125,26 @@ def check(block, family="ecp5", *, mutant=False, build_dir=BUILD_DIR):
     gate = (folder / "gate.v").read_text()
     if mutant:
         (folder / "gate.v").write_text(_mutate(gate, lut))
-    # Signals (bits) that synthesis found dead and left undriven have no pair to prove.
-    dead = sorted(set(re.findall(r"^\s*assign \\?(\S+)(?: \[\d+\])? = \d+'hx;", gate, re.M)))
+    # Signals that synthesis found dead (some or all bits) and left undriven have no pair to
+    # prove: those assigned an `x` (`assign \a [3] = 1'hx;`, `assign { \a [7:4], \b } =
+    # { 4'hx, c };`).
+    dead = sorted({name
+                   for target, value in re.findall(r"^\s*assign (.+?) = (.+);$", gate, re.M)
+                   if re.search(r"\d+'h[0-9a-f]*x", value)
+                   for name in re.findall(r"\\?([^\s\[\]{},:]+)(?:\s*\[[\d:]+\])?", target)})
     (folder / "dead.txt").write_text("".join(f"{name}\n" for name in dead))
+    # The RTL's memories go through the flow's own mapping to RAM cells (and any left to
+    # flip-flops); on both sides every RAM cell is then cut out, its inputs made outputs and its
+    # outputs inputs (`expose -evert`, before `hierarchy` gives parametrized cells new types), so
+    # the proof covers all the logic around the RAMs: the same read data in, the same addresses,
+    # data and enables out.
+    evert = f"expose -evert {' '.join(f't:{cell}' for cell in rams)}"
     script = "\n".join([
-        "read_rtlil gold.il", "proc", "flatten", "memory", "rename top gold", "design -stash gold",
-        "read_verilog gate.v", "rename top gate", models, "hierarchy -top gate", "proc",
+        "read_rtlil gold.il", "proc", "flatten", "memory -nomap", "opt_clean",
+        f"{synth} -top top -run map_ram:map_ffram", "memory_map", "opt_clean",
+        models, evert, "hierarchy -top top", "proc", "flatten -wb", "opt_clean",
+        "rename top gold", "design -stash gold",
+        "read_verilog gate.v", "rename top gate", models, evert, "hierarchy -top gate", "proc",
         "flatten -wb", "opt_clean", "design -stash gate",
         "design -copy-from gold -as gold gold", "design -copy-from gate -as gate gate",
         "equiv_make -blacklist dead.txt gold gate equiv", "hierarchy -top equiv", "async2sync",
@@ -148,26 +168,36 @@ def main(argv=None):
                         help="synthesis flow (default: both)")
     parser.add_argument("--mutant", action="store_true",
                         help="break each netlist first: the proofs must fail")
+    parser.add_argument("-j", "--jobs", type=int, default=1, metavar="N",
+                        help="run N proofs at a time (default: 1)")
     args = parser.parse_args(argv)
     unknown = [block for block in args.blocks if block not in BLOCKS]
     if unknown:
         print(f"error: unknown block {unknown[0]!r}; choose from {', '.join(BLOCKS)}",
               file=sys.stderr)
         return 2
-    failed = 0
-    for family in args.family or list(FAMILIES):
-        for block in args.blocks:
-            for mutant in ([False, True] if args.mutant else [False]):
-                label = f"{block} [{family}{', mutant' if mutant else ''}]"
-                try:
-                    seconds = check(block, family, mutant=mutant)
-                except EquivalenceError as error:
-                    print(f"WRONG   {error}", flush=True)
-                    failed += 1
-                    continue
-                print(f"{'FAIL' if mutant else 'PASS'} (ok) {seconds:6.1f} s  {label}",
-                      flush=True)
-    return 1 if failed else 0
+    if args.jobs < 1:
+        print(f"error: -j must be at least 1, not {args.jobs}", file=sys.stderr)
+        return 2
+    runs = [(block, family, mutant)
+            for family in args.family or list(FAMILIES)
+            for block in args.blocks
+            for mutant in ([False, True] if args.mutant else [False])]
+
+    def run(block, family, mutant):
+        label = f"{block} [{family}{', mutant' if mutant else ''}]"
+        try:
+            seconds = check(block, family, mutant=mutant)
+        except EquivalenceError as error:
+            print(f"WRONG   {error}", flush=True)
+            return False
+        print(f"{'FAIL' if mutant else 'PASS'} (ok) {seconds:6.1f} s  {label}", flush=True)
+        return True
+
+    # (each proof is a Yosys process: threads are enough to run several)
+    with ThreadPoolExecutor(max_workers=args.jobs) as pool:
+        results = list(pool.map(lambda arguments: run(*arguments), runs))
+    return 0 if all(results) else 1
 
 
 if __name__ == "__main__":
