@@ -241,8 +241,9 @@ ACQUISITION = RegisterGroup("acquisition", (
 
 #: The fine TDC (:class:`~fliss.hdl.finetdc.tdc.FineTdc`): its timestamp LSB, its input, and
 #: the host's way into its calibration table: a WRITE of ``table_address`` moves the table's
-#: pointer there, each WRITE of ``table_data`` writes the entry at the pointer and moves it on,
-#: a READ of ``table_data`` gives the entry at the pointer.
+#: pointer there, each WRITE of ``table_data`` writes the entry at the pointer and moves it on
+#: (in a WRITE of both, the pointer moves first: such a WRITE is safe to repeat), a READ of
+#: ``table_data`` gives the entry at the pointer.
 FINE_TDC = RegisterGroup("fine_tdc", (
     Setting("lsb",   2, 0, FINE_LSB_SELECTS - 1),
     Setting("input", Shape.cast(HitInput).width, 0, max(i.value for i in HitInput)),
@@ -257,7 +258,8 @@ FINE_TDC = RegisterGroup("fine_tdc", (
                       "fine TDC calibration table: a write moves the table's pointer here"),
     "table_data": ("table_data", 0x1e, 0,
                    "fine TDC calibration table: a write puts the entry (12.5 ps units) at the "
-                   "pointer and moves the pointer on; a read gives the entry at the pointer"),
+                   "pointer (the one just written, in a write of both) and moves the pointer on; "
+                   "a read gives the entry at the pointer"),
 })
 
 #: The event filter's gate (:class:`~fliss.hdl.tdc.EventFilter`): the timestamps it accepts,

@@ -116,9 +116,12 @@ def write_table(client: BoardClient, table, current: Optional[dict] = None) -> N
         raise CalibrationError(f"a calibration table has {TABLE_ENTRIES} entries from 0 to "
                                f"{(1 << TABLE_BITS) - 1}")
     current = client.read_registers() if current is None else current
-    client.write_registers({"table_address": 0}, current=current)
-    for value in table:
-        client.write_registers({"table_data": int(value)}, current=current)
+    # Each entry by one WRITE of its address and value together, which the board applies
+    # address first: a WRITE the host re-sends (its reply late or lost) writes the same entry
+    # again, where a WRITE of the value alone would move the pointer on twice.
+    for code, value in enumerate(table):
+        client.write_registers({"table_address": code, "table_data": int(value)},
+                               current=current)
     back = read_table(client, current)
     wrong = np.flatnonzero(back != table)
     if len(wrong):

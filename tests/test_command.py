@@ -4,12 +4,13 @@ import random
 import warnings
 
 import pytest
-from amaranth.hdl import ResetInserter, Signal, UnusedElaboratable
+from amaranth.hdl import Module, ResetInserter, Signal, UnusedElaboratable
 
+from fliss.hdl.finetdc.table import CalibrationTable, serve_registers
 from fliss.hdl.link.command import CommandProcessor
 from fliss.hdl.protocol import (PacketType, NakCode, STATUS_FIELDS, Identity, Nak, ReadRequest,
                                 registers_layout)
-from fliss.hdl.registers import REGISTERS, BY_NAME, defaults, problems
+from fliss.hdl.registers import REGISTERS, BY_NAME, TdcSource, defaults, problems
 from fliss.hdl.top import FlissTop
 from fliss.protocol.layout import pack, unpack
 from fliss.sim.models.command import CommandModel
@@ -103,7 +104,14 @@ def run_commands(packets, *, link_errors=(), status=None, maxima=None, reset_bef
                     settings.append(group_settings(ctx, dut.registers))
             await ctx.tick()
 
-    simulate(ResetInserter({"sync": reset})(dut), sender, background=[receiver, status_port],
+    # The fine TDC's calibration table behind the register file, as in a build with the fine
+    # TDC (one without it reads table_data as 0, as the model does)
+    top = Module()
+    top.submodules.dut = dut
+    if dut.maxima["tdc_source"] >= TdcSource.FINE.value:
+        top.submodules.table = table = CalibrationTable()
+        serve_registers(top, table, dut.registers)
+    simulate(ResetInserter({"sync": reset})(top), sender, background=[receiver, status_port],
              clock_hz=CLOCK_HZ)
     return replies, settings, updates
 

@@ -8,7 +8,7 @@ from amaranth.lib.wiring import In, Out
 from . import CODE_BITS, TABLE_BITS, TAP_S, UNIT_S
 
 
-__all__ = ["nominal_table", "CalibrationTable"]
+__all__ = ["nominal_table", "CalibrationTable", "serve_registers"]
 
 
 def nominal_table(depth=1 << CODE_BITS):
@@ -80,3 +80,16 @@ class CalibrationTable(wiring.Component):
             m.d.sync += pointer.eq(address + self.write)
 
         return m
+
+
+def serve_registers(m, table, registers):
+    """Connect ``table``'s host side to a :class:`~fliss.hdl.regfile.RegisterFile`'s
+    ``table_*`` strobes and ``fine_tdc`` settings, and give the register file its read back
+    (as a build with the fine TDC does; for benches of the link without the TDC)."""
+    m.d.comb += [
+        table.seek.eq(registers.table_seek),
+        table.seek_address.eq(registers.fine_tdc.table_address),
+        table.write.eq(registers.table_write),
+        table.write_data.eq(registers.fine_tdc.table_data),
+        registers.table_read.eq(table.read_data),
+    ]

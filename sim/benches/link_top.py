@@ -8,7 +8,7 @@ from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from ...hdl import DEFAULT_CLOCK_HZ
-from ...hdl.finetdc.table import CalibrationTable
+from ...hdl.finetdc.table import CalibrationTable, serve_registers
 from ...hdl.link.link import Link
 from ...hdl.protocol import DEFAULT_BAUD
 from ...hdl.status import StatusCounters
@@ -44,12 +44,5 @@ class LinkTop(wiring.Component):
         wiring.connect(m, link.status, status.port)
         m.d.comb += status.count(link.tally)
         m.submodules.table = table = CalibrationTable()
-        registers = link.registers
-        m.d.comb += [
-            table.seek.eq(registers.table_seek),
-            table.seek_address.eq(registers.fine_tdc.table_address),
-            table.write.eq(registers.table_write),
-            table.write_data.eq(registers.fine_tdc.table_data),
-            registers.table_read.eq(table.read_data),
-        ]
+        serve_registers(m, table, link.registers)
         return m
