@@ -155,7 +155,7 @@ def test_pin_aliases(tmp_path):
     assert top.unwired == ["status"]
 
 
-@pytest.mark.parametrize("board,factory,spram,carry", [("ulx3s", "fliss_top_fine", 0, 321),
+@pytest.mark.parametrize("board,factory,spram,carry", [("ulx3s", "fliss_top_fine", 0, 402),
                                                         ("icebreaker", "fliss_top_up5k", 2, 0)])
 def test_fliss_top_on_the_board(board, factory, spram, carry, tmp_path):
     # The whole instrument: every port reaches a pin (through the aliases), and on the
@@ -169,7 +169,8 @@ def test_fliss_top_on_the_board(board, factory, spram, carry, tmp_path):
     plan.extract(str(tmp_path))
     rtlil = (tmp_path / "top.il").read_text()
     assert rtlil.count("cell \\SB_SPRAM256KA ") == spram
-    # the fine TDC's line: one carry box per cell, declared for yosys, renamed after synthesis
+    # the fine TDC's lines: one carry box per cell (2 lines of 201), declared for yosys, renamed
+    # after synthesis
     assert rtlil.count("cell \\FLISS_CCU2C ") == carry
     assert (tmp_path / "fliss_carry_box.v").exists() == bool(carry)
     assert ("chtype -set CCU2C" in (tmp_path / "top.ys").read_text()) == bool(carry)

@@ -9,9 +9,11 @@ A missing Verilator skips these tests, or fails them when ``FLISS_REQUIRE_SIMULA
 
 import os
 
+import numpy as np
 import pytest
 
 from fliss.hdl import DEFAULT_CLOCK_HZ
+from fliss.hdl.finetdc import TAP_S
 from fliss.host.board import connect
 from fliss.host.calibration import calibrate
 from fliss.host.selftest import selftest
@@ -51,7 +53,8 @@ def test_laser_jumper_on_the_gateware(board):
                         "calibration": "pass", "link": "pass"}, result.table()
     # The nominal table: the hit's time from the line's input, within the taps' drift
     assert abs(result.delay_s - (JUMPER_DELAY_S + LINE.offset_s)) < 250e-12
-    assert result.jitter_s < LINE.tap_s
+    # (a hit at a fixed phase: one code or two, the nominal table's codes TAP_S apart)
+    assert result.jitter_s < TAP_S
 
 
 def test_calibration_through_the_gateware(board):
@@ -61,14 +64,16 @@ def test_calibration_through_the_gateware(board):
                            integration_s=DURATIONS_S["histogram"])
         after = selftest(client, jumper="laser", reference=delays, durations_s=DURATIONS_S)
     assert len(result.empty_codes) == 0
-    # Calibrated: from the hit to the line's first tap, within a tap and the table's rounding,
-    # and three standard deviations of the code density's estimate at the loopback's code
-    # (the share p of the hits below it, of N: sqrt(p (1 - p) / N) of a period)
+    # Calibrated: from the hit to the lines' first tap, within the code the hit falls in and
+    # the table's rounding, and three standard deviations of the code density's estimate at the
+    # loopback's code (the share p of the hits below it, of N: sqrt(p (1 - p) / N) of a period)
     period_s = 1 / DEFAULT_CLOCK_HZ
-    share = (period_s - JUMPER_DELAY_S - LINE.thresholds_s[0]) / period_s
+    edges = LINE.thresholds_s
+    code = np.searchsorted(edges, period_s - JUMPER_DELAY_S)
+    share = (period_s - JUMPER_DELAY_S - edges[0]) / period_s
     sigma_s = period_s * (share * (1 - share) / result.counts.sum()) ** 0.5
-    assert abs(after.delay_s - (JUMPER_DELAY_S + LINE.thresholds_s[0])) < \
-        3 * sigma_s + LINE.tap_s + 12.5e-12
+    assert abs(after.delay_s - (JUMPER_DELAY_S + edges[0])) < \
+        3 * sigma_s + edges[code] - edges[code - 1] + 12.5e-12
 
 
 def test_the_delays_through_the_aggressors_jumper():
