@@ -4,8 +4,8 @@ For model lines in two builds: one line of 640 taps (the baseline: the ``CCU2C``
 21.5 ps taps with 5 ps of random variation; the same with 30 ps more at every eighth tap, a hop
 between logic tiles; nextpnr's routed line, taps of 8.4 and 62.5 ps in turn with 20 ps of
 variation), and two lines of 400 taps summed (the gateware's: nextpnr's taps with 20 and 5 ps of
-variation, the second line a random phase after the first; and the two in step with no
-variation): the mean code width and the mean width of the code a hit falls in, DNL and INL of
+variation, the second line a random phase after the first; the two in step with no
+variation; and the cell model's taps, with which the lines are shorter than a period): the mean code width and the mean width of the code a hit falls in, DNL and INL of
 the raw codes, each raw code's error against the truth with the reset table's times and
 calibrated, DNL and INL of the calibrated 50 ps timestamps, and the single-shot RMS error over
 ``--hits`` hits (calibration from 2**22 other hits). Then the two-line TDC after a change of
@@ -40,6 +40,7 @@ LINES = {
     "2 x 400, nextpnr's, 20 ps": (Line(**NEXTPNR, sigma_s=20e-12), None),
     "2 x 400, nextpnr's, 5 ps": (Line(**NEXTPNR, sigma_s=5e-12), None),
     "2 x 400, in step, 0 ps": (Line(**NEXTPNR, sigma_s=0.0, phase_s=0.0), None),
+    "2 x 400, cell model, 5 ps": (Line(tap_s=21.5e-12, hop_s=0.0), None),
 }
 #: Delay change per kelvin (see docs/finetdc.md#temperature) and temperature changes, K
 COEFFICIENTS_PER_K = (1e-3, 4e-3)
