@@ -26,8 +26,9 @@ from fliss.sim.models.finetdc import Line
 #: The driver's jumper delay and line (FineLoopback's defaults).
 JUMPER_DELAY_S = 3.2e-9
 LINE = Line()
-#: A simulated board is slower than real time: short acquisitions.
-DURATIONS_S = {"raw": 0.3, "histogram": 0.0005, "calibration": 0.012}
+#: A simulated board is slower than real time: short acquisitions (the calibration's some
+#: 100 000 oscillator hits: the two lines' narrowest codes, a picosecond or so, get some)
+DURATIONS_S = {"raw": 0.3, "histogram": 0.0005, "calibration": 0.045}
 
 
 @pytest.fixture(scope="module")
