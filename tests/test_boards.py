@@ -156,7 +156,7 @@ def test_pin_aliases(tmp_path):
 
 
 @pytest.mark.parametrize("board,factory,spram,carry,pads", [
-    ("ulx3s", "fliss_top_fine", 0, 321, 2), ("icebreaker", "fliss_top_up5k", 2, 0, 0)])
+    ("ulx3s", "fliss_top_fine", 0, 402, 2), ("icebreaker", "fliss_top_up5k", 2, 0, 0)])
 def test_fliss_top_on_the_board(board, factory, spram, carry, pads, tmp_path):
     # The whole instrument: every port reaches a pin (through the aliases), and on the
     # iCEBreaker the histogram banks are the two SPRAMs. With the fine TDC, the laser's and the
@@ -171,7 +171,8 @@ def test_fliss_top_on_the_board(board, factory, spram, carry, pads, tmp_path):
     rtlil = (tmp_path / "top.il").read_text()
     assert rtlil.count("cell \\SB_SPRAM256KA ") == spram
     assert rtlil.count("cell \\BB ") == pads
-    # the fine TDC's line: one carry box per cell, declared for yosys, renamed after synthesis
+    # the fine TDC's lines: one carry box per cell (2 lines of 201), declared for yosys, renamed
+    # after synthesis
     assert rtlil.count("cell \\FLISS_CCU2C ") == carry
     assert (tmp_path / "fliss_carry_box.v").exists() == bool(carry)
     assert ("chtype -set CCU2C" in (tmp_path / "top.ys").read_text()) == bool(carry)

@@ -2,10 +2,10 @@
 
 One block per module:
 
-* :mod:`.line`: :class:`~.line.DelayLine`, the carry chain and its two flip-flop stages (on the
-  ECP5), or the sampled taps from a port (simulation, other families);
-* :mod:`.encoder`: :class:`~.encoder.Encoder`, ones count of the sampled taps (the raw code) and
-  the cycle a hit arrives;
+* :mod:`.line`: :class:`~.line.DelayLine`, :data:`LINES` carry chains side by side and their two
+  flip-flop stages (on the ECP5), or the sampled taps from a port (simulation, other families);
+* :mod:`.encoder`: :class:`~.encoder.Encoder`, ones count of all the lines' sampled taps (the raw
+  code) and the cycle a hit arrives;
 * :mod:`.table`: :class:`~.table.CalibrationTable`, raw code -> fine time, in block RAM, written
   by the host;
 * :mod:`.source`: :class:`~.source.HitSource`, what drives the line (:class:`HitInput`: the
@@ -24,9 +24,9 @@ from amaranth.lib import enum
 from ..event import TDC_LSB_S, TIMESTAMP_BITS
 
 
-__all__ = ["HitInput", "TAPS", "TAP_S", "CODE_BITS", "TABLE_BITS", "UNIT_S", "LSB_SELECTS",
-           "POPCOUNT_FANIN", "popcount_stages", "LATENCY", "cycle_units", "elapsed_limit",
-           "lsb_s"]
+__all__ = ["HitInput", "LINES", "LINE_TAPS", "TAPS", "LINE_TAP_S", "TAP_S", "CODE_BITS",
+           "TABLE_BITS", "UNIT_S", "LSB_SELECTS", "POPCOUNT_FANIN", "popcount_stages", "LATENCY",
+           "cycle_units", "elapsed_limit", "lsb_s"]
 
 
 class HitInput(enum.Enum, shape=2):
@@ -43,13 +43,22 @@ class HitInput(enum.Enum, shape=2):
     AGGRESSOR = 3
 
 
-#: Taps of the delay line: 320 ``CCU2C`` cells, two taps each, about 13.8 ns at the timing
-#: model's 21.5 ps a tap: a 12.5 ns clock period (80 MHz) with 10 % margin.
-TAPS = 640
-#: Delay of one tap in nextpnr's ECP5 timing model: ``CIN -> COUT`` of a ``CCU2C`` is 43 ps,
-#: two taps.
-TAP_S = 21.5e-12
-#: Width of a raw code (number of taps passed, 0 to :data:`TAPS`).
+#: Delay lines the hit runs along side by side, each its own carry chain. The raw code is the sum
+#: of their ones counts: their taps interleave, so a code is on average a tap over ``LINES``.
+LINES = 2
+#: Mean delay of a tap in nextpnr's timing model of the routed ULX3S line: 8.4 ps from a
+#: ``CCU2C``'s first half to its second, 62.5 ps from a cell to the next one.
+LINE_TAP_S = 35.5e-12
+#: Taps of each line: 201 ``CCU2C`` cells (the first injects the hit), 14.2 ns at
+#: :data:`LINE_TAP_S`: the board's 12.5 ns clock period (80 MHz, 352 taps) with 14 % margin,
+#: a 10 ns one (100 MHz) with 42 %.
+LINE_TAPS = 400
+#: Taps of all the lines, the sampled bits the ones count reads: raw codes are 0 to ``TAPS``.
+TAPS = LINES * LINE_TAPS
+#: Nominal width of a raw code (a tap of the lines merged): :data:`LINE_TAP_S` over
+#: :data:`LINES`. The calibration table's reset values and the raw codes' unit on the host.
+TAP_S = LINE_TAP_S / LINES
+#: Width of a raw code (0 to :data:`TAPS`): the calibration table has ``2**CODE_BITS`` entries.
 CODE_BITS = TAPS.bit_length()
 #: Width of a calibration table entry, in :data:`UNIT_S` units (up to 51 ns).
 TABLE_BITS = 12

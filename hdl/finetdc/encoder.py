@@ -11,20 +11,21 @@ __all__ = ["Encoder"]
 
 
 class Encoder(wiring.Component):
-    """Ones count of the delay line's taps, pipelined, and the hit strobe.
+    """Ones count of the delay lines' taps, pipelined, and the hit strobe.
 
-    The raw code is the number of taps that read 1, wherever they are: a bubble (a 0 among the
+    The raw code is the number of taps that read 1, wherever they are and whichever line they
+    are on: the sum of the lines' ones counts, their taps interleaved. A bubble (a 0 among the
     ones, a 1 among the zeros, from clock skew or a metastable flip-flop) moves the code by at
     most the bits it flips, where a search for the first zero could jump by many taps. The
     count takes :func:`~fliss.hdl.finetdc.popcount_stages` pipeline stages of
     :data:`~fliss.hdl.finetdc.POPCOUNT_FANIN` inputs each: ``taps`` of cycle ``c`` give
     ``code`` in cycle ``c + stages``. A hit is the first non-zero code after a zero one: the
-    hit input must fall, and the line empty (a whole sample of zeros), before the next hit.
+    hit input must fall, and the lines empty (a whole sample of zeros), before the next hit.
 
     Parameters
     ----------
     taps : int
-        Number of taps.
+        Number of taps, of all the lines.
 
     Members
     -------

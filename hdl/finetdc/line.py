@@ -1,10 +1,11 @@
-"""The delay line: a chain of ECP5 carry cells the hit runs along, sampled at every clock edge."""
+"""The delay lines: chains of ECP5 carry cells the hit runs along side by side, sampled at every
+clock edge."""
 
 from amaranth.hdl import C, Cat, Instance, Module, Signal
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
-from . import TAPS
+from . import LINE_TAPS, LINES
 
 
 __all__ = ["is_ecp5", "CARRY_BOX", "CARRY_BOX_FILE", "SCRIPT_AFTER_SYNTH", "DelayLine"]
@@ -44,38 +45,48 @@ _INJECT = 0x000A
 
 
 class DelayLine(wiring.Component):
-    """Tapped delay line, sampled into flip-flops at every clock edge, then once more.
+    """Tapped delay lines side by side, sampled into flip-flops at every clock edge, then once more.
 
     On an ECP5 (:func:`is_ecp5`; the platform must run :data:`SCRIPT_AFTER_SYNTH` after
-    synthesis, and reads :data:`CARRY_BOX_FILE`, which this block adds) the hit enters a chain of ``CCU2C`` carry cells through the
-    first cell's first half; every later half is one tap (about 21.5 ps in nextpnr's timing
-    model), its sum output sampled by a flip-flop at every rising clock edge (the *first stage*:
-    tap ``j`` reads 1 once the hit has reached it), then by a second flip-flop against
-    metastability. On any other platform (Amaranth's simulator, Verilator, other families) there
-    is no chain: the first stage is the ``sampled`` port, for a testbench to drive from the
-    model (:meth:`fliss.sim.models.finetdc.Line.samples`). Either way, the first stage of cycle
-    ``c`` is on ``taps`` in cycle ``c + 1``.
+    synthesis, and reads :data:`CARRY_BOX_FILE`, which this block adds) the hit enters each of
+    ``lines`` chains of ``CCU2C`` carry cells through the chain's first cell's first half; every
+    later half is one tap (8.4 or 62.5 ps in nextpnr's timing model of the routed line, in turn),
+    its sum output sampled by a flip-flop at every rising clock edge (the *first stage*: tap
+    ``j`` reads 1 once the hit has reached it), then by a second flip-flop against
+    metastability. Each chain is a carry chain of its own, placed apart, so the routes from the
+    hit to their first cells differ and their taps interleave. On any other platform (Amaranth's
+    simulator, Verilator, other families) there is no chain: the first stage is the ``sampled``
+    port, for a testbench to drive from the model
+    (:meth:`fliss.sim.models.finetdc.Line.samples`). Either way, the first stage of cycle ``c``
+    is on ``taps`` in cycle ``c + 1``.
 
     Parameters
     ----------
     taps : int
-        Number of taps, at least 2 (:data:`~fliss.hdl.finetdc.TAPS` by default).
+        Taps of each line, at least 2 (:data:`~fliss.hdl.finetdc.LINE_TAPS` by default).
+    lines : int
+        Lines, at least 1 (:data:`~fliss.hdl.finetdc.LINES` by default).
 
     Members
     -------
     hit : In(1)
         The hit, asynchronous (ECP5 only).
-    sampled : In(taps)
+    sampled : In(lines * taps)
         The first stage (not on an ECP5).
-    taps : Out(taps)
-        The second stage: tap ``j`` is bit ``j``, nearest the input first.
+    taps : Out(lines * taps)
+        The second stage: tap ``j`` of line ``k`` is bit ``k * taps + j``, nearest the input
+        first.
     """
 
-    def __init__(self, taps=TAPS):
+    def __init__(self, taps=LINE_TAPS, lines=LINES):
         if isinstance(taps, bool) or not isinstance(taps, int) or taps < 2:
             raise ValueError(f"A delay line needs at least 2 taps, not {taps!r}")
+        if isinstance(lines, bool) or not isinstance(lines, int) or lines < 1:
+            raise ValueError(f"The fine TDC needs at least one delay line, not {lines!r}")
         self.count = taps
-        super().__init__({"hit": In(1), "sampled": In(taps), "taps": Out(taps)})
+        self.lines = lines
+        width = lines * taps
+        super().__init__({"hit": In(1), "sampled": In(width), "taps": Out(width)})
 
     def elaborate(self, platform):
         m = Module()
@@ -83,29 +94,12 @@ class DelayLine(wiring.Component):
         if is_ecp5(platform):
             if CARRY_BOX_FILE[0] not in platform.extra_files:
                 platform.add_file(*CARRY_BOX_FILE)
-            # The chain: cell 0's second half is tap 0, cell k's halves taps 2k - 1 and 2k
+            # The chains, then the first stage beside them: the sums are the carries inverted
             sums = []
-            carry = C(0)
-            for cell in range(self.count // 2 + 1):
-                first = cell == 0
-                s0, s1, cout = Signal(name=f"line_s0_{cell}"), Signal(name=f"line_s1_{cell}"), \
-                    Signal(name=f"line_carry_{cell}")
-                m.submodules[f"line_{cell}"] = Instance(
-                    CARRY_BOX,
-                    p_INIT0=C(_INJECT if first else _PROPAGATE, 16),
-                    p_INIT1=C(_PROPAGATE, 16),
-                    p_INJECT1_0="NO", p_INJECT1_1="NO",
-                    a_keep=1,
-                    i_CIN=carry,
-                    i_A0=self.hit if first else C(0), i_B0=C(0),
-                    i_C0=C(int(first)), i_D0=C(int(first)),
-                    i_A1=C(0), i_B1=C(0), i_C1=C(0), i_D1=C(0),
-                    o_S0=s0, o_S1=s1, o_COUT=cout)
-                sums += [s1] if first else [s0, s1]
-                carry = cout
-            # First stage, beside the chain: the sums are the carries inverted
-            sampled = Signal(self.count, attrs={"keep": 1})
-            m.d.sync += sampled.eq(Cat(sums[:self.count]))
+            for line in range(self.lines):
+                sums += self._chain(m, line)
+            sampled = Signal(len(sums), attrs={"keep": 1})
+            m.d.sync += sampled.eq(Cat(sums))
             first_stage = ~sampled
         else:
             first_stage = self.sampled
@@ -114,3 +108,28 @@ class DelayLine(wiring.Component):
         m.d.sync += self.taps.eq(first_stage)
 
         return m
+
+    def _chain(self, m, line):
+        # Line `line`'s cells, `line{line}_{cell}`: cell 0's second half is tap 0, cell k's halves
+        # taps 2k - 1 and 2k. Returns the taps' sum outputs in order.
+        sums = []
+        carry = C(0)
+        for cell in range(self.count // 2 + 1):
+            first = cell == 0
+            name = f"line{line}_{cell}"
+            s0, s1, cout = Signal(name=f"{name}_s0"), Signal(name=f"{name}_s1"), \
+                Signal(name=f"{name}_carry")
+            m.submodules[name] = Instance(
+                CARRY_BOX,
+                p_INIT0=C(_INJECT if first else _PROPAGATE, 16),
+                p_INIT1=C(_PROPAGATE, 16),
+                p_INJECT1_0="NO", p_INJECT1_1="NO",
+                a_keep=1,
+                i_CIN=carry,
+                i_A0=self.hit if first else C(0), i_B0=C(0),
+                i_C0=C(int(first)), i_D0=C(int(first)),
+                i_A1=C(0), i_B1=C(0), i_C1=C(0), i_D1=C(0),
+                o_S0=s0, o_S1=s1, o_COUT=cout)
+            sums += [s1] if first else [s0, s1]
+            carry = cout
+        return sums[:self.count]

@@ -7,7 +7,8 @@ from amaranth.lib.wiring import In, Out
 
 from ..event import ADDRESS_BITS, PULSE_BITS, TIMESTAMP_BITS
 from ..tdc import Capture
-from . import CODE_BITS, LSB_SELECTS, TABLE_BITS, TAPS, HitInput, cycle_units, elapsed_limit
+from . import (CODE_BITS, LINE_TAPS, LINES, LSB_SELECTS, TABLE_BITS, HitInput, cycle_units,
+               elapsed_limit)
 from .encoder import Encoder
 from .line import DelayLine
 from .source import HitSource
@@ -20,8 +21,9 @@ __all__ = ["FineTdc"]
 class FineTdc(wiring.Component):
     """Fine TDC: photon hits timestamped to a fraction of a clock cycle from the TDC start.
 
-    A hit whose first non-zero sample of the delay line (:class:`~.line.DelayLine`) is in its
-    first stage in cycle ``c``, with raw code ``k`` (:class:`~.encoder.Encoder`), arrived
+    A hit whose first non-zero sample of the delay lines (:class:`~.line.DelayLine`) is in their
+    first stage in cycle ``c``, with raw code ``k`` (:class:`~.encoder.Encoder`: the ones count
+    of all the lines' taps), arrived
     ``table[k]`` table units (:data:`~fliss.hdl.finetdc.UNIT_S`, 12.5 ps) before that sampling
     edge (:class:`~.table.CalibrationTable`). With ``s`` the cycle of the last ``tdc_start`` at
     or before ``c``, its timestamp is ``((c - s) * U - table[k]) >> (2 - lsb)``, ``U`` the clock
@@ -34,7 +36,7 @@ class FineTdc(wiring.Component):
     capture is presented in cycle ``c +`` :data:`~fliss.hdl.finetdc.LATENCY`, in the layout of
     :class:`~fliss.hdl.tdc.CoarseTdc`'s, for the same :class:`~fliss.hdl.tdc.EventFilter`.
 
-    At most one hit per clock cycle: the input must fall and the line empty (a sample of all
+    At most one hit per clock cycle: the input must fall and the lines empty (a sample of all
     zeros) between two hits, so the dead time is the hit's width plus about two cycles.
 
     Parameters
@@ -42,7 +44,10 @@ class FineTdc(wiring.Component):
     clock_hz : int
         Clock frequency: its period must be a whole number of 12.5 ps units.
     taps : int
-        Taps of the delay line.
+        Taps of each delay line.
+    lines : int
+        Delay lines; raw codes (0 to ``lines * taps``) must fit the calibration table's
+        ``2**CODE_BITS`` entries.
 
     Members
     -------
@@ -52,8 +57,8 @@ class FineTdc(wiring.Component):
         The trigger outputs' pads read back (the internal loopback, :class:`~.source.HitSource`).
     input : In(HitInput)
         What drives the line.
-    sampled : In(taps)
-        The line's first stage, where there is no carry chain (:class:`~.line.DelayLine`).
+    sampled : In(lines * taps)
+        The lines' first stage, where there is no carry chain (:class:`~.line.DelayLine`).
     tdc_start, pulse_index, address, enable
         As in :class:`~fliss.hdl.tdc.CoarseTdc`.
     lsb : In(2)
@@ -67,16 +72,20 @@ class FineTdc(wiring.Component):
         One capture per hit.
     """
 
-    def __init__(self, *, clock_hz, taps=TAPS):
+    def __init__(self, *, clock_hz, taps=LINE_TAPS, lines=LINES):
         self.units = cycle_units(clock_hz)
         self.limit = elapsed_limit(clock_hz)
+        if isinstance(taps, int) and isinstance(lines, int) and lines * taps >= 1 << CODE_BITS:
+            raise ValueError(f"Raw codes up to {lines} lines of {taps} taps do not fit the "
+                             f"calibration table's {1 << CODE_BITS} entries")
         self.taps = taps
+        self.lines = lines
         super().__init__({
             "pin_hit":       In(1),
             "laser_pad":     In(1),
             "aggressor_pad": In(1),
             "input":         In(HitInput),
-            "sampled":       In(taps),
+            "sampled":       In(lines * taps),
             "tdc_start":     In(1),
             "pulse_index":   In(PULSE_BITS),
             "address":       In(ADDRESS_BITS),
@@ -96,8 +105,8 @@ class FineTdc(wiring.Component):
 
         # Input, line, encoder, table
         m.submodules.source = source = HitSource()
-        m.submodules.line = line = DelayLine(self.taps)
-        m.submodules.encoder = encoder = Encoder(self.taps)
+        m.submodules.line = line = DelayLine(self.taps, self.lines)
+        m.submodules.encoder = encoder = Encoder(self.lines * self.taps)
         m.submodules.table = table = CalibrationTable()
         m.d.comb += [
             source.pin.eq(self.pin_hit),
