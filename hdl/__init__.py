@@ -27,7 +27,7 @@ Definitions shared by gateware, models and host: :mod:`.event` (the photon event
 that every simulator reads the same way.
 """
 
-from amaranth.hdl import Cat, Const, Value
+from amaranth.hdl import Array, Const, Value
 
 #: Default system clock of the design, in Hz (Table 1 of the paper).
 DEFAULT_CLOCK_HZ = 80_000_000
@@ -58,11 +58,13 @@ def lookup(values, index, width=None, *, fill=0):
 
     Each bit of the result is a function of ``index`` alone: a LUT or two for a narrow index,
     where the shifts, sums and comparisons that give the values would be carry chains or
-    shifters.
+    shifters. The table is a case over ``index`` (an :class:`~amaranth.hdl.Array` of
+    constants), which Yosys writes as a ROM: Verilator reads it as one array access, where a
+    slice of one wide constant at a variable offset would be a shift of many words each cycle.
     """
     index = Value.cast(index)
     values = list(values)
     values += [fill] * ((1 << len(index)) - len(values))
     if width is None:
         width = max(values).bit_length()
-    return Cat(Const(value, width) for value in values).word_select(index, width)
+    return Array(Const(value, width) for value in values)[index]

@@ -206,8 +206,10 @@ class RegisterFile(wiring.Component):
             with m.Switch(register_index):
                 for register in REGISTERS:
                     with m.Case(register.address):
-                        m.d.sync += [candidate[register.name].eq(value),
-                                     written[register.address].eq(1)]
+                        m.d.sync += candidate[register.name].eq(value)
+            # (its flag in `written` set through a decoder of the whole word: the same logic
+            # as a flag set per case, and one operation, not one a flag, in a simulator)
+            m.d.sync += written.eq(written | (1 << register_index)[:len(written)])
             m.d.sync += value_address.eq(value_address + 1)
         with m.If(self.start):
             m.d.sync += value_address.eq(self.start_address)
