@@ -152,7 +152,7 @@ class FrameSequencer(wiring.Component):
         for name, value in tables.items():
             entries = [0 if split is None else value(n % (1 << len(self.shift)), *split)
                        for n, split in enumerate(splits)]
-            m.d.comb += new[name].eq(lookup(entries, index, len(new[name])))
+            m.d.comb += new[name].eq(lookup(entries, index, len(new[name]), rom=True))
         m.d.comb += [
             self.fill_shift.eq(bank["shift"][fill_bank]),
             self.fill_mask.eq(bank["mask"][fill_bank]),
