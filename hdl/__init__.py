@@ -27,7 +27,7 @@ Definitions shared by gateware, models and host: :mod:`.event` (the photon event
 that every simulator reads the same way.
 """
 
-from amaranth.hdl import Cat, Const, Value
+from amaranth.hdl import Array, Cat, Const, Value
 
 #: Default system clock of the design, in Hz (Table 1 of the paper).
 DEFAULT_CLOCK_HZ = 80_000_000
@@ -52,17 +52,24 @@ def period_cycles(clock_hz, prf_hz):
     return period
 
 
-def lookup(values, index, width=None, *, fill=0):
+def lookup(values, index, width=None, *, fill=0, rom=False):
     """The constant table ``values`` read at ``index`` (an Amaranth value), ``width`` bits wide
     (by default, as wide as the largest value); entries past the end read as ``fill``.
 
     Each bit of the result is a function of ``index`` alone: a LUT or two for a narrow index,
     where the shifts, sums and comparisons that give the values would be carry chains or
-    shifters.
+    shifters. By default the table is a slice of one wide constant at a variable offset; with
+    ``rom``, a case over ``index`` (an :class:`~amaranth.hdl.Array` of constants), which Yosys
+    writes as a ROM. Both are the same logic; Verilator reads the ROM as one array access but
+    the slice as a shift of many words every cycle, and on the ECP5 either may take fewer LUTs
+    (the frame sequencer's and the register file's tables are smaller as ROMs, the depth
+    engine's and the packetizers' as slices).
     """
     index = Value.cast(index)
     values = list(values)
     values += [fill] * ((1 << len(index)) - len(values))
     if width is None:
         width = max(values).bit_length()
+    if rom:
+        return Array(Const(value, width) for value in values)[index]
     return Cat(Const(value, width) for value in values).word_select(index, width)

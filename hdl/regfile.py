@@ -175,9 +175,12 @@ class RegisterFile(wiring.Component):
         tops = [self.maxima[register.name] for register in REGISTERS]
         m.d.sync += [
             known.eq((value_address[address_bits:] == 0) & (register_index < len(REGISTERS))),
-            allowed.eq(lookup([(1 << top.bit_length()) - 1 for top in tops], register_index, 32)),
-            minimum.eq(lookup([register.minimum for register in REGISTERS], register_index, LOW)),
-            maximum.eq(lookup([min(top, (1 << LOW) - 1) for top in tops], register_index, LOW)),
+            allowed.eq(lookup([(1 << top.bit_length()) - 1 for top in tops], register_index, 32,
+                              rom=True)),
+            minimum.eq(lookup([register.minimum for register in REGISTERS], register_index, LOW,
+                              rom=True)),
+            maximum.eq(lookup([min(top, (1 << LOW) - 1) for top in tops], register_index, LOW,
+                              rom=True)),
         ]
         out_of_range = ((value & ~allowed).any() |
                         ((value[LOW:] == 0) & (value[:LOW] < minimum)) |
@@ -206,8 +209,10 @@ class RegisterFile(wiring.Component):
             with m.Switch(register_index):
                 for register in REGISTERS:
                     with m.Case(register.address):
-                        m.d.sync += [candidate[register.name].eq(value),
-                                     written[register.address].eq(1)]
+                        m.d.sync += candidate[register.name].eq(value)
+            # (its flag in `written` set through a decoder of the whole word: the same logic
+            # as a flag set per case, and one operation, not one a flag, in a simulator)
+            m.d.sync += written.eq(written | (1 << register_index)[:len(written)])
             m.d.sync += value_address.eq(value_address + 1)
         with m.If(self.start):
             m.d.sync += value_address.eq(self.start_address)
@@ -241,7 +246,7 @@ class RegisterFile(wiring.Component):
             # table: a little logic per bit, where a shifter by `n` would be a barrel shifter
             # (and comparators per bit would be carry chains).
             return lookup([min((1 << k) - 1, (1 << width) - 1) for k in range(1 << len(n))],
-                          n, width)
+                          n, width, rom=True)
 
         def power_less(n, less):
             # `2**n - less` (`less` 1 or 2) for each `n` the field holds, in at most 34 bits
@@ -279,7 +284,7 @@ class RegisterFile(wiring.Component):
         # The histogram's pixel split: it fits the bank (pixel_bits + 13 - bin_shift <=
         # bank_bits), and its pixels are addresses of the sensor (first_pixel + 2**pixel_bits
         # <= 64; the power of two out of a table)
-        pixels = lookup([1 << k for k in range(1 << len(c.pixel_bits))], c.pixel_bits)
+        pixels = lookup([1 << k for k in range(1 << len(c.pixel_bits))], c.pixel_bits, rom=True)
         simple += [c.pixel_bits + TIMESTAMP_BITS <= c.bin_shift + self.bank_bits,
                    c.first_pixel + pixels <= (1 << ADDRESS_BITS)]
         # The IV rule: an IV written without a key goes above the IV in use

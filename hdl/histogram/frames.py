@@ -4,6 +4,7 @@ from amaranth.hdl import Array, Cat, Module, Signal
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
+from .. import lookup
 from ..event import TIMESTAMP_BITS
 from .layout import INTEGRATION_WIDTH, MAX_SHIFT, PIXEL_BITS, PIXEL_SETTING_BITS
 from ..tdc import COUNTER_WIDTH
@@ -137,19 +138,21 @@ class FrameSequencer(wiring.Component):
                 for name, shape in fields.items()}
         new = {name: Signal(shape, name=f"new_{name}") for name, shape in fields.items()}
         m.d.comb += [new["shift"].eq(self.shift), new["first"].eq(self.first_pixel)]
-        with m.Switch(Cat(self.shift, self.pixel_bits)):
-            for shift in range(MAX_SHIFT + 1):
-                for pixel_bits in range(1 << PIXEL_SETTING_BITS):
-                    q, b = self.split(shift, pixel_bits)
-                    with m.Case(shift | pixel_bits << len(self.shift)):
-                        m.d.comb += [
-                            new["q"].eq(q),
-                            new["last"].eq((1 << (q + b)) - 1),
-                            new["mask"].eq(((1 << TIMESTAMP_BITS) - 1) &
-                                           ~((1 << (b + shift)) - 1)),
-                            new["pixels"].eq(((1 << PIXEL_BITS) - 1) & ~((1 << q) - 1)),
-                            new["position"].eq(b),
-                        ]
+        index = Cat(self.shift, self.pixel_bits)
+        splits = [self.split(shift, pixel_bits) if shift <= MAX_SHIFT else None
+                  for pixel_bits in range(1 << PIXEL_SETTING_BITS)
+                  for shift in range(1 << len(self.shift))]
+        tables = {
+            "q":        lambda shift, q, b: q,
+            "last":     lambda shift, q, b: (1 << (q + b)) - 1,
+            "mask":     lambda shift, q, b: ((1 << TIMESTAMP_BITS) - 1) & ~((1 << (b + shift)) - 1),
+            "pixels":   lambda shift, q, b: ((1 << PIXEL_BITS) - 1) & ~((1 << q) - 1),
+            "position": lambda shift, q, b: b,
+        }
+        for name, value in tables.items():
+            entries = [0 if split is None else value(n % (1 << len(self.shift)), *split)
+                       for n, split in enumerate(splits)]
+            m.d.comb += new[name].eq(lookup(entries, index, len(new[name]), rom=True))
         m.d.comb += [
             self.fill_shift.eq(bank["shift"][fill_bank]),
             self.fill_mask.eq(bank["mask"][fill_bank]),
