@@ -71,6 +71,8 @@ test-boards: $(BOARDS_STAMP)
 
 NETLIST ?= 1
 test-netlist: $(BOARDS_STAMP)
+	@case "$(NETLIST)" in 1|full) ;; *) echo "make test-netlist: NETLIST is 1 (the CI tier)"\
+		"or full, not '$(NETLIST)'" >&2; exit 2;; esac
 	FLISS_NETLIST=$(NETLIST) $(PY) -m pytest -n 2 tests/test_netlist.py $(PYTEST_ARGS)
 
 test-vendors: $(BOARDS_STAMP)
