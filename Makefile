@@ -26,9 +26,7 @@ test: lint
 	$(PY) -m pytest $(PYTEST_ARGS)
 
 # The full-length runs whose shorter versions `make test` runs (marker long): the link fuzz's
-# 10 000 frames on each simulator, the demo twice, `fliss calibrate` through the virtual board's
-# gateware (its table's 3000 commands; `make test` checks the table in the gateware's and the
-# model board's tests). CI runs them too (.ci/run).
+# 10 000 frames on each simulator, the demo twice. CI runs them too (.ci/run).
 test-long: $(STAMP)
 	$(PY) -m pytest -m long $(PYTEST_ARGS)
 

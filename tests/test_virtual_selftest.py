@@ -73,8 +73,6 @@ def test_laser_jumper_on_the_gateware(board):
     assert JITTER_S / 2 < result.jitter_s < 2 * JITTER_S
 
 
-# (some 3000 register commands over the simulated link: `make test-long`, and CI)
-@pytest.mark.long
 def test_calibration_through_the_gateware(board):
     with connect(board.path, timeout_s=10.0) as client:
         # (the table read back and compared)
