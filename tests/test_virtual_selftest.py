@@ -19,14 +19,13 @@ from fliss.host.calibration import calibrate
 from fliss.host.selftest import CHECKS, EMPTY_SHARE, selftest
 from fliss.host.virtual import VirtualBoard
 from fliss.sim.benches.runner import simulator_available
-from fliss.sim.boards.loopback import JUMPER_DELAY_S, PAD_DELAY_S
+from fliss.sim.boards.loopback import JITTER_S, JUMPER_DELAY_S, PAD_DELAY_S
 from fliss.sim.models.delay import delays
 from fliss.sim.models.finetdc import Line
 
 
-#: The driver's line and jitter (FineLoopback's defaults).
+#: The driver's line (FineLoopback's default).
 LINE = Line()
-JITTER_S = 20e-12
 #: A simulated board is slower than real time: short acquisitions; the calibration's some
 #: 29 000 hits (45 a code, above the check's least 25) in frames of 2 ms, each of which the
 #: board simulates within the host's wait for a histogram.

@@ -29,7 +29,7 @@ from cocotb.triggers import ClockCycles, First, RisingEdge
 from ...hdl.finetdc import TAPS, HitInput
 from ...hdl.top import FlissTop
 from ..models.finetdc import Line
-from .loopback import JUMPER_DELAY_S, PAD_DELAY_S
+from .loopback import JITTER_S, JUMPER_DELAY_S, PAD_DELAY_S
 from amaranth.lib.wiring import In, Out
 
 
@@ -59,7 +59,7 @@ class FineLoopback:
     """Drives ``dut.fine_sampled`` of a :class:`FineTdcTop` (see the module's description)."""
 
     def __init__(self, dut, clock_hz, *, line=None, oscillator_hz=2.4e6, jumper=None,
-                 jumper_delay_s=JUMPER_DELAY_S, pad_delay_s=PAD_DELAY_S, jitter_s=20e-12,
+                 jumper_delay_s=JUMPER_DELAY_S, pad_delay_s=PAD_DELAY_S, jitter_s=JITTER_S,
                  seed=None):
         self.dut = dut
         self.cycle_s = 1 / clock_hz

@@ -36,7 +36,7 @@ from ..models import scheduler as _scheduler
 from ..models.finetdc import Line
 
 
-__all__ = ["JUMPERS", "JUMPER_DELAY_S", "PAD_DELAY_S", "Loopback"]
+__all__ = ["JUMPERS", "JUMPER_DELAY_S", "PAD_DELAY_S", "JITTER_S", "Loopback"]
 
 
 #: What a jumper wire can carry to the photon input.
@@ -50,6 +50,8 @@ JUMPER_DELAY_S = 3.2e-9
 #: path without the wire and the second pad's routing (a stated model value: the board's own
 #: is what the self-test prints).
 PAD_DELAY_S = 2.5e-9
+#: The models' RMS jitter of both loopbacks.
+JITTER_S = 20e-12
 #: ``tdc_input`` -> the trigger its internal loopback reads back.
 _PADS = {HitInput.LASER.value: "laser", HitInput.AGGRESSOR.value: "aggressor"}
 
@@ -59,7 +61,7 @@ class Loopback:
     """A loopback of the model board (see the module's description)."""
     jumper: object = "laser"
     delay_s: float = JUMPER_DELAY_S
-    jitter_s: float = 20e-12
+    jitter_s: float = JITTER_S
     oscillator_hz: float = 2.4e6
     pad_delay_s: float = PAD_DELAY_S
     line: Line = field(default_factory=Line)
