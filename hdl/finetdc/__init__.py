@@ -81,9 +81,9 @@ def popcount_stages(taps=TAPS):
 
 
 #: Cycles from the cycle the line's first flip-flops hold a hit's first non-zero taps to the
-#: cycle its capture is presented: the second flip-flop stage, the ones count, the table read,
-#: the subtraction of the fine time, and the output register.
-LATENCY = 1 + popcount_stages() + 3
+#: cycle its capture is presented: the second flip-flop stage, the ones count, the table read
+#: and its output register, the subtraction of the fine time, and the output register.
+LATENCY = 1 + popcount_stages() + 4
 
 
 def lsb_s(select):

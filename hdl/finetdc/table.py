@@ -36,7 +36,9 @@ class CalibrationTable(wiring.Component):
     code : In(CODE_BITS)
         Raw code to look up.
     fine : Out(TABLE_BITS)
-        Its entry, one cycle later.
+        Its entry, two cycles later: the block RAM's read, then a register (the ECP5's block
+        RAM output is slow, 5.8 ns from the clock in nextpnr's timing model: it goes to a
+        flip-flop, not into the subtraction after it).
     seek : In(1)
     seek_address : In(CODE_BITS)
     write : In(1)
@@ -61,7 +63,8 @@ class CalibrationTable(wiring.Component):
 
         # Lookup
         lookup = memory.read_port()
-        m.d.comb += [lookup.addr.eq(self.code), self.fine.eq(lookup.data)]
+        m.d.comb += lookup.addr.eq(self.code)
+        m.d.sync += self.fine.eq(lookup.data)
 
         # The host's pointer, write and read back
         pointer = Signal(CODE_BITS)

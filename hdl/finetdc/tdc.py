@@ -32,7 +32,7 @@ class FineTdc(wiring.Component):
     (negative) or beyond 13 bits is flagged ``overflow`` (the event filter drops and counts it).
     With ``raw`` the timestamp is the raw code instead, never overflowing: the code-density
     histogram for the calibration. ``pulse`` is ``pulse_index - 1`` as it was in cycle ``c``;
-    ``enable`` is sampled :data:`~fliss.hdl.finetdc.LATENCY` ``- 3`` cycles after ``c``. The
+    ``enable`` is sampled :data:`~fliss.hdl.finetdc.LATENCY` ``- 4`` cycles after ``c``. The
     capture is presented in cycle ``c +`` :data:`~fliss.hdl.finetdc.LATENCY`, in the layout of
     :class:`~fliss.hdl.tdc.CoarseTdc`'s, for the same :class:`~fliss.hdl.tdc.EventFilter`.
 
@@ -147,6 +147,18 @@ class FineTdc(wiring.Component):
             m.d.sync += [base.eq(now * self.units), late.eq(now == never), code.eq(encoder.code),
                          event_pulse.eq(pulse - 1), enabled.eq(self.enable)]
 
+        # While the table's entry goes through its register
+        looked = Signal()
+        looked_base = Signal.like(base)
+        looked_late = Signal()
+        looked_code = Signal.like(code)
+        looked_pulse = Signal(PULSE_BITS)
+        looked_enabled = Signal()
+        m.d.sync += looked.eq(hit)
+        with m.If(hit):
+            m.d.sync += [looked_base.eq(base), looked_late.eq(late), looked_code.eq(code),
+                         looked_pulse.eq(event_pulse), looked_enabled.eq(enabled)]
+
         # The fine time subtracted
         ticks = Signal(range(-(1 << TABLE_BITS), (never + 1) * self.units))
         ticked = Signal()
@@ -154,10 +166,11 @@ class FineTdc(wiring.Component):
         ticks_code = Signal.like(code)
         ticks_pulse = Signal(PULSE_BITS)
         ticks_enabled = Signal()
-        m.d.sync += ticked.eq(hit)
-        with m.If(hit):
-            m.d.sync += [ticks.eq(base - table.fine), ticks_late.eq(late), ticks_code.eq(code),
-                         ticks_pulse.eq(event_pulse), ticks_enabled.eq(enabled)]
+        m.d.sync += ticked.eq(looked)
+        with m.If(looked):
+            m.d.sync += [ticks.eq(looked_base - table.fine), ticks_late.eq(looked_late),
+                         ticks_code.eq(looked_code), ticks_pulse.eq(looked_pulse),
+                         ticks_enabled.eq(looked_enabled)]
 
         # Timestamp at the LSB, and the capture
         timestamp = Signal(len(ticks))
