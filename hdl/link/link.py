@@ -136,7 +136,12 @@ class Link(wiring.Component):
             # the transmitter, for timing; half rate is plenty for a UART and puts no
             # multiplexer after the RAM.
             m.submodules.tx_buffer = tx_buffer = StreamBuffer(8, full_rate=False)
-            wiring.connect(m, uart_rx.o, decoder.i)
+            # And one between the receiver and the frame decoder: the receiver sits by its
+            # pin, the decoder by the command processor, and the byte's write enable (the
+            # receiver's last vote) would cross the chip after four levels of logic.
+            m.submodules.rx_buffer = rx_buffer = StreamBuffer(8, full_rate=False)
+            wiring.connect(m, uart_rx.o, rx_buffer.i)
+            wiring.connect(m, rx_buffer.o, decoder.i)
             wiring.connect(m, encoder.o, tx_buffer.i)
             wiring.connect(m, tx_buffer.o, uart_tx.i)
             m.d.comb += [
