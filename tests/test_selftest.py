@@ -348,8 +348,17 @@ def test_register_file_reads_table_data_from_the_table():
                     "table_address": BY_NAME["table_address"].reset_value(CLOCK_HZ)}
 
 
-def test_virtual_board_jumper_needs_the_fine_tdc(capsys):
+@pytest.mark.parametrize("options, message", [
+    (["--jumper", "laser"], "a jumper runs on the cocotb engine only: use --engine cocotb"),
+    (["--small"], "the iCEBreaker's build runs on the cocotb engine only: use --engine cocotb"),
+])
+def test_virtual_board_refuses_on_the_fast_engine(capsys, options, message):
     # (refused before anything is built)
-    assert main(["board", "--jumper", "laser"]) == 1
-    assert capsys.readouterr().err == "fliss: error: a jumper needs the board with the fine TDC " \
-                                      "(--fine-tdc): nothing drives the coarse TDC's pin\n"
+    assert main(["board", "--engine", "fast", *options]) == 1
+    assert capsys.readouterr().err == f"fliss: error: {message}\n"
+
+
+def test_virtual_board_small_has_no_fine_tdc(capsys):
+    assert main(["board", "--engine", "cocotb", "--small", "--fine-tdc"]) == 1
+    assert capsys.readouterr().err == "fliss: error: the iCEBreaker's build has no fine TDC: " \
+                                      "--small or --fine-tdc, not both\n"
