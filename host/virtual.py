@@ -98,17 +98,22 @@ def _write_if_changed(path, text):
     path.write_text(text)
 
 
-def build(sim, *, baud=VIRTUAL_BAUD, root=None, fine_tdc=False):
+def _folder_name(sim, fine_tdc, small):
+    return f"{sim}-fine" if fine_tdc else f"{sim}-small" if small else sim
+
+
+def build(sim, *, baud=VIRTUAL_BAUD, root=None, fine_tdc=False, small=False):
     """Generate the Verilog and build it for ``sim`` unless an identical build exists; with
     ``fine_tdc``, of the top level with the fine TDC whose delay line the simulation drives
-    (:class:`~fliss.sim.boards.fine_loopback.FineTdcTop`), in a folder of its own.
+    (:class:`~fliss.sim.boards.fine_loopback.FineTdcTop`); with ``small``, of the iCEBreaker's
+    top level (:data:`fliss.hdl.top.SMALL`); each in a folder of its own.
 
     Returns the build folder. Raises :exc:`~fliss.host.errors.VirtualBoardError` if the
     simulator is missing, the baud rate cannot be made, or the build fails (with the path of
     its log).
     """
     from ..hdl import verilog
-    from ..hdl.top import FlissTop
+    from ..hdl.top import SMALL, FlissTop
     from ..sim.benches.runner import TIMESCALE
     from ..sim.boards.harness import gateware_sources
 
@@ -118,15 +123,16 @@ def build(sim, *, baud=VIRTUAL_BAUD, root=None, fine_tdc=False):
             from ..sim.boards.fine_loopback import FineTdcTop
             top = FineTdcTop(baud=baud)
         else:
-            top = FlissTop(baud=baud)
+            top = FlissTop(baud=baud, **(SMALL if small else {}))
     except ValueError as error:
         raise VirtualBoardError(str(error)) from None
-    folder = Path(root or build_root()) / (f"{sim}-fine" if fine_tdc else sim)
+    folder = Path(root or build_root()) / _folder_name(sim, fine_tdc, small)
     folder.mkdir(parents=True, exist_ok=True)
     # Keyed by the gateware's sources: generating the Verilog to compare it would take longer
     # than the board's start-up may.
     digest = hashlib.sha256("\n".join([gateware_sources(), str(baud), sim, *_build_args(sim),
-                                       *TIMESCALE, f"fine_tdc={fine_tdc}"]).encode()
+                                       *TIMESCALE, f"fine_tdc={fine_tdc}", f"small={small}"]
+                                      ).encode()
                             ).hexdigest()
     # One build at a time per folder (tests and the demo may start boards side by side).
     with open(folder / "build.lock", "w") as lock:
@@ -247,15 +253,19 @@ class VirtualBoard:
         Build the top level with the fine TDC, its delay line driven from the model
         (:mod:`fliss.sim.boards.fine_loopback`: the on-chip oscillator, the internal loopback,
         and a jumper); the cocotb engine only.
+    small : bool
+        Build the iCEBreaker's top level (:data:`fliss.hdl.top.SMALL`: histograms only, no raw
+        events, no aggressor emitter, no keyed mode); the cocotb engine only.
     jumper : str or None
-        With ``fine_tdc``: a jumper wire from the ``"laser"`` or ``"aggressor"`` output to the
-        photon input, seen by the fine TDC.
+        A jumper wire from the ``"laser"`` or ``"aggressor"`` output to the photon input
+        (:mod:`fliss.sim.boards.jumper`: the coarse TDC's pin; with ``fine_tdc``, the fine
+        TDC's line too); the cocotb engine only.
     """
 
     def __init__(self, sim="verilator", *, engine=None, baud=VIRTUAL_BAUD, target_m=4.0,
                  ambient_hz=1e5, signal=0.05, aggressor_signal=0.05, aggressor_tof_s=None,
                  seed=None, scene="single", sensor="column", object_m=2.5, reset_after=None,
-                 root=None, fine_tdc=False, jumper=None):
+                 root=None, fine_tdc=False, small=False, jumper=None):
         from ..sim.scene.pixels import SCENE_NAMES, SENSOR_KINDS
         if scene not in SCENE_NAMES:
             raise VirtualBoardError(f"unknown scene {scene!r}: choose one of "
@@ -277,14 +287,21 @@ class VirtualBoard:
         if fine_tdc and engine != "cocotb":
             raise VirtualBoardError("the fine TDC runs on the cocotb engine only: use --engine "
                                     "cocotb")
+        if small and engine != "cocotb":
+            raise VirtualBoardError("the iCEBreaker's build runs on the cocotb engine only: use "
+                                    "--engine cocotb")
+        if small and fine_tdc:
+            raise VirtualBoardError("the iCEBreaker's build has no fine TDC: --small or "
+                                    "--fine-tdc, not both")
         if jumper not in (None, "laser", "aggressor"):
             raise VirtualBoardError(f"a jumper is laser or aggressor, not {jumper!r}")
-        if jumper and not fine_tdc:
-            raise VirtualBoardError("a jumper needs the board with the fine TDC (--fine-tdc): "
-                                    "nothing drives the coarse TDC's pin")
+        if jumper and engine != "cocotb":
+            raise VirtualBoardError("a jumper runs on the cocotb engine only: use --engine "
+                                    "cocotb")
         self.fine_tdc = bool(fine_tdc)
+        self.small = bool(small)
         self.folder = self.root / ("fast" if engine == "fast" else
-                                   f"{sim}-fine" if fine_tdc else sim)
+                                   _folder_name(sim, fine_tdc, small))
         self.path = None
         #: The link to the pty in ``root``: ``tty``, or ``tty-2``, ... when others are taken
         #: (None: none could be made).
@@ -328,7 +345,8 @@ class VirtualBoard:
         if self.engine == "fast":
             command = self._fast_command()
         else:
-            build(self.sim, baud=self.baud, root=self.root, fine_tdc=self.fine_tdc)
+            build(self.sim, baud=self.baud, root=self.root, fine_tdc=self.fine_tdc,
+                  small=self.small)
             code = ("import sys; from fliss.host.virtual import _simulate; "
                     "_simulate(sys.argv[1])")
             command = [sys.executable, "-c", code, json.dumps({
@@ -462,7 +480,7 @@ def start_virtual_board(sim="verilator", **options):
 
     ``options`` are those of :class:`VirtualBoard` (``baud``, ``target_m``, ``ambient_hz``,
     ``signal``, ``aggressor_signal``, ``aggressor_tof_s``, ``seed``, ``scene``, ``sensor``,
-    ``object_m``, ``reset_after``, ``root``).
+    ``object_m``, ``reset_after``, ``root``, ``fine_tdc``, ``small``, ``jumper``).
     """
     board = VirtualBoard(sim, **options)
     try:

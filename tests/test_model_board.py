@@ -75,14 +75,15 @@ def _options(parser):
 
 def test_the_model_board_takes_the_options_of_fliss_board(capsys):
     # One name per setting: every option of the model board is fliss board's, which has only
-    # the simulator's and the engine's own besides (and the fine TDC build's: --fine-tdc and
-    # --jumper).
+    # the simulator's and the engine's own besides (and the builds' and the jumper's:
+    # --fine-tdc, --small, --jumper).
     from fliss.host.commands import board as board_command
     commands = argparse.ArgumentParser().add_subparsers()
     board_command.register(commands, argparse.HelpFormatter)
     model, board = _options(build_parser()), _options(commands.choices["board"])
     assert model - board == set()
-    assert board - model == {"--sim", "--engine", "--baud", "--fine-tdc", "--jumper"}
+    assert board - model == {"--sim", "--engine", "--baud", "--fine-tdc", "--small",
+                             "--jumper"}
     # A rate takes its unit in both.
     message = "--ambient 1e5: give a rate with its unit, not negative: 100kHz, 1e5Hz or 0Hz"
     with pytest.raises(SystemExit):

@@ -254,11 +254,13 @@ def test_icebreaker_build_skips_what_it_cannot_run(capsys, up5k_maxima):
             f"histogram    skipped  {reason}",
             "calibration  skipped  no fine TDC in this build",
             "link         pass     no link errors, board or host"]
-        # On the jumper: the coarse TDC, hits in the cycle after the laser's (delay < 1 cycle)
+        # On the jumper: the coarse TDC. The laser rises in its TDC start's cycle
+        # (LaserTrigger), the jumper's 3.2 ns later: the edge that closes that cycle reads the
+        # pin high, and CoarseTdc stamps the cycles from the start's to that one: code 0
         with connect(board.path) as client:
             result = selftest(client, jumper="laser", reference=delays)
     assert outcomes(result) == ["pass", "skipped", "pass", "skipped", "pass"]
-    assert result.delay_s == 1 / CLOCK_HZ
+    assert result.delay_s == 0 and result.jitter_s == 0
     assert line_of(result, "histogram").detail.endswith("(keyed not in this build)")
     with model_board(loopback=Loopback(jumper="aggressor"), maxima=up5k_maxima) as board, \
             connect(board.path) as client:
@@ -346,8 +348,17 @@ def test_register_file_reads_table_data_from_the_table():
                     "table_address": BY_NAME["table_address"].reset_value(CLOCK_HZ)}
 
 
-def test_virtual_board_jumper_needs_the_fine_tdc(capsys):
+@pytest.mark.parametrize("options, message", [
+    (["--jumper", "laser"], "a jumper runs on the cocotb engine only: use --engine cocotb"),
+    (["--small"], "the iCEBreaker's build runs on the cocotb engine only: use --engine cocotb"),
+])
+def test_virtual_board_refuses_on_the_fast_engine(capsys, options, message):
     # (refused before anything is built)
-    assert main(["board", "--jumper", "laser"]) == 1
-    assert capsys.readouterr().err == "fliss: error: a jumper needs the board with the fine TDC " \
-                                      "(--fine-tdc): nothing drives the coarse TDC's pin\n"
+    assert main(["board", "--engine", "fast", *options]) == 1
+    assert capsys.readouterr().err == f"fliss: error: {message}\n"
+
+
+def test_virtual_board_small_has_no_fine_tdc(capsys):
+    assert main(["board", "--engine", "cocotb", "--small", "--fine-tdc"]) == 1
+    assert capsys.readouterr().err == "fliss: error: the iCEBreaker's build has no fine TDC: " \
+                                      "--small or --fine-tdc, not both\n"

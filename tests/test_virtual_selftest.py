@@ -1,14 +1,21 @@
-"""``fliss selftest`` on the virtual board with the fine TDC (cocotb engine, the top level in
-Verilator), its delay line driven from the model (:mod:`fliss.sim.boards.fine_loopback`): the
-internal loopback's delay (the trigger outputs' pads read back) and a jumper's against the ones
-the driver states, every check through the gateware with no jumper, the code-density
+"""``fliss selftest`` on the virtual board (cocotb engine, the top level in Verilator).
+
+With the fine TDC, its delay line driven from the model (:mod:`fliss.sim.boards.fine_loopback`):
+the internal loopback's delay (the trigger outputs' pads read back) and a jumper's against the
+ones the driver states, every check through the gateware with no jumper, the code-density
 calibration of the oscillator's hits, the table written and read back through the gateware's
 registers, and the victim's delays against the reference model through the aggressor's jumper.
+
+Without it, the coarse TDC on a jumper (:mod:`fliss.sim.boards.jumper`): every line of the
+self-test through the laser's jumper and the aggressor's on the board ``make test`` builds
+anyway, and through the laser's on the iCEBreaker's build (histograms only: ``make test-long``).
 
 A missing Verilator skips these tests, or fails them when ``FLISS_REQUIRE_SIMULATORS`` is set.
 """
 
+import math
 import os
+import re
 
 import numpy as np
 import pytest
@@ -16,7 +23,7 @@ import pytest
 from fliss.hdl import DEFAULT_CLOCK_HZ
 from fliss.host.board import connect
 from fliss.host.calibration import calibrate
-from fliss.host.selftest import CHECKS, EMPTY_SHARE, selftest
+from fliss.host.selftest import CHECKS, EMPTY_SHARE, PERIOD_CYCLES, selftest
 from fliss.host.virtual import VirtualBoard
 from fliss.sim.benches.runner import simulator_available
 from fliss.sim.boards.loopback import JITTER_S, JUMPER_DELAY_S, PAD_DELAY_S
@@ -110,3 +117,87 @@ def test_the_delays_through_the_aggressors_jumper():
                         "calibration": "pass", "link": "pass"}, result.table()
     # The nominal table, a 50 ps LSB rounded down
     assert abs(result.delay_s - (JUMPER_DELAY_S + LINE.offset_s)) < 250e-12
+
+
+#: The coarse TDC's code of a jumper's hit: the laser rises at the clock edge that opens its TDC
+#: start's cycle (fliss.hdl.delay.laser.LaserTrigger), the jumper's copy JUMPER_DELAY_S later;
+#: the first edge to read the pin high closes the cycle floor(JUMPER_DELAY_S f) after the
+#: start's, and CoarseTdc stamps the cycles from the start's cycle to that one (fliss.hdl.tdc).
+#: (0 for any jumper under a cycle.) The aggressor's hit is that plus its offset.
+COARSE_CODE = math.floor(JUMPER_DELAY_S * DEFAULT_CLOCK_HZ)
+#: What ``same time`` and ``histogram`` say of that code: no jitter within one code.
+COARSE_AT = f"{COARSE_CODE / DEFAULT_CLOCK_HZ * 1e9:.3f} ns"
+#: Raw acquisitions of 0.3 s of the host's time, histograms of 0.5 ms (50 pulses at the
+#: self-test's period).
+COARSE_DURATIONS_S = {"raw": 0.3, "histogram": 0.0005}
+LASER_DELAYS = "the victim's own hits are timed from its own delayed start, so its delays do " \
+               "not show: loop the aggressor's trigger to the photon input (--jumper aggressor)"
+
+
+def coarse_selftest(jumper, **options):
+    """The self-test's lines on a virtual board without the fine TDC, with ``jumper``."""
+    if not simulator_available("verilator"):
+        if os.environ.get("FLISS_REQUIRE_SIMULATORS"):
+            pytest.fail("Verilator is missing")
+        pytest.skip("Verilator is missing")
+    virtual = VirtualBoard("verilator", engine="cocotb", jumper=jumper, seed=5, **options)
+    virtual.start(timeout_s=1800)
+    try:
+        with connect(virtual.path, timeout_s=10.0) as client:
+            result = selftest(client, jumper=jumper, reference=delays,
+                              durations_s=COARSE_DURATIONS_S)
+    finally:
+        virtual.stop()
+    # (the table `fliss selftest` prints)
+    return result, result.table().splitlines()
+
+
+def hits_and_pulses(line):
+    """The hits and pulses of a ``same time`` line at :data:`COARSE_AT`, or fail."""
+    found = re.fullmatch(rf"same time    pass     (\d+) hits of (\d+) pulses at "
+                         rf"{re.escape(COARSE_AT)} \(RMS jitter 0 ps\)", line)
+    assert found, line
+    return int(found[1]), int(found[2])
+
+
+def test_coarse_tdc_on_the_lasers_jumper():
+    result, lines = coarse_selftest("laser")
+    hits, pulses = hits_and_pulses(lines[1])
+    assert pulses >= 20 and hits == pulses, lines[1]
+    assert lines[2:] == [
+        f"delays       skipped  {LASER_DELAYS}",
+        f"histogram    pass     peak at {COARSE_AT} in off, mseq, masked, keyed",
+        "calibration  skipped  no fine TDC in this build",
+        "link         pass     no link errors, board or host"]
+    assert result.delay_s == COARSE_CODE / DEFAULT_CLOCK_HZ
+
+
+def test_coarse_tdc_on_the_aggressors_jumper():
+    # The victim's delays through the coarse TDC, pulse for pulse
+    _, lines = coarse_selftest("aggressor")
+    hits, pulses = hits_and_pulses(lines[1])
+    assert pulses >= 20 and hits == pulses, lines[1]
+    found = re.fullmatch(r"delays       pass     delays as the model's \((\d+) pulses in mseq, "
+                         r"(\d+) pulses in masked\)", lines[2])
+    assert found and min(int(found[1]), int(found[2])) >= 20, lines[2]
+    assert lines[3:] == [
+        "histogram    skipped  the photon input carries the aggressor's trigger, not the "
+        "victim's laser",
+        "calibration  skipped  no fine TDC in this build",
+        "link         pass     no link errors, board or host"]
+
+
+@pytest.mark.long
+def test_coarse_tdc_on_the_icebreakers_build():
+    # No raw events: `same time` from a histogram of 0.5 ms, its pulses counted from the
+    # integration time (a start more or less in the window)
+    result, lines = coarse_selftest("laser", small=True)
+    hits, pulses = hits_and_pulses(lines[1])
+    assert pulses == round(COARSE_DURATIONS_S["histogram"] * DEFAULT_CLOCK_HZ) // PERIOD_CYCLES
+    assert abs(hits - pulses) <= 1, lines[1]
+    assert lines[2:] == [
+        f"delays       skipped  {LASER_DELAYS}",
+        f"histogram    pass     peak at {COARSE_AT} in off, mseq, masked (keyed not in this "
+        f"build)",
+        "calibration  skipped  no fine TDC in this build",
+        "link         pass     no link errors, board or host"]

@@ -6,6 +6,8 @@ import signal
 import sys
 import time
 
+from ...hdl import DEFAULT_CLOCK_HZ
+from ...sim.boards.loopback import JUMPER_DELAY_S
 from ...sim.boards.noisy_line import NoisyLine, add_line_arguments, describe, faults_from_args
 from ...sim.boards.options import add_scene_arguments, rate_hz
 from ..errors import UserError
@@ -24,7 +26,7 @@ def register(subparsers, formatter):
         "board", formatter_class=formatter,
         help="run the virtual board: the real gateware in a simulator, behind a pty",
         description="Generates the Verilog of the FLISS top level, builds it once for the "
-                    "engine (build/virtual-board/fast/ or SIM/), runs it with the scene "
+                    "engine (build/virtual-board/fast/, SIM/, SIM-fine/ or SIM-small/), runs it with the scene "
                     "simulator on its sensor pins in closed loop, and prints the path of a "
                     "pseudo-terminal carrying its UART (also linked as build/virtual-board/tty, "
                     "or tty-2, ... "
@@ -48,9 +50,16 @@ def register(subparsers, formatter):
                              "the model (the on-chip oscillator, the internal loopback of the "
                              "trigger outputs' pads, and a jumper with --jumper: `fliss "
                              "selftest` and `fliss calibrate` run on it); cocotb engine only")
+    parser.add_argument("--small", action="store_true",
+                        help="build the top level with the iCEBreaker's options (histograms "
+                             "only: no raw events, no aggressor emitter, no keyed mode), at "
+                             f"the virtual board's {DEFAULT_CLOCK_HZ / 1e6:g} MHz; cocotb engine only")
     parser.add_argument("--jumper", choices=("laser", "aggressor"), default=None,
-                        help="with --fine-tdc: a jumper wire from the laser output or the "
-                             "aggressor's trigger to the photon input")
+                        help="a jumper wire from the laser output or the aggressor's trigger "
+                             f"to the photon input, {JUMPER_DELAY_S * 1e9:g} ns after the trigger's "
+                             "clock edge: the "
+                             "coarse TDC's pin, and with --fine-tdc the fine TDC's line "
+                             "(`fliss selftest --jumper` runs on it); cocotb engine only")
     add_line_arguments(parser)
     parser.set_defaults(run=run_board)
 
@@ -72,7 +81,7 @@ def run_board(args):
                          aggressor_signal=args.aggressor_signal, seed=args.seed,
                          scene=args.scene, sensor=args.sensor, object_m=args.object_m,
                          reset_after=args.reset_after, fine_tdc=args.fine_tdc,
-                         jumper=args.jumper)
+                         small=args.small, jumper=args.jumper)
 
     def terminate(number, frame):
         raise KeyboardInterrupt

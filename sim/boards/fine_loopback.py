@@ -13,7 +13,8 @@ shows the register ``tdc_input`` (a simulation build only: the board has neither
   one);
 * ``tdc_input`` 0, the photon pin: with ``jumper`` (``"laser"`` or ``"aggressor"``), a jumper
   wire from that trigger output, ``jumper_delay_s`` after its clock edge; else nothing (the pin
-  gets no photons on the virtual board). The coarse TDC's pin is not driven.
+  gets no photons on the virtual board). The same jumper drives the coarse TDC's pin
+  (:class:`~fliss.sim.boards.jumper.Jumper`).
 * ``tdc_input`` 2 and 3, the internal loopback: the laser's or the aggressor's output read back
   at its pad, ``pad_delay_s`` after its clock edge (the model board's,
   :data:`~fliss.sim.boards.loopback.PAD_DELAY_S`).

@@ -13,7 +13,8 @@ A :class:`Loopback` says what reaches the TDCs and with what delay and jitter:
 Both loopbacks have the Gaussian jitter ``jitter_s``.
 
 :meth:`Loopback.events` gives the events of a run of clock cycles as the board's TDC makes them:
-the coarse TDC (``tdc_source`` 1) counts the clock edges from the TDC start to the hit; the fine
+the coarse TDC (``tdc_source`` 1) counts the clock cycles from the TDC start's to the hit's
+(a hit less than a cycle after its trigger's clock edge is code 0, as on the board); the fine
 TDC (2 and 3) samples the modelled line (:class:`fliss.sim.models.finetdc.Line`) at the first
 edge after the hit and looks the raw code up in the board's calibration table, as
 :func:`fliss.sim.models.finetdc.captures` does. The pulses fire as the pulse scheduler fires
@@ -153,7 +154,11 @@ class LoopbackRun:
         sampled = np.floor(hits_s / cycle_s).astype(np.int64) + 1
         tau_s = sampled * cycle_s - hits_s
         s = self.settings
-        if s["tdc_source"] != TdcSource.COARSE.value:
+        if s["tdc_source"] == TdcSource.COARSE.value:
+            # The coarse TDC counts the cycle that edge closes (the hit's own): the cycles from
+            # the start's to the hit's (fliss.hdl.tdc.CoarseTdc)
+            sampled -= 1
+        else:
             # A hit that has not reached the first tap by the edge is the next edge's
             codes = self.loopback.line.codes(tau_s, self.rng)
             late = codes == 0

@@ -56,8 +56,11 @@ window's copy overwrites the buffer: the events not shifted out by then are lost
 (80 cycles) a window is read out 34 cycles after its TDC start and its events may start
 until the next window's readout, 80 cycles later: 14 events per window fit (one every 6 cycles).
 
-The built-in coarse TDC (``tdc_source = 1``, pin ``photon_hit``) gets no photons: this model
-learns the photons of a window only once the window is over.
+The built-in coarse TDC (``tdc_source = 1``, pin ``photon_hit``) gets no photons from the scene:
+this model learns the photons of a window only once the window is over. With
+``FLISS_BOARD_JUMPER`` (``laser`` or ``aggressor``) a jumper wire drives that pin from the
+trigger output (:class:`~fliss.sim.boards.jumper.Jumper`, 3.2 ns after its clock edge); the
+scene keeps feeding the sensor bus, which ``tdc_source = 1`` does not read.
 """
 
 import math
@@ -412,14 +415,18 @@ def reset_requested(path):
     return True
 
 
-def _start_fine_loopback(dut, seed):
-    """With ``FLISS_BOARD_FINE_TDC`` (a build of :class:`~fliss.sim.boards.fine_loopback.FineTdcTop`),
-    the fine TDC's delay line driven from the model: the oscillator, the internal loopback, and
-    the jumper wire of ``FLISS_BOARD_JUMPER`` (``laser`` or ``aggressor``) if any."""
+def _start_loopbacks(dut, seed):
+    """The jumper wire of ``FLISS_BOARD_JUMPER`` (``laser`` or ``aggressor``) on the photon pin
+    (:class:`~fliss.sim.boards.jumper.Jumper`), if any; with ``FLISS_BOARD_FINE_TDC`` (a build
+    of :class:`~fliss.sim.boards.fine_loopback.FineTdcTop`), the fine TDC's delay line driven
+    from the model: the oscillator, the internal loopback, and that jumper."""
+    jumper = os.environ.get("FLISS_BOARD_JUMPER") or None
+    if jumper is not None:
+        from .jumper import Jumper
+        Jumper(dut, jumper, seed=seed).start()
     if os.environ.get("FLISS_BOARD_FINE_TDC") == "1":
         from .fine_loopback import FineLoopback
-        FineLoopback(dut, DEFAULT_CLOCK_HZ, seed=seed,
-                     jumper=os.environ.get("FLISS_BOARD_JUMPER") or None).start()
+        FineLoopback(dut, DEFAULT_CLOCK_HZ, seed=seed, jumper=jumper).start()
 
 
 @cocotb.test()
@@ -442,7 +449,7 @@ async def virtual_board(dut):
     dut.rst.value = 0
     await ClockCycles(dut.clk, 4)
     sensor.start()
-    _start_fine_loopback(dut, seed)
+    _start_loopbacks(dut, seed)
     bridge = PtyBridge(dut, baud, count_data=reset_after is not None)
     bridge.start()
     if pty_file:
