@@ -16,6 +16,8 @@ from ..models import scheduler as _scheduler
 from ...protocol.events import EVENT_DTYPE
 from .description import COUNTERS, FWHM_PER_SIGMA, TDC_CODES, TRUNCATION_SIGMAS, Scene
 from . import few
+from .detection import non_paralysable, spans
+from .draws import Hits
 from .pulses import EdgeBuffer, EdgeSchedule, PulseTrain, fed_edges
 
 
@@ -51,58 +53,14 @@ class Chunk:
         return len(self.start_cycles)
 
 
-def spans(times, starts, span_starts, ends, dead, separated):
-    """``(span, in_span, in_window)`` of photons at ``times`` (sorted): the span each is in (the
-    TDC window from ``starts[span]``, or the dead time before it), whether it is in one, and
-    whether in its window. ``separated``: spans do not overlap, each its window and the dead
-    time before; otherwise they run from ``span_starts`` to ``ends``."""
-    if separated:
-        span = np.searchsorted(starts, times + dead, side="right") - 1
-        offset = times - starts[np.maximum(span, 0)]
-        in_span = (span >= 0) & (offset < TDC_CODES)
-        in_window = in_span & (offset >= 0)
-    else:
-        span = np.searchsorted(span_starts, times, side="right") - 1
-        clipped = np.maximum(span, 0)
-        in_span = (span >= 0) & (times < ends[clipped])
-        in_window = in_span & (times >= starts[clipped])
-    return span, in_span, in_window
-
-
-def non_paralysable(times, dead, last):
-    """Which photons (sorted ``times``) a non-paralysable detector detects; ``last`` is the time
-    of the last detection before them."""
-    count = len(times)
-    if count == 0 or dead <= 0:
-        return np.ones(count, dtype=bool)
-    previous = np.empty(count)
-    previous[0] = last
-    previous[1:] = times[:-1]
-    # A photon at least one dead time after the previous photon is detected whatever happened
-    # before. The others sit in clusters behind such a photon and are resolved in order, one
-    # position of all clusters at a time.
-    detected = (times - previous) >= dead
-    if detected.all():
-        return detected
-    heads = np.maximum.accumulate(np.where(detected, np.arange(count), -1))
-    open_ = np.flatnonzero(~detected)
-    head = heads[open_]
-    clusters, cluster = np.unique(head, return_inverse=True)
-    reference = np.where(clusters >= 0, times[np.maximum(clusters, 0)], last)
-    position = open_ - head
-    order = np.argsort(position, kind="stable")
-    bounds = np.searchsorted(position[order], np.arange(1, position.max() + 2))
-    for lo, hi in zip(bounds[:-1], bounds[1:]):
-        members = order[lo:hi]
-        index = open_[members]
-        owner = cluster[members]
-        ok = times[index] - reference[owner] >= dead
-        detected[index] = ok
-        reference[owner[ok]] = times[index[ok]]
-    return detected
-
-
 _LABELS = {}
+
+#: Largest number of laser cycles a step without photons takes in plain Python
+#: (:meth:`Simulation._quiet`; closed loop steps one to three).
+QUIET_CYCLES = 8
+
+_NO_EVENTS = np.zeros(0, dtype=EVENT_DTYPE)
+_NO_EVENTS.flags.writeable = False
 
 
 def _labels(source, number):
@@ -139,6 +97,10 @@ class Simulation:
     #: Steps with at most this many photons are resolved in plain Python (:mod:`.few`), the
     #: others with numpy; the results are the same.
     few_photons = few.FEW_PHOTONS
+
+    #: Steps of fed starts over at most this many laser cycles and without photons take a
+    #: shorter path in plain Python (:meth:`_quiet`); the results are the same.
+    quiet_cycles = QUIET_CYCLES
 
     def __init__(self, scene, *, seed=None, chunk_cycles=1 << 16, external_starts=False,
                  external_aggressors=False):
@@ -209,6 +171,8 @@ class Simulation:
         self._pixel_count = None
         self._carry_pixels = None
         self._per_pixel = None
+        self._hits = None               # see _draws
+        self._no_counts = None          # the counters of a step without photons (read-only)
         #: Photon counters since the start, ``(sources, len(COUNTERS))``.
         self.counts = np.zeros((self._sources, len(COUNTERS)), dtype=np.int64)
 
@@ -247,67 +211,84 @@ class Simulation:
         edges.feed(fed_edges(edge_cycles, edges.last, "Aggressor trigger edges",
                              "feed_aggressor"))
 
+    def _draws(self):
+        """Per pulsed source, then for the background: its Poisson counts drawn ahead
+        (:class:`~fliss.sim.scene.draws.Hits`, per pulse or per span; ``None`` when its mean is
+        0) and the generator of the rest of its photons' draws. Made at the first step, when a
+        pixel array has set its sources' means."""
+        if self._hits is None:
+            array = self._pixel_count
+            generators = iter(self._rng.spawn(2 * len(self._pulsed) + 2))
+            self._hits = []
+            for index, (_, mean, _, _) in enumerate(self._pulsed):
+                if array is not None:
+                    mean = self._per_pixel[index][0]
+                counts, rest = next(generators), next(generators)
+                self._hits.append((Hits(counts, mean) if mean else None, rest))
+            # Background: a Poisson number per span of the longest length a span can have,
+            # then thinned to each span's own length
+            mean = self._background * (TDC_CODES + self._dead) * (array or 1)
+            counts, rest = next(generators), next(generators)
+            self._hits.append((Hits(counts, mean) if mean > 0 else None, rest))
+        return self._hits
+
+    def _limit(self, boundary, index):
+        """Pulses of source ``index`` arriving before this time have photons before
+        ``boundary`` (the others not)."""
+        _, _, sigma, wander = self._pulsed[index]
+        lowest = 0.0 if self._pixel_count is None else self._per_pixel[index][2]
+        return boundary + TRUNCATION_SIGMAS * (sigma + wander) + 1.0 - lowest
+
     def _photons(self, boundary, count, starts, span_starts, ends):
         """Photons up to ``boundary`` (and of the pulses near it, after it): carried over, from
         each pulsed source, and background in the ``count`` spans; ``(times, sources, pixels)``,
         not sorted. ``pixels`` is ``None`` but for a pixel array, whose pulsed sources give each
         pixel its own mean detections and arrival time (``_per_pixel``) and whose background falls
         on every pixel alike."""
-        rng = self._rng
         array = self._pixel_count
+        draws = self._draws()
         times, sources, owners = [self._carry_times], [self._carry_sources], [self._carry_pixels]
-        for index, (pulses, mean, sigma, wander) in enumerate(self._pulsed):
+        for index, (pulses, _, sigma, wander) in enumerate(self._pulsed):
             source = index if index == 0 else index + 1
-            extra, lowest = None, 0.0
-            if array is not None:
-                mean, extra, lowest, shares = self._per_pixel[index]
-            centres = pulses.until(boundary + TRUNCATION_SIGMAS * (sigma + wander) + 1.0
-                                   - lowest)
-            if not mean or len(centres) == 0:
+            centres = pulses.until(self._limit(boundary, index))
+            hits, rng = draws[index]
+            if hits is None or len(centres) == 0:
                 continue
+            # Each pulse's Poisson number of photons (for a pixel array, of the array's
+            # photons, shared out by the pixels' means: the same law as each pixel's own)
+            pulse, number = hits.take(len(centres))
+            if not len(pulse):
+                continue
+            centres = centres[pulse]
             if wander > 0:
                 centres = centres + wander * rng.standard_normal(len(centres)).clip(
                     -TRUNCATION_SIGMAS, TRUNCATION_SIGMAS)
-            number = rng.poisson(mean * len(centres))
-            if number == 0:
-                continue                    # (no draws: the generator's stream is unchanged)
+            arrivals = np.repeat(centres, number)
+            number = len(arrivals)
             if array is not None:
-                # Each pixel's Poisson number of photons (of its own mean), drawn as the
-                # Poisson number of the array's shared out by the pixels' means: the same law
+                _, extra, _, shares = self._per_pixel[index]
                 pixel = np.searchsorted(shares, rng.random(number), side="right")
                 pixel = np.minimum(pixel, array - 1).astype(np.int16)
                 owners.append(pixel)
-            spread = rng.standard_normal(number).clip(-TRUNCATION_SIGMAS, TRUNCATION_SIGMAS)
-            if len(centres) == 1:           # (no draw: the generator's stream is unchanged)
-                arrivals = np.full(number, centres[0])
-            else:
-                arrivals = centres[rng.integers(0, len(centres), number)]
-            if extra is not None:
                 arrivals = arrivals + extra[pixel]
+            spread = rng.standard_normal(number).clip(-TRUNCATION_SIGMAS, TRUNCATION_SIGMAS)
             times.append(arrivals + sigma * spread)
             sources.append(_labels(source, number))
-        if self._background > 0:
-            # A Poisson process on each span: drawn on spans all as long as the longest, then
-            # thinned to each span's true length.
-            if self._separated:
-                longest = TDC_CODES + self._dead
-            else:
-                lengths = ends - span_starts
-                longest = float(lengths.max())
-            mean = self._background * longest * count
-            if array is not None:
-                mean = mean * array
-            number = rng.poisson(mean)
-            if number == 0:
-                return self._gathered(times, sources, owners)
-            span = rng.integers(0, count, number)
-            offset = rng.uniform(0.0, longest, number)
+        hits, rng = draws[-1]
+        span, number = hits.take(count) if hits is not None else ((), ())
+        if len(span):
+            # A Poisson process on each span: drawn on spans all as long as the longest a
+            # span can be (its window and the dead time before), then thinned to each span's
+            # true length.
+            span = np.repeat(span, number)
+            number = len(span)
+            offset = rng.uniform(0.0, TDC_CODES + self._dead, number)
             if array is not None:
                 pixel = rng.integers(0, array, number).astype(np.int16)
             if self._separated:
                 times.append(starts[span] + (offset - self._dead))
             else:
-                inside = offset < lengths[span]
+                inside = offset < (ends - span_starts)[span]
                 times.append(span_starts[span[inside]] + offset[inside])
                 number = int(inside.sum())
                 if array is not None:
@@ -316,6 +297,58 @@ class Simulation:
             if array is not None:
                 owners.append(pixel)
         return self._gathered(times, sources, owners)
+
+    def _quiet(self, max_cycles, until_cycle):
+        """The next step (fed starts, a few laser cycles) when it has no photon, in plain
+        Python: nothing carried over, and every pulse and span it covers drawn with none;
+        ``None`` otherwise (:meth:`step` then simulates it)."""
+        if len(self._carry_times):
+            return None
+        max_cycles = self.chunk_cycles if max_cycles is None else int(max_cycles)
+        most = self.quiet_cycles
+        cycles = self._starts.values(self.pulse, self.pulse + min(max_cycles, most) + 1)
+        count = min(max_cycles, len(cycles) - 1)
+        if until_cycle is not None:
+            count = min(count, sum(cycle < until_cycle for cycle in cycles))
+        if count <= 0 or (count == most and max_cycles > most):
+            return None
+        # The windows, as _windows makes them
+        lsb, dead = self._lsb, self._dead
+        edges = [cycle * lsb for cycle in cycles[:count + 1]]
+        if self._separated:
+            boundary = edges[-1] - dead
+            previous_end = edges[-2] + TDC_CODES
+        else:
+            previous_end = min(edges[-2] + TDC_CODES, edges[-1])
+            boundary = max(edges[-1] - dead, previous_end)
+        draws = self._draws()
+        handed = []
+        for index, (pulses, *_) in enumerate(self._pulsed):
+            number = pulses.count_until(self._limit(boundary, index))
+            hits = draws[index][0]
+            if number and hits is not None and not hits.quiet(number):
+                return None
+            handed.append(number)
+        hits = draws[-1][0]
+        if hits is not None and not hits.quiet(count):
+            return None
+        for (pulses, *_), (hits, _), number in zip(self._pulsed, draws, handed):
+            pulses.skip(number)
+            if hits is not None:
+                hits.skip(number)
+        if draws[-1][0] is not None:
+            draws[-1][0].skip(count)
+        chunk = self._empty_chunk(np.array(cycles[:count], dtype=np.int64))
+        self.pulse += count
+        self._starts.trim(self.pulse)
+        self._previous_end = previous_end
+        return chunk
+
+    def _empty_chunk(self, start_cycles):
+        if self._no_counts is None:
+            self._no_counts = np.zeros_like(self.counts)
+            self._no_counts.flags.writeable = False
+        return Chunk(self.pulse, start_cycles, _NO_EVENTS, self._no_counts)
 
     def _gathered(self, times, sources, owners):
         if len(times) == 1:
@@ -353,6 +386,10 @@ class Simulation:
     def step(self, max_cycles=None, *, until_cycle=None):
         """Simulate the next laser cycles: at most ``max_cycles`` (default: one chunk), and only
         those whose TDC start is before clock cycle ``until_cycle``. Returns a :class:`Chunk`."""
+        if self.external_starts:
+            quiet = self._quiet(max_cycles, until_cycle)
+            if quiet is not None:
+                return quiet
         cycles, count = self._cycles(max_cycles, until_cycle)
         if count == 0:
             return Chunk(self.pulse, cycles[:0].copy(), np.zeros(0, dtype=EVENT_DTYPE),

@@ -1,0 +1,67 @@
+"""Poisson counts drawn ahead in blocks, for the scene simulator's sources.
+
+A pulsed source gives each of its pulses a Poisson number of detections, the background each
+span a Poisson number of photons; :class:`Hits` draws those counts for thousands of pulses
+(spans) at a time and keeps the ones that are not zero, so a step of the simulation sees at
+once whether its pulses have any photon (in closed loop, most steps have none) and takes the
+counts of many pulses with one call. Each source has a generator of its own (spawned from the
+simulation's), so its counts do not depend on how the run is cut into steps.
+"""
+
+import numpy as np
+
+
+__all__ = ["Hits"]
+
+
+class Hits:
+    """Independent Poisson counts of mean ``mean``, one per pulse (span) in order, drawn
+    ``block`` at a time from ``rng``."""
+
+    def __init__(self, rng, mean, block=1 << 16):
+        self._rng, self._mean, self._block = rng, float(mean), block
+        self._drawn = 0                 # counts drawn so far
+        self._taken = 0                 # counts taken so far
+        self._where = np.zeros(0, dtype=np.int64)     # indices of the non-zero counts drawn
+        self._counts = np.zeros(0, dtype=np.int64)    # and those counts
+        self._head = 0                  # first of them not taken
+        #: Index of the next non-zero count (``self._drawn`` when none is drawn yet).
+        self.next_hit = 0
+        self._refill()
+
+    def _refill(self):
+        while self._head == len(self._where):
+            counts = self._rng.poisson(self._mean, self._block)
+            where = np.flatnonzero(counts)
+            self._where, self._counts, self._head = where + self._drawn, counts[where], 0
+            self._drawn += self._block
+        self.next_hit = int(self._where[self._head])
+
+    def quiet(self, count):
+        """Whether the next ``count`` counts are all zero."""
+        return self._taken + count <= self.next_hit
+
+    def skip(self, count):
+        """Take the next ``count`` counts, all zero (see :meth:`quiet`)."""
+        self._taken += count
+
+    def take(self, count):
+        """The next ``count`` counts: ``(offsets, counts)`` of the non-zero ones, offsets from
+        the first (``int64`` arrays)."""
+        end = self._taken + count
+        offsets, counts = [], []
+        while self.next_hit < end:
+            stop = self._head + int(np.searchsorted(self._where[self._head:], end))
+            offsets.append(self._where[self._head:stop] - self._taken)
+            counts.append(self._counts[self._head:stop])
+            self._head = stop
+            if self._head == len(self._where):
+                self._refill()
+            else:
+                self.next_hit = int(self._where[self._head])
+        self._taken = end
+        if len(offsets) == 1:
+            return offsets[0], counts[0]
+        if not offsets:
+            return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+        return np.concatenate(offsets), np.concatenate(counts)
