@@ -172,6 +172,7 @@ class Simulation:
         self._carry_pixels = None
         self._per_pixel = None
         self._hits = None               # see _draws
+        self._quiet_sources = None      # see _quiet
         self._no_counts = None          # the counters of a step without photons (read-only)
         #: Photon counters since the start, ``(sources, len(COUNTERS))``.
         self.counts = np.zeros((self._sources, len(COUNTERS)), dtype=np.int64)
@@ -232,12 +233,16 @@ class Simulation:
             self._hits.append((Hits(counts, mean) if mean > 0 else None, rest))
         return self._hits
 
-    def _limit(self, boundary, index):
-        """Pulses of source ``index`` arriving before this time have photons before
-        ``boundary`` (the others not)."""
+    def _reach(self, index):
+        """``(spread, lowest)`` of source ``index``: its pulses before :meth:`_limit` of a
+        ``boundary`` (``boundary + spread + 1.0 - lowest``) have photons before it."""
         _, _, sigma, wander = self._pulsed[index]
         lowest = 0.0 if self._pixel_count is None else self._per_pixel[index][2]
-        return boundary + TRUNCATION_SIGMAS * (sigma + wander) + 1.0 - lowest
+        return TRUNCATION_SIGMAS * (sigma + wander), lowest
+
+    def _limit(self, boundary, index):
+        spread, lowest = self._reach(index)
+        return boundary + spread + 1.0 - lowest
 
     def _photons(self, boundary, count, starts, span_starts, ends):
         """Photons up to ``boundary`` (and of the pulses near it, after it): carried over, from
@@ -277,9 +282,8 @@ class Simulation:
         hits, rng = draws[-1]
         span, number = hits.take(count) if hits is not None else ((), ())
         if len(span):
-            # A Poisson process on each span: drawn on spans all as long as the longest a
-            # span can be (its window and the dead time before), then thinned to each span's
-            # true length.
+            # A Poisson process on each span: drawn on spans all as long as the longest a span
+            # can be (its window and the dead time before), thinned to each span's length.
             span = np.repeat(span, number)
             number = len(span)
             offset = rng.uniform(0.0, TDC_CODES + self._dead, number)
@@ -312,8 +316,7 @@ class Simulation:
             count = min(count, sum(cycle < until_cycle for cycle in cycles))
         if count <= 0 or (count == most and max_cycles > most):
             return None
-        # The windows, as _windows makes them
-        lsb, dead = self._lsb, self._dead
+        lsb, dead = self._lsb, self._dead       # the windows, as _windows makes them
         edges = [cycle * lsb for cycle in cycles[:count + 1]]
         if self._separated:
             boundary = edges[-1] - dead
@@ -321,23 +324,25 @@ class Simulation:
         else:
             previous_end = min(edges[-2] + TDC_CODES, edges[-1])
             boundary = max(edges[-1] - dead, previous_end)
-        draws = self._draws()
+        if self._quiet_sources is None:
+            draws = self._draws()
+            self._quiet_sources = [(pulses, draws[index][0], *self._reach(index))
+                                   for index, (pulses, *_) in enumerate(self._pulsed)]
         handed = []
-        for index, (pulses, *_) in enumerate(self._pulsed):
-            number = pulses.count_until(self._limit(boundary, index))
-            hits = draws[index][0]
+        for pulses, hits, spread, lowest in self._quiet_sources:
+            number = pulses.count_until(boundary + spread + 1.0 - lowest)
             if number and hits is not None and not hits.quiet(number):
                 return None
             handed.append(number)
-        hits = draws[-1][0]
-        if hits is not None and not hits.quiet(count):
+        background = self._hits[-1][0]
+        if background is not None and not background.quiet(count):
             return None
-        for (pulses, *_), (hits, _), number in zip(self._pulsed, draws, handed):
+        for (pulses, hits, *_), number in zip(self._quiet_sources, handed):
             pulses.skip(number)
             if hits is not None:
                 hits.skip(number)
-        if draws[-1][0] is not None:
-            draws[-1][0].skip(count)
+        if background is not None:
+            background.skip(count)
         chunk = self._empty_chunk(np.array(cycles[:count], dtype=np.int64))
         self.pulse += count
         self._starts.trim(self.pulse)
