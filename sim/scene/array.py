@@ -133,17 +133,10 @@ class PixelSimulation(Simulation):
     def step(self, max_cycles=None, *, until_cycle=None):
         """Simulate the next laser cycles (as :meth:`Simulation.step`); returns a
         :class:`PixelChunk`."""
-        if self.external_starts:
-            quiet = self._quiet(max_cycles, until_cycle)
-            if quiet is not None:
-                return quiet
-        cycles, count = self._cycles(max_cycles, until_cycle)
-        if count == 0:
-            return PixelChunk(self.pulse, cycles[:0].copy(), np.zeros(0, dtype=EVENT_DTYPE),
-                              np.zeros_like(self.counts), np.zeros_like(self.pixel_counts))
-        starts, span_starts, ends, boundary = self._windows(cycles, count)
-
-        times, sources, pixel = self._photons(boundary, count, starts, span_starts, ends)
+        prepared = self._prepare(max_cycles, until_cycle)
+        if isinstance(prepared, Chunk):
+            return prepared
+        cycles, count, (starts, span_starts, ends, boundary), (times, sources, pixel) = prepared
         later = times >= boundary
         self._carry_times, self._carry_sources = times[later], sources[later]
         self._carry_pixels = pixel[later]

@@ -11,7 +11,7 @@ simulation's), so its counts do not depend on how the run is cut into steps.
 import numpy as np
 
 
-__all__ = ["Hits"]
+__all__ = ["Hits", "Ahead"]
 
 
 class Hits:
@@ -65,3 +65,35 @@ class Hits:
         if not offsets:
             return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
         return np.concatenate(offsets), np.concatenate(counts)
+
+
+class Ahead:
+    """Independent draws ``draw(rng, count)`` (an array), made ``block`` at a time and taken in
+    order, as an array or as a list of Python floats (the same values either way)."""
+
+    def __init__(self, rng, draw, block=4096):
+        self._rng, self._draw, self._block = rng, draw, block
+        self._array = np.zeros(0)
+        self._list = []
+        self._head = 0
+
+    def _fill(self, count):
+        rest = self._array[self._head:]
+        blocks = -(-(count - len(rest)) // self._block)
+        self._array = np.concatenate((rest, self._draw(self._rng, blocks * self._block)))
+        self._list = self._array.tolist()
+        self._head = 0
+
+    def array(self, count):
+        """The next ``count`` draws, an array."""
+        if self._head + count > len(self._array):
+            self._fill(count)
+        self._head += count
+        return self._array[self._head - count:self._head]
+
+    def list(self, count):
+        """The next ``count`` draws, a list."""
+        if self._head + count > len(self._array):
+            self._fill(count)
+        self._head += count
+        return self._list[self._head - count:self._head]

@@ -14,10 +14,10 @@ from ...hdl.event import PULSE_BITS, TDC_LSB_S
 from ..models import delay as _delay
 from ..models import scheduler as _scheduler
 from ...protocol.events import EVENT_DTYPE
-from .description import COUNTERS, FWHM_PER_SIGMA, TDC_CODES, TRUNCATION_SIGMAS, Scene
+from .description import COUNTERS, FWHM_PER_SIGMA, TDC_CODES, Scene
 from . import few
 from .detection import non_paralysable, spans
-from .draws import Hits
+from .generation import QUIET_CYCLES, PhotonGeneration
 from .pulses import EdgeBuffer, EdgeSchedule, PulseTrain, fed_edges
 
 
@@ -25,6 +25,9 @@ __all__ = ["Chunk", "Simulation", "spans", "non_paralysable"]
 
 
 _GENERATED, _OUTSIDE, _DEAD, _OVERWRITTEN, _RECORDED = range(len(COUNTERS))
+
+_NO_EVENTS = np.zeros(0, dtype=EVENT_DTYPE)
+_NO_EVENTS.flags.writeable = False
 
 
 @dataclass
@@ -53,28 +56,7 @@ class Chunk:
         return len(self.start_cycles)
 
 
-_LABELS = {}
-
-#: Largest number of laser cycles a step without photons takes in plain Python
-#: (:meth:`Simulation._quiet`; closed loop steps one to three).
-QUIET_CYCLES = 8
-
-_NO_EVENTS = np.zeros(0, dtype=EVENT_DTYPE)
-_NO_EVENTS.flags.writeable = False
-
-
-def _labels(source, number):
-    """``number`` times the source index ``source`` (``int8``; a read-only view of a
-    constant when short: a step's few photons cost no new array)."""
-    if number > 4096:
-        return np.full(number, source, dtype=np.int8)
-    if source not in _LABELS:
-        _LABELS[source] = np.full(4096, source, dtype=np.int8)
-        _LABELS[source].flags.writeable = False
-    return _LABELS[source][:number]
-
-
-class Simulation:
+class Simulation(PhotonGeneration):
     """The scene, laser cycle after laser cycle, in chunks.
 
     Parameters
@@ -173,6 +155,7 @@ class Simulation:
         self._per_pixel = None
         self._hits = None               # see _draws
         self._quiet_sources = None      # see _quiet
+        self._plain_shares = None       # the pixels' shares and arrival times, as lists
         self._no_counts = None          # the counters of a step without photons (read-only)
         #: Photon counters since the start, ``(sources, len(COUNTERS))``.
         self.counts = np.zeros((self._sources, len(COUNTERS)), dtype=np.int64)
@@ -212,196 +195,13 @@ class Simulation:
         edges.feed(fed_edges(edge_cycles, edges.last, "Aggressor trigger edges",
                              "feed_aggressor"))
 
-    def _draws(self):
-        """Per pulsed source, then for the background: its Poisson counts drawn ahead
-        (:class:`~fliss.sim.scene.draws.Hits`, per pulse or per span; ``None`` when its mean is
-        0) and the generator of the rest of its photons' draws. Made at the first step, when a
-        pixel array has set its sources' means."""
-        if self._hits is None:
-            array = self._pixel_count
-            generators = iter(self._rng.spawn(2 * len(self._pulsed) + 2))
-            self._hits = []
-            for index, (_, mean, _, _) in enumerate(self._pulsed):
-                if array is not None:
-                    mean = self._per_pixel[index][0]
-                counts, rest = next(generators), next(generators)
-                self._hits.append((Hits(counts, mean) if mean else None, rest))
-            # Background: a Poisson number per span of the longest length a span can have,
-            # then thinned to each span's own length
-            mean = self._background * (TDC_CODES + self._dead) * (array or 1)
-            counts, rest = next(generators), next(generators)
-            self._hits.append((Hits(counts, mean) if mean > 0 else None, rest))
-        return self._hits
-
-    def _reach(self, index):
-        """``(spread, lowest)`` of source ``index``: its pulses before :meth:`_limit` of a
-        ``boundary`` (``boundary + spread + 1.0 - lowest``) have photons before it."""
-        _, _, sigma, wander = self._pulsed[index]
-        lowest = 0.0 if self._pixel_count is None else self._per_pixel[index][2]
-        return TRUNCATION_SIGMAS * (sigma + wander), lowest
-
-    def _limit(self, boundary, index):
-        spread, lowest = self._reach(index)
-        return boundary + spread + 1.0 - lowest
-
-    def _photons(self, boundary, count, starts, span_starts, ends):
-        """Photons up to ``boundary`` (and of the pulses near it, after it): carried over, from
-        each pulsed source, and background in the ``count`` spans; ``(times, sources, pixels)``,
-        not sorted. ``pixels`` is ``None`` but for a pixel array, whose pulsed sources give each
-        pixel its own mean detections and arrival time (``_per_pixel``) and whose background falls
-        on every pixel alike."""
-        array = self._pixel_count
-        draws = self._draws()
-        times, sources, owners = [self._carry_times], [self._carry_sources], [self._carry_pixels]
-        for index, (pulses, _, sigma, wander) in enumerate(self._pulsed):
-            source = index if index == 0 else index + 1
-            centres = pulses.until(self._limit(boundary, index))
-            hits, rng = draws[index]
-            if hits is None or len(centres) == 0:
-                continue
-            # Each pulse's Poisson number of photons (for a pixel array, of the array's
-            # photons, shared out by the pixels' means: the same law as each pixel's own)
-            pulse, number = hits.take(len(centres))
-            if not len(pulse):
-                continue
-            centres = centres[pulse]
-            if wander > 0:
-                centres = centres + wander * rng.standard_normal(len(centres)).clip(
-                    -TRUNCATION_SIGMAS, TRUNCATION_SIGMAS)
-            arrivals = np.repeat(centres, number)
-            number = len(arrivals)
-            if array is not None:
-                _, extra, _, shares = self._per_pixel[index]
-                pixel = np.searchsorted(shares, rng.random(number), side="right")
-                pixel = np.minimum(pixel, array - 1).astype(np.int16)
-                owners.append(pixel)
-                arrivals = arrivals + extra[pixel]
-            spread = rng.standard_normal(number).clip(-TRUNCATION_SIGMAS, TRUNCATION_SIGMAS)
-            times.append(arrivals + sigma * spread)
-            sources.append(_labels(source, number))
-        hits, rng = draws[-1]
-        span, number = hits.take(count) if hits is not None else ((), ())
-        if len(span):
-            # A Poisson process on each span: drawn on spans all as long as the longest a span
-            # can be (its window and the dead time before), thinned to each span's length.
-            span = np.repeat(span, number)
-            number = len(span)
-            offset = rng.uniform(0.0, TDC_CODES + self._dead, number)
-            if array is not None:
-                pixel = rng.integers(0, array, number).astype(np.int16)
-            if self._separated:
-                times.append(starts[span] + (offset - self._dead))
-            else:
-                inside = offset < (ends - span_starts)[span]
-                times.append(span_starts[span[inside]] + offset[inside])
-                number = int(inside.sum())
-                if array is not None:
-                    pixel = pixel[inside]
-            sources.append(_labels(1, number))
-            if array is not None:
-                owners.append(pixel)
-        return self._gathered(times, sources, owners)
-
-    def _quiet(self, max_cycles, until_cycle):
-        """The next step (fed starts, a few laser cycles) when it has no photon, in plain
-        Python: nothing carried over, and every pulse and span it covers drawn with none;
-        ``None`` otherwise (:meth:`step` then simulates it)."""
-        if len(self._carry_times):
-            return None
-        max_cycles = self.chunk_cycles if max_cycles is None else int(max_cycles)
-        most = self.quiet_cycles
-        cycles = self._starts.values(self.pulse, self.pulse + min(max_cycles, most) + 1)
-        count = min(max_cycles, len(cycles) - 1)
-        if until_cycle is not None:
-            count = min(count, sum(cycle < until_cycle for cycle in cycles))
-        if count <= 0 or (count == most and max_cycles > most):
-            return None
-        lsb, dead = self._lsb, self._dead       # the windows, as _windows makes them
-        edges = [cycle * lsb for cycle in cycles[:count + 1]]
-        if self._separated:
-            boundary = edges[-1] - dead
-            previous_end = edges[-2] + TDC_CODES
-        else:
-            previous_end = min(edges[-2] + TDC_CODES, edges[-1])
-            boundary = max(edges[-1] - dead, previous_end)
-        if self._quiet_sources is None:
-            draws = self._draws()
-            self._quiet_sources = [(pulses, draws[index][0], *self._reach(index))
-                                   for index, (pulses, *_) in enumerate(self._pulsed)]
-        handed = []
-        for pulses, hits, spread, lowest in self._quiet_sources:
-            number = pulses.count_until(boundary + spread + 1.0 - lowest)
-            if number and hits is not None and not hits.quiet(number):
-                return None
-            handed.append(number)
-        background = self._hits[-1][0]
-        if background is not None and not background.quiet(count):
-            return None
-        for (pulses, hits, *_), number in zip(self._quiet_sources, handed):
-            pulses.skip(number)
-            if hits is not None:
-                hits.skip(number)
-        if background is not None:
-            background.skip(count)
-        chunk = self._empty_chunk(np.array(cycles[:count], dtype=np.int64))
-        self.pulse += count
-        self._starts.trim(self.pulse)
-        self._previous_end = previous_end
-        return chunk
-
-    def _empty_chunk(self, start_cycles):
-        if self._no_counts is None:
-            self._no_counts = np.zeros_like(self.counts)
-            self._no_counts.flags.writeable = False
-        return Chunk(self.pulse, start_cycles, _NO_EVENTS, self._no_counts)
-
-    def _gathered(self, times, sources, owners):
-        if len(times) == 1:
-            return times[0], sources[0], owners[0]
-        return (np.concatenate(times), np.concatenate(sources),
-                None if self._pixel_count is None else np.concatenate(owners))
-
-    def _cycles(self, max_cycles, until_cycle):
-        """The TDC start cycles from the next laser cycle on, and how many of them the next step
-        simulates (at most ``max_cycles``, those before ``until_cycle``)."""
-        max_cycles = self.chunk_cycles if max_cycles is None else int(max_cycles)
-        cycles = self._starts.get(self.pulse, self.pulse + max_cycles + 1)
-        count = max(min(max_cycles, len(cycles) - 1), 0)   # the next start must be known
-        if until_cycle is not None:
-            count = int(np.searchsorted(cycles[:count], until_cycle, side="left"))
-        return cycles, count
-
-    def _windows(self, cycles, count):
-        """Times of the step's ``count`` TDC starts, of its spans (``None`` when they never
-        touch) and of their ends (the same), and the time from which photons belong to the
-        next step."""
-        edges = cycles[:count + 1] * self._lsb
-        starts = edges[:-1]
-        ends = span_starts = None
-        if self._separated:
-            # Every span is [start - dead, start + 2**13) and they never touch.
-            boundary = edges[-1] - self._dead
-        else:
-            ends = np.minimum(starts + TDC_CODES, edges[1:])
-            span_starts = np.maximum(starts - self._dead,
-                                     np.concatenate(([self._previous_end], ends[:-1])))
-            boundary = max(edges[-1] - self._dead, ends[-1])
-        return starts, span_starts, ends, boundary
-
     def step(self, max_cycles=None, *, until_cycle=None):
         """Simulate the next laser cycles: at most ``max_cycles`` (default: one chunk), and only
         those whose TDC start is before clock cycle ``until_cycle``. Returns a :class:`Chunk`."""
-        if self.external_starts:
-            quiet = self._quiet(max_cycles, until_cycle)
-            if quiet is not None:
-                return quiet
-        cycles, count = self._cycles(max_cycles, until_cycle)
-        if count == 0:
-            return Chunk(self.pulse, cycles[:0].copy(), np.zeros(0, dtype=EVENT_DTYPE),
-                         np.zeros_like(self.counts))
-        starts, span_starts, ends, boundary = self._windows(cycles, count)
-
-        times, sources, _ = self._photons(boundary, count, starts, span_starts, ends)
+        prepared = self._prepare(max_cycles, until_cycle)
+        if isinstance(prepared, Chunk):
+            return prepared
+        cycles, count, (starts, span_starts, ends, boundary), (times, sources, _) = prepared
         later = times >= boundary
         if later.any():
             self._carry_times, self._carry_sources = times[later], sources[later]
@@ -451,6 +251,13 @@ class Simulation:
         events["pulse"] = (self.pulse + cycle) & ((1 << PULSE_BITS) - 1)
 
         return self._advance(cycles, count, starts, ends, events, counts)
+
+    def _empty_chunk(self, start_cycles):
+        """The chunk of a step without photons (its counters read-only)."""
+        if self._no_counts is None:
+            self._no_counts = np.zeros_like(self.counts)
+            self._no_counts.flags.writeable = False
+        return Chunk(self.pulse, start_cycles, _NO_EVENTS, self._no_counts)
 
     def _advance(self, cycles, count, starts, ends, events, counts):
         """The chunk of a step over ``count`` laser cycles; moves on past them."""

@@ -229,6 +229,18 @@ class PulseTrain:
                 return found
             count *= 4
 
+    def centres(self, count):
+        """The centres of the next ``count`` pulses (as :meth:`count_until` counted them), a
+        list, handed out: the values :meth:`until` gives."""
+        if self._buffer is None:
+            centres = [self._shift + pulse * self._step
+                       for pulse in range(self._next, self._next + count)]
+        else:
+            centres = [cycle * self._scale + self._shift
+                       for cycle in self._buffer.values(self._next, self._next + count)]
+        self.skip(count)
+        return centres
+
     def skip(self, count):
         """Hand out the next ``count`` pulses unseen (as :meth:`count_until` counted them)."""
         self._next += count
