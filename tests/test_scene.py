@@ -416,3 +416,31 @@ def test_steps_without_photons_in_plain_python_give_what_numpy_gives(sensor):
     assert reference_counts[:, COUNTERS.index("generated")].all()   # every source's photons
     assert np.array_equal(events, reference)
     assert np.array_equal(counts, reference_counts)
+
+
+@pytest.mark.parametrize("mean", [0.004, 0.05, 0.7, 3.0])
+def test_counts_drawn_ahead_are_poisson(mean):
+    # Hits draws a small mean's counts as the gaps between non-zero counts and their values
+    # (conditioned on at least one), a larger one pulse by pulse: either way each pulse's
+    # count is Poisson, independent of the others. Taken in pieces of uneven length.
+    from fliss.sim.scene.draws import Hits
+    hits = Hits(np.random.default_rng(11), mean)
+    pulses = 1_000_000
+    counts = np.zeros(pulses, dtype=np.int64)
+    taken = 0
+    for piece in np.random.default_rng(12).integers(1, 5000, pulses // 2500):
+        piece = min(int(piece), pulses - taken)
+        offsets, numbers = hits.take(piece)
+        assert np.all(numbers > 0) and np.all(np.diff(offsets) > 0)
+        counts[taken + offsets] = numbers
+        taken += piece
+    counts = counts[:taken]
+    for k in range(4):
+        p = math.exp(-mean) * mean ** k / math.factorial(k)
+        if taken * p > 20:              # (the rarer counts seen too seldom to tell)
+            error = math.sqrt(taken * p * (1 - p))
+            assert abs(np.count_nonzero(counts == k) - taken * p) < 5 * error, k
+    assert abs(z_score(counts.sum(), taken * mean)) < 5
+    # neighbours independent: the covariance of consecutive counts is zero
+    covariance = np.mean((counts[1:] - mean) * (counts[:-1] - mean))
+    assert abs(covariance) < 5 * mean / math.sqrt(taken)

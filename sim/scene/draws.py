@@ -8,33 +8,65 @@ counts of many pulses with one call. Each source has a generator of its own (spa
 simulation's), so its counts do not depend on how the run is cut into steps.
 """
 
+import math
+
 import numpy as np
 
 
-__all__ = ["Hits", "Ahead"]
+__all__ = ["SPARSE_MEAN", "Hits", "Ahead"]
+
+
+#: Largest mean whose Poisson counts :class:`Hits` draws as the gaps between non-zero counts.
+SPARSE_MEAN = 1.0
 
 
 class Hits:
-    """Independent Poisson counts of mean ``mean``, one per pulse (span) in order, drawn
-    ``block`` at a time from ``rng``."""
+    """Independent Poisson counts of mean ``mean``, one per pulse (span) in order, drawn from
+    ``rng`` and kept as the indices and values of the counts that are not zero.
 
-    def __init__(self, rng, mean, block=1 << 16):
-        self._rng, self._mean, self._block = rng, float(mean), block
+    A mean under :data:`SPARSE_MEAN` draws those directly, ``block`` at a time: the gaps
+    between them (geometric, of the probability ``1 - exp(-mean)`` that a count is not zero)
+    and their values (Poisson conditioned on being at least one, by inversion of its
+    cumulative distribution, cut where the rest is under ``1e-17``): the same law as a Poisson
+    draw per pulse, at a cost per photon rather than per pulse. A larger mean draws the counts
+    of ``block`` pulses at a time."""
+
+    def __init__(self, rng, mean, block=1 << 12):
+        self._rng, self._mean = rng, float(mean)
+        self._sparse = self._mean < SPARSE_MEAN
+        self._block = block if self._sparse else block << 4
+        if self._sparse:
+            self._hit = -math.expm1(-self._mean)        # a count is not zero
+            terms, term, k = [], math.exp(-self._mean), 0
+            while k < 2 or term > 1e-17 * self._hit:    # P(count = k), k from 1 on
+                k += 1
+                term *= self._mean / k
+                terms.append(term)
+            self._cumulative = np.cumsum(terms)
         self._drawn = 0                 # counts drawn so far
         self._taken = 0                 # counts taken so far
         self._where = np.zeros(0, dtype=np.int64)     # indices of the non-zero counts drawn
         self._counts = np.zeros(0, dtype=np.int64)    # and those counts
         self._head = 0                  # first of them not taken
-        #: Index of the next non-zero count (``self._drawn`` when none is drawn yet).
+        #: Index of the next non-zero count.
         self.next_hit = 0
         self._refill()
 
     def _refill(self):
         while self._head == len(self._where):
-            counts = self._rng.poisson(self._mean, self._block)
-            where = np.flatnonzero(counts)
-            self._where, self._counts, self._head = where + self._drawn, counts[where], 0
-            self._drawn += self._block
+            if self._sparse:
+                where = self._drawn - 1 + np.cumsum(self._rng.geometric(self._hit, self._block))
+                level = self._rng.random(self._block) * self._cumulative[-1]
+                counts = np.minimum(np.searchsorted(self._cumulative, level, side="right") + 1,
+                                    len(self._cumulative))
+                self._drawn = int(where[-1]) + 1
+            else:
+                counts = self._rng.poisson(self._mean, self._block)
+                where = np.flatnonzero(counts)
+                counts = counts[where]
+                where = where + self._drawn
+                self._drawn += self._block
+            self._where, self._counts, self._head = where, counts, 0
         self.next_hit = int(self._where[self._head])
 
     def quiet(self, count):
