@@ -80,8 +80,9 @@ class Simulation(PhotonGeneration):
     #: others with numpy; the results are the same.
     few_photons = few.FEW_PHOTONS
 
-    #: Steps of fed starts over at most this many laser cycles and without photons take a
-    #: shorter path in plain Python (:meth:`_quiet`); the results are the same.
+    #: Steps of fed starts over at most this many laser cycles make their photons in plain
+    #: Python, and those without photons stop there (:mod:`.generation`); the results are the
+    #: same (0: every step with numpy).
     quiet_cycles = QUIET_CYCLES
 
     def __init__(self, scene, *, seed=None, chunk_cycles=1 << 16, external_starts=False,
