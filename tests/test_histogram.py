@@ -18,12 +18,14 @@ from histogram_bench import (BANK_BITS, check_against_model, hazard_stimulus, hi
                              run_histogram, spaced)
 
 
-def test_one_event_per_clock_matches_model():
+@pytest.mark.parametrize("read_tree", [None, True])
+def test_one_event_per_clock_matches_model(read_tree):
     # 8192 bins in RAM, shift 5: 256 bins read out per frame, 1536 cycles of readout per frame.
+    # Each bank one memory (as simulated), or its 8 blocks and their read tree (as on an ECP5).
     rng = np.random.default_rng(2019)
     cycles, integration, shift = 6_000, 1_800, 5
     valid, timestamps = hazard_stimulus(rng, cycles, bins=256, shift=shift, gaps=False)
-    dut = Histogram(bank_bits=BANK_BITS)
+    dut = Histogram(bank_bits=BANK_BITS, read_tree=read_tree)
     frames, result = run_histogram(dut, valid, timestamps, integration=integration, shift=shift)
     check_against_model(frames, result, valid, timestamps, integration=integration,
                         shift=shift, bank_bits=BANK_BITS)
@@ -145,13 +147,13 @@ def test_counts_saturate(ram):
     assert counts[0, 3] == count_max and counts.sum() == count_max
 
 
-@pytest.mark.parametrize("ram", ["dual", "single"])
-def test_busy_reader_drops_are_counted(ram):
+@pytest.mark.parametrize("ram, read_tree", [("dual", None), ("dual", True), ("single", None)])
+def test_busy_reader_drops_are_counted(ram, read_tree):
     # The reader stalls for a long time: the engine waits for the bank with `filling` low,
     # drops and counts the events that arrive meanwhile, and every frame holds exactly the
     # events of its own fill window.
     rng = np.random.default_rng(3)
-    dut = Histogram(bank_bits=BANK_BITS, ram=ram)
+    dut = Histogram(bank_bits=BANK_BITS, ram=ram, read_tree=read_tree)
     # the frames' timing scales with the readout's cycles per bin (4, or 6 with read stages)
     scale = dut.readout_cycles_per_bin / readout_cycles_per_bin(0)
     cycles, integration, shift = int(3_000 * scale), int(600 * scale), 6

@@ -115,12 +115,13 @@ def test_evaluate_returns_flat_scalars_and_consistent_counts():
 
 def test_equal_power_locked_aggressor_beats_fliss_off_but_not_mseq():
     # The paper's case: at the victim's effective PRF, without FLISS the aggressor's peak is as
-    # high as the victim's; with mseq L = 6 it spreads over the clock comb
+    # high as the victim's; with mseq L = 6 it spreads over the clock comb (a ghost is left in
+    # about one frame of 500: seeds 0 to 59, 8 frames each, gave one)
     common = dict(aggressor_kind="locked", offset_ns=60.0, frames=8, frames_per_run=8)
     off = evaluate(dict(common, scheme="off"), np.random.SeedSequence(3))
     mseq = evaluate(dict(common, scheme="mseq"), np.random.SeedSequence(3))
     assert off["ghost"] == 8 and abs(off["s_db"]) < 1.5
-    assert mseq["ghost"] == 0 and mseq["s_db"] > 10
+    assert mseq["ghost"] <= 1 and mseq["s_db"] > 10
 
 
 @pytest.mark.parametrize("point, message", [

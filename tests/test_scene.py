@@ -249,8 +249,10 @@ def test_two_aggressors_each_at_its_own_offset():
     tof_ns = 2 * 4.0 / C * 1e9
     first = stamps[stamps < 3000]
     second = stamps[stamps >= 3000]
-    assert first.mean() == pytest.approx((75 + tof_ns) / 0.05 - 0.5, abs=1)
-    assert second.mean() == pytest.approx((250 + tof_ns) / 0.05 - 0.5, abs=1)
+    # Each mean within 5 standard errors (about 0.5 and 1 code) of the pulse's arrival
+    for stamps_of, arrival_ns in ((first, 75 + tof_ns), (second, 250 + tof_ns)):
+        error = stamps_of.std() / math.sqrt(len(stamps_of))
+        assert stamps_of.mean() == pytest.approx(arrival_ns / 0.05 - 0.5, abs=5 * error)
     assert second.std() == pytest.approx(sigma_ns(4.2) / 0.05, rel=0.05)
     # Each source keeps its own counters; the later pulse overwrites the earlier (last photon)
     p1, p2 = 1 - math.exp(-mean), 1 - math.exp(-2 * mean)
@@ -381,3 +383,64 @@ def test_steps_of_few_photons_in_plain_python_give_what_numpy_gives(keep, fed, s
         assert reference["collision"].sum() > 50
     assert np.array_equal(events, reference)
     assert np.array_equal(counts, reference_counts)
+
+
+@pytest.mark.parametrize("sensor", [None, "column"])
+def test_steps_without_photons_in_plain_python_give_what_numpy_gives(sensor):
+    # Closed loop as the virtual boards run it: fed starts and aggressor triggers, one to three
+    # laser cycles a step, most of them without a photon. The short path of those steps
+    # (quiet_cycles) against the full path for every step, on the same draws.
+    pixels = None if sensor is None else line_pixels(pixels=6, object_pixels=(2, 4),
+                                                     sensor=sensor)
+    scene = Scene(detections_per_pulse=0.05, background_hz=2e5, pixels=pixels,
+                  aggressors=(Aggressor(period_cycles=80, detections_per_pulse=0.05,
+                                        jitter_s=2e-9),))
+    steps = 3000
+    starts = 100 + np.cumsum(np.random.default_rng(7).integers(20, 121, 3 * steps + 1))
+    runs = []
+    for quiet_cycles in (Simulation.quiet_cycles, 0):
+        simulation = simulation_for(scene, seed=4, chunk_cycles=64, external_starts=True,
+                                    external_aggressors=True)
+        simulation.quiet_cycles = quiet_cycles
+        simulation.feed(starts)
+        simulation.feed_aggressor(0, 60 + 80 * np.arange(starts[-1] // 80))
+        quiet, events = 0, []
+        for index in range(steps):
+            chunk = simulation.step(1 + index % 3)
+            events.append(chunk.events)
+            quiet += not chunk.counts.any()
+        runs.append((np.concatenate(events), simulation.counts.copy(), quiet))
+    (events, counts, quiet), (reference, reference_counts, _) = runs
+    assert steps // 10 < quiet < steps               # both paths taken
+    assert len(reference) > steps // 10
+    assert reference_counts[:, COUNTERS.index("generated")].all()   # every source's photons
+    assert np.array_equal(events, reference)
+    assert np.array_equal(counts, reference_counts)
+
+
+@pytest.mark.parametrize("mean", [0.004, 0.05, 0.7, 3.0])
+def test_counts_drawn_ahead_are_poisson(mean):
+    # Hits draws a small mean's counts as the gaps between non-zero counts and their values
+    # (conditioned on at least one), a larger one pulse by pulse: either way each pulse's
+    # count is Poisson, independent of the others. Taken in pieces of uneven length.
+    from fliss.sim.scene.draws import Hits
+    hits = Hits(np.random.default_rng(11), mean)
+    pulses = 1_000_000
+    counts = np.zeros(pulses, dtype=np.int64)
+    taken = 0
+    for piece in np.random.default_rng(12).integers(1, 5000, pulses // 2500):
+        piece = min(int(piece), pulses - taken)
+        offsets, numbers = hits.take(piece)
+        assert np.all(numbers > 0) and np.all(np.diff(offsets) > 0)
+        counts[taken + offsets] = numbers
+        taken += piece
+    counts = counts[:taken]
+    for k in range(4):
+        p = math.exp(-mean) * mean ** k / math.factorial(k)
+        if taken * p > 20:              # (the rarer counts seen too seldom to tell)
+            error = math.sqrt(taken * p * (1 - p))
+            assert abs(np.count_nonzero(counts == k) - taken * p) < 5 * error, k
+    assert abs(z_score(counts.sum(), taken * mean)) < 5
+    # neighbours independent: the covariance of consecutive counts is zero
+    covariance = np.mean((counts[1:] - mean) * (counts[:-1] - mean))
+    assert abs(covariance) < 5 * mean / math.sqrt(taken)

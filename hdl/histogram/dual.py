@@ -11,7 +11,7 @@ from amaranth.hdl import Cat, Module, Mux, Signal
 from amaranth.lib import wiring
 from amaranth.lib.memory import Memory
 
-from ..block_ram import RegisteredRam
+from ..block_ram import RegisteredRam, has_dp16kd
 from .banks import _MEMBERS_DOC, _increment, _members
 
 
@@ -65,14 +65,25 @@ class DualPortBanks(wiring.Component):
     ``read_stages`` cycles after the readout's CAPTURE, it holds until its next read. The
     readout's clearing write lands two cycles after its READ.
 
+    The blocks and their read tree are built on an ECP5 (``DP16KD`` block RAM,
+    :func:`~fliss.hdl.block_ram.has_dp16kd`), or with ``read_tree=True``. Elsewhere
+    (``read_tree=None`` with no platform, as in simulation; or ``read_tree=False``) a bank of
+    more than one block is one memory of ``2**bank_bits`` words whose word goes through as many
+    registers, reset alike: the same word in the same cycle, without the per-block registers
+    and the tree that a simulator would evaluate in every cycle (a quarter of Verilator's time
+    on the top level).
+
     On a platform with a ``block_ram_quads`` floorplan (the ULX3S), each group of
     :data:`OR_GROUP` blocks sits in four neighbouring block RAM sites, so that the first level of
     the read tree is short; the groups of the two banks take turns in the platform's list.
 """ + _MEMBERS_DOC
 
-    def __init__(self, bank_bits, count_width):
+    def __init__(self, bank_bits, count_width, *, read_tree=None):
+        if read_tree not in (None, False, True):
+            raise TypeError(f"read_tree must be None, False or True, not {read_tree!r}")
         self.bank_bits = bank_bits
         self.count_width = count_width
+        self.read_tree = read_tree
         self.read_stages = read_stages(bank_bits)
         #: Cycles from an event's transfer to the RAM write of its bin.
         self.latency = latency(self.read_stages)
@@ -82,17 +93,20 @@ class DualPortBanks(wiring.Component):
         super().__init__(_members(bank_bits, count_width, initialising=False))
         self.block_bits = min(bank_bits, BLOCK_BITS)
         self.blocks = 1 << (bank_bits - self.block_bits)
-        self.banks = tuple(_BlockedBank(self.block_bits, self.blocks, count_width)
+        self.banks = tuple(_BlockedBank(self.block_bits, self.blocks, count_width,
+                                        read_tree=read_tree)
                            for _ in range(2))
 
     def elaborate(self, platform):
         m = Module()
 
         width = self.bank_bits
+        tree = has_dp16kd(platform) if self.read_tree is None else self.read_tree
         for k, bank in enumerate(self.banks):
-            for j, memory in enumerate(bank.memories):
+            bank.tree = tree = tree or not bank.may_be_whole
+            for j, memory in enumerate(bank.memories if tree else [bank.whole]):
                 m.submodules[f"bank{k}_{j}"] = memory
-        self._place(getattr(platform, "block_ram_quads", None))
+        self._place(getattr(platform, "block_ram_quads", None) if tree else None)
 
         # Stage R: the bin (fine shift) is registered here and in the read address register of
         # its bank: the block RAMs sample it at the end of this cycle.
@@ -201,6 +215,8 @@ class DualPortBanks(wiring.Component):
         # first (`block_ram_quads`), has each group of the read tree in a quad, the two banks'
         # groups taking turns: a group's register then sits next to its blocks, and the banks
         # spread alike. (With fewer quads than groups, the placer decides.)
+        if not all(bank.made for bank in self.banks):
+            return                      # (one memory a bank: no blocks made)
         groups = [bank.memories[start:start + OR_GROUP] for start in range(0, self.blocks, OR_GROUP)
                   for bank in self.banks]
         for group in groups:
@@ -218,28 +234,68 @@ class _BlockedBank:
     read tree after them (``word``: the word read, ``read_stages(bank_bits)`` + 1 cycles after
     its address is sampled) and per-block write enables."""
 
-    def __init__(self, block_bits, blocks, count_width):
+    def __init__(self, block_bits, blocks, count_width, *, read_tree):
         self.block_bits = block_bits
+        self.blocks = blocks
         self.count_width = count_width
-        if blocks == 1:
-            self.memories = [Memory(shape=count_width, depth=1 << block_bits, init=[])]
-        else:
-            self.memories = [RegisteredRam(depth=1 << block_bits, width=count_width)
-                             for _ in range(blocks)]
+        self._memories = None
+        self._whole = None
+        #: Whether the bank may be one memory (more than one block, ``read_tree`` not True).
+        self.may_be_whole = blocks > 1 and read_tree is not True
+        #: Whether the blocks and their read tree are built (set at elaboration).
+        self.tree = True
         self.word = Signal(count_width)
-        #: The bank's words, for testbenches: ``data[index]`` and ``data.depth``, as a
-        #: :class:`~amaranth.hdl.MemoryData`.
-        self.data = _BankWords(self.memories, block_bits)
+
+    @property
+    def whole(self):
+        """The bank as one memory (``None`` if it may not be one), made when first asked for."""
+        if self._whole is None and self.may_be_whole:
+            self._whole = Memory(shape=self.count_width, depth=self.blocks << self.block_bits,
+                                 init=[])
+        return self._whole
+
+    @property
+    def data(self):
+        """The bank's words, for testbenches: ``data[index]`` and ``data.depth``, as a
+        :class:`~amaranth.hdl.MemoryData` (of the whole memory when the bank may be one: a
+        simulation with ``read_tree=None``)."""
+        if self.may_be_whole:
+            return self.whole.data
+        return _BankWords(self.memories, self.block_bits)
+
+    @property
+    def memories(self):
+        """The blocks, made when first asked for (they are not made when the bank is one
+        memory: a block made and not elaborated draws Amaranth's warning)."""
+        if self._memories is None:
+            if self.blocks == 1:
+                self._memories = [Memory(shape=self.count_width, depth=1 << self.block_bits,
+                                         init=[])]
+            else:
+                self._memories = [RegisteredRam(depth=1 << self.block_bits,
+                                                width=self.count_width)
+                                  for _ in range(self.blocks)]
+        return self._memories
+
+    @property
+    def made(self):
+        """Whether the blocks are made."""
+        return self._memories is not None
 
     def connect(self, m, *, read_address, read_enable, write_address, write_to, write,
                 write_data):
         low = self.block_bits
-        blocks = len(self.memories)
+        blocks = self.blocks
         width = self.count_width
         # The block read, a cycle after its address is sampled (stage D); the groups of the OR
         # tree (D2) and the word (Q). Only the word holds between reads.
         read = [Signal(name=f"{self.word.name}_read_{stage}") for stage in ("d", "d1", "d2")]
         m.d.sync += [read[0].eq(read_enable)] + [b.eq(a) for a, b in zip(read, read[1:])]
+        if blocks > 1 and not self.tree:
+            self._connect_whole(m, read, read_address=read_address, read_enable=read_enable,
+                                write_address=write_address, write=write,
+                                write_data=write_data)
+            return
         if blocks == 1:
             # one block: no read stages, its word registered as it leaves the RAM
             memory, = self.memories
@@ -292,6 +348,28 @@ class _BlockedBank:
             m.d.sync += self.word.eq(
                 Cat(*[Cat(g[bit] for g in groups).any() for bit in range(width)])
                 if len(groups) > 1 else groups[0])
+
+
+    def _connect_whole(self, m, read, *, read_address, read_enable, write_address, write,
+                       write_data):
+        # The bank as one memory: its word registered twice (the blocks' registers, the
+        # groups) and then held as the tree's (Q), so it comes out in the same cycle; the
+        # write enable registered as each block's is (the address and data are registers).
+        read_port = self.whole.read_port()
+        write_port = self.whole.write_port()
+        out = [Signal(self.count_width, name=f"{self.word.name}_out_{stage}")
+               for stage in ("d1", "d2")]
+        enable = Signal(name=f"{self.word.name}_write")
+        m.d.sync += [out[0].eq(read_port.data), out[1].eq(out[0]), enable.eq(write)]
+        with m.If(read[2]):
+            m.d.sync += self.word.eq(out[1])
+        m.d.comb += [
+            read_port.addr.eq(read_address),
+            read_port.en.eq(read_enable),
+            write_port.addr.eq(write_address),
+            write_port.en.eq(enable),
+            write_port.data.eq(write_data),
+        ]
 
 
 class _BankWords:

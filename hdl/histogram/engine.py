@@ -133,6 +133,10 @@ class Histogram(wiring.Component):
     ram : ``"dual"`` or ``"single"``
         Banks with a read port and a write port (block RAM), or single-port banks (iCE40
         SPRAM), which take an event at most every other cycle.
+    read_tree : bool or None
+        Dual-port banks of more than one block: whether each is its blocks and their read tree
+        (``None``: on an ECP5) or one memory with the same timing
+        (:class:`~fliss.hdl.histogram.dual.DualPortBanks`).
 
     Members
     -------
@@ -200,7 +204,7 @@ class Histogram(wiring.Component):
     """
 
     def __init__(self, *, bank_bits=BANK_BITS, count_width=COUNT_WIDTH, ram="dual",
-                 max_pixel_bits=PIXEL_BITS):
+                 max_pixel_bits=PIXEL_BITS, read_tree=None):
         if ram not in RAM_KINDS:
             raise ValueError(f"RAM kind must be one of {', '.join(map(repr, RAM_KINDS))}, "
                              f"not {ram!r}")
@@ -223,7 +227,7 @@ class Histogram(wiring.Component):
         self.ram = ram
         if ram == "dual":
             self.min_event_spacing = 1
-            storage = DualPortBanks(bank_bits, count_width)
+            storage = DualPortBanks(bank_bits, count_width, read_tree=read_tree)
         else:
             self.min_event_spacing = 2
             storage = SinglePortBanks(bank_bits, count_width)

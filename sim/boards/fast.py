@@ -83,8 +83,7 @@ class FastBoard:
             # The harness stops where the sensor model simulates a window (a start that cuts
             # one, a window's end); what came before is told in order, as the cocotb board
             # sees it: in one cycle, starts, aggressor edges, then window ends.
-            harness.run(until, window_cycles=window_cycles)
-            for cycle, kind in zip(*harness.edges()):
+            for cycle, kind in zip(*harness.run_edges(until, window_cycles)):
                 while closes and closes[0][0] < cycle:
                     sensor.on_window_end(closes.popleft()[1])
                 if kind == START:

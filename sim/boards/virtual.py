@@ -227,14 +227,20 @@ class SensorModel:
         chunk = self.simulation.step()
         self._open = None
         closing = self._closing
-        starts = [int(cycle) for cycle in chunk.start_cycles]
+        starts = chunk.start_cycles.tolist()
+        if not len(chunk.events):
+            closing.difference_update(starts)
+            return
         windows = {}
-        for event in chunk.events:
-            index = (int(event["pulse"]) - chunk.first_pulse) & 0xffffffff
+        events = chunk.events
+        first = chunk.first_pulse
+        for pulse, event in zip(events["pulse"].tolist(), zip(
+                events["timestamp"].tolist(), events["address"].tolist(),
+                events["collision"].tolist())):
+            index = (pulse - first) & 0xffffffff
             # Events of closing windows are photons between TDC windows: nobody records them.
             if starts[index] not in closing:
-                windows.setdefault(index, []).append(
-                    (int(event["timestamp"]), int(event["address"]), int(event["collision"])))
+                windows.setdefault(index, []).append(event)
         closing.difference_update(starts)
         for index in sorted(windows):
             self._queue.append(windows[index])

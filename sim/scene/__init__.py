@@ -44,8 +44,9 @@ by :class:`PixelSimulation`; :func:`simulation_for` picks the simulation a scene
 
 This module gathers the simulator's public names; the parts live in
 :mod:`~fliss.sim.scene.description` (the scene and its constants), :mod:`~fliss.sim.scene.pulses`
-(laser edges and pulse trains), :mod:`~fliss.sim.scene.photons` (photon generation and
-detection) and :mod:`~fliss.sim.scene.acquisition` (acquisitions and histograms). The delay
+(laser edges and pulse trains), :mod:`~fliss.sim.scene.draws` (Poisson counts drawn ahead),
+:mod:`~fliss.sim.scene.photons` (photon generation, the steps),
+:mod:`~fliss.sim.scene.detection` and :mod:`~fliss.sim.scene.few` (detection) and :mod:`~fliss.sim.scene.acquisition` (acquisitions and histograms). The delay
 sequences come from :class:`fliss.sim.models.delay.DelayStream`.
 """
 

@@ -24,7 +24,8 @@ from ...hdl.event import PULSE_BITS, TDC_LSB_S
 from ...protocol.events import EVENT_DTYPE
 from .description import COUNTERS, SPEED_OF_LIGHT, TDC_CODES
 from . import few
-from .photons import Chunk, Simulation, non_paralysable, spans
+from .detection import non_paralysable, spans
+from .photons import Chunk, Simulation
 
 
 __all__ = ["PixelChunk", "PixelSimulation", "simulation_for"]
@@ -104,6 +105,7 @@ class PixelSimulation(Simulation):
         self._last_detections = np.full(count, -np.inf)
         self._carry_pixels = np.zeros(0, dtype=np.int16)
         self.pixel_counts = np.zeros((count, self._sources, len(COUNTERS)), dtype=np.int64)
+        self._no_pixel_counts = None
 
     def _detect(self, times, pixel):
         """Which photons (``times`` in time order, of ``pixel``) the pixels' SPADs detect."""
@@ -131,13 +133,10 @@ class PixelSimulation(Simulation):
     def step(self, max_cycles=None, *, until_cycle=None):
         """Simulate the next laser cycles (as :meth:`Simulation.step`); returns a
         :class:`PixelChunk`."""
-        cycles, count = self._cycles(max_cycles, until_cycle)
-        if count == 0:
-            return PixelChunk(self.pulse, cycles[:0].copy(), np.zeros(0, dtype=EVENT_DTYPE),
-                              np.zeros_like(self.counts), np.zeros_like(self.pixel_counts))
-        starts, span_starts, ends, boundary = self._windows(cycles, count)
-
-        times, sources, pixel = self._photons(boundary, count, starts, span_starts, ends)
+        prepared = self._prepare(max_cycles, until_cycle)
+        if isinstance(prepared, Chunk):
+            return prepared
+        cycles, count, (starts, span_starts, ends, boundary), (times, sources, pixel) = prepared
         later = times >= boundary
         self._carry_times, self._carry_sources = times[later], sources[later]
         self._carry_pixels = pixel[later]
@@ -174,6 +173,14 @@ class PixelSimulation(Simulation):
         events["collision"] = collision
         events["pulse"] = (self.pulse + cycle) & ((1 << PULSE_BITS) - 1)
         return self._advance_pixels(cycles, count, starts, ends, events, pixel, sources, what)
+
+    def _empty_chunk(self, start_cycles):
+        chunk = super()._empty_chunk(start_cycles)
+        if self._no_pixel_counts is None:
+            self._no_pixel_counts = np.zeros_like(self.pixel_counts)
+            self._no_pixel_counts.flags.writeable = False
+        return PixelChunk(chunk.first_pulse, start_cycles, chunk.events, chunk.counts,
+                          self._no_pixel_counts)
 
     def _advance_pixels(self, cycles, count, starts, ends, events, pixel, sources, what):
         # Photon counters: one bincount over (pixel, source, counter)

@@ -14,8 +14,10 @@ from ...hdl.event import PULSE_BITS, TDC_LSB_S
 from ..models import delay as _delay
 from ..models import scheduler as _scheduler
 from ...protocol.events import EVENT_DTYPE
-from .description import COUNTERS, FWHM_PER_SIGMA, TDC_CODES, TRUNCATION_SIGMAS, Scene
+from .description import COUNTERS, FWHM_PER_SIGMA, TDC_CODES, Scene
 from . import few
+from .detection import non_paralysable, spans
+from .generation import QUIET_CYCLES, PhotonGeneration
 from .pulses import EdgeBuffer, EdgeSchedule, PulseTrain, fed_edges
 
 
@@ -23,6 +25,9 @@ __all__ = ["Chunk", "Simulation", "spans", "non_paralysable"]
 
 
 _GENERATED, _OUTSIDE, _DEAD, _OVERWRITTEN, _RECORDED = range(len(COUNTERS))
+
+_NO_EVENTS = np.zeros(0, dtype=EVENT_DTYPE)
+_NO_EVENTS.flags.writeable = False
 
 
 @dataclass
@@ -51,72 +56,7 @@ class Chunk:
         return len(self.start_cycles)
 
 
-def spans(times, starts, span_starts, ends, dead, separated):
-    """``(span, in_span, in_window)`` of photons at ``times`` (sorted): the span each is in (the
-    TDC window from ``starts[span]``, or the dead time before it), whether it is in one, and
-    whether in its window. ``separated``: spans do not overlap, each its window and the dead
-    time before; otherwise they run from ``span_starts`` to ``ends``."""
-    if separated:
-        span = np.searchsorted(starts, times + dead, side="right") - 1
-        offset = times - starts[np.maximum(span, 0)]
-        in_span = (span >= 0) & (offset < TDC_CODES)
-        in_window = in_span & (offset >= 0)
-    else:
-        span = np.searchsorted(span_starts, times, side="right") - 1
-        clipped = np.maximum(span, 0)
-        in_span = (span >= 0) & (times < ends[clipped])
-        in_window = in_span & (times >= starts[clipped])
-    return span, in_span, in_window
-
-
-def non_paralysable(times, dead, last):
-    """Which photons (sorted ``times``) a non-paralysable detector detects; ``last`` is the time
-    of the last detection before them."""
-    count = len(times)
-    if count == 0 or dead <= 0:
-        return np.ones(count, dtype=bool)
-    previous = np.empty(count)
-    previous[0] = last
-    previous[1:] = times[:-1]
-    # A photon at least one dead time after the previous photon is detected whatever happened
-    # before. The others sit in clusters behind such a photon and are resolved in order, one
-    # position of all clusters at a time.
-    detected = (times - previous) >= dead
-    if detected.all():
-        return detected
-    heads = np.maximum.accumulate(np.where(detected, np.arange(count), -1))
-    open_ = np.flatnonzero(~detected)
-    head = heads[open_]
-    clusters, cluster = np.unique(head, return_inverse=True)
-    reference = np.where(clusters >= 0, times[np.maximum(clusters, 0)], last)
-    position = open_ - head
-    order = np.argsort(position, kind="stable")
-    bounds = np.searchsorted(position[order], np.arange(1, position.max() + 2))
-    for lo, hi in zip(bounds[:-1], bounds[1:]):
-        members = order[lo:hi]
-        index = open_[members]
-        owner = cluster[members]
-        ok = times[index] - reference[owner] >= dead
-        detected[index] = ok
-        reference[owner[ok]] = times[index[ok]]
-    return detected
-
-
-_LABELS = {}
-
-
-def _labels(source, number):
-    """``number`` times the source index ``source`` (``int8``; a read-only view of a
-    constant when short: a step's few photons cost no new array)."""
-    if number > 4096:
-        return np.full(number, source, dtype=np.int8)
-    if source not in _LABELS:
-        _LABELS[source] = np.full(4096, source, dtype=np.int8)
-        _LABELS[source].flags.writeable = False
-    return _LABELS[source][:number]
-
-
-class Simulation:
+class Simulation(PhotonGeneration):
     """The scene, laser cycle after laser cycle, in chunks.
 
     Parameters
@@ -139,6 +79,11 @@ class Simulation:
     #: Steps with at most this many photons are resolved in plain Python (:mod:`.few`), the
     #: others with numpy; the results are the same.
     few_photons = few.FEW_PHOTONS
+
+    #: Steps of fed starts over at most this many laser cycles make their photons in plain
+    #: Python, and those without photons stop there (:mod:`.generation`); the results are the
+    #: same (0: every step with numpy).
+    quiet_cycles = QUIET_CYCLES
 
     def __init__(self, scene, *, seed=None, chunk_cycles=1 << 16, external_starts=False,
                  external_aggressors=False):
@@ -209,6 +154,10 @@ class Simulation:
         self._pixel_count = None
         self._carry_pixels = None
         self._per_pixel = None
+        self._hits = None               # see _draws
+        self._quiet_sources = None      # see _quiet
+        self._plain_shares = None       # the pixels' shares and arrival times, as lists
+        self._no_counts = None          # the counters of a step without photons (read-only)
         #: Photon counters since the start, ``(sources, len(COUNTERS))``.
         self.counts = np.zeros((self._sources, len(COUNTERS)), dtype=np.int64)
 
@@ -247,119 +196,13 @@ class Simulation:
         edges.feed(fed_edges(edge_cycles, edges.last, "Aggressor trigger edges",
                              "feed_aggressor"))
 
-    def _photons(self, boundary, count, starts, span_starts, ends):
-        """Photons up to ``boundary`` (and of the pulses near it, after it): carried over, from
-        each pulsed source, and background in the ``count`` spans; ``(times, sources, pixels)``,
-        not sorted. ``pixels`` is ``None`` but for a pixel array, whose pulsed sources give each
-        pixel its own mean detections and arrival time (``_per_pixel``) and whose background falls
-        on every pixel alike."""
-        rng = self._rng
-        array = self._pixel_count
-        times, sources, owners = [self._carry_times], [self._carry_sources], [self._carry_pixels]
-        for index, (pulses, mean, sigma, wander) in enumerate(self._pulsed):
-            source = index if index == 0 else index + 1
-            extra, lowest = None, 0.0
-            if array is not None:
-                mean, extra, lowest, shares = self._per_pixel[index]
-            centres = pulses.until(boundary + TRUNCATION_SIGMAS * (sigma + wander) + 1.0
-                                   - lowest)
-            if not mean or len(centres) == 0:
-                continue
-            if wander > 0:
-                centres = centres + wander * rng.standard_normal(len(centres)).clip(
-                    -TRUNCATION_SIGMAS, TRUNCATION_SIGMAS)
-            number = rng.poisson(mean * len(centres))
-            if number == 0:
-                continue                    # (no draws: the generator's stream is unchanged)
-            if array is not None:
-                # Each pixel's Poisson number of photons (of its own mean), drawn as the
-                # Poisson number of the array's shared out by the pixels' means: the same law
-                pixel = np.searchsorted(shares, rng.random(number), side="right")
-                pixel = np.minimum(pixel, array - 1).astype(np.int16)
-                owners.append(pixel)
-            spread = rng.standard_normal(number).clip(-TRUNCATION_SIGMAS, TRUNCATION_SIGMAS)
-            if len(centres) == 1:           # (no draw: the generator's stream is unchanged)
-                arrivals = np.full(number, centres[0])
-            else:
-                arrivals = centres[rng.integers(0, len(centres), number)]
-            if extra is not None:
-                arrivals = arrivals + extra[pixel]
-            times.append(arrivals + sigma * spread)
-            sources.append(_labels(source, number))
-        if self._background > 0:
-            # A Poisson process on each span: drawn on spans all as long as the longest, then
-            # thinned to each span's true length.
-            if self._separated:
-                longest = TDC_CODES + self._dead
-            else:
-                lengths = ends - span_starts
-                longest = float(lengths.max())
-            mean = self._background * longest * count
-            if array is not None:
-                mean = mean * array
-            number = rng.poisson(mean)
-            if number == 0:
-                return self._gathered(times, sources, owners)
-            span = rng.integers(0, count, number)
-            offset = rng.uniform(0.0, longest, number)
-            if array is not None:
-                pixel = rng.integers(0, array, number).astype(np.int16)
-            if self._separated:
-                times.append(starts[span] + (offset - self._dead))
-            else:
-                inside = offset < lengths[span]
-                times.append(span_starts[span[inside]] + offset[inside])
-                number = int(inside.sum())
-                if array is not None:
-                    pixel = pixel[inside]
-            sources.append(_labels(1, number))
-            if array is not None:
-                owners.append(pixel)
-        return self._gathered(times, sources, owners)
-
-    def _gathered(self, times, sources, owners):
-        if len(times) == 1:
-            return times[0], sources[0], owners[0]
-        return (np.concatenate(times), np.concatenate(sources),
-                None if self._pixel_count is None else np.concatenate(owners))
-
-    def _cycles(self, max_cycles, until_cycle):
-        """The TDC start cycles from the next laser cycle on, and how many of them the next step
-        simulates (at most ``max_cycles``, those before ``until_cycle``)."""
-        max_cycles = self.chunk_cycles if max_cycles is None else int(max_cycles)
-        cycles = self._starts.get(self.pulse, self.pulse + max_cycles + 1)
-        count = max(min(max_cycles, len(cycles) - 1), 0)   # the next start must be known
-        if until_cycle is not None:
-            count = int(np.searchsorted(cycles[:count], until_cycle, side="left"))
-        return cycles, count
-
-    def _windows(self, cycles, count):
-        """Times of the step's ``count`` TDC starts, of its spans (``None`` when they never
-        touch) and of their ends (the same), and the time from which photons belong to the
-        next step."""
-        edges = cycles[:count + 1] * self._lsb
-        starts = edges[:-1]
-        ends = span_starts = None
-        if self._separated:
-            # Every span is [start - dead, start + 2**13) and they never touch.
-            boundary = edges[-1] - self._dead
-        else:
-            ends = np.minimum(starts + TDC_CODES, edges[1:])
-            span_starts = np.maximum(starts - self._dead,
-                                     np.concatenate(([self._previous_end], ends[:-1])))
-            boundary = max(edges[-1] - self._dead, ends[-1])
-        return starts, span_starts, ends, boundary
-
     def step(self, max_cycles=None, *, until_cycle=None):
         """Simulate the next laser cycles: at most ``max_cycles`` (default: one chunk), and only
         those whose TDC start is before clock cycle ``until_cycle``. Returns a :class:`Chunk`."""
-        cycles, count = self._cycles(max_cycles, until_cycle)
-        if count == 0:
-            return Chunk(self.pulse, cycles[:0].copy(), np.zeros(0, dtype=EVENT_DTYPE),
-                         np.zeros_like(self.counts))
-        starts, span_starts, ends, boundary = self._windows(cycles, count)
-
-        times, sources, _ = self._photons(boundary, count, starts, span_starts, ends)
+        prepared = self._prepare(max_cycles, until_cycle)
+        if isinstance(prepared, Chunk):
+            return prepared
+        cycles, count, (starts, span_starts, ends, boundary), (times, sources, _) = prepared
         later = times >= boundary
         if later.any():
             self._carry_times, self._carry_sources = times[later], sources[later]
@@ -409,6 +252,13 @@ class Simulation:
         events["pulse"] = (self.pulse + cycle) & ((1 << PULSE_BITS) - 1)
 
         return self._advance(cycles, count, starts, ends, events, counts)
+
+    def _empty_chunk(self, start_cycles):
+        """The chunk of a step without photons (its counters read-only)."""
+        if self._no_counts is None:
+            self._no_counts = np.zeros_like(self.counts)
+            self._no_counts.flags.writeable = False
+        return Chunk(self.pulse, start_cycles, _NO_EVENTS, self._no_counts)
 
     def _advance(self, cycles, count, starts, ends, events, counts):
         """The chunk of a step over ``count`` laser cycles; moves on past them."""

@@ -127,50 +127,52 @@ def fed_edges(values, last, what, caller):
 
 class EdgeBuffer:
     """An increasing sequence read by global index, made block by block by ``blocks()`` or, when
-    ``blocks`` is ``None``, fed from outside (then ``get`` returns what is known)."""
+    ``blocks`` is ``None``, fed from outside (then ``get`` returns what is known; fed values are
+    kept as a list of Python integers, cheap to feed and read one at a time)."""
 
     def __init__(self, blocks):
         self._blocks = blocks
-        self._data = np.zeros(0, dtype=np.int64)
+        self._data = np.zeros(0, dtype=np.int64) if blocks is not None else []
         self._base = 0
-        self._pending = []          # values fed one by one, not in _data yet
         #: The last value fed (``None`` before any).
         self.last = None
 
     @property
     def end(self):
         """Index after the last value known."""
-        return self._base + len(self._data) + len(self._pending)
+        return self._base + len(self._data)
 
     def feed(self, values):
-        """Feed values (as :func:`fed_edges` returns them: an ``int`` is kept aside, and joined
-        to the others when read)."""
+        """Feed values (as :func:`fed_edges` returns them: an ``int`` or an ``int64`` array)."""
         if isinstance(values, int):
-            self._pending.append(values)
+            self._data.append(values)
             self.last = values
-            return
-        self._gather()
-        self._data = np.concatenate((self._data, values)) if len(self._data) else values
-        if len(values):
-            self.last = int(values[-1])
-
-    def _gather(self):
-        if self._pending:
-            values = np.array(self._pending, dtype=np.int64)
-            self._pending = []
-            self._data = np.concatenate((self._data, values)) if len(self._data) else values
+        elif len(values):
+            self._data.extend(values.tolist())
+            self.last = self._data[-1]
 
     def get(self, lo, hi):
-        self._gather()
-        while self._base + len(self._data) < hi and self._blocks is not None:
+        """Values ``lo`` to ``hi`` (those known), an ``int64`` array (with ``blocks``, of
+        whatever type the blocks are)."""
+        if self._blocks is None:
+            return np.array(self._data[lo - self._base:hi - self._base], dtype=np.int64)
+        while self._base + len(self._data) < hi:
             self._data = np.concatenate((self._data[lo - self._base:], self._blocks()))
             self._base = lo
         return self._data[lo - self._base:hi - self._base]
 
+    def values(self, lo, hi):
+        """:meth:`get` as a list of Python numbers."""
+        if self._blocks is None:
+            return self._data[lo - self._base:hi - self._base]
+        return self.get(lo, hi).tolist()
+
     def trim(self, lo):
-        self._gather()
         if lo > self._base:
-            self._data = self._data[lo - self._base:]
+            if self._blocks is None:
+                del self._data[:lo - self._base]
+            else:
+                self._data = self._data[lo - self._base:]
             self._base = lo
 
 
@@ -210,6 +212,40 @@ class PulseTrain:
         if self._trim:
             self._buffer.trim(self._next)
         return centres[:found]
+
+    def count_until(self, limit):
+        """How many pulses :meth:`until` would hand out (it does not hand them out)."""
+        if self._buffer is None:
+            return max(self._next, math.ceil((limit - self._shift) / self._step)) - self._next
+        count = 8
+        while True:
+            found = 0
+            cycles = self._buffer.values(self._next, self._next + count)
+            for cycle in cycles:
+                if cycle * self._scale + self._shift >= limit:
+                    return found
+                found += 1
+            if len(cycles) < count:
+                return found
+            count *= 4
+
+    def centres(self, count):
+        """The centres of the next ``count`` pulses (as :meth:`count_until` counted them), a
+        list, handed out: the values :meth:`until` gives."""
+        if self._buffer is None:
+            centres = [self._shift + pulse * self._step
+                       for pulse in range(self._next, self._next + count)]
+        else:
+            centres = [cycle * self._scale + self._shift
+                       for cycle in self._buffer.values(self._next, self._next + count)]
+        self.skip(count)
+        return centres
+
+    def skip(self, count):
+        """Hand out the next ``count`` pulses unseen (as :meth:`count_until` counted them)."""
+        self._next += count
+        if self._trim and self._buffer is not None:
+            self._buffer.trim(self._next)
 
     @property
     def next_index(self):

@@ -189,6 +189,7 @@ _SIGNATURES = {
     "fh_read": (_I32, [_P, _P, _I32]), "fh_edges": (_I32, [_P, _P, _P, _I32]),
     "fh_window": (None, [_P, _P, _I32]), "fh_counter": (_I64, [_P, _I32]),
     "fh_presented": (_I32, [_P, _P, _P, _P, _I32]),
+    "fh_run_edges": (_I32, [_P, _I64, _P, _P, _P, _I32]),
 }
 _libraries = {}
 
@@ -216,6 +217,8 @@ class Harness:
         self._cycles = (ctypes.c_int64 * 4096)()
         self._kinds = (ctypes.c_int32 * 4096)()
         self._window_cycles = None
+        self._ran = ctypes.c_int64()
+        self._ran_ref = ctypes.byref(self._ran)
         #: Rising clock edges so far.
         self.cycle = 0
 
@@ -242,6 +245,22 @@ class Harness:
         ran = self._lib.fh_run(self._handle, int(until), int(window_cycles is not None))
         self.cycle += ran
         return ran
+
+    def run_edges(self, until, window_cycles):
+        """:meth:`run` up to ``until`` with ``window_cycles``, then :meth:`edges`, in one call
+        to the harness (the fast board's loop)."""
+        if window_cycles != self._window_cycles:
+            self._lib.fh_set_window(self._handle, int(window_cycles))
+            self._window_cycles = window_cycles
+        space = len(self._cycles)
+        count = self._lib.fh_run_edges(self._handle, until, self._ran_ref, self._cycles,
+                                       self._kinds, space)
+        self.cycle += self._ran.value
+        cycles, kinds = self._cycles[:count], self._kinds[:count]
+        if count == space:
+            more = self.edges()
+            cycles, kinds = cycles + more[0], kinds + more[1]
+        return cycles, kinds
 
     def set_reset(self, level):
         """The level of the top level's ``rst`` from the next cycle on."""

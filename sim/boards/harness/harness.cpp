@@ -229,6 +229,14 @@ int fh_edges(Harness* h, int64_t* cycles, int32_t* kinds, int space) {
     return count;
 }
 
+// fh_run, stopping where the sensor model has a window, then fh_edges: one call where the
+// board's loop would make two. The cycles run go to *ran; returns the edges taken.
+int fh_run_edges(Harness* h, int64_t until, int64_t* ran, int64_t* cycles, int32_t* kinds,
+                 int space) {
+    *ran = fh_run(h, until, 1);
+    return fh_edges(h, cycles, kinds, space);
+}
+
 // A window read out now: its events go on the bus from the next cycle on. Each event is
 // packed in a word: timestamp in bits 0-15, address in bits 16-23, collision flag in bit 24.
 void fh_window(Harness* h, const uint32_t* events, int count) {
