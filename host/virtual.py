@@ -112,20 +112,27 @@ def build(sim, *, baud=VIRTUAL_BAUD, root=None, fine_tdc=False, small=False):
     simulator is missing, the baud rate cannot be made, or the build fails (with the path of
     its log).
     """
-    from ..hdl import verilog
+    from ..hdl import DEFAULT_CLOCK_HZ, verilog
+    from ..hdl.link.uart import bit_cycles
     from ..hdl.top import SMALL, FlissTop
     from ..sim.benches.runner import TIMESCALE
     from ..sim.boards.harness import gateware_sources
 
     _check_simulator(sim)
     try:
+        bit_cycles(DEFAULT_CLOCK_HZ, baud)      # (the top level's check of its baud rate)
+    except ValueError as error:
+        raise VirtualBoardError(str(error)) from None
+
+    def make_text():
+        # (made only when the build is: a top level made and not elaborated draws a warning)
         if fine_tdc:
             from ..sim.boards.fine_loopback import FineTdcTop
             top = FineTdcTop(baud=baud)
         else:
             top = FlissTop(baud=baud, **(SMALL if small else {}))
-    except ValueError as error:
-        raise VirtualBoardError(str(error)) from None
+        return verilog.convert(top, TOPLEVEL)
+
     folder = Path(root or build_root()) / _folder_name(sim, fine_tdc, small)
     folder.mkdir(parents=True, exist_ok=True)
     # Keyed by the gateware's sources: generating the Verilog to compare it would take longer
@@ -137,7 +144,7 @@ def build(sim, *, baud=VIRTUAL_BAUD, root=None, fine_tdc=False, small=False):
     # One build at a time per folder (tests and the demo may start boards side by side).
     with open(folder / "build.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
-        _build_locked(sim, folder, lambda: verilog.convert(top, TOPLEVEL), digest)
+        _build_locked(sim, folder, make_text, digest)
     return folder
 
 
@@ -379,11 +386,12 @@ class VirtualBoard:
         return self.path
 
     def _fast_command(self):
-        from ..hdl.top import FlissTop
+        from ..hdl import DEFAULT_CLOCK_HZ
+        from ..hdl.link.uart import bit_cycles
         from ..sim.boards import harness
         _check_simulator(self.sim)
         try:
-            FlissTop(baud=self.baud)        # a baud rate the gateware cannot make raises
+            bit_cycles(DEFAULT_CLOCK_HZ, self.baud)     # (FlissTop's check of its baud rate)
             library = harness.build(self.folder, baud=self.baud)
         except (harness.HarnessBuildError, ValueError) as error:
             raise VirtualBoardError(str(error)) from None
