@@ -305,13 +305,9 @@ class _BlockedBank:
             m.d.sync += enable.eq(write)
             with m.If(read[0]):
                 m.d.sync += self.word.eq(read_port.data)
-            m.d.comb += [
-                read_port.addr.eq(read_address),
-                read_port.en.eq(read_enable),
-                write_port.addr.eq(write_address),
-                write_port.en.eq(enable),
-                write_port.data.eq(write_data),
-            ]
+            _wire_ports(m, read_port, write_port, read_address=read_address,
+                        read_enable=read_enable, write_address=write_address, enable=enable,
+                        write_data=write_data)
             return
         # More blocks: each a RegisteredRam, whose word is registered as it leaves the block
         # (stage D1: on the ECP5, the block RAM's own output register). Each block's select is
@@ -363,13 +359,21 @@ class _BlockedBank:
         m.d.sync += [out[0].eq(read_port.data), out[1].eq(out[0]), enable.eq(write)]
         with m.If(read[2]):
             m.d.sync += self.word.eq(out[1])
-        m.d.comb += [
-            read_port.addr.eq(read_address),
-            read_port.en.eq(read_enable),
-            write_port.addr.eq(write_address),
-            write_port.en.eq(enable),
-            write_port.data.eq(write_data),
-        ]
+        _wire_ports(m, read_port, write_port, read_address=read_address,
+                    read_enable=read_enable, write_address=write_address, enable=enable,
+                    write_data=write_data)
+
+
+def _wire_ports(m, read_port, write_port, *, read_address, read_enable, write_address, enable,
+                write_data):
+    # A memory's read and write ports, as a bank of one memory drives them.
+    m.d.comb += [
+        read_port.addr.eq(read_address),
+        read_port.en.eq(read_enable),
+        write_port.addr.eq(write_address),
+        write_port.en.eq(enable),
+        write_port.data.eq(write_data),
+    ]
 
 
 class _BankWords:
