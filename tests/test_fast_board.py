@@ -1,7 +1,7 @@
 """The fast virtual board (:mod:`fliss.sim.boards.fast`): the top level Verilated in the C++
 harness, the sensor model in closed loop, against the cocotb board's sensor model.
 
-The cocotb board tells its :class:`~fliss.sim.boards.virtual.SensorModel` each TDC start and
+The cocotb board tells its :class:`~fliss.sim.boards.sensor.SensorModel` each TDC start and
 aggressor edge when its trigger fires and each window end one cycle after the window's range;
 in one cycle, starts first, then aggressor edges, then window ends. Here the fast board runs the
 gateware in raw mode, and a second sensor model with the same scene and seed is told the same
@@ -20,7 +20,7 @@ from fliss.protocol.events import EVENT_DTYPE
 from fliss.sim import scene
 from fliss.sim.boards import harness
 from fliss.sim.boards.fast import AGGRESSOR, START, FastBoard
-from fliss.sim.boards.virtual import SensorModel, StandInPins
+from fliss.sim.boards.sensor import SensorModel, StandInPins
 from fliss.host.cli import main
 from fliss.host.virtual import VIRTUAL_BAUD, build_root
 

@@ -24,7 +24,7 @@ from fliss.sim import scene
 from fliss.sim.benches.runner import simulator_available
 from fliss.protocol.histograms import assemble
 from fliss.protocol.packets import HISTOGRAM_TYPES
-from fliss.sim.boards.virtual import SensorModel, StandInPins
+from fliss.sim.boards.sensor import SensorModel, StandInPins
 
 
 BAUD = 12_000_000

@@ -1,6 +1,6 @@
 """cocotb testbench: the virtual board's sensor model feeding the line scene to the top level.
 
-The sensor model of the virtual board (:class:`fliss.sim.boards.virtual.SensorModel`) drives the
+The sensor model of the virtual board (:class:`fliss.sim.boards.sensor.SensorModel`) drives the
 sensor pins of :class:`fliss.hdl.top.FlissTop` in closed loop from the line scene (60 pixels, a
 wall at 4 m, an object at 2.5 m before pixels 20 to 39, a flash aggressor 75 ns after the
 victim), with the column sensor or one TDC per pixel. In raw mode every event the model put on
@@ -29,7 +29,7 @@ from ... import protocol
 from ...protocol.events import EVENT_DTYPE
 from ..scene import Aggressor, Scene, line_pixels
 from .top import TopTB
-from ..boards.virtual import SensorModel
+from ..boards.sensor import SensorModel
 
 
 #: Per case: sensor kind, laser period (clock cycles), echo and aggressor detections per pulse

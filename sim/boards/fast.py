@@ -3,7 +3,7 @@ simulator on its sensor pins, the UART behind a pseudo-terminal.
 
 It is the cocotb virtual board (:mod:`fliss.sim.boards.virtual`) without cocotb: the same
 environment (``FLISS_BOARD_*``), the same pty, statistics and reset files, and the same sensor
-model (:class:`~fliss.sim.boards.virtual.SensorModel`, fed with the same TDC starts, aggressor
+model (:class:`~fliss.sim.boards.sensor.SensorModel`, fed with the same TDC starts, aggressor
 edges and window ends in the same order, so one seed gives the same events). The harness does
 the per-cycle work in C++: clocking, the UART pins, the edges, shifting events out on the bus;
 Python runs only when something happens: a TDC start or aggressor edge, a window's conversion
@@ -23,9 +23,9 @@ from ...hdl import DEFAULT_CLOCK_HZ
 from ...protocol.frames import FrameDecoder, Packet
 from ...protocol.packets import DATA_TYPES
 from .harness import Harness
-from .virtual import (IDLE_POLLS, IDLE_WAIT_S, MAX_BACKLOG, POLL_US, RESET_CYCLES, SensorModel,
-                      StandInPins, env_setting, parent_alive, publish_file, reset_requested,
-                      scene_from_environment)
+from .sensor import SensorModel, StandInPins
+from .virtual import (IDLE_POLLS, IDLE_WAIT_S, MAX_BACKLOG, POLL_US, RESET_CYCLES, env_setting,
+                      parent_alive, publish_file, reset_requested, scene_from_environment)
 from .pty_server import close_pty
 
 import select
