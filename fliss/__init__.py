@@ -11,12 +11,10 @@ The Python API of a board is here: ``fliss.connect(port)`` gives a :class:`~flis
 (settings with units, histograms and events as numpy arrays; README, "Python API").
 """
 
-try:
-    from importlib.metadata import version as _version
-
-    __version__ = _version("fliss")
-except Exception:  # pragma: no cover - running from a tree that was never installed
-    __version__ = "0.0.0+unknown"
+#: The version of the package, written here only: ``pyproject.toml`` reads it for the
+#: distribution, the gateware reports it in its identity (:mod:`fliss.hdl.protocol`), and capture
+#: files record it.
+__version__ = "0.2.0"
 
 #: The Python API (:mod:`fliss.host.board`), imported when first used: ``fliss.connect(port)``.
 _API = {"connect": "board", "Board": "board", "Histogram": "board", "Histograms": "board",

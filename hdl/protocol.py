@@ -18,11 +18,13 @@ byte first, so that the CRC of a whole packet, CRC included, is zero.
 
 from amaranth.lib import data, enum
 
+from .. import __version__
 from .event import Event
 
 
 __all__ = [
     "PROTOCOL_VERSION", "GATEWARE_VERSION", "version_numbers", "GATEWARE_MAJOR", "GATEWARE_MINOR",
+    "GATEWARE_PATCH",
     "DEFAULT_BAUD", "DELIMITER", "COBS_MAX_RUN",
     "CRC_WIDTH", "CRC_POLY", "CRC_INIT", "CRC_CHECK", "CRC_BYTES",
     "PacketType", "DATA_PACKETS", "Header", "HEADER_BYTES", "MAX_PAYLOAD", "MAX_PACKET", "MAX_ENCODED",
@@ -37,22 +39,23 @@ __all__ = [
 
 
 #: Version of this protocol, reported in the identity packet.
-PROTOCOL_VERSION = 3
+PROTOCOL_VERSION = 4
 
-#: Version of the gateware (the package's version in ``pyproject.toml``; a test holds the two
-#: together). The identity packet reports its major and minor numbers.
-GATEWARE_VERSION = "0.1.0"
+#: Version of the gateware: the package's version (:data:`fliss.__version__`, written there
+#: only). The identity packet reports its major, minor and patch numbers.
+GATEWARE_VERSION = __version__
 
 
 def version_numbers(text):
-    """``(major, minor)`` of a version string such as ``"0.1.0"``, each as a byte; a part that
-    is not a number counts as 0."""
-    parts = [int(part) if part.isdigit() else 0 for part in text.split(".")[:2]] + [0, 0]
-    return parts[0] & 0xff, parts[1] & 0xff
+    """``(major, minor, patch)`` of a version string such as ``"0.2.0"``, each as a byte; a
+    part that is missing or not a number (``"0.2.0rc1"``: ``rc1``) counts as 0."""
+    parts = [int(part) if part.isdigit() else 0 for part in text.split(".")[:3]]
+    parts += [0] * (3 - len(parts))
+    return tuple(part & 0xff for part in parts)
 
 
-#: Major and minor number of :data:`GATEWARE_VERSION`, as the identity packet reports them.
-GATEWARE_MAJOR, GATEWARE_MINOR = version_numbers(GATEWARE_VERSION)
+#: Major, minor and patch number of :data:`GATEWARE_VERSION`, as the identity packet reports them.
+GATEWARE_MAJOR, GATEWARE_MINOR, GATEWARE_PATCH = version_numbers(GATEWARE_VERSION)
 
 #: Default baud rate of the link, gateware and host: what an FT2232H bridge (iCEBreaker, many
 #: ULX3S) carries reliably.
@@ -253,6 +256,7 @@ class Identity(data.Struct):
     protocol:       8
     gateware_major: 8
     gateware_minor: 8
+    gateware_patch: 8
     registers:      8
     clock_hz:       32
     baud:           32

@@ -13,15 +13,17 @@ that says what and what to do.
 
 import math
 import time
+import warnings
 from dataclasses import dataclass
 from typing import Any, Dict, Iterable, Iterator, List, Mapping, Optional, Union
 
-from ..hdl.protocol import (PROTOCOL_VERSION, PacketType, NakCode, Identity, ReadRequest, Status,
-                            READ_MAX, registers_layout)
+from ..hdl.protocol import (PROTOCOL_VERSION, GATEWARE_VERSION, version_numbers, PacketType,
+                            NakCode, Identity, ReadRequest, Status, READ_MAX, registers_layout)
 from ..hdl.registers import REGISTERS, BY_NAME, BY_ADDRESS, problems, split_problems
 from ..hdl.delay.settings import BANK_BITS, MAX_BANK_BITS
 from ..protocol.layout import byte_size, pack, unpack
-from .errors import BoardLost, BoardMismatch, BoardRefused, SettingsError
+from .errors import (BoardLost, BoardMismatch, BoardRefused, GatewareVersionWarning,
+                     SettingsError)
 from .link import BoardLink
 from .stream import EventBatch, HistogramFrame
 
@@ -65,24 +67,33 @@ class BoardClient(BoardLink):
         self.command(PacketType.PING, expect=lambda reply: False)
 
     def identify(self, *, check: bool = True) -> IdentityInfo:
-        """Read the identity; with ``check``, refuse a board with another protocol version."""
+        """Read the identity; with ``check``, refuse a board with another protocol version or
+        register map, and warn (:exc:`~fliss.host.errors.GatewareVersionWarning`) of gateware
+        of another version than this package's."""
         reply = self.command(PacketType.IDENTIFY, expect=lambda r: r.type == PacketType.IDENTITY)
+        # The protocol byte comes first in every version's identity: a board of another
+        # protocol is told so, whatever the length of its identity.
+        protocol = reply.payload[0] if reply.payload else None
+        if check and protocol is not None and protocol != PROTOCOL_VERSION:
+            raise BoardMismatch(f"the board speaks protocol version {protocol}, this fliss speaks "
+                                f"version {PROTOCOL_VERSION}: update the "
+                                f"{'gateware' if protocol < PROTOCOL_VERSION else 'host tool'}")
         if len(reply.payload) != byte_size(Identity):
             raise BoardMismatch(f"the board sent an identity of {len(reply.payload)} bytes, not "
-                             f"{byte_size(Identity)}: is it a FLISS board?")
+                                f"{byte_size(Identity)}: is it a FLISS board?")
         fields = unpack(Identity, reply.payload)
-        protocol, registers = fields["protocol"], fields["registers"]
-        self._identity = IdentityInfo(protocol,
-                                     f"{fields['gateware_major']}.{fields['gateware_minor']}",
-                                     registers, fields["clock_hz"], fields["baud"],
-                                     fields["bank_bits"])
-        if check and protocol != PROTOCOL_VERSION:
-            raise BoardMismatch(f"the board speaks protocol version {protocol}, this fliss speaks "
-                             f"version {PROTOCOL_VERSION}: update the "
-                             f"{'gateware' if protocol < PROTOCOL_VERSION else 'host tool'}")
+        registers = fields["registers"]
+        version = (fields["gateware_major"], fields["gateware_minor"], fields["gateware_patch"])
+        self._identity = IdentityInfo(protocol, ".".join(map(str, version)), registers,
+                                      fields["clock_hz"], fields["baud"], fields["bank_bits"])
         if check and registers != len(REGISTERS):
             raise BoardMismatch(f"the board has {registers} registers, this fliss knows "
-                             f"{len(REGISTERS)}: gateware and host tool do not match")
+                                f"{len(REGISTERS)}: gateware and host tool do not match")
+        if check and version != version_numbers(GATEWARE_VERSION):
+            warnings.warn(GatewareVersionWarning(
+                f"the board runs gateware {self._identity.gateware_version}, this fliss is "
+                f"{GATEWARE_VERSION}: program the board with this version's bitstream "
+                f"(make bitstream)"), stacklevel=2)
         return self._identity
 
     @property

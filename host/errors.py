@@ -8,7 +8,7 @@ it does with :exc:`UserError`, a mistake in what the user asked a command for.
 
 __all__ = ["BoardError", "BoardLost", "BoardReset", "PortError", "BoardRefused", "BoardMismatch",
            "SettingsError", "CalibrationError", "VirtualBoardError", "PathError", "FormatError", "ViewError",
-           "UserError"]
+           "UserError", "GatewareVersionWarning"]
 
 
 class BoardError(Exception):
@@ -55,6 +55,12 @@ class BoardRefused(BoardError):
 class BoardMismatch(BoardError):
     """The board is not one this host speaks to: another protocol version, another register
     map, or replies that are not FLISS packets."""
+
+
+class GatewareVersionWarning(UserWarning):
+    """The board speaks this host's protocol but runs gateware of another version than this
+    package's (:data:`fliss.__version__`): it works, and may lack what this version's gateware
+    does; program the board with this version's bitstream."""
 
 
 class SettingsError(BoardError, ValueError):

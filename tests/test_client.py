@@ -2,7 +2,9 @@
 real pty."""
 
 import os
+import re
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,6 +14,8 @@ from fliss.hdl.protocol import PacketType, PROTOCOL_VERSION, EVENT_BYTES, NakCod
 from fliss.hdl.registers import REGISTERS, defaults
 from fliss.host.errors import UserError
 from fliss.host.client import BoardClient
+import fliss
+from fliss.host.errors import GatewareVersionWarning
 from fliss.host.errors import BoardError, BoardLost, BoardRefused, PortError, SettingsError
 from fliss.host.stream import StreamAssembler, HistogramFrame, unpack_event_payload
 from fliss.hdl.protocol import HistogramChunk, registers_layout
@@ -41,6 +45,32 @@ def test_identify(board_pair):
     assert identity.clock_hz == CLOCK_HZ
     assert identity.registers == len(REGISTERS)
     assert identity.baud == model.baud
+    # The gateware reports the package's whole version, written once in fliss/__init__.py.
+    init = (Path(__file__).resolve().parent.parent / "fliss" / "__init__.py").read_text()
+    assert identity.gateware_version == re.search(r'__version__ = "([^"]+)"', init).group(1)
+
+
+def test_older_gateware_is_told_apart():
+    with model_board(gateware_version="0.1.0") as model:
+        with BoardClient(model.path, timeout_s=2.0) as board:
+            with pytest.warns(GatewareVersionWarning) as record:
+                identity = board.identify()
+    assert identity.gateware_version == "0.1.0"
+    assert [str(w.message) for w in record] == [
+        f"the board runs gateware 0.1.0, this fliss is {fliss.__version__}: program the board "
+        f"with this version's bitstream (make bitstream)"]
+
+
+def test_older_protocol_is_told_before_the_identity_length():
+    # A board of protocol 3 sent a shorter identity (no patch number): it is told to update
+    # its gateware, not asked whether it is a FLISS board.
+    with model_board(protocol_version=3) as model:
+        model.identity_length = 13
+        with BoardClient(model.path, timeout_s=2.0) as board:
+            with pytest.raises(BoardError, match=f"^the board speaks protocol version 3, this "
+                                                 f"fliss speaks version {PROTOCOL_VERSION}: "
+                                                 f"update the gateware$"):
+                board.identify()
 
 
 def test_version_mismatch_is_refused():

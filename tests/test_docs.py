@@ -7,7 +7,8 @@ from pathlib import Path
 from amaranth.lib import data
 
 from fliss.hdl.event import Event
-from fliss.hdl.protocol import (GATEWARE_VERSION, PROTOCOL_VERSION, CHUNK_BINS, Header, Ack, Nak,
+from fliss.hdl.protocol import (GATEWARE_VERSION, GATEWARE_MAJOR, GATEWARE_MINOR, GATEWARE_PATCH,
+                                PROTOCOL_VERSION, CHUNK_BINS, Header, Ack, Nak,
                                 Identity, ReadRequest, Status, HistogramChunk, HistogramCompact,
                                 registers_layout, READ_MAX, CONSISTENCY, EVENT_BYTES, COMPACT_BYTES,
                                 DepthHeader, DepthRecord, DEPTH_HEADER_BYTES, DEPTH_RECORD_BYTES,
@@ -78,6 +79,12 @@ def test_packet_header_table_matches_the_header():
 
 
 def test_gateware_version_is_the_package_version():
+    # The version is written once, in fliss/__init__.py; pyproject.toml reads it from there.
     pyproject = (DOC.parent.parent / "pyproject.toml").read_text()
-    version = re.search(r'^version = "([^"]+)"', pyproject, flags=re.MULTILINE).group(1)
-    assert GATEWARE_VERSION == version
+    assert re.search(r'^dynamic = \["version"\]', pyproject, flags=re.MULTILINE)
+    assert 'version = {attr = "fliss.__version__"}' in pyproject
+    init = (DOC.parent.parent / "fliss" / "__init__.py").read_text()
+    written = re.findall(r'^__version__ = "([^"]+)"', init, flags=re.MULTILINE)
+    assert written == [GATEWARE_VERSION]
+    major, minor, patch = (int(part) for part in GATEWARE_VERSION.split("."))
+    assert (GATEWARE_MAJOR, GATEWARE_MINOR, GATEWARE_PATCH) == (major, minor, patch)

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 import serial
 
+import fliss as fliss_package
 from fliss.hdl.protocol import PacketType, PROTOCOL_VERSION
 from fliss.hdl.registers import BY_NAME, defaults
 from fliss.host.cli import main
@@ -133,6 +134,16 @@ def test_version_mismatch(capsys):
     assert status == 1
     assert err == (f"fliss: error: the board speaks protocol version 7, this fliss speaks "
                    f"version {PROTOCOL_VERSION}: update the host tool\n")
+
+
+def test_older_gateware_is_one_warning_line(capsys):
+    with model_board(gateware_version="0.0.9") as board:
+        status, out, err = fliss(capsys, "config", "--port", board.path)
+    assert status == 0
+    assert err == (f"fliss: warning: the board runs gateware 0.0.9, this fliss is "
+                   f"{fliss_package.__version__}: program the board with this version's "
+                   f"bitstream (make bitstream)\n")
+    assert "gateware 0.0.9" in out
 
 
 def test_port_errors(capsys, monkeypatch, tmp_path):

@@ -7,7 +7,8 @@ from amaranth.lib.wiring import In, Out
 from .. import DEFAULT_CLOCK_HZ
 from .buffer import StreamBuffer
 from .framing import PacketBeat
-from ..protocol import (PROTOCOL_VERSION, GATEWARE_MAJOR, GATEWARE_MINOR, PacketType, NakCode,
+from ..protocol import (PROTOCOL_VERSION, GATEWARE_MAJOR, GATEWARE_MINOR, GATEWARE_PATCH,
+                        PacketType, NakCode,
                         MAX_PAYLOAD, COUNTER_BITS, Identity, Nak, STATUS_FIELDS, READ_MAX,
                         CONSISTENCY)
 from ..regfile import RegisterFile
@@ -324,9 +325,9 @@ class CommandProcessor(wiring.Component):
     def _reply_bytes(self, m, c):
         """The reply's header, and its payload byte at `index`."""
         replies = c.replies
-        major, minor = GATEWARE_MAJOR, GATEWARE_MINOR
-        identity = Const({"protocol": PROTOCOL_VERSION, "gateware_major": major,
-                          "gateware_minor": minor, "registers": len(REGISTERS),
+        identity = Const({"protocol": PROTOCOL_VERSION, "gateware_major": GATEWARE_MAJOR,
+                          "gateware_minor": GATEWARE_MINOR, "gateware_patch": GATEWARE_PATCH,
+                          "registers": len(REGISTERS),
                           "clock_hz": self.clock_hz, "baud": self.baud,
                           "bank_bits": self.bank_bits}, Identity)
         m.d.comb += [

@@ -33,7 +33,7 @@ import numpy as np
 from ...hdl import DEFAULT_CLOCK_HZ
 from ...hdl.histogram.layout import MAX_COUNT_WIDTH
 from ...hdl.protocol import (DEFAULT_BAUD, HISTOGRAM_COUNT_BITS, PacketType, STATUS_FIELDS,
-                             LINK_COUNTERS, MAX_EVENTS_PER_PACKET)
+                             LINK_COUNTERS, MAX_EVENTS_PER_PACKET, version_numbers)
 from ...hdl.delay.modes import MODES, DelayMode
 from ...hdl.event import TDC_LSB_S
 from ...hdl.finetdc import TAP_S as FINE_TAP_S
@@ -117,6 +117,8 @@ class ModelBoard(PtyServer):
         Faults of the line, as in :class:`~fliss.sim.boards.pty_server.PtyServer`.
     protocol_version : int or None
         Report this protocol version instead of the real one.
+    gateware_version : str or None
+        Report this gateware version (``"0.1.0"``) instead of the package's.
     line_limited : bool
         In raw mode, send no more events per block of ``integration`` cycles than the line
         carries at ``baud`` in full EVENTS frames; drop the rest at the raw FIFO and count them
@@ -133,7 +135,8 @@ class ModelBoard(PtyServer):
                  aggressor_detections_per_pulse=0.05, photon_seed=0, time_scale=1.0,
                  kill_after=None, hang_after=None, reset_after=None, corrupt_every=None,
                  corrupt_seed=1, corrupt_types=None, corrupt_commands_every=None,
-                 protocol_version=None, line_limited=False, maxima=None, loopback=None):
+                 protocol_version=None, gateware_version=None, line_limited=False, maxima=None,
+                 loopback=None):
         super().__init__(kill_after=kill_after, hang_after=hang_after, reset_after=reset_after,
                          corrupt_every=corrupt_every, corrupt_seed=corrupt_seed,
                          corrupt_types=corrupt_types,
@@ -145,6 +148,9 @@ class ModelBoard(PtyServer):
         self.photon_seed = photon_seed
         self.time_scale = float(time_scale)
         self.protocol_version = protocol_version
+        self.gateware_version = gateware_version
+        #: Send only this many bytes of the identity (an older protocol's shorter identity).
+        self.identity_length = None
         self.line_limited = line_limited
         self.maxima = maxima
         self.loopback = Loopback(jumper=None) if loopback is None else loopback
@@ -227,6 +233,13 @@ class ModelBoard(PtyServer):
         if type_value == PacketType.IDENTIFY.value and self.protocol_version is not None \
                 and reply[0] == PacketType.IDENTITY:
             reply = (reply[0], bytes([self.protocol_version]) + reply[1][1:])
+        if type_value == PacketType.IDENTIFY.value and self.gateware_version is not None \
+                and reply[0] == PacketType.IDENTITY:
+            version = bytes(version_numbers(self.gateware_version))
+            reply = (reply[0], reply[1][:1] + version + reply[1][1 + len(version):])
+        if type_value == PacketType.IDENTIFY.value and self.identity_length is not None \
+                and reply[0] == PacketType.IDENTITY:
+            reply = (reply[0], reply[1][:self.identity_length])
         self._send(*reply)
         if type_value == PacketType.START.value and self.model.running and not was_running:
             self._begin(time.monotonic())

@@ -1,6 +1,7 @@
 """Model of :class:`fliss.hdl.link.command.CommandProcessor`: packets in, replies out."""
 
-from ...hdl.protocol import (PROTOCOL_VERSION, GATEWARE_MAJOR, GATEWARE_MINOR, PacketType, NakCode,
+from ...hdl.protocol import (PROTOCOL_VERSION, GATEWARE_MAJOR, GATEWARE_MINOR, GATEWARE_PATCH,
+                             PacketType, NakCode,
                              Identity, Nak, ReadRequest, Status, STATUS_FIELDS, READ_MAX,
                              CONSISTENCY, REGISTER_BYTES, registers_layout)
 from ...hdl.registers import (REGISTERS, BY_ADDRESS, KEYING, TdcSource, defaults, problems,
@@ -17,7 +18,7 @@ __all__ = ["CommandModel", "identity_bytes"]
 
 def identity_bytes(clock_hz, baud, bank_bits=BANK_BITS):
     return pack(Identity, protocol=PROTOCOL_VERSION, gateware_major=GATEWARE_MAJOR,
-                gateware_minor=GATEWARE_MINOR, registers=len(REGISTERS), clock_hz=int(clock_hz),
+                gateware_minor=GATEWARE_MINOR, gateware_patch=GATEWARE_PATCH, registers=len(REGISTERS), clock_hz=int(clock_hz),
                 baud=int(baud), bank_bits=int(bank_bits))
 
 
