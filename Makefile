@@ -6,7 +6,7 @@ PY      := $(VENV)/bin/python
 STAMP   := $(VENV)/.installed-stamp
 PYTEST_ARGS ?=
 
-.PHONY: all demo test test-long lint verilog venv clean
+.PHONY: all demo test test-long lint verilog venv clean dist test-installed
 
 all: test
 
@@ -37,7 +37,28 @@ verilog: $(STAMP)
 	$(PY) -m fliss generate -o build/verilog
 
 clean:
-	rm -rf build sim_build .pytest_cache
+	rm -rf build sim_build .pytest_cache dist
+
+# The wheel and the sdist of what is committed (a copy made by git archive: no build/ of an
+# earlier build, no untracked file), into dist/.
+dist: $(STAMP)
+	rm -rf build/dist-source dist && mkdir -p build/dist-source
+	git archive --format=tar HEAD | tar -x -C build/dist-source
+	$(PY) -m build --outdir dist build/dist-source
+
+# The wheel as a user installs it, in fresh environments outside the checkout (.ci/installed.py):
+# Python 3.10 with every dependency at its lowest claimed version, Python 3.13 with the newest,
+# and the checkout's Python with the demo (the harness built into a fresh per-user cache) and a
+# capture on a virtual board. INSTALLED_PYTHONS names the interpreters of the first two.
+INSTALLED_PYTHONS ?= python3.10 python3.13
+test-installed: dist
+	@set -e; for python in $(INSTALLED_PYTHONS); do \
+		if [ "$$python" = "$(firstword $(INSTALLED_PYTHONS))" ]; then min=--min-deps; else min=; fi; \
+		echo "== installed wheel, $$python $$min"; \
+		$(PY) .ci/installed.py --wheel dist/fliss-*.whl --python $$python $$min; \
+	done
+	@echo "== installed wheel, $(PY) (full)"
+	$(PY) .ci/installed.py --wheel dist/fliss-*.whl --python $(PYTHON) --full --fresh-cache
 
 # Bitstreams with the YoWASP toolchain from PyPI: make bitstream BOARD=icebreaker|ulx3s
 BOARD ?= icebreaker

@@ -1,0 +1,295 @@
+"""FLISS as a user installs it: the wheel in a fresh virtual environment outside the checkout.
+
+    python .ci/installed.py --wheel DIST/fliss-X-py3-none-any.whl --python python3.13 [--full]
+        [--min-deps] [--fresh-cache]
+
+Makes a virtual environment with ``--python`` in a temporary folder, installs the wheel (with its
+``virtual`` and ``formats`` extras for ``--full``; with ``--min-deps``, every dependency at the
+lower bound ``pyproject.toml`` claims), and runs, from another temporary folder with nothing of the
+checkout on ``sys.path``:
+
+* ``fliss --version`` (the checkout's version) and every command's ``--help``;
+* ``fliss generate``: the same files as the checkout's ``fliss generate``, byte for byte;
+* on the Python model board: a histogram capture, ``analyze``, ``plot`` and (``--full``)
+  ``export`` to PTU and Photon-HDF5;
+* with ``--full``: ``fliss demo`` (the fast virtual board's harness compiled into the per-user
+  cache: a fresh one with ``--fresh-cache``) and ``fliss board`` with a capture, ``analyze`` and
+  ``export`` on it; and that nothing was written into site-packages.
+
+Prints a line per check and closes with ``N passed, N failed``; exits 1 when a check failed.
+"""
+
+import argparse
+import filecmp
+import os
+import re
+import select
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - CI runs this with the checkout's Python 3.11
+    import tomli as tomllib
+
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+class Checks:
+    def __init__(self):
+        self.passed, self.failed = 0, 0
+
+    def run(self, what, function):
+        started = time.monotonic()
+        try:
+            detail = function()
+        except Exception as error:  # a failed check is reported and the next one runs
+            self.failed += 1
+            print(f"FAIL {what}: {error}", flush=True)
+            return
+        self.passed += 1
+        extra = f": {detail}" if detail else ""
+        print(f"ok   {what} ({time.monotonic() - started:.1f} s){extra}", flush=True)
+
+
+def run(argv, *, cwd, env, timeout=600, check=True):
+    done = subprocess.run([str(a) for a in argv], cwd=cwd, env=env, capture_output=True,
+                          text=True, timeout=timeout)
+    if check and done.returncode != 0:
+        tail = (done.stderr or done.stdout).strip().splitlines()[-5:]
+        raise RuntimeError(f"{' '.join(map(str, argv))} exited {done.returncode}: "
+                           + " | ".join(tail))
+    return done
+
+
+def minimum_requirements():
+    """The project's dependencies at the lower bounds it claims (``>=X`` becomes ``==X``)."""
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    pinned = []
+    for requirement in project["dependencies"]:
+        spec, _, marker = requirement.partition(";")
+        lower = re.search(r">=\s*([^,\s]+)", spec)
+        if lower is None:
+            raise RuntimeError(f"pyproject.toml: {requirement!r} has no lower bound")
+        name = re.match(r"[A-Za-z0-9_.\-]+(\[[^\]]*\])?", spec).group(0)
+        pinned.append(f"{name}=={lower.group(1)}" + (f"; {marker.strip()}" if marker else ""))
+    return pinned
+
+
+def environment():
+    """The user's environment: nothing of the checkout, no PYTHONPATH, no virtual environment
+    active; pip's cache as it is (a fresh per-user cache of FLISS's own is ``--fresh-cache``)."""
+    pip_cache = run([sys.executable, "-m", "pip", "cache", "dir"], cwd=ROOT,
+                    env=dict(os.environ), check=False).stdout.strip()
+    env = {key: value for key, value in os.environ.items()
+           if not key.startswith(("PYTHON", "VIRTUAL_ENV", "FLISS_"))}
+    if pip_cache:
+        env["PIP_CACHE_DIR"] = pip_cache
+    return env
+
+
+class Board:
+    """``fliss board`` or the Python model board in the background; its pty from its output."""
+
+    def __init__(self, argv, *, cwd, env, timeout):
+        self.process = subprocess.Popen([str(a) for a in argv], cwd=cwd, env=env,
+                                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                        text=True, start_new_session=True)
+        deadline = time.monotonic() + timeout
+        self.lines = []
+        while time.monotonic() < deadline:
+            ready, _, _ = select.select([self.process.stdout], [], [], 1.0)
+            if not ready:
+                if self.process.poll() is not None:
+                    break
+                continue
+            line = self.process.stdout.readline()
+            if not line:
+                break
+            self.lines.append(line.rstrip())
+            found = re.search(r"(/dev/pts/\d+)", line)
+            if found:
+                self.port = found.group(1)
+                return
+        self.stop()
+        raise RuntimeError("the board printed no pty: " + " | ".join(self.lines[-5:]))
+
+    def stop(self):
+        if self.process.poll() is None:
+            os.killpg(self.process.pid, signal.SIGINT)
+            try:
+                self.process.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                os.killpg(self.process.pid, signal.SIGKILL)
+                self.process.wait()
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--wheel", required=True, type=Path)
+    parser.add_argument("--python", default=sys.executable)
+    parser.add_argument("--full", action="store_true")
+    parser.add_argument("--min-deps", action="store_true")
+    parser.add_argument("--fresh-cache", action="store_true")
+    args = parser.parse_args()
+    wheel = args.wheel.resolve()
+    version = re.search(r'^__version__ = "([^"]+)"', (ROOT / "fliss" / "__init__.py").read_text(),
+                        flags=re.MULTILINE).group(1)
+    checks = Checks()
+    with tempfile.TemporaryDirectory(prefix="fliss-installed-") as temporary:
+        work = Path(temporary)
+        env = environment()
+        if args.fresh_cache:
+            env["XDG_CACHE_HOME"] = str(work / "cache")
+        venv, user = work / "venv", work / "user"
+        user.mkdir()
+        bin_ = venv / "bin"
+        fliss = bin_ / "fliss"
+
+        def install():
+            run([args.python, "-m", "venv", venv], cwd=work, env=env)
+            run([bin_ / "python", "-m", "pip", "install", "--quiet", "--upgrade", "pip"],
+                cwd=work, env=env)
+            extras = "[virtual,formats]" if args.full else ""
+            if args.min_deps:
+                run([bin_ / "python", "-m", "pip", "install", "--quiet",
+                     *minimum_requirements()], cwd=work, env=env, timeout=1200)
+                run([bin_ / "python", "-m", "pip", "install", "--quiet", "--no-deps",
+                     f"{wheel}"], cwd=work, env=env)
+            else:
+                run([bin_ / "python", "-m", "pip", "install", "--quiet", f"{wheel}{extras}"],
+                    cwd=work, env=env, timeout=1200)
+            python = run([bin_ / "python", "-c", "import sys; print(sys.version.split()[0])"],
+                         cwd=user, env=env).stdout.strip()
+            return f"Python {python}" + (", lowest dependencies" if args.min_deps else "")
+
+        checks.run("install the wheel into a fresh environment", install)
+        if checks.failed:
+            print(f"{checks.passed} passed, {checks.failed} failed")
+            return 1
+        site = Path(run([bin_ / "python", "-c", "import sysconfig; "
+                         "print(sysconfig.get_paths()['purelib'])"], cwd=user, env=env)
+                    .stdout.strip())
+        before = {p for p in (site / "fliss").rglob("*") if "__pycache__" not in p.parts}
+
+        def imported_from_site_packages():
+            out = run([bin_ / "python", "-c", "import sys, fliss, fliss.hdl.top; "
+                       "print(fliss.__file__); print(fliss.hdl.top.__file__); "
+                       "print('\\n'.join(sys.path))"], cwd=user, env=env).stdout
+            if str(ROOT) in out:
+                raise RuntimeError(f"the checkout ({ROOT}) is on sys.path or imported")
+            if not out.splitlines()[0].startswith(str(site)):
+                raise RuntimeError(f"fliss imported from {out.splitlines()[0]}")
+
+        def version_line():
+            out = run([fliss, "--version"], cwd=user, env=env).stdout.strip()
+            if out != f"fliss {version}":
+                raise RuntimeError(f"fliss --version says {out!r}, not 'fliss {version}'")
+            return out
+
+        def every_help():
+            top = run([fliss, "--help"], cwd=user, env=env).stdout
+            commands = re.findall(r"^    ([a-z][a-z-]*)\s", top, flags=re.MULTILINE)
+            if len(commands) < 10:
+                raise RuntimeError(f"fliss --help lists {len(commands)} commands")
+            for command in commands:
+                run([fliss, command, "--help"], cwd=user, env=env)
+            return f"{len(commands)} commands"
+
+        def same_verilog():
+            run([fliss, "generate", "-o", user / "generated"], cwd=user, env=env)
+            reference = work / "reference"
+            run([sys.executable, "-m", "fliss", "generate", "-o", reference], cwd=ROOT,
+                env=dict(os.environ))
+            comparison = filecmp.dircmp(reference, user / "generated")
+            files = [p for p in reference.rglob("*") if p.is_file()]
+            for path in files:
+                other = user / "generated" / path.relative_to(reference)
+                if not other.is_file() or other.read_bytes() != path.read_bytes():
+                    raise RuntimeError(f"{path.relative_to(reference)} differs from the "
+                                       f"checkout's")
+            if comparison.right_only:
+                raise RuntimeError(f"files only the installed fliss writes: "
+                                   f"{comparison.right_only}")
+            return f"{len(files)} files equal"
+
+        def model_board_capture():
+            board = Board([bin_ / "python", "-m", "fliss.sim.boards.model"], cwd=user, env=env,
+                          timeout=60)
+            try:
+                run([fliss, "config", "--port", board.port, "--mode", "masked",
+                     "--aggressor", "on"], cwd=user, env=env, timeout=60)
+                run([fliss, "capture", "--port", board.port, "--integration", "10ms",
+                     "--acquisitions", "2", "-o", "model.h5"], cwd=user, env=env, timeout=120)
+            finally:
+                board.stop()
+            out = run([fliss, "analyze", "model.h5"], cwd=user, env=env).stdout
+            run([fliss, "plot", "model.h5", "-o", "model.png"], cwd=user, env=env)
+            if not (user / "model.png").stat().st_size:
+                raise RuntimeError("plot wrote an empty PNG")
+            return out.strip().splitlines()[0][:80]
+
+        checks.run("imported from site-packages, nothing of the checkout", imported_from_site_packages)
+        checks.run("fliss --version", version_line)
+        checks.run("every command's --help", every_help)
+        checks.run("fliss generate writes the checkout's files", same_verilog)
+        checks.run("model board: config, capture, analyze, plot", model_board_capture)
+
+        if args.full:
+            def export_model():
+                for target, name in (("ptu", "model.ptu"), ("photon-hdf5", "model-ph.h5")):
+                    run([fliss, "export", "model.h5", "--to", target, "-o", name], cwd=user,
+                        env=env)
+                    if not (user / name).stat().st_size:
+                        raise RuntimeError(f"{name} is empty")
+                return "PTU and Photon-HDF5"
+
+            def demo():
+                out = run([fliss, "demo", "--out", "demo"], cwd=user, env=env, timeout=1500)
+                if not (user / "demo" / "demo.png").exists():
+                    raise RuntimeError("the demo wrote no demo.png")
+                return out.stdout.strip().splitlines()[-1][:90]
+
+            def virtual_board_capture():
+                board = Board([fliss, "board"], cwd=user, env=env, timeout=900)
+                try:
+                    run([fliss, "config", "--port", board.port, "--mode", "masked",
+                         "--aggressor", "on"], cwd=user, env=env, timeout=120)
+                    run([fliss, "capture", "--port", board.port, "--integration", "1ms",
+                         "--acquisitions", "2", "-o", "virtual.h5"], cwd=user, env=env,
+                        timeout=300)
+                finally:
+                    board.stop()
+                run([fliss, "analyze", "virtual.h5"], cwd=user, env=env)
+                run([fliss, "export", "virtual.h5", "--to", "ptu", "-o", "virtual.ptu"],
+                    cwd=user, env=env)
+                return f"virtual.h5 {(user / 'virtual.h5').stat().st_size} bytes"
+
+            def nothing_written_to_site_packages():
+                after = {p for p in (site / "fliss").rglob("*") if "__pycache__" not in p.parts}
+                if after != before:
+                    raise RuntimeError(f"written into site-packages: "
+                                       f"{sorted(map(str, after - before))[:5]}")
+                cache = Path(env.get("XDG_CACHE_HOME", Path(env["HOME"]) / ".cache"))
+                built = [p for p in cache.rglob("*.so")] if cache.exists() else []
+                if not built:
+                    raise RuntimeError(f"no harness library in the per-user cache {cache}")
+                return f"harness in {built[0].parent}"
+
+            checks.run("export the model board's capture", export_model)
+            checks.run("fliss demo", demo)
+            checks.run("fliss board: config, capture, analyze, export", virtual_board_capture)
+            checks.run("nothing written into site-packages", nothing_written_to_site_packages)
+
+    print(f"{checks.passed} passed, {checks.failed} failed")
+    return 1 if checks.failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
