@@ -24,7 +24,6 @@ import filecmp
 import os
 import re
 import select
-import shutil
 import signal
 import subprocess
 import sys
