@@ -50,7 +50,7 @@ dist: $(STAMP)
 # Python 3.10 with every dependency at its lowest claimed version, Python 3.13 with the newest,
 # and the checkout's Python with the demo (the harness built into a fresh per-user cache) and a
 # capture on a virtual board. INSTALLED_PYTHONS names the interpreters of the first two.
-INSTALLED_PYTHONS ?= python3.10 python3.13
+INSTALLED_PYTHONS ?= 3.10 3.13
 test-installed: dist
 	@set -e; for python in $(INSTALLED_PYTHONS); do \
 		if [ "$$python" = "$(firstword $(INSTALLED_PYTHONS))" ]; then min=--min-deps; else min=; fi; \

@@ -23,7 +23,6 @@ import argparse
 import filecmp
 import os
 import re
-import select
 import signal
 import subprocess
 import sys
@@ -67,6 +66,25 @@ def run(argv, *, cwd, env, timeout=600, check=True):
     return done
 
 
+def find_python(spec):
+    """The interpreter ``spec`` names: a command or path that runs, or a version (``3.10``)
+    that pyenv holds (its shims name versions that are not selected)."""
+    for candidate in (spec, f"python{spec}"):
+        try:
+            if subprocess.run([candidate, "-c", "pass"], capture_output=True).returncode == 0:
+                return candidate
+        except OSError:
+            pass
+    version = spec.removeprefix("python")
+    root = os.environ.get("PYENV_ROOT", str(Path.home() / ".pyenv"))
+    found = sorted(Path(root, "versions").glob(f"{version}.*/bin/python"),
+                   key=lambda path: [int(part) if part.isdigit() else 0
+                                     for part in path.parent.parent.name.split(".")])
+    if not found:
+        raise SystemExit(f"installed.py: no Python {spec} here (not on PATH, not in {root})")
+    return str(found[-1])
+
+
 def minimum_requirements():
     """The project's dependencies at the lower bounds it claims (``>=X`` becomes ``==X``)."""
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
@@ -94,30 +112,29 @@ def environment():
 
 
 class Board:
-    """``fliss board`` or the Python model board in the background; its pty from its output."""
+    """``fliss board`` or the Python model board in the background, its output in a log; its pty
+    from that output."""
 
     def __init__(self, argv, *, cwd, env, timeout):
-        self.process = subprocess.Popen([str(a) for a in argv], cwd=cwd, env=env,
-                                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                        text=True, start_new_session=True)
+        self.log = Path(cwd) / f"board-{time.monotonic_ns()}.log"
+        with open(self.log, "w") as output:
+            self.process = subprocess.Popen([str(a) for a in argv], cwd=cwd, env=env,
+                                            stdout=output, stderr=subprocess.STDOUT,
+                                            start_new_session=True)
         deadline = time.monotonic() + timeout
-        self.lines = []
         while time.monotonic() < deadline:
-            ready, _, _ = select.select([self.process.stdout], [], [], 1.0)
-            if not ready:
-                if self.process.poll() is not None:
-                    break
-                continue
-            line = self.process.stdout.readline()
-            if not line:
-                break
-            self.lines.append(line.rstrip())
-            found = re.search(r"(/dev/pts/\d+)", line)
+            found = re.search(r"(/dev/pts/\d+)", self.log.read_text())
             if found:
                 self.port = found.group(1)
                 return
+            if self.process.poll() is not None:
+                break
+            time.sleep(0.2)
         self.stop()
-        raise RuntimeError("the board printed no pty: " + " | ".join(self.lines[-5:]))
+        raise RuntimeError(f"the board printed no pty: {self.tail()}")
+
+    def tail(self):
+        return " | ".join(self.log.read_text().strip().splitlines()[-6:])
 
     def stop(self):
         if self.process.poll() is None:
@@ -127,6 +144,14 @@ class Board:
             except subprocess.TimeoutExpired:
                 os.killpg(self.process.pid, signal.SIGKILL)
                 self.process.wait()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, error, traceback):
+        self.stop()
+        if error is not None:
+            raise RuntimeError(f"{error}; the board's output: {self.tail()}") from None
 
 
 def main():
@@ -138,6 +163,7 @@ def main():
     parser.add_argument("--fresh-cache", action="store_true")
     args = parser.parse_args()
     wheel = args.wheel.resolve()
+    args.python = find_python(args.python)
     version = re.search(r'^__version__ = "([^"]+)"', (ROOT / "fliss" / "__init__.py").read_text(),
                         flags=re.MULTILINE).group(1)
     checks = Checks()
@@ -219,15 +245,12 @@ def main():
             return f"{len(files)} files equal"
 
         def model_board_capture():
-            board = Board([bin_ / "python", "-m", "fliss.sim.boards.model"], cwd=user, env=env,
-                          timeout=60)
-            try:
+            with Board([bin_ / "python", "-m", "fliss.sim.boards.model"], cwd=user, env=env,
+                       timeout=60) as board:
                 run([fliss, "config", "--port", board.port, "--mode", "masked",
                      "--aggressor", "on"], cwd=user, env=env, timeout=60)
                 run([fliss, "capture", "--port", board.port, "--integration", "10ms",
                      "--acquisitions", "2", "-o", "model.h5"], cwd=user, env=env, timeout=120)
-            finally:
-                board.stop()
             out = run([fliss, "analyze", "model.h5"], cwd=user, env=env).stdout
             run([fliss, "plot", "model.h5", "-o", "model.png"], cwd=user, env=env)
             if not (user / "model.png").stat().st_size:
@@ -256,15 +279,12 @@ def main():
                 return out.stdout.strip().splitlines()[-1][:90]
 
             def virtual_board_capture():
-                board = Board([fliss, "board"], cwd=user, env=env, timeout=900)
-                try:
+                with Board([fliss, "board"], cwd=user, env=env, timeout=900) as board:
                     run([fliss, "config", "--port", board.port, "--mode", "masked",
                          "--aggressor", "on"], cwd=user, env=env, timeout=120)
                     run([fliss, "capture", "--port", board.port, "--integration", "1ms",
                          "--acquisitions", "2", "-o", "virtual.h5"], cwd=user, env=env,
                         timeout=300)
-                finally:
-                    board.stop()
                 run([fliss, "analyze", "virtual.h5"], cwd=user, env=env)
                 run([fliss, "export", "virtual.h5", "--to", "ptu", "-o", "virtual.ptu"],
                     cwd=user, env=env)
