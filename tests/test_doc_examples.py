@@ -403,10 +403,13 @@ QUOTED = {
     "fliss: error: --line-errors must be from 0 to 1, not 1.5":
         (["board", "--line-errors", "1.5"], None, 1),
     "fliss: error: the board on /dev/pts/3 was reset during the capture: its STATUS (sequence "
-    "number 0) shows it stopped; its IDENTITY reads protocol 3, gateware 0.1; saved what was "
+    "number 0) shows it stopped; its IDENTITY reads protocol 4, gateware 0.2.0; saved what was "
     "received (30 histograms) to run.h5":
         (["capture", "--port", "/dev/pts/3", "--integration", "0.2ms", "--acquisitions", "100",
           "-o", "run.h5"], {"reset_after": 30}, 1),
+    "fliss: warning: the board runs gateware 0.1.0, this fliss is 0.2.0: program the board "
+    "with this version's bitstream (make bitstream)":
+        (["config", "--port", "/dev/pts/N"], {"gateware_version": "0.1.0"}, 0),
 }
 
 
