@@ -77,7 +77,8 @@ program: $(BOARDS_STAMP)
 	$(PY) -m fliss.boards.build program $(BOARD)
 
 test-boards: $(BOARDS_STAMP)
-	FLISS_BUILD_BOARDS=1 $(PY) -m pytest tests/test_boards.py tests/test_block_ram.py $(PYTEST_ARGS)
+	FLISS_BUILD_BOARDS=1 $(PY) -m pytest tests/test_boards.py tests/test_block_ram.py \
+		tests/test_example_amaranth.py $(PYTEST_ARGS)
 
 # Gate-level: each board's netlist, synthesized by its bitstream build's Yosys script, under the
 # top level's cocotb tests with Yosys's cell models (docs/verification.md), and the Verilog of

@@ -10,6 +10,8 @@ checkout on ``sys.path``:
 
 * ``fliss --version`` (the checkout's version) and every command's ``--help``;
 * ``fliss generate``: the same files as the checkout's ``fliss generate``, byte for byte;
+* ``examples/amaranth_delay_core/`` copied out and elaborated to Verilog on the installed
+  ``fliss.hdl`` (a user's own Amaranth design around the delay core);
 * on the Python model board: a histogram capture, ``analyze``, ``plot`` and (``--full``)
   ``export`` to PTU and Photon-HDF5;
 * with ``--full``: ``fliss demo`` (the fast virtual board's harness compiled into the per-user
@@ -257,11 +259,30 @@ def main():
                 raise RuntimeError("plot wrote an empty PNG")
             return out.strip().splitlines()[0][:80]
 
+        def amaranth_example():
+            # examples/ is not in the wheel: a user copies the folder and runs it against the
+            # installed fliss.hdl
+            folder = user / "amaranth_delay_core"
+            folder.mkdir()
+            for path in (ROOT / "examples" / "amaranth_delay_core").glob("*.py"):
+                (folder / path.name).write_bytes(path.read_bytes())
+            out = run([bin_ / "python", "-c",
+                       "import fliss.hdl.delay, ranger_board\n"
+                       "from amaranth.back import verilog\n"
+                       "text = verilog.convert(ranger_board.RangerOnBoard(48_000_000), "
+                       "name='ranger')\n"
+                       "print(fliss.hdl.delay.__file__, len(text.splitlines()))"],
+                      cwd=folder, env=env).stdout.split()
+            if "site-packages" not in out[0]:
+                raise RuntimeError(f"fliss.hdl.delay came from {out[0]}")
+            return f"{out[1]} lines of Verilog"
+
         checks.run("imported from site-packages, nothing of the checkout", imported_from_site_packages)
         checks.run("fliss --version", version_line)
         checks.run("every command's --help", every_help)
         checks.run("fliss generate writes the checkout's files", same_verilog)
         checks.run("model board: config, capture, analyze, plot", model_board_capture)
+        checks.run("the Amaranth example elaborates on the installed fliss.hdl", amaranth_example)
 
         if args.full:
             def export_model():

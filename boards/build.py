@@ -32,8 +32,8 @@ from ..hdl import DEFAULT_CLOCK_HZ
 from . import BOARDS, BoardTop, platform_class
 
 
-__all__ = ["BOARD_DESIGN", "BOARD_CLOCK_HZ", "TOOLS", "BuildResult", "toolchain_env", "load_design",
-           "build_board", "program_board", "main"]
+__all__ = ["BOARD_DESIGN", "BOARD_CLOCK_HZ", "TOOLS", "ToolchainError", "BuildResult",
+           "toolchain_env", "load_design", "build_board", "program_board", "main"]
 
 
 #: The design each board carries, as ``module:factory``; the factory takes the clock frequency in
@@ -73,7 +73,8 @@ UTILISATION = {
 
 
 class ToolchainError(Exception):
-    pass
+    """A tool of the build is missing, or the build failed (the message says which, and where
+    its logs are)."""
 
 
 @dataclass

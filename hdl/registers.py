@@ -24,7 +24,7 @@ from amaranth.lib import data, enum
 
 from . import DEFAULT_PRF_HZ, period_cycles
 from .event import ADDRESS_BITS, TIMESTAMP_BITS
-from .delay.modes import DelayMode, MODES, mode_row
+from .delay.modes import DelayMode, MODES, delay_problems
 from .finetdc import CODE_BITS as FINE_CODE_BITS, LSB_SELECTS as FINE_LSB_SELECTS, \
     TABLE_BITS as FINE_TABLE_BITS, HitInput
 from .delay.settings import (BANK_BITS, IV_BITS, KEY_BITS, MIN_LENGTH, MAX_LENGTH,
@@ -436,22 +436,9 @@ def group_values(group, values):
 
 
 def _delay_problems(group, values):
-    # The checks of one delay core's settings (its mode's from the table of modes)
-    v = group_values(group, values)
-    name = {r.field: r.name for r in group.members}
-    mode = mode_row(v["mode"])
-    found = []
-    if v["pulse_width"] >= v["period"]:
-        found.append(f"{name['pulse_width']} ({v['pulse_width']} cycles) must be shorter than "
-                     f"{name['period']} ({v['period']} cycles)")
-    if v["grid"] and mode.max_delay(**v) + v["pulse_width"] >= v["period"]:
-        found.append(f"grid mode needs the largest delay plus {name['pulse_width']} to be "
-                     f"shorter than {name['period']}")
-    bits = mode.seed_bits
-    if isinstance(bits, str) and v["seed"] >> v[bits]:
-        found.append(f"{name['seed']} must be below 2**{name[bits]} = "
-                     f"{1 << v[bits]} for the {mode.name} source")
-    return found
+    # The checks of one delay core's settings together (each register is checked on its own)
+    return delay_problems(group_values(group, values),
+                          names={r.field: r.name for r in group.members}, ranges=False)
 
 
 def split_problems(values, bank_bits=BANK_BITS):

@@ -7,7 +7,7 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from fliss.hdl.delay.modes import MODES, DelayMode, label, mode_row
+from fliss.hdl.delay.modes import MODES, DelayMode, delay_problems, label, mode_row
 from fliss.hdl.regfile import RegisterFile
 from fliss.hdl.registers import BY_NAME, defaults, problems
 from fliss.sim.models import delay as model
@@ -171,3 +171,35 @@ def test_register_file_grid_check_uses_the_table():
     # Independently, the Python rules say the same
     assert [problems({**defaults(80_000_000), **values}) == [] for values, _ in cases] == expected
     assert expected.count(False) == len(cases) // 2 >= 9
+
+
+#: Delay settings every check passes: mseq, length 5, in interval mode.
+GOOD = dict(mode=DelayMode.MSEQ, length=5, mask_width=6, seed=17, period=40, grid=0,
+            pulse_width=2)
+
+
+@pytest.mark.parametrize("change, messages", [
+    ({}, []),
+    ({"mode": 3, "mask_width": 16, "seed": 1 << 31}, []),
+    ({"grid": 1, "period": 33}, []),    # the largest delay 30 plus the pulse 2 is below 33
+    ({"grid": 1, "period": 32},
+     ["grid mode needs the largest delay plus pulse_width to be shorter than period"]),
+    ({"pulse_width": 40}, ["pulse_width (40 cycles) must be shorter than period (40 cycles)"]),
+    ({"seed": 32}, ["seed must be below 2**length = 32 for the mseq source"]),
+    ({"mode": 4}, ["mode (4) is no delay mode"]),
+    ({"length": 33, "period": 1},
+     ["length must be an integer from 2 to 32, not 33",
+      "period must be an integer from 2 to 4294967295, not 1"]),
+    ({"seed": 0}, ["seed must be an integer from 1 to 4294967295, not 0"]),
+])
+def test_delay_problems(change, messages):
+    # A delay core's settings checked without the register file (a design of one's own)
+    assert delay_problems({**GOOD, **change}) == messages
+
+
+def test_delay_problems_names_and_missing_fields():
+    assert delay_problems({**GOOD, "pulse_width": 50}, names={"pulse_width": "width"}) == \
+        ["width (50 cycles) must be shorter than period (40 cycles)"]
+    settings = dict(GOOD)
+    del settings["grid"], settings["seed"]
+    assert delay_problems(settings) == ["missing delay settings: seed, grid"]

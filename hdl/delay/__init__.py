@@ -10,4 +10,33 @@
 * :mod:`.laser`: laser trigger and TDC start;
 * :mod:`.core`: the delay core, source, scheduler and laser wired together;
 * :mod:`.aggressor`: a second, independent trigger for an aggressor illuminator.
+
+The blocks and definitions a design of your own reuses are importable from here::
+
+    from fliss.hdl.delay import DelayCore, DelayMode, DelaySettings, delay_problems
 """
+
+import importlib
+
+
+#: The public names, by the module that defines them. They are imported when first asked for
+#: (PEP 562): the register map imports this package's definitions (:mod:`.modes`,
+#: :mod:`.settings`), and the blocks import the register map, so importing the blocks here
+#: would make a circle.
+_PUBLIC = {
+    "DelayCore": ".core", "PulseScheduler": ".scheduler", "DelaySource": ".source",
+    "Delay": ".source", "LaserTrigger": ".laser", "Aggressor": ".aggressor",
+    "DelayMode": ".modes", "delay_problems": ".modes", "DelaySettings": "..registers",
+}
+
+__all__ = list(_PUBLIC)
+
+
+def __getattr__(name):
+    if name not in _PUBLIC:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(importlib.import_module(_PUBLIC[name], __name__), name)
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_PUBLIC))

@@ -20,7 +20,7 @@ from amaranth.lib import enum
 from .settings import MASKED_LENGTH, MAX_LENGTH, MAX_MASK_WIDTH, MIN_LENGTH
 
 
-__all__ = ["DelayMode", "Size", "SIZES", "Mode", "MODES", "mode_row", "label"]
+__all__ = ["DelayMode", "Size", "SIZES", "Mode", "MODES", "mode_row", "label", "delay_problems"]
 
 
 class DelayMode(enum.Enum, shape=2):
@@ -154,3 +154,49 @@ def label(mode, /, **settings):
     that is no mode."""
     row = mode_row(mode)
     return "?" if row is None else row.label(**settings)
+
+
+#: Fields of a delay core's settings, in order (:class:`~fliss.hdl.registers.DelaySettings`).
+_FIELDS = ("mode", "length", "mask_width", "seed", "period", "grid", "pulse_width")
+
+
+def delay_problems(settings, *, names=None, ranges=True):
+    """What is wrong with a delay core's settings, as messages (none: the core takes them).
+
+    ``settings`` maps each field of :class:`~fliss.hdl.registers.DelaySettings` (``mode``,
+    ``length``, ``mask_width``, ``seed``, ``period``, ``grid``, ``pulse_width``) to its value;
+    ``names`` gives the name a message uses for a field (a register's), by default the field's.
+    With ``ranges``, each value is checked against its own limits first; then the settings
+    together: the pulse shorter than the period, the largest delay plus the pulse shorter than
+    the period in ``grid`` mode, and an ``mseq`` seed below ``2**length``.
+    """
+    missing = [name for name in _FIELDS if name not in settings]
+    if missing:
+        return [f"missing delay settings: {', '.join(missing)}"]
+    name = {field: field for field in _FIELDS}
+    name.update(names or {})
+    v = settings
+    mode = mode_row(v["mode"])
+    if ranges:
+        limits = {"length": (SIZES["length"].minimum, SIZES["length"].maximum),
+                  "mask_width": (SIZES["mask_width"].minimum, SIZES["mask_width"].maximum),
+                  "seed": (1, (1 << MAX_LENGTH) - 1), "period": (2, (1 << 32) - 1),
+                  "grid": (0, 1), "pulse_width": (1, (1 << 16) - 1)}
+        found = [] if mode is not None else [f"{name['mode']} ({v['mode']!r}) is no delay mode"]
+        found += [f"{name[field]} must be an integer from {low} to {high}, not {v[field]!r}"
+                  for field, (low, high) in limits.items()
+                  if not isinstance(v[field], int) or not low <= v[field] <= high]
+        if found:
+            return found
+    found = []
+    if v["pulse_width"] >= v["period"]:
+        found.append(f"{name['pulse_width']} ({v['pulse_width']} cycles) must be shorter than "
+                     f"{name['period']} ({v['period']} cycles)")
+    if v["grid"] and mode.max_delay(**v) + v["pulse_width"] >= v["period"]:
+        found.append(f"grid mode needs the largest delay plus {name['pulse_width']} to be "
+                     f"shorter than {name['period']}")
+    bits = mode.seed_bits
+    if isinstance(bits, str) and v["seed"] >> v[bits]:
+        found.append(f"{name['seed']} must be below 2**{name[bits]} = "
+                     f"{1 << v[bits]} for the {mode.name} source")
+    return found

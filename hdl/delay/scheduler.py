@@ -36,7 +36,8 @@ class PulseScheduler(wiring.Component):
     frame also restarts the delay sequence from its seed (``reload`` is asserted on ``update``).
     A setting therefore never changes in the middle of a frame: no pulse is cut short, merged or
     doubled, provided that ``pulse_width < period`` (and the ``grid`` condition above), which the
-    register file enforces.
+    register file enforces (a design without it checks them with
+    :func:`~fliss.hdl.delay.modes.delay_problems`).
 
     Parameters
     ----------

@@ -10,4 +10,30 @@
   :mod:`.scanner` (the readout in windows, each weighed compact or full), :mod:`.compact` (the
   tokens of compact chunks) and :mod:`.chunk` (a chunk sent as a packet, also the full-chunk
   packetizer's).
+
+The blocks a design of your own reuses are importable from here::
+
+    from fliss.hdl.histogram import Histogram, HistogramSettings
 """
+
+import importlib
+
+
+#: The public names, by the module that defines them, imported when first asked for (PEP 562),
+#: as in :mod:`fliss.hdl.delay`.
+_PUBLIC = {
+    "Histogram": ".engine", "HistogramSettings": ".layout", "ReadoutSplit": ".layout",
+    "readout_layout": ".layout",
+}
+
+__all__ = list(_PUBLIC)
+
+
+def __getattr__(name):
+    if name not in _PUBLIC:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(importlib.import_module(_PUBLIC[name], __name__), name)
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_PUBLIC))

@@ -11,4 +11,29 @@ command processor and the data packetizers.
 * :mod:`.arbiter`: merges packet streams onto the link;
 * :mod:`.link`: :class:`~.link.Link`, the UART, the frames, the command processor and the
   arbiter as one block.
+
+The blocks a design of your own reuses are importable from here::
+
+    from fliss.hdl.link import Link
 """
+
+import importlib
+
+
+#: The public names, by the module that defines them, imported when first asked for (PEP 562),
+#: as in :mod:`fliss.hdl.delay`.
+_PUBLIC = {
+    "Link": ".link", "PacketBeat": ".framing",
+}
+
+__all__ = list(_PUBLIC)
+
+
+def __getattr__(name):
+    if name not in _PUBLIC:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(importlib.import_module(_PUBLIC[name], __name__), name)
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_PUBLIC))
