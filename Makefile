@@ -52,13 +52,17 @@ dist: $(STAMP)
 # capture on a virtual board. INSTALLED_PYTHONS names the interpreters of the first two.
 INSTALLED_PYTHONS ?= 3.10 3.13
 test-installed: dist
+	rm -rf build/installed-reference
+	$(PY) -m fliss generate -o build/installed-reference
 	@set -e; for python in $(INSTALLED_PYTHONS); do \
 		if [ "$$python" = "$(firstword $(INSTALLED_PYTHONS))" ]; then min=--min-deps; else min=; fi; \
-		echo "== installed wheel, $$python $$min"; \
-		$(PY) .ci/installed.py --wheel dist/fliss-*.whl --python $$python $$min; \
+		echo "== installed wheel, Python $$python $$min"; \
+		$(PY) .ci/installed.py --wheel dist/fliss-*.whl --python $$python $$min \
+			--reference build/installed-reference; \
 	done
-	@echo "== installed wheel, $(PY) (full)"
-	$(PY) .ci/installed.py --wheel dist/fliss-*.whl --python $(PYTHON) --full --fresh-cache
+	@echo "== installed wheel, $(PYTHON) (full)"
+	$(PY) .ci/installed.py --wheel dist/fliss-*.whl --python $(PYTHON) --full --fresh-cache \
+		--reference build/installed-reference
 
 # Bitstreams with the YoWASP toolchain from PyPI: make bitstream BOARD=icebreaker|ulx3s
 BOARD ?= icebreaker

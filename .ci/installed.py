@@ -163,6 +163,8 @@ def main():
     parser.add_argument("--full", action="store_true")
     parser.add_argument("--min-deps", action="store_true")
     parser.add_argument("--fresh-cache", action="store_true")
+    parser.add_argument("--reference", type=Path, metavar="DIR",
+                        help="the checkout's `fliss generate` output (made here when not given)")
     args = parser.parse_args()
     wheel = args.wheel.resolve()
     args.python = find_python(args.python)
@@ -231,9 +233,11 @@ def main():
 
         def same_verilog():
             run([fliss, "generate", "-o", user / "generated"], cwd=user, env=env)
-            reference = work / "reference"
-            run([sys.executable, "-m", "fliss", "generate", "-o", reference], cwd=ROOT,
-                env=dict(os.environ))
+            reference = args.reference
+            if reference is None:
+                reference = work / "reference"
+                run([sys.executable, "-m", "fliss", "generate", "-o", reference], cwd=ROOT,
+                    env=dict(os.environ))
             comparison = filecmp.dircmp(reference, user / "generated")
             files = [p for p in reference.rglob("*") if p.is_file()]
             for path in files:
