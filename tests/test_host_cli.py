@@ -2,10 +2,12 @@
 
 import errno
 import os
+import re
 import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -211,6 +213,11 @@ def test_capture_histograms_match_the_scene(model, capsys, tmp_path):
     assert capture.identity["clock_hz"] == CLOCK_HZ
     assert capture.counters["link"]["dropped_frames"] == 0
     assert capture.counters["link"]["missing_packets"] == 0
+    # The file names the package's version twice: the host's, and the gateware's identity.
+    written = (Path(fliss_package.__file__).parent / "__init__.py").read_text()
+    version = re.search(r'^__version__ = "([^"]+)"', written, flags=re.MULTILINE).group(1)
+    assert capture.attrs["host_version"] == version
+    assert capture.identity["gateware_version"] == version
 
 
 def test_capture_raw_matches_the_scene(model, capsys, tmp_path):
