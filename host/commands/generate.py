@@ -87,15 +87,18 @@ def run(args):
         baud = parse_baud(args.baud)
         period_cycles(clock_hz, DEFAULT_PRF_HZ)
         bit_cycles(clock_hz, baud)   # check before the top level is made
-        check = None
-        if not args.no_testbench:
-            check = DelayCheck(mode=args.tb_mode, length=args.tb_length,
-                               mask_width=args.tb_mask_width, seed=args.tb_seed,
-                               period=victim_period(clock_hz), pulses=args.tb_pulses)
-            check.settings()
         top = make_top(variant, clock_hz=int(clock_hz), baud=int(baud))
     except ValueError as error:
         raise UserError(str(error)) from None
+    check = None
+    if not args.no_testbench:
+        check = DelayCheck(mode=args.tb_mode, length=args.tb_length,
+                           mask_width=args.tb_mask_width, seed=args.tb_seed,
+                           period=victim_period(clock_hz), pulses=args.tb_pulses)
+        try:
+            check.settings()
+        except ValueError as error:
+            raise UserError(f"the testbench's delay source (--tb-*): {error}") from None
     try:
         generated = write_folder(output, top, name=args.name, variant=variant, check=check)
     except ValueError as error:

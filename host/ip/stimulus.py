@@ -58,7 +58,7 @@ class DelayCheck:
                                         mask_width=self.mask_width)
         if largest > MAX_TB_DELAY:
             raise ValueError(f"The testbench simulates delays up to {MAX_TB_DELAY} cycles; "
-                             f"this source's reach {largest}: a shorter length or mask width")
+                             f"this source's delays reach {largest}: choose a shorter length or mask width")
         return settings
 
     def delays(self):
