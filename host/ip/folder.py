@@ -101,9 +101,11 @@ def write_folder(output, top, *, name, variant, check=None):
     # The testbench: its Verilog, the bytes it sends, the delays it expects
     testbench = None
     if check is not None:
-        source = resources.files("fliss.hdl").joinpath(*_TESTBENCH).read_text()
+        folder_name, file_name = _TESTBENCH
+        source = resources.files("fliss.hdl").joinpath(folder_name).joinpath(file_name)
+        source = source.read_text()
         testbench = dict(
-            file=write(f"testbench/{_TESTBENCH[1]}", source),
+            file=write(f"testbench/{file_name}", source),
             data=[write("testbench/commands.hex",
                         "".join(f"{byte:02x}\n" for byte in check.command_bytes())),
                   write("testbench/expected_delays.hex",
