@@ -20,11 +20,23 @@ def documented_ports():
     return ports
 
 
-def test_generated_ports_match_the_documentation(tmp_path, capsys):
+def test_generated_ports_match_the_documentation(tmp_path, capsys, monkeypatch):
+    # Without amaranth-boards (as after `pip install fliss`) and without the testbench
+    import fliss.boards.constraints
+
+    def no_boards(board):
+        raise ImportError("No module named 'amaranth_boards'")
+    monkeypatch.setattr(fliss.boards.constraints, "template_family", no_boards)
     assert main(["generate", "-o", str(tmp_path), "--no-testbench"]) == 0
-    # The Verilog's path first, then the other files'
-    path = Path(capsys.readouterr().out.splitlines()[0])
-    assert path == tmp_path / "fliss_top.v"
+    out, err = capsys.readouterr()
+    # The Verilog's path first, then the other files'; what is left out said once
+    assert out.splitlines() == [str(tmp_path / name)
+                                for name in ("fliss_top.v", "ports.md", "fliss_top.core")]
+    assert err == ("fliss: warning: left out constraints templates: they need amaranth-boards "
+                   "(pip install 'fliss[boards]')\n")
+    core = (tmp_path / "fliss_top.core").read_text()
+    assert "  lint:\n" in core and "sim:" not in core and "testbench" not in core
+    path = tmp_path / "fliss_top.v"
     text = path.read_text()
     top = text[text.index("module fliss_top("):]
     top = top[:top.index("endmodule")]
