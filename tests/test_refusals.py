@@ -83,7 +83,7 @@ CASES = {
                  "--fine-tdc --clock 81MHz", "--tb-mode keyed", "--tb-seed 0",
                  "--tb-seed 0x1_0000_0000", "--tb-length 33", "--tb-mode mseq --tb-length 20",
                  "--tb-mask-width 17", "--tb-pulses 1", "--tb-pulses x", "--name fliss_top_tb",
-                 "--fine-tdc --name OSCG"],
+                 "--fine-tdc --name OSCG", "--clock 1e12Hz"],
     "attack": ["--pulses 0", "--missed 1", "--jitter x", "--sources bogus", "--ghost-m -3",
                "--table /proc/x.txt", "--figure /proc/x.png", "--table {d}"],
     "sweep": ["{d}/file.txt -o {d}/out", "{d}/nothing.toml -o {d}/out", "{d}/file.txt -o /proc/x",

@@ -8,7 +8,7 @@ from ...hdl import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, period_cycles
 from ...hdl.protocol import DEFAULT_BAUD
 from ...hdl.link.uart import bit_cycles
 from ..errors import UserError
-from ..ip import TB_MODES, DelayCheck, make_top, victim_period, write_folder
+from ..ip import TB_MODES, DelayCheck, check_build, make_top, victim_period, write_folder
 from ..paths import check_output_dir
 from ..units import parse_baud, parse_frequency
 
@@ -84,10 +84,12 @@ def run(args):
         raise UserError(f"--clock {args.clock}: {error}") from None
     variant = "small" if args.small else "fine" if args.fine_tdc else "full"
     try:
+        # Every check before the top level is made (a top level left unused warns)
         baud = parse_baud(args.baud)
         period_cycles(clock_hz, DEFAULT_PRF_HZ)
-        bit_cycles(clock_hz, baud)   # check before the top level is made
-        top = make_top(variant, clock_hz=int(clock_hz), baud=int(baud))
+        bit_cycles(clock_hz, baud)
+        check_build(variant, name=args.name, clock_hz=clock_hz,
+                    testbench=not args.no_testbench)
     except ValueError as error:
         raise UserError(str(error)) from None
     check = None
@@ -99,6 +101,10 @@ def run(args):
             check.settings()
         except ValueError as error:
             raise UserError(f"the testbench's delay source (--tb-*): {error}") from None
+    try:
+        top = make_top(variant, clock_hz=int(clock_hz), baud=int(baud))
+    except ValueError as error:
+        raise UserError(str(error)) from None
     try:
         generated = write_folder(output, top, name=args.name, variant=variant, check=check)
     except ValueError as error:

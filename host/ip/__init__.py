@@ -9,9 +9,9 @@
   reference model (as ``fliss sequence`` prints them).
 """
 
-from .folder import VARIANTS, Generated, make_top, victim_period, write_folder
+from .folder import VARIANTS, Generated, check_build, make_top, victim_period, write_folder
 from .stimulus import TB_MODES, DelayCheck
 
 
-__all__ = ["VARIANTS", "Generated", "make_top", "victim_period", "write_folder", "TB_MODES",
+__all__ = ["VARIANTS", "Generated", "check_build", "make_top", "victim_period", "write_folder", "TB_MODES",
            "DelayCheck"]

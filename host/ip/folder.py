@@ -6,15 +6,17 @@ from importlib import resources
 from pathlib import Path
 
 from ... import __version__
+from ...hdl.finetdc import cycle_units
 from ...hdl.finetdc.tdc import BLACK_BOX_FILES
-from ...hdl.registers import VICTIM
+from ...hdl.registers import REGISTERS, VICTIM
 from ...hdl.top import SMALL, FlissTop
 from ...hdl.verilog import convert
 from .core_file import core_text
 from .ports_table import ports_table, top_ports
 
 
-__all__ = ["Variant", "VARIANTS", "Generated", "make_top", "victim_period", "write_folder"]
+__all__ = ["Variant", "VARIANTS", "Generated", "check_build", "make_top", "victim_period",
+           "write_folder"]
 
 
 @dataclass(frozen=True)
@@ -67,6 +69,26 @@ def make_top(variant, *, clock_hz, baud):
     return FlissTop(clock_hz=clock_hz, baud=baud, **VARIANTS[variant].options)
 
 
+def check_build(variant, *, name, clock_hz, testbench):
+    """Refuse (:exc:`ValueError`), before a top level is made, a build of ``variant`` at
+    ``clock_hz`` that cannot be made (the fine TDC's clock; a register whose reset value, a time
+    in cycles, is out of its range), or a module name the folder uses for another module (the
+    testbench's, with ``testbench``; the black boxes')."""
+    if variant == "fine":
+        cycle_units(clock_hz)
+    for register in REGISTERS:
+        value = register.reset_value(int(clock_hz))
+        if not register.minimum <= value <= register.maximum:
+            raise ValueError(f"At {clock_hz / 1e6:g} MHz register {register.name} would reset "
+                             f"to {value}, beyond its range ({register.minimum} to "
+                             f"{register.maximum}): choose a slower clock")
+    taken = {"fliss_top_tb": testbench,
+             **{cell: variant == "fine" for cell in ("FLISS_CCU2C", "OSCG")}}
+    if taken.get(name):
+        raise ValueError(f"--name: {name!r} is a module of the folder already; choose another "
+                         f"module name")
+
+
 def victim_period(clock_hz):
     """The victim's period after reset at ``clock_hz``, in cycles."""
     return VICTIM.register("period").reset_value(clock_hz)
@@ -82,11 +104,7 @@ def write_folder(output, top, *, name, variant, check=None):
     """
     output = Path(output)
     generated = Generated()
-    taken = {"fliss_top_tb": check is not None,
-             **{cell: variant == "fine" for cell in ("FLISS_CCU2C", "OSCG")}}
-    if taken.get(name):
-        raise ValueError(f"--name: {name!r} is a module of the folder already; choose another "
-                         f"module name")
+    check_build(variant, name=name, clock_hz=top.clock_hz, testbench=check is not None)
     if check is not None:
         delays = check.delays()                # (checked before the long conversion)
 
