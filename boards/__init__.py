@@ -23,7 +23,7 @@ from amaranth.lib.wiring import In
 from ..hdl import DEFAULT_CLOCK_HZ
 
 
-__all__ = ["BOARDS", "FLISS_PINS", "BOARD_PINS", "PIN_ALIASES", "PAD_SUFFIX", "pad_read_back",
+__all__ = ["BOARDS", "FLISS_PINS", "BOARD_PINS", "PIN_ALIASES", "PAD_SUFFIX", "pin_name", "pad_read_back",
            "platform_class", "BoardTop", "PllClocking", "FlissPlatform", "fliss_top",
            "fliss_top_fine", "fliss_top_spram", "fliss_top_up5k"]
 
@@ -81,12 +81,14 @@ def pad_read_back(port_name):
     (``"laser"`` for ``laser_pad``), or None."""
     if not port_name.endswith(PAD_SUFFIX):
         return None
-    name = _pin_name(port_name[:-len(PAD_SUFFIX)])
+    name = pin_name(port_name[:-len(PAD_SUFFIX)])
     return name if FLISS_PINS.get(name, (0, ""))[1] == "o" else None
 
 
-def _pin_name(port_name):
-    # Design port name -> name in FLISS_PINS or BOARD_PINS (or the name itself if it is neither).
+def pin_name(port_name):
+    """The name in :data:`FLISS_PINS` or :data:`BOARD_PINS` of the pins a design port named
+    ``port_name`` is wired to (through a ``pin_`` prefix or :data:`PIN_ALIASES`), or the name
+    itself if it is neither."""
     name = port_name[len("pin_"):] if port_name.startswith("pin_") else port_name
     name = PIN_ALIASES.get(name, name)
     return name if name in FLISS_PINS or name in BOARD_PINS else port_name
@@ -177,7 +179,7 @@ class BoardTop(Elaboratable):
             port = getattr(design, port_name)
             if pad_read_back(port_name) is not None:
                 continue        # (with its output, below)
-            name = _pin_name(port_name)
+            name = pin_name(port_name)
             width = len(port)
             direction = "i" if member.flow == In else "o"
 
@@ -358,13 +360,29 @@ class FlissPlatform:
         super().__init__(**kwargs)
         self.pll_config = self.pll_search(self.default_clk_frequency, clock_hz)
         self.clock_hz = self.pll_config.f_out_hz
+        self.add_resources(self.fliss_resources())
+
+    @classmethod
+    def fliss_resources(cls):
+        """The resources of the FLISS pins, ``fliss_<name>`` (number 0) for each name of
+        :attr:`pins`."""
         resources = []
-        for name, pins in self.pins.items():
+        for name, pins in cls.pins.items():
             width, direction = FLISS_PINS[name]
-            ios, attrs = self.fliss_io(pins, direction)
+            ios, attrs = cls.fliss_io(pins, direction)
             assert len(ios.names) == width, name
             resources.append(Resource(f"fliss_{name}", 0, ios, attrs))
-        self.add_resources(resources)
+        return resources
+
+    @classmethod
+    def pin_map(cls):
+        """The board's resources with the FLISS pins, for reading where each pin is (the
+        constraints templates of :mod:`.constraints`): an instance of the board's own
+        amaranth-boards platform, with no PLL search."""
+        platform = cls.__new__(cls)
+        super(FlissPlatform, platform).__init__()
+        platform.add_resources(cls.fliss_resources())
+        return platform
 
     def toolchain_prepare(self, fragment, name, **kwargs):
         # The board's own yosys commands after synthesis, unless the caller gives some

@@ -32,7 +32,7 @@ from pathlib import Path
 
 from amaranth.lib.wiring import In
 
-from . import BOARD_PINS, FLISS_PINS, BoardTop, _pin_name, pad_read_back, platform_class
+from . import BOARD_PINS, FLISS_PINS, BoardTop, pin_name, pad_read_back, platform_class
 from .build import BOARD_CLOCK_HZ, BOARD_DESIGN, TOOLS, load_design, toolchain_env
 
 
@@ -361,7 +361,7 @@ def _wrapper(netlist):
         if pad_read_back(port_name) is not None:
             continue        # (a pad read back: inside the netlist)
         width = _width(netlist, port_name)
-        name = _pin_name(port_name)
+        name = pin_name(port_name)
         if name in FLISS_PINS:
             pin = f"fliss_{shared.get(name, name)}_0__io"
         elif name in BOARD_PINS:

@@ -14,9 +14,10 @@ from amaranth.back import rtlil
 __all__ = ["convert"]
 
 
-def convert(component, name):
-    """Verilog text of ``component`` (a ``wiring.Component``) as module ``name``."""
-    rtlil_text = rtlil.convert(component, name=name, emit_src=False)
+def convert(component, name, platform=None):
+    """Verilog text of ``component`` (a ``wiring.Component``) as module ``name``, elaborated
+    for ``platform`` (None: for no FPGA in particular)."""
+    rtlil_text = rtlil.convert(component, name=name, platform=platform, emit_src=False)
     yosys = find_yosys(lambda version: version >= (0, 40))
     script = "\n".join([
         f"read_rtlil <<rtlil\n{rtlil_text}\nrtlil",

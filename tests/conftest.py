@@ -28,6 +28,7 @@ _LONG_FIRST = (
     "tests/test_virtual_board.py::test_reset_mid_capture",
     "tests/test_cocotb_delay_core.py::test_delay_core[icarus]",
     "tests/test_cocotb_top.py::test_top_small[",
+    "tests/test_generate_ip.py::",
     "tests/test_cocotb_",
 )
 
@@ -84,9 +85,13 @@ def _build_scope(nodeid):
     ``tests/test_cocotb_x.py::test_y[icarus-a]`` and ``[icarus-b]`` are one scope,
     ``tests/test_cocotb_x.py::test_y[icarus]``; a board's gate-level runs
     (``tests/test_netlist.py::test_x[board-...]``) are one scope, ``tests/test_netlist.py::board``;
+    the tests of the folder of `fliss generate` (``tests/test_generate_ip.py``) are one scope;
     any other test is a scope of its own."""
     path, _, name = nodeid.partition("::")
     function, _, ids = name.partition("[")
+    if path == "tests/test_generate_ip.py":
+        # Its tests share the folders that `fliss generate` writes once per worker.
+        return path
     if path == "tests/test_netlist.py" and ids:
         # A board's runs share its synthesized netlist and its simulators' build folders.
         return f"{path}::{ids.split('-')[0]}"

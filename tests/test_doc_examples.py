@@ -89,7 +89,7 @@ PARSE_ONLY = [
     ("board", "", "builds the gateware for Verilator (about a minute), then serves it until "
                   "Ctrl-C; tests/test_virtual_board.py runs it"),
     ("generate", "", "elaborates the whole top level to Verilog (about 10 s); "
-                     "tests/test_generate.py runs it"),
+                     "tests/test_generate.py and tests/test_generate_ip.py run it"),
     ("sweep", "--scheduler", "needs a Dask scheduler running at that address"),
     ("sweep", "big.toml", "stands for a spec of the reader's own: not in the repository"),
     ("reproduce", "--quick", None),

@@ -9,12 +9,21 @@ from . import HitInput
 from .line import is_ecp5
 
 
-__all__ = ["OSCILLATOR_DIV", "HitSource"]
+__all__ = ["OSCILLATOR_DIV", "OSCILLATOR_BOX_FILE", "HitSource"]
 
 
 #: Divider of the ECP5's internal oscillator (``OSCG``, nominally 310 MHz): about 2.4 MHz, high
 #: and low some 200 ns each, longer than the line, so that the line empties between its hits.
 OSCILLATOR_DIV = 128
+
+#: A declaration of the ECP5's ``OSCG`` (its ports and parameter as the ECP5 library has them),
+#: for tools that read the Verilog of a top level with the fine TDC without the ECP5 library
+#: (a lint, a simulation): a Verilog file, name and text. Its output stays undriven there.
+OSCILLATOR_BOX_FILE = ("ecp5_oscg.v", """(* blackbox *)
+module OSCG (output OSC);
+  parameter DIV = 128;
+endmodule
+""")
 
 
 class HitSource(wiring.Component):

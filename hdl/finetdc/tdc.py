@@ -10,12 +10,18 @@ from ..tdc import Capture
 from . import (CODE_BITS, LINE_TAPS, LINES, LSB_SELECTS, TABLE_BITS, HitInput, cycle_units,
                elapsed_limit)
 from .encoder import Encoder
-from .line import DelayLine
-from .source import HitSource
+from .line import CARRY_BOX_FILE, DelayLine
+from .source import OSCILLATOR_BOX_FILE, HitSource
 from .table import CalibrationTable
 
 
-__all__ = ["FineTdc"]
+__all__ = ["BLACK_BOX_FILES", "FineTdc"]
+
+
+#: Declarations of the cells the fine TDC instantiates on an ECP5, as ``(file name, Verilog)``:
+#: the carry cells' box (:data:`~.line.CARRY_BOX`) and the ECP5's oscillator ``OSCG``. Tools that
+#: read its Verilog without a vendor library need them (``fliss generate --fine-tdc``).
+BLACK_BOX_FILES = (CARRY_BOX_FILE, OSCILLATOR_BOX_FILE)
 
 
 class FineTdc(wiring.Component):

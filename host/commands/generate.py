@@ -1,13 +1,14 @@
-"""``fliss generate``: the top level as Verilog, for users who build with their own tools."""
+"""``fliss generate``: the top level as Verilog in a folder with its FuseSoC core file, for users
+who build with their own tools (:mod:`fliss.host.ip`)."""
 
 import re
+import sys
 
 from ...hdl import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, period_cycles
 from ...hdl.protocol import DEFAULT_BAUD
-from ...hdl.top import FlissTop
 from ...hdl.link.uart import bit_cycles
-from ...hdl.verilog import convert
 from ..errors import UserError
+from ..ip import TB_MODES, DelayCheck, check_build, make_top, victim_period, write_folder
 from ..paths import check_output_dir
 from ..units import parse_baud, parse_frequency
 
@@ -40,9 +41,13 @@ def check_module_name(name):
 def register(subparsers, formatter):
     parser = subparsers.add_parser(
         "generate", formatter_class=formatter,
-        help="write the FLISS top level as Verilog (port list in docs/ports.md)",
-        description="Writes fliss_top.v: module fliss_top with a clock `clk`, a synchronous "
-                    "active-high reset `rst` and the pins listed in docs/ports.md.")
+        help="write the FLISS top level as Verilog, with a FuseSoC core file (docs/verilog.md)",
+        description="Writes a folder: NAME.v (module NAME with a clock `clk`, a synchronous "
+                    "active-high reset `rst` and the pins of docs/ports.md), NAME.core (a "
+                    "FuseSoC core: targets lint and sim), ports.md, constraints/ (a template "
+                    "per board), blackboxes/ (with --fine-tdc) and testbench/ (a testbench "
+                    "that sets a delay source over the UART and checks the laser's delays "
+                    "against the model). Prints the path of each file, NAME.v first.")
     parser.add_argument("-o", "--output", default="build/verilog", metavar="DIR",
                         help="output folder")
     parser.add_argument("--clock", default=f"{DEFAULT_CLOCK_HZ // 1_000_000}MHz", metavar="HZ",
@@ -50,6 +55,23 @@ def register(subparsers, formatter):
     parser.add_argument("--baud", default=f"{DEFAULT_BAUD // 1_000_000}M", metavar="BAUD",
                         help="UART baud rate (3M, 115200, ...)")
     parser.add_argument("--name", default="fliss_top", help="Verilog module name")
+    variant = parser.add_mutually_exclusive_group()
+    variant.add_argument("--small", action="store_true",
+                         help="the iCEBreaker's smaller build (histograms only: docs/boards.md)")
+    variant.add_argument("--fine-tdc", action="store_true",
+                         help="with the fine TDC: ECP5 carry cells, declared in blackboxes/")
+    parser.add_argument("--no-testbench", action="store_true",
+                        help="leave out testbench/ and the core file's sim target")
+    parser.add_argument("--tb-mode", default="masked", choices=TB_MODES,
+                        help="delay source the testbench sets and checks")
+    parser.add_argument("--tb-seed", type=lambda text: int(text, 0), default=0x5EED,
+                        metavar="S", help="its seed (decimal or 0x hex)")
+    parser.add_argument("--tb-length", type=int, default=6, metavar="L",
+                        help="its register length (mseq)")
+    parser.add_argument("--tb-mask-width", type=int, default=6, metavar="W",
+                        help="its mask width (masked)")
+    parser.add_argument("--tb-pulses", type=int, default=32, metavar="N",
+                        help="laser pulses the testbench watches")
     parser.set_defaults(run=run)
 
 
@@ -60,16 +82,36 @@ def run(args):
         clock_hz = parse_frequency(args.clock)
     except ValueError as error:
         raise UserError(f"--clock {args.clock}: {error}") from None
+    variant = "small" if args.small else "fine" if args.fine_tdc else "full"
     try:
+        # Every check before the top level is made (a top level left unused warns)
         baud = parse_baud(args.baud)
         period_cycles(clock_hz, DEFAULT_PRF_HZ)
-        bit_cycles(clock_hz, baud)   # check before the top level is made
-        top = FlissTop(clock_hz=int(clock_hz), baud=int(baud))
+        bit_cycles(clock_hz, baud)
+        check_build(variant, name=args.name, clock_hz=clock_hz,
+                    testbench=not args.no_testbench)
+    except ValueError as error:
+        raise UserError(str(error)) from None
+    check = None
+    if not args.no_testbench:
+        check = DelayCheck(mode=args.tb_mode, length=args.tb_length,
+                           mask_width=args.tb_mask_width, seed=args.tb_seed,
+                           period=victim_period(clock_hz), pulses=args.tb_pulses)
+        try:
+            check.settings()
+        except ValueError as error:
+            raise UserError(f"the testbench's delay source (--tb-*): {error}") from None
+    try:
+        top = make_top(variant, clock_hz=int(clock_hz), baud=int(baud))
     except ValueError as error:
         raise UserError(str(error)) from None
     try:
-        path = output / f"{args.name}.v"
-        path.write_text(convert(top, args.name))
+        generated = write_folder(output, top, name=args.name, variant=variant, check=check)
+    except ValueError as error:
+        raise UserError(str(error)) from None
     except OSError as error:
         raise UserError(f"cannot write {args.output}: {error.strerror}") from None
-    print(path)
+    for path in generated.files:
+        print(path)
+    for reason in generated.skipped:
+        print(f"fliss: warning: left out {reason}", file=sys.stderr)
