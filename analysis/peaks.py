@@ -282,6 +282,8 @@ def local_maxima(smoothed, threshold, separation, among=None):
 
 
 def threshold_height(level, sigma_bins=5.0, threshold_sigma=5.0):
-    """Height above the background a peak must exceed: ``threshold_sigma`` noise deviations of
-    the smoothed histogram (:func:`noise_sigma`), but at least one count per code."""
+    """Height above the background of the detection studies' threshold
+    (:mod:`fliss.sim.studies.detection` scores peaks in noise deviations): ``threshold_sigma``
+    deviations of the smoothed histogram (:func:`noise_sigma`), but at least one count per
+    code. :func:`find_peaks` judges peaks by :func:`significant_count` instead."""
     return max(threshold_sigma * noise_sigma(level, sigma_bins), 1.0)

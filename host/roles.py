@@ -66,14 +66,14 @@ def relation(configuration: Mapping[str, int]) -> tuple:
     repeating the victim's very delays), ``"spread"`` (at random times: the delays differ) or
     ``"unknown"`` (no registers recorded, or both off at different periods)."""
     if not configuration or "aggressor" not in configuration:
-        return UNKNOWN, "the file records no board settings"
+        return UNKNOWN, "the board's settings are not known (the file records none)"
     if not configuration["aggressor"]:
         return OFF, "the aggressor emitter was off"
     victim = _fields(VICTIM, configuration)
     aggressor = _fields(AGGRESSOR_DELAY, configuration)
     if any(value is None for value in (victim["mode"], aggressor["mode"], victim["period"],
                                        aggressor["period"])):
-        return UNKNOWN, "the file does not record the delay settings"
+        return UNKNOWN, "the delay settings are not known"
     off = DelayMode.OFF.value
     if victim["mode"] == off and aggressor["mode"] == off:
         if victim["period"] == aggressor["period"]:
@@ -153,8 +153,8 @@ def assign(peaks: Sequence[Peak], configuration: Mapping[str, int], *,
     if kind == SPREAD:
         why = (f"{why}, yet {len(peaks)} peaks stand: other targets or what is left of the "
                f"aggressor")
-    return _roles(peaks, None, [], f"roles unknown: {why}; give --victim-tof (the peak that "
-                                   f"stays with FLISS on)")
+    return _roles(peaks, None, [], f"unknown: {why}; give --victim-tof (the peak that stays "
+                                   f"with FLISS on)")
 
 
 def _roles(peaks, victim, aggressors, reason):

@@ -97,7 +97,7 @@ def test_with_fliss_off_two_peaks_have_unknown_roles_and_no_s(tmp_path, capsys):
     assert [role for _, role in rows] == ["unknown", "unknown"]
     assert sorted(tof for tof, _ in rows) == [pytest.approx(VICTIM_S * 1e9, abs=0.4),
                                               pytest.approx(AGGRESSOR_S * 1e9, abs=0.4)]
-    assert "roles: roles unknown: FLISS off" in out and "give --victim-tof" in out
+    assert "roles: unknown: FLISS off" in out and "give --victim-tof" in out
     assert "  suppression S: unknown\n" in out and "S =" not in out and "S >=" not in out
     # Told where the victim is, the other peak is the aggressor's: S = 10 log10(300/500)
     status, out, err = fliss(capsys, "analyze", path, "--victim-tof", f"{VICTIM_S * 1e9}ns")
@@ -145,7 +145,7 @@ def test_a_plain_histogram_without_settings_says_the_roles_are_unknown():
     histogram = counts([(VICTIM_S, 300), (AGGRESSOR_S, 500)]).astype(np.int64)
     result = analyze(histogram, BIN_S, shift=SHIFT)
     assert result.roles.roles == ("unknown", "unknown") and result.suppression is None
-    assert "records no board settings" in result.note
+    assert result.note.startswith("unknown: the board's settings are not known")
 
 
 # Wrong aggressor positions --------------------------------------------------------------------
@@ -272,3 +272,21 @@ def test_plot_refuses_a_range_beyond_the_histograms(tmp_path, capsys):
     assert err == ("fliss: error: --range 500 ns 900 ns: the histograms end at 409.6 ns; "
                    "nothing to draw there\n")
     assert not (tmp_path / "a.png").exists()
+
+
+# fliss board's line scene ---------------------------------------------------------------------
+
+def test_the_board_says_when_the_column_would_seldom_keep_the_walls_echo():
+    from fliss.host.commands.board import column_note
+    # The defaults: 60 pixels, 0.05 aggressor photons a pulse and 100 kHz of ambient light
+    # each, in a window of 8192 codes of 50 ps: 60 (0.05 + 1e5 * 409.6e-9) = 5.46 photons that
+    # may come after the echo; the column keeps the last, so the echo in exp(-5.46) = 0.43 %.
+    note = column_note("line", "column", 0.05, 1e5)
+    assert note.startswith("about 5.5 photons of aggressor and ambient light reach the column "
+                           "in a laser cycle's 409.6 ns window")
+    assert "the wall's echo in about 0.4 % of cycles" in note
+    # The demo's light: 60 (0.02 + 1e4 * 409.6e-9) = 1.45 photons, the echo in 23 %: no note;
+    # nor for a sensor with a TDC per pixel, nor for the single pixel.
+    assert column_note("line", "column", 0.02, 1e4) is None
+    assert column_note("line", "per_pixel", 0.05, 1e5) is None
+    assert column_note("single", "column", 0.05, 1e5) is None
