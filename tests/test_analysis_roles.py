@@ -224,14 +224,15 @@ def test_plot_labels_the_lone_peak_with_fliss_on_as_the_victims(tmp_path, capsys
 
 def test_dollars_in_titles_and_file_names_are_drawn_as_they_are(tmp_path, capsys, drawn):
     path = write(tmp_path / "cost $5 and $6.h5", [(VICTIM_S, 300)], ON)
+    # (as maths, "$\foo$" is an unknown symbol: matplotlib's traceback before)
     status, out, err = fliss(capsys, "plot", path, "-o", tmp_path / "a.png", "--title",
-                             r"$\foo$ costs $5")
+                             r"$\foo$")
     assert (status, err) == (0, "")
     figure = drawn["a.png"]
     title = figure.axes[0].title
     label = figure.legends[0].get_texts()[0]
     # What matplotlib draws of each text (its own reading): the letters, no maths.
-    assert title._preprocess_math(title.get_text()) == (r"$\foo$ costs $5", False)
+    assert title._preprocess_math(title.get_text()) == (r"$\foo$", False)
     assert label._preprocess_math(label.get_text()) == (
         "cost $5 and $6.h5 (FLISS masked Wm=6, aggressor on): S >= "
         + label.get_text().split(" >= ")[1], False)
