@@ -10,8 +10,10 @@ echo, and either may be the taller. What can tell them apart:
   (FLISS on), the aggressor's pulses come at random times to the victim's and are spread over
   the range, so a lone peak is the victim's echo (several peaks: other targets, or what is
   left of the aggressor; unknown);
-* a capture of the same scene with FLISS on: its peak is the victim's, and so is the peak at
-  that time with FLISS off (``fliss analyze`` says so when it is given both).
+* captures of the same scene with FLISS off and on: the aggressor's peak stands only with FLISS
+  off, what is left of it only with FLISS on, so the peak at the same time in both is the
+  victim's (``fliss analyze`` says so when it is given both,
+  :func:`fliss.host.commands.analyze.victim_hints`).
 
 Where none of these tells, the roles are ``unknown`` and no suppression is worked out from a
 guess. Library code: it raises :exc:`ValueError`, never prints.
@@ -25,8 +27,8 @@ from ..hdl.delay.modes import DelayMode, label as mode_label
 from ..hdl.registers import AGGRESSOR_DELAY, VICTIM
 
 
-__all__ = ["VICTIM_ROLE", "AGGRESSOR_ROLE", "UNKNOWN_ROLE", "Roles", "relation", "settings_text",
-           "check_references", "assign"]
+__all__ = ["VICTIM_ROLE", "AGGRESSOR_ROLE", "UNKNOWN_ROLE", "OFF", "COHERENT", "SPREAD",
+           "UNKNOWN", "Roles", "relation", "settings_text", "check_references", "assign"]
 
 VICTIM_ROLE, AGGRESSOR_ROLE, UNKNOWN_ROLE = "victim", "aggressor", "unknown"
 

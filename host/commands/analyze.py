@@ -9,7 +9,7 @@ from ...analysis.peaks import FALSE_ALARM
 from ..analysis import analyze
 from ..errors import UserError
 from ..imager.analysis import capture_table
-from ..roles import SPREAD, check_references, relation, settings_text
+from ..roles import COHERENT, SPREAD, check_references, relation, settings_text
 from ..imager.report import table_lines, table_record
 from .common import parse_times, read_capture_file
 
@@ -90,27 +90,38 @@ def run_analyze(args):
     if args.json:
         print(json.dumps(records, indent=1))
     elif victim is None and not aggressors:
-        for line in victim_hints(found):
+        for line in victim_hints(found, tolerance):
             print(line)
     return 0
 
 
-def victim_hints(found):
-    """Lines for captures whose roles are unknown when another capture of the same run of
-    ``fliss analyze`` knows its victim's peak from its settings (FLISS on: the one peak that
-    stands): if they saw the same scene, their victim's peak is the one at that time.
+def victim_hints(found, tolerance_s=1.5e-9):
+    """Lines naming the victim's peak of captures taken with FLISS off and on, when their
+    roles are unknown: of two captures of the same scene, the aggressor's peak stands only with
+    FLISS off and what is left of it only with FLISS on, so the one peak at the same time in
+    both is the victim's echo (if they saw the same scene: the user knows, the files do not).
     ``found`` is ``[(path, capture, Analysis)]``."""
-    known = [(path, capture, result.roles.victim) for path, capture, result in found
-             if result.roles.victim is not None and relation(capture.configuration)[0] == SPREAD]
-    lost = [path for path, capture, result in found
-            if result.roles.victim is None and result.peaks]
-    if not known or not lost:
-        return []
-    path, capture, peak = known[0]
-    tof = f"{peak.position_s * 1e9:.3f}"
-    return [f"hint: the victim's peak of {path} ({settings_text(capture.configuration)}) is at "
-            f"{tof} ns; if {', '.join(lost)} saw the same scene, the peak there is the "
-            f"victim's: give --victim-tof {tof}ns"]
+    def kind(capture):
+        return relation(capture.configuration)[0]
+    lines = []
+    for on_path, on, on_result in found:
+        if kind(on) != SPREAD or not on_result.peaks:
+            continue
+        for off_path, off, off_result in found:
+            if kind(off) != COHERENT or off_result.roles.victim is not None:
+                continue
+            common = [peak for peak in on_result.peaks
+                      if any(abs(peak.position_s - other.position_s) <= tolerance_s
+                             for other in off_result.peaks)]
+            if len(common) != 1:
+                continue
+            tof = f"{common[0].position_s * 1e9:.3f}"
+            lines.append(f"hint: {off_path} ({settings_text(off.configuration)}) and {on_path} "
+                         f"({settings_text(on.configuration)}) have one peak at the same time, "
+                         f"{tof} ns; if they saw the same scene it is the victim's echo (the "
+                         f"aggressor's peak stands only with FLISS off): give --victim-tof "
+                         f"{tof}ns")
+    return lines
 
 
 def _print_header(path, capture, histogram):
