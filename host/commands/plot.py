@@ -26,8 +26,10 @@ def register(subparsers, formatter):
                                                 "capture",
         description="Plots the summed histogram of each capture file (one curve per file) "
                     "against the time from the TDC start, its victim's and highest aggressor's "
-                    "peaks labelled with their ToF as fliss analyze finds them (with "
-                    "--victim-tof and --aggressor-tof as there), and S in the legend. Of one "
+                    "peaks labelled with their ToF as fliss analyze tells them apart (with "
+                    "--victim-tof and --aggressor-tof as there; where it cannot, the two "
+                    "tallest peaks as of unknown role), and S in the legend (or S unknown). "
+                    "Titles and file names are drawn as written (a $ is a dollar). Of one "
                     "image or depth capture it "
                     "draws the depth against the pixel (a line sensor's profile; an image with "
                     "--shape) and the intensity, for all frames together, a grid of frames, "
@@ -136,7 +138,7 @@ def run_plot(args):
 def _peaks(histogram, capture, victim_s, aggressors_s):
     """The victim's peak and the highest aggressor peak of ``histogram`` as
     :func:`fliss.host.analysis.analyze` tells them apart (``fliss analyze``), or, when it
-    cannot, the tallest peak labelled as of unknown role: ``(S text for the curve's label,
+    cannot, the two tallest peaks labelled as of unknown role: ``(S text for the curve's label,
     [(ToF ns, height, label)])``."""
     if not histogram.sum():
         return "", []
