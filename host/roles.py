@@ -9,7 +9,9 @@ echo, and either may be the taller. What can tell them apart:
   off, every peak is the victim's laser's; when the victim's delays differ from the aggressor's
   (FLISS on), the aggressor's pulses come at random times to the victim's and are spread over
   the range, so a lone peak is the victim's echo (several peaks: other targets, or what is
-  left of the aggressor; unknown);
+  left of the aggressor; unknown). The one case this gets wrong: no victim's echo in the range
+  and a single tooth of the aggressor's residue (it falls on a comb of clock-cycle steps)
+  passing the significance test;
 * captures of the same scene with FLISS off and on: the aggressor's peak stands only with FLISS
   off, what is left of it only with FLISS on, so the peak at the same time in both is the
   victim's (``fliss analyze`` says so when it is given both,
