@@ -15,6 +15,11 @@ Conventions
   kernel's width is removed in quadrature.
 * The background is the mean count per code once the peaks (and a guard band around them) are
   clipped out.
+* A peak is significant when background alone makes one like it in a histogram with a
+  probability of at most :data:`~fliss.analysis.peaks.FALSE_ALARM` (exact Poisson tails, see
+  :mod:`fliss.analysis.peaks`).
+* Which peak is whose: :mod:`fliss.host.roles`. A suppression ratio is worked out only when the
+  victim's peak is known.
 """
 
 from __future__ import annotations
@@ -22,20 +27,21 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import NamedTuple, Optional
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from ..hdl.event import TDC_LSB_S
-from ..analysis.peaks import (FWHM_PER_SIGMA, Peak, background, find_peaks, noise_sigma,
-                              smooth)
+from ..analysis.peaks import (FALSE_ALARM, FWHM_PER_SIGMA, Peak, background, detection_height,
+                              find_peaks, noise_sigma, smooth)
 from ..analysis.peaks import check_histogram as _check_histogram
-from ..analysis.peaks import threshold_height as _threshold
+from .roles import AGGRESSOR_ROLE, UNKNOWN_ROLE, Roles, assign, relation
 
 
-__all__ = ["analyze", "FWHM_PER_SIGMA", "Peak", "Suppression", "background", "smooth", "noise_sigma",
-           "find_peaks", "identify", "suppression_db", "suppression", "relative_deviation",
-           "mean_std"]
+__all__ = ["analyze", "Analysis", "FWHM_PER_SIGMA", "Peak", "Suppression", "background", "smooth",
+           "noise_sigma", "find_peaks", "identify", "suppression_db", "suppression",
+           "relative_deviation", "mean_std"]
 
 
 @dataclass(frozen=True)
@@ -61,6 +67,16 @@ class Suppression:
     limited: bool
     victim: Peak | None
     aggressors: tuple[Peak, ...]
+
+    @property
+    def bound(self) -> str:
+        """``"lower"`` when ``s_db`` is a lower bound (``limited``), else ``"equal"``."""
+        return "lower" if self.limited else "equal"
+
+    @property
+    def relation(self) -> str:
+        """``">="`` or ``"="``, as the text gives S."""
+        return ">=" if self.limited else "="
 
 
 def identify(peaks: Sequence[Peak], victim_s: float, aggressors_s: Sequence[float] = (), *,
@@ -102,27 +118,32 @@ def suppression_db(pv: float, pa: float) -> float:
 
 
 def suppression(histogram: ArrayLike, victim_s: float, aggressors_s: Sequence[float], *,
-                bin_s: float = TDC_LSB_S, sigma_bins: float = 5.0, threshold_sigma: float = 5.0,
-                tolerance_s: float = 1.5e-9) -> Suppression:
+                bin_s: float = TDC_LSB_S, sigma_bins: float = 5.0,
+                false_alarm: float = FALSE_ALARM, tolerance_s: float = 1.5e-9) -> Suppression:
     """Suppression ratio of one histogram, Pa being the highest aggressor peak.
 
     The victim's and the aggressors' peaks are told apart by reference positions (see
-    :func:`identify`). When no aggressor peak clears the detection threshold, Pa is the
-    threshold and the result is marked ``limited`` (a lower bound of S). Raises
+    :func:`identify`). When no aggressor peak passes the significance test, Pa is the height of
+    the least peak that would (:func:`~fliss.analysis.peaks.detection_height`) and the result
+    is marked ``limited`` (a lower bound of S). Raises
     :exc:`ValueError` when the victim's peak is not found.
     """
     histogram = _check_histogram(histogram)
     level = background(histogram, sigma_bins=sigma_bins)
-    peaks = find_peaks(histogram, bin_s=bin_s, sigma_bins=sigma_bins,
-                       threshold_sigma=threshold_sigma, level=level)
+    peaks = find_peaks(histogram, bin_s=bin_s, sigma_bins=sigma_bins, false_alarm=false_alarm,
+                       level=level)
     victim, aggressors, _ = identify(peaks, victim_s, aggressors_s, tolerance_s=tolerance_s)
     if victim is None:
         raise ValueError(f"No victim peak within {tolerance_s * 1e9:g} ns of "
                          f"{victim_s * 1e9:g} ns")
+    return _ratio(victim, aggressors, level, sigma_bins, len(histogram), false_alarm)
+
+
+def _ratio(victim, aggressors, level, sigma_bins, bins, false_alarm):
     if aggressors:
         pa, limited = max(peak.height for peak in aggressors), False
     else:
-        pa, limited = _threshold(level, sigma_bins, threshold_sigma), True
+        pa, limited = detection_height(level, sigma_bins, bins, false_alarm), True
     return Suppression(suppression_db(victim.height, pa), victim.height, pa, limited, victim,
                        tuple(aggressors))
 
@@ -145,28 +166,54 @@ def mean_std(values: ArrayLike) -> tuple[float, float]:
     return float(values.mean()), float(values.std(ddof=1)) if len(values) > 1 else 0.0
 
 
-def analyze(histogram, bin_s, *, victim_s=None, aggressors_s=(), tolerance_s=1.5e-9,
-            aggressor_on=False, shift=0):
-    """Background, peaks and (when it can be told) suppression of one histogram.
+class Analysis(NamedTuple):
+    """What :func:`analyze` found in one histogram: the background (counts per bin), the
+    peaks (highest first), their roles (:mod:`fliss.host.roles`), the suppression (None when
+    it cannot be told) and a note on the roles or on why there is no suppression."""
+    level: float
+    peaks: list
+    suppression: Optional[Suppression]
+    note: str
+    roles: Roles
 
-    Returns ``(level, peaks, suppression or None, note)``."""
+
+def analyze(histogram, bin_s, *, configuration=None, victim_s=None, aggressors_s=(),
+            tolerance_s=1.5e-9, shift=0, false_alarm=FALSE_ALARM) -> Analysis:
+    """Background, peaks, their roles and (when the victim's peak is known) the suppression of
+    one histogram of a capture taken with the registers ``configuration``.
+
+    S is against the highest aggressor peak; a lower bound (against the least significant
+    peak) when the aggressor was on (or ``aggressors_s`` given) and no aggressor peak stands;
+    not worked out when the victim's peak is unknown, when a peak is left whose role is
+    unknown (it might be the aggressor's), or with the aggressor off."""
     sigma_bins = max(5.0 / (1 << shift), 1.0)
     level = background(histogram, sigma_bins=sigma_bins)
-    peaks = find_peaks(histogram, bin_s=bin_s, sigma_bins=sigma_bins, level=level)
-    result, note = None, ""
-    if victim_s is None and peaks and (aggressor_on or len(peaks) > 1 or aggressors_s):
-        victim_s = peaks[0].position_s
-        note = "victim = tallest peak"
-        if not aggressors_s:
-            aggressors_s = [peak.position_s for peak in peaks[1:]]
-    if victim_s is not None and peaks and not aggressors_s:
-        # Every other peak is an aggressor's: S is against the highest of them (equation 10).
-        aggressors_s = [peak.position_s for peak in peaks
-                        if abs(peak.position_s - victim_s) > tolerance_s]
-    if victim_s is not None and peaks:
-        try:
-            result = suppression(histogram, victim_s, aggressors_s, bin_s=bin_s,
-                                          sigma_bins=sigma_bins, tolerance_s=tolerance_s)
-        except ValueError as error:
-            note = str(error)
-    return level, peaks, result, note
+    peaks = find_peaks(histogram, bin_s=bin_s, sigma_bins=sigma_bins, level=level,
+                       false_alarm=false_alarm)
+    roles = assign(peaks, configuration or {}, victim_s=victim_s, aggressors_s=aggressors_s,
+                   tolerance_s=tolerance_s)
+    result, note = None, roles.reason
+    unknown = [peak for peak, role in zip(peaks, roles.roles) if role == UNKNOWN_ROLE]
+    if roles.victim is None:
+        pass
+    elif AGGRESSOR_ROLE in roles.roles or not unknown and (
+            aggressors_s or relation(configuration or {})[0] in ("coherent", "spread")):
+        result = _ratio(roles.victim, roles.aggressors, level, sigma_bins, len(histogram),
+                        false_alarm)
+        if result.limited:
+            note += "; no aggressor peak above the detection threshold"
+        if unknown:
+            note += f"; left out of S: {_ns(unknown)} (at neither position given)"
+    elif unknown:
+        note += (f"; S unknown: the peak{'s' * (len(unknown) > 1)} at {_ns(unknown)} "
+                 f"{'are' if len(unknown) > 1 else 'is'} neither the victim's nor at "
+                 f"--aggressor-tof" if aggressors_s else
+                 f"; S unknown: the role of the peak{'s' * (len(unknown) > 1)} at "
+                 f"{_ns(unknown)} is unknown (give --aggressor-tof)")
+    else:
+        note += "; no aggressor: no suppression to measure"
+    return Analysis(level, peaks, result, note, roles)
+
+
+def _ns(peaks):
+    return ", ".join(f"{peak.position_s * 1e9:.1f}" for peak in peaks) + " ns"

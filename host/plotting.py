@@ -3,8 +3,8 @@ the panels, outside the data, labelled peaks, and proportions near 0 on a log ax
 
 import math
 
-__all__ = ["MARKERS", "colours", "styles", "legend_below", "mark_peaks", "draw_proportion",
-           "proportion_key"]
+__all__ = ["MARKERS", "colours", "styles", "legend_below", "mark_peaks", "literal",
+           "draw_proportion", "proportion_key"]
 
 #: Markers of the series, in order; with the colours they tell overlapping series apart.
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "h", "p", "*")
@@ -100,3 +100,10 @@ def proportion_key(none="none seen: 95 % upper bound"):
     return ([Line2D([], [], color="0.3", marker="|", linestyle="none", markersize=12),
              Line2D([], [], color="0.3", marker="v", markerfacecolor="none", linestyle="none")],
             ["95 % Wilson interval", none])
+
+
+def literal(text):
+    """``text`` as matplotlib draws it letter for letter: every ``$`` escaped, so that a title
+    or a file name with dollars (``"cost $5 and $6"``, ``"$\\foo$"``) is never read as maths
+    (nor fails to parse as maths)."""
+    return str(text).replace("$", r"\$")

@@ -14,8 +14,8 @@ from fliss.host.cli import main
 from fliss.host.errors import FormatError
 from fliss.host.formats import export_capture, read_file
 
-from format_captures import (CLOCK_HZ, LSB_S, depth_capture, histogram_capture, image_capture,
-                             raw_capture, two_echoes)
+from format_captures import (CLOCK_HZ, LSB_S, VICTIM_S, depth_capture, histogram_capture,
+                             image_capture, raw_capture, two_echoes)
 
 
 PERIOD_S = 1e-6                     # the default period: 80 cycles of 80 MHz
@@ -198,8 +198,9 @@ def test_analyze_of_an_export_is_the_analysis_of_the_capture(tmp_path, capsys):
     status, out, err = fliss(capsys, "export", tmp_path / "h.h5", "--to", "ptu", "-o",
                              tmp_path / "h.ptu")
     assert status == 0, err
-    _, first, _ = fliss(capsys, "analyze", tmp_path / "h.h5")
-    _, second, _ = fliss(capsys, "analyze", tmp_path / "h.ptu")
+    victim = ["--victim-tof", f"{VICTIM_S * 1e9}ns"]
+    _, first, _ = fliss(capsys, "analyze", tmp_path / "h.h5", *victim)
+    _, second, _ = fliss(capsys, "analyze", tmp_path / "h.ptu", *victim)
     assert "suppression S = " in first
     assert second == first.replace(str(tmp_path / "h.h5"), str(tmp_path / "h.ptu"))
 

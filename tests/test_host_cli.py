@@ -384,7 +384,8 @@ def test_analyze_and_plot(model, capsys, tmp_path):
                                 f"(file signature not found), not a capture file\n")
     with h5py.File(tmp_path / "other.h5", "w"):
         pass
-    status, out, err = fliss(capsys, "plot", str(tmp_path / "other.h5"), "-o", str(png))
+    status, out, err = fliss(capsys, "plot", str(tmp_path / "other.h5"), "-o",
+                             str(tmp_path / "b.png"))
     assert (status, err) == (1, f"fliss: error: '{tmp_path / 'other.h5'}' is not a FLISS "
                                 f"capture file\n")
 

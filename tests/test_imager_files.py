@@ -142,6 +142,8 @@ def test_analyze_prints_a_table_and_json(tmp_path, capsys):
     assert (status, err) == (0, "")
     lines = out.splitlines()
     assert "image capture, 8 pixels (8 to 15), 4 complete frames of 4" in lines[0]
+    assert lines[1] == "  settings: FLISS mseq L=6, aggressor off"      # the reset values
+    del lines[1]
     assert lines[1].split() == ["pixel", "depth", "(m)", "ToF", "(ns)", "height", "background",
                                 "detected"]
     row = lines[2 + 3].split()                                 # pixel 11: the object

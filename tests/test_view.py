@@ -18,6 +18,7 @@ from bokeh.client import pull_session  # noqa: E402
 from bokeh.models import ColumnDataSource  # noqa: E402
 
 import fliss  # noqa: E402
+from fliss.hdl.registers import defaults  # noqa: E402
 from fliss.host.cli import main  # noqa: E402
 from fliss.host.errors import ViewError  # noqa: E402
 from fliss.host.fileformat import CaptureWriter, read_capture  # noqa: E402
@@ -110,21 +111,25 @@ def test_feed_shows_the_latest_frame_and_the_sum():
 def test_feed_suppression_of_victim_and_aggressor():
     # The victim's echo three times the aggressor's: S = 10 log10(3) = 4.77 dB.
     means = mean_counts([(VICTIM_S, 300), (AGGRESSOR_S, 100)])
+    # Knowing only that the aggressor was on, the view cannot tell whose each peak is.
     feed = Feed(setup(aggressor_on=True))
     for frame in histogram_frames(range(20), means):
         feed.add(frame)
     picture = feed.picture(summed=True)
-    roles = {peak.role: peak.tof_ns for peak in picture.peaks}
-    assert roles["victim"] == pytest.approx(VICTIM_S * 1e9, abs=0.2)
-    assert roles["aggressor"] == pytest.approx(AGGRESSOR_S * 1e9, abs=0.2)
-    assert picture.suppression_db == pytest.approx(10 * math.log10(3), abs=0.3)
-    assert not picture.suppression_limited
-    # Told where the victim is, the tallest peak is not taken for it.
-    feed = Feed(setup(victim_s=AGGRESSOR_S))
-    for frame in histogram_frames(range(20), means):
-        feed.add(frame)
-    assert feed.picture(summed=True).suppression_db == pytest.approx(-10 * math.log10(3),
-                                                                     abs=0.3)
+    assert [peak.role for peak in picture.peaks] == ["unknown", "unknown"]
+    assert picture.suppression_db is None
+    assert picture.note.startswith("unknown: the delay settings are not known")
+    # Told where the victim is, the other peak is the aggressor's.
+    fliss_off = dict(defaults(imager.CLOCK_HZ), delay_mode=0, aggressor=1)
+    for victim, s_db in ((VICTIM_S, 10 * math.log10(3)), (AGGRESSOR_S, -10 * math.log10(3))):
+        feed = Feed(setup(aggressor_on=True, victim_s=victim, configuration=fliss_off))
+        for frame in histogram_frames(range(20), means):
+            feed.add(frame)
+        picture = feed.picture(summed=True)
+        roles = {peak.role: peak.tof_ns for peak in picture.peaks}
+        assert roles["victim"] == pytest.approx(victim * 1e9, abs=0.2)
+        assert picture.suppression_db == pytest.approx(s_db, abs=0.3)
+        assert not picture.suppression_limited
 
 
 def test_feed_imager_depth_and_intensity():
@@ -235,7 +240,8 @@ def page(feed, *, takes=True):
 
 def test_page_shows_frame_counts_and_peaks():
     frames = histogram_frames([3, 4], mean_counts([(VICTIM_S, 300), (AGGRESSOR_S, 100)]))
-    feed = Feed(setup(aggressor_on=True))
+    feed = Feed(setup(aggressor_on=True, victim_s=VICTIM_S,
+                      configuration=dict(defaults(imager.CLOCK_HZ), delay_mode=0, aggressor=1)))
     doc, redraw = page(feed)
     assert "showing nothing yet" in redraw()[("fliss-status",)]
     for frame in frames:
@@ -248,7 +254,8 @@ def test_page_shows_frame_counts_and_peaks():
         f"{peaks[0].tof_ns:.3f}</td>" in texts[("fliss-peaks",)]
     assert texts[("fliss-peaks",)].startswith(
         f"<div style='margin-bottom: 4px'><b>S = <span class='n-s'>"
-        f"{feed.picture().suppression_db:.2f}</span> dB [victim = tallest peak]</b>")
+        f"{feed.picture().suppression_db:.2f}</span> dB [victim by --victim-tof; with the "
+        f"aggressor on, the other peaks are the aggressor&#x27;s]</b>")
     curve = next(source for source in doc.select({"type": ColumnDataSource})
                  if "positive" in source.data)
     # 8192 bins drawn as 1024 sums of 8; the log curve's empty bins at half a count.

@@ -260,7 +260,7 @@ def test_live_capture_in_two_browsers(browser, model_path_and_board, tmp_path, s
     summed_frames = int(summed["n-summed"])
     total = capture.histograms[:summed_frames].sum(axis=0, dtype=np.int64)
     assert int(summed["n-total"]) == int(total.sum())
-    peaks = analyze(total, capture.bin_s, aggressor_on=True, shift=0)[1][:6]     # the tallest
+    peaks = analyze(total, capture.bin_s, shift=0).peaks[:6]                  # the tallest
     assert [float(tof) for tof in summed["tof"]] == \
         pytest.approx([peak.position_s * 1e9 for peak in peaks], abs=0.0015)
     assert min(abs(float(tof) - VICTIM_NS) for tof in summed["tof"]) < 0.3

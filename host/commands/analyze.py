@@ -5,13 +5,16 @@ import json
 
 import numpy as np
 
+from ...analysis.peaks import FALSE_ALARM
 from ..analysis import analyze
+from ..errors import UserError
 from ..imager.analysis import capture_table
+from ..roles import COHERENT, SPREAD, check_references, relation, settings_text
 from ..imager.report import table_lines, table_record
 from .common import parse_times, read_capture_file
 
 
-__all__ = ["register", "run_analyze"]
+__all__ = ["register", "run_analyze", "victim_hints", "suppression_record"]
 
 
 def register(subparsers, formatter):
@@ -21,10 +24,16 @@ def register(subparsers, formatter):
              "capture",
         description="Sums the complete histograms of a capture (or histograms the events of a "
                     "raw capture) and prints the background and the peaks: time of flight, "
-                    "FWHM and height. The suppression S = 10 log10(Pv/Pa) (equation 10 of the "
-                    "paper) is printed when the victim's and the aggressors' peaks can be told "
-                    "apart: by --victim-tof/--aggressor-tof, or else, when the capture had the "
-                    "aggressor on or shows several peaks, the victim's peak is the tallest. "
+                    "FWHM, height and role: a peak is one that background alone makes in one "
+                    "histogram of a thousand at most (exact Poisson statistics). Its role "
+                    "(victim, aggressor or unknown) comes from --victim-tof/--aggressor-tof, or "
+                    "else from the settings the file records: with the aggressor off every "
+                    "peak is the victim's; with FLISS on (the victim's delays differ from the "
+                    "aggressor's) a lone peak is the victim's; with FLISS off a histogram "
+                    "cannot tell the victim's echo from the aggressor's peak, and the roles "
+                    "are unknown. The suppression S = 10 log10(Pv/Pa) (equation 10 of the "
+                    "paper) is printed when the victim's peak is known, as a lower bound "
+                    "(S >=) when no aggressor peak stands. "
                     "Of an image capture (--readout image) it prints a table per pixel: the "
                     "depth and ToF of the tallest peak of the pixel's summed histogram, its "
                     "height, the background, detected or not; of a depth capture (--readout "
@@ -48,7 +57,11 @@ def run_analyze(args):
     victim = parse_times([args.victim_tof], "--victim-tof")[0] if args.victim_tof else None
     aggressors = parse_times(args.aggressor_tof, "--aggressor-tof")
     tolerance = parse_times([args.tolerance], "--tolerance")[0]
-    records = []
+    try:
+        check_references(victim, aggressors, tolerance)
+    except ValueError as error:
+        raise UserError(str(error)) from None
+    records, found = [], []
     for path in args.files:
         capture = read_capture_file(path)
         if capture.mode in ("image", "depth"):
@@ -62,30 +75,83 @@ def run_analyze(args):
             records.append(_histogram_record(capture, victim, aggressors, tolerance))
             continue
         histogram = capture.total_histogram()
-        complete = int(capture.complete.sum()) if capture.mode == "histogram" else None
-        print(f"{path}: {capture.mode} capture, "
-              + (f"{complete} complete histograms of {len(capture.histograms)}"
-                 if complete is not None else f"{len(capture.events)} events")
-              + f", {int(histogram.sum())} counts, bins of {capture.bin_s * 1e12:g} ps, "
-              f"ended: {capture.attrs.get('end_reason', '?')}")
-        link = capture.counters.get("link", {})
-        if link:
-            print(f"  link: {link.get('dropped_frames', 0)} corrupt frames, "
-                  f"{link.get('missing_packets', 0)} missing packets")
+        _print_header(path, capture, histogram)
         if histogram.sum() == 0:
             print("  no counts: nothing to analyse")
             continue
-        aggressor_on = bool(capture.configuration.get("aggressor", 0))
-        _print_analysis(histogram, capture, victim, aggressors, tolerance, aggressor_on)
+        result = _print_analysis(histogram, capture, victim, aggressors, tolerance)
+        found.append((path, capture, result))
         if args.per_acquisition and capture.mode == "histogram":
             for index, row in enumerate(capture.histograms):
                 print(f"  acquisition {index} (frame {capture.frames[index]}"
                       f"{'' if capture.complete[index] else ', incomplete'}):")
                 _print_analysis(row.astype(np.int64), capture, victim, aggressors, tolerance,
-                                aggressor_on, indent="    ")
+                                indent="    ")
     if args.json:
         print(json.dumps(records, indent=1))
+    elif victim is None and not aggressors:
+        for line in victim_hints(found, tolerance):
+            print(line)
     return 0
+
+
+def victim_hints(found, tolerance_s=1.5e-9):
+    """Lines naming the victim's peak of captures taken with FLISS off and on, when their
+    roles are unknown: of two captures of the same scene, the aggressor's peak stands only with
+    FLISS off and what is left of it only with FLISS on, so the one peak at the same time in
+    both is the victim's echo (if they saw the same scene: the user knows, the files do not).
+    ``found`` is ``[(path, capture, Analysis)]``."""
+    def kind(capture):
+        return relation(capture.configuration)[0]
+    lines = []
+    for on_path, on, on_result in found:
+        if kind(on) != SPREAD or not on_result.peaks:
+            continue
+        for off_path, off, off_result in found:
+            if kind(off) != COHERENT or off_result.roles.victim is not None:
+                continue
+            common = [peak for peak in on_result.peaks
+                      if any(abs(peak.position_s - other.position_s) <= tolerance_s
+                             for other in off_result.peaks)]
+            if len(common) != 1:
+                continue
+            tof = f"{common[0].position_s * 1e9:.3f}"
+            lines.append(f"hint: {off_path} ({settings_text(off.configuration)}) and {on_path} "
+                         f"({settings_text(on.configuration)}) have one peak at the same time, "
+                         f"{tof} ns; if they saw the same scene it is the victim's echo (the "
+                         f"aggressor's peak stands only with FLISS off): give --victim-tof "
+                         f"{tof}ns")
+    return lines
+
+
+def _print_header(path, capture, histogram):
+    complete = int(capture.complete.sum()) if capture.mode == "histogram" else None
+    settings = settings_text(capture.configuration)
+    print(f"{path}: {capture.mode} capture, "
+          + (f"{complete} complete histograms of {len(capture.histograms)}"
+             if complete is not None else f"{len(capture.events)} events")
+          + f", {int(histogram.sum())} counts, bins of {capture.bin_s * 1e12:g} ps, "
+          f"ended: {capture.attrs.get('end_reason', '?')}"
+          + (f"\n  settings: {settings}" if settings else ""))
+    link = capture.counters.get("link", {})
+    if link:
+        print(f"  link: {link.get('dropped_frames', 0)} corrupt frames, "
+              f"{link.get('missing_packets', 0)} missing packets")
+
+
+def _analysis(histogram, capture, victim, aggressors, tolerance):
+    return analyze(histogram, capture.bin_s, configuration=capture.configuration,
+                   victim_s=victim, aggressors_s=aggressors, tolerance_s=tolerance,
+                   shift=capture.shift)
+
+
+def suppression_record(result):
+    """The suppression of an :class:`~fliss.host.analysis.Analysis` for JSON: its value in dB
+    and whether that is the value (``"equal"``) or a lower bound (``"lower"``, as the text's
+    ``S >=``); None when it cannot be told."""
+    if result.suppression is None:
+        return None
+    return {"value_db": result.suppression.s_db, "bound": result.suppression.bound}
 
 
 def _histogram_record(capture, victim, aggressors, tolerance):
@@ -93,41 +159,34 @@ def _histogram_record(capture, victim, aggressors, tolerance):
     histogram = capture.total_histogram()
     record = {"file": capture.path, "mode": capture.mode, "bin_s": capture.bin_s,
               "counts": int(histogram.sum()), "end_reason": capture.attrs.get("end_reason"),
-              "background": None, "peaks": [], "suppression_db": None}
+              "settings": settings_text(capture.configuration) or None,
+              "false_alarm": FALSE_ALARM, "background": None, "peaks": [],
+              "suppression": None, "note": None}
     if histogram.sum():
-        level, peaks, result, _ = analyze(
-            histogram, capture.bin_s, victim_s=victim, aggressors_s=aggressors,
-            tolerance_s=tolerance, aggressor_on=bool(capture.configuration.get("aggressor")),
-            shift=capture.shift)
-        record["background"] = level
+        result = _analysis(histogram, capture, victim, aggressors, tolerance)
+        record["background"] = result.level
         record["peaks"] = [{"tof_s": peak.position_s, "fwhm_s": peak.fwhm_s,
-                            "height": peak.height} for peak in peaks]
-        if result is not None:
-            record["suppression_db"] = result.s_db
+                            "height": peak.height, "role": role}
+                           for peak, role in zip(result.peaks, result.roles.roles)]
+        record["suppression"] = suppression_record(result)
+        record["note"] = result.note
     return record
 
 
-def _print_analysis(histogram, capture, victim, aggressors, tolerance, aggressor_on,
-                    indent="  "):
-    level, peaks, result, note = analyze(histogram, capture.bin_s, victim_s=victim,
-                                         aggressors_s=aggressors, tolerance_s=tolerance,
-                                         aggressor_on=aggressor_on, shift=capture.shift)
-    print(f"{indent}background: {level:.4g} counts per bin")
-    if not peaks:
-        print(f"{indent}no peak above the detection threshold")
-        return
-    print(f"{indent}{'peak':>4} {'ToF (ns)':>10} {'FWHM (ns)':>10} {'height (counts/bin)':>20}")
-    for index, peak in enumerate(peaks):
-        role = ""
-        if result is not None:
-            role = " victim" if peak is result.victim or peak == result.victim else \
-                (" aggressor" if peak in result.aggressors else "")
+def _print_analysis(histogram, capture, victim, aggressors, tolerance, indent="  "):
+    result = _analysis(histogram, capture, victim, aggressors, tolerance)
+    print(f"{indent}background: {result.level:.4g} counts per bin")
+    if not result.peaks:
+        print(f"{indent}no peak above the detection threshold (background alone passes it in "
+              f"{FALSE_ALARM:g} of histograms)")
+        return result
+    print(f"{indent}{'peak':>4} {'ToF (ns)':>10} {'FWHM (ns)':>10} {'height (counts/bin)':>20}"
+          f"  role")
+    for index, (peak, role) in enumerate(zip(result.peaks, result.roles.roles)):
         print(f"{indent}{index + 1:>4} {peak.position_s * 1e9:>10.3f} {peak.fwhm_s * 1e9:>10.3f}"
-              f" {peak.height:>20.4g}{role}")
-    if result is not None:
-        relation = ">=" if result.limited else "="
-        detail = " (no aggressor peak above the detection threshold)" if result.limited else ""
-        print(f"{indent}suppression S {relation} {result.s_db:.2f} dB{detail}"
-              + (f" [{note}]" if note else ""))
-    elif note:
-        print(f"{indent}suppression: {note}")
+              f" {peak.height:>20.4g}  {role}")
+    print(f"{indent}roles: {result.note}")
+    s = result.suppression
+    print(f"{indent}suppression S {s.relation} {s.s_db:.2f} dB" if s is not None else
+          f"{indent}suppression S: unknown")
+    return result

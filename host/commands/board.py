@@ -6,16 +6,26 @@ import signal
 import sys
 import time
 
+import math
+
 from ...hdl import DEFAULT_CLOCK_HZ
+from ...hdl.event import TDC_LSB_S, TIMESTAMP_BITS
 from ...sim.boards.loopback import JUMPER_DELAY_S
 from ...sim.boards.noisy_line import NoisyLine, add_line_arguments, describe, faults_from_args
 from ...sim.boards.options import add_scene_arguments, rate_hz
+from ...sim.scene import LINE_PIXELS
 from ..errors import UserError
 from ..units import parse_baud
 from ..virtual import ENGINES, SIMULATORS, VirtualBoard
 
 
-__all__ = ["register", "run_board"]
+__all__ = ["register", "run_board", "column_note"]
+
+#: Below this share of laser cycles in which the column keeps the wall's echo, say so.
+KEPT_ECHOES = 0.05
+
+#: The demo's light for the line scene, with which its depth frames are right.
+DEMO_LIGHT = "--signal 0.02 --aggressor-signal 0.02 --ambient 10kHz"
 
 
 logger = logging.getLogger(__name__)
@@ -83,6 +93,10 @@ def run_board(args):
                          reset_after=args.reset_after, fine_tdc=args.fine_tdc,
                          small=args.small, jumper=args.jumper)
 
+    note = column_note(args.scene, args.sensor, args.aggressor_signal, ambient_hz)
+    if note:
+        print(f"fliss: note: {note}", file=sys.stderr, flush=True)
+
     def terminate(number, frame):
         raise KeyboardInterrupt
 
@@ -135,6 +149,28 @@ def run_board(args):
             line.close()
             print(f"fliss: noisy line: {describe(line)}", file=sys.stderr)
         board.stop()
+
+
+def column_note(scene, sensor, aggressor_signal, ambient_hz):
+    """A note for a line scene seen by the column sensor in light too bright for depth frames,
+    or None. The column's one TDC keeps the last photon of a laser cycle; every photon of the
+    aggressor (``aggressor_signal`` a pixel and pulse) and of the ambient light (``ambient_hz``
+    a pixel) in the TDC window can come after the wall's echo and replace it, so the echo is
+    kept in about ``exp(-n)`` of the cycles, ``n`` being those photons of the line's pixels in
+    one window (an estimate: the aggressor's photons before the echo do not count)."""
+    if scene != "line" or sensor != "column":
+        return None
+    window_s = (1 << TIMESTAMP_BITS) * TDC_LSB_S
+    photons = LINE_PIXELS * (aggressor_signal + ambient_hz * window_s)
+    kept = math.exp(-photons)
+    if kept >= KEPT_ECHOES:
+        return None
+    return (f"about {photons:.1f} photons of aggressor and ambient light reach the column in a "
+            f"laser cycle's {window_s * 1e9:.1f} ns window and it keeps the last: the wall's "
+            f"echo in about {100 * kept:.1g} % of cycles; depth frames will show nothing or "
+            f"ghosts near the end of the range. The demo's light ({DEMO_LIGHT}) or "
+            f"--sensor per_pixel give the scene's depths (with fliss config --depth-filter 2, "
+            f"as the demo)")
 
 
 def _what(board):

@@ -182,7 +182,8 @@ def run(args):
     paths = [str(path) for path in files.values()]
     step("Peaks and suppression", ["analyze", *paths, "--victim-tof", f"{tof_s * 1e9:.3f}ns"])
     png = out / "demo.png"
-    step("Histograms", ["plot", *paths, "-o", str(png), "--victim-tof", f"{tof_s * 1e9:.3f}ns"])
+    step("Histograms", ["plot", *paths, "-o", str(png), "--overwrite",
+                        "--victim-tof", f"{tof_s * 1e9:.3f}ns"])
     imager = run_imager(args, out, period, masked_period)
     # An attacker that predicts the delays (docs/security.md): a few seconds of model time.
     step("An attacker that predicts the delays (mseq, masked) and one it cannot (keyed)",
@@ -195,8 +196,8 @@ def run(args):
     for label, path in files.items():
         data = read_capture(path)
         histogram = data.total_histogram()
-        _, peaks, result, _ = analyze(histogram, data.bin_s, victim_s=tof_s,
-                                      aggressor_on=True, shift=data.shift)
+        result = analyze(histogram, data.bin_s, configuration=data.configuration,
+                         victim_s=tof_s, shift=data.shift).suppression
         if result is None:
             print(f"  {label:<32} no victim peak found")
             continue

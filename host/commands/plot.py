@@ -7,12 +7,11 @@ import os
 import numpy as np
 
 from ..analysis import analyze
-from ...hdl.delay.modes import label as mode_label
-from ...hdl.registers import VICTIM
 from ..errors import UserError
 from ..imager.report import image_format, plot_imager
 from ..paths import check_output_path
-from ..plotting import legend_below, mark_peaks
+from ..plotting import legend_below, literal, mark_peaks
+from ..roles import check_references, settings_text
 from ..units import format_time, parse_time
 from .common import parse_times, read_capture_file
 
@@ -27,8 +26,10 @@ def register(subparsers, formatter):
                                                 "capture",
         description="Plots the summed histogram of each capture file (one curve per file) "
                     "against the time from the TDC start, its victim's and highest aggressor's "
-                    "peaks labelled with their ToF as fliss analyze finds them (with "
-                    "--victim-tof and --aggressor-tof as there), and S in the legend. Of one "
+                    "peaks labelled with their ToF as fliss analyze tells them apart (with "
+                    "--victim-tof and --aggressor-tof as there; where it cannot, the two "
+                    "tallest peaks as of unknown role), and S in the legend (or S unknown). "
+                    "Titles and file names are drawn as written (a $ is a dollar). Of one "
                     "image or depth capture it "
                     "draws the depth against the pixel (a line sensor's profile; an image with "
                     "--shape) and the intensity, for all frames together, a grid of frames, "
@@ -36,7 +37,10 @@ def register(subparsers, formatter):
     parser.add_argument("files", nargs="+", metavar="FILE",
                         help="capture files (HDF5), PTU or Photon-HDF5 files")
     parser.add_argument("-o", "--output", required=True, metavar="PNG",
-                        default=argparse.SUPPRESS, help="image to write")
+                        default=argparse.SUPPRESS,
+                        help="image to write (an existing file only with --overwrite)")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace the --output file if it exists")
     parser.add_argument("--log", action="store_true", help="logarithmic count axis")
     parser.add_argument("--range", nargs=2, metavar=("START", "END"),
                         help="time range shown, from the TDC start (e.g. 0ns 200ns)")
@@ -57,14 +61,9 @@ def register(subparsers, formatter):
 def curve_label(path, configuration):
     """The legend of a capture's curve: its file name, and with the registers it was taken with
     (``configuration``), the victim's delay mode (``"FLISS masked Wm=6"``, named by
-    :mod:`fliss.hdl.delay.modes`) and the aggressor."""
-    label = os.path.basename(path)
-    if configuration:
-        c = configuration
-        victim = {register.field: c.get(register.name) for register in VICTIM.members}
-        label += (f" (FLISS {mode_label(victim['mode'], **victim)}, "
-                  f"aggressor {'on' if c.get('aggressor') else 'off'})")
-    return label
+    :mod:`fliss.hdl.delay.modes`) and the aggressor (:func:`fliss.host.roles.settings_text`)."""
+    settings = settings_text(configuration)
+    return os.path.basename(path) + (f" ({settings})" if settings else "")
 
 
 def run_plot(args):
@@ -72,7 +71,7 @@ def run_plot(args):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    check_output_path(args.output, overwrite=None)
+    check_output_path(args.output, overwrite=args.overwrite)
     suffix = os.path.splitext(args.output)[1].lower().lstrip(".")
     formats = plt.figure().canvas.get_supported_filetypes()
     plt.close("all")
@@ -96,6 +95,12 @@ def run_plot(args):
     window = _time_range(args.range) if args.range else None
     victim = parse_times([args.victim_tof], "--victim-tof")[0] if args.victim_tof else None
     aggressors = parse_times(args.aggressor_tof, "--aggressor-tof")
+    try:
+        check_references(victim, aggressors, 1.5e-9)
+    except ValueError as error:
+        raise UserError(str(error)) from None
+    if window:
+        _check_window(window, captures)
     figure, axes = plt.subplots(figsize=(9, 5), layout="constrained")
     marks = []
     for path, capture in captures:
@@ -103,7 +108,7 @@ def run_plot(args):
         times_ns = (np.arange(len(histogram)) + 0.5) * capture.bin_s * 1e9
         line, = axes.step(times_ns, histogram, where="mid", linewidth=0.8)
         s_text, peaks = _peaks(histogram, capture, victim, aggressors)
-        line.set_label(curve_label(path, capture.configuration) + s_text)
+        line.set_label(literal(curve_label(path, capture.configuration) + s_text))
         marks += [(*peak, line.get_color()) for peak in peaks]
     axes.set_xlabel("time from TDC start (ns)")
     axes.set_ylabel("counts per bin")
@@ -118,7 +123,7 @@ def run_plot(args):
     mark_peaks(axes, marks)
     legend_below(figure, *axes.get_legend_handles_labels(), columns=1)
     if args.title:
-        axes.set_title(args.title)
+        axes.set_title(literal(args.title))
     try:
         figure.savefig(args.output, dpi=120, format=image_format(args.output))
     except OSError as error:
@@ -132,24 +137,39 @@ def run_plot(args):
 
 def _peaks(histogram, capture, victim_s, aggressors_s):
     """The victim's peak and the highest aggressor peak of ``histogram`` as
-    :func:`fliss.host.analysis.analyze` tells them apart (``fliss analyze``), or the tallest
-    peak when it cannot: ``(S text for the curve's label, [(ToF ns, height, label)])``."""
+    :func:`fliss.host.analysis.analyze` tells them apart (``fliss analyze``), or, when it
+    cannot, the two tallest peaks labelled as of unknown role: ``(S text for the curve's label,
+    [(ToF ns, height, label)])``."""
     if not histogram.sum():
         return "", []
-    level, peaks, result, note = analyze(
-        histogram, capture.bin_s, victim_s=victim_s, aggressors_s=aggressors_s,
-        aggressor_on=bool(capture.configuration.get("aggressor")), shift=capture.shift)
-    if result is None:
-        return "", [(peak.position_s * 1e9, level + peak.height,
-                     f"peak {peak.position_s * 1e9:.1f} ns") for peak in peaks[:1]]
-    named = [(result.victim, "victim", " (tallest)" if note == "victim = tallest peak" else "")]
-    if result.aggressors:
-        count = len(result.aggressors)
-        named.append((result.aggressors[0], "aggressor",
+    result = analyze(histogram, capture.bin_s, configuration=capture.configuration,
+                     victim_s=victim_s, aggressors_s=aggressors_s, shift=capture.shift)
+    level, roles = result.level, result.roles
+    if roles.victim is None:
+        text = ": roles unknown, S unknown" if result.peaks else ""
+        return text, [(peak.position_s * 1e9, level + peak.height,
+                       f"peak {peak.position_s * 1e9:.1f} ns (role unknown)")
+                      for peak in result.peaks[:2]]
+    named = [(roles.victim, "victim", "")]
+    if roles.aggressors:
+        count = len(roles.aggressors)
+        named.append((roles.aggressors[0], "aggressor",
                       f" (highest of {count})" if count > 1 else ""))
-    return f": S {'>=' if result.limited else '='} {result.s_db:.1f} dB", [
-        (peak.position_s * 1e9, level + peak.height,
-         f"{name} {peak.position_s * 1e9:.1f} ns{detail}") for peak, name, detail in named]
+    s = result.suppression
+    unknown = "unknown" in roles.roles
+    text = f": S {s.relation} {s.s_db:.1f} dB" if s is not None else \
+        ": S unknown" if unknown else ""               # no aggressor: no S to measure
+    return text, [(peak.position_s * 1e9, level + peak.height,
+                   f"{name} {peak.position_s * 1e9:.1f} ns{detail}")
+                  for peak, name, detail in named]
+
+
+def _check_window(window, captures):
+    """Refuse a --range in which no capture has a bin (beyond the end of every histogram)."""
+    ends = [len(capture.total_histogram()) * capture.bin_s for _, capture in captures]
+    if ends and window[0] >= max(ends):
+        raise UserError(f"--range {format_time(window[0])} {format_time(window[1])}: the "
+                        f"histograms end at {format_time(max(ends))}; nothing to draw there")
 
 
 def _time_range(texts):

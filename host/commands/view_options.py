@@ -26,8 +26,9 @@ def add_view_arguments(parser: argparse.ArgumentParser, title: str) -> None:
                             "machine only; this machine's name to serve the network "
                             "(http://NAME:PORT/)")
     group.add_argument("--victim-tof", metavar="TIME",
-                       help="position of the victim's peak for S (e.g. 26.7ns); else, with "
-                            "several peaks, the tallest")
+                       help="position of the victim's peak for S (e.g. 26.7ns); else the "
+                            "roles come from the board's settings, as in fliss analyze (with "
+                            "FLISS off: unknown, and no S)")
     group.add_argument("--shape", metavar="ROWSxCOLUMNS",
                        help="the imager's pixels as an image (8x8) rather than a profile")
 

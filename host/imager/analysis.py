@@ -12,7 +12,7 @@ from typing import List, Optional
 
 import numpy as np
 
-from ...analysis.peaks import background, find_peaks
+from ...analysis.peaks import FALSE_ALARM, background, find_peaks
 from .results import C_M_S
 
 
@@ -29,8 +29,8 @@ class PixelResult:
     address : int
         The pixel's sensor address.
     detected : bool
-        A peak cleared the detection threshold (image), or did in at least half the frames
-        (depth).
+        A peak passed the significance test (image: :func:`~fliss.analysis.peaks.find_peaks`),
+        or the board's depth threshold in at least half the frames (depth).
     depth_m, tof_s : float
         Distance and time of flight of its strongest peak (NaN when not detected).
     height : float
@@ -58,21 +58,23 @@ def sigma_bins(shift: int) -> float:
     return max(5.0 / (1 << shift), 1.0)
 
 
-def pixel_peak(histogram, bin_s: float, shift: int, *, threshold_sigma: float = 5.0):
+def pixel_peak(histogram, bin_s: float, shift: int, *, false_alarm: float = FALSE_ALARM):
     """``(tof_s, height, background)`` of the tallest peak of one pixel's histogram; tof_s and
-    height are NaN when no peak clears ``threshold_sigma`` noise deviations."""
+    height are NaN when no peak passes the significance test of
+    :func:`~fliss.analysis.peaks.find_peaks` (``false_alarm``: the chance that background
+    alone makes a peak in the histogram)."""
     histogram = np.asarray(histogram, dtype=np.int64)
     sigma = sigma_bins(shift)
     level = background(histogram, sigma_bins=sigma)
     peaks = find_peaks(histogram, bin_s=bin_s, sigma_bins=sigma, level=level,
-                       threshold_sigma=threshold_sigma)
+                       false_alarm=false_alarm)
     if not peaks:
         return math.nan, math.nan, level
     return peaks[0].position_s, peaks[0].height, level
 
 
 def image_table(counts, pixels, bin_s: float, shift: int, *, frames: int = 1,
-                threshold_sigma: float = 5.0) -> List[PixelResult]:
+                false_alarm: float = FALSE_ALARM) -> List[PixelResult]:
     """One :class:`PixelResult` per pixel of ``counts`` ``(P, N)`` (histograms summed over
     ``frames`` frames), ``pixels`` their addresses."""
     counts = np.asarray(counts)
@@ -82,20 +84,20 @@ def image_table(counts, pixels, bin_s: float, shift: int, *, frames: int = 1,
     rows = []
     for address, histogram in zip(pixels, counts):
         tof, height, level = pixel_peak(histogram, bin_s, shift,
-                                        threshold_sigma=threshold_sigma)
+                                        false_alarm=false_alarm)
         rows.append(PixelResult(int(address), bool(np.isfinite(tof)), tof * C_M_S / 2, tof,
                                 height, level, None, int(frames)))
     return rows
 
 
-def frame_depths(counts, bin_s: float, shift: int, *, threshold_sigma: float = 5.0
+def frame_depths(counts, bin_s: float, shift: int, *, false_alarm: float = FALSE_ALARM
                  ) -> np.ndarray:
     """Depth in metres of each pixel in each frame of ``counts`` ``(n, P, N)``: ``(n, P)``,
     NaN where no peak is found."""
     counts = np.asarray(counts)
     depths = np.full(counts.shape[:2], np.nan)
     for index in np.ndindex(*counts.shape[:2]):
-        tof = pixel_peak(counts[index], bin_s, shift, threshold_sigma=threshold_sigma)[0]
+        tof = pixel_peak(counts[index], bin_s, shift, false_alarm=false_alarm)[0]
         depths[index] = tof * C_M_S / 2
     return depths
 
@@ -125,7 +127,7 @@ def depth_table(depth: dict, pixels, complete=None) -> List[PixelResult]:
     return rows
 
 
-def capture_table(capture, *, threshold_sigma: float = 5.0) -> List[PixelResult]:
+def capture_table(capture, *, false_alarm: float = FALSE_ALARM) -> List[PixelResult]:
     """The per-pixel table of an image or depth :class:`~fliss.host.fileformat.Capture`
     (complete frames only). Raises :exc:`ValueError` for another mode."""
     if capture.mode == "depth":
@@ -137,7 +139,7 @@ def capture_table(capture, *, threshold_sigma: float = 5.0) -> List[PixelResult]
     total = rows.sum(axis=0, dtype=np.int64) if len(rows) else \
         np.zeros(capture.histograms.shape[1:], dtype=np.int64)
     return image_table(total, capture.pixels, capture.bin_s, capture.shift, frames=len(rows),
-                       threshold_sigma=threshold_sigma)
+                       false_alarm=false_alarm)
 
 
 def as_records(rows: List[PixelResult]) -> List[dict]:

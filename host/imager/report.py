@@ -9,10 +9,13 @@ import os
 import numpy as np
 
 from ..errors import UserError
+from ..plotting import literal
+from ..roles import settings_text
 from .analysis import as_records, capture_table, frame_depths
 
 
-__all__ = ["table_lines", "table_record", "parse_shape", "plot_imager", "image_format"]
+__all__ = ["table_lines", "table_record", "parse_shape", "plot_imager", "image_format",
+           "settings_of"]
 
 
 def table_lines(capture, rows):
@@ -23,6 +26,7 @@ def table_lines(capture, rows):
     lines = [f"{capture.path}: {capture.mode} capture, {pixels}, "
              f"{int(capture.complete.sum())} complete frames of {len(capture.complete)}, bins of "
              f"{capture.bin_s * 1e12:g} ps, ended: {capture.attrs.get('end_reason', '?')}"]
+    lines.append(f"  settings: {settings_of(capture)}")
     link = capture.counters.get("link", {})
     if link:
         lines.append(f"  link: {link.get('dropped_frames', 0)} corrupt frames, "
@@ -47,6 +51,7 @@ def _number(value, form):
 def table_record(capture, rows):
     """The per-pixel table of ``capture`` as a dict for JSON."""
     return {"file": capture.path, "mode": capture.mode, "bin_s": capture.bin_s,
+            "settings": settings_text(capture.configuration) or None,
             "frames": int(len(capture.complete)), "complete_frames": int(capture.complete.sum()),
             "end_reason": capture.attrs.get("end_reason"), "pixels": as_records(rows)}
 
@@ -103,9 +108,11 @@ def plot_imager(capture, output, *, frames="summary", shape=None, title=None, qu
         raise UserError(f"{capture.path} holds no complete frame to draw")
     shape = parse_shape(shape, len(capture.pixels))
     what = "depth (m)"
-    label = title or os.path.basename(capture.path)
+    label = literal(title or os.path.basename(capture.path))
+    settings = f" ({settings_of(capture)})"
     if frames == "summary":
         figure, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+        figure.suptitle(f"{label}{settings}")
         _depth_panel(axes[0], capture.pixels, summary, shape, f"{label}: depth")
         if capture.mode == "image":
             _histogram_panel(figure, axes[1], capture)
@@ -125,7 +132,7 @@ def plot_imager(capture, output, *, frames="summary", shape=None, title=None, qu
                              limits=_limits(per_frame))
             else:
                 axis.axis("off")
-        figure.suptitle(f"{label}: {what} per frame")
+        figure.suptitle(f"{label}: {what} per frame{settings}")
         _save(figure, output, plt)
     else:
         from matplotlib.animation import FuncAnimation, PillowWriter
@@ -135,7 +142,8 @@ def plot_imager(capture, output, *, frames="summary", shape=None, title=None, qu
         def draw(index):
             axis.clear()
             _depth_panel(axis, capture.pixels, per_frame[index], shape,
-                         f"{label}: frame {numbers[index]}", limits=_limits(per_frame))
+                         f"{label}: frame {numbers[index]}{settings}",
+                         limits=_limits(per_frame))
         animation = FuncAnimation(figure, draw, frames=len(per_frame))
         try:
             animation.save(output, writer=PillowWriter(fps=4))
@@ -145,6 +153,12 @@ def plot_imager(capture, output, *, frames="summary", shape=None, title=None, qu
             plt.close(figure)
     if not quiet:
         print(f"wrote {output}")
+
+
+def settings_of(capture):
+    """Whether FLISS was on, as the capture's registers say (``"FLISS masked Wm=6, aggressor
+    on"``), or that the file does not say."""
+    return settings_text(capture.configuration) or "FLISS on or off: not recorded"
 
 
 def _limits(depths):

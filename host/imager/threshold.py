@@ -12,12 +12,15 @@ keeps at most one photon per laser cycle for all its pixels, and a frame holds a
 ``n = integration / period`` laser cycles. Spread evenly over ``P`` pixels of ``N`` bins that is
 ``b = n / (P N)`` counts per bin, the background of a column that fires every cycle (as it does
 in bright ambient light, where the background is flattest). :func:`depth_threshold` is the least
-height that background reaches in at most :data:`FALSE_DETECTIONS` of a pixel's frames there.
+height that background reaches in at most :data:`FALSE_DETECTIONS` of a pixel's frames there,
+worked out by the Poisson tail of the peak finder's significance test
+(:func:`fliss.analysis.peaks.least_count`).
 """
 
 import math
 from typing import Mapping
 
+from ...analysis.peaks import least_count
 from ...hdl.event import TIMESTAMP_BITS
 
 
@@ -41,14 +44,11 @@ def depth_threshold(registers: Mapping[str, int]) -> int:
     cycles = registers["integration"] / registers["period"]
     mean = width * cycles / (pixels * bins)             # mu = W b
     windows = max(bins / width, 1.0)
-    # The least count k that one of `windows` windows of Poisson(mean) reaches so seldom;
-    # the height is k less the background the engine subtracts.
-    allowed = FALSE_DETECTIONS / windows
-    count, below = 0, math.exp(-mean)                   # P(X <= count)
-    while 1.0 - below > allowed and count < _MAX_THRESHOLD:
-        count += 1
-        below += math.exp(count * math.log(mean) - mean - math.lgamma(count + 1))
-    return max(1, min(_MAX_THRESHOLD, math.ceil(count + 1 - mean)))
+    # The least count k that one of `windows` windows of Poisson(mean) reaches so seldom (the
+    # peak finder's test, fliss.analysis.peaks.least_count); the height is k less the
+    # background the engine subtracts.
+    count = least_count(mean, FALSE_DETECTIONS / windows, most=_MAX_THRESHOLD + 1)
+    return max(1, min(_MAX_THRESHOLD, math.ceil(count - mean)))
 
 
 def nothing_detected(frames: int, highest: int, threshold: int, *, style: str = "flag") -> str:

@@ -36,7 +36,7 @@ WINDOW = 2
 MAX_PEAKS = 6
 
 #: Colours of the peak markers by role.
-_ROLE_COLOURS = {"victim": "#1b9e77", "aggressor": "#d95f02", "": "#7570b3"}
+_ROLE_COLOURS = {"victim": "#1b9e77", "aggressor": "#d95f02", "unknown": "#7570b3", "": "#7570b3"}
 
 _STYLE = {"font-size": "14px", "font-family": "sans-serif"}
 
@@ -345,11 +345,9 @@ def peaks_html(picture: Picture) -> str:
     if picture.suppression_db is not None:
         relation = "&ge;" if picture.suppression_limited else "="
         suppression = (f"S {relation} <span class='n-s'>{picture.suppression_db:.2f}</span> dB"
-                       + (" (no aggressor peak above the detection threshold)"
-                          if picture.suppression_limited else "")
                        + (f" [{html.escape(picture.note)}]" if picture.note else ""))
     elif picture.note:
-        suppression = f"S: {html.escape(picture.note)}"
+        suppression = f"S unknown [{html.escape(picture.note)}]"
     elif len(picture.peaks) == 1:
         suppression = "S: one peak, no aggressor to compare it with"
     else:

@@ -13,7 +13,7 @@ import logging
 import math
 import time
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Optional, Tuple
 
 import numpy as np
@@ -46,9 +46,11 @@ class Setup:
     """What is being shown: ``source`` (a port or a file, for the title), the ``readout``
     (one of :data:`READOUTS`), the integration time and the width of a timestamp code in
     seconds, the bin shift (raw events are histogrammed with it), whether the aggressor
-    was on (then the tallest peak is the victim's, as in ``fliss analyze``), the victim's
-    time of flight if known, the shape of the imager's pixels as ``(rows, columns)`` (None: a
-    profile), and whether a board (``live``) or a file is the source."""
+    was on, the victim's time of flight if known, the shape of the imager's pixels as
+    ``(rows, columns)`` (None: a profile), whether a board (``live``) or a file is the source,
+    and the board's registers by name (``configuration``), from which the roles of the peaks
+    are told as ``fliss analyze`` tells them (:mod:`fliss.host.roles`; without them, only
+    ``aggressor_on`` is known, which does not tell)."""
     source: str
     readout: str
     integration_s: float
@@ -58,6 +60,7 @@ class Setup:
     victim_s: Optional[float] = None
     shape: Optional[Tuple[int, int]] = None
     live: bool = True
+    configuration: Optional[dict] = field(default=None, compare=False)
 
     @classmethod
     def of_registers(cls, source, registers, clock_hz, **more):
@@ -67,7 +70,7 @@ class Setup:
             readout = "image"
         return cls(source, readout, registers["integration"] / clock_hz,
                    code_seconds(registers, clock_hz), registers.get("bin_shift", 0),
-                   bool(registers.get("aggressor", 0)), **more)
+                   bool(registers.get("aggressor", 0)), configuration=dict(registers), **more)
 
     @classmethod
     def of_capture(cls, capture, **more):
@@ -77,7 +80,7 @@ class Setup:
             integration_s = capture.configuration.get("integration", 0) / capture.clock_hz
         return cls(capture.path, capture.mode, float(integration_s or 0.0), capture.code_s,
                    capture.shift, bool(capture.configuration.get("aggressor", 0)),
-                   live=False, **more)
+                   live=False, configuration=dict(capture.configuration), **more)
 
 
 @dataclass(frozen=True)
@@ -334,22 +337,16 @@ class Feed:
             tofs = np.array([pixel_peak(row, bin_s, shift)[0] for row in image])
             more = dict(image=np.asarray(image), pixels=pixels, depth_m=depth_m(tofs),
                         intensity=image.sum(axis=1, dtype=np.int64))
-        level, peaks, result, note = math.nan, [], None, ""
+        level, peaks, roles, result, note = math.nan, [], (), None, ""
         if counts.any():
-            level, peaks, result, note = analyze(
-                counts, bin_s, victim_s=setup.victim_s, aggressor_on=setup.aggressor_on,
-                shift=shift)
-            if len(image) > 1 and not setup.aggressor_on and setup.victim_s is None:
-                # Pixels that see several depths: peaks of the scene, not victim and aggressor.
-                result, note = None, ""
-        rows = []
-        for peak in peaks:
-            role = ""
-            if result is not None:
-                role = "victim" if peak == result.victim else \
-                    "aggressor" if peak in result.aggressors else ""
-            rows.append(PeakRow(role, peak.position_s * 1e9, peak.position_s * C_M_S / 2,
-                                peak.fwhm_s * 1e9, peak.height))
+            configuration = setup.configuration if setup.configuration is not None else \
+                {"aggressor": int(setup.aggressor_on)}
+            analysis = analyze(counts, bin_s, configuration=configuration,
+                               victim_s=setup.victim_s, shift=shift)
+            level, peaks, roles = analysis.level, analysis.peaks, analysis.roles.roles
+            result, note = analysis.suppression, analysis.note
+        rows = [PeakRow(role, peak.position_s * 1e9, peak.position_s * C_M_S / 2,
+                        peak.fwhm_s * 1e9, peak.height) for peak, role in zip(peaks, roles)]
         return Picture(seq, summed, frame, frames, complete, int(counts.sum()), time_ns,
                        counts, background=level, peaks=tuple(rows),
                        suppression_db=None if result is None else result.s_db,
