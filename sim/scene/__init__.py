@@ -53,6 +53,7 @@ sequences come from :class:`fliss.sim.models.delay.DelayStream`.
 from .acquisition import Acquisitions, acquire, histogram
 from .description import (COUNTERS, FWHM_PER_SIGMA, SPEED_OF_LIGHT, TDC_CODES, TRUNCATION_SIGMAS,
                           Aggressor, Scene, time_of_flight)
+from .detector import Detector
 from .array import PixelChunk, PixelSimulation, simulation_for
 from .photons import Chunk, Simulation
 from .pixels import (COLLISION_WINDOW_S, LINE_PIXELS, REFERENCE_DISTANCE_M, SCENE_NAMES,
@@ -64,4 +65,4 @@ __all__ = ["SPEED_OF_LIGHT", "TDC_CODES", "FWHM_PER_SIGMA", "TRUNCATION_SIGMAS",
            "acquire", "histogram", "time_of_flight",
            "SENSOR_KINDS", "COLLISION_WINDOW_S", "REFERENCE_DISTANCE_M", "LINE_PIXELS",
            "SCENE_NAMES", "PixelArray", "line_pixels", "pixels_named", "PixelChunk",
-           "PixelSimulation", "simulation_for"]
+           "PixelSimulation", "simulation_for", "Detector"]
