@@ -168,7 +168,7 @@ class Avalanches:
             fired = np.zeros(len(times), dtype=bool)
             fired[index[spanned[avalanche]]] = True
             new = np.flatnonzero(fired & ~expanded)
-            if len(new):
+            if len(new) and (self._after is not None or self._cross is not None):
                 expanded[new] = True
                 more = self._children(times, pixel, new)
                 if len(more[0]):

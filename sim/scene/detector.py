@@ -158,9 +158,11 @@ class Detector:
 
     def dark_rates(self, pixels):
         """Dark count rate of each of ``pixels`` pixels, hertz (``float64`` array)."""
-        rng = np.random.default_rng(self.dark_seed)
-        spread = rng.standard_normal(pixels)
-        hot = rng.random(pixels) < self.hot_fraction
+        # Two streams, so that pixel i's rate does not depend on the number of pixels
+        spreads, hots = (np.random.default_rng(seed)
+                         for seed in np.random.SeedSequence(self.dark_seed).spawn(2))
+        spread = spreads.standard_normal(pixels)
+        hot = hots.random(pixels) < self.hot_fraction
         rates = np.where(hot, float(self.hot_dark_count_hz), float(self.dark_count_hz))
         if self.dark_spread > 0:
             rates = rates * np.exp(self.dark_spread * spread)
