@@ -54,6 +54,7 @@ from .acquisition import Acquisitions, acquire, histogram
 from .description import (COUNTERS, FWHM_PER_SIGMA, SPEED_OF_LIGHT, TDC_CODES, TRUNCATION_SIGMAS,
                           Aggressor, Scene, time_of_flight)
 from .detector import Detector
+from .presets import PRESETS
 from .array import PixelChunk, PixelSimulation, simulation_for
 from .photons import Chunk, Simulation
 from .pixels import (COLLISION_WINDOW_S, LINE_PIXELS, REFERENCE_DISTANCE_M, SCENE_NAMES,
@@ -65,4 +66,4 @@ __all__ = ["SPEED_OF_LIGHT", "TDC_CODES", "FWHM_PER_SIGMA", "TRUNCATION_SIGMAS",
            "acquire", "histogram", "time_of_flight",
            "SENSOR_KINDS", "COLLISION_WINDOW_S", "REFERENCE_DISTANCE_M", "LINE_PIXELS",
            "SCENE_NAMES", "PixelArray", "line_pixels", "pixels_named", "PixelChunk",
-           "PixelSimulation", "simulation_for", "Detector"]
+           "PixelSimulation", "simulation_for", "Detector", "PRESETS"]
