@@ -5,7 +5,8 @@ Prints laser cycles per second on one core, measured in the same run, for the pa
 100 kHz, 20 ns dead time) with the default detector and with every effect of
 :class:`fliss.sim.scene.Detector` on (PDP, dark counts with hot pixels, a diffusion tail,
 afterpulsing with two exponentials, non-paralysable or paralysable dead time; crosstalk too
-for the pixel array), for one pixel and for the paper's 60-pixel column. Each figure is
+for the pixel array), for one pixel and for the paper's 60-pixel column; and one pixel in closed loop (TDC starts
+fed one at a time, a step per laser cycle, as the virtual boards step it). Each figure is
 measured ``--repeat`` times: minimum and median.
 
 Goal: at least 1e7 laser cycles per second per core with every effect on (one pixel).
@@ -53,6 +54,22 @@ def rates(scene, cycles, repeat):
     return min(measured), statistics.median(measured)
 
 
+def closed_loop(scene, cycles, repeat):
+    """Laser cycles per second stepped one at a time with fed starts (80 clock cycles apart)."""
+    measured = []
+    for _ in range(repeat):
+        simulation = simulation_for(scene, seed=1, chunk_cycles=64, external_starts=True)
+        cycle = 2
+        simulation.feed(cycle)
+        start = time.process_time()
+        for _ in range(cycles):
+            cycle += 80
+            simulation.feed(cycle)
+            simulation.step(until_cycle=cycle)
+        measured.append(cycles / (time.process_time() - start))
+    return min(measured), statistics.median(measured)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--cycles", type=int, default=2_000_000)
@@ -70,6 +87,11 @@ def main():
         goal = "" if pixels is not None else \
             f"   goal 1e7 (every effect): {'met' if min(f[1] for f in figures[1:]) >= 1e7 else 'NOT met'}"
         print(f"  {label:<18} {cells[0]:>25} {cells[1]:>25} {cells[2]:>27}{goal}")
+    loop = args.cycles // 20
+    figures = [closed_loop(paper_scene(detector), loop, args.repeat)
+               for detector in (None, every_effect(False), every_effect(True))]
+    cells = [f"{low:11.3g} / {middle:9.3g}" for low, middle in figures]
+    print(f"  {'closed loop':<18} {cells[0]:>25} {cells[1]:>25} {cells[2]:>27}")
 
 
 if __name__ == "__main__":
