@@ -9,11 +9,12 @@ of freedom), with fixed seeds.
 
 import itertools
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from fliss.sim.scene import (COUNTERS, Detector, PixelArray, Scene, simulation_for,
+from fliss.sim.scene import (COUNTERS, PRESETS, Detector, PixelArray, Scene, simulation_for,
                              time_of_flight)
 from fliss.sim.scene.avalanches import Avalanches
 from fliss.sim.models.scheduler import Settings
@@ -397,3 +398,13 @@ def test_scene_and_detector_disagreeing_is_refused():
         PixelArray(distance_m=np.full(6, 4.0), columns=4)
     assert str(error.value) == ("The pixels' columns must be a positive integer that divides "
                                 "the 6 pixels, not 4")
+
+
+def test_every_preset_has_its_sources_in_the_docs():
+    table = (Path(__file__).parent.parent / "docs" / "scene.md").read_text()
+    assert set(PRESETS) == {"paper", "spcm20a", "linospad2"}
+    for name, detector in PRESETS.items():
+        assert isinstance(detector, Detector)
+        assert f"| `{name}` |" in table, name
+    # A column of LinoSPAD2 pixels: its nearest neighbours are the orthogonal ones
+    assert PRESETS["linospad2"].crosstalk_diagonal == 0
