@@ -408,3 +408,29 @@ def test_every_preset_has_its_sources_in_the_docs():
         assert f"| `{name}` |" in table, name
     # A column of LinoSPAD2 pixels: its nearest neighbours are the orthogonal ones
     assert PRESETS["linospad2"].crosstalk_diagonal == 0
+
+
+def test_dark_count_map_gives_the_same_run_in_plain_python_and_numpy():
+    # Fed starts, one to three laser cycles a step, as in closed loop: photons made and
+    # resolved in plain Python (steps of a few cycles and photons) against numpy for every
+    # step, on the same draws, with each pixel's own dark count rate (hot pixels) and a PDP.
+    detector = Detector(pdp=0.5, dark_count_hz=1e5, dark_spread=0.5, hot_fraction=0.3,
+                        hot_dark_count_hz=3e6, dark_seed=2)
+    pixels = PixelArray(distance_m=np.full(6, 4.0), sensor="column")
+    scene = Scene(detections_per_pulse=0.3, background_hz=1e5, pixels=pixels,
+                  detector=detector, dead_time_s=20e-9)
+    steps = 1500
+    starts = 100 + np.cumsum(np.random.default_rng(7).integers(20, 121, 3 * steps + 1))
+    runs = []
+    for quiet_cycles, few_photons in ((None, None), (0, -1)):
+        simulation = simulation_for(scene, seed=4, chunk_cycles=64, external_starts=True)
+        if quiet_cycles is not None:
+            simulation.quiet_cycles, simulation.few_photons = quiet_cycles, few_photons
+        simulation.feed(starts)
+        events = [simulation.step(1 + index % 3).events for index in range(steps)]
+        runs.append((np.concatenate(events), simulation.pixel_counts.copy()))
+    (events, counts), (reference, reference_counts) = runs
+    background = reference_counts[:, 1, COUNTERS.index("generated")]
+    assert len(reference) > steps // 2 and background.max() > 5 * background.min()
+    assert np.array_equal(events, reference)
+    assert np.array_equal(counts, reference_counts)
