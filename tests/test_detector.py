@@ -356,7 +356,7 @@ def test_a_run_with_every_effect_keeps_every_photon_counted():
                   detector=detector)
     totals = []
     for chunk_cycles in (1 << 12, 1):
-        _, simulation = run(scene, 8000, chunk_cycles=chunk_cycles)
+        _, simulation = run(scene, 4000, chunk_cycles=chunk_cycles)
         counts = simulation.counts
         assert np.array_equal(counts[:, 0], counts[:, 1:].sum(axis=1))
         totals.append(counts[:, 0])

@@ -16,9 +16,11 @@ Model
   Both Gaussians are cut at :data:`TRUNCATION_SIGMAS` standard deviations.
 * Ambient light and dark counts form a Poisson process of rate ``background_hz``. It is drawn only
   where it can matter: in each TDC window and in the dead time just before it.
-* The SPAD is non-paralysable: after a detection it is blind for ``dead_time_s``. A photon that
-  arrives while it is blind is lost (counted as ``dead``). The SPAD's state carries over from window
-  to window; the background between windows is not drawn, so a chain of blocked photons reaching
+* The SPAD is the scene's detector (:class:`Detector`, :mod:`~fliss.sim.scene.detector`: PDP,
+  dark counts per pixel, dead time paralysable or not, timing response, afterpulsing,
+  crosstalk; :data:`PRESETS` by name). By default it is non-paralysable: after a detection it
+  is blind for ``dead_time_s``. A photon that arrives while it is blind is lost (counted as
+  ``dead``). The SPAD's state carries over from window to window; the background between windows is not drawn, so a chain of blocked photons reaching
   from the gap into a window is not modelled (its effect is of order ``(background_hz *
   dead_time_s)**2``).
 * The TDC of pulse ``k`` is live from its start until ``2**13`` LSBs later or until the next start,
