@@ -16,9 +16,11 @@ Model
   Both Gaussians are cut at :data:`TRUNCATION_SIGMAS` standard deviations.
 * Ambient light and dark counts form a Poisson process of rate ``background_hz``. It is drawn only
   where it can matter: in each TDC window and in the dead time just before it.
-* The SPAD is non-paralysable: after a detection it is blind for ``dead_time_s``. A photon that
-  arrives while it is blind is lost (counted as ``dead``). The SPAD's state carries over from window
-  to window; the background between windows is not drawn, so a chain of blocked photons reaching
+* The SPAD is the scene's detector (:class:`Detector`, :mod:`~fliss.sim.scene.detector`: PDP,
+  dark counts per pixel, dead time paralysable or not, timing response, afterpulsing,
+  crosstalk; :data:`PRESETS` by name). By default it is non-paralysable: after a detection it
+  is blind for ``dead_time_s``. A photon that arrives while it is blind is lost (counted as
+  ``dead``). The SPAD's state carries over from window to window; the background between windows is not drawn, so a chain of blocked photons reaching
   from the gap into a window is not modelled (its effect is of order ``(background_hz *
   dead_time_s)**2``).
 * The TDC of pulse ``k`` is live from its start until ``2**13`` LSBs later or until the next start,
@@ -53,6 +55,8 @@ sequences come from :class:`fliss.sim.models.delay.DelayStream`.
 from .acquisition import Acquisitions, acquire, histogram
 from .description import (COUNTERS, FWHM_PER_SIGMA, SPEED_OF_LIGHT, TDC_CODES, TRUNCATION_SIGMAS,
                           Aggressor, Scene, time_of_flight)
+from .detector import Detector
+from .presets import PRESETS
 from .array import PixelChunk, PixelSimulation, simulation_for
 from .photons import Chunk, Simulation
 from .pixels import (COLLISION_WINDOW_S, LINE_PIXELS, REFERENCE_DISTANCE_M, SCENE_NAMES,
@@ -64,4 +68,4 @@ __all__ = ["SPEED_OF_LIGHT", "TDC_CODES", "FWHM_PER_SIGMA", "TRUNCATION_SIGMAS",
            "acquire", "histogram", "time_of_flight",
            "SENSOR_KINDS", "COLLISION_WINDOW_S", "REFERENCE_DISTANCE_M", "LINE_PIXELS",
            "SCENE_NAMES", "PixelArray", "line_pixels", "pixels_named", "PixelChunk",
-           "PixelSimulation", "simulation_for"]
+           "PixelSimulation", "simulation_for", "Detector", "PRESETS"]

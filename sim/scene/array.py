@@ -94,14 +94,23 @@ class PixelSimulation(Simulation):
         # Simulation._photons).
         tof = 2.0 * pixels.distance_m / SPEED_OF_LIGHT / TDC_LSB_S
         own = tof - scene.tof_s / TDC_LSB_S
-        means = [pixels.echo(scene.detections_per_pulse)]
+        pdp = self.spad.pdp
+        means = [pixels.echo(scene.detections_per_pulse) * pdp]
         extras = [own]
         for aggressor in scene.aggressors:
-            means.append(np.full(count, float(aggressor.detections_per_pulse)))
+            means.append(np.full(count, float(aggressor.detections_per_pulse) * pdp))
             extras.append(own if aggressor.tof_s is None else np.zeros(count))
         self._per_pixel = [(float(mean.sum()), extra, float(extra.min()),
                             np.cumsum(mean) / max(float(mean.sum()), 1e-300))
                            for mean, extra in zip(means, extras)]
+        # The background of each pixel: the scene's (thinned by the PDP) and its dark counts
+        if self.spad.dark_count_hz or self.spad.hot_dark_count_hz:
+            rates = scene.background_hz * pdp + self.spad.dark_rates(count)
+            if np.any(rates != rates[0]):
+                self._background = float(rates.mean()) * TDC_LSB_S
+                self._background_shares = np.cumsum(rates) / float(rates.sum())
+            else:
+                self._background = float(rates[0]) * TDC_LSB_S
         self._last_detections = np.full(count, -np.inf)
         self._carry_pixels = np.zeros(0, dtype=np.int16)
         self.pixel_counts = np.zeros((count, self._sources, len(COUNTERS)), dtype=np.int64)
@@ -133,6 +142,8 @@ class PixelSimulation(Simulation):
     def step(self, max_cycles=None, *, until_cycle=None):
         """Simulate the next laser cycles (as :meth:`Simulation.step`); returns a
         :class:`PixelChunk`."""
+        if self._effects:
+            return self._detector_step(max_cycles, until_cycle)
         prepared = self._prepare(max_cycles, until_cycle)
         if isinstance(prepared, Chunk):
             return prepared

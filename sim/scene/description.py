@@ -14,6 +14,7 @@ from ...hdl.event import ADDRESS_BITS, TDC_LSB_S, TIMESTAMP_BITS
 from ..models import delay as _delay
 from ..models import scheduler as _scheduler
 from .checks import check_number
+from .detector import Detector
 from .pixels import PixelArray
 
 
@@ -172,6 +173,13 @@ class Scene:
         distance and reflectivity (``distance_m`` and ``address`` are then not used), simulated
         by :class:`~fliss.sim.scene.array.PixelSimulation` (:func:`~fliss.sim.scene.array.simulation_for`
         picks the simulation for a scene).
+    detector : Detector or None
+        The SPAD pixels' physics (:class:`~fliss.sim.scene.detector.Detector`: PDP, dark
+        counts, dead time, timing response, afterpulsing, crosstalk). ``None``: a detector
+        with this scene's ``dead_time_s`` and ``jitter_fwhm_s`` and nothing else (the
+        simulator's behaviour before the detector). Given, its dead time and jitter are the
+        scene's: ``dead_time_s`` and ``jitter_fwhm_s`` take its values, and a scene that sets
+        them otherwise is refused.
     """
 
     victim: _scheduler.Settings = _scheduler.Settings(period=80)
@@ -187,6 +195,7 @@ class Scene:
     address: int = 0
     fine_step: int = 1
     pixels: object = None
+    detector: object = None
 
     def __post_init__(self):
         if not isinstance(self.victim, _scheduler.Settings):
@@ -213,6 +222,16 @@ class Scene:
             if not isinstance(self.pixels, PixelArray):
                 raise ValueError(f"Scene pixels must be a PixelArray or None, not "
                                  f"{self.pixels!r}")
+        if self.detector is not None:
+            if not isinstance(self.detector, Detector):
+                raise ValueError(f"Scene detector must be a Detector or None, not "
+                                 f"{self.detector!r}")
+            for name in ("dead_time_s", "jitter_fwhm_s"):
+                own, given = getattr(self.detector, name), getattr(self, name)
+                if given != own and given != getattr(Scene, name):
+                    raise ValueError(f"The scene's {name} ({given!r}) differs from its "
+                                     f"detector's ({own!r}): set it in the detector")
+                object.__setattr__(self, name, own)
         object.__setattr__(self, "aggressors", tuple(self.aggressors))
         for aggressor in self.aggressors:
             if not isinstance(aggressor, Aggressor):
@@ -229,10 +248,23 @@ class Scene:
         return time_of_flight(self.distance_m)
 
     @property
+    def spad(self):
+        """The scene's :class:`~fliss.sim.scene.detector.Detector` (``detector``, or the
+        default one with the scene's dead time and jitter)."""
+        if self.detector is not None:
+            return self.detector
+        return Detector(dead_time_s=self.dead_time_s, jitter_fwhm_s=self.jitter_fwhm_s)
+
+    @property
     def sources(self):
-        """Names of the photon sources, in the order of the rows of the ``counts`` arrays."""
+        """Names of the photon sources, in the order of the rows of the ``counts`` arrays:
+        then ``"afterpulse"`` when the detector afterpulses, ``"crosstalk"`` when a pixel
+        array's detector has crosstalk."""
+        spad = self.spad
         return ("signal", "background") + tuple(f"aggressor {index + 1}"
-                                                for index in range(len(self.aggressors)))
+                                                for index in range(len(self.aggressors))) + \
+            (("afterpulse",) if spad.afterpulsing else ()) + \
+            (("crosstalk",) if spad.crosstalk and self.pixels is not None else ())
 
     def replace(self, **changes):
         """A copy with some fields changed."""

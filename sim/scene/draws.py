@@ -113,7 +113,7 @@ class Ahead:
         rest = self._array[self._head:]
         blocks = -(-(count - len(rest)) // self._block)
         self._array = np.concatenate((rest, self._draw(self._rng, blocks * self._block)))
-        self._list = self._array.tolist()
+        self._list = None               # made when a list is asked for
         self._head = 0
 
     def array(self, count):
@@ -127,5 +127,7 @@ class Ahead:
         """The next ``count`` draws, a list."""
         if self._head + count > len(self._array):
             self._fill(count)
+        if self._list is None:
+            self._list = self._array.tolist()
         self._head += count
         return self._list[self._head - count:self._head]

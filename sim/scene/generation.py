@@ -121,8 +121,12 @@ class PhotonGeneration:
             span = np.repeat(span, number)
             number = len(span)
             offset = (TDC_CODES + self._dead) * uniforms.array(number)
-            if array is not None:
+            if array is not None and self._background_shares is None:
                 pixel = (uniforms.array(number) * array).astype(np.int16)
+            elif array is not None:
+                pixel = np.minimum(np.searchsorted(self._background_shares,
+                                                   uniforms.array(number), side="right"),
+                                   array - 1).astype(np.int16)
             if self._separated:
                 times.append(starts[span] + (offset - self._dead))
             else:
@@ -178,8 +182,13 @@ class PhotonGeneration:
                     for _ in range(repeat)]
             longest = TDC_CODES + self._dead
             offsets = [longest * uniform for uniform in uniforms.list(len(span))]
-            pixel = [int(uniform * array) for uniform in uniforms.list(len(span))] \
-                if array is not None else None
+            pixel = None
+            if array is not None and self._background_shares is None:
+                pixel = [int(uniform * array) for uniform in uniforms.list(len(span))]
+            elif array is not None:
+                shares = self._plain_background_shares
+                pixel = [min(bisect_right(shares, uniform), array - 1)
+                         for uniform in uniforms.list(len(span))]
             starts, span_starts, ends = windows
             if self._separated:
                 arrivals = [starts[at] + (offset - self._dead) for at, offset in zip(span, offsets)]
@@ -257,6 +266,8 @@ class PhotonGeneration:
                                    for index, (pulses, *_) in enumerate(self._pulsed)]
             self._plain_shares = None if self._pixel_count is None else \
                 [(shares.tolist(), extra.tolist()) for _, extra, _, shares in self._per_pixel]
+            self._plain_background_shares = None if self._background_shares is None else \
+                self._background_shares.tolist()
         handed = [pulses.count_until(boundary + spread + 1.0 - lowest)
                   for pulses, _, spread, lowest in self._quiet_sources]
         if len(self._carry_times):

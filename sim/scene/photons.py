@@ -16,6 +16,7 @@ from ..models import scheduler as _scheduler
 from ...protocol.events import EVENT_DTYPE
 from .description import COUNTERS, FWHM_PER_SIGMA, TDC_CODES, Scene
 from . import few
+from .avalanches import DetectorPath
 from .detection import non_paralysable, spans
 from .generation import QUIET_CYCLES, PhotonGeneration
 from .pulses import EdgeBuffer, EdgeSchedule, PulseTrain, fed_edges
@@ -56,7 +57,7 @@ class Chunk:
         return len(self.start_cycles)
 
 
-class Simulation(PhotonGeneration):
+class Simulation(DetectorPath, PhotonGeneration):
     """The scene, laser cycle after laser cycle, in chunks.
 
     Parameters
@@ -99,7 +100,14 @@ class Simulation(PhotonGeneration):
         lsb = scene.lsb_per_cycle
         self._lsb = lsb
         self._dead = scene.dead_time_s / TDC_LSB_S
-        self._background = scene.background_hz * TDC_LSB_S
+        spad = self.spad = scene.spad
+        # The detector's PDP thins the scene's photons; its dark counts join the background
+        # (1 and 0 by default: the same numbers as before)
+        dark = float(spad.dark_rates(1)[0]) if spad.dark_count_hz or spad.hot_dark_count_hz \
+            else 0.0
+        self._background = (scene.background_hz * spad.pdp + dark) * TDC_LSB_S
+        self._background_shares = None     # a pixel array's shares when its rates differ
+        self._effects = spad.avalanche_effects     # steps through DetectorPath
         jitter = scene.jitter_fwhm_s / FWHM_PER_SIGMA / TDC_LSB_S
         self.external_starts = bool(external_starts)
         if self.external_starts and scene.fine_step != 1:
@@ -115,7 +123,7 @@ class Simulation(PhotonGeneration):
         self._fired = EdgeBuffer(None) if self.external_starts else self._starts
         self._signal = PulseTrain(self._fired, scale=lsb, shift=scene.tof_s / TDC_LSB_S,
                                guess=self.chunk_cycles + 2, trim=self.external_starts)
-        self._pulsed.append((self._signal, scene.detections_per_pulse, sigma, 0.0))
+        self._pulsed.append((self._signal, scene.detections_per_pulse * spad.pdp, sigma, 0.0))
         self.external_aggressors = bool(external_aggressors)
         self._aggressor_edges = []
         for aggressor in scene.aggressors:
@@ -134,7 +142,7 @@ class Simulation(PhotonGeneration):
                 pulses = PulseTrain(shift=shift + (1 + _scheduler.LATENCY) * own,
                                  step=float(aggressor.period_cycles) * own)
             sigma = math.hypot(aggressor.fwhm_s / FWHM_PER_SIGMA / TDC_LSB_S, jitter)
-            self._pulsed.append((pulses, aggressor.detections_per_pulse, sigma,
+            self._pulsed.append((pulses, aggressor.detections_per_pulse * spad.pdp, sigma,
                                  aggressor.jitter_s / TDC_LSB_S))
         self._sources = len(scene.sources)
         # Windows and dead times of consecutive pulses never meet when the shortest time between
@@ -199,6 +207,8 @@ class Simulation(PhotonGeneration):
     def step(self, max_cycles=None, *, until_cycle=None):
         """Simulate the next laser cycles: at most ``max_cycles`` (default: one chunk), and only
         those whose TDC start is before clock cycle ``until_cycle``. Returns a :class:`Chunk`."""
+        if self._effects:
+            return self._detector_step(max_cycles, until_cycle)
         prepared = self._prepare(max_cycles, until_cycle)
         if isinstance(prepared, Chunk):
             return prepared
@@ -252,6 +262,17 @@ class Simulation(PhotonGeneration):
         events["pulse"] = (self.pulse + cycle) & ((1 << PULSE_BITS) - 1)
 
         return self._advance(cycles, count, starts, ends, events, counts)
+
+    def _tdc(self, fires, span, pixel, times):
+        """The detections the TDC keeps of ``fires`` (indices in time order): the last (first)
+        of each window, and their collision flags (0)."""
+        cycle = span[fires]
+        keep = np.ones(len(cycle), dtype=bool)
+        if self.scene.keep == "last":
+            keep[:-1] = cycle[1:] != cycle[:-1]
+        else:
+            keep[1:] = cycle[1:] != cycle[:-1]
+        return fires[keep], np.zeros(int(keep.sum()), dtype=np.uint8)
 
     def _empty_chunk(self, start_cycles):
         """The chunk of a step without photons (its counters read-only)."""

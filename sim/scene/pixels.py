@@ -95,6 +95,10 @@ class PixelArray:
         Address of the first pixel; pixel ``i`` has address ``first_address + i`` (below 64).
     collision_window_s : float
         Collision window of the column sensor, seconds.
+    columns : int
+        Layout of the pixels, for the detector's crosstalk: pixel ``i`` sits in row ``i //
+        columns`` and column ``i % columns`` of a grid ``columns`` wide (1, the default: a
+        column, each pixel's neighbours the pixels above and below).
     """
 
     distance_m: object
@@ -102,6 +106,7 @@ class PixelArray:
     sensor: str = "column"
     first_address: int = 0
     collision_window_s: float = COLLISION_WINDOW_S
+    columns: int = 1
 
     def __post_init__(self):
         distance = np.asarray(self.distance_m, dtype=np.float64)
@@ -124,6 +129,10 @@ class PixelArray:
                              f"{(1 << ADDRESS_BITS) - len(distance)} for {len(distance)} "
                              f"pixels, not {self.first_address!r}")
         check_number(self.collision_window_s, "Collision window (s)")
+        if isinstance(self.columns, bool) or not isinstance(self.columns, (int, np.integer)) \
+                or self.columns < 1 or len(distance) % self.columns:
+            raise ValueError(f"The pixels' columns must be a positive integer that divides "
+                             f"the {len(distance)} pixels, not {self.columns!r}")
 
     def __len__(self):
         return len(self.distance_m)
@@ -132,6 +141,24 @@ class PixelArray:
     def addresses(self):
         """Address of each pixel, ``numpy.int64``."""
         return self.first_address + np.arange(len(self), dtype=np.int64)
+
+    def neighbours(self):
+        """``(orthogonal, diagonal)``: for each pixel the indices of its 4 orthogonal and 4
+        diagonal neighbours in the layout, ``-1`` where there is none (two ``(pixels, 4)``
+        ``int64`` arrays)."""
+        columns = int(self.columns)
+        rows = len(self) // columns
+        row, column = np.divmod(np.arange(len(self)), columns)
+        tables = []
+        for steps in (((-1, 0), (1, 0), (0, -1), (0, 1)),
+                      ((-1, -1), (-1, 1), (1, -1), (1, 1))):
+            table = np.full((len(self), 4), -1, dtype=np.int64)
+            for at, (down, right) in enumerate(steps):
+                r, c = row + down, column + right
+                inside = (r >= 0) & (r < rows) & (c >= 0) & (c < columns)
+                table[inside, at] = (r * columns + c)[inside]
+            tables.append(table)
+        return tuple(tables)
 
     def echo(self, detections_per_pulse):
         """Mean detected echo photons per victim pulse of each pixel, for a scene whose target
