@@ -22,7 +22,6 @@ Prints a line per check and closes with ``N passed, N failed``; exits 1 when a c
 """
 
 import argparse
-import filecmp
 import os
 import re
 import signal
@@ -156,6 +155,162 @@ class Board:
             raise RuntimeError(f"{error}; the board's output: {self.tail()}") from None
 
 
+class Installed:
+    """The wheel installed in a fresh environment under ``work``, and the checks run on it from
+    another folder (``user``): each method returns a detail for its line or raises."""
+
+    def __init__(self, args, work):
+        self.args, self.work = args, work
+        self.wheel = args.wheel.resolve()
+        self.env = environment()
+        if args.fresh_cache:
+            self.env["XDG_CACHE_HOME"] = str(work / "cache")
+        self.venv, self.user = work / "venv", work / "user"
+        self.user.mkdir()
+        self.bin = self.venv / "bin"
+        self.fliss = self.bin / "fliss"
+        self.version = re.search(r'^__version__ = "([^"]+)"',
+                                 (ROOT / "fliss" / "__init__.py").read_text(),
+                                 flags=re.MULTILINE).group(1)
+        self.site = None
+        self.before = set()
+
+    def run(self, argv, **options):
+        options.setdefault("cwd", self.user)
+        return run(argv, env=self.env, **options)
+
+    def _files(self):
+        return {p for p in (self.site / "fliss").rglob("*") if "__pycache__" not in p.parts}
+
+    def install(self):
+        python, work = self.bin / "python", self.work
+        self.run([self.args.python, "-m", "venv", self.venv], cwd=work)
+        self.run([python, "-m", "pip", "install", "--quiet", "--upgrade", "pip"], cwd=work)
+        if self.args.min_deps:
+            self.run([python, "-m", "pip", "install", "--quiet", *minimum_requirements()],
+                     cwd=work, timeout=1200)
+            self.run([python, "-m", "pip", "install", "--quiet", "--no-deps", f"{self.wheel}"],
+                     cwd=work)
+        else:
+            extras = "[virtual,formats]" if self.args.full else ""
+            self.run([python, "-m", "pip", "install", "--quiet", f"{self.wheel}{extras}"],
+                     cwd=work, timeout=1200)
+        self.site = Path(self.run([python, "-c", "import sysconfig; "
+                                   "print(sysconfig.get_paths()['purelib'])"]).stdout.strip())
+        self.before = self._files()
+        version = self.run([python, "-c", "import sys; print(sys.version.split()[0])"]).stdout
+        return f"Python {version.strip()}" + (", lowest dependencies" if self.args.min_deps
+                                               else "")
+
+    def imported_from_site_packages(self):
+        out = self.run([self.bin / "python", "-c", "import sys, fliss, fliss.hdl.top; "
+                        "print(fliss.__file__); print(fliss.hdl.top.__file__); "
+                        "print('\\n'.join(sys.path))"]).stdout
+        if str(ROOT) in out:
+            raise RuntimeError(f"the checkout ({ROOT}) is on sys.path or imported")
+        if not out.splitlines()[0].startswith(str(self.site)):
+            raise RuntimeError(f"fliss imported from {out.splitlines()[0]}")
+
+    def version_line(self):
+        out = self.run([self.fliss, "--version"]).stdout.strip()
+        if out != f"fliss {self.version}":
+            raise RuntimeError(f"fliss --version says {out!r}, not 'fliss {self.version}'")
+        return out
+
+    def every_help(self):
+        top = self.run([self.fliss, "--help"]).stdout
+        commands = re.findall(r"^    ([a-z][a-z-]*)\s", top, flags=re.MULTILINE)
+        if len(commands) < 10:
+            raise RuntimeError(f"fliss --help lists {len(commands)} commands")
+        for command in commands:
+            self.run([self.fliss, command, "--help"])
+        return f"{len(commands)} commands"
+
+    def same_verilog(self):
+        generated = self.user / "generated"
+        self.run([self.fliss, "generate", "-o", generated])
+        reference = self.args.reference
+        if reference is None:
+            reference = self.work / "reference"
+            run([sys.executable, "-m", "fliss", "generate", "-o", reference], cwd=ROOT,
+                env=dict(os.environ))
+        files = [p for p in reference.rglob("*") if p.is_file()]
+        for path in files:
+            other = generated / path.relative_to(reference)
+            if not other.is_file() or other.read_bytes() != path.read_bytes():
+                raise RuntimeError(f"{path.relative_to(reference)} differs from the checkout's")
+        extra = [p for p in generated.rglob("*")
+                 if p.is_file() and not (reference / p.relative_to(generated)).exists()]
+        if extra:
+            raise RuntimeError(f"files only the installed fliss writes: {extra}")
+        return f"{len(files)} files equal"
+
+    def model_board_capture(self):
+        with Board([self.bin / "python", "-m", "fliss.sim.boards.model"], cwd=self.user,
+                   env=self.env, timeout=60) as board:
+            self.run([self.fliss, "config", "--port", board.port, "--mode", "masked",
+                      "--aggressor", "on"], timeout=60)
+            self.run([self.fliss, "capture", "--port", board.port, "--integration", "10ms",
+                      "--acquisitions", "2", "-o", "model.h5"], timeout=120)
+        out = self.run([self.fliss, "analyze", "model.h5"]).stdout
+        self.run([self.fliss, "plot", "model.h5", "-o", "model.png"])
+        if not (self.user / "model.png").stat().st_size:
+            raise RuntimeError("plot wrote an empty PNG")
+        return out.strip().splitlines()[0][:80]
+
+    def amaranth_example(self):
+        # examples/ is not in the wheel: a user copies the folder and runs it against the
+        # installed fliss.hdl
+        folder = self.user / "amaranth_delay_core"
+        folder.mkdir()
+        for path in (ROOT / "examples" / "amaranth_delay_core").glob("*.py"):
+            (folder / path.name).write_bytes(path.read_bytes())
+        out = self.run([self.bin / "python", "-c",
+                        "import fliss.hdl.delay, ranger_board\n"
+                        "from amaranth.back import verilog\n"
+                        "text = verilog.convert(ranger_board.RangerOnBoard(48_000_000), "
+                        "name='ranger')\n"
+                        "print(fliss.hdl.delay.__file__, len(text.splitlines()))"],
+                       cwd=folder).stdout.split()
+        if "site-packages" not in out[0]:
+            raise RuntimeError(f"fliss.hdl.delay came from {out[0]}")
+        return f"{out[1]} lines of Verilog"
+
+    def export_model(self):
+        for target, name in (("ptu", "model.ptu"), ("photon-hdf5", "model-ph.h5")):
+            self.run([self.fliss, "export", "model.h5", "--to", target, "-o", name])
+            if not (self.user / name).stat().st_size:
+                raise RuntimeError(f"{name} is empty")
+        return "PTU and Photon-HDF5"
+
+    def demo(self):
+        out = self.run([self.fliss, "demo", "--out", "demo"], timeout=1500)
+        if not (self.user / "demo" / "demo.png").exists():
+            raise RuntimeError("the demo wrote no demo.png")
+        return out.stdout.strip().splitlines()[-1][:90]
+
+    def virtual_board_capture(self):
+        with Board([self.fliss, "board"], cwd=self.user, env=self.env, timeout=900) as board:
+            self.run([self.fliss, "config", "--port", board.port, "--mode", "masked",
+                      "--aggressor", "on"], timeout=120)
+            self.run([self.fliss, "capture", "--port", board.port, "--integration", "1ms",
+                      "--acquisitions", "2", "-o", "virtual.h5"], timeout=300)
+        self.run([self.fliss, "analyze", "virtual.h5"])
+        self.run([self.fliss, "export", "virtual.h5", "--to", "ptu", "-o", "virtual.ptu"])
+        return f"virtual.h5 {(self.user / 'virtual.h5').stat().st_size} bytes"
+
+    def nothing_written_to_site_packages(self):
+        after = self._files()
+        if after != self.before:
+            raise RuntimeError(f"written into site-packages: "
+                               f"{sorted(map(str, after - self.before))[:5]}")
+        cache = Path(self.env.get("XDG_CACHE_HOME", Path.home() / ".cache"))
+        built = list(cache.rglob("*.so")) if cache.exists() else []
+        if not built:
+            raise RuntimeError(f"no harness library in the per-user cache {cache}")
+        return f"harness in {built[0].parent}"
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--wheel", required=True, type=Path)
@@ -166,171 +321,27 @@ def main():
     parser.add_argument("--reference", type=Path, metavar="DIR",
                         help="the checkout's `fliss generate` output (made here when not given)")
     args = parser.parse_args()
-    wheel = args.wheel.resolve()
     args.python = find_python(args.python)
-    version = re.search(r'^__version__ = "([^"]+)"', (ROOT / "fliss" / "__init__.py").read_text(),
-                        flags=re.MULTILINE).group(1)
     checks = Checks()
     with tempfile.TemporaryDirectory(prefix="fliss-installed-") as temporary:
-        work = Path(temporary)
-        env = environment()
-        if args.fresh_cache:
-            env["XDG_CACHE_HOME"] = str(work / "cache")
-        venv, user = work / "venv", work / "user"
-        user.mkdir()
-        bin_ = venv / "bin"
-        fliss = bin_ / "fliss"
-
-        def install():
-            run([args.python, "-m", "venv", venv], cwd=work, env=env)
-            run([bin_ / "python", "-m", "pip", "install", "--quiet", "--upgrade", "pip"],
-                cwd=work, env=env)
-            extras = "[virtual,formats]" if args.full else ""
-            if args.min_deps:
-                run([bin_ / "python", "-m", "pip", "install", "--quiet",
-                     *minimum_requirements()], cwd=work, env=env, timeout=1200)
-                run([bin_ / "python", "-m", "pip", "install", "--quiet", "--no-deps",
-                     f"{wheel}"], cwd=work, env=env)
-            else:
-                run([bin_ / "python", "-m", "pip", "install", "--quiet", f"{wheel}{extras}"],
-                    cwd=work, env=env, timeout=1200)
-            python = run([bin_ / "python", "-c", "import sys; print(sys.version.split()[0])"],
-                         cwd=user, env=env).stdout.strip()
-            return f"Python {python}" + (", lowest dependencies" if args.min_deps else "")
-
-        checks.run("install the wheel into a fresh environment", install)
-        if checks.failed:
-            print(f"{checks.passed} passed, {checks.failed} failed")
-            return 1
-        site = Path(run([bin_ / "python", "-c", "import sysconfig; "
-                         "print(sysconfig.get_paths()['purelib'])"], cwd=user, env=env)
-                    .stdout.strip())
-        before = {p for p in (site / "fliss").rglob("*") if "__pycache__" not in p.parts}
-
-        def imported_from_site_packages():
-            out = run([bin_ / "python", "-c", "import sys, fliss, fliss.hdl.top; "
-                       "print(fliss.__file__); print(fliss.hdl.top.__file__); "
-                       "print('\\n'.join(sys.path))"], cwd=user, env=env).stdout
-            if str(ROOT) in out:
-                raise RuntimeError(f"the checkout ({ROOT}) is on sys.path or imported")
-            if not out.splitlines()[0].startswith(str(site)):
-                raise RuntimeError(f"fliss imported from {out.splitlines()[0]}")
-
-        def version_line():
-            out = run([fliss, "--version"], cwd=user, env=env).stdout.strip()
-            if out != f"fliss {version}":
-                raise RuntimeError(f"fliss --version says {out!r}, not 'fliss {version}'")
-            return out
-
-        def every_help():
-            top = run([fliss, "--help"], cwd=user, env=env).stdout
-            commands = re.findall(r"^    ([a-z][a-z-]*)\s", top, flags=re.MULTILINE)
-            if len(commands) < 10:
-                raise RuntimeError(f"fliss --help lists {len(commands)} commands")
-            for command in commands:
-                run([fliss, command, "--help"], cwd=user, env=env)
-            return f"{len(commands)} commands"
-
-        def same_verilog():
-            run([fliss, "generate", "-o", user / "generated"], cwd=user, env=env)
-            reference = args.reference
-            if reference is None:
-                reference = work / "reference"
-                run([sys.executable, "-m", "fliss", "generate", "-o", reference], cwd=ROOT,
-                    env=dict(os.environ))
-            comparison = filecmp.dircmp(reference, user / "generated")
-            files = [p for p in reference.rglob("*") if p.is_file()]
-            for path in files:
-                other = user / "generated" / path.relative_to(reference)
-                if not other.is_file() or other.read_bytes() != path.read_bytes():
-                    raise RuntimeError(f"{path.relative_to(reference)} differs from the "
-                                       f"checkout's")
-            if comparison.right_only:
-                raise RuntimeError(f"files only the installed fliss writes: "
-                                   f"{comparison.right_only}")
-            return f"{len(files)} files equal"
-
-        def model_board_capture():
-            with Board([bin_ / "python", "-m", "fliss.sim.boards.model"], cwd=user, env=env,
-                       timeout=60) as board:
-                run([fliss, "config", "--port", board.port, "--mode", "masked",
-                     "--aggressor", "on"], cwd=user, env=env, timeout=60)
-                run([fliss, "capture", "--port", board.port, "--integration", "10ms",
-                     "--acquisitions", "2", "-o", "model.h5"], cwd=user, env=env, timeout=120)
-            out = run([fliss, "analyze", "model.h5"], cwd=user, env=env).stdout
-            run([fliss, "plot", "model.h5", "-o", "model.png"], cwd=user, env=env)
-            if not (user / "model.png").stat().st_size:
-                raise RuntimeError("plot wrote an empty PNG")
-            return out.strip().splitlines()[0][:80]
-
-        def amaranth_example():
-            # examples/ is not in the wheel: a user copies the folder and runs it against the
-            # installed fliss.hdl
-            folder = user / "amaranth_delay_core"
-            folder.mkdir()
-            for path in (ROOT / "examples" / "amaranth_delay_core").glob("*.py"):
-                (folder / path.name).write_bytes(path.read_bytes())
-            out = run([bin_ / "python", "-c",
-                       "import fliss.hdl.delay, ranger_board\n"
-                       "from amaranth.back import verilog\n"
-                       "text = verilog.convert(ranger_board.RangerOnBoard(48_000_000), "
-                       "name='ranger')\n"
-                       "print(fliss.hdl.delay.__file__, len(text.splitlines()))"],
-                      cwd=folder, env=env).stdout.split()
-            if "site-packages" not in out[0]:
-                raise RuntimeError(f"fliss.hdl.delay came from {out[0]}")
-            return f"{out[1]} lines of Verilog"
-
-        checks.run("imported from site-packages, nothing of the checkout", imported_from_site_packages)
-        checks.run("fliss --version", version_line)
-        checks.run("every command's --help", every_help)
-        checks.run("fliss generate writes the checkout's files", same_verilog)
-        checks.run("model board: config, capture, analyze, plot", model_board_capture)
-        checks.run("the Amaranth example elaborates on the installed fliss.hdl", amaranth_example)
-
-        if args.full:
-            def export_model():
-                for target, name in (("ptu", "model.ptu"), ("photon-hdf5", "model-ph.h5")):
-                    run([fliss, "export", "model.h5", "--to", target, "-o", name], cwd=user,
-                        env=env)
-                    if not (user / name).stat().st_size:
-                        raise RuntimeError(f"{name} is empty")
-                return "PTU and Photon-HDF5"
-
-            def demo():
-                out = run([fliss, "demo", "--out", "demo"], cwd=user, env=env, timeout=1500)
-                if not (user / "demo" / "demo.png").exists():
-                    raise RuntimeError("the demo wrote no demo.png")
-                return out.stdout.strip().splitlines()[-1][:90]
-
-            def virtual_board_capture():
-                with Board([fliss, "board"], cwd=user, env=env, timeout=900) as board:
-                    run([fliss, "config", "--port", board.port, "--mode", "masked",
-                         "--aggressor", "on"], cwd=user, env=env, timeout=120)
-                    run([fliss, "capture", "--port", board.port, "--integration", "1ms",
-                         "--acquisitions", "2", "-o", "virtual.h5"], cwd=user, env=env,
-                        timeout=300)
-                run([fliss, "analyze", "virtual.h5"], cwd=user, env=env)
-                run([fliss, "export", "virtual.h5", "--to", "ptu", "-o", "virtual.ptu"],
-                    cwd=user, env=env)
-                return f"virtual.h5 {(user / 'virtual.h5').stat().st_size} bytes"
-
-            def nothing_written_to_site_packages():
-                after = {p for p in (site / "fliss").rglob("*") if "__pycache__" not in p.parts}
-                if after != before:
-                    raise RuntimeError(f"written into site-packages: "
-                                       f"{sorted(map(str, after - before))[:5]}")
-                cache = Path(env.get("XDG_CACHE_HOME", Path(env["HOME"]) / ".cache"))
-                built = [p for p in cache.rglob("*.so")] if cache.exists() else []
-                if not built:
-                    raise RuntimeError(f"no harness library in the per-user cache {cache}")
-                return f"harness in {built[0].parent}"
-
-            checks.run("export the model board's capture", export_model)
-            checks.run("fliss demo", demo)
-            checks.run("fliss board: config, capture, analyze, export", virtual_board_capture)
-            checks.run("nothing written into site-packages", nothing_written_to_site_packages)
-
+        smoke = Installed(args, Path(temporary))
+        checks.run("install the wheel into a fresh environment", smoke.install)
+        if not checks.failed:
+            checks.run("imported from site-packages, nothing of the checkout",
+                       smoke.imported_from_site_packages)
+            checks.run("fliss --version", smoke.version_line)
+            checks.run("every command's --help", smoke.every_help)
+            checks.run("fliss generate writes the checkout's files", smoke.same_verilog)
+            checks.run("model board: config, capture, analyze, plot", smoke.model_board_capture)
+            checks.run("the Amaranth example elaborates on the installed fliss.hdl",
+                       smoke.amaranth_example)
+        if args.full and smoke.site is not None:
+            checks.run("export the model board's capture", smoke.export_model)
+            checks.run("fliss demo", smoke.demo)
+            checks.run("fliss board: config, capture, analyze, export",
+                       smoke.virtual_board_capture)
+            checks.run("nothing written into site-packages",
+                       smoke.nothing_written_to_site_packages)
     print(f"{checks.passed} passed, {checks.failed} failed")
     return 1 if checks.failed else 0
 
