@@ -75,6 +75,6 @@ def run(args):
               f"{pace})", file=sys.stderr)
         return INCOMPLETE
     if not quiet:
-        print(f"fliss selftest: {result.summary()}: passed in {result.elapsed_s:.1f} s "
-              f"(loopback: {result.loop}{pace})", file=sys.stderr)
+        print(f"fliss selftest: {result.summary()} in {result.elapsed_s:.1f} s (loopback: "
+              f"{result.loop}{pace})", file=sys.stderr)
     return 0

@@ -50,7 +50,7 @@ from ..models.depth import depth_frame
 from ...protocol.depth import depth_payload
 from .loopback import Loopback
 from .noisy_line import NoisyLine, add_line_arguments, describe, faults_from_args
-from .options import add_build_arguments, add_scene_arguments, rate_hz
+from .options import add_build_arguments, add_scene_arguments, baud_rate, rate_hz
 from .pty_server import PtyServer
 from ..scene import Aggressor, Scene, pixels_named, simulation_for
 
@@ -482,13 +482,12 @@ def _build_from_args(args):
     import warnings
     from amaranth.hdl import UnusedElaboratable
     from ...hdl.top import SMALL, FlissTop
-    from ...host.units import parse_baud     # (a pure parser: the host's rule for a baud rate)
     if args.small and args.fine_tdc:
         raise ValueError("the iCEBreaker's build has no fine TDC: --small or --fine-tdc, not both")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UnusedElaboratable)     # made for its maxima only
         top = FlissTop(**SMALL) if args.small else FlissTop(fine_tdc=args.fine_tdc)
-    return {"baud": parse_baud(args.baud), "maxima": top.register_maxima(),
+    return {"baud": baud_rate(args.baud), "maxima": top.register_maxima(),
             "loopback": Loopback(jumper=args.jumper)}
 
 

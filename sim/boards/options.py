@@ -8,7 +8,7 @@ import re
 from ..scene import SCENE_NAMES, SENSOR_KINDS
 
 
-__all__ = ["add_scene_arguments", "add_build_arguments", "rate_hz"]
+__all__ = ["add_scene_arguments", "add_build_arguments", "rate_hz", "baud_rate"]
 
 
 _RATE = re.compile(r"\s*((?:\d+\.?\d*|\.\d+)(?:e[-+]?\d+)?)\s*(hz|khz|mhz|ghz)\s*",
@@ -24,6 +24,21 @@ def rate_hz(text, flag="--ambient"):
         raise ValueError(f"{flag} {text}: give a rate with its unit, not negative: 100kHz, "
                          f"1e5Hz or 0Hz")
     return float(match.group(1)) * _SCALE[match.group(2).lower()]
+
+
+_BAUD = re.compile(r"\s*(\d+\.?\d*|\.\d+)\s*(k|m)?(?:baud|bd)?\s*", flags=re.IGNORECASE)
+
+
+def baud_rate(text, flag="--baud"):
+    """A baud rate from ``"12M"``, ``"3Mbaud"``, ``"115200"``, as ``fliss``'s commands take it
+    (:func:`fliss.host.units.parse_baud`, which the simulator does not import); ``ValueError``
+    naming ``flag`` for anything else."""
+    match = _BAUD.fullmatch(str(text))
+    value = None if match is None else \
+        float(match.group(1)) * {"": 1, "k": 1e3, "m": 1e6}[(match.group(2) or "").lower()]
+    if value is None or not value >= 1 or value != int(value):
+        raise ValueError(f"{flag} {text}: give a whole baud rate: 115200, 3M or 12Mbaud")
+    return int(value)
 
 
 def add_scene_arguments(parser, *, seed=None):
