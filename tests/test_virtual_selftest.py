@@ -24,7 +24,8 @@ from fliss.hdl import DEFAULT_CLOCK_HZ
 from fliss.host.board import connect
 from fliss.host.calibration import calibrate
 from fliss.host.cli import main
-from fliss.host.selftest import CHECKS, EMPTY_SHARE, PERIOD_CYCLES, selftest
+from fliss.host.selftest import (CHECKS, EMPTY_SHARE, PERIOD_CYCLES, SIMULATION_DURATIONS_S,
+                                 selftest)
 from fliss.host.virtual import VirtualBoard
 from fliss.sim.benches.runner import simulator_available
 from fliss.sim.boards.loopback import JITTER_S, JUMPER_DELAY_S, PAD_DELAY_S
@@ -142,9 +143,6 @@ def test_the_delays_through_the_aggressors_jumper():
 COARSE_CODE = math.floor(JUMPER_DELAY_S * DEFAULT_CLOCK_HZ)
 #: What ``same time`` and ``histogram`` say of that code: no jitter within one code.
 COARSE_AT = f"{COARSE_CODE / DEFAULT_CLOCK_HZ * 1e9:.3f} ns"
-#: Raw acquisitions of 0.3 s of the host's time, histograms of 0.5 ms (50 pulses at the
-#: self-test's period).
-COARSE_DURATIONS_S = {"raw": 0.3, "histogram": 0.0005}
 LASER_DELAYS = "the victim's own hits are timed from its own delayed start, so its delays do " \
                "not show: loop the aggressor's trigger to the photon input (--jumper aggressor)"
 
@@ -159,8 +157,9 @@ def coarse_selftest(jumper, **options):
     virtual.start(timeout_s=1800)
     try:
         with connect(virtual.path, timeout_s=10.0) as client:
-            result = selftest(client, jumper=jumper, reference=delays,
-                              durations_s=COARSE_DURATIONS_S)
+            # (the durations the self-test picks at the board's pace: raw acquisitions of some
+            # 40 pulses, histograms of 0.5 ms)
+            result = selftest(client, jumper=jumper, reference=delays)
     finally:
         virtual.stop()
     # (the table `fliss selftest` prints)
@@ -209,7 +208,7 @@ def test_coarse_tdc_on_the_icebreakers_build():
     # integration time (a start more or less in the window)
     result, lines = coarse_selftest("laser", small=True)
     hits, pulses = hits_and_pulses(lines[1])
-    assert pulses == round(COARSE_DURATIONS_S["histogram"] * DEFAULT_CLOCK_HZ) // PERIOD_CYCLES
+    assert pulses == round(SIMULATION_DURATIONS_S["histogram"] * DEFAULT_CLOCK_HZ) // PERIOD_CYCLES
     assert abs(hits - pulses) <= 1, lines[1]
     assert lines[2:] == [
         "delays       skipped  the victim's own hits are timed from its own delayed start, so "
