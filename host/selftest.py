@@ -35,12 +35,20 @@ The checks (:func:`selftest`), one :class:`Check` each:
     A code-density histogram of the on-chip oscillator (:func:`fliss.host.calibration.code_counts`)
     hits the codes from the first to the last, all but at most :data:`EMPTY_SHARE` of them (the
     narrowest, where the two lines' taps nearly coincide), with at least :data:`COVERAGE_HITS`
-    hits a code on average: the calibration covers every tap (the fine TDC only; the table on
-    the board is left as it is).
+    hits a code on average: the calibration covers every tap (the fine TDC only); and
+    :data:`~fliss.host.calibration.TABLE_SAMPLES` entries of the board's table, read back, are
+    within :data:`~fliss.host.calibration.TABLE_TOLERANCE_S` of the times these codes give
+    them (the table is left as it is).
 ``link``
     The link's error counters, the board's and the host's, did not move during the test.
 
-The settings changed are put back at the end. The reference sequence of the delays
+A loopback's delay outside 0 to :data:`MAX_DELAY_S` fails ``same time``, and a failure with
+hits that are not the trigger's says to check the wire. The verdict
+(:attr:`~fliss.host.checklist.SelfTest.verdict`) is ``"pass"`` only when every check ran and
+passed; with a skip it is ``"incomplete"``. The board's pace (:mod:`fliss.host.pace`) is
+measured first: on a board slower than real time the acquisitions are
+:data:`SIMULATION_DURATIONS_S` and the waits fit the pace. The settings changed are put back
+at the end. The reference sequence of the delays
 (:mod:`fliss.sim.models.delay` ``delays``) is given by the caller (``reference``), as the code
 that talks to a real board does not import the simulator.
 """

@@ -498,3 +498,19 @@ def test_an_interrupted_calibration_says_the_table_is_partial():
         "interrupted while writing the calibration table: the board's table is partial (codes "
         "0 to 298 new, 299 to 1023 as they were); run fliss calibrate again, or configure the "
         "FPGA again for the nominal table")
+
+
+@pytest.mark.parametrize("outcomes_, verdict, summary", [
+    (["pass"] * 5, "pass", "passed 5 of 5"),
+    (["pass", "skipped", "pass", "pass", "pass"], "incomplete",
+     "passed 4 of 5, 1 skipped: not a full self-test"),
+    (["skipped"] * 4 + ["pass"], "incomplete", "passed 1 of 5, 4 skipped: not a full self-test"),
+    (["pass", "fail", "skipped", "pass", "pass"], "fail", "failed: delays (passed 3 of 5)"),
+    (["pass", "pass"], "incomplete", "passed 2 of 5, 3 not run: not a full self-test"),
+])
+def test_a_skipped_check_is_never_a_pass(outcomes_, verdict, summary):
+    from fliss.host.checklist import Check, SelfTest
+    result = SelfTest(loop="laser", checks=[Check(name, outcome, "")
+                                            for name, outcome in zip(CHECKS, outcomes_)])
+    assert (result.verdict, result.summary()) == (verdict, summary)
+    assert result.passed == (verdict == "pass")
