@@ -58,8 +58,16 @@ TEST_MODULE = "fliss.sim.boards.virtual"
 STARTUP_TIMEOUT_S = 120
 
 
-def _check_simulator(sim):
+def _check_simulator(sim, baud=None):
+    """:exc:`VirtualBoardError` if ``sim`` is missing, or the top level cannot make ``baud``."""
+    from ..hdl import DEFAULT_CLOCK_HZ
+    from ..hdl.link.uart import bit_cycles
     from ..sim.benches.runner import simulator_available
+    try:
+        if baud is not None:
+            bit_cycles(DEFAULT_CLOCK_HZ, baud)      # (the top level's check of its baud rate)
+    except ValueError as error:
+        raise VirtualBoardError(str(error)) from None
     if sim not in SIMULATORS:
         raise VirtualBoardError(f"unknown simulator {sim!r}: choose one of "
                                 f"{', '.join(SIMULATORS)}")
@@ -129,15 +137,10 @@ def build(sim, *, baud=VIRTUAL_BAUD, root=None, fine_tdc=False, small=False):
     simulator is missing, the baud rate cannot be made, or the build fails (with the path of
     its log).
     """
-    from ..hdl import DEFAULT_CLOCK_HZ, verilog
-    from ..hdl.link.uart import bit_cycles
+    from ..hdl import verilog
     from ..hdl.top import SMALL, FlissTop
 
-    _check_simulator(sim)
-    try:
-        bit_cycles(DEFAULT_CLOCK_HZ, baud)      # (the top level's check of its baud rate)
-    except ValueError as error:
-        raise VirtualBoardError(str(error)) from None
+    _check_simulator(sim, baud)
 
     def make_text():
         # (made only when the build is: a top level made and not elaborated draws a warning)
@@ -366,7 +369,7 @@ class VirtualBoard:
     def built(self):
         """Whether the build this board runs is in the cache (else :meth:`start` makes it: some
         minutes); :exc:`~fliss.host.errors.VirtualBoardError` if the simulator is missing."""
-        _check_simulator(self.sim)
+        _check_simulator(self.sim, self.baud)
         if self.engine == "fast":
             from ..sim.boards import harness
             return (self.folder / f"harness-{harness.key(baud=self.baud)}.so").exists()
@@ -418,14 +421,11 @@ class VirtualBoard:
         return self.path
 
     def _fast_command(self):
-        from ..hdl import DEFAULT_CLOCK_HZ
-        from ..hdl.link.uart import bit_cycles
         from ..sim.boards import harness
-        _check_simulator(self.sim)
+        _check_simulator(self.sim, self.baud)
         try:
-            bit_cycles(DEFAULT_CLOCK_HZ, self.baud)     # (FlissTop's check of its baud rate)
             library = harness.build(self.folder, baud=self.baud)
-        except (harness.HarnessBuildError, ValueError) as error:
+        except harness.HarnessBuildError as error:
             raise VirtualBoardError(str(error)) from None
         return [sys.executable, "-m", "fliss.sim.boards.fast", str(library)]
 
