@@ -514,3 +514,20 @@ def test_a_skipped_check_is_never_a_pass(outcomes_, verdict, summary):
                                             for name, outcome in zip(CHECKS, outcomes_)])
     assert (result.verdict, result.summary()) == (verdict, summary)
     assert result.passed == (verdict == "pass")
+
+
+def test_calibrate_interrupted_before_the_table_leaves_it(capsys, monkeypatch):
+    import fliss.host.commands.calibrate as command
+    monkeypatch.setattr(command, "Progress", lambda *args, **kwargs: _InterruptAfter(2))
+    with model_board(loopback=Loopback(line=LINE)) as board:
+        with connect(board.path) as client:
+            before = read_table(client.client)
+        status, _, err = fliss(capsys, "calibrate", "--port", board.path, "--duration", "0.3s")
+        with connect(board.path) as client:
+            after = read_table(client.client)
+            settings = client.registers
+    assert status == 130
+    assert err.splitlines()[-1] == "fliss calibrate: interrupted before the table was written: " \
+                                   "the board's table is left as it was"
+    assert np.array_equal(before, after)
+    assert settings["tdc_input"] == 0 and settings["tdc_source"] != 3     # put back

@@ -81,6 +81,10 @@ def run(args):
         try:
             result = calibrate(board, seconds, integration_s=frame_s, timeout_s=timeout_s,
                                force=args.force, progress=progress)
+        except KeyboardInterrupt:       # (before the table: an interrupted write says so)
+            print("fliss calibrate: interrupted before the table was written: the board's "
+                  "table is left as it was", file=sys.stderr)
+            return 130
         finally:
             for bar in bars:
                 bar.close()
