@@ -36,10 +36,10 @@ def register(subparsers, formatter):
                     "it was, unless --force. Ctrl-C while the table is written leaves it "
                     "partial, which it says.")
     add_port_arguments(parser)
-    parser.add_argument("--duration", default=None, metavar="TIME",
+    parser.add_argument("--duration", default="auto", metavar="TIME",
                         help="how long to histogram the oscillator's codes, in the board's "
-                             "time (default 1s; on a board slower than real time, the virtual "
-                             f"board's simulation, {SIMULATION_DURATION_S * 1e3:g}ms)")
+                             "time; auto: 1s, or on a board slower than real time (the virtual "
+                             f"board's simulation) {SIMULATION_DURATION_S * 1e3:g}ms")
     parser.add_argument("--force", action="store_true",
                         help="write the table even from fewer hits than it needs")
     parser.set_defaults(run=run)
@@ -47,7 +47,7 @@ def register(subparsers, formatter):
 
 def run(args):
     seconds = None
-    if args.duration is not None:
+    if args.duration != "auto":
         seconds = duration_s(args.duration, f"--duration {args.duration}")
         if not seconds > 0:
             raise UserError(f"--duration must be positive, not {args.duration}")
