@@ -24,7 +24,7 @@ from fliss.hdl.protocol import registers_layout
 from fliss.hdl.registers import BY_NAME
 from fliss.protocol import PacketEncoder, pack
 from fliss.host.client import BoardClient
-from fliss.host.virtual import VIRTUAL_BAUD, VirtualBoard, build_root
+from fliss.host.virtual import VIRTUAL_BAUD, VirtualBoard, board_folder, build_root
 
 
 #: Before the fast harness: the cocotb virtual board (Verilator) on the shared development
@@ -44,7 +44,9 @@ def raw(threads, cycles=2_000_000):
     """Verilator on the top level in the harness, nothing attached: cycles/s idle, and
     acquiring (START through the UART)."""
     from fliss.sim.boards import harness
-    folder = build_root() / ("fast" if threads == 1 else f"fast-threads-{threads}")
+    folder = board_folder(build_root(), "fast", "verilator")
+    if threads != 1:
+        folder = folder.with_name(f"{folder.name}-threads-{threads}")
     library = harness.build(folder, baud=VIRTUAL_BAUD, threads=threads)
     board = harness.Harness(library, 80e6 / VIRTUAL_BAUD)
     figures = {}

@@ -26,14 +26,27 @@ from .client import BoardClient
 from .errors import BoardRefused, CalibrationError
 
 
-__all__ = ["TABLE_ENTRIES", "OSCILLATOR_INPUT", "Calibration", "has_fine_tdc", "read_table",
-           "write_table", "code_counts", "calibrate"]
+__all__ = ["TABLE_ENTRIES", "OSCILLATOR_INPUT", "LEAST_HITS_PER_CODE", "TABLE_TOLERANCE_S",
+           "TABLE_SAMPLES", "Calibration", "has_fine_tdc", "read_table", "write_table",
+           "code_counts", "least_hits", "table_check", "calibrate"]
 
 
 #: Entries of the calibration table (raw codes 0 to ``2**CODE_BITS - 1``).
 TABLE_ENTRIES = 1 << CODE_BITS
 #: ``tdc_input`` of the on-chip oscillator.
 OSCILLATOR_INPUT = HitInput.OSCILLATOR.value
+#: Least hits a code on average for a table: a code's width is its share of the hits, a
+#: Poisson count of mean ``n`` whose relative error is ``1 / sqrt(n)``: 20 % (one standard
+#: deviation) at 25. With fewer, the table's widths are mostly noise (15 hits over 700 codes
+#: give a DNL of some 45 codes).
+LEAST_HITS_PER_CODE = 25
+#: Largest distance between an entry of the board's table and the same code's time from a
+#: fresh code density before the self-test calls the table bad: the nominal table (no
+#: calibration since power-up) is off by up to some 250 ps (the taps' drift), a fresh density
+#: of 25 hits a code by some 50 ps (one standard deviation at mid-line).
+TABLE_TOLERANCE_S = 1e-9
+#: Entries of the board's table the self-test reads to compare (each two commands).
+TABLE_SAMPLES = 32
 #: The registers :func:`code_counts` changes, and puts back.
 _CHANGED = ("acquisition", "tdc_source", "tdc_input", "bin_shift", "integration", "pixel_bits")
 
@@ -98,19 +111,27 @@ def has_fine_tdc(client: BoardClient, current: Optional[dict] = None) -> bool:
     return True
 
 
-def read_table(client: BoardClient, current: Optional[dict] = None) -> np.ndarray:
-    """The board's calibration table, read back entry by entry (``uint16``)."""
+def read_table(client: BoardClient, current: Optional[dict] = None, *,
+               codes=None, progress=None) -> np.ndarray:
+    """The board's calibration table, read back entry by entry (``uint16``); with ``codes``,
+    those entries only (in their order)."""
     current = client.read_registers() if current is None else current
-    table = np.zeros(TABLE_ENTRIES, dtype=np.uint16)
-    for code in range(TABLE_ENTRIES):
+    codes = range(TABLE_ENTRIES) if codes is None else [int(code) for code in codes]
+    table = np.zeros(len(codes), dtype=np.uint16)
+    for index, code in enumerate(codes):
         client.write_registers({"table_address": code}, current=current)
-        table[code] = client.read_registers(["table_data"])["table_data"]
+        table[index] = client.read_registers(["table_data"])["table_data"]
+        if progress is not None:
+            progress.update(index + 1, "entries read back")
     return table
 
 
-def write_table(client: BoardClient, table, current: Optional[dict] = None) -> None:
+def write_table(client: BoardClient, table, current: Optional[dict] = None, *,
+                progress=None) -> None:
     """Write ``table`` (``TABLE_ENTRIES`` entries in 12.5 ps units) to the board, read it back
-    and compare; :exc:`CalibrationError` if the board does not keep it."""
+    and compare; :exc:`CalibrationError` if the board does not keep it, or if the writing is
+    interrupted (Ctrl-C: the board's table is then partly the new one, which the message says).
+    ``progress``, if given, has ``update(done, extra)``: entries written, then read back."""
     table = np.asarray(table)
     if table.shape != (TABLE_ENTRIES,) or table.min() < 0 or table.max() >= 1 << TABLE_BITS:
         raise CalibrationError(f"a calibration table has {TABLE_ENTRIES} entries from 0 to "
@@ -119,10 +140,20 @@ def write_table(client: BoardClient, table, current: Optional[dict] = None) -> N
     # Each entry by one WRITE of its address and value together, which the board applies
     # address first: a WRITE the host re-sends (its reply late or lost) writes the same entry
     # again, where a WRITE of the value alone would move the pointer on twice.
-    for code, value in enumerate(table):
-        client.write_registers({"table_address": code, "table_data": int(value)},
-                               current=current)
-    back = read_table(client, current)
+    code = 0
+    try:
+        for code, value in enumerate(table):
+            client.write_registers({"table_address": code, "table_data": int(value)},
+                                   current=current)
+            if progress is not None:
+                progress.update(code + 1, "entries written")
+    except KeyboardInterrupt:
+        raise CalibrationError(
+            f"interrupted while writing the calibration table: the board's table is partial "
+            f"(codes 0 to {code - 1} new, {code} to {TABLE_ENTRIES - 1} as they were); "
+            f"run fliss calibrate again, or configure the FPGA again for the nominal table") \
+            from None
+    back = read_table(client, current, progress=progress)
     wrong = np.flatnonzero(back != table)
     if len(wrong):
         code = int(wrong[0])
@@ -131,10 +162,12 @@ def write_table(client: BoardClient, table, current: Optional[dict] = None) -> N
                                f"wrote {int(table[code])}, read {int(back[code])})")
 
 
-def code_counts(board, duration_s: float = 1.0, *, integration_s: float = 0.1) -> np.ndarray:
+def code_counts(board, duration_s: float = 1.0, *, integration_s: float = 0.1,
+                timeout_s: Optional[float] = None, progress=None) -> np.ndarray:
     """Hits per raw code from the on-chip oscillator over ``duration_s``, with the board's
-    histogram readout (a :class:`~fliss.host.board.Board` with the fine TDC); the settings
-    changed are put back."""
+    histogram readout (a :class:`~fliss.host.board.Board` with the fine TDC), in histograms of
+    ``integration_s``, each waited for ``timeout_s`` (None: the board's own wait); the settings
+    changed are put back. ``progress``, if given, has ``update(done, extra)``: histograms."""
     client = board.client
     before = client.read_registers()
     if not has_fine_tdc(client, before):
@@ -148,21 +181,65 @@ def code_counts(board, duration_s: float = 1.0, *, integration_s: float = 0.1) -
         "acquisition": AcquisitionMode.HISTOGRAM.value, "tdc_source": TdcSource.FINE_RAW.value,
         "tdc_input": OSCILLATOR_INPUT, "bin_shift": 0, "integration": cycles, "pixel_bits": 0},
         current=before)
+    counts = np.zeros(TABLE_ENTRIES, dtype=np.int64)
     try:
-        histograms = board.acquire(frames)
+        for done, histogram in enumerate(board.stream(frames, timeout_s=timeout_s), 1):
+            counts += np.asarray(histogram.counts, dtype=np.int64)[:TABLE_ENTRIES]
+            if progress is not None:
+                progress.update(done, f"{int(counts.sum())} hits")
     finally:
         client.write_registers({name: before[name] for name in _CHANGED}, current=current)
-    counts = np.asarray(histograms.counts, dtype=np.int64).sum(axis=0)
-    return counts[:TABLE_ENTRIES]
+    return counts
 
 
-def calibrate(board, duration_s: float = 1.0, *, integration_s: float = 0.1) -> Calibration:
-    """Calibrate the board's fine TDC by code density (histograms of ``integration_s``) and store
-    the table on the board (read back and compared); returns the :class:`Calibration`."""
-    counts = code_counts(board, duration_s, integration_s=integration_s)
+def least_hits(counts) -> int:
+    """The hits a table needs: :data:`LEAST_HITS_PER_CODE` for each code from the first hit
+    to the last."""
+    used = np.flatnonzero(counts)
+    return LEAST_HITS_PER_CODE * (int(used[-1] - used[0]) + 1 if len(used) else TABLE_ENTRIES)
+
+
+def table_check(client: BoardClient, counts, clock_hz: int) -> Optional[str]:
+    """Compare :data:`TABLE_SAMPLES` entries of the board's table, spread over the codes hit,
+    with the times the code density ``counts`` gives them; None if each is within
+    :data:`TABLE_TOLERANCE_S`, else what is wrong (one line)."""
+    fresh = _analysis.table(counts, 1 / clock_hz, UNIT_S, width=TABLE_BITS)
+    used = np.flatnonzero(counts)
+    codes = np.unique(np.linspace(used[0], used[-1], TABLE_SAMPLES).round().astype(int))
+    current = client.read_registers()
+    board = read_table(client, current, codes=codes).astype(np.int64)
+    client.write_registers({"table_address": current["table_address"]}, current=current)
+    off = np.abs(board - fresh[codes].astype(np.int64)) * UNIT_S
+    if off.max() <= TABLE_TOLERANCE_S:
+        return None
+    k = int(np.argmax(off))
+    return (f"the board's calibration table looks bad: code {codes[k]} reads "
+            f"{board[k] * UNIT_S * 1e12:.0f} ps, the oscillator's codes put it at "
+            f"{fresh[codes[k]] * UNIT_S * 1e12:.0f} ps (more than "
+            f"{TABLE_TOLERANCE_S * 1e12:.0f} ps apart): run fliss calibrate again")
+
+
+def calibrate(board, duration_s: float = 1.0, *, integration_s: float = 0.1,
+              timeout_s: Optional[float] = None, force: bool = False,
+              progress=None) -> Calibration:
+    """Calibrate the board's fine TDC by code density (histograms of ``integration_s``, each
+    waited for ``timeout_s``) and store the table on the board (read back and compared);
+    returns the :class:`Calibration`. Fewer hits than :func:`least_hits` raise
+    :exc:`CalibrationError`, the board's table left as it was, unless ``force``.
+    ``progress``, if given, is called ``progress(stage)`` with ``"histograms"`` or
+    ``"table"`` and returns an object with ``update(done, extra)`` for that stage."""
+    counts = code_counts(board, duration_s, integration_s=integration_s, timeout_s=timeout_s,
+                         progress=None if progress is None else progress("histograms"))
     if not counts.sum():
         raise CalibrationError(f"the fine TDC of the board on {board.port} saw no hits from "
                                f"its oscillator in {duration_s:g} s")
+    hits, needed = int(counts.sum()), least_hits(counts)
+    if hits < needed and not force:
+        raise CalibrationError(
+            f"{hits} hits are too few for a table: it needs {LEAST_HITS_PER_CODE} a code on "
+            f"average, {needed} (each code's width then within 20 %), some "
+            f"{duration_s * needed / hits:.3g} s of the oscillator; the board's table is left "
+            f"as it was (force it to write this one)")
     table = _analysis.table(counts, 1 / board.clock_hz, UNIT_S, width=TABLE_BITS)
-    write_table(board.client, table)
+    write_table(board.client, table, progress=None if progress is None else progress("table"))
     return Calibration(counts, table, board.clock_hz)

@@ -34,7 +34,7 @@ _PTY_MAJORS = range(136, 144)
 
 def is_pty(port: str) -> bool:
     """True when ``port`` is the terminal side of a pseudo-terminal (``/dev/pts/N``, or a link to
-    one such as ``build/virtual-board/tty``; ``/dev/ttysN`` on macOS)."""
+    one such as the virtual board's ``~/.cache/fliss/virtual-board/tty``; ``/dev/ttysN`` on macOS)."""
     if "://" in port:
         return False
     path = os.path.realpath(port)

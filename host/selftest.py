@@ -35,20 +35,27 @@ The checks (:func:`selftest`), one :class:`Check` each:
     A code-density histogram of the on-chip oscillator (:func:`fliss.host.calibration.code_counts`)
     hits the codes from the first to the last, all but at most :data:`EMPTY_SHARE` of them (the
     narrowest, where the two lines' taps nearly coincide), with at least :data:`COVERAGE_HITS`
-    hits a code on average: the calibration covers every tap (the fine TDC only; the table on
-    the board is left as it is).
+    hits a code on average: the calibration covers every tap (the fine TDC only); and
+    :data:`~fliss.host.calibration.TABLE_SAMPLES` entries of the board's table, read back, are
+    within :data:`~fliss.host.calibration.TABLE_TOLERANCE_S` of the times these codes give
+    them (the table is left as it is).
 ``link``
     The link's error counters, the board's and the host's, did not move during the test.
 
-The settings changed are put back at the end. The reference sequence of the delays
+A loopback's delay outside 0 to :data:`MAX_DELAY_S` fails ``same time``, and a failure with
+hits that are not the trigger's says to check the wire. The verdict
+(:attr:`~fliss.host.checklist.SelfTest.verdict`) is ``"pass"`` only when every check ran and
+passed; with a skip it is ``"incomplete"``. The board's pace (:mod:`fliss.host.pace`) is
+measured first: on a board slower than real time the acquisitions are
+:data:`SIMULATION_DURATIONS_S` and the waits fit the pace. The settings changed are put back
+at the end. The reference sequence of the delays
 (:mod:`fliss.sim.models.delay` ``delays``) is given by the caller (``reference``), as the code
 that talks to a real board does not import the simulator.
 """
 
 import math
 import time
-from dataclasses import dataclass, field
-from typing import Callable, List, Optional
+from typing import Callable, Optional
 
 import numpy as np
 
@@ -59,21 +66,24 @@ from ..hdl.codes import code_s
 from ..hdl.finetdc import HitInput
 from ..hdl.registers import AcquisitionMode, TdcSource
 from ..protocol.events import link_events_per_s
-from .calibration import Calibration, code_counts, has_fine_tdc
+from .checklist import CHECKS, Check, SelfTest, SelfTestInterrupted
+from .calibration import (LEAST_HITS_PER_CODE, Calibration, code_counts, has_fine_tdc,
+                          table_check)
 from .errors import BoardRefused, SettingsError
+from .pace import REAL_TIME, acquire_timeout_s, host_s, measure_pace
 
 
 __all__ = ["JUMPERS", "NO_LOOPBACK", "PERIOD_CYCLES", "LINK_SHARE", "AGGRESSOR_OFFSET",
            "SEQUENCE_BITS", "SPREAD_S", "PEAK_SHARE", "COVERAGE_HITS", "EMPTY_SHARE",
-           "DURATIONS_S", "CHECKS", "Check", "SelfTest", "period_cycles", "selftest"]
+           "DURATIONS_S", "SIMULATION_DURATIONS_S", "SIMULATION_RAW_PULSES", "MAX_DELAY_S",
+           "CHECKS", "Check", "SelfTest", "SelfTestInterrupted", "period_cycles", "selftest"]
 
 
 #: What a jumper wire can carry to the photon input.
 JUMPERS = ("laser", "aggressor")
 #: Why the checks that need hits are skipped with no jumper on a build without the internal
-#: loopback.
-NO_LOOPBACK = ("no jumper, and this build has no internal loopback (the fine TDC's): loop the "
-               "laser output to the photon input (--jumper laser)")
+#: loopback (and what runs them, by check: :func:`_advice`).
+NO_LOOPBACK = "no jumper, and this build has no internal loopback (the fine TDC's)"
 #: ``tdc_input`` of each trigger's pad read back (the internal loopback).
 _PAD_INPUTS = {"laser": HitInput.LASER.value, "aggressor": HitInput.AGGRESSOR.value}
 #: The laser's least period during the test, in cycles (longer on a link that could not carry
@@ -91,8 +101,9 @@ SPREAD_S = 200e-12
 #: Share of a histogram's counts that must lie within the spread of the loopback delay.
 PEAK_SHARE = 0.9
 #: Least hits a code on average for the calibration's coverage to mean something: a code a
-#: quarter of the mean wide is then left empty by chance with a probability below 0.2 %.
-COVERAGE_HITS = 25
+#: quarter of the mean wide is then left empty by chance with a probability below 0.2 %
+#: (``fliss calibrate``'s least for a table, :data:`~fliss.host.calibration.LEAST_HITS_PER_CODE`).
+COVERAGE_HITS = LEAST_HITS_PER_CODE
 #: Largest share of the codes from the first hit to the last that may have no hit. The two
 #: lines' taps interleave unevenly: where taps of both nearly coincide, a code is a picosecond
 #: or less wide and may get no hit by chance (a code of one line alone is some picoseconds wide).
@@ -100,6 +111,19 @@ EMPTY_SHARE = 0.05
 #: Seconds of each raw acquisition, of each histogram, of the oscillator's codes and of each
 #: histogram of them (some 2000 hits a code at 2.4 MHz: far more than :data:`COVERAGE_HITS`).
 DURATIONS_S = {"raw": 0.05, "histogram": 0.05, "calibration": 0.2, "calibration_frame": 0.2}
+#: On a board slower than real time (a simulation: :mod:`fliss.host.pace`), the board's seconds
+#: of each histogram, of the oscillator's codes and of each histogram of them: the least that
+#: gives each check its statistics (50 pulses a histogram at the test's period at 80 MHz; some
+#: 29 000 hits of the oscillator, 45 a code, above :data:`COVERAGE_HITS`).
+SIMULATION_DURATIONS_S = {"histogram": 0.0005, "calibration": 0.012,
+                          "calibration_frame": 0.002}
+#: Laser pulses a raw acquisition lasts on a board slower than real time (the 15-pulse ``mseq``
+#: sequence more than twice).
+SIMULATION_RAW_PULSES = 40
+#: Longest delay a loopback may have, from the trigger's clock edge to the TDC: a jumper's is
+#: some nanoseconds (its output buffer, a wire, an input buffer); a hit later than this, or
+#: before its trigger, comes from another output than the one said.
+MAX_DELAY_S = 50e-9
 
 
 def period_cycles(clock_hz, baud):
@@ -109,47 +133,12 @@ def period_cycles(clock_hz, baud):
     return max(PERIOD_CYCLES, math.ceil(clock_hz / (LINK_SHARE * link_events_per_s(baud))))
 
 
-@dataclass(frozen=True)
-class Check:
-    """One line of the self-test: ``name``, ``outcome`` (``"pass"``, ``"fail"`` or
-    ``"skipped"``) and what it found (or why it was skipped)."""
-    name: str
-    outcome: str
-    detail: str
-
-
-@dataclass
-class SelfTest:
-    """The self-test's result: its checks in order, and the loopback: ``"internal"``,
-    ``"laser"`` or ``"aggressor"`` (a jumper), or ``"none"``."""
-    loop: str
-    checks: List[Check] = field(default_factory=list)
-    elapsed_s: float = 0.0
-    #: The loopback's delay (less the aggressor's offset) and its RMS jitter, if measured.
-    delay_s: Optional[float] = None
-    jitter_s: Optional[float] = None
-    calibration: Optional[Calibration] = None
-
-    @property
-    def passed(self) -> bool:
-        """No check failed (skipped ones do not fail)."""
-        return all(check.outcome != "fail" for check in self.checks)
-
-    def table(self) -> str:
-        """The checks as a table, one line each."""
-        width = max(len(check.name) for check in self.checks)
-        lines = [f"{'check':<{width}}  result   detail"]
-        lines += [f"{check.name:<{width}}  {check.outcome:<7}  {check.detail}"
-                  for check in self.checks]
-        return "\n".join(lines)
-
-
 class _Test:
     """The state of one run of :func:`selftest`."""
 
-    def __init__(self, board, jumper, reference, durations_s):
+    def __init__(self, board, jumper, reference, durations_s, pace):
         self.board, self.client = board, board.client
-        self.durations_s = durations_s
+        self.durations_s, self.pace = durations_s, pace
         self.jumper, self.reference = jumper, reference
         self.before = self.client.read_registers()
         self.current = dict(self.before)
@@ -159,7 +148,9 @@ class _Test:
         self.internal = jumper is None and self.fine
         self.kind = jumper      # the trigger looped back: "laser", "aggressor" or None
         self.period = period_cycles(board.clock_hz, board.identity.baud)
+        self.has_aggressor = self.write({"aggressor": 1})
         self.delay_codes = None
+        self.same_time_failed = False
 
     def write(self, changes):
         """Write ``changes``; False if the build refuses a value."""
@@ -203,7 +194,7 @@ class _Test:
         if self.fine:
             changes.update(tdc_input=_PAD_INPUTS[kind] if self.internal else HitInput.PIN.value,
                            fine_lsb=0 if aggressor else 2)
-        if aggressor and not self.write({"aggressor": 1}):
+        if aggressor and not self.has_aggressor:
             return "no aggressor emitter in this build"
         if self.internal and not self.write({"tdc_input": _PAD_INPUTS[kind]}):
             return f"this build does not read the {self._what()} back (tdc_input " \
@@ -219,6 +210,10 @@ class _Test:
         _, first = np.unique(events["pulse"], return_index=True)
         return events[np.sort(first)], len(events), result.pulses
 
+    def histogram_counts(self):
+        histograms = self.board.acquire(1, timeout_s=acquire_timeout_s(self.board, self.pace))
+        return np.asarray(histograms.counts[0], dtype=np.int64)
+
     # The checks
 
     def samples(self):
@@ -229,19 +224,19 @@ class _Test:
             return events["timestamp"].astype(np.int64), hits, pulses, \
                 hits == len(events) and hits >= pulses - 1
         self.write({"acquisition": AcquisitionMode.HISTOGRAM.value})
-        counts = np.asarray(self.board.acquire(1).counts[0], dtype=np.int64)
+        counts = self.histogram_counts()
         pulses = self.current["integration"] // self.period
         return np.repeat(np.arange(len(counts)), counts), int(counts.sum()), pulses, \
             abs(int(counts.sum()) - pulses) <= 1
 
     def same_time(self):
+        self.same_time_failed = True
         stamps, hits, pulses, one_each = self.samples()
         if not hits and self.internal:
             return Check("same time", "fail", f"no hits in {pulses} laser pulses from the "
                                               f"{self._what()} read back at its pad")
         if not hits:
-            return Check("same time", "fail", f"no hits in {pulses} laser pulses: is the "
-                                              f"{self._what()} on the photon input?")
+            return Check("same time", "fail", f"no hits in {pulses} laser pulses: {self._wire()}")
         median = int(np.median(stamps))
         offset = AGGRESSOR_OFFSET if self.kind == "aggressor" else 0
         lsb = self.code_s
@@ -249,22 +244,29 @@ class _Test:
         far = np.abs(stamps - median) > allowed
         delay_s = median * lsb - offset / self.board.clock_hz
         rms_s = float(np.std(stamps)) * lsb
-        said = (f"{hits} hits of {pulses} pulses at {_ns(delay_s)} (RMS jitter "
-                f"{rms_s * 1e12:.0f} ps)")
+        if self.fine or rms_s:
+            jitter = f"RMS jitter {rms_s * 1e12:.0f} ps"
+        else:       # every hit in one code: the coarse TDC cannot see its jitter
+            jitter = f"RMS jitter < {_ns(lsb)}, the coarse TDC's bin"
+            rms_s = None
+        said = f"{hits} hits of {pulses} pulses at {_ns(delay_s)} ({jitter})"
         self.delay_codes, self.allowed = median, allowed
         self.result.delay_s, self.result.jitter_s = delay_s, rms_s
+        if not 0 <= delay_s <= MAX_DELAY_S:
+            return Check("same time", "fail", f"{said}: a loopback takes 0 to "
+                                              f"{_ns(MAX_DELAY_S)}{self._hint()}")
         if not one_each:
-            return Check("same time", "fail", f"{said}: not one hit a pulse")
+            return Check("same time", "fail", f"{said}: not one hit a pulse{self._hint()}")
         if far.any():
             return Check("same time", "fail", f"{said}: {int(far.sum())} hits more than "
                                               f"{_ns(allowed * lsb)} from the others")
+        self.same_time_failed = False
         return Check("same time", "pass", said)
 
     def delays(self):
         if self.kind != "aggressor":
             return Check("delays", "skipped", "the victim's own hits are timed from its own "
-                         "delayed start, so its delays do not show: loop the aggressor's trigger "
-                         "to the photon input (--jumper aggressor)")
+                         "delayed start, so its delays do not show" + _advice(self, "delays"))
         if not self.raw_events:
             return Check("delays", "skipped", "no raw events in this build (the pulse index "
                                               "of each hit is needed)")
@@ -276,7 +278,8 @@ class _Test:
                 continue
             events, hits, pulses = self.raw()
             if not hits:
-                return Check("delays", "fail", f"no hits in {mode.name.lower()}")
+                return Check("delays", "fail", f"no hits in {mode.name.lower()}"
+                                               f"{self._hint()}")
             pulse = events["pulse"].astype(np.int64)
             reference = self.reference(mode.name.lower(), int(pulse.max()) + 1,
                                        length=SEQUENCE_BITS, mask_width=SEQUENCE_BITS,
@@ -288,9 +291,13 @@ class _Test:
             wrong = np.flatnonzero(seen != reference)
             if len(wrong):
                 k = wrong[0]
-                return Check("delays", "fail", f"in {mode.name.lower()}, pulse {pulse[k]} "
-                             f"is delayed {seen[k]} cycles, the model's {reference[k]} "
-                             f"(the first that differs)")
+                said = (f"in {mode.name.lower()}, pulse {pulse[k]} is delayed {seen[k]} "
+                        f"cycles, the model's {reference[k]} (the first that differs")
+                # Most pulses off, or no clean loopback: hits from elsewhere than the trigger
+                if (2 * len(wrong) > len(pulse) or self.same_time_failed) and self._hint():
+                    return Check("delays", "fail", f"{said}; {len(wrong)} of {len(pulse)} "
+                                 f"differ){self._hint()}")
+                return Check("delays", "fail", f"{said})")
             checked.append(f"{len(pulse)} pulses in {mode.name.lower()}")
         self.write({"delay_mode": DelayMode.OFF.value})
         if not checked:
@@ -300,7 +307,7 @@ class _Test:
     def histogram(self):
         if self.kind == "aggressor":
             return Check("histogram", "skipped", "the photon input carries the aggressor's "
-                                                 "trigger, not the victim's laser")
+                         "trigger, not the victim's laser" + _advice(self, "histogram"))
         if self.delay_codes is None:
             return Check("histogram", "skipped", "no loopback delay measured")
         lsb = self.code_s
@@ -313,7 +320,7 @@ class _Test:
                                "acquisition": AcquisitionMode.HISTOGRAM.value}):
                 absent.append(mode.name.lower())
                 continue
-            counts = np.asarray(self.board.acquire(1).counts[0], dtype=np.int64)
+            counts = self.histogram_counts()
             peak = int(np.argmax(counts))
             share = counts[max(0, expected - 1):expected + 2].sum() / max(1, counts.sum())
             if abs(peak - expected) > 1 or share < PEAK_SHARE:
@@ -331,7 +338,8 @@ class _Test:
         if not self.fine:
             return Check("calibration", "skipped", "no fine TDC in this build")
         counts = code_counts(self.board, self.durations_s["calibration"],
-                             integration_s=self.durations_s["calibration_frame"])
+                             integration_s=self.durations_s["calibration_frame"],
+                             timeout_s=self.frame_timeout_s())
         calibration = Calibration(counts, np.zeros(0), self.board.clock_hz)
         self.result.calibration = calibration
         if not counts.sum():
@@ -348,11 +356,43 @@ class _Test:
             return Check("calibration", "fail", f"{said}: {len(empty)} codes without a hit "
                                                 f"(first {int(empty[0])}), more than "
                                                 f"{EMPTY_SHARE:.0%}")
+        table = table_check(self.client, counts, self.board.clock_hz)
+        if table is not None:
+            return Check("calibration", "fail", f"{said}: {table}")
         narrow = f" ({len(empty)} narrow codes without a hit)" if len(empty) else ""
-        return Check("calibration", "pass", f"{said}: every tap covered{narrow}")
+        return Check("calibration", "pass", f"{said}: every tap covered{narrow}, the board's "
+                                            f"table agrees")
+
+    def frame_timeout_s(self):
+        """The wait for each of the oscillator's histograms at this board's pace (None: the
+        board's own)."""
+        if self.pace >= REAL_TIME:
+            return None
+        reply_s = max(2.0, self.client.timeout_s)
+        return reply_s + host_s(2 * self.durations_s["calibration_frame"] + 0.05, self.pace)
 
     def _what(self):
         return {"laser": "laser output", "aggressor": "aggressor's trigger"}[self.kind]
+
+    def _wire(self):
+        # What to look at when the hits are not the trigger's: the wire
+        return f"check the wire: is the {self._what()}, and nothing else, on the photon input?"
+
+    def _hint(self):
+        # The wire's hint after a finding ("" on the internal loopback: no wire)
+        return "" if self.internal else f"; {self._wire()}"
+
+
+def _advice(test, check):
+    """What would run ``check`` on this build (the start of a sentence), or why nothing
+    would."""
+    if check == "delays":
+        if test.has_aggressor:
+            return ": loop the aggressor's trigger to the photon input (--jumper aggressor)"
+        return " (this build has no aggressor emitter, whose trigger shows them)"
+    if check == "histogram":
+        return ": loop the laser output to the photon input (--jumper laser)"
+    return ""
 
 
 def _link_errors(board):
@@ -364,34 +404,72 @@ def _link_errors(board):
             "host_missing_packets": link.missing_packets}
 
 
-#: The checks, in order.
-CHECKS = ("same time", "delays", "histogram", "calibration", "link")
+def _durations(board, pace, durations_s):
+    """The durations at ``pace``: :data:`DURATIONS_S` on a real-time board, else
+    :data:`SIMULATION_DURATIONS_S` and raw acquisitions of :data:`SIMULATION_RAW_PULSES`;
+    ``durations_s`` overrides either."""
+    durations = dict(DURATIONS_S)
+    if pace < REAL_TIME:
+        raw_s = SIMULATION_RAW_PULSES * period_cycles(board.clock_hz, board.identity.baud) \
+            / board.clock_hz
+        durations.update(SIMULATION_DURATIONS_S, raw=host_s(raw_s, pace))
+    return {**durations, **(durations_s or {})}
 
 
 def selftest(board, *, jumper: Optional[str] = None, reference: Optional[Callable] = None,
-             progress=None, durations_s: Optional[dict] = None) -> SelfTest:
+             progress=None, durations_s: Optional[dict] = None,
+             pace: Optional[float] = None) -> SelfTest:
     """Run the self-test on ``board`` (a :class:`~fliss.host.board.Board`); ``jumper`` says what
     the photon input carries (see the module), ``reference`` is the model's sequence of delays,
     ``reference(mode, count, length=..., mask_width=..., seed=...)``; ``progress``, if given,
     has ``update(done, extra)`` (called after each check, with its name); ``durations_s``
-    changes some of :data:`DURATIONS_S` (a simulated board, slower than real time)."""
+    changes some of :data:`DURATIONS_S`; ``pace``, the board's seconds per second of the host's,
+    is measured (:func:`fliss.host.pace.measure_pace`) when not given: a board slower than real
+    time (a simulation) gets :data:`SIMULATION_DURATIONS_S` and waits to match.
+
+    Ctrl-C raises :exc:`SelfTestInterrupted` with the checks finished (the settings put back).
+    """
     if jumper is not None and jumper not in JUMPERS:
         raise SettingsError(f"jumper must be one of {', '.join(JUMPERS)} or None, "
                             f"not {jumper!r}")
     started = time.monotonic()
     board.stop()
+    result = SelfTest(loop="internal" if jumper is None else jumper)
     errors_before = _link_errors(board)
-    test = _Test(board, jumper, reference, {**DURATIONS_S, **(durations_s or {})})
-    test.result = result = SelfTest(loop="internal" if test.internal else jumper or "none")
+    try:
+        result.pace = measure_pace(board) if pace is None else pace
+        test = _Test(board, jumper, reference, _durations(board, result.pace, durations_s),
+                     result.pace)
+    except KeyboardInterrupt:
+        raise SelfTestInterrupted(result) from None
+    test.result = result
+    result.loop = "internal" if test.internal else jumper or "none"
+    try:
+        _run_checks(test, result, progress)
+    except KeyboardInterrupt:
+        result.checks.sort(key=lambda check: CHECKS.index(check.name))
+        raise SelfTestInterrupted(result) from None
+    errors = {name: value - errors_before[name] for name, value in _link_errors(board).items()}
+    moved = [f"{name} {value}" for name, value in errors.items() if value]
+    result.checks.append(Check("link", "fail" if moved else "pass",
+                               ", ".join(moved) if moved else "no link errors, board or host"))
+    result.checks.sort(key=lambda check: CHECKS.index(check.name))
+    result.elapsed_s = time.monotonic() - started
+    return result
+
+
+def _run_checks(test, result, progress):
     # The loopbacks, each with its checks: a jumper carries one trigger; the internal loopback
     # reads the laser's pad, then the aggressor's for the delays
     if test.internal:
         loops = [("laser", (test.same_time, test.histogram)), ("aggressor", (test.delays,))]
-    elif jumper is not None:
-        loops = [(jumper, (test.same_time, test.delays, test.histogram))]
+    elif test.jumper is not None:
+        loops = [(test.jumper, (test.same_time, test.delays, test.histogram))]
     else:
         loops = []
-        result.checks += [Check(name, "skipped", NO_LOOPBACK)
+        advice = {"same time": ": loop the laser output to the photon input (--jumper laser)",
+                  "histogram": _advice(test, "histogram"), "delays": _advice(test, "delays")}
+        result.checks += [Check(name, "skipped", NO_LOOPBACK + advice[name])
                           for name in ("same time", "delays", "histogram")]
     try:
         for kind, checks in loops:
@@ -406,13 +484,6 @@ def selftest(board, *, jumper: Optional[str] = None, reference: Optional[Callabl
         _report(progress, result)
     finally:
         test.restore()
-    errors = {name: value - errors_before[name] for name, value in _link_errors(board).items()}
-    moved = [f"{name} {value}" for name, value in errors.items() if value]
-    result.checks.append(Check("link", "fail" if moved else "pass",
-                               ", ".join(moved) if moved else "no link errors, board or host"))
-    result.checks.sort(key=lambda check: CHECKS.index(check.name))
-    result.elapsed_s = time.monotonic() - started
-    return result
 
 
 def _report(progress, result):

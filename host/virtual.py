@@ -1,13 +1,13 @@
 """The virtual board: the real top-level gateware in a simulator, behind a pty.
 
 The Verilog of :class:`fliss.hdl.top.FlissTop` is generated (with :mod:`fliss.hdl.verilog`),
-built once per simulator into ``build/virtual-board/<sim>/`` (a build is reused while the Verilog
-and build options are unchanged) and run by cocotb with the test module
+built once per simulator, gateware and options into a folder of the per-user cache
+(:mod:`fliss.host.cache`: ``~/.cache/fliss/virtual-board/<sim>-<key>/``, the key a digest of the
+gateware's sources and the options) and run by cocotb with the test module
 :mod:`fliss.sim.boards.virtual` in a process group of its own. That module opens a
 pseudo-terminal carrying the gateware's UART and feeds the sensor pins from the scene simulator
-in closed loop; ``build/virtual-board/tty`` links to its pty (``tty-2``, ... for the
-boards started while it runs). Host tools then use it like a
-real board: ``fliss capture --port /dev/pts/N``.
+in closed loop; ``virtual-board/tty`` of the cache links to its pty (``tty-2``, ... for the
+boards started while it runs). Host tools use it like a board: ``fliss capture --port PTY``.
 
 :class:`VirtualBoard` starts and stops one; :func:`start_virtual_board` is a context manager
 yielding the pty path, for tests, scripts and the demo; ``fliss board``
@@ -28,11 +28,14 @@ import sys
 import time
 from pathlib import Path
 
+from .cache import (build_folder, build_root, claim_link, prune, release_link,
+                    remove_stale_links, touch)
 from .errors import VirtualBoardError
 
 
-__all__ = ["VIRTUAL_BAUD", "SIMULATORS", "ENGINES", "default_engine", "build_root", "build",
-           "VirtualBoard", "start_virtual_board", "claim_link", "release_link"]
+__all__ = ["VIRTUAL_BAUD", "SIMULATORS", "ENGINES", "default_engine", "build_root", "build_key",
+           "board_folder", "build", "VirtualBoard", "start_virtual_board", "claim_link",
+           "release_link"]
 
 
 logger = logging.getLogger(__name__)
@@ -55,17 +58,16 @@ TEST_MODULE = "fliss.sim.boards.virtual"
 STARTUP_TIMEOUT_S = 120
 
 
-def build_root():
-    """``build/virtual-board`` of the source tree (or of the working directory when installed
-    elsewhere)."""
-    root = Path(__file__).resolve().parent.parent
-    if not (root / "pyproject.toml").exists():
-        root = Path.cwd()
-    return root / "build" / "virtual-board"
-
-
-def _check_simulator(sim):
+def _check_simulator(sim, baud=None):
+    """:exc:`VirtualBoardError` if ``sim`` is missing, or the top level cannot make ``baud``."""
+    from ..hdl import DEFAULT_CLOCK_HZ
+    from ..hdl.link.uart import bit_cycles
     from ..sim.benches.runner import simulator_available
+    try:
+        if baud is not None:
+            bit_cycles(DEFAULT_CLOCK_HZ, baud)      # (the top level's check of its baud rate)
+    except ValueError as error:
+        raise VirtualBoardError(str(error)) from None
     if sim not in SIMULATORS:
         raise VirtualBoardError(f"unknown simulator {sim!r}: choose one of "
                                 f"{', '.join(SIMULATORS)}")
@@ -76,9 +78,12 @@ def _check_simulator(sim):
                                 f"{'icarus' if sim == 'verilator' else 'verilator'}")
 
 
-def default_engine(sim):
-    """``fast`` for Verilator when a C++ compiler is there, else ``cocotb``."""
+def default_engine(sim, *, fine_tdc=False, small=False, jumper=None):
+    """``fast`` for Verilator when a C++ compiler is there, else ``cocotb``; ``cocotb`` for the
+    builds and the jumper that only it runs (``fine_tdc``, ``small``, ``jumper``)."""
     from ..sim.boards import harness
+    if fine_tdc or small or jumper:
+        return "cocotb"
     return "fast" if sim == "verilator" and harness.available() else "cocotb"
 
 
@@ -102,6 +107,26 @@ def _folder_name(sim, fine_tdc, small):
     return f"{sim}-fine" if fine_tdc else f"{sim}-small" if small else sim
 
 
+def build_key(sim, *, baud=VIRTUAL_BAUD, fine_tdc=False, small=False):
+    """The key of a cocotb build: a digest of the gateware's sources (and the Amaranth
+    version), the baud rate, the simulator and its options, the build's options."""
+    from ..sim.benches.runner import TIMESCALE
+    from ..sim.boards.harness import gateware_sources
+    return hashlib.sha256("\n".join([gateware_sources(), str(baud), sim, *_build_args(sim),
+                                      *TIMESCALE, f"fine_tdc={fine_tdc}", f"small={small}"]
+                                     ).encode()).hexdigest()
+
+
+def board_folder(root, engine, sim, *, baud=VIRTUAL_BAUD, fine_tdc=False, small=False):
+    """The build folder in ``root`` of a board of ``engine`` with these options (see
+    :mod:`fliss.host.cache`)."""
+    if engine == "fast":
+        from ..sim.boards import harness
+        return build_folder(root, "fast", harness.key(baud=baud))
+    return build_folder(root, _folder_name(sim, fine_tdc, small),
+                        build_key(sim, baud=baud, fine_tdc=fine_tdc, small=small))
+
+
 def build(sim, *, baud=VIRTUAL_BAUD, root=None, fine_tdc=False, small=False):
     """Generate the Verilog and build it for ``sim`` unless an identical build exists; with
     ``fine_tdc``, of the top level with the fine TDC whose delay line the simulation drives
@@ -112,17 +137,10 @@ def build(sim, *, baud=VIRTUAL_BAUD, root=None, fine_tdc=False, small=False):
     simulator is missing, the baud rate cannot be made, or the build fails (with the path of
     its log).
     """
-    from ..hdl import DEFAULT_CLOCK_HZ, verilog
-    from ..hdl.link.uart import bit_cycles
+    from ..hdl import verilog
     from ..hdl.top import SMALL, FlissTop
-    from ..sim.benches.runner import TIMESCALE
-    from ..sim.boards.harness import gateware_sources
 
-    _check_simulator(sim)
-    try:
-        bit_cycles(DEFAULT_CLOCK_HZ, baud)      # (the top level's check of its baud rate)
-    except ValueError as error:
-        raise VirtualBoardError(str(error)) from None
+    _check_simulator(sim, baud)
 
     def make_text():
         # (made only when the build is: a top level made and not elaborated draws a warning)
@@ -133,14 +151,11 @@ def build(sim, *, baud=VIRTUAL_BAUD, root=None, fine_tdc=False, small=False):
             top = FlissTop(baud=baud, **(SMALL if small else {}))
         return verilog.convert(top, TOPLEVEL)
 
-    folder = Path(root or build_root()) / _folder_name(sim, fine_tdc, small)
-    folder.mkdir(parents=True, exist_ok=True)
     # Keyed by the gateware's sources: generating the Verilog to compare it would take longer
     # than the board's start-up may.
-    digest = hashlib.sha256("\n".join([gateware_sources(), str(baud), sim, *_build_args(sim),
-                                       *TIMESCALE, f"fine_tdc={fine_tdc}", f"small={small}"]
-                                      ).encode()
-                            ).hexdigest()
+    digest = build_key(sim, baud=baud, fine_tdc=fine_tdc, small=small)
+    folder = build_folder(Path(root or build_root()), _folder_name(sim, fine_tdc, small), digest)
+    folder.mkdir(parents=True, exist_ok=True)
     # One build at a time per folder (tests and the demo may start boards side by side).
     with open(folder / "build.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
@@ -255,7 +270,8 @@ class VirtualBoard:
         Reset the gateware (a power cycle in the middle of a run) once, after this many data
         packets (HISTOGRAM, EVENTS) have gone to the host.
     root : path or None
-        Build folder (default ``build/virtual-board``).
+        Folder of the builds and pty links (default :func:`fliss.host.cache.build_root`, in
+        the per-user cache).
     fine_tdc : bool
         Build the top level with the fine TDC, its delay line driven from the model
         (:mod:`fliss.sim.boards.fine_loopback`: the on-chip oscillator, the internal loopback,
@@ -280,7 +296,8 @@ class VirtualBoard:
         if sensor not in SENSOR_KINDS:
             raise VirtualBoardError(f"unknown sensor kind {sensor!r}: choose one of "
                                     f"{', '.join(SENSOR_KINDS)}")
-        engine = default_engine(sim) if engine is None else engine
+        if engine is None:
+            engine = default_engine(sim, fine_tdc=fine_tdc, small=small, jumper=jumper)
         if engine not in ENGINES:
             raise VirtualBoardError(f"unknown engine {engine!r}: choose one of "
                                     f"{', '.join(ENGINES)}")
@@ -307,8 +324,9 @@ class VirtualBoard:
                                     "cocotb")
         self.fine_tdc = bool(fine_tdc)
         self.small = bool(small)
-        self.folder = self.root / ("fast" if engine == "fast" else
-                                   _folder_name(sim, fine_tdc, small))
+        self.folder = board_folder(self.root, engine, sim, baud=baud, fine_tdc=fine_tdc,
+                                   small=small)
+        self.stale_links = []       # (links of boards that were gone, removed at the start)
         self.path = None
         #: The link to the pty in ``root``: ``tty``, or ``tty-2``, ... when others are taken
         #: (None: none could be made).
@@ -347,8 +365,24 @@ class VirtualBoard:
             raise VirtualBoardError(f"the line scene needs positive distances, not a wall at "
                                     f"{target_m!r} m and an object at {object_m!r} m")
 
+    @property
+    def built(self):
+        """Whether the build this board runs is in the cache (else :meth:`start` makes it: some
+        minutes); :exc:`~fliss.host.errors.VirtualBoardError` if the simulator is missing."""
+        _check_simulator(self.sim, self.baud)
+        if self.engine == "fast":
+            from ..sim.boards import harness
+            return (self.folder / f"harness-{harness.key(baud=self.baud)}.so").exists()
+        stamp = self.folder / "build.stamp"
+        key = build_key(self.sim, baud=self.baud, fine_tdc=self.fine_tdc, small=self.small)
+        return stamp.exists() and stamp.read_text() == key
+
     def start(self, *, timeout_s=STARTUP_TIMEOUT_S):
         """Build if needed, start the simulation and wait for its pty; returns the pty path."""
+        self.root.mkdir(parents=True, exist_ok=True)
+        for folder in prune(self.root, keep=[self.folder]):
+            logger.info("removed the build %s, unused for long", folder)
+        self.stale_links = remove_stale_links(self.root)
         if self.engine == "fast":
             command = self._fast_command()
         else:
@@ -359,6 +393,7 @@ class VirtualBoard:
             command = [sys.executable, "-c", code, json.dumps({
                 "sim": self.sim, "folder": str(self.folder), "env": self.env,
                 "name": self.name})]
+        touch(self.folder)
         pty_file = Path(self.env["FLISS_BOARD_PTY_FILE"])
         pty_file.unlink(missing_ok=True)
         Path(self.env["FLISS_BOARD_STATS_FILE"]).unlink(missing_ok=True)
@@ -386,14 +421,11 @@ class VirtualBoard:
         return self.path
 
     def _fast_command(self):
-        from ..hdl import DEFAULT_CLOCK_HZ
-        from ..hdl.link.uart import bit_cycles
         from ..sim.boards import harness
-        _check_simulator(self.sim)
+        _check_simulator(self.sim, self.baud)
         try:
-            bit_cycles(DEFAULT_CLOCK_HZ, self.baud)     # (FlissTop's check of its baud rate)
             library = harness.build(self.folder, baud=self.baud)
-        except (harness.HarnessBuildError, ValueError) as error:
+        except harness.HarnessBuildError as error:
             raise VirtualBoardError(str(error)) from None
         return [sys.executable, "-m", "fliss.sim.boards.fast", str(library)]
 
@@ -451,35 +483,6 @@ class VirtualBoard:
 
     def __exit__(self, *exc):
         self.stop()
-
-
-def claim_link(root, path):
-    """Link ``path`` (a board's pty) as ``root/tty``, or as ``tty-2``, ``tty-3``, ... when a
-    running board holds that name (a link to a pty that is gone is taken over); returns the
-    link, or None if none can be made."""
-    for number in itertools.count(1):
-        link = Path(root) / ("tty" if number == 1 else f"tty-{number}")
-        try:
-            link.symlink_to(path)           # (atomic: two boards never take one name)
-            return link
-        except FileExistsError:
-            if link.is_symlink() and not link.exists():     # a board that is gone
-                with contextlib.suppress(FileNotFoundError):
-                    link.unlink()
-                try:
-                    link.symlink_to(path)
-                    return link
-                except FileExistsError:     # another board took it meanwhile
-                    continue
-        except OSError:
-            return None
-
-
-def release_link(link, path):
-    """Remove ``link`` if it still points to ``path``."""
-    with contextlib.suppress(OSError):
-        if os.readlink(link) == path:
-            link.unlink()
 
 
 @contextlib.contextmanager

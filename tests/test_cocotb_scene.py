@@ -51,7 +51,9 @@ def _the_fast_board_gives_the_same_events(reference):
     from fliss.sim.boards.fast import FastBoard
 
     require_fast_harness()
-    library = harness.build(BUILD.parent.parent / "virtual-board" / "fast", baud=BAUD)
+    from fliss.host.virtual import board_folder, build_root
+    library = harness.build(board_folder(build_root(), "fast", "verilator", baud=BAUD),
+                            baud=BAUD)
     board = FastBoard(library, case_scene("column"), baud=BAUD, seed=SEED, record=True)
     board.start()
     encoder = protocol.PacketEncoder()

@@ -22,7 +22,7 @@ from fliss.sim.boards import harness
 from fliss.sim.boards.fast import AGGRESSOR, START, FastBoard
 from fliss.sim.boards.sensor import SensorModel, StandInPins
 from fliss.host.cli import main
-from fliss.host.virtual import VIRTUAL_BAUD, build_root
+from fliss.host.virtual import VIRTUAL_BAUD, board_folder, build_root
 
 from conftest import require_fast_harness
 
@@ -69,7 +69,7 @@ def _replayed(board_scene, edges, seed):
 @pytest.mark.parametrize("case", CASES)
 def test_same_events_as_the_cocotb_order(case):
     sensor_kind, period = CASES[case]
-    library = harness.build(build_root() / "fast", baud=VIRTUAL_BAUD)
+    library = harness.build(board_folder(build_root(), "fast", "verilator"), baud=VIRTUAL_BAUD)
     board_scene = _scene(sensor_kind)
     board = FastBoard(library, board_scene, baud=VIRTUAL_BAUD, seed=13, record=True)
     board.start()

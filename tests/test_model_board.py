@@ -75,15 +75,14 @@ def _options(parser):
 
 def test_the_model_board_takes_the_options_of_fliss_board(capsys):
     # One name per setting: every option of the model board is fliss board's, which has only
-    # the simulator's and the engine's own besides (and the builds' and the jumper's:
-    # --fine-tdc, --small, --jumper).
+    # the simulator's and the engine's own besides (the builds' and the jumper's the model
+    # takes too).
     from fliss.host.commands import board as board_command
     commands = argparse.ArgumentParser().add_subparsers()
     board_command.register(commands, argparse.HelpFormatter)
     model, board = _options(build_parser()), _options(commands.choices["board"])
     assert model - board == set()
-    assert board - model == {"--sim", "--engine", "--baud", "--fine-tdc", "--small",
-                             "--jumper"}
+    assert board - model == {"--sim", "--engine"}
     # A rate takes its unit in both.
     message = "--ambient 1e5: give a rate with its unit, not negative: 100kHz, 1e5Hz or 0Hz"
     with pytest.raises(SystemExit):
@@ -92,3 +91,32 @@ def test_the_model_board_takes_the_options_of_fliss_board(capsys):
         f"python -m fliss.sim.boards.model: error: {message}"
     assert fliss_main(["board", "--ambient", "1e5"]) == 1
     assert capsys.readouterr().err == f"fliss: error: {message}\n"
+
+
+def test_the_model_board_models_the_builds_and_the_jumper(capsys):
+    # --fine-tdc: a build with the fine TDC (its table's pointer moves); without, none; --small,
+    # no aggressor emitter; --jumper, its loopback; --baud, the identity's rate
+    from fliss.host.board import connect
+    from fliss.host.calibration import has_fine_tdc
+    from fliss.host.errors import BoardRefused
+    from fliss.sim.boards.model import _build_from_args
+    parser = build_parser()
+    for argv, fine, aggressor in ((["--fine-tdc", "--jumper", "aggressor"], True, True),
+                                  ([], False, True), (["--small"], False, False)):
+        build = _build_from_args(parser.parse_args([*argv, "--baud", "3M"]))
+        with model_board(**build) as board, connect(board.path) as client:
+            assert has_fine_tdc(client.client) == fine
+            assert client.identity.baud == 3_000_000
+            try:
+                client.client.write_registers({"aggressor": 1})
+                took = True
+            except BoardRefused:
+                took = False
+            assert took == aggressor
+        assert build["loopback"].jumper == ("aggressor" if "--jumper" in argv else None)
+    with pytest.raises(SystemExit) as exit:
+        main(["--small", "--fine-tdc"])
+    assert exit.value.code == 2
+    assert capsys.readouterr().err.splitlines()[-1] == (
+        "python -m fliss.sim.boards.model: error: the iCEBreaker's build has no fine TDC: "
+        "--small or --fine-tdc, not both")

@@ -2,6 +2,7 @@
 (:mod:`fliss.sim.boards.loopback`): the figures against the loopback's stated delay and jitter
 and the modelled line's own tap delays, a fault of each kind against its exact line, refusals."""
 
+import re
 import warnings
 
 import numpy as np
@@ -16,6 +17,7 @@ from fliss.hdl.top import FlissTop
 from fliss.host.board import connect
 from fliss.host.calibration import calibrate, read_table
 from fliss.host.cli import main
+from fliss.host.errors import CalibrationError
 from fliss.host.fileformat import read_capture
 from fliss.host.selftest import (AGGRESSOR_OFFSET, CHECKS, PERIOD_CYCLES, period_cycles,
                                  selftest)
@@ -108,7 +110,7 @@ def test_wrong_delays_fail_with_the_first_wrong_pulse(capsys, every):
     assert status == 1
     assert f"delays       fail     in mseq, pulse {every - 1} is delayed {model + 1} cycles, " \
            f"the model's {model} (the first that differs)" in out.splitlines()
-    assert err == "fliss selftest: failed: delays\n"
+    assert err == "fliss selftest: failed: delays (passed 3 of 5)\n"
 
 
 def test_link_errors_fail(capsys):
@@ -121,7 +123,7 @@ def test_link_errors_fail(capsys):
     assert status == 1
     detail = ", ".join(f"{name} {count}" for name, count in counted.items())
     assert f"link         fail     {detail}" in out.splitlines()
-    assert err == "fliss selftest: failed: link\n"
+    assert err == "fliss selftest: failed: link (passed 3 of 5)\n"
 
 
 def test_no_jumper_on_the_laser(capsys):
@@ -131,7 +133,8 @@ def test_no_jumper_on_the_laser(capsys):
         status, out, _ = fliss(capsys, "selftest", "--port", board.path, "--jumper", "laser")
     assert status == 1
     assert out.splitlines()[1].startswith("same time    fail     no hits in ")
-    assert out.splitlines()[1].endswith(" laser pulses: is the laser output on the photon input?")
+    assert out.splitlines()[1].endswith(" laser pulses: check the wire: is the laser output, and "
+                                        "nothing else, on the photon input?")
 
 
 @pytest.mark.parametrize("pad_delay_s, jitter_s", [(2.5e-9, 20e-12), (1.7e-9, 35e-12)])
@@ -152,7 +155,8 @@ def test_internal_loopback_runs_every_check(capsys, pad_delay_s, jitter_s):
         "calibration  pass     ", "link         pass     "]
     assert lines[1].startswith("delays       pass     delays as the model's (")
     assert lines[2].endswith(" in off, mseq, masked, keyed")
-    assert err.splitlines()[-1].endswith(" s (loopback: internal)")
+    assert re.fullmatch(r"fliss selftest: passed 5 of 5 in [0-9.]+ s \(loopback: internal\)",
+                        err.splitlines()[-1])
     assert result.loop == "internal" and outcomes(result) == ["pass"] * 5
     # Calibrated: the pad's delay to the lines' first tap, within the widest code the jittered
     # hits fall in (three standard deviations about the edge; the two lines' codes are uneven),
@@ -214,8 +218,11 @@ def test_internal_loopback_without_the_aggressor(capsys):
         warnings.simplefilter("ignore", UnusedElaboratable)     # built, never elaborated
         maxima = FlissTop(fine_tdc=True, aggressor=False).register_maxima()
     with model_board(loopback=Loopback(jumper=None, line=LINE), maxima=maxima) as board:
-        status, out, _ = fliss(capsys, "selftest", "--port", board.path, "-q")
-    assert status == 0
+        status, out, err = fliss(capsys, "selftest", "--port", board.path, "-q")
+    # A skipped check: not a full self-test, whatever passed
+    assert status == 3
+    assert err == "fliss selftest: incomplete: passed 4 of 5, 1 skipped: not a full " \
+                  "self-test (loopback: internal)\n"
     lines = out.splitlines()[1:]
     assert [line[:22] for line in lines] == [
         "same time    pass     ", "delays       skipped  ", "histogram    pass     ",
@@ -239,19 +246,24 @@ def test_internal_loopback_without_hits(capsys):
     assert lines[0].startswith("same time    fail     no hits in ")
     assert lines[0].endswith(" laser pulses from the laser output read back at its pad")
     assert lines[1] == "delays       fail     no hits in mseq"
-    assert err.splitlines()[-1] == "fliss selftest: failed: same time, delays"
+    assert err.splitlines()[-1] == "fliss selftest: failed: same time, delays (passed 2 of 5)"
 
 
 def test_icebreaker_build_skips_what_it_cannot_run(capsys, up5k_maxima):
     # No fine TDC, so no internal loopback: with no jumper, the checks that need hits skipped
-    reason = "no jumper, and this build has no internal loopback (the fine TDC's): loop the " \
-             "laser output to the photon input (--jumper laser)"
+    # (advice only of what runs the check on this build: no aggressor, so no --jumper aggressor)
+    reason = "no jumper, and this build has no internal loopback (the fine TDC's)"
+    laser = ": loop the laser output to the photon input (--jumper laser)"
     with model_board(loopback=Loopback(), maxima=up5k_maxima) as board:
-        status, out, _ = fliss(capsys, "selftest", "--port", board.path, "-q")
-        assert status == 0
+        status, out, err = fliss(capsys, "selftest", "--port", board.path, "-q")
+        assert status == 3
+        assert err == "fliss selftest: incomplete: passed 1 of 5, 4 skipped: not a full " \
+                      "self-test (loopback: none)\n"
         assert out.splitlines()[1:] == [
-            f"same time    skipped  {reason}", f"delays       skipped  {reason}",
-            f"histogram    skipped  {reason}",
+            f"same time    skipped  {reason}{laser}",
+            f"delays       skipped  {reason} (this build has no aggressor emitter, whose "
+            f"trigger shows them)",
+            f"histogram    skipped  {reason}{laser}",
             "calibration  skipped  no fine TDC in this build",
             "link         pass     no link errors, board or host"]
         # On the jumper: the coarse TDC. The laser rises in its TDC start's cycle
@@ -260,7 +272,12 @@ def test_icebreaker_build_skips_what_it_cannot_run(capsys, up5k_maxima):
         with connect(board.path) as client:
             result = selftest(client, jumper="laser", reference=delays)
     assert outcomes(result) == ["pass", "skipped", "pass", "skipped", "pass"]
-    assert result.delay_s == 0 and result.jitter_s == 0
+    # Every hit in code 0: the jitter is below the coarse TDC's bin, not 0
+    assert result.delay_s == 0 and result.jitter_s is None
+    assert line_of(result, "same time").detail.endswith(
+        " pulses at 0.000 ns (RMS jitter < 12.500 ns, the coarse TDC's bin)")
+    assert line_of(result, "delays").detail.endswith(
+        "(this build has no aggressor emitter, whose trigger shows them)")
     assert line_of(result, "histogram").detail.endswith("(keyed not in this build)")
     with model_board(loopback=Loopback(jumper="aggressor"), maxima=up5k_maxima) as board, \
             connect(board.path) as client:
@@ -362,3 +379,155 @@ def test_virtual_board_small_has_no_fine_tdc(capsys):
     assert main(["board", "--engine", "cocotb", "--small", "--fine-tdc"]) == 1
     assert capsys.readouterr().err == "fliss: error: the iCEBreaker's build has no fine TDC: " \
                                       "--small or --fine-tdc, not both\n"
+
+
+def test_laser_jumper_alone_is_not_a_full_selftest(capsys):
+    # Every check that ran passed, but the delays were skipped: not "passed", and exit 3
+    with model_board(loopback=Loopback(jumper="laser", line=LINE)) as board:
+        status, out, err = fliss(capsys, "selftest", "--port", board.path, "--jumper", "laser")
+    assert status == 3
+    assert [line[:22] for line in out.splitlines()[1:]] == [
+        "same time    pass     ", "delays       skipped  ", "histogram    pass     ",
+        "calibration  pass     ", "link         pass     "]
+    assert err.splitlines()[-1] == "fliss selftest: incomplete: passed 4 of 5, 1 skipped: not " \
+                                   "a full self-test (loopback: laser)"
+
+
+def test_the_wire_on_the_laser_said_to_be_on_the_aggressor(capsys):
+    # The laser's hits come 3.2 ns after the victim's start, which the aggressor's offset of
+    # 20 cycles (250 ns) puts 246.8 ns before the aggressor fired: no loopback does that
+    with model_board(loopback=Loopback(jumper="laser", line=LINE)) as board:
+        status, out, _ = fliss(capsys, "selftest", "--port", board.path, "--jumper",
+                               "aggressor")
+    assert status == 1
+    same, delays_line = out.splitlines()[1:3]
+    assert same.startswith("same time    fail     ")
+    assert " at -246." in same
+    assert same.endswith(": a loopback takes 0 to 50.000 ns; check the wire: is the "
+                         "aggressor's trigger, and nothing else, on the photon input?")
+    # The victim's delays seen as the aggressor's: most pulses off, and the wire named
+    assert delays_line.startswith("delays       fail     in mseq, pulse ")
+    assert delays_line.endswith("differ); check the wire: is the aggressor's trigger, and "
+                                "nothing else, on the photon input?")
+
+
+class _InterruptAfter:
+    """A progress display whose ``update`` raises KeyboardInterrupt (Ctrl-C) at its n-th
+    call."""
+
+    def __init__(self, calls):
+        self.calls = calls
+
+    def update(self, done, extra=""):
+        self.calls -= 1
+        if self.calls == 0:
+            raise KeyboardInterrupt
+
+    def close(self):
+        pass
+
+
+def test_an_interrupted_selftest_keeps_the_checks_finished(capsys, monkeypatch):
+    import fliss.host.commands.selftest as command
+    monkeypatch.setattr(command, "Progress", lambda *args, **kwargs: _InterruptAfter(2))
+    with model_board(loopback=Loopback(jumper="laser", line=LINE)) as board:
+        status, out, err = fliss(capsys, "selftest", "--port", board.path)
+        with connect(board.path) as client:
+            after = client.registers
+    assert status == 130
+    assert [line[:22] for line in out.splitlines()[1:]] == [
+        "same time    pass     ", "histogram    pass     "]
+    assert err.splitlines()[-1] == "fliss selftest: interrupted: passed 2 of 5, 3 not run: " \
+                                   "not a full self-test"
+    assert after["tdc_input"] == 0 and after["acquisition"] == 0     # put back
+
+
+def test_a_slow_board_gets_a_selftest_it_can_finish(capsys):
+    # The model board at 1/500 of real time (a simulation's pace): a real board's 0.05 s
+    # histogram would take 25 s, past every wait; measured, the test shortens them
+    with model_board(loopback=Loopback(jumper="laser", line=LINE), time_scale=0.002) as board:
+        status, out, err = fliss(capsys, "selftest", "--port", board.path, "--jumper", "laser")
+    assert status == 3, err
+    assert [line[:22] for line in out.splitlines()[1:]] == [
+        "same time    pass     ", "delays       skipped  ", "histogram    pass     ",
+        "calibration  pass     ", "link         pass     "]
+    assert "a board at 0.002 of real time" in err.splitlines()[-1]
+
+
+def test_port_options_take_units(capsys):
+    with model_board(loopback=Loopback(jumper=None, line=LINE)) as board:
+        status = main(["selftest", "--port", board.path, "--timeout", "5s", "--baud", "3M",
+                       "-q"])
+    capsys.readouterr()
+    assert status == 0
+
+
+def test_calibrate_refuses_too_few_hits(capsys):
+    # 5 µs of a 2.4 MHz oscillator: some 12 hits over 680 codes, not 25 a code
+    with model_board(loopback=Loopback(line=LINE)) as board:
+        with connect(board.path) as client:
+            before = read_table(client.client)
+        status, _, err = fliss(capsys, "calibrate", "--port", board.path, "--duration", "5us")
+        with connect(board.path) as client:
+            after = read_table(client.client)
+        assert status == 1
+        assert err.startswith("fliss: error: 1")
+        assert " hits are too few for a table: it needs 25 a code on average, " in err
+        assert err.endswith("the board's table is left as it was (force it to write this "
+                            "one)\n")
+        assert np.array_equal(before, after)
+        # Forced, it writes it; the next self-test finds the table far from the oscillator's
+        status, _, err = fliss(capsys, "calibrate", "--port", board.path, "--duration", "5us",
+                               "--force")
+        assert status == 0 and "(forced: too few hits)" in err
+        status, out, _ = fliss(capsys, "selftest", "--port", board.path)
+    assert status == 1
+    calibration = next(line for line in out.splitlines() if line.startswith("calibration"))
+    assert "the board's calibration table looks bad: code " in calibration
+    assert calibration.endswith("(more than 1000 ps apart): run fliss calibrate again")
+
+
+def test_an_interrupted_calibration_says_the_table_is_partial():
+    def progress(stage):
+        return _InterruptAfter(300 if stage == "table" else 10 ** 6)
+
+    with model_board(loopback=Loopback(line=LINE)) as board, connect(board.path) as client:
+        with pytest.raises(CalibrationError) as caught:
+            calibrate(client, 0.3, progress=progress)
+    assert str(caught.value) == (
+        "interrupted while writing the calibration table: the board's table is partial (codes "
+        "0 to 298 new, 299 to 1023 as they were); run fliss calibrate again, or configure the "
+        "FPGA again for the nominal table")
+
+
+@pytest.mark.parametrize("outcomes_, verdict, summary", [
+    (["pass"] * 5, "pass", "passed 5 of 5"),
+    (["pass", "skipped", "pass", "pass", "pass"], "incomplete",
+     "passed 4 of 5, 1 skipped: not a full self-test"),
+    (["skipped"] * 4 + ["pass"], "incomplete", "passed 1 of 5, 4 skipped: not a full self-test"),
+    (["pass", "fail", "skipped", "pass", "pass"], "fail", "failed: delays (passed 3 of 5)"),
+    (["pass", "pass"], "incomplete", "passed 2 of 5, 3 not run: not a full self-test"),
+])
+def test_a_skipped_check_is_never_a_pass(outcomes_, verdict, summary):
+    from fliss.host.checklist import Check, SelfTest
+    result = SelfTest(loop="laser", checks=[Check(name, outcome, "")
+                                            for name, outcome in zip(CHECKS, outcomes_)])
+    assert (result.verdict, result.summary()) == (verdict, summary)
+    assert result.passed == (verdict == "pass")
+
+
+def test_calibrate_interrupted_before_the_table_leaves_it(capsys, monkeypatch):
+    import fliss.host.commands.calibrate as command
+    monkeypatch.setattr(command, "Progress", lambda *args, **kwargs: _InterruptAfter(2))
+    with model_board(loopback=Loopback(line=LINE)) as board:
+        with connect(board.path) as client:
+            before = read_table(client.client)
+        status, _, err = fliss(capsys, "calibrate", "--port", board.path, "--duration", "0.3s")
+        with connect(board.path) as client:
+            after = read_table(client.client)
+            settings = client.registers
+    assert status == 130
+    assert err.splitlines()[-1] == "fliss calibrate: interrupted before the table was written: " \
+                                   "the board's table is left as it was"
+    assert np.array_equal(before, after)
+    assert settings["tdc_input"] == 0 and settings["tdc_source"] != 3     # put back

@@ -1,4 +1,4 @@
-"""The link ``build/virtual-board/tty`` to a virtual board's pty: one per running board."""
+"""The link ``virtual-board/tty`` of the per-user cache to a virtual board's pty: one per running board."""
 
 import os
 

@@ -8,11 +8,9 @@ import time
 
 import math
 
-from ...hdl import DEFAULT_CLOCK_HZ
 from ...hdl.event import TDC_LSB_S, TIMESTAMP_BITS
-from ...sim.boards.loopback import JUMPER_DELAY_S
 from ...sim.boards.noisy_line import NoisyLine, add_line_arguments, describe, faults_from_args
-from ...sim.boards.options import add_scene_arguments, rate_hz
+from ...sim.boards.options import add_build_arguments, add_scene_arguments, rate_hz
 from ...sim.scene import LINE_PIXELS
 from ..errors import UserError
 from ..units import parse_baud
@@ -36,11 +34,13 @@ def register(subparsers, formatter):
         "board", formatter_class=formatter,
         help="run the virtual board: the real gateware in a simulator, behind a pty",
         description="Generates the Verilog of the FLISS top level, builds it once for the "
-                    "engine (build/virtual-board/fast/, SIM/, SIM-fine/ or SIM-small/), runs it with the scene "
+                    "engine, gateware and options into the per-user cache "
+                    "($FLISS_CACHE_DIR, else $XDG_CACHE_HOME/fliss or ~/.cache/fliss: "
+                    "virtual-board/fast-KEY/, SIM-KEY/, SIM-fine-KEY/ or SIM-small-KEY/; it "
+                    "says so before a build of minutes), runs it with the scene "
                     "simulator on its sensor pins in closed loop, and prints the path of a "
-                    "pseudo-terminal carrying its UART (also linked as build/virtual-board/tty, "
-                    "or tty-2, ... "
-                    "while other boards run: it says which). Use that path "
+                    "pseudo-terminal carrying its UART (also linked as virtual-board/tty of the "
+                    "cache, or tty-2, ... while other boards run: it says which). Use that path "
                     "as --port of the other commands. Runs until Ctrl-C. The simulation runs "
                     "some hundred times slower than a real board: keep integration times "
                     "to a few ms and use a bin shift.")
@@ -50,26 +50,11 @@ def register(subparsers, formatter):
                         help="fast: the Verilated model in a C++ harness (Verilator only); "
                              "cocotb: the cocotb module (any simulator); default fast with "
                              "Verilator when a C++ compiler is installed, else cocotb")
-    parser.add_argument("--baud", default="12M", help="UART baud rate of the gateware")
     add_scene_arguments(parser)
     parser.add_argument("--reset-after", type=int, default=None, metavar="PACKETS",
                         help="reset the gateware (a power cycle) once, after this many data "
                              "packets to the host; SIGUSR1 to this process resets it too")
-    parser.add_argument("--fine-tdc", action="store_true",
-                        help="build the top level with the fine TDC, its delay line driven from "
-                             "the model (the on-chip oscillator, the internal loopback of the "
-                             "trigger outputs' pads, and a jumper with --jumper: `fliss "
-                             "selftest` and `fliss calibrate` run on it); cocotb engine only")
-    parser.add_argument("--small", action="store_true",
-                        help="build the top level with the iCEBreaker's options (histograms "
-                             "only: no raw events, no aggressor emitter, no keyed mode), at "
-                             f"the virtual board's {DEFAULT_CLOCK_HZ / 1e6:g} MHz; cocotb engine only")
-    parser.add_argument("--jumper", choices=("laser", "aggressor"), default=None,
-                        help="a jumper wire from the laser output or the aggressor's trigger "
-                             f"to the photon input, {JUMPER_DELAY_S * 1e9:g} ns after the trigger's "
-                             "clock edge: the "
-                             "coarse TDC's pin, and with --fine-tdc the fine TDC's line "
-                             "(`fliss selftest --jumper` runs on it); cocotb engine only")
+    add_build_arguments(parser, where="; on the cocotb engine, which it chooses by default")
     add_line_arguments(parser)
     parser.set_defaults(run=run_board)
 
@@ -111,8 +96,17 @@ def run_board(args):
     signal.signal(signal.SIGHUP, terminate)
     signal.signal(signal.SIGUSR1, reset)
     line = None
+    started = False
     try:
+        if not board.built:
+            print(f"fliss: building the virtual board ({_what(board)}, {baud} baud), once for "
+                  f"this gateware and these options: some minutes; cached in {board.folder}; "
+                  f"Ctrl-C stops it", file=sys.stderr, flush=True)
         path = board.start()
+        started = True
+        for name in board.stale_links:
+            print(f"fliss: removed {board.root / name}, the link of a board that was killed",
+                  file=sys.stderr)
         if faults is not None:
             line = NoisyLine(path, to_host=faults[0], to_board=faults[1], seed=args.line_seed)
             print(line.open(), flush=True)
@@ -142,6 +136,10 @@ def run_board(args):
                                 stats["events"] - previous["events"])
                 previous = stats
     except KeyboardInterrupt:
+        if not started:
+            print("fliss: interrupted before the virtual board started (its build, if one was "
+                  "under way, is left unfinished and made again next time)", file=sys.stderr)
+            return 130
         print("fliss: virtual board stopped", file=sys.stderr)
         return 0
     finally:
@@ -179,5 +177,5 @@ def _what(board):
 
 
 def _link(board):
-    # " (link build/virtual-board/tty-2)": this board's own link to its pty, if it has one
+    # " (link ~/.cache/fliss/virtual-board/tty-2)": this board's own link to its pty, if any
     return "" if board.link is None else f" (link {board.link})"

@@ -8,6 +8,7 @@ from ...hdl.protocol import DEFAULT_BAUD
 from ..board import Board, connect as connect_board
 from ..errors import UserError
 from ..port import DEFAULT_TIMEOUT_S, PTY_TIMEOUT_S
+from ..units import parse_baud, parse_time
 
 
 __all__ = ["add_port_arguments", "connect"]
@@ -25,10 +26,11 @@ def add_port_arguments(parser: argparse.ArgumentParser, *, required: bool = True
                              "(/dev/pts/N) or pyserial URL (socket://host:port); see "
                              "`fliss ports`; the environment variable FLISS_PORT sets a "
                              "default")
-    parser.add_argument("--baud", type=int, default=DEFAULT_BAUD,
-                        help="baud rate of the port (ignored by ptys and sockets)")
-    parser.add_argument("--timeout", type=_timeout, default="auto", metavar="S",
-                        help=f"seconds to wait for each reply; auto: {DEFAULT_TIMEOUT_S:g} s, or "
+    parser.add_argument("--baud", type=_baud, default=DEFAULT_BAUD,
+                        help="baud rate of the port: 3M, 115200 (ignored by ptys and sockets)")
+    parser.add_argument("--timeout", type=_timeout, default="auto", metavar="TIME",
+                        help=f"time to wait for each reply: 5s, 500ms (a bare number: seconds); "
+                             f"auto: {DEFAULT_TIMEOUT_S:g} s, or "
                              f"{PTY_TIMEOUT_S:g} s on a pty (a virtual board: a simulation, "
                              f"slow to answer while it sends histograms)")
     parser.add_argument("--retries", type=int, default=3,
@@ -41,7 +43,19 @@ def _timeout(text):
     try:
         return float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number of seconds or auto: {text!r}") from None
+        pass
+    try:
+        return parse_time(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a time (5s, 500ms), a number of seconds or "
+                                         f"auto: {text!r}") from None
+
+
+def _baud(text):
+    try:
+        return parse_baud(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
 
 
 def connect(args: argparse.Namespace) -> Board:

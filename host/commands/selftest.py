@@ -1,14 +1,20 @@
 """``fliss selftest``: the board's self-test on a loopback (:mod:`fliss.host.selftest`): one
-table, a line per check, and a non-zero exit status if one fails."""
+table, a line per check, and the verdict: exit status 0 when every check passed, 1 when one
+failed, :data:`INCOMPLETE` when none failed but some were skipped (not a full self-test), 130
+when interrupted (the checks finished are printed)."""
 
 import sys
 
-from ..selftest import CHECKS, JUMPERS, selftest
+from ..selftest import CHECKS, JUMPERS, SelfTestInterrupted, selftest
 from .common import Progress
 from .port_options import add_port_arguments, connect
 
 
-__all__ = ["register", "run"]
+__all__ = ["INCOMPLETE", "register", "run"]
+
+
+#: Exit status of a self-test with skipped checks and no failure.
+INCOMPLETE = 3
 
 
 def register(subparsers, formatter):
@@ -21,7 +27,11 @@ def register(subparsers, formatter):
                     "it (no fine TDC) checks only the link then. Or on a jumper wire from the "
                     "victim's laser output (--jumper laser) or the aggressor's trigger "
                     "(--jumper aggressor) to the photon input. Prints one line per check: "
-                    "pass, fail, or skipped with the reason. The delays are checked through "
+                    "pass, fail, or skipped with the reason, and the verdict: exit status 0 "
+                    "only when every check passed, 1 when one failed, 3 when some were skipped "
+                    "(not a full self-test). On a board slower than real time (the virtual "
+                    "board's simulation) it measures the board's pace first and shortens its "
+                    "acquisitions and lengthens its waits to match. The delays are checked through "
                     "the aggressor only (the victim's own hits cannot show them). The trigger "
                     "outputs pulse during the test: disconnect laser drivers. The settings it "
                     "changes are put back.")
@@ -43,14 +53,28 @@ def run(args):
         progress = Progress(len(CHECKS), "checks", enabled=not quiet, interval_s=1.0)
         try:
             result = selftest(board, jumper=args.jumper, reference=delays, progress=progress)
+        except SelfTestInterrupted as interrupted:
+            progress.close()
+            progress.enabled = False
+            if interrupted.result.checks:
+                print(interrupted.result.table())
+            print(f"fliss selftest: interrupted: {interrupted.result.summary()}",
+                  file=sys.stderr)
+            return 130
         finally:
             progress.close()
     print(result.table())
-    failed = [check.name for check in result.checks if check.outcome == "fail"]
-    if failed:
-        print(f"fliss selftest: failed: {', '.join(failed)}", file=sys.stderr)
+    verdict = result.verdict
+    if verdict == "fail":
+        print(f"fliss selftest: {result.summary()}", file=sys.stderr)
         return 1
+    pace = "" if result.pace is None or result.pace >= 0.5 else \
+        f", a board at {result.pace:.2g} of real time"
+    if verdict == "incomplete":
+        print(f"fliss selftest: incomplete: {result.summary()} (loopback: {result.loop}"
+              f"{pace})", file=sys.stderr)
+        return INCOMPLETE
     if not quiet:
-        print(f"fliss selftest: passed in {result.elapsed_s:.1f} s (loopback: {result.loop})",
-              file=sys.stderr)
+        print(f"fliss selftest: {result.summary()} in {result.elapsed_s:.1f} s (loopback: "
+              f"{result.loop}{pace})", file=sys.stderr)
     return 0

@@ -19,8 +19,7 @@ counters, histogram and sequence numbers back to reset, acquisition stopped), an
 delimiter, never into a delimiter), keeping the list of what it damaged in
 :attr:`ModelBoard.corrupted`.
 
-Run ``python -m fliss.sim.boards.model`` to get a board on a pty for ``fliss`` commands.
-"""
+``python -m fliss.sim.boards.model`` serves one on a pty, with ``fliss board``'s options."""
 
 import argparse
 import signal
@@ -51,7 +50,7 @@ from ..models.depth import depth_frame
 from ...protocol.depth import depth_payload
 from .loopback import Loopback
 from .noisy_line import NoisyLine, add_line_arguments, describe, faults_from_args
-from .options import add_scene_arguments, rate_hz
+from .options import add_build_arguments, add_scene_arguments, baud_rate, rate_hz
 from .pty_server import PtyServer
 from ..scene import Aggressor, Scene, pixels_named, simulation_for
 
@@ -64,7 +63,6 @@ __all__ = ["DEFAULT_BAUD", "BACKLOG_BYTES", "ModelBoard", "scene_for", "model_bo
 #: than the model slows the model's time down rather than piling up data (the gateware would
 #: drop histograms or events instead, and count them).
 BACKLOG_BYTES = 32 * 1024
-
 
 
 def scene_for(settings, template=None, *, aggressor_detections_per_pulse=0.05, clock_hz=None):
@@ -437,14 +435,15 @@ def model_board(**options):
 
 
 def build_parser():
-    """The command line of ``python -m fliss.sim.boards.model``: the scene and line options of
-    ``fliss board``, by the same names."""
+    """The command line of ``python -m fliss.sim.boards.model``: the scene, build and line
+    options of ``fliss board``, by the same names."""
     parser = argparse.ArgumentParser(
         prog="python -m fliss.sim.boards.model",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
         description="Serve a Python model of a FLISS board on a pseudo-terminal and print its "
                     "path; stop with Ctrl-C.")
     add_scene_arguments(parser, seed=0)
+    add_build_arguments(parser, where=" (its registers, modelled)")
     parser.add_argument("--reset-after", type=int, default=None, metavar="PACKETS",
                         help="reset the board (a power cycle) after this many data packets")
     add_line_arguments(parser)
@@ -466,12 +465,13 @@ def main(argv=None):
                               object_m=args.object_m)
         scene = Scene(distance_m=args.target_m, detections_per_pulse=args.signal,
                       background_hz=rate_hz(args.ambient), pixels=pixels)
+        build = _build_from_args(args)
     except ValueError as error:
         parser.exit(2, f"{parser.prog}: error: {error}\n")
     signal.signal(signal.SIGTERM, _terminate)
     line = None
     with model_board(scene=scene, aggressor_detections_per_pulse=args.aggressor_signal,
-                     photon_seed=args.seed, reset_after=args.reset_after) as board:
+                     photon_seed=args.seed, reset_after=args.reset_after, **build) as board:
         try:
             if faults is not None:
                 line = NoisyLine(board.path, to_host=faults[0], to_board=faults[1],
@@ -488,6 +488,20 @@ def main(argv=None):
                 line.close()
                 print(f"{parser.prog}: noisy line: {describe(line)}", file=sys.stderr)
     return 0
+
+
+def _build_from_args(args):
+    # The model's build and loopback from --baud, --fine-tdc, --small and --jumper
+    import warnings
+    from amaranth.hdl import UnusedElaboratable
+    from ...hdl.top import SMALL, FlissTop
+    if args.small and args.fine_tdc:
+        raise ValueError("the iCEBreaker's build has no fine TDC: --small or --fine-tdc, not both")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnusedElaboratable)     # made for its maxima only
+        top = FlissTop(**SMALL) if args.small else FlissTop(fine_tdc=args.fine_tdc)
+    return {"baud": baud_rate(args.baud), "maxima": top.register_maxima(),
+            "loopback": Loopback(jumper=args.jumper)}
 
 
 def _terminate(number, frame):

@@ -1,13 +1,14 @@
-"""The scene options of a board without hardware, defined once: ``fliss board`` (the virtual
+"""The options of a board without hardware, defined once: ``fliss board`` (the virtual
 board) and ``python -m fliss.sim.boards.model`` (the model board) take the same name for the
-same setting (``--target-m``, ``--ambient 100kHz``, ...)."""
+same setting: the scene's (``--target-m``, ``--ambient 100kHz``, ...) and the build's and its
+loopback's (``--baud``, ``--fine-tdc``, ``--small``, ``--jumper``)."""
 
 import re
 
 from ..scene import SCENE_NAMES, SENSOR_KINDS
 
 
-__all__ = ["add_scene_arguments", "rate_hz"]
+__all__ = ["add_scene_arguments", "add_build_arguments", "rate_hz", "baud_rate"]
 
 
 _RATE = re.compile(r"\s*((?:\d+\.?\d*|\.\d+)(?:e[-+]?\d+)?)\s*(hz|khz|mhz|ghz)\s*",
@@ -23,6 +24,21 @@ def rate_hz(text, flag="--ambient"):
         raise ValueError(f"{flag} {text}: give a rate with its unit, not negative: 100kHz, "
                          f"1e5Hz or 0Hz")
     return float(match.group(1)) * _SCALE[match.group(2).lower()]
+
+
+_BAUD = re.compile(r"\s*(\d+\.?\d*|\.\d+)\s*(k|m)?(?:baud|bd)?\s*", flags=re.IGNORECASE)
+
+
+def baud_rate(text, flag="--baud"):
+    """A baud rate from ``"12M"``, ``"3Mbaud"``, ``"115200"``, as ``fliss``'s commands take it
+    (:func:`fliss.host.units.parse_baud`, which the simulator does not import); ``ValueError``
+    naming ``flag`` for anything else."""
+    match = _BAUD.fullmatch(str(text))
+    value = None if match is None else \
+        float(match.group(1)) * {"": 1, "k": 1e3, "m": 1e6}[(match.group(2) or "").lower()]
+    if value is None or not value >= 1 or value != int(value):
+        raise ValueError(f"{flag} {text}: give a whole baud rate: 115200, 3M or 12Mbaud")
+    return int(value)
 
 
 def add_scene_arguments(parser, *, seed=None):
@@ -50,3 +66,24 @@ def add_scene_arguments(parser, *, seed=None):
                             "flag) or per_pixel (one TDC per pixel)")
     group.add_argument("--object-m", type=float, default=2.5, metavar="M",
                        help="distance of the line scene's object, metres")
+
+
+def add_build_arguments(parser, *, where=""):
+    """The build of the board and its loopback, as options of an argparse ``parser``;
+    ``where`` ends each build's help (what runs it)."""
+    from ...hdl import DEFAULT_CLOCK_HZ
+    from .loopback import JUMPER_DELAY_S
+    parser.add_argument("--baud", default="12M", help="UART baud rate of the gateware")
+    parser.add_argument("--fine-tdc", action="store_true",
+                        help="the top level with the fine TDC (the on-chip oscillator, the "
+                             "internal loopback of the trigger outputs' pads, and a jumper with "
+                             "--jumper: `fliss selftest` and `fliss calibrate` run on it)" + where)
+    parser.add_argument("--small", action="store_true",
+                        help="the top level with the iCEBreaker's options (histograms only: "
+                             "no raw events, no aggressor emitter, no keyed mode), at "
+                             f"{DEFAULT_CLOCK_HZ / 1e6:g} MHz" + where)
+    parser.add_argument("--jumper", choices=("laser", "aggressor"), default=None,
+                        help="a jumper wire from the laser output or the aggressor's trigger "
+                             f"to the photon input, {JUMPER_DELAY_S * 1e9:g} ns after the "
+                             "trigger's clock edge: the coarse TDC's pin, and with --fine-tdc "
+                             "the fine TDC's line (`fliss selftest --jumper` runs on it)" + where)

@@ -2,7 +2,8 @@
 loaded with :mod:`ctypes`.
 
 :func:`build` generates the top level's Verilog, Verilates it with the harness into a shared
-library under ``build/virtual-board/fast/``, the model compiled with a profile of a training run
+library in a folder of the per-user cache (:func:`fliss.host.virtual.build_folder`, named by
+:func:`key`), the model compiled with a profile of a training run
 (:mod:`.training`), once: it is rebuilt only when the gateware, the harness or the options
 change; it returns the library's path. :class:`Harness` drives one instance.
 
@@ -27,7 +28,7 @@ from ....hdl import verilog
 
 
 __all__ = ["SOURCE", "TOPLEVEL", "VERILATOR_ARGS", "HarnessBuildError", "gateware_sources",
-           "available", "build", "Harness"]
+           "available", "key", "build", "Harness"]
 
 
 logger = logging.getLogger(__name__)
@@ -71,12 +72,7 @@ def available():
     return verilator_bin() is not None and shutil.which("c++") is not None
 
 
-def build(folder, *, baud, threads=1):
-    """Build the harness for the top level at ``baud`` into ``folder`` unless an identical
-    build exists; returns the path of the shared library."""
-    from ....hdl.top import FlissTop
-    folder = Path(folder).resolve()
-    folder.mkdir(parents=True, exist_ok=True)
+def _keys(baud, threads):
     # Generating the Verilog takes longer than the board's start-up may: the model is keyed by
     # the gateware's sources instead (and made again whenever one changes); the library by the
     # model and the harness's source.
@@ -84,6 +80,23 @@ def build(folder, *, baud, threads=1):
                f"training={TRAINING_CYCLES}"]
     model = hashlib.sha256("\n".join([gateware_sources(), *options]).encode()).hexdigest()[:16]
     digest = hashlib.sha256(f"{model}\n{SOURCE.read_text()}".encode()).hexdigest()[:16]
+    return model, digest
+
+
+def key(*, baud, threads=1):
+    """The key of the harness library for the top level at ``baud``: a digest of the
+    gateware's sources, the Amaranth version, the options and the harness's source (16 hex
+    digits). A build of another key is another gateware's, or stale."""
+    return _keys(baud, threads)[1]
+
+
+def build(folder, *, baud, threads=1):
+    """Build the harness for the top level at ``baud`` into ``folder`` unless an identical
+    build exists; returns the path of the shared library."""
+    from ....hdl.top import FlissTop
+    folder = Path(folder).resolve()
+    folder.mkdir(parents=True, exist_ok=True)
+    model, digest = _keys(baud, threads)
     library = folder / f"harness-{digest}.so"
     with open(folder / "build.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
