@@ -19,6 +19,7 @@ by what the command expects (:meth:`BoardLink.command`). The commands themselves
 """
 
 import logging
+import termios
 import time
 from collections import deque
 from typing import Callable, Dict, List, Optional, Union
@@ -84,7 +85,7 @@ class BoardLink:
         try:
             try:
                 self.serial.reset_input_buffer()
-            except (serial.SerialException, OSError) as error:
+            except (serial.SerialException, OSError, termios.error) as error:
                 self._lost(error)
             self._sync()
         except BaseException:
@@ -155,7 +156,7 @@ class BoardLink:
             data = self.serial.read(max(waiting, 1))
             if data and self.serial.in_waiting:
                 data += self.serial.read(self.serial.in_waiting)
-        except (serial.SerialException, OSError) as error:
+        except (serial.SerialException, OSError, termios.error) as error:
             self._lost(error)
         if data:
             self._last_rx = time.monotonic()
@@ -213,7 +214,7 @@ class BoardLink:
         try:
             self.serial.write(frame)
             self.serial.flush()
-        except (serial.SerialException, OSError) as error:
+        except (serial.SerialException, OSError, termios.error) as error:
             self._lost(error)
 
     def command(self, type: PacketType, payload: bytes = b"", *,

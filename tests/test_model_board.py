@@ -10,7 +10,8 @@ from fliss.host.client import BoardClient
 from fliss.host.stream import EventBatch
 from fliss.sim.models.command import CommandModel
 from fliss.host.cli import main as fliss_main
-from fliss.sim.boards.model import build_parser, main, model_board, scene_for
+from fliss.sim.boards.model import model_board, scene_for
+from fliss.sim.boards.model_command import build_parser, main
 from fliss.sim.scene import Scene, line_pixels
 
 
@@ -99,7 +100,7 @@ def test_the_model_board_models_the_builds_and_the_jumper(capsys):
     from fliss.host.board import connect
     from fliss.host.calibration import has_fine_tdc
     from fliss.host.errors import BoardRefused
-    from fliss.sim.boards.model import _build_from_args
+    from fliss.sim.boards.model_command import _build_from_args
     parser = build_parser()
     for argv, fine, aggressor in ((["--fine-tdc", "--jumper", "aggressor"], True, True),
                                   ([], False, True), (["--small"], False, False)):
@@ -120,3 +121,24 @@ def test_the_model_board_models_the_builds_and_the_jumper(capsys):
     assert capsys.readouterr().err.splitlines()[-1] == (
         "python -m fliss.sim.boards.model: error: the iCEBreaker's build has no fine TDC: "
         "--small or --fine-tdc, not both")
+
+
+def test_a_crash_of_the_model_is_a_lost_board_not_a_silent_one(monkeypatch, caplog):
+    # A bug in the model (or a library under it too old) stops its thread: the pty closes, so
+    # the host is told at once that the board is gone, and the error is logged, not lost.
+    from fliss.host.client import BoardClient
+    from fliss.host.errors import BoardLost
+    from fliss.sim.boards.model import ModelBoard
+
+    def broken(self, item):
+        raise RuntimeError("a bug in the model")
+
+    monkeypatch.setattr(ModelBoard, "_receive", broken)
+    started = time.monotonic()
+    with model_board() as model:
+        with pytest.raises(BoardLost, match="lost the connection to the board"):
+            with BoardClient(model.path, timeout_s=2.0) as board:
+                board.identify()
+        assert repr(model.failed) == "RuntimeError('a bug in the model')"
+    assert time.monotonic() - started < 4      # not the retries of a silent board
+    assert "the model board stopped" in caplog.text and "a bug in the model" in caplog.text

@@ -21,9 +21,6 @@ delimiter, never into a delimiter), keeping the list of what it damaged in
 
 ``python -m fliss.sim.boards.model`` serves one on a pty, with ``fliss board``'s options."""
 
-import argparse
-import signal
-import sys
 import time
 from contextlib import contextmanager
 
@@ -49,14 +46,11 @@ from ...protocol.packets import HISTOGRAM_TYPES
 from ..models.depth import depth_frame
 from ...protocol.depth import depth_payload
 from .loopback import Loopback
-from .noisy_line import NoisyLine, add_line_arguments, describe, faults_from_args
-from .options import add_build_arguments, add_scene_arguments, baud_rate, rate_hz
 from .pty_server import PtyServer
-from ..scene import Aggressor, Scene, pixels_named, simulation_for
+from ..scene import Aggressor, Scene, simulation_for
 
 
-__all__ = ["DEFAULT_BAUD", "BACKLOG_BYTES", "ModelBoard", "scene_for", "model_board",
-           "build_parser", "main"]
+__all__ = ["DEFAULT_BAUD", "BACKLOG_BYTES", "ModelBoard", "scene_for", "model_board"]
 
 
 #: While more bytes than this wait to go out, the model simulates no further: a host slower
@@ -434,79 +428,6 @@ def model_board(**options):
         board.close()
 
 
-def build_parser():
-    """The command line of ``python -m fliss.sim.boards.model``: the scene, build and line
-    options of ``fliss board``, by the same names."""
-    parser = argparse.ArgumentParser(
-        prog="python -m fliss.sim.boards.model",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
-        description="Serve a Python model of a FLISS board on a pseudo-terminal and print its "
-                    "path; stop with Ctrl-C.")
-    add_scene_arguments(parser, seed=0)
-    add_build_arguments(parser, where=" (its registers, modelled)")
-    parser.add_argument("--reset-after", type=int, default=None, metavar="PACKETS",
-                        help="reset the board (a power cycle) after this many data packets")
-    add_line_arguments(parser)
-    return parser
-
-
-def main(argv=None):
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    try:
-        faults = faults_from_args(args)
-    except ValueError as error:
-        parser.exit(2, f"{parser.prog}: error: {error}\n")
-    if args.reset_after is not None and args.reset_after < 1:
-        parser.exit(2, f"{parser.prog}: error: --reset-after must be at least 1, not "
-                       f"{args.reset_after}\n")
-    try:
-        pixels = pixels_named(args.scene, sensor=args.sensor, wall_m=args.target_m,
-                              object_m=args.object_m)
-        scene = Scene(distance_m=args.target_m, detections_per_pulse=args.signal,
-                      background_hz=rate_hz(args.ambient), pixels=pixels)
-        build = _build_from_args(args)
-    except ValueError as error:
-        parser.exit(2, f"{parser.prog}: error: {error}\n")
-    signal.signal(signal.SIGTERM, _terminate)
-    line = None
-    with model_board(scene=scene, aggressor_detections_per_pulse=args.aggressor_signal,
-                     photon_seed=args.seed, reset_after=args.reset_after, **build) as board:
-        try:
-            if faults is not None:
-                line = NoisyLine(board.path, to_host=faults[0], to_board=faults[1],
-                                 seed=args.line_seed)
-                print(line.open(), flush=True)
-            else:
-                print(board.path, flush=True)
-            while True:
-                time.sleep(1)
-        except KeyboardInterrupt:
-            pass
-        finally:
-            if line is not None:
-                line.close()
-                print(f"{parser.prog}: noisy line: {describe(line)}", file=sys.stderr)
-    return 0
-
-
-def _build_from_args(args):
-    # The model's build and loopback from --baud, --fine-tdc, --small and --jumper
-    import warnings
-    from amaranth.hdl import UnusedElaboratable
-    from ...hdl.top import SMALL, FlissTop
-    if args.small and args.fine_tdc:
-        raise ValueError("the iCEBreaker's build has no fine TDC: --small or --fine-tdc, not both")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UnusedElaboratable)     # made for its maxima only
-        top = FlissTop(**SMALL) if args.small else FlissTop(fine_tdc=args.fine_tdc)
-    return {"baud": baud_rate(args.baud), "maxima": top.register_maxima(),
-            "loopback": Loopback(jumper=args.jumper)}
-
-
-def _terminate(number, frame):
-    raise KeyboardInterrupt
-
-
 if __name__ == "__main__":
+    from .model_command import main
     raise SystemExit(main())

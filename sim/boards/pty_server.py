@@ -14,12 +14,14 @@ from the host. A subclass (:class:`fliss.sim.boards.model.ModelBoard`) answers t
 
 import errno
 import fcntl
+import logging
 import os
 import select
 import sys
 import termios
 import threading
 import time
+import traceback
 import tty
 
 import numpy as np
@@ -28,6 +30,9 @@ from ...protocol.frames import FrameDecoder, encode_frame
 
 
 __all__ = ["close_pty", "PtyServer"]
+
+
+logger = logging.getLogger(__name__)
 
 
 def close_pty(*fds):
@@ -83,6 +88,9 @@ class PtyServer:
         self.frames_out = []
         self.killed = False
         self.hung = False
+        #: The error that stopped the board's thread (a bug of the model, or of the library
+        #: versions under it): the pty is closed, so the host sees the board lost, not silent.
+        self.failed = None
         self._reset_due = False
         self._frames_sent = 0
         self._seq = 0
@@ -153,6 +161,17 @@ class PtyServer:
             time.sleep(0.002)
 
     def _serve(self):
+        try:
+            self._serve_frames()
+        except Exception as error:
+            self.failed = error
+            logger.error("the model board stopped: %s", "".join(
+                traceback.format_exception(type(error), error, error.__traceback__)).rstrip())
+            with self._lock:
+                master, self._master = self._master, None
+            close_pty(master)
+
+    def _serve_frames(self):
         decoder = FrameDecoder(synced=False)
         while not self._stop.is_set():
             timeout = 0.005 if self._busy or self._out else 0.05
