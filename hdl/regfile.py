@@ -258,7 +258,7 @@ class RegisterFile(wiring.Component):
             return Cat(zero, below(n, width)[1:] | zero.replicate(width - 1))
 
         def max_delay(g):
-            # The largest delay of the mode `g["mode"]` (:meth:`Mode.max_delay`): `2**n - less`
+            # The largest delay of the mode `g["mode"]` (:meth:`~.delay.modes.Mode.max_delay`): `2**n - less`
             # of its size setting `n`, zero without one; modes of the same size share it.
             sized = {}
             for row in MODES.values():

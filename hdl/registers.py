@@ -14,7 +14,7 @@ own choices (acquisition), the fine TDC's (fine_tdc), and the key and IV of the 
 The link has no settings. A new field of a group is
 added here and used in its block; the register file, its checks and the top level follow.
 
-A definitions module: it imports no gateware (the limits come from :mod:`.settings`).
+A definitions module: it imports no gateware (the limits come from :mod:`.delay.settings`).
 """
 
 from dataclasses import dataclass, field

@@ -222,7 +222,7 @@ class FlissTop(wiring.Component):
         return ports
 
     def register_maxima(self):
-        """Register maxima lowered for this build (see :class:`CommandProcessor`)."""
+        """Register maxima lowered for this build (see :class:`~.link.command.CommandProcessor`)."""
         maxima = {}
         for group in (VICTIM, AGGRESSOR_DELAY):
             if self.period_width < PERIOD_WIDTH:

@@ -371,7 +371,7 @@ def _problems(registers, labels, clock_hz):
 
 class Settings(Mapping):
     """A board's settings in units, read-only: a mapping from setting name to value
-    (``"10 ms"``, ``"masked"``, ``6``), one per register, that :meth:`Board.configure` takes
+    (``"10 ms"``, ``"masked"``, ``6``), one per register, that :meth:`~fliss.host.board.Board.configure` takes
     back unchanged.
 
     Attributes

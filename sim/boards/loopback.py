@@ -12,7 +12,7 @@ A :class:`Loopback` says what reaches the TDCs and with what delay and jitter:
 
 Both loopbacks have the Gaussian jitter ``jitter_s``.
 
-:meth:`Loopback.events` gives the events of a run of clock cycles as the board's TDC makes them:
+:meth:`LoopbackRun.events` gives the events of a run of clock cycles as the board's TDC makes them:
 the coarse TDC (``tdc_source`` 1) counts the clock cycles from the TDC start's to the hit's
 (a hit less than a cycle after its trigger's clock edge is code 0, as on the board); the fine
 TDC (2 and 3) samples the modelled line (:class:`fliss.sim.models.finetdc.Line`) at the first

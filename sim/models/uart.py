@@ -52,7 +52,7 @@ def _merge(runs):
 
 
 def tx_runs(data, clock_hz, baud, *, lead=1):
-    """Waveform of :class:`UartTx` sending ``data`` back to back, the first byte being offered
+    """Waveform of :class:`~fliss.hdl.link.uart.UartTx` sending ``data`` back to back, the first byte being offered
     from the start: ``lead`` idle cycles (the transfer cycle), then the characters; bit ``k`` of
     the burst begins ``(k * C + 2**(F-1)) >> F`` cycles after the first start bit."""
     step = bit_cycles(clock_hz, baud)
@@ -96,7 +96,7 @@ def expand(runs):
 
 
 def receive(samples, clock_hz, baud):
-    """What :class:`UartRx` receives from the line ``samples`` (one per cycle, raw pin), its
+    """What :class:`~fliss.hdl.link.uart.UartRx` receives from the line ``samples`` (one per cycle, raw pin), its
     output being always ready.
 
     Returns ``(received, framing_errors)``: the list of ``(cycle, byte)`` in order, ``cycle``
