@@ -3,9 +3,10 @@ give exists.
 
 What is read: README.md and docs/*.md (all of their text), and in every Python file of the
 package's trees (``fliss/``, ``hdl/``, ``protocol/``, ``analysis/``, ``sim/``, ``host/``,
-``boards/``, ``formal/``) its comments and its docstrings (every string that is a statement of
-its own: module, class, function and attribute docstrings). String literals that are values
-(messages, file names a program writes) are not read.
+``boards/``, ``formal/``) its comments and docstrings (every string that is a statement of its
+own: module, class, function and attribute docstrings) for all the references below, and its
+other strings (messages, help texts: "see docs/boards.md") for file paths and file names only
+(a dotted name there may be a logger's).
 
 What is a reference, and how it is checked:
 
@@ -110,10 +111,11 @@ def _module_name(path):
 
 
 def _python_texts(path):
-    """``(line, text, classes)`` of each comment and docstring of ``path``; ``classes`` is the
-    chain of names of the classes the text is in."""
+    """``(line, text, classes, roles)`` of each comment, docstring and other string of ``path``;
+    ``classes`` is the chain of names of the classes the text is in, ``roles`` whether it is
+    read for Sphinx roles (comments and docstrings)."""
     source = path.read_text()
-    lines = source.splitlines(keepends=True)
+    lines = [line.encode() for line in source.splitlines(keepends=True)]
     tree = ast.parse(source)
     spans = [(node.lineno, node.end_lineno, node.name) for node in ast.walk(tree)
              if isinstance(node, ast.ClassDef)]
@@ -122,11 +124,27 @@ def _python_texts(path):
             if token.type == tokenize.COMMENT:
                 line = token.start[0]
                 classes = tuple(name for start, end, name in sorted(spans) if start <= line <= end)
-                yield line, token.string, classes
+                yield line, token.string, classes, True
+    docstrings = set()         # and the parts of f-strings, read as a whole
     for node, classes in _walk(tree, ()):
         if isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant) \
                 and isinstance(node.value.value, str):
-            yield node.lineno, "".join(lines[node.lineno - 1:node.end_lineno]), classes
+            docstrings.add(id(node.value))
+            yield node.lineno, _segment(lines, node), classes, True
+        elif isinstance(node, ast.JoinedStr):
+            docstrings.update(id(value) for value in node.values)
+            yield node.lineno, _segment(lines, node), classes, False
+        elif isinstance(node, ast.Constant) and isinstance(node.value, str) \
+                and id(node) not in docstrings:
+            yield node.lineno, _segment(lines, node), classes, False
+
+
+def _segment(lines, node):
+    # The source text of ``node`` (offsets are in bytes).
+    if node.lineno == node.end_lineno:
+        return lines[node.lineno - 1][node.col_offset:node.end_col_offset].decode()
+    return b"".join([lines[node.lineno - 1][node.col_offset:], *lines[node.lineno:node.end_lineno - 1],
+                     lines[node.end_lineno - 1][:node.end_col_offset]]).decode()
 
 
 def _walk(node, classes):
@@ -348,8 +366,8 @@ def _check_name(check, *args):
     return None
 
 
-def _text_problems(text):
-    # (line offset, kind, reference, why) of the paths and dotted names in ``text``.
+def _text_problems(text, names=True):
+    # (line offset, kind, reference, why) of the paths (and dotted names) in ``text``.
     for offset, line in enumerate(text.splitlines()):
         for match in _PATH.finditer(line):
             why = _check_path(match.group(1))
@@ -358,7 +376,7 @@ def _text_problems(text):
         for match in _BARE.finditer(line):
             if match.group(1) not in _file_names():
                 yield offset, "file", match.group(1), "no file of that name"
-        for match in _DOTTED.finditer(line):
+        for match in _DOTTED.finditer(line if names else ""):
             why = _check_name(_resolve_absolute, match.group(0).replace(":", "."))
             if why:
                 yield offset, "name", match.group(0), why
@@ -384,16 +402,16 @@ def _problems():
                     problems.append(f"{relative}:{number}: link: {target} ({why})")
     for source in _python_files():
         relative, module = source.relative_to(ROOT), _module_name(source)
-        for start, text, classes in _python_texts(source):
-            for offset, kind, reference, why in _text_problems(text):
+        for start, text, classes, roles in _python_texts(source):
+            for offset, kind, reference, why in _text_problems(text, names=roles):
                 problems.append(f"{relative}:{start + offset}: {kind}: {reference} ({why})")
-            for offset, line in enumerate(text.splitlines()):
+            for offset, line in enumerate(text.splitlines() if roles else ()):
                 for match in _ROLE.finditer(line):
                     why = _check_name(_resolve_role, match.group(2), module, classes)
                     if why:
                         problems.append(f"{relative}:{start + offset}: :{match.group(1)}: "
                                         f"{match.group(2)} ({why})")
-    return problems
+    return list(dict.fromkeys(problems))       # (an f-string's parts are read with it)
 
 
 def test_references_exist():
