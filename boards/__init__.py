@@ -20,7 +20,7 @@ from amaranth.lib import io, wiring
 from amaranth.lib.cdc import ResetSynchronizer
 from amaranth.lib.wiring import In
 
-from ..hdl import DEFAULT_CLOCK_HZ
+from ..hdl.clock import DEFAULT_CLOCK_HZ
 
 
 __all__ = ["BOARDS", "FLISS_PINS", "BOARD_PINS", "PIN_ALIASES", "PAD_SUFFIX", "pad_read_back",

@@ -28,7 +28,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..hdl import DEFAULT_CLOCK_HZ
+from ..hdl.clock import DEFAULT_CLOCK_HZ
 from . import BOARDS, BoardTop, platform_class
 
 

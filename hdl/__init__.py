@@ -18,35 +18,14 @@ One block per module; the larger blocks are subpackages of several:
 * :mod:`.divider`: a serial divider;
 * :mod:`.top`: :class:`~.top.FlissTop`, everything behind a UART.
 
-Definitions shared by gateware, models and host: :mod:`.event` (the photon event layout),
+Definitions shared by gateware, models and host: :mod:`.clock` (the default clock and PRF,
+and what the parameters come to in clock cycles), :mod:`.event` (the photon event layout),
 :mod:`.protocol` (packets), :mod:`.registers` (the register map and its groups),
 :mod:`.codes` (a timestamp code's width for each event source), :mod:`.delay.settings` (the
 delay core's limits). :mod:`.verilog` writes Verilog that every simulator reads the same way.
 """
 
 from amaranth.hdl import Array, Cat, Const, Value
-
-#: Default system clock of the design, in Hz (Table 1 of the paper).
-DEFAULT_CLOCK_HZ = 80_000_000
-
-#: Default nominal pulse repetition frequency, in Hz (Table 1 of the paper).
-DEFAULT_PRF_HZ = 1_000_000
-
-
-def period_cycles(clock_hz, prf_hz):
-    """Nominal laser period ``T`` in clock cycles: ``round(clock_hz / prf_hz)``.
-
-    Raises :exc:`ValueError` for a non-positive clock or PRF, or for a PRF above the clock.
-    """
-    if not clock_hz > 0:
-        raise ValueError(f"Clock frequency must be positive, not {clock_hz!r}")
-    if not prf_hz > 0:
-        raise ValueError(f"Pulse repetition frequency must be positive, not {prf_hz!r}")
-    period = round(clock_hz / prf_hz)
-    if period < 2:
-        raise ValueError(f"Pulse repetition frequency {prf_hz} Hz is too high for a "
-                         f"{clock_hz} Hz clock: the period must be at least 2 cycles")
-    return period
 
 
 def lookup(values, index, width=None, *, fill=0, rom=False):

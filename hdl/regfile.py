@@ -7,7 +7,8 @@ from amaranth.hdl import Array, Cat, Module, Mux, Signal
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
-from . import DEFAULT_CLOCK_HZ, lookup
+from . import lookup
+from .clock import DEFAULT_CLOCK_HZ
 from .protocol import NakCode
 from .registers import (REGISTERS, GROUPS, DELAY_SETTINGS, FINE_TDC, KEYING, settings_layout,
                         defaults, register_maxima)

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from amaranth.hdl import Shape
 from amaranth.lib import data, enum
 
-from . import DEFAULT_PRF_HZ, period_cycles
+from .clock import DEFAULT_PRF_HZ, period_cycles
 from .event import ADDRESS_BITS, TIMESTAMP_BITS
 from .delay.modes import DelayMode, MODES, mode_row
 from .finetdc import CODE_BITS as FINE_CODE_BITS, LSB_SELECTS as FINE_LSB_SELECTS, \

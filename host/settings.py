@@ -27,7 +27,7 @@ from typing import Any, Dict, List, Mapping, Optional, Tuple
 import numpy as np
 
 from ..hdl.event import TIMESTAMP_BITS
-from ..hdl import DEFAULT_CLOCK_HZ
+from ..hdl.clock import DEFAULT_CLOCK_HZ
 from ..hdl.registers import (BY_NAME, AcquisitionMode, TdcSource, defaults, iv_problem, problems,
                              value_of)
 from ..hdl.delay.modes import DelayMode

@@ -112,8 +112,8 @@ def build(sim, *, baud=VIRTUAL_BAUD, root=None, fine_tdc=False, small=False):
     simulator is missing, the baud rate cannot be made, or the build fails (with the path of
     its log).
     """
-    from ..hdl import DEFAULT_CLOCK_HZ, verilog
-    from ..hdl.link.uart import bit_cycles
+    from ..hdl import verilog
+    from ..hdl.clock import DEFAULT_CLOCK_HZ, bit_cycles
     from ..hdl.top import SMALL, FlissTop
     from ..sim.benches.runner import TIMESCALE
     from ..sim.boards.harness import gateware_sources
@@ -386,8 +386,7 @@ class VirtualBoard:
         return self.path
 
     def _fast_command(self):
-        from ..hdl import DEFAULT_CLOCK_HZ
-        from ..hdl.link.uart import bit_cycles
+        from ..hdl.clock import DEFAULT_CLOCK_HZ, bit_cycles
         from ..sim.boards import harness
         _check_simulator(self.sim)
         try:

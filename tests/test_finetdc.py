@@ -6,9 +6,8 @@ import numpy as np
 import pytest
 
 from fliss.analysis import calibration
-from fliss.hdl import DEFAULT_CLOCK_HZ
-from fliss.hdl.finetdc import CODE_BITS, LATENCY, LINE_TAP_S, LINE_TAPS, LINES, TAPS, UNIT_S, \
-    cycle_units
+from fliss.hdl.clock import DEFAULT_CLOCK_HZ, cycle_units
+from fliss.hdl.finetdc import CODE_BITS, LATENCY, LINE_TAP_S, LINE_TAPS, LINES, TAPS, UNIT_S
 from fliss.hdl.finetdc.table import nominal_table
 from fliss.hdl.finetdc.tdc import FineTdc
 from fliss.sim.models import finetdc as model

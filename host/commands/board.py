@@ -6,7 +6,7 @@ import signal
 import sys
 import time
 
-from ...hdl import DEFAULT_CLOCK_HZ
+from ...hdl.clock import DEFAULT_CLOCK_HZ
 from ...sim.boards.loopback import JUMPER_DELAY_S
 from ...sim.boards.noisy_line import NoisyLine, add_line_arguments, describe, faults_from_args
 from ...sim.boards.options import add_scene_arguments, rate_hz

@@ -2,10 +2,9 @@
 
 import re
 
-from ...hdl import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, period_cycles
+from ...hdl.clock import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, bit_cycles, period_cycles
 from ...hdl.protocol import DEFAULT_BAUD
 from ...hdl.top import FlissTop
-from ...hdl.link.uart import bit_cycles
 from ...hdl.verilog import convert
 from ..errors import UserError
 from ..paths import check_output_dir

@@ -30,7 +30,8 @@ import numpy as np
 
 from ...hdl.delay.modes import DelayMode
 from ...hdl.event import PULSE_BITS, TIMESTAMP_BITS
-from ...hdl.finetdc import HitInput, cycle_units
+from ...hdl.finetdc import HitInput
+from ...hdl.clock import cycle_units
 from ...hdl.registers import TdcSource
 from ...protocol.events import EVENT_DTYPE
 from ..models import scheduler as _scheduler

@@ -14,7 +14,8 @@ import math
 
 import numpy as np
 
-from ...hdl.link.uart import FRACTION_BITS, DATA_BITS, CHARACTER_BITS, bit_cycles
+from ...hdl.link.uart import DATA_BITS, CHARACTER_BITS
+from ...hdl.clock import FRACTION_BITS, bit_cycles
 
 
 __all__ = ["characters", "tx_runs", "line_runs", "expand", "receive", "SYNC_STAGES"]
