@@ -196,6 +196,9 @@ def test_nominal_table_and_clock():
     with pytest.raises(ValueError, match=r"^The fine TDC needs a clock period that is a "
                                          r"whole multiple of 12.5 ps, not 36000000.0 Hz$"):
         cycle_units(36e6)
+    for clock_hz in (0, -80e6):      # no clock: the same refusal, not a division by zero
+        with pytest.raises(ValueError, match=rf"^The fine TDC needs .*, not {clock_hz} Hz$"):
+            cycle_units(clock_hz)
 
 
 def test_calibration_meets_the_goals():
