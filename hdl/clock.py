@@ -16,7 +16,7 @@ from .event import TIMESTAMP_BITS
 from .finetdc import TABLE_BITS, UNIT_S
 
 
-__all__ = ["DEFAULT_CLOCK_HZ", "DEFAULT_PRF_HZ", "period_cycles",
+__all__ = ["DEFAULT_CLOCK_HZ", "DEFAULT_PRF_HZ", "MIN_PERIOD_CYCLES", "period_cycles",
            "FRACTION_BITS", "MIN_BIT_CYCLES", "BAUD_TOLERANCE", "bit_cycles",
            "cycle_units", "elapsed_limit"]
 
@@ -27,20 +27,26 @@ DEFAULT_CLOCK_HZ = 80_000_000
 #: Default nominal pulse repetition frequency, in Hz (Table 1 of the paper).
 DEFAULT_PRF_HZ = 1_000_000
 
+#: Shortest laser period, in clock cycles: the pulse scheduler takes a pulse every two cycles
+#: at most.
+MIN_PERIOD_CYCLES = 2
+
 
 def period_cycles(clock_hz, prf_hz):
     """Nominal laser period ``T`` in clock cycles: ``round(clock_hz / prf_hz)``.
 
-    Raises :exc:`ValueError` for a non-positive clock or PRF, or for a PRF above the clock.
+    Raises :exc:`ValueError` for a non-positive clock or PRF, or for a period shorter than
+    :data:`MIN_PERIOD_CYCLES`.
     """
     if not clock_hz > 0:
         raise ValueError(f"Clock frequency must be positive, not {clock_hz!r}")
     if not prf_hz > 0:
         raise ValueError(f"Pulse repetition frequency must be positive, not {prf_hz!r}")
     period = round(clock_hz / prf_hz)
-    if period < 2:
+    if period < MIN_PERIOD_CYCLES:
         raise ValueError(f"Pulse repetition frequency {prf_hz} Hz is too high for a "
-                         f"{clock_hz} Hz clock: the period must be at least 2 cycles")
+                         f"{clock_hz} Hz clock: the period must be at least "
+                         f"{MIN_PERIOD_CYCLES} cycles")
     return period
 
 
