@@ -6,7 +6,9 @@ package's trees (``fliss/``, ``hdl/``, ``protocol/``, ``analysis/``, ``sim/``, `
 ``boards/``, ``formal/``) its comments and docstrings (every string that is a statement of its
 own: module, class, function and attribute docstrings) for all the references below, and its
 other strings (messages, help texts: "see docs/boards.md") for file paths and file names only
-(a dotted name there may be a logger's).
+(a dotted name there may be a logger's). And the build's files (:data:`BUILD_FILES`: the
+Makefile, pyproject.toml, setup.py, .ci/run), all of their text, for all but Sphinx roles and
+Markdown links.
 
 What is a reference, and how it is checked:
 
@@ -78,6 +80,9 @@ TREES = {"fliss": "fliss", "hdl": "fliss.hdl", "protocol": "fliss.protocol",
 
 #: Top-level folders a path reference starts with.
 ROOTS = (*TREES, "tests", "docs", "examples", "benchmarks", ".ci")
+
+#: The build's files, read (all of their text) for file paths and names and dotted names.
+BUILD_FILES = ("Makefile", "pyproject.toml", "setup.py", ".ci/run")
 
 _PATH = re.compile(r"(?<![\w/.~:\-])((?:%s)/[\w./*?\-]*(?:::\w+|#[\w\-]+)?)"
                    % "|".join(re.escape(root) for root in ROOTS))
@@ -384,6 +389,9 @@ def _text_problems(text, names=True):
 
 def _problems():
     problems = []
+    for build in BUILD_FILES:
+        for offset, kind, reference, why in _text_problems((ROOT / build).read_text()):
+            problems.append(f"{build}:{offset + 1}: {kind}: {reference} ({why})")
     for markdown in _markdown_files():
         relative = markdown.relative_to(ROOT)
         text = markdown.read_text()
