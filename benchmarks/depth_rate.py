@@ -20,7 +20,7 @@ import argparse
 
 import numpy as np
 
-from fliss.hdl import DEFAULT_CLOCK_HZ
+from fliss.hdl.clock import DEFAULT_CLOCK_HZ
 from fliss.hdl.depth.engine import DepthEngine
 from fliss.hdl.event import TIMESTAMP_BITS
 from fliss.hdl.histogram.engine import READOUT_CYCLES_PER_BIN

@@ -35,7 +35,7 @@ from amaranth.lib.wiring import In, Out
 from amaranth.back import verilog
 from amaranth.sim import Simulator
 
-from fliss.hdl import DEFAULT_CLOCK_HZ
+from fliss.hdl.clock import DEFAULT_CLOCK_HZ
 from fliss.hdl.event import TIMESTAMP_BITS
 from fliss.hdl.histogram.engine import Histogram, COUNT_WIDTH
 from fliss.sim.models import histogram as model

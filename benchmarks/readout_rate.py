@@ -33,7 +33,7 @@ import time
 
 import numpy as np
 
-from fliss.hdl import DEFAULT_CLOCK_HZ
+from fliss.hdl.clock import DEFAULT_CLOCK_HZ
 from fliss.hdl.histogram.readout import READOUT_CYCLES_PER_BIN
 from fliss.hdl.protocol import CHUNK_BINS, MAX_ENCODED, HistogramChunk, HistogramCompact, PacketType
 from fliss.sim.models import delay as delay_model

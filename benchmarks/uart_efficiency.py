@@ -21,7 +21,7 @@ from amaranth.hdl import Module, Signal
 from amaranth.lib import wiring
 from amaranth.sim import Simulator
 
-from fliss.hdl import DEFAULT_CLOCK_HZ
+from fliss.hdl.clock import DEFAULT_CLOCK_HZ
 from fliss.hdl.link.framing import FrameEncoder
 from fliss.hdl.protocol import PacketType, EVENT_BYTES, MAX_EVENTS_PER_PACKET, MAX_PAYLOAD
 from fliss.hdl.link.uart import UartTx, CHARACTER_BITS, DATA_BITS

@@ -20,7 +20,7 @@ from amaranth.lib import io, wiring
 from amaranth.lib.cdc import ResetSynchronizer
 from amaranth.lib.wiring import In
 
-from ..hdl import DEFAULT_CLOCK_HZ
+from ..hdl.clock import DEFAULT_CLOCK_HZ
 
 
 __all__ = ["BOARDS", "FLISS_PINS", "BOARD_PINS", "PIN_ALIASES", "PAD_SUFFIX", "pin_name", "pad_read_back",
@@ -330,10 +330,10 @@ class FlissPlatform:
     * :attr:`pins`: FLISS pin name -> pins on the board's headers, LSB first;
     * :attr:`shared_pins`: design ports that share the pins of another one, name -> name of the
       resource;
-    * :meth:`pll_search` (a static method): ``(f_in_hz, f_out_hz)`` -> a PLL configuration with
+    * ``pll_search`` (a static method): ``(f_in_hz, f_out_hz)`` -> a PLL configuration with
       ``f_out_hz``, the real frequency;
-    * :meth:`fliss_io`: ``(pins, direction)`` -> ``(Pins, Attrs)`` of one FLISS signal;
-    * :attr:`clocking_class`: its :class:`PllClocking`;
+    * ``fliss_io``: ``(pins, direction)`` -> ``(Pins, Attrs)`` of one FLISS signal;
+    * ``clocking_class``: its :class:`PllClocking`;
     * :attr:`synth_opts`: options of its ``synth_<family>`` yosys command, if any;
     * :attr:`script_after_synth`: yosys commands after it, if any (every build of the platform
       runs them).

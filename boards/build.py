@@ -28,7 +28,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..hdl import DEFAULT_CLOCK_HZ
+from ..hdl.clock import DEFAULT_CLOCK_HZ
 from . import BOARDS, BoardTop, platform_class
 
 
@@ -37,7 +37,7 @@ __all__ = ["BOARD_DESIGN", "BOARD_CLOCK_HZ", "TOOLS", "ToolchainError", "BuildRe
 
 
 #: The design each board carries, as ``module:factory``; the factory takes the clock frequency in
-#: Hz and returns a :class:`wiring.Component` (see :class:`fliss.boards.BoardTop`). The
+#: Hz and returns a :class:`amaranth.lib.wiring.Component` (see :class:`fliss.boards.BoardTop`). The
 #: iCEBreaker carries the smaller build that fits its iCE40UP5K (``docs/boards.md``); the ULX3S
 #: the full one with the fine TDC.
 BOARD_DESIGN = {

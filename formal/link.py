@@ -2,7 +2,7 @@
 (``hdl/link/framing.py`` with ``hdl/link/cobs.py`` and ``hdl/link/crc.py``) and the command processor with its
 register file (``hdl/link/command.py``, ``hdl/regfile.py``).
 
-The UART runs at four cycles a bit (the shortest :func:`fliss.hdl.link.uart.bit_cycles` allows), so
+The UART runs at four cycles a bit (the shortest :func:`fliss.hdl.clock.bit_cycles` allows), so
 that a character lasts 40 cycles. Inputs are free in every cycle (any line, any byte, any
 backpressure). Mutants override a block's own statements (:func:`._harness.open_block`).
 """
@@ -16,7 +16,8 @@ from ..hdl.link.crc import CRC_INIT, crc16_next
 from ..hdl.link.framing import FrameDecoder, PacketBeat
 from ..hdl.protocol import (CRC_BYTES, DELIMITER, HEADER_BYTES, MAX_PACKET, MAX_PAYLOAD, NakCode,
                             PacketType)
-from ..hdl.link.uart import CHARACTER_BITS, FRACTION_BITS, UartRx
+from ..hdl.link.uart import CHARACTER_BITS, UartRx
+from ..hdl.clock import FRACTION_BITS
 
 from ._harness import assigned, fsm, open_block, open_submodule, past
 from .runner import Proof

@@ -1,55 +1,31 @@
 """FLISS gateware (Amaranth 0.5).
 
-One block per module:
+One block per module; the larger blocks are subpackages of several:
 
-* :mod:`.lfsr`: Galois LFSR with a run-time or fixed length;
-* :mod:`.delay`: the pseudorandom delay source (``off``, ``mseq``, ``masked``);
-* :mod:`.scheduler`: the pulse scheduler (``interval`` and ``grid`` modes);
-* :mod:`.laser`: laser trigger and TDC start;
-* :mod:`.core`: the delay core, the three blocks above wired together;
-* :mod:`.aggressor`: a second, independent trigger for an aggressor illuminator;
+* :mod:`.delay`: the delay core: pseudorandom delay sources (``off``, ``mseq``, ``masked``,
+  ``keyed``), the pulse scheduler (``interval`` and ``grid`` modes), the laser trigger and TDC
+  start, and an aggressor's independent trigger;
 * :mod:`.tdc`: the sensor's timestamp interface and a built-in coarse TDC;
-* :mod:`.histogram`: the two-bank block-RAM histogram engine;
+* :mod:`.finetdc`: a fine TDC in the FPGA fabric (a tapped delay line) and its calibration table;
+* :mod:`.histogram`: the two-bank histogram engine and its readout as packets;
+* :mod:`.depth`: the depth engine, a DEPTH packet per frame from the histogram readout;
 * :mod:`.rawfifo`: the raw event FIFO that counts what it drops;
-* :mod:`.uart`: UART transmitter and receiver;
-* :mod:`.crc`: the link's CRC-16, appended and checked as stream stages;
-* :mod:`.cobs`: COBS encoder and decoder stream stages;
-* :mod:`.framing`: frame encoder and decoder, packets to and from the stages above;
-* :mod:`.command`: command processor;
+* :mod:`.link`: the UART, the framing (CRC, COBS), the command processor, the packetizers and
+  the arbiter that merges their packets onto the link;
 * :mod:`.regfile`: register file (settings, their checks, groups as structs);
-* :mod:`.packetizer`: EVENTS and HISTOGRAM packets;
-* :mod:`.arbiter`: merges packet streams onto the link;
+* :mod:`.counters`, :mod:`.status`: event counters and the STATUS reply's counters;
+* :mod:`.block_ram`, :mod:`.spram`: block RAM and single-port RAM, the FPGA's or generic;
+* :mod:`.divider`: a serial divider;
 * :mod:`.top`: :class:`~.top.FlissTop`, everything behind a UART.
 
-Definitions shared by gateware, models and host: :mod:`.event` (the photon event layout),
+Definitions shared by gateware, models and host: :mod:`.clock` (the default clock and PRF,
+and what the parameters come to in clock cycles), :mod:`.event` (the photon event layout),
 :mod:`.protocol` (packets), :mod:`.registers` (the register map and its groups),
-:mod:`.settings` (the delay core's limits). :mod:`.verilog` writes Verilog
-that every simulator reads the same way.
+:mod:`.codes` (a timestamp code's width for each event source), :mod:`.delay.settings` (the
+delay core's limits). :mod:`.verilog` writes Verilog that every simulator reads the same way.
 """
 
 from amaranth.hdl import Array, Cat, Const, Value
-
-#: Default system clock of the design, in Hz (Table 1 of the paper).
-DEFAULT_CLOCK_HZ = 80_000_000
-
-#: Default nominal pulse repetition frequency, in Hz (Table 1 of the paper).
-DEFAULT_PRF_HZ = 1_000_000
-
-
-def period_cycles(clock_hz, prf_hz):
-    """Nominal laser period ``T`` in clock cycles: ``round(clock_hz / prf_hz)``.
-
-    Raises :exc:`ValueError` for a non-positive clock or PRF, or for a PRF above the clock.
-    """
-    if not clock_hz > 0:
-        raise ValueError(f"Clock frequency must be positive, not {clock_hz!r}")
-    if not prf_hz > 0:
-        raise ValueError(f"Pulse repetition frequency must be positive, not {prf_hz!r}")
-    period = round(clock_hz / prf_hz)
-    if period < 2:
-        raise ValueError(f"Pulse repetition frequency {prf_hz} Hz is too high for a "
-                         f"{clock_hz} Hz clock: the period must be at least 2 cycles")
-    return period
 
 
 def lookup(values, index, width=None, *, fill=0, rom=False):

@@ -7,7 +7,8 @@ from amaranth.hdl import Array, Cat, Module, Mux, Signal
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
-from . import DEFAULT_CLOCK_HZ, lookup
+from . import lookup
+from .clock import DEFAULT_CLOCK_HZ
 from .protocol import NakCode
 from .registers import (REGISTERS, GROUPS, DELAY_SETTINGS, FINE_TDC, KEYING, settings_layout,
                         defaults, register_maxima)
@@ -258,7 +259,7 @@ class RegisterFile(wiring.Component):
             return Cat(zero, below(n, width)[1:] | zero.replicate(width - 1))
 
         def max_delay(g):
-            # The largest delay of the mode `g["mode"]` (:meth:`Mode.max_delay`): `2**n - less`
+            # The largest delay of the mode `g["mode"]` (:meth:`~.delay.modes.Mode.max_delay`): `2**n - less`
             # of its size setting `n`, zero without one; modes of the same size share it.
             sized = {}
             for row in MODES.values():

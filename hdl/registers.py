@@ -14,7 +14,7 @@ own choices (acquisition), the fine TDC's (fine_tdc), and the key and IV of the 
 The link has no settings. A new field of a group is
 added here and used in its block; the register file, its checks and the top level follow.
 
-A definitions module: it imports no gateware (the limits come from :mod:`.settings`).
+A definitions module: it imports no gateware (the limits come from :mod:`.delay.settings`).
 """
 
 from dataclasses import dataclass, field
@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from amaranth.hdl import Shape
 from amaranth.lib import data, enum
 
-from . import DEFAULT_PRF_HZ, period_cycles
+from .clock import DEFAULT_PRF_HZ, MIN_PERIOD_CYCLES, period_cycles
 from .event import ADDRESS_BITS, TIMESTAMP_BITS
 from .delay.modes import DelayMode, MODES, delay_problems
 from .finetdc import CODE_BITS as FINE_CODE_BITS, LSB_SELECTS as FINE_LSB_SELECTS, \
@@ -183,7 +183,7 @@ DELAY_SETTINGS = (
     Setting("length",      6,                 MIN_LENGTH,     MAX_LENGTH, "bits"),
     Setting("mask_width",  5,                 1,              MAX_MASK_WIDTH, "bits"),
     Setting("seed",        32,                1,              _U32),
-    Setting("period",      PERIOD_WIDTH,      2,              _U32, "cycles"),
+    Setting("period",      PERIOD_WIDTH,      MIN_PERIOD_CYCLES, _U32, "cycles"),
     Setting("grid",        1,                 0,              1),
     Setting("pulse_width", PULSE_WIDTH_WIDTH, 1,              (1 << PULSE_WIDTH_WIDTH) - 1,
             "cycles"),

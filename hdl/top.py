@@ -2,7 +2,7 @@ from amaranth.hdl import Module, Mux, Signal
 from amaranth.lib import data, wiring
 from amaranth.lib.wiring import In, Out
 
-from . import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, period_cycles
+from .clock import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, bit_cycles, cycle_units, period_cycles
 from .delay.aggressor import Aggressor
 from .delay.core import DelayCore
 from .depth.engine import DepthEngine
@@ -22,9 +22,8 @@ from .delay.settings import (BANK_BITS, MAX_BANK_BITS, MIN_BANK_BITS, PERIOD_WID
 from .spram import SPRAM_DEPTH
 from .status import StatusCounters
 from .tdc import EventFilter, TdcInterface, CoarseTdc
-from .finetdc import HitInput, cycle_units
+from .finetdc import HitInput
 from .finetdc.tdc import FineTdc
-from .link.uart import bit_cycles
 
 
 __all__ = ["DEFAULT_BAUD", "SPRAM_BANK_BITS", "SMALL", "FlissTop"]
@@ -222,7 +221,7 @@ class FlissTop(wiring.Component):
         return ports
 
     def register_maxima(self):
-        """Register maxima lowered for this build (see :class:`CommandProcessor`)."""
+        """Register maxima lowered for this build (see :class:`~.link.command.CommandProcessor`)."""
         maxima = {}
         for group in (VICTIM, AGGRESSOR_DELAY):
             if self.period_width < PERIOD_WIDTH:

@@ -50,7 +50,7 @@ class FrameCounts:
 
 @dataclass(frozen=True)
 class Histograms(FrameCounts):
-    """Histograms from :meth:`Board.acquire`.
+    """Histograms from :meth:`~fliss.host.board.Board.acquire`.
 
     Attributes
     ----------
@@ -82,7 +82,7 @@ class Histograms(FrameCounts):
 
 @dataclass(frozen=True)
 class Events:
-    """Raw events from :meth:`Board.acquire_raw`.
+    """Raw events from :meth:`~fliss.host.board.Board.acquire_raw`.
 
     Attributes
     ----------

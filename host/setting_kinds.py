@@ -14,6 +14,7 @@ import secrets
 from dataclasses import dataclass, field
 from typing import Any, Callable, Dict, List, Mapping
 
+from ..hdl.clock import MIN_PERIOD_CYCLES, period_cycles
 from ..hdl.registers import BY_NAME, value_of, words_of
 from ..hdl.codes import code_s as timestamp_code_s
 from ..hdl.delay.settings import as_int, parse_hex
@@ -181,11 +182,12 @@ def _convert_frequency(option, value, context):
     except ValueError as error:
         refuse(option, value, context, str(error))
     exact = context.clock_hz / hz
-    cycles = round(exact)
-    if cycles < 2:
+    try:
+        cycles = period_cycles(context.clock_hz, hz)
+    except ValueError:
         refuse(option, value, context, f"too high for the board's "
                 f"{format_frequency(context.clock_hz)} clock: the period must be at least "
-                f"2 cycles")
+                f"{MIN_PERIOD_CYCLES} cycles")
     if abs(cycles - exact) > _EXACT * exact:
         context.notes.append(f"{said(option, value, context)} is a period of {exact:.4g} clock "
                              f"cycles: using {cycles} cycles, "

@@ -27,7 +27,7 @@ from typing import Any, Dict, List, Mapping, Optional, Tuple
 import numpy as np
 
 from ..hdl.event import TIMESTAMP_BITS
-from ..hdl import DEFAULT_CLOCK_HZ
+from ..hdl.clock import DEFAULT_CLOCK_HZ
 from ..hdl.registers import (BY_NAME, AcquisitionMode, TdcSource, defaults, iv_problem, problems,
                              value_of)
 from ..hdl.delay.modes import DelayMode
@@ -371,7 +371,7 @@ def _problems(registers, labels, clock_hz):
 
 class Settings(Mapping):
     """A board's settings in units, read-only: a mapping from setting name to value
-    (``"10 ms"``, ``"masked"``, ``6``), one per register, that :meth:`Board.configure` takes
+    (``"10 ms"``, ``"masked"``, ``6``), one per register, that :meth:`~fliss.host.board.Board.configure` takes
     back unchanged.
 
     Attributes

@@ -60,8 +60,8 @@ STARTUP_TIMEOUT_S = 120
 
 def _check_simulator(sim, baud=None):
     """:exc:`VirtualBoardError` if ``sim`` is missing, or the top level cannot make ``baud``."""
-    from ..hdl import DEFAULT_CLOCK_HZ
-    from ..hdl.link.uart import bit_cycles
+    from ..hdl.clock import DEFAULT_CLOCK_HZ
+    from ..hdl.clock import bit_cycles
     from ..sim.benches.runner import simulator_available
     try:
         if baud is not None:

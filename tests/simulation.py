@@ -11,7 +11,7 @@ from amaranth.hdl import Elaboratable, Module
 from amaranth.lib import wiring
 from amaranth.sim import Simulator
 
-from fliss.hdl import DEFAULT_CLOCK_HZ
+from fliss.hdl.clock import DEFAULT_CLOCK_HZ
 
 
 __all__ = ["simulate", "stream_put", "stream_get", "stream_put_all", "stream_get_each", "Twins"]

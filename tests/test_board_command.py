@@ -91,8 +91,8 @@ def test_a_build_is_announced_and_ctrl_c_during_it_is_not_a_clean_stop(monkeypat
 @needs_verilator
 def test_a_baud_rate_the_gateware_cannot_make_is_refused_before_a_build(monkeypatch, tmp_path,
                                                                         capsys):
-    from fliss.hdl import DEFAULT_CLOCK_HZ
-    from fliss.hdl.link.uart import bit_cycles
+    from fliss.hdl.clock import DEFAULT_CLOCK_HZ
+    from fliss.hdl.clock import bit_cycles
     with pytest.raises(ValueError) as caught:
         bit_cycles(DEFAULT_CLOCK_HZ, 100_000_000)
     monkeypatch.setenv("FLISS_CACHE_DIR", str(tmp_path))

@@ -6,9 +6,8 @@ import numpy as np
 import pytest
 
 from fliss.analysis import calibration
-from fliss.hdl import DEFAULT_CLOCK_HZ
-from fliss.hdl.finetdc import CODE_BITS, LATENCY, LINE_TAP_S, LINE_TAPS, LINES, TAPS, UNIT_S, \
-    cycle_units
+from fliss.hdl.clock import DEFAULT_CLOCK_HZ, cycle_units
+from fliss.hdl.finetdc import CODE_BITS, LATENCY, LINE_TAP_S, LINE_TAPS, LINES, TAPS, UNIT_S
 from fliss.hdl.finetdc.table import nominal_table
 from fliss.hdl.finetdc.tdc import FineTdc
 from fliss.sim.models import finetdc as model
@@ -197,6 +196,9 @@ def test_nominal_table_and_clock():
     with pytest.raises(ValueError, match=r"^The fine TDC needs a clock period that is a "
                                          r"whole multiple of 12.5 ps, not 36000000.0 Hz$"):
         cycle_units(36e6)
+    for clock_hz in (0, -80e6):      # no clock: the same refusal, not a division by zero
+        with pytest.raises(ValueError, match=rf"^The fine TDC needs .*, not {clock_hz} Hz$"):
+            cycle_units(clock_hz)
 
 
 def test_calibration_meets_the_goals():

@@ -7,7 +7,7 @@ import pytest
 from amaranth.hdl import Elaboratable, Module
 from amaranth.lib import wiring
 
-from fliss.hdl import DEFAULT_CLOCK_HZ
+from fliss.hdl.clock import DEFAULT_CLOCK_HZ
 from fliss.hdl.link.crc import Crc16
 from fliss.hdl.link.framing import FrameEncoder, FrameDecoder
 from fliss.hdl.protocol import (PacketType, NakCode, MAX_PAYLOAD, MAX_ENCODED, CRC_BYTES, CRC_CHECK,

@@ -5,7 +5,7 @@ with the command processor's model."""
 import pytest
 
 from fliss import protocol
-from fliss.hdl import DEFAULT_CLOCK_HZ
+from fliss.hdl.clock import DEFAULT_CLOCK_HZ
 from fliss.hdl.link.link import Link
 from fliss.hdl.protocol import PacketType, NakCode, LINK_FIELDS, ReadRequest
 from fliss.protocol.layout import pack

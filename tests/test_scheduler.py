@@ -5,7 +5,7 @@ import random
 import numpy as np
 import pytest
 
-from fliss.hdl import period_cycles
+from fliss.hdl.clock import period_cycles
 from fliss.hdl.delay.core import DelayCore
 from fliss.hdl.delay.source import DelayMode
 from fliss.hdl.delay.laser import LaserTrigger

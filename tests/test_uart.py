@@ -3,9 +3,8 @@
 import pytest
 from amaranth.hdl import Elaboratable, Module, Signal
 
-from fliss.hdl import DEFAULT_CLOCK_HZ
-from fliss.hdl.link.uart import (UartTx, UartRx, bit_cycles, FRACTION_BITS, MIN_BIT_CYCLES,
-                                 CHARACTER_BITS)
+from fliss.hdl.clock import DEFAULT_CLOCK_HZ, FRACTION_BITS, MIN_BIT_CYCLES, bit_cycles
+from fliss.hdl.link.uart import UartTx, UartRx, CHARACTER_BITS
 from fliss.sim.models import uart as model
 from fliss.sim.models import lfsr
 from simulation import simulate

@@ -11,7 +11,7 @@ import time
 import numpy as np
 import pytest
 
-from fliss.hdl import DEFAULT_CLOCK_HZ
+from fliss.hdl.clock import DEFAULT_CLOCK_HZ
 from fliss.hdl.protocol import (EVENT_BYTES, PROTOCOL_VERSION, NakCode, PacketType, Identity,
                                 ReadRequest, Status, registers_layout)
 from fliss.hdl.registers import BY_NAME, REGISTERS

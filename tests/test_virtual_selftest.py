@@ -20,7 +20,7 @@ import re
 import numpy as np
 import pytest
 
-from fliss.hdl import DEFAULT_CLOCK_HZ
+from fliss.hdl.clock import DEFAULT_CLOCK_HZ
 from fliss.host.board import connect
 from fliss.host.calibration import calibrate
 from fliss.host.cli import main

@@ -4,7 +4,7 @@ from amaranth.hdl import Module
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
-from .. import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, period_cycles
+from ..clock import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, period_cycles
 from .source import DelaySource
 from .keyed import Keying
 from .laser import LaserTrigger

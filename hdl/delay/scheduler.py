@@ -61,7 +61,7 @@ class PulseScheduler(wiring.Component):
         ``R``), so the delays must come from a :class:`~fliss.hdl.delay.source.DelaySource`; its
         ``value`` only gives ``fire_delay``.
     reload : Out(1)
-        Restart the delay sequence from its seed (to :class:`DelaySource` ``load``).
+        Restart the delay sequence from its seed (to :class:`~.source.DelaySource` ``load``).
     running : Out(1)
         Acquisition is running.
     fire : Out(1)

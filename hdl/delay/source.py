@@ -56,7 +56,7 @@ class DelaySource(wiring.Component):
         Of the delay core's settings, the source uses ``mode`` (the delay source),
         ``length`` (register length ``L`` of the ``MSEQ`` source), ``mask_width`` (mask width
         ``Wm`` of the ``MASKED`` source; a value out of range acts as 16) and ``seed`` (the
-        register never holds zero, see :class:`Lfsr`), all sampled on ``load``.
+        register never holds zero, see :class:`~.lfsr.Lfsr`), all sampled on ``load``.
     load : In(1)
         Sample the settings and restart the sequence. The delay of the restarted sequence is on
         ``delays.payload`` in the next cycle.

@@ -17,16 +17,15 @@ The numbers below describe the hardware; the model (:mod:`fliss.sim.models.finet
 host read them from here.
 """
 
-import math
 
 from amaranth.lib import enum
 
-from ..event import TDC_LSB_S, TIMESTAMP_BITS
+from ..event import TDC_LSB_S
 
 
 __all__ = ["HitInput", "LINES", "LINE_TAPS", "TAPS", "LINE_TAP_S", "TAP_S", "CODE_BITS",
            "TABLE_BITS", "UNIT_S", "LSB_SELECTS", "POPCOUNT_FANIN", "popcount_stages", "LATENCY",
-           "cycle_units", "elapsed_limit", "lsb_s"]
+           "lsb_s"]
 
 
 class HitInput(enum.Enum, shape=2):
@@ -89,19 +88,3 @@ LATENCY = 1 + popcount_stages() + 4
 def lsb_s(select):
     """The timestamp LSB of ``fine_lsb`` = ``select``, in seconds."""
     return TDC_LSB_S / (1 << select)
-
-
-def cycle_units(clock_hz):
-    """The clock period in table units (:data:`UNIT_S`); refused unless whole."""
-    units = 1 / (clock_hz * UNIT_S)
-    if not clock_hz > 0 or abs(units - round(units)) > 1e-6:
-        raise ValueError(f"The fine TDC needs a clock period that is a whole multiple of "
-                         f"{UNIT_S * 1e12:g} ps, not {clock_hz!r} Hz")
-    return round(units)
-
-
-def elapsed_limit(clock_hz):
-    """Largest count of whole cycles since the TDC start that can still give a timestamp of
-    13 bits at the coarsest LSB (a later hit overflows)."""
-    units = cycle_units(clock_hz)
-    return math.ceil(((1 << TIMESTAMP_BITS) * 4 + (1 << TABLE_BITS)) / units) + 1

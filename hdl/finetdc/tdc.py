@@ -7,8 +7,8 @@ from amaranth.lib.wiring import In, Out
 
 from ..event import ADDRESS_BITS, PULSE_BITS, TIMESTAMP_BITS
 from ..tdc import Capture
-from . import (CODE_BITS, LINE_TAPS, LINES, LSB_SELECTS, TABLE_BITS, HitInput, cycle_units,
-               elapsed_limit)
+from . import CODE_BITS, LINE_TAPS, LINES, LSB_SELECTS, TABLE_BITS, HitInput
+from ..clock import cycle_units, elapsed_limit
 from .encoder import Encoder
 from .line import CARRY_BOX_FILE, DelayLine
 from .source import OSCILLATOR_BOX_FILE, HitSource
@@ -34,7 +34,7 @@ class FineTdc(wiring.Component):
     edge (:class:`~.table.CalibrationTable`). With ``s`` the cycle of the last ``tdc_start`` at
     or before ``c``, its timestamp is ``((c - s) * U - table[k]) >> (2 - lsb)``, ``U`` the clock
     period in table units: in LSBs of ``50 ps / 2**lsb``. A hit before the first start, more
-    than :func:`~fliss.hdl.finetdc.elapsed_limit` cycles after the last, before its start
+    than :func:`~fliss.hdl.clock.elapsed_limit` cycles after the last, before its start
     (negative) or beyond 13 bits is flagged ``overflow`` (the event filter drops and counts it).
     With ``raw`` the timestamp is the raw code instead, never overflowing: the code-density
     histogram for the calibration. ``pulse`` is ``pulse_index - 1`` as it was in cycle ``c``;

@@ -103,7 +103,7 @@ class CompactEncoder(wiring.Component):
         # while the one before is used (`ahead`: the address is `step + 1`), or, for the
         # first, from the state before (while idle, the address is 0: `first`). The address
         # is one LUT from registers, as the RAM may be far: `step + 1` is kept in `step_next`,
-        # and `ahead` and `first` are set with the state (:func:`goto`).
+        # and `ahead` and `first` are set with the state (``goto``).
         word = Signal(COUNT_WIDTH)
         step_next = Signal.like(step, init=1)
         ahead = Signal()

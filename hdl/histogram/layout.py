@@ -47,7 +47,7 @@ class ReadoutSplit(data.Struct):
 
 
 def readout_layout(bank_bits=BANK_BITS, count_width=COUNT_WIDTH):
-    """Payload of :attr:`Histogram.readout`: flat bin index (``pixel << (13 - bin_shift) |
+    """Payload of :attr:`~.engine.Histogram.readout`: flat bin index (``pixel << (13 - bin_shift) |
     bin``), count, last bin of the frame."""
     return data.StructLayout({
         "index": bank_bits,

@@ -4,7 +4,7 @@ from amaranth.hdl import C, Cat, Const, Module, Mux, Signal
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from .. import DEFAULT_CLOCK_HZ
+from ..clock import DEFAULT_CLOCK_HZ
 from .buffer import StreamBuffer
 from .framing import PacketBeat
 from ..protocol import (PROTOCOL_VERSION, GATEWARE_MAJOR, GATEWARE_MINOR, GATEWARE_PATCH,

@@ -4,14 +4,14 @@ from amaranth.hdl import Module
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from .. import DEFAULT_CLOCK_HZ
+from ..clock import DEFAULT_CLOCK_HZ, bit_cycles
 from ..delay.settings import BANK_BITS
 from ..protocol import DEFAULT_BAUD, LINK_FIELDS
 from .arbiter import PacketArbiter
 from .buffer import StreamBuffer
 from .command import CommandProcessor, StatusSignature
 from .framing import FrameDecoder, FrameEncoder, PacketBeat
-from .uart import UartRx, UartTx, bit_cycles
+from .uart import UartRx, UartTx
 
 
 __all__ = ["UART_FIELDS", "COMMAND_FIELDS", "Link"]

@@ -124,7 +124,7 @@ class FullHistogramPacketizer(wiring.Component):
 
     Each frame of ``2**(pixel_bits + 13 - shift)`` bins is sent as chunks of :data:`CHUNK_BINS`
     bins (all of them when there are fewer) as they come, by a
-    :class:`~fliss.hdl.histogram.chunk.ChunkEmitter`: a :class:`HistogramChunk`, then one u16
+    :class:`~fliss.hdl.histogram.chunk.ChunkEmitter`: a :class:`~fliss.hdl.protocol.HistogramChunk`, then one u16
     count per bin, little-endian; the packets of
     :func:`fliss.protocol.histograms.encode_histogram` with ``full_readout``.
 

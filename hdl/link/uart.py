@@ -12,50 +12,18 @@ from amaranth.lib import stream, wiring
 from amaranth.lib.cdc import FFSynchronizer
 from amaranth.lib.wiring import In, Out
 
-from .. import DEFAULT_CLOCK_HZ
+from ..clock import DEFAULT_CLOCK_HZ, FRACTION_BITS, bit_cycles
 from ..protocol import COUNTER_BITS
 
 
-__all__ = ["FRACTION_BITS", "MIN_BIT_CYCLES", "BAUD_TOLERANCE", "DATA_BITS", "CHARACTER_BITS",
-           "bit_cycles", "UartTx", "UartRx"]
+__all__ = ["DATA_BITS", "CHARACTER_BITS", "UartTx", "UartRx"]
 
-
-#: Fraction bits of the bit time.
-FRACTION_BITS = 8
-
-#: Shortest bit, in clock cycles: the receiver votes over three samples around the middle of a
-#: bit and needs a cycle of margin on each side.
-MIN_BIT_CYCLES = 4
-
-#: Largest relative baud rate error accepted at construction.
-BAUD_TOLERANCE = 0.02
 
 #: Data bits per character (8N1: one start bit, 8 data bits LSB first, no parity, one stop bit).
 DATA_BITS = 8
 
 #: Bit times per character on the line: start, data, stop.
 CHARACTER_BITS = 1 + DATA_BITS + 1
-
-
-def bit_cycles(clock_hz, baud):
-    """Bit time in clock cycles as a fixed-point integer with :data:`FRACTION_BITS` fraction bits.
-
-    Raises :exc:`ValueError` for a non-positive clock or baud rate, and when the baud rate
-    cannot be met within :data:`BAUD_TOLERANCE`: a bit must last at least
-    :data:`MIN_BIT_CYCLES` cycles.
-    """
-    if not isinstance(clock_hz, (int, float)) or not clock_hz > 0:
-        raise ValueError(f"Clock frequency must be positive, not {clock_hz!r}")
-    if not isinstance(baud, (int, float)) or not baud > 0:
-        raise ValueError(f"Baud rate must be positive, not {baud!r}")
-    cycles = max(round(clock_hz * (1 << FRACTION_BITS) / baud), MIN_BIT_CYCLES << FRACTION_BITS)
-    actual = clock_hz * (1 << FRACTION_BITS) / cycles
-    error = actual / baud - 1
-    if abs(error) > BAUD_TOLERANCE:
-        raise ValueError(f"Baud rate {baud} cannot be met within 2% from a {clock_hz} Hz clock: "
-                         f"the closest is {actual:.0f} baud ({error:+.1%}), as a bit lasts at "
-                         f"least {MIN_BIT_CYCLES} cycles")
-    return cycles
 
 
 class _Uart(wiring.Component):

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...hdl import DEFAULT_CLOCK_HZ
+from ...hdl.clock import DEFAULT_CLOCK_HZ
 from ...hdl.delay.settings import parse_hex
 from ...sim.studies.attacker import Attacker, Observer
 from ...sim.studies.generators import verify_pulses

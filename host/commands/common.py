@@ -9,7 +9,7 @@ import time
 from ..errors import UserError
 from ..formats import read_file
 from ..units import parse_frequency, parse_time
-from ...hdl import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, period_cycles
+from ...hdl.clock import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, period_cycles
 
 
 __all__ = ["Progress", "progress_bar", "sigterm_interrupts", "read_capture_file", "parse_times",

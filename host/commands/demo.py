@@ -24,7 +24,7 @@ import numpy as np
 
 from amaranth.sim import Simulator
 
-from ...hdl import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, period_cycles
+from ...hdl.clock import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, period_cycles
 from ...hdl.delay.core import DelayCore
 from ...sim.models.delay import DelayMode, mean_delay
 from ...sim.models import scheduler as scheduler_model

@@ -4,9 +4,8 @@ who build with their own tools (:mod:`fliss.host.ip`)."""
 import re
 import sys
 
-from ...hdl import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, period_cycles
+from ...hdl.clock import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, bit_cycles, period_cycles
 from ...hdl.protocol import DEFAULT_BAUD
-from ...hdl.link.uart import bit_cycles
 from ..errors import UserError
 from ..ip import TB_MODES, DelayCheck, check_build, make_top, victim_period, write_folder
 from ..paths import check_output_dir

@@ -6,7 +6,7 @@ from importlib import resources
 from pathlib import Path
 
 from ... import __version__
-from ...hdl.finetdc import cycle_units
+from ...hdl.clock import cycle_units
 from ...hdl.finetdc.tdc import BLACK_BOX_FILES
 from ...hdl.registers import REGISTERS, VICTIM
 from ...hdl.top import SMALL, FlissTop

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...hdl import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, period_cycles
+from ...hdl.clock import DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ, period_cycles
 from ...sim.models import delay as delay_model
 from ...sim.models import scheduler as scheduler_model
 from ...sim.scene import Aggressor, Scene, acquire

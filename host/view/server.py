@@ -3,7 +3,7 @@ page, a Bokeh document per browser session (:mod:`.document`), all drawn from on
 :class:`~fliss.host.view.feed.Feed`.
 
 The port is bound in the caller's thread, so that a port in use is refused at once, before
-any board is touched; the server's thread then runs its own event loop until :meth:`close`.
+any board is touched; the server's thread then runs its own event loop until :meth:`ViewServer.close`.
 """
 
 import asyncio

@@ -17,7 +17,7 @@ from amaranth.lib import data
 from cocotb.clock import Clock
 from cocotb.triggers import ClockCycles, FallingEdge
 
-from ...hdl import DEFAULT_CLOCK_HZ
+from ...hdl.clock import DEFAULT_CLOCK_HZ
 from ...hdl.event import TIMESTAMP_BITS
 from ...hdl.link.framing import PacketBeat
 from ...hdl.histogram.layout import readout_layout

@@ -15,7 +15,7 @@ import cocotb
 from cocotb.clock import Clock
 from cocotb.triggers import ClockCycles, FallingEdge, First, RisingEdge, Timer
 
-from ...hdl import DEFAULT_CLOCK_HZ
+from ...hdl.clock import DEFAULT_CLOCK_HZ
 from ...hdl.protocol import (DEFAULT_BAUD, PacketType, MAX_ENCODED, Nak, ReadRequest, Status,
                              LINK_COUNTERS, registers_layout)
 from ...hdl.registers import REGISTERS

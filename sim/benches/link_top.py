@@ -7,7 +7,7 @@ from amaranth.hdl import Module
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from ...hdl import DEFAULT_CLOCK_HZ
+from ...hdl.clock import DEFAULT_CLOCK_HZ
 from ...hdl.finetdc.table import CalibrationTable, serve_registers
 from ...hdl.link.link import Link
 from ...hdl.protocol import DEFAULT_BAUD

@@ -16,7 +16,7 @@ import numpy as np
 from cocotb.clock import Clock
 from cocotb.triggers import ClockCycles, FallingEdge
 
-from ...hdl import DEFAULT_CLOCK_HZ
+from ...hdl.clock import DEFAULT_CLOCK_HZ
 from ... import protocol
 from .histogram_link_top import INDEX_BITS
 from ...protocol.histograms import assemble, encode_histogram, frame_bins

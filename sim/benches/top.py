@@ -23,7 +23,7 @@ from cocotb.clock import Clock
 from cocotb.simtime import get_sim_time
 from cocotb.triggers import ClockCycles, ReadOnly, RisingEdge, Timer, with_timeout
 
-from ...hdl import DEFAULT_CLOCK_HZ
+from ...hdl.clock import DEFAULT_CLOCK_HZ
 from ...hdl.protocol import (PacketType, MAX_ENCODED, Nak, ReadRequest, Status, STATUS_FIELDS,
                              LINK_COUNTERS, registers_layout)
 from ...hdl.registers import BY_NAME, REGISTERS, AcquisitionMode

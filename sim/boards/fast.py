@@ -19,7 +19,7 @@ import sys
 import time
 from collections import deque
 
-from ...hdl import DEFAULT_CLOCK_HZ
+from ...hdl.clock import DEFAULT_CLOCK_HZ
 from ...protocol.frames import FrameDecoder, Packet
 from ...protocol.packets import DATA_TYPES
 from .harness import Harness

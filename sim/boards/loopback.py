@@ -12,7 +12,7 @@ A :class:`Loopback` says what reaches the TDCs and with what delay and jitter:
 
 Both loopbacks have the Gaussian jitter ``jitter_s``.
 
-:meth:`Loopback.events` gives the events of a run of clock cycles as the board's TDC makes them:
+:meth:`LoopbackRun.events` gives the events of a run of clock cycles as the board's TDC makes them:
 the coarse TDC (``tdc_source`` 1) counts the clock cycles from the TDC start's to the hit's
 (a hit less than a cycle after its trigger's clock edge is code 0, as on the board); the fine
 TDC (2 and 3) samples the modelled line (:class:`fliss.sim.models.finetdc.Line`) at the first
@@ -30,7 +30,8 @@ import numpy as np
 
 from ...hdl.delay.modes import DelayMode
 from ...hdl.event import PULSE_BITS, TIMESTAMP_BITS
-from ...hdl.finetdc import HitInput, cycle_units
+from ...hdl.finetdc import HitInput
+from ...hdl.clock import cycle_units
 from ...hdl.registers import TdcSource
 from ...protocol.events import EVENT_DTYPE
 from ..models import scheduler as _scheduler

@@ -26,7 +26,7 @@ from contextlib import contextmanager
 
 import numpy as np
 
-from ...hdl import DEFAULT_CLOCK_HZ
+from ...hdl.clock import DEFAULT_CLOCK_HZ
 from ...hdl.histogram.layout import MAX_COUNT_WIDTH
 from ...hdl.protocol import (DEFAULT_BAUD, HISTOGRAM_COUNT_BITS, PacketType, STATUS_FIELDS,
                              LINK_COUNTERS, MAX_EVENTS_PER_PACKET, version_numbers)

@@ -71,7 +71,7 @@ def add_scene_arguments(parser, *, seed=None):
 def add_build_arguments(parser, *, where=""):
     """The build of the board and its loopback, as options of an argparse ``parser``;
     ``where`` ends each build's help (what runs it)."""
-    from ...hdl import DEFAULT_CLOCK_HZ
+    from ...hdl.clock import DEFAULT_CLOCK_HZ
     from .loopback import JUMPER_DELAY_S
     parser.add_argument("--baud", default="12M", help="UART baud rate of the gateware")
     parser.add_argument("--fine-tdc", action="store_true",

@@ -44,7 +44,7 @@ import cocotb
 from cocotb.simtime import get_sim_time
 from cocotb.triggers import Event, RisingEdge, Timer
 
-from ...hdl import DEFAULT_CLOCK_HZ
+from ...hdl.clock import DEFAULT_CLOCK_HZ
 from .. import scene as _scene
 
 

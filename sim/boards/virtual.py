@@ -45,7 +45,7 @@ from cocotb.clock import Clock
 from cocotb.simtime import get_sim_time
 from cocotb.triggers import ClockCycles, Event, Timer
 
-from ...hdl import DEFAULT_CLOCK_HZ
+from ...hdl.clock import DEFAULT_CLOCK_HZ
 from .. import scene as _scene
 from ...protocol.frames import FrameDecoder, Packet
 from ...protocol.packets import DATA_TYPES

@@ -6,7 +6,7 @@ the common ``enable``; :func:`fliss.sim.models.scheduler.simulate` models it wit
 
 import numpy as np
 
-from ...hdl import DEFAULT_CLOCK_HZ
+from ...hdl.clock import DEFAULT_CLOCK_HZ
 from ...hdl.delay.aggressor import OFFSET_WIDTH, PAPER_OFFSET_S
 from ...hdl.delay.laser import LATENCY
 from . import scheduler as _scheduler

@@ -26,7 +26,8 @@ from functools import cached_property
 import numpy as np
 
 from ...hdl.event import PULSE_BITS, TIMESTAMP_BITS
-from ...hdl.finetdc import LINE_TAPS, LINES, LATENCY, cycle_units, elapsed_limit
+from ...hdl.finetdc import LINE_TAPS, LINES, LATENCY
+from ...hdl.clock import cycle_units, elapsed_limit
 
 
 __all__ = ["Line", "captures"]

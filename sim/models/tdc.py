@@ -41,7 +41,7 @@ def _per_cycle(values):
 
 def filter_events(capture_cycles, events, *, enabled, overflow=None, gate_start=0,
                   gate_end=MAX_TIMESTAMP, drop_collisions=0, ready=1):
-    """Model of :class:`EventFilter`.
+    """Model of :class:`~fliss.hdl.tdc.EventFilter`.
 
     Parameters
     ----------
@@ -100,7 +100,7 @@ def filter_events(capture_cycles, events, *, enabled, overflow=None, gate_start=
 
 def interface(strobe_cycles, timestamps, addresses, collisions, *, enable, pulse_index,
               gate_start=0, gate_end=MAX_TIMESTAMP, drop_collisions=0, ready=1):
-    """Model of :class:`TdcInterface`.
+    """Model of :class:`~fliss.hdl.tdc.TdcInterface`.
 
     ``strobe_cycles`` are the first cycles in which ``pin_valid`` reads high, one per event,
     with the sensor timing requirements met; the bus carries the event's fields. Returns what
@@ -122,7 +122,7 @@ def interface(strobe_cycles, timestamps, addresses, collisions, *, enable, pulse
 
 def coarse(hit_cycles, start_cycles, *, enable, pulse_index, address=0, gate_start=0,
            gate_end=MAX_TIMESTAMP, ready=1):
-    """Model of :class:`CoarseTdc`.
+    """Model of :class:`~fliss.hdl.tdc.CoarseTdc`.
 
     ``hit_cycles`` are the first cycles in which ``pin_hit`` reads high; ``start_cycles`` the
     cycles in which ``tdc_start`` is high. Returns what :func:`filter_events` returns.

@@ -14,7 +14,8 @@ import math
 
 import numpy as np
 
-from ...hdl.link.uart import FRACTION_BITS, DATA_BITS, CHARACTER_BITS, bit_cycles
+from ...hdl.link.uart import DATA_BITS, CHARACTER_BITS
+from ...hdl.clock import FRACTION_BITS, bit_cycles
 
 
 __all__ = ["characters", "tx_runs", "line_runs", "expand", "receive", "SYNC_STAGES"]
@@ -52,7 +53,7 @@ def _merge(runs):
 
 
 def tx_runs(data, clock_hz, baud, *, lead=1):
-    """Waveform of :class:`UartTx` sending ``data`` back to back, the first byte being offered
+    """Waveform of :class:`~fliss.hdl.link.uart.UartTx` sending ``data`` back to back, the first byte being offered
     from the start: ``lead`` idle cycles (the transfer cycle), then the characters; bit ``k`` of
     the burst begins ``(k * C + 2**(F-1)) >> F`` cycles after the first start bit."""
     step = bit_cycles(clock_hz, baud)
@@ -96,7 +97,7 @@ def expand(runs):
 
 
 def receive(samples, clock_hz, baud):
-    """What :class:`UartRx` receives from the line ``samples`` (one per cycle, raw pin), its
+    """What :class:`~fliss.hdl.link.uart.UartRx` receives from the line ``samples`` (one per cycle, raw pin), its
     output being always ready.
 
     Returns ``(received, framing_errors)``: the list of ``(cycle, byte)`` in order, ``cycle``

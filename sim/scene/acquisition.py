@@ -56,7 +56,7 @@ def acquire(scene, t_int_s, acquisitions, *, seed=None, chunk_cycles=1 << 16, ke
     integrates over a time set in clock cycles; the delay sequences run on across acquisitions.
     ``progress``, if given, is called with the number of laser cycles after each chunk.
     ``aggressor_edges``, if given, holds the laser triggers of each aggressor in the victim's
-    clock cycles (:meth:`Simulation.feed_aggressor`), instead of their own schedules.
+    clock cycles (:meth:`~.photons.Simulation.feed_aggressor`), instead of their own schedules.
     With a pixel array (``scene.pixels``) the histograms hold the events of every pixel
     together; ``keep_events`` keeps each event's pixel address and collision flag.
     """

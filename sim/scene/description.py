@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...hdl import DEFAULT_CLOCK_HZ
+from ...hdl.clock import DEFAULT_CLOCK_HZ
 from ...hdl.event import ADDRESS_BITS, TDC_LSB_S, TIMESTAMP_BITS
 from ..models import delay as _delay
 from ..models import scheduler as _scheduler

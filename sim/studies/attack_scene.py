@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...hdl import DEFAULT_CLOCK_HZ
+from ...hdl.clock import DEFAULT_CLOCK_HZ
 from ...hdl.delay.settings import MAX_MASK_WIDTH, as_int
 from ..models import delay as _delay
 from ..models import scheduler as _scheduler

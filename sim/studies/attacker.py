@@ -27,7 +27,7 @@ from functools import partial
 
 import numpy as np
 
-from ...hdl import DEFAULT_CLOCK_HZ
+from ...hdl.clock import DEFAULT_CLOCK_HZ
 from .generators import KnownTaps, hypotheses
 from ..scene.checks import check_number
 

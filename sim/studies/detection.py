@@ -71,7 +71,7 @@ def classify(histogram: ArrayLike, tof_s: float, fwhm_s: float, *, threshold_sig
         FWHM of the target's peak; the true target is any detection within ``window_fwhm`` FWHM
         of ``tof_s``.
     threshold_sigma : float
-        Detection threshold, as :func:`find_peaks` takes it.
+        Detection threshold, as :func:`fliss.analysis.peaks.find_peaks` takes it.
     floor_sigma : float or None
         Lowest threshold of the detection curve: peaks are scored down to it (default: the
         threshold itself).

@@ -21,7 +21,8 @@ import numpy as np
 
 from ...analysis import calibration
 from ...hdl.event import TDC_LSB_S, TIMESTAMP_BITS
-from ...hdl.finetdc import TABLE_BITS, TAP_S, UNIT_S, cycle_units, lsb_s
+from ...hdl.finetdc import TABLE_BITS, TAP_S, UNIT_S, lsb_s
+from ...hdl.clock import cycle_units
 from ..models.finetdc import Line
 
 

@@ -93,7 +93,7 @@ import math
 
 import numpy as np
 
-from ...hdl import DEFAULT_CLOCK_HZ
+from ...hdl.clock import DEFAULT_CLOCK_HZ
 from ...hdl.event import TDC_LSB_S
 from ..models import delay as _delay
 from ..models import scheduler as _scheduler

@@ -26,7 +26,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from ...hdl import DEFAULT_CLOCK_HZ
+from ...hdl.clock import DEFAULT_CLOCK_HZ
 from .attacker import Attacker, Observer
 from ..scene.pulses import EdgeSchedule
 
