@@ -51,12 +51,22 @@ def _modules():
     return modules
 
 
+def _main_guard(node):
+    return (isinstance(node, ast.If) and isinstance(node.test, ast.Compare)
+            and isinstance(node.test.left, ast.Name) and node.test.left.id == "__name__"
+            and any(isinstance(c, ast.Constant) and c.value == "__main__"
+                    for c in node.test.comparators))
+
+
 def _imports(name, path, known):
     """The ``fliss`` modules ``name`` imports: for ``from X import y``, ``X.y`` if that is a
     module, else ``X``."""
     package = name if path.name == "__init__.py" else name.rpartition(".")[0]
     found = set()
-    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+    tree = ast.parse(path.read_text(), str(path))
+    # What runs as a script (`if __name__ == "__main__":`) is not imported with the module.
+    tree.body = [node for node in tree.body if not _main_guard(node)]
+    for node in ast.walk(tree):
         if isinstance(node, ast.Import):
             targets = [alias.name for alias in node.names]
         elif isinstance(node, ast.ImportFrom):
