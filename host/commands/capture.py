@@ -10,8 +10,8 @@ import signal
 import sys
 
 from ..acquisition import left_running
-from ..errors import UserError
-from ..errors import BoardReset
+from ..errors import BoardReset, FormatError, UserError
+from ..formats import check_name
 from ..imager.threshold import nothing_detected
 from ..paths import check_output_path
 from .common import Progress
@@ -50,6 +50,9 @@ def register(subparsers, formatter):
                         default=argparse.SUPPRESS,
                         help="HDF5 file to write")
     parser.add_argument("--overwrite", action="store_true", help="replace an existing FILE")
+    parser.add_argument("--any-extension", action="store_true",
+                        help="write FILE under a name not ending in .h5 or .hdf5, which is "
+                             "refused otherwise (a capture is an HDF5 file)")
     parser.add_argument("--view", action="store_true",
                         help="show the capture live in the browser meanwhile (as `fliss view`; "
                              "the view samples what is written and never holds it up)")
@@ -67,6 +70,11 @@ def run(args):
     duration_s(args.duration, f"--duration {args.duration}")
     if args.acquisitions < 1:
         raise UserError(f"--acquisitions must be at least 1, not {args.acquisitions}")
+    if not getattr(args, "any_extension", False):
+        try:
+            check_name(args.output, "fliss", flag="-o")
+        except FormatError as error:
+            raise UserError(str(error)) from None
     check_output_path(args.output, overwrite=args.overwrite)      # before the board
     given = getattr(args, "given", frozenset())
     if args.view:
