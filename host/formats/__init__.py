@@ -42,8 +42,8 @@ def check_name(path, to, *, flag="--output", allow="--any-extension"):
     the options that give the name and that keep it all the same, for the message."""
     what, endings = ENDINGS[to]
     text = os.fspath(path)
-    if text.lower().endswith(endings):
-        return
+    if not text or text.lower().endswith(endings):
+        return          # (an empty name is refused as no file name, by check_output_path)
     stem, ending = os.path.splitext(text)
     named = " or ".join(f"*{end}" for end in endings)
     has = f"not *{ending}" if ending else "and this name has no ending"
