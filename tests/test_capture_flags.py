@@ -99,3 +99,16 @@ def test_options_of_the_view_without_view_are_refused(model, capsys, tmp_path, a
                              *argv)
     assert (status, err) == (1, f"fliss: error: {flags} of the live view, which this capture "
                                 f"does not show: add --view\n")
+
+
+def test_a_view_option_that_does_not_fit_is_refused_before_the_board_changes(model, capsys,
+                                                                            tmp_path):
+    pytest.importorskip("bokeh")
+    set_readout(model, "histogram")
+    before = registers(model)
+    status, out, err = fliss(capsys, "capture", "--port", model.path, "--readout", "raw",
+                             "--duration", "0.2s", "-o", tmp_path / "c.h5", "--view",
+                             "--view-port", "0", "--pixels", "4", "--shape", "3x3")
+    assert (status, err) == (1, "fliss: error: --shape 3x3: 3 x 3 is not the capture's 4 "
+                                "pixels\n")
+    assert registers(model) == before       # neither --readout nor --pixels written

@@ -81,7 +81,10 @@ def test_prf_table_grid_mode_keeps_nominal_prf(capsys):
     (["sequence", "--mode", "masked", "--mask-width", "0"],
      "Mask width must be an integer from 1 to 16, not 0"),
     (["sequence", "--prf", "1 MHzz"], "cannot read '1 MHzz' as a frequency"),
-    (["sequence", "--count", "-1"], "--count must not be negative, not -1"),
+    (["sequence", "--count", "-1"], "--count must be from 0 to 16777216 (a line a pulse, made "
+                                    "in memory), not -1"),
+    (["sequence", "--count", str(1 << 80)], f"--count must be from 0 to 16777216 (a line a "
+                                            f"pulse, made in memory), not {1 << 80}"),
     (["sequence", "--grid", "--length", "8", "--times"], "Grid mode needs the largest delay"),
     (["prf-table", "--clock=-80MHz"], "frequency must be positive"),
     (["prf-table", "--clock", "-80MHz"], "--clock -80MHz: frequency must be positive, not "

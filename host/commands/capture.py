@@ -17,8 +17,9 @@ from ..paths import check_output_path
 from .common import Progress
 from .port_options import add_port_arguments, connect
 from .setting_options import add_setting_arguments, settings_from_args
-from .view_options import add_view_arguments, check_bokeh, check_view_flags, viewing
-from ..settings import check_offline, duration_s
+from .view_options import (add_view_arguments, check_bokeh, check_view_flags, setup_options,
+                           viewing)
+from ..settings import check_offline, convert, duration_s
 
 
 __all__ = ["register", "run", "report"]
@@ -88,6 +89,10 @@ def run(args):
             print(f"fliss: warning: {warning}", file=sys.stderr)
         # before the settings change: a refusal leaves the board as it was
         check_applies(given, settings.get("readout"), board.settings["readout"])
+        if args.view:       # the view's options against the frame the settings will make
+            registers = convert(settings, board.clock_hz, board.client.read_registers(),
+                                style="flag", bank_bits=board.bank_bits).registers
+            setup_options(args, 1 << registers["pixel_bits"])
         board.configure(settings, style="flag")
         readout = board.settings["readout"]
         image = True if settings.get("readout") == "image" else None

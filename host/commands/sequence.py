@@ -46,10 +46,15 @@ def register(subparsers, formatter):
     parser.set_defaults(run=run_sequence)
 
 
+#: The most pulses printed (their delays are made in memory at once: 16 Mi, 128 MB).
+MAX_COUNT = 1 << 24
+
+
 def run_sequence(args):
     clock_hz, period = timing_from_args(args)
-    if args.count < 0:
-        raise UserError(f"--count must not be negative, not {args.count}")
+    if not 0 <= args.count <= MAX_COUNT:
+        raise UserError(f"--count must be from 0 to {MAX_COUNT} (a line a pulse, made in memory),"
+                        f" not {args.count}")
     try:
         mode = delay_model.parse_mode(args.mode)
         keyed = {}
