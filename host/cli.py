@@ -15,8 +15,6 @@ import warnings
 
 from .. import __version__
 from .errors import BoardError, PathError, UserError, ViewError
-from .settings import RoundingWarning
-
 
 __all__ = ["build_parser", "parse_args", "main"]
 
@@ -117,7 +115,13 @@ def _given(argv):
 
 
 def main(argv=None):
-    args = parse_args(argv)
+    try:
+        args = parse_args(argv)     # (imports every command's modules: some tenths of a second)
+    except KeyboardInterrupt:
+        print("fliss: interrupted", file=sys.stderr)
+        return 130
+    from .settings import RoundingWarning
+
     level = logging.WARNING - 10 * (args.verbose - args.quiet)
     handler = logging.StreamHandler()
     handler.setFormatter(_LogFormatter())

@@ -122,3 +122,15 @@ def test_demo_trace(capsys):
     assert [row[:2] for row in rows] == [[index, r] for index, r in enumerate(expected)]
     assert [row[3] for row in rows[1:]] == [80 + r for r in expected[1:]]
     assert [b[2] - a[2] for a, b in zip(rows, rows[1:])] == [80 + r for r in expected[1:]]
+
+
+def test_ctrl_c_while_the_commands_load_is_one_line(monkeypatch, capsys):
+    # Ctrl-C in the first second of `fliss capture` (building the parser imports every command)
+    # ended in a KeyboardInterrupt traceback.
+    from fliss.host import cli
+
+    def interrupted():
+        raise KeyboardInterrupt
+    monkeypatch.setattr(cli, "build_parser", interrupted)
+    assert cli.main(["capture", "--help"]) == 130
+    assert capsys.readouterr() == ("", "fliss: interrupted\n")
