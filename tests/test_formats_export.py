@@ -342,3 +342,16 @@ def test_events_out_of_order_at_a_run_edge_are_refused(tmp_path, monkeypatch):
         f"before event 6 (cycle {capture.events['pulse'][6]}): PTU and Photon-HDF5 hold "
         f"records in time order")
     assert not (tmp_path / "r.hdf5").exists()
+
+
+@pytest.mark.parametrize("to, name", [("ptu", "f.ptu"), ("photon-hdf5", "f.hdf5")])
+def test_a_capture_with_the_fine_tdcs_table_exports_and_reads_back(tmp_path, to, name):
+    # A capture with the fine TDC holds its calibration table, an array: the export's JSON
+    # metadata ended in a TypeError traceback.
+    table = np.arange(1024, dtype=np.uint16) * 3
+    capture, _ = raw_capture(tmp_path / "f.h5", n=20, configuration=dict(tdc_source=2),
+                             attrs={"calibration_table": table})
+    export_capture(capture, tmp_path / name, to)
+    back = read_file(tmp_path / name)
+    np.testing.assert_array_equal(back.calibration_table, table)
+    np.testing.assert_array_equal(back.events["timestamp"], capture.events["timestamp"])
