@@ -71,12 +71,12 @@ def run(args):
     duration_s(args.duration, f"--duration {args.duration}")
     if args.acquisitions < 1:
         raise UserError(f"--acquisitions must be at least 1, not {args.acquisitions}")
+    check_output_path(args.output, overwrite=args.overwrite)      # before the board
     if not getattr(args, "any_extension", False):
         try:
             check_name(args.output, "fliss", flag="-o")
         except FormatError as error:
             raise UserError(str(error)) from None
-    check_output_path(args.output, overwrite=args.overwrite)      # before the board
     given = getattr(args, "given", frozenset())
     if args.view:
         check_bokeh()

@@ -39,12 +39,12 @@ def register(subparsers, formatter):
 
 
 def run_export(args):
+    check_output_path(args.output, overwrite=args.overwrite)
     if not args.any_extension:
         try:
             check_name(args.output, args.to, flag="-o")
         except FormatError as error:
             raise UserError(str(error)) from None
-    check_output_path(args.output, overwrite=args.overwrite)
     if os.path.exists(args.output) and os.path.exists(args.capture) and \
             os.path.samefile(args.output, args.capture):
         raise UserError(f"--output: {args.output} is the capture itself; give another file")

@@ -35,7 +35,8 @@ def register(subparsers, formatter):
                         help="IV of the keyed source: the IV in use, as the board reads it")
     parser.add_argument("--seed", type=lambda text: int(text, 0), default=1, metavar="S",
                         help="non-zero register seed (decimal or 0x hex)")
-    parser.add_argument("--count", type=int, default=16, metavar="N", help="number of pulses")
+    parser.add_argument("--count", type=int, default=16, metavar="N",
+                        help="number of pulses (at most 16777216)")
     parser.add_argument("--times", action="store_true",
                         help="print laser fire times in clock cycles instead of delays")
     parser.add_argument("--grid", action="store_true",
