@@ -15,8 +15,6 @@ import warnings
 
 from .. import __version__
 from .errors import BoardError, PathError, UserError, ViewError
-from .settings import RoundingWarning
-
 
 __all__ = ["build_parser", "parse_args", "main"]
 
@@ -91,15 +89,39 @@ def _add_global_options(parser, prefix):
 
 def parse_args(argv=None):
     """The arguments of ``fliss``, with ``-v`` and ``-q`` counted before and after the
-    sub-command."""
+    sub-command, and ``given``: the names (``dest``) of the options given on the command line,
+    so that a command can refuse one that does not apply rather than ignore it (a default,
+    from the environment too, is not given)."""
     args = build_parser().parse_args(argv)
     args.verbose += getattr(args, "command_verbose", 0)
     args.quiet += getattr(args, "command_quiet", 0)
+    args.given = _given(argv)
     return args
 
 
+def _given(argv):
+    # The same command line parsed again with no defaults: what is left was typed.
+    parser = build_parser()
+    parsers = [parser]
+    while parsers:
+        current = parsers.pop()
+        current._defaults = {}      # set_defaults(run=...): not typed
+        for action in current._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                parsers.extend(set(action.choices.values()))
+            elif action.dest != argparse.SUPPRESS:
+                action.default = argparse.SUPPRESS
+    return frozenset(vars(parser.parse_args(argv))) - {"command"}
+
+
 def main(argv=None):
-    args = parse_args(argv)
+    try:
+        args = parse_args(argv)     # (imports every command's modules: some tenths of a second)
+    except KeyboardInterrupt:
+        print("fliss: interrupted", file=sys.stderr)
+        return 130
+    from .settings import RoundingWarning
+
     level = logging.WARNING - 10 * (args.verbose - args.quiet)
     handler = logging.StreamHandler()
     handler.setFormatter(_LogFormatter())

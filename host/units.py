@@ -1,5 +1,6 @@
 """Quantities with units on the command line: ``80MHz``, ``1e6``, ``75ns``, ``10ms``."""
 
+import math
 import re
 
 
@@ -19,6 +20,8 @@ def _parse(text, units, what, example, zero=False):
     if match is None or match.group(2).lower() not in units:
         raise ValueError(f"cannot read {text!r} as a {what} (for example {example})")
     value = float(match.group(1)) * units[match.group(2).lower()]
+    if math.isinf(value):
+        raise ValueError(f"{what} {text!r} is beyond any number a computer holds")
     if zero and not value >= 0:
         raise ValueError(f"{what} must not be negative, not {text!r}")
     if not zero and not value > 0:

@@ -81,7 +81,10 @@ def test_prf_table_grid_mode_keeps_nominal_prf(capsys):
     (["sequence", "--mode", "masked", "--mask-width", "0"],
      "Mask width must be an integer from 1 to 16, not 0"),
     (["sequence", "--prf", "1 MHzz"], "cannot read '1 MHzz' as a frequency"),
-    (["sequence", "--count", "-1"], "--count must not be negative, not -1"),
+    (["sequence", "--count", "-1"], "--count must be from 0 to 16777216 (a line a pulse, made "
+                                    "in memory), not -1"),
+    (["sequence", "--count", str(1 << 80)], f"--count must be from 0 to 16777216 (a line a "
+                                            f"pulse, made in memory), not {1 << 80}"),
     (["sequence", "--grid", "--length", "8", "--times"], "Grid mode needs the largest delay"),
     (["prf-table", "--clock=-80MHz"], "frequency must be positive"),
     (["prf-table", "--clock", "-80MHz"], "--clock -80MHz: frequency must be positive, not "
@@ -119,3 +122,15 @@ def test_demo_trace(capsys):
     assert [row[:2] for row in rows] == [[index, r] for index, r in enumerate(expected)]
     assert [row[3] for row in rows[1:]] == [80 + r for r in expected[1:]]
     assert [b[2] - a[2] for a, b in zip(rows, rows[1:])] == [80 + r for r in expected[1:]]
+
+
+def test_ctrl_c_while_the_commands_load_is_one_line(monkeypatch, capsys):
+    # Ctrl-C in the first second of `fliss capture` (building the parser imports every command)
+    # ended in a KeyboardInterrupt traceback.
+    from fliss.host import cli
+
+    def interrupted():
+        raise KeyboardInterrupt
+    monkeypatch.setattr(cli, "build_parser", interrupted)
+    assert cli.main(["capture", "--help"]) == 130
+    assert capsys.readouterr() == ("", "fliss: interrupted\n")

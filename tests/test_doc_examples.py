@@ -24,6 +24,7 @@ import pytest
 from doc_examples import DOCS, ROOT, all_examples, cases, positionals, subparsers
 from fliss.host.board import connect as fliss_connect
 from fliss.host.cli import main, parse_args
+from fliss.host.commands.view_options import VIEW_FLAGS
 from fliss.host.commands.demo import effective_period
 from fliss.host.settings import BY_OPTION, OPTIONS
 from fliss.sim.boards.model import model_board
@@ -78,7 +79,7 @@ SHORTER = {
     "attack": {"--pulses": "6000", "--scene-pulses": "6000", "--acquisition-pulses": "3000"},
     # The live view serves until Ctrl-C: a second of it, on a free port (runs in parallel).
     "view": {"--for": "1s", "--view-port": "0"},
-    "capture": {"--view-port": "0"},
+    "capture": {"--view-port": "0"},       # with --view only
 }
 
 #: Examples that are only parsed, and why: (command, a word of the example or "", reason);
@@ -120,6 +121,8 @@ def filled(example, argv):
     subparser = subparsers()[argv[0]]
     given = set(argv[1:])
     fill = {**FILL.get(argv[0], {}), **FILL_OF.get(example.where, {})}
+    if argv[0] == "export" and "photon-hdf5" in argv:
+        fill["--output"] = ["export.hdf5"]      # (a name of the format's: others are refused)
     out = list(argv)
     for action in subparser._actions:
         if action.option_strings:
@@ -205,6 +208,12 @@ def on_boards(argv, boards):
 
 def shorter(argv):
     out = list(argv)
+    if argv[0] == "capture" and "--view" not in argv:
+        if not VIEW_FLAGS.keys() & {arg[2:].replace("-", "_") for arg in argv}:
+            return out      # (the view's options are refused without --view)
+        out.append("--view")
+        if "--shape" in argv:
+            out += ["--pixels", "64", "--bin-shift", "3", "--acquisitions", "2"]  # 8x8: 64
     for option, value in SHORTER.get(argv[0], {}).items():
         if option in out:
             out[out.index(option) + 1] = value

@@ -207,15 +207,15 @@ def test_analyze_of_an_export_is_the_analysis_of_the_capture(tmp_path, capsys):
 
 def test_depth_captures_are_refused_with_the_formats_that_hold_them(tmp_path, capsys):
     depth_capture(tmp_path / "d.h5")
-    for to in ("ptu", "photon-hdf5"):
+    for to, name in (("ptu", "d.ptu"), ("photon-hdf5", "d.hdf5")):
         status, out, err = fliss(capsys, "export", tmp_path / "d.h5", "--to", to, "-o",
-                                 tmp_path / "d.out")
+                                 tmp_path / name)
         assert (status, out) == (1, "")
         assert err == (f"fliss: error: {tmp_path / 'd.h5'}: a depth capture cannot be "
                        f"exported: PTU and Photon-HDF5 hold photons and TCSPC histograms, not "
                        f"depth frames; the FLISS capture file (HDF5) is the format that holds "
                        f"them\n")
-        assert not (tmp_path / "d.out").exists()
+        assert not (tmp_path / name).exists()
 
 
 def test_histograms_are_refused_by_photon_hdf5(tmp_path, capsys):
@@ -246,10 +246,31 @@ def test_events_out_of_order_are_refused(tmp_path):
 def test_export_refuses_to_write_over_its_capture(tmp_path, capsys):
     raw_capture(tmp_path / "r.h5", n=10)
     status, out, err = fliss(capsys, "export", tmp_path / "r.h5", "--to", "ptu", "-o",
-                             tmp_path / "r.h5", "--overwrite")
+                             tmp_path / "r.h5", "--overwrite", "--any-extension")
     assert (status, out) == (1, "")
     assert err == (f"fliss: error: --output: {tmp_path / 'r.h5'} is the capture itself; "
                    f"give another file\n")
+
+
+@pytest.mark.parametrize("to, name, named, has, instead", [
+    ("ptu", "out.h5", "*.ptu", "not *.h5", "out.ptu"),
+    ("ptu", "out", "*.ptu", "and this name has no ending", "out.ptu"),
+    ("photon-hdf5", "out.ptu", "*.hdf5 or *.h5", "not *.ptu", "out.hdf5"),
+])
+def test_an_output_named_for_another_format_is_refused(tmp_path, capsys, to, name, named, has,
+                                                      instead):
+    raw_capture(tmp_path / "r.h5", n=10)
+    out_path = tmp_path / name
+    status, out, err = fliss(capsys, "export", tmp_path / "r.h5", "--to", to, "-o", out_path)
+    what = "a PTU file" if to == "ptu" else "a Photon-HDF5 file"
+    assert (status, out, err) == (1, "", f"fliss: error: -o {out_path}: {what} is named {named}, "
+                                         f"{has}: give -o {tmp_path / instead}, or "
+                                         f"--any-extension to keep the name\n")
+    assert not out_path.exists()
+    status, out, err = fliss(capsys, "export", tmp_path / "r.h5", "--to", to, "-o", out_path,
+                             "--any-extension")
+    assert status == 0, err
+    assert read_file(out_path).events.shape == (10,)     # what it is, whatever its name
 
 
 def test_a_capture_from_the_model_board_exports(tmp_path, capsys):
@@ -322,3 +343,16 @@ def test_events_out_of_order_at_a_run_edge_are_refused(tmp_path, monkeypatch):
         f"before event 6 (cycle {capture.events['pulse'][6]}): PTU and Photon-HDF5 hold "
         f"records in time order")
     assert not (tmp_path / "r.hdf5").exists()
+
+
+@pytest.mark.parametrize("to, name", [("ptu", "f.ptu"), ("photon-hdf5", "f.hdf5")])
+def test_a_capture_with_the_fine_tdcs_table_exports_and_reads_back(tmp_path, to, name):
+    # A capture with the fine TDC holds its calibration table, an array: the export's JSON
+    # metadata ended in a TypeError traceback.
+    table = np.arange(1024, dtype=np.uint16) * 3
+    capture, _ = raw_capture(tmp_path / "f.h5", n=20, configuration=dict(tdc_source=2),
+                             attrs={"calibration_table": table})
+    export_capture(capture, tmp_path / name, to)
+    back = read_file(tmp_path / name)
+    np.testing.assert_array_equal(back.calibration_table, table)
+    np.testing.assert_array_equal(back.events["timestamp"], capture.events["timestamp"])

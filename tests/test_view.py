@@ -433,7 +433,16 @@ def test_view_command_refusals(capsys, monkeypatch, tmp_path):
             ((), "give a capture FILE to replay, or --port (or FLISS_PORT) to watch a board"),
             ((path, "--integration", "1ms", "--mode", "off"),
              "--mode, --integration: settings are for a board, not for a file to replay"),
-            ((path, "--speed", "0"), "--speed must be positive, not 0"),
+            ((path, "--speed", "0"), "--speed must be positive and finite, not 0"),
+            ((path, "--speed", "inf"), "--speed must be positive and finite, not inf"),
+            ((path, "--port", tmp_path / "p"),
+             f"--port, --timeout: options of a board's link, and FILE ({path}) is replayed "
+             f"from the file: give FILE or --port, not both"),
+            ((path, "--baud", "9600"), f"--baud: an option of a board's link, and FILE ({path}) "
+                                       f"is replayed from the file: give FILE or --port, not "
+                                       f"both"),
+            (("--port", tmp_path / "p", "--loop", "--speed", "2"),
+             "--speed, --loop: options of the replay of a FILE, not of a board watched live"),
             ((path, "--for", "2"), "--for 2: give a unit: 100ms, or 2s"),
             ((tmp_path / "none.h5",), f"no such file: {tmp_path / 'none.h5'}")):
         status, out, err = fliss_command(capsys, "view", *argv, "--view-port", 0)
@@ -499,4 +508,8 @@ def test_view_command_replays_a_file(capsys, tmp_path):
     lines = err.splitlines()
     assert (status, out) == (0, "")
     served_at(lines[0])
-    assert lines[1:] == ["fliss: view: replayed 5 frames; the page stays until Ctrl-C"]
+    # 5 frames of 10 ms at 100 times their pace: 10 000 a second asked, 1 000 given
+    assert imager.configuration()["integration"] / imager.CLOCK_HZ == pytest.approx(0.01)
+    assert lines[1:] == ["fliss: view: 5 frames played 10 times slower than --speed 100 asks: "
+                         "a replay hands the view at most 1000 a second",
+                         "fliss: view: replayed 5 frames; the page stays until Ctrl-C"]

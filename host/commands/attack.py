@@ -298,8 +298,23 @@ def _figure(rows, path):
     figure.suptitle("An attacker that predicts the delays: how soon it locks, and the ghost's "
                     "S = 10 log10(Pv / P_ghost); 0 dB: the ghost as tall as the target",
                     fontsize="small")
-    figure.savefig(path, dpi=120)
+    figure.savefig(path, dpi=120, format=_image_format(path))
     plt.close(figure)
+
+
+def _image_format(path):
+    # The file's ending, or PNG without one (written under the name given, which matplotlib
+    # would otherwise give a .png of its own).
+    return os.path.splitext(path)[1].lower().lstrip(".") or "png"
+
+
+def _check_image_format(path):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    formats = FigureCanvasAgg.get_supported_filetypes()
+    if _image_format(path) not in formats:
+        raise UserError(f"--figure: cannot write a .{_image_format(path)} image; use one of "
+                        f"{', '.join('.' + name for name in sorted(formats))}")
 
 
 def _table(rows):
@@ -417,6 +432,7 @@ def run(args):
         check_output_path(args.table, overwrite=None, flag="--table")
     if args.figure != "-":
         check_output_path(args.figure, overwrite=None, flag="--figure")
+        _check_image_format(args.figure)
     observer = Observer(jitter_s=args.jitter_s, missed=args.missed, seed=args.seed)
 
     def progress(row):

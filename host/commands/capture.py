@@ -10,15 +10,16 @@ import signal
 import sys
 
 from ..acquisition import left_running
-from ..errors import UserError
-from ..errors import BoardReset
+from ..errors import BoardReset, FormatError, UserError
+from ..formats import check_name
 from ..imager.threshold import nothing_detected
 from ..paths import check_output_path
 from .common import Progress
 from .port_options import add_port_arguments, connect
 from .setting_options import add_setting_arguments, settings_from_args
-from .view_options import add_view_arguments, check_bokeh, viewing
-from ..settings import check_offline, duration_s
+from .view_options import (add_view_arguments, check_bokeh, check_view_flags, setup_options,
+                           viewing)
+from ..settings import check_offline, convert, duration_s
 
 
 __all__ = ["register", "run", "report"]
@@ -41,13 +42,18 @@ def register(subparsers, formatter):
                     "is --readout, as --mode is the victim's delay source.")
     add_port_arguments(parser)
     parser.add_argument("--acquisitions", type=int, default=10, metavar="N",
-                        help="frames to capture (histogram, image and depth readouts)")
+                        help="frames to capture (histogram, image and depth readouts only: "
+                             "refused with the raw readout)")
     parser.add_argument("--duration", default="1s", metavar="TIME",
-                        help="how long to capture, on the host's clock (raw readout)")
+                        help="how long to capture, on the host's clock (raw readout only: "
+                             "refused with the others)")
     parser.add_argument("--output", "-o", required=True, metavar="FILE.h5",
                         default=argparse.SUPPRESS,
                         help="HDF5 file to write")
     parser.add_argument("--overwrite", action="store_true", help="replace an existing FILE")
+    parser.add_argument("--any-extension", action="store_true",
+                        help="write FILE under a name not ending in .h5 or .hdf5, which is "
+                             "refused otherwise (a capture is an HDF5 file)")
     parser.add_argument("--view", action="store_true",
                         help="show the capture live in the browser meanwhile (as `fliss view`; "
                              "the view samples what is written and never holds it up)")
@@ -66,13 +72,27 @@ def run(args):
     if args.acquisitions < 1:
         raise UserError(f"--acquisitions must be at least 1, not {args.acquisitions}")
     check_output_path(args.output, overwrite=args.overwrite)      # before the board
+    if not getattr(args, "any_extension", False):
+        try:
+            check_name(args.output, "fliss", flag="-o")
+        except FormatError as error:
+            raise UserError(str(error)) from None
+    given = getattr(args, "given", frozenset())
     if args.view:
         check_bokeh()
+    else:
+        check_view_flags(given)
     quiet = getattr(args, "quiet", 0) > 0
     with connect(args) as board:
         warning = left_running(board.client, "this capture stops it and starts it again")
         if warning:
             print(f"fliss: warning: {warning}", file=sys.stderr)
+        # before the settings change: a refusal leaves the board as it was
+        check_applies(given, settings.get("readout"), board.settings["readout"])
+        if args.view:       # the view's options against the frame the settings will make
+            registers = convert(settings, board.clock_hz, board.client.read_registers(),
+                                style="flag", bank_bits=board.bank_bits).registers
+            setup_options(args, 1 << registers["pixel_bits"])
         board.configure(settings, style="flag")
         readout = board.settings["readout"]
         image = True if settings.get("readout") == "image" else None
@@ -90,6 +110,30 @@ def run(args):
         return report(result, quiet=quiet)
     except OSError:     # the terminal went away (SIGHUP); the file is saved all the same
         return 128 + result.signal if result.signal else 1
+
+
+#: The readouts that capture frames (--acquisitions of them); raw captures for --duration.
+_FRAMED = ("histogram", "image", "depth")
+
+
+def check_applies(given, requested, board_readout):
+    """Refuse ``--acquisitions`` with the raw readout and ``--duration`` with the others
+    (``given``: the options typed, as ``args.given``), rather than ignore them: the readout is
+    ``requested`` (``--readout``, None when not given) or else ``board_readout``, the board's."""
+    readout = requested or board_readout
+    if requested:
+        source = f"--readout {requested} is given here"
+    else:
+        source = (f"the board's readout is {board_readout} (" + (
+            "its reset value, or as an earlier command left it)" if board_readout == "histogram"
+            else "set by an earlier `fliss config` or capture)"))
+    if readout == "raw" and "acquisitions" in given:
+        raise UserError(f"--acquisitions applies to the histogram, image and depth readouts, "
+                        f"not raw, and {source}: give --readout histogram (or image, depth), "
+                        f"or --duration TIME for raw events")
+    if readout in _FRAMED and "duration" in given:
+        raise UserError(f"--duration applies to the raw readout only, and {source}: give "
+                        f"--acquisitions N for {readout} frames, or --readout raw")
 
 
 def report(result, *, quiet=False, out=None):

@@ -5,7 +5,7 @@ import os
 import time
 
 from ..errors import FormatError, UserError
-from ..formats import FORMATS, export_capture
+from ..formats import FORMATS, check_name, export_capture
 from ..paths import check_output_path
 from .common import read_capture_file
 
@@ -32,11 +32,19 @@ def register(subparsers, formatter):
     parser.add_argument("-o", "--output", required=True, metavar="OUT",
                         default=argparse.SUPPRESS, help="file to write")
     parser.add_argument("--overwrite", action="store_true", help="replace an existing OUT")
+    parser.add_argument("--any-extension", action="store_true",
+                        help="write OUT under a name of another ending than the format's "
+                             "(.ptu; .hdf5 or .h5), which is refused otherwise")
     parser.set_defaults(run=run_export)
 
 
 def run_export(args):
     check_output_path(args.output, overwrite=args.overwrite)
+    if not args.any_extension:
+        try:
+            check_name(args.output, args.to, flag="-o")
+        except FormatError as error:
+            raise UserError(str(error)) from None
     if os.path.exists(args.output) and os.path.exists(args.capture) and \
             os.path.samefile(args.output, args.capture):
         raise UserError(f"--output: {args.output} is the capture itself; give another file")

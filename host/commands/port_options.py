@@ -64,6 +64,8 @@ def connect(args: argparse.Namespace) -> Board:
     refused at once)."""
     if args.timeout is not None and args.timeout <= 0:
         raise UserError(f"--timeout must be positive, not {args.timeout:g}")
+    if args.baud <= 0:
+        raise UserError(f"--baud must be positive, not {args.baud}")
     if args.retries < 0:
         raise UserError(f"--retries must not be negative, not {args.retries}")
     return connect_board(args.port, baud=args.baud, timeout_s=args.timeout,

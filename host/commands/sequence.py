@@ -35,7 +35,8 @@ def register(subparsers, formatter):
                         help="IV of the keyed source: the IV in use, as the board reads it")
     parser.add_argument("--seed", type=lambda text: int(text, 0), default=1, metavar="S",
                         help="non-zero register seed (decimal or 0x hex)")
-    parser.add_argument("--count", type=int, default=16, metavar="N", help="number of pulses")
+    parser.add_argument("--count", type=int, default=16, metavar="N",
+                        help="number of pulses (at most 16777216)")
     parser.add_argument("--times", action="store_true",
                         help="print laser fire times in clock cycles instead of delays")
     parser.add_argument("--grid", action="store_true",
@@ -46,10 +47,15 @@ def register(subparsers, formatter):
     parser.set_defaults(run=run_sequence)
 
 
+#: The most pulses printed (their delays are made in memory at once: 16 Mi, 128 MB).
+MAX_COUNT = 1 << 24
+
+
 def run_sequence(args):
     clock_hz, period = timing_from_args(args)
-    if args.count < 0:
-        raise UserError(f"--count must not be negative, not {args.count}")
+    if not 0 <= args.count <= MAX_COUNT:
+        raise UserError(f"--count must be from 0 to {MAX_COUNT} (a line a pulse, made in memory),"
+                        f" not {args.count}")
     try:
         mode = delay_model.parse_mode(args.mode)
         keyed = {}

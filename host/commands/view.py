@@ -5,6 +5,7 @@ this module adds the command line. ``fliss capture --view`` serves the same page
 captures.
 """
 
+import math
 import sys
 import time
 
@@ -18,6 +19,10 @@ from .view_options import add_view_arguments, check_bokeh, serving, setup_option
 
 
 __all__ = ["register", "run"]
+
+
+#: The options of a board's link (:func:`~.port_options.add_port_arguments`), refused with FILE.
+_LINK_FLAGS = ("--port", "--baud", "--timeout", "--retries")
 
 
 def register(subparsers, formatter):
@@ -54,18 +59,28 @@ def run(args):
 
     settings = settings_from_args(args)
     limit_s = duration_s(args.duration, f"--for {args.duration}") if args.duration else None
+    given = getattr(args, "given", frozenset())
     if args.file is not None:
         if settings:
             flags = ", ".join("--" + name.replace("_", "-") for name in settings)
             raise UserError(f"{flags}: settings are for a board, not for a file to replay")
-        if not args.speed > 0:
-            raise UserError(f"--speed must be positive, not {args.speed:g}")
+        link = [flag for flag in _LINK_FLAGS if flag[2:] in given]
+        if link:
+            raise UserError(f"{', '.join(link)}: {'options' if len(link) > 1 else 'an option'}"
+                            f" of a board's link, and FILE ({args.file}) is replayed from the "
+                            f"file: give FILE or --port, not both")
+        if not 0 < args.speed < math.inf:
+            raise UserError(f"--speed must be positive and finite, not {args.speed:g}")
         capture = read_capture_file(args.file)
         setup = Setup.of_capture(capture, **setup_options(args, max(len(capture.pixels), 1)))
         return _replay(capture, Feed(setup), args, limit_s)
     if args.port is None:
         raise UserError("give a capture FILE to replay, or --port (or FLISS_PORT) to watch a "
                         "board")
+    replay = [flag for flag in ("--speed", "--loop") if flag[2:] in given]
+    if replay:
+        raise UserError(f"{', '.join(replay)}: {'options' if len(replay) > 1 else 'an option'}"
+                        f" of the replay of a FILE, not of a board watched live")
     check_offline(settings)
     with connect(args) as board:
         board.configure(settings, style="flag")
@@ -93,11 +108,16 @@ def _watch(board: Board, feed, args, limit_s):
 
 
 def _replay(capture, feed, args, limit_s):
-    from ..view.replay import Replay
+    from ..view.replay import MAX_RATE_HZ, Replay
 
     end = None if limit_s is None else time.monotonic() + limit_s
     with serving(feed, args):
-        replay = Replay(capture, feed, speed=args.speed, loop=args.loop).start()
+        replay = Replay(capture, feed, speed=args.speed, loop=args.loop)
+        if replay.slowed > 1:
+            print(f"fliss: view: {len(replay.items)} frames played {replay.slowed:.3g} times "
+                  f"slower than --speed {args.speed:g} asks: a replay hands the view at most "
+                  f"{MAX_RATE_HZ:g} a second", file=sys.stderr, flush=True)
+        replay.start()
         said = False
         try:
             with sigterm_interrupts():

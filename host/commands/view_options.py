@@ -10,7 +10,13 @@ from ..errors import UserError
 from .common import parse_times
 
 
-__all__ = ["add_view_arguments", "setup_options", "check_bokeh", "serving", "viewing"]
+__all__ = ["VIEW_FLAGS", "add_view_arguments", "setup_options", "check_bokeh",
+           "check_view_flags", "serving", "viewing"]
+
+
+#: The view's options, by ``dest``, as typed.
+VIEW_FLAGS = {"view_port": "--view-port", "view_address": "--view-address",
+              "victim_tof": "--victim-tof", "shape": "--shape"}
 
 
 def add_view_arguments(parser: argparse.ArgumentParser, title: str) -> None:
@@ -40,6 +46,15 @@ def setup_options(args, pixels: int) -> dict:
 
     victim = parse_times([args.victim_tof], "--victim-tof")[0] if args.victim_tof else None
     return {"victim_s": victim, "shape": parse_shape(args.shape, pixels)}
+
+
+def check_view_flags(given) -> None:
+    """For ``fliss capture`` without ``--view``: refuse the view's options among ``given``
+    (the options typed), which nothing would use."""
+    typed = [flag for dest, flag in VIEW_FLAGS.items() if dest in given]
+    if typed:
+        raise UserError(f"{', '.join(typed)}: {'options' if len(typed) > 1 else 'an option'} "
+                        f"of the live view, which this capture does not show: add --view")
 
 
 def check_bokeh() -> None:

@@ -15,7 +15,7 @@ from .photon_hdf5 import is_photon_hdf5, read_photon_hdf5, write_photon_hdf5
 from .ptu import read_ptu, write_ptu
 
 
-__all__ = ["FORMATS", "FormatError", "export_capture", "read_file"]
+__all__ = ["FORMATS", "ENDINGS", "FormatError", "check_name", "export_capture", "read_file"]
 
 
 #: Export formats by name: (description, writer, what it takes).
@@ -24,8 +24,31 @@ FORMATS = {
     "photon-hdf5": ("Photon-HDF5", write_photon_hdf5, ("raw",)),
 }
 
+#: What a file of each format (and a FLISS capture, ``"fliss"``) is called, and the endings of
+#: its name, the first the one to give: other programs go by them.
+ENDINGS = {
+    "ptu": ("a PTU file", (".ptu",)),
+    "photon-hdf5": ("a Photon-HDF5 file", (".hdf5", ".h5")),
+    "fliss": ("a FLISS capture (HDF5)", (".h5", ".hdf5")),
+}
+
 _PTU = b"PQTTTR\0\0"
 _PHU = b"PQHISTO\0"
+
+
+def check_name(path, to, *, flag="--output", allow="--any-extension"):
+    """Refuse (:exc:`FormatError`) a file name ``path`` whose ending is not one of the format
+    ``to``'s (a key of :data:`ENDINGS`): ``out.h5`` for a PTU file. ``flag`` and ``allow`` are
+    the options that give the name and that keep it all the same, for the message."""
+    what, endings = ENDINGS[to]
+    text = os.fspath(path)
+    if not text or text.lower().endswith(endings):
+        return          # (an empty name is refused as no file name, by check_output_path)
+    stem, ending = os.path.splitext(text)
+    named = " or ".join(f"*{end}" for end in endings)
+    has = f"not *{ending}" if ending else "and this name has no ending"
+    raise FormatError(f"{flag} {text}: {what} is named {named}, {has}: give {flag} "
+                      f"{stem}{endings[0]}, or {allow} to keep the name")
 
 
 def export_capture(capture, path, to):
@@ -66,8 +89,8 @@ def read_file(path):
             head = f.read(len(_PTU))
     except OSError:
         head = b""                      # read_capture says why
-    if head == _PTU:
-        return read_ptu(path)
+    if head == _PTU or (path.lower().endswith(".ptu") and not head.startswith(b"\x89HDF")):
+        return read_ptu(path)       # (a .ptu name without the mark: refused, saying so)
     if head == _PHU:
         raise FormatError(f"{path}: a PicoQuant histogram (PHU) file; fliss reads PTU files "
                           f"(T3 records), Photon-HDF5 files and FLISS capture files")

@@ -72,9 +72,13 @@ def settings(capture):
 def metadata(capture):
     """The whole of the capture's metadata as JSON texts: ``configuration`` (never the key),
     ``identity`` and ``capture`` (the root attributes), for a FLISS reader to restore."""
+    def plain(value):       # (the fine TDC's calibration table is an array)
+        if isinstance(value, np.ndarray):
+            return value.tolist()
+        return value.item() if isinstance(value, np.generic) else value
+
     def text(values):
-        return json.dumps({key: value.item() if isinstance(value, np.generic) else value
-                           for key, value in values.items()}, sort_keys=True)
+        return json.dumps({key: plain(value) for key, value in values.items()}, sort_keys=True)
     return {"configuration": text(configuration(capture)), "identity": text(capture.identity),
             "capture": text(capture.attrs)}
 

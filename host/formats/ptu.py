@@ -25,6 +25,7 @@ from ...hdl.event import TIMESTAMP_BITS
 from ...protocol.events import EVENT_DTYPE
 from ..errors import FormatError
 from .metadata import created, cycle_chunks, imported, metadata, restored, settings, timing
+from .ptu_header import read_header
 from .ptu_records import GENERIC_T3, header, number_records_at, t3_records
 
 
@@ -150,9 +151,18 @@ class _Notes(logging.Handler):
 def read_ptu(path):
     """The capture of a PTU file: a FLISS export as the capture it was made of; any other T3
     file as one TCSPC histogram (all its photons, all channels). Refused with one line
-    (:exc:`FormatError`): a file ptufile cannot read, T2 records (no sync, so no TCSPC
-    histogram)."""
+    (:exc:`FormatError`): a file that is not a PTU file or not a whole one (its header checked
+    first, :func:`.ptu_header.read_header`), T2 records (no sync, so no TCSPC histogram), a
+    record type that is not one of PicoQuant's T3 records, records ptufile cannot decode."""
     ptufile = _ptufile()
+    header = read_header(path)
+    kind = header.tags["TTResultFormat_TTTRRecType"]
+    t3 = {record.value: record.name for record in ptufile.PtuRecordType
+          if record.name.endswith("T3")}
+    if kind not in t3:
+        raise FormatError(f"{path}: not a PTU file fliss reads (its record type, "
+                          f"TTResultFormat_TTTRRecType, is 0x{kind:08X}: none of the T3 "
+                          f"records {', '.join(t3.values())})")
     notes, logger = _Notes(), logging.getLogger("ptufile")
     logger.addHandler(notes)
     propagate, logger.propagate = logger.propagate, False
@@ -164,20 +174,13 @@ def read_ptu(path):
                               f"({str(error).splitlines()[0] if str(error) else error!r})") \
                 from None
         with ptu:
-            return _read(ptufile, ptu, path, notes)
+            return _read(ptufile, ptu, path, notes, header)
     finally:
         logger.removeHandler(notes)
         logger.propagate = propagate
 
 
-def _read(ptufile, ptu, path, notes):
-    mode = ptu.tags.get("Measurement_Mode")
-    if mode == 2:
-        raise FormatError(f"{path}: a T2 PTU file (time tags without a laser sync) holds no "
-                          f"TCSPC histogram; fliss reads T3 files")
-    if mode != 3:
-        raise FormatError(f"{path}: its Measurement_Mode is {mode!r}, not 3 (T3 records); "
-                          f"fliss reads T3 files")
+def _read(ptufile, ptu, path, notes, header):
     try:
         if "FLISS_configuration" in ptu.tags:
             capture = _restore(ptu, path)
@@ -193,6 +196,10 @@ def _read(ptufile, ptu, path, notes):
     except Exception as error:              # whatever ptufile finds wrong: one line
         raise FormatError(f"{path}: ptufile cannot decode its records "
                           f"({str(error).splitlines()[0] if str(error) else error!r})") from None
+    count, extra = ptu.number_records, header.data_bytes - 4 * ptu.number_records
+    if extra > 0:
+        capture.problems.append(f"{extra} bytes after the {count} records its header "
+                                f"announces are left out")
     if notes.messages:
         more = len(notes.messages) - 1
         capture.problems.append(f"ptufile: {notes.messages[0]}"
