@@ -297,3 +297,39 @@ def test_the_board_says_when_the_column_would_seldom_keep_the_walls_echo():
     assert column_note("line", "column", 0.02, 1e4) is None
     assert column_note("line", "per_pixel", 0.05, 1e5) is None
     assert column_note("single", "column", 0.05, 1e5) is None
+
+
+def test_analyze_refuses_what_it_would_ignore(tmp_path, capsys):
+    histogram = write(tmp_path / "on.h5", [(VICTIM_S, 300)], ON)
+    span_ns = (8192 >> SHIFT) * BIN_S * 1e9               # the histogram's bins, worked out
+    depth = tmp_path / "depth.h5"
+    with CaptureWriter(str(depth), mode="depth", identity=scene.identity(),
+                       configuration=scene.configuration(**ON)) as writer:
+        for frame in scene.depth_frames(np.tile(scene.TRUTH_M, (2, 1))):
+            writer.add_frame(frame)
+    import format_captures
+    raw = tmp_path / "raw.h5"
+    format_captures.raw_capture(raw, 500)
+    cases = [
+        ([str(raw), "--per-acquisition"],
+         f"--per-acquisition applies to histogram captures; {raw} is a raw capture, one stream "
+         f"of events with no acquisitions"),
+        ([histogram, "--aggressor-tof", "1e9s"],
+         f"--aggressor-tof 1e+09 s is outside {histogram}'s histogram (0 to {span_ns:g} ns)"),
+        ([histogram, "--victim-tof", f"{span_ns + 1:g}ns"],
+         f"--victim-tof {span_ns + 1:g} ns is outside {histogram}'s histogram "
+         f"(0 to {span_ns:g} ns)"),
+        ([str(depth), "--victim-tof", "26ns"],
+         f"--victim-tof applies to histogram and raw captures; {depth} is a depth capture, "
+         f"analysed pixel by pixel without it"),
+        ([str(depth), "--per-acquisition"],
+         f"--per-acquisition applies to histogram and raw captures; {depth} is a depth "
+         f"capture, analysed pixel by pixel without it"),
+        # a file of another kind after a good one: refused before anything is printed
+        ([histogram, str(depth), "--aggressor-tof", "100ns"],
+         f"--aggressor-tof applies to histogram and raw captures; {depth} is a depth capture, "
+         f"analysed pixel by pixel without it"),
+    ]
+    for argv, message in cases:
+        status, out, err = fliss(capsys, "analyze", *argv)
+        assert (status, out, err) == (1, "", f"fliss: error: {message}\n"), argv

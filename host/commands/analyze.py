@@ -62,8 +62,10 @@ def run_analyze(args):
     except ValueError as error:
         raise UserError(str(error)) from None
     records, found = [], []
-    for path in args.files:
-        capture = read_capture_file(path)
+    captures = [(path, read_capture_file(path)) for path in args.files]
+    for path, capture in captures:
+        _check_options_apply(args, path, capture, victim, aggressors)
+    for path, capture in captures:
         if capture.mode in ("image", "depth"):
             rows = capture_table(capture)
             if args.json:
@@ -93,6 +95,33 @@ def run_analyze(args):
         for line in victim_hints(found, tolerance):
             print(line)
     return 0
+
+
+def _check_options_apply(args, path, capture, victim, aggressors):
+    """Refuse (:exc:`UserError`) an option that would be ignored for ``capture``: positions
+    for a per-pixel table, --per-acquisition for a capture of no acquisitions, a position
+    beyond the capture's histogram."""
+    given = [flag for flag, value in (("--victim-tof", victim is not None),
+                                      ("--aggressor-tof", bool(aggressors)),
+                                      ("--per-acquisition", args.per_acquisition)) if value]
+    if capture.mode in ("image", "depth"):
+        if given:
+            article = "an" if capture.mode == "image" else "a"
+            raise UserError(f"{given[0]} applies to histogram and raw captures; {path} is "
+                            f"{article} {capture.mode} capture, analysed pixel by pixel "
+                            f"without it")
+        return
+    if args.per_acquisition and capture.mode != "histogram":
+        raise UserError(f"--per-acquisition applies to histogram captures; {path} is a "
+                        f"{capture.mode} capture, one stream of events with no acquisitions")
+    span_s = len(capture.total_histogram()) * capture.bin_s
+    for flag, times in (("--victim-tof", [victim] if victim is not None else []),
+                        ("--aggressor-tof", aggressors)):
+        for time_s in times:
+            if not 0 <= time_s < span_s:
+                given = (f"{time_s * 1e9:g} ns" if abs(time_s) < 1e-3 else f"{time_s:g} s")
+                raise UserError(f"{flag} {given} is outside {path}'s histogram "
+                                f"(0 to {span_s * 1e9:g} ns)")
 
 
 def victim_hints(found, tolerance_s=1.5e-9):
