@@ -12,8 +12,8 @@ checkout on ``sys.path``:
 * ``fliss generate``: the same files as the checkout's ``fliss generate``, byte for byte;
 * ``examples/amaranth_delay_core/`` copied out and elaborated to Verilog on the installed
   ``fliss.hdl`` (a user's own Amaranth design around the delay core);
-* on the Python model board: a histogram capture, ``analyze``, ``plot`` and (``--full``)
-  ``export`` to PTU and Photon-HDF5;
+* on the Python model board: a histogram and a raw capture, ``analyze``, ``plot`` and
+  (``--full``) ``export`` to PTU and Photon-HDF5, each read back by ``analyze``;
 * with ``--full``: ``fliss demo`` (the fast virtual board's harness compiled into the per-user
   cache: a fresh one with ``--fresh-cache``) and ``fliss board`` with a capture, ``analyze`` and
   ``export`` on it; and that nothing was written into site-packages.
@@ -252,6 +252,9 @@ class Installed:
                       "--aggressor", "on"], timeout=60)
             self.run([self.fliss, "capture", "--port", board.port, "--integration", "10ms",
                       "--acquisitions", "2", "-o", "model.h5"], timeout=120)
+            self.run([self.fliss, "capture", "--port", board.port, "--readout", "raw",
+                      "--duration", "50ms", "-o", "model-raw.h5"], timeout=120)
+        self.run([self.fliss, "analyze", "model-raw.h5"])
         out = self.run([self.fliss, "analyze", "model.h5"]).stdout
         self.run([self.fliss, "plot", "model.h5", "-o", "model.png"])
         if not (self.user / "model.png").stat().st_size:
@@ -277,11 +280,15 @@ class Installed:
         return f"{out[1]} lines of Verilog"
 
     def export_model(self):
-        for target, name in (("ptu", "model.ptu"), ("photon-hdf5", "model-ph.h5")):
-            self.run([self.fliss, "export", "model.h5", "--to", target, "-o", name])
+        # histograms go to PTU (T3 image mode); Photon-HDF5 holds photons: the raw capture's
+        for source, target, name in (("model.h5", "ptu", "model.ptu"),
+                                     ("model-raw.h5", "ptu", "model-raw.ptu"),
+                                     ("model-raw.h5", "photon-hdf5", "model-raw.hdf5")):
+            self.run([self.fliss, "export", source, "--to", target, "-o", name])
             if not (self.user / name).stat().st_size:
                 raise RuntimeError(f"{name} is empty")
-        return "PTU and Photon-HDF5"
+            self.run([self.fliss, "analyze", name])      # read back by fliss too
+        return "PTU and Photon-HDF5, read back"
 
     def demo(self):
         out = self.run([self.fliss, "demo", "--out", "demo"], timeout=1500)
