@@ -324,9 +324,11 @@ class _Test:
             peak = int(np.argmax(counts))
             share = counts[max(0, expected - 1):expected + 2].sum() / max(1, counts.sum())
             if abs(peak - expected) > 1 or share < PEAK_SHARE:
-                return Check("histogram", "fail", f"in {mode.name.lower()} the peak is at "
-                             f"{_ns((peak << shift) * lsb)} with {share:.0%} of the counts, "
-                             f"not at {_ns(self.delay_codes * lsb)}")
+                where = (f"the peak is at {_ns((peak << shift) * lsb)}, not at "
+                         if abs(peak - expected) > 1 else
+                         f"{share:.0%} of the counts (not {PEAK_SHARE:.0%}) are at ")
+                return Check("histogram", "fail", f"in {mode.name.lower()} {where}"
+                             f"{_ns(self.delay_codes * lsb)}, the loopback's{self._hint()}")
             checked.append(mode.name.lower())
         self.write({"delay_mode": DelayMode.OFF.value})
         detail = f"peak at {_ns(self.delay_codes * lsb)} in {', '.join(checked)}"
