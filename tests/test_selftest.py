@@ -548,3 +548,22 @@ def test_a_histogram_of_scene_photons_fails_naming_its_share_and_the_wire(capsys
                          r"and nothing else, on the photon input\?", line)
     assert match is not None, line
     assert int(match.group(1)) < 90
+
+
+def test_a_calibration_pass_says_how_much_of_the_table_it_read():
+    # The check reads TABLE_SAMPLES entries back, not the whole table: an entry it does not read
+    # (here a wrong one between two it reads) passes, and the line must say a sample agreed,
+    # not that "the board's table agrees".
+    loopback = Loopback(jumper=None, line=LINE)
+    with model_board(loopback=loopback) as board, connect(board.path) as client:
+        calibrate(client, 0.3)
+        raw = client.client
+        raw.write_registers({"table_address": 100, "table_data": 4000},
+                            current=raw.read_registers())
+        assert read_table(raw, codes=[100])[0] == 4000
+        result = selftest(client, reference=delays)
+    check = line_of(result, "calibration")
+    codes = result.calibration.last_code - result.calibration.first_code + 1
+    assert check.outcome == "pass"
+    assert check.detail.endswith(f"; the board's table agrees at the 32 of its {codes} entries "
+                                 f"read back")
