@@ -2,7 +2,9 @@
 (:mod:`fliss.sim.boards.loopback`): the figures against the loopback's stated delay and jitter
 and the modelled line's own tap delays, a fault of each kind against its exact line, refusals."""
 
+import os
 import re
+import signal
 import warnings
 
 import numpy as np
@@ -567,3 +569,48 @@ def test_a_calibration_pass_says_how_much_of_the_table_it_read():
     assert check.outcome == "pass"
     assert check.detail.endswith(f"; the board's table agrees at the 32 of its {codes} entries "
                                  f"read back")
+
+
+class _KillAfter(_InterruptAfter):
+    """A progress display that sends this process SIGTERM (`kill`) at its n-th update."""
+
+    def update(self, done, extra=""):
+        self.calls -= 1
+        if self.calls == 0:
+            os.kill(os.getpid(), signal.SIGTERM)
+
+
+def test_a_killed_selftest_puts_the_settings_back_and_says_so(capsys, monkeypatch):
+    # kill (SIGTERM) had ended the self-test at once: no table of the checks finished, no
+    # verdict, and the board left on the loopback's settings (tdc_input 2, the fine TDC)
+    import fliss.host.commands.selftest as command
+    monkeypatch.setattr(command, "Progress", lambda *args, **kwargs: _KillAfter(2))
+    with model_board(loopback=Loopback(jumper="laser", line=LINE)) as board:
+        with connect(board.path) as client:
+            before = client.registers
+        status, out, err = fliss(capsys, "selftest", "--port", board.path)
+        with connect(board.path) as client:
+            after = client.registers
+    assert status == 130
+    assert err.splitlines()[-1].startswith("fliss selftest: interrupted: passed ")
+    # Put back, all but the IV, which reads as the IV in use (the keyed histogram used one)
+    assert {name: value for name, value in after.items() if not name.startswith("iv")} == \
+        {name: value for name, value in before.items() if not name.startswith("iv")}
+    assert after["tdc_input"] == 0 and after["acquisition"] == 0
+
+
+def test_a_killed_calibration_leaves_the_table_and_says_so(capsys, monkeypatch):
+    import fliss.host.commands.calibrate as command
+    monkeypatch.setattr(command, "Progress", lambda *args, **kwargs: _KillAfter(2))
+    with model_board(loopback=Loopback(line=LINE)) as board:
+        with connect(board.path) as client:
+            before = read_table(client.client)
+        status, _, err = fliss(capsys, "calibrate", "--port", board.path, "--duration", "0.3s")
+        with connect(board.path) as client:
+            after = read_table(client.client)
+            settings = client.registers
+    assert status == 130
+    assert err.splitlines()[-1] == "fliss calibrate: interrupted before the table was written: " \
+                                   "the board's table is left as it was"
+    assert np.array_equal(before, after)
+    assert settings["tdc_input"] == 0 and settings["tdc_source"] != 3     # put back
