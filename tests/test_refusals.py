@@ -44,7 +44,7 @@ CASES = {
     "sequence": ["--length 33", "--seed 0", "--seed zz", "--count -1", "--pulse-width 0",
                  "--prf 0"],
     "demo": ["--out /proc/fliss", "--out {d}/file.txt", "--acquisitions 0", "--integration 10",
-             "--integration 0ms", "--target-m -1"],
+             "--integration 0ms", "--target-m -1", "--trace --acquisitions 0", "--trace --out {d}"],
     "reproduce": ["--out /proc/fliss", "--out {d}/file.txt", "--acquisitions 0",
                   "--t-int 5", "--t-int 0s", "--lengths 1", "--mask-widths 0", "--signal -1",
                   "--background xyz", "--jitter x", "--jobs 0"],
