@@ -67,8 +67,8 @@ from ..hdl.finetdc import HitInput
 from ..hdl.registers import AcquisitionMode, TdcSource
 from ..protocol.events import link_events_per_s
 from .checklist import CHECKS, Check, SelfTest, SelfTestInterrupted
-from .calibration import (LEAST_HITS_PER_CODE, Calibration, code_counts, has_fine_tdc,
-                          table_check)
+from .calibration import (LEAST_HITS_PER_CODE, TABLE_SAMPLES, Calibration, code_counts,
+                          has_fine_tdc, table_check)
 from .errors import BoardRefused, SettingsError
 from .pace import REAL_TIME, acquire_timeout_s, host_s, measure_pace
 
@@ -324,9 +324,11 @@ class _Test:
             peak = int(np.argmax(counts))
             share = counts[max(0, expected - 1):expected + 2].sum() / max(1, counts.sum())
             if abs(peak - expected) > 1 or share < PEAK_SHARE:
-                return Check("histogram", "fail", f"in {mode.name.lower()} the peak is at "
-                             f"{_ns((peak << shift) * lsb)} with {share:.0%} of the counts, "
-                             f"not at {_ns(self.delay_codes * lsb)}")
+                where = (f"the peak is at {_ns((peak << shift) * lsb)}, not at "
+                         if abs(peak - expected) > 1 else
+                         f"{share:.0%} of the counts (not {PEAK_SHARE:.0%}) are at ")
+                return Check("histogram", "fail", f"in {mode.name.lower()} {where}"
+                             f"{_ns(self.delay_codes * lsb)}, the loopback's{self._hint()}")
             checked.append(mode.name.lower())
         self.write({"delay_mode": DelayMode.OFF.value})
         detail = f"peak at {_ns(self.delay_codes * lsb)} in {', '.join(checked)}"
@@ -360,8 +362,9 @@ class _Test:
         if table is not None:
             return Check("calibration", "fail", f"{said}: {table}")
         narrow = f" ({len(empty)} narrow codes without a hit)" if len(empty) else ""
-        return Check("calibration", "pass", f"{said}: every tap covered{narrow}, the board's "
-                                            f"table agrees")
+        return Check("calibration", "pass", f"{said}: every tap covered{narrow}; the "
+                                            f"board's table agrees at the {TABLE_SAMPLES} of its "
+                                            f"{codes} entries read back")
 
     def frame_timeout_s(self):
         """The wait for each of the oscillator's histograms at this board's pace (None: the

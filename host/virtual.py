@@ -21,6 +21,7 @@ import hashlib
 import itertools
 import json
 import logging
+import math
 import os
 import signal
 import subprocess
@@ -359,8 +360,9 @@ class VirtualBoard:
         for name, value in (("target distance", target_m), ("object distance", object_m),
                             ("ambient rate", ambient_hz),
                             ("signal", signal), ("aggressor signal", aggressor_signal)):
-            if not value >= 0:
-                raise VirtualBoardError(f"{name} must not be negative, not {value!r}")
+            if not (value >= 0 and math.isfinite(value)):
+                raise VirtualBoardError(f"{name} must be a finite number, not negative, not "
+                                        f"{value!r}")
         if scene == "line" and not (target_m > 0 and object_m > 0):
             raise VirtualBoardError(f"the line scene needs positive distances, not a wall at "
                                     f"{target_m!r} m and an object at {object_m!r} m")

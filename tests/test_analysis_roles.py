@@ -333,3 +333,29 @@ def test_analyze_refuses_what_it_would_ignore(tmp_path, capsys):
     for argv, message in cases:
         status, out, err = fliss(capsys, "analyze", *argv)
         assert (status, out, err) == (1, "", f"fliss: error: {message}\n"), argv
+
+
+def test_json_per_acquisition_gives_each_histograms_own_analysis(tmp_path, capsys):
+    # Two histograms of different suppression: victim 4000 and aggressor 1000 photons
+    # (S = +6 dB), then 1000 and 4000 (S = -6 dB); --per-acquisition --json carries both, as the
+    # text does.
+    path = str(tmp_path / "two.h5")
+    with CaptureWriter(path, mode="histogram", identity=scene.identity(),
+                       configuration=scene.configuration(pixel_bits=0, bin_shift=SHIFT,
+                                                         **OFF)) as writer:
+        for frame, (victim, aggressor) in enumerate([(4000, 1000), (1000, 4000)]):
+            writer.add_histogram(HistogramFrame(
+                frame, SHIFT, counts([(VICTIM_S, victim), (AGGRESSOR_S, aggressor)],
+                                     seed=frame + 5), True, 0, 1.0))
+    status, out, err = fliss(capsys, "analyze", "--json", "--per-acquisition", path,
+                             "--victim-tof", f"{VICTIM_S * 1e9}ns")
+    assert (status, err) == (0, "")
+    record, = json.loads(out)
+    first, second = record["acquisitions"]
+    assert (first["frame"], second["frame"]) == (0, 1) and first["complete"]
+    assert first["suppression"]["value_db"] == pytest.approx(10 * math.log10(4), abs=0.5)
+    assert second["suppression"]["value_db"] == pytest.approx(-10 * math.log10(4), abs=0.5)
+    assert sorted(peak["role"] for peak in second["peaks"]) == ["aggressor", "victim"]
+    # Without --per-acquisition, no such key
+    status, out, err = fliss(capsys, "analyze", "--json", path)
+    assert "acquisitions" not in json.loads(out)[0]

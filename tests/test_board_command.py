@@ -2,12 +2,14 @@
 engine its options choose, what it says before a build and after Ctrl-C, the links of boards
 that were killed; and the model board's options of ``fliss board``."""
 
+import math
 import os
 
 import pytest
 
 from fliss.host import cache
 from fliss.host.cli import main
+from fliss.host.errors import VirtualBoardError
 from fliss.host.virtual import VirtualBoard, board_folder, build_key
 from fliss.sim.benches.runner import simulator_available
 
@@ -99,3 +101,13 @@ def test_a_baud_rate_the_gateware_cannot_make_is_refused_before_a_build(monkeypa
     assert main(["board", "--engine", "cocotb", "--baud", "100M"]) == 1
     assert capsys.readouterr().err == f"fliss: error: {caught.value}\n"
     assert not (tmp_path / "virtual-board").exists()
+
+
+@pytest.mark.parametrize("option", ["target_m", "object_m", "ambient_hz", "signal",
+                                    "aggressor_signal"])
+def test_a_scene_quantity_beyond_any_number_is_refused_before_a_build(option):
+    # `fliss board --target-m 1e400` (inf) had started the build and the board, whose scene then
+    # stopped it: the model board refuses it at once, and so must the virtual board.
+    for value in (math.inf, math.nan, -1.0):
+        with pytest.raises(VirtualBoardError, match="must be a finite number, not negative"):
+            VirtualBoard("verilator", **{option: value})

@@ -21,6 +21,7 @@ def commands():
 def files(tmp_path):
     (tmp_path / "file.txt").write_text("text\n")
     (tmp_path / "empty.h5").write_bytes(b"")
+    (tmp_path / "latin1.toml").write_bytes("seed = 1  # caf\u00e9\n".encode("latin-1"))
     with h5py.File(tmp_path / "claims.h5", "w") as f:
         f.attrs["format"] = "fliss-capture"
         f.attrs["format_version"] = 2
@@ -43,7 +44,7 @@ CASES = {
     "sequence": ["--length 33", "--seed 0", "--seed zz", "--count -1", "--pulse-width 0",
                  "--prf 0"],
     "demo": ["--out /proc/fliss", "--out {d}/file.txt", "--acquisitions 0", "--integration 10",
-             "--integration 0ms", "--target-m -1"],
+             "--integration 0ms", "--target-m -1", "--trace --acquisitions 0", "--trace --out {d}"],
     "reproduce": ["--out /proc/fliss", "--out {d}/file.txt", "--acquisitions 0",
                   "--t-int 5", "--t-int 0s", "--lengths 1", "--mask-widths 0", "--signal -1",
                   "--background xyz", "--jitter x", "--jobs 0"],
@@ -92,7 +93,7 @@ CASES = {
                "--table /proc/x.txt", "--figure /proc/x.png", "--table {d}",
                "--figure {d}/x.txt"],
     "sweep": ["{d}/file.txt -o {d}/out", "{d}/nothing.toml -o {d}/out", "{d}/file.txt -o /proc/x",
-              "{d}/file.txt -o {d}/file.txt"],
+              "{d}/file.txt -o {d}/file.txt", "{d}/latin1.toml -o {d}/out"],
     "board": ["--baud 0", "--target-m -1", "--ambient x", "--signal -1", "--reset-after -1",
               "--line-errors 2", "--line-stall-s -1", "--scene square", "--sensor row",
               "--object-m -1", "--scene line --object-m 0", "--scene line --target-m 0",

@@ -2,7 +2,9 @@
 (:mod:`fliss.sim.boards.loopback`): the figures against the loopback's stated delay and jitter
 and the modelled line's own tap delays, a fault of each kind against its exact line, refusals."""
 
+import os
 import re
+import signal
 import warnings
 
 import numpy as np
@@ -519,6 +521,87 @@ def test_a_skipped_check_is_never_a_pass(outcomes_, verdict, summary):
 def test_calibrate_interrupted_before_the_table_leaves_it(capsys, monkeypatch):
     import fliss.host.commands.calibrate as command
     monkeypatch.setattr(command, "Progress", lambda *args, **kwargs: _InterruptAfter(2))
+    with model_board(loopback=Loopback(line=LINE)) as board:
+        with connect(board.path) as client:
+            before = read_table(client.client)
+        status, _, err = fliss(capsys, "calibrate", "--port", board.path, "--duration", "0.3s")
+        with connect(board.path) as client:
+            after = read_table(client.client)
+            settings = client.registers
+    assert status == 130
+    assert err.splitlines()[-1] == "fliss calibrate: interrupted before the table was written: " \
+                                   "the board's table is left as it was"
+    assert np.array_equal(before, after)
+    assert settings["tdc_input"] == 0 and settings["tdc_source"] != 3     # put back
+
+
+def test_a_histogram_of_scene_photons_fails_naming_its_share_and_the_wire(capsys):
+    # --jumper laser with no wire: the hits are the scene's echo and background, their median
+    # taken as the loopback's delay. The histogram's tallest bins are there, but hold far less
+    # than 90 % of the counts: the line says so (it had read "the peak is at 25.000 ns ... not
+    # at 25.000 ns") and names the wire, as the same-time line does.
+    scene = Scene(clock_hz=CLOCK_HZ, detections_per_pulse=0.05, background_hz=1e5)
+    with model_board(scene=scene, loopback=Loopback(jumper=None)) as board:
+        status, out, _ = fliss(capsys, "selftest", "--port", board.path, "--jumper", "laser")
+    assert status == 1
+    line = next(line for line in out.splitlines() if line.startswith("histogram "))
+    match = re.fullmatch(r"histogram    fail     in off (\d+)% of the counts \(not 90%\) are at "
+                         r"([\d.]+) ns, the loopback's; check the wire: is the laser output, "
+                         r"and nothing else, on the photon input\?", line)
+    assert match is not None, line
+    assert int(match.group(1)) < 90
+
+
+def test_a_calibration_pass_says_how_much_of_the_table_it_read():
+    # The check reads TABLE_SAMPLES entries back, not the whole table: an entry it does not read
+    # (here a wrong one between two it reads) passes, and the line must say a sample agreed,
+    # not that "the board's table agrees".
+    loopback = Loopback(jumper=None, line=LINE)
+    with model_board(loopback=loopback) as board, connect(board.path) as client:
+        calibrate(client, 0.3)
+        raw = client.client
+        raw.write_registers({"table_address": 100, "table_data": 4000},
+                            current=raw.read_registers())
+        assert read_table(raw, codes=[100])[0] == 4000
+        result = selftest(client, reference=delays)
+    check = line_of(result, "calibration")
+    codes = result.calibration.last_code - result.calibration.first_code + 1
+    assert check.outcome == "pass"
+    assert check.detail.endswith(f"; the board's table agrees at the 32 of its {codes} entries "
+                                 f"read back")
+
+
+class _KillAfter(_InterruptAfter):
+    """A progress display that sends this process SIGTERM (`kill`) at its n-th update."""
+
+    def update(self, done, extra=""):
+        self.calls -= 1
+        if self.calls == 0:
+            os.kill(os.getpid(), signal.SIGTERM)
+
+
+def test_a_killed_selftest_puts_the_settings_back_and_says_so(capsys, monkeypatch):
+    # kill (SIGTERM) had ended the self-test at once: no table of the checks finished, no
+    # verdict, and the board left on the loopback's settings (tdc_input 2, the fine TDC)
+    import fliss.host.commands.selftest as command
+    monkeypatch.setattr(command, "Progress", lambda *args, **kwargs: _KillAfter(2))
+    with model_board(loopback=Loopback(jumper="laser", line=LINE)) as board:
+        with connect(board.path) as client:
+            before = client.registers
+        status, out, err = fliss(capsys, "selftest", "--port", board.path)
+        with connect(board.path) as client:
+            after = client.registers
+    assert status == 130
+    assert err.splitlines()[-1].startswith("fliss selftest: interrupted: passed ")
+    # Put back, all but the IV, which reads as the IV in use (the keyed histogram used one)
+    assert {name: value for name, value in after.items() if not name.startswith("iv")} == \
+        {name: value for name, value in before.items() if not name.startswith("iv")}
+    assert after["tdc_input"] == 0 and after["acquisition"] == 0
+
+
+def test_a_killed_calibration_leaves_the_table_and_says_so(capsys, monkeypatch):
+    import fliss.host.commands.calibrate as command
+    monkeypatch.setattr(command, "Progress", lambda *args, **kwargs: _KillAfter(2))
     with model_board(loopback=Loopback(line=LINE)) as board:
         with connect(board.path) as client:
             before = read_table(client.client)

@@ -208,6 +208,23 @@ def test_a_refused_point_stops_the_sweep_with_one_line(client, tmp_path):
     assert str(caught.value).endswith(": frames must be at least 1, not 0")
 
 
+def test_a_model_that_fails_stops_the_sweep_with_one_line(client, tmp_path, capsys):
+    # Any exception of the model, not only a refusal: it had ended in a traceback from the worker
+    with pytest.raises(SweepError) as caught:
+        run_sweep(grid(aggressors=[1]), tmp_path, client, function=lambda point, seed: 1 / 0)
+    assert str(caught.value).startswith('point {"aggressor_power_db":0.0,"aggressors":1,')
+    assert str(caught.value).endswith(": the model failed: ZeroDivisionError: division by zero")
+    # A spec naming a function that is no model (math.sqrt takes one argument, not two)
+    spec = tmp_path / "sqrt.toml"
+    spec.write_text('model = "math:sqrt"\n')
+    status = main(["sweep", str(spec), "-o", str(tmp_path / "out"), "--threads"])
+    err = capsys.readouterr().err
+    assert status == 1 and "Traceback" not in err
+    assert err.splitlines()[-1].startswith("fliss: error: point ")
+    assert err.splitlines()[-1].endswith("the model failed: TypeError: math.sqrt() takes "
+                                         "exactly one argument (2 given)")
+
+
 @pytest.mark.parametrize("result, message", [
     ([1, 2], "the model returned list, not a dict of metrics"),
     ({"curve": [1, 2]}, "metric 'curve' is list, not a number, string, boolean or None"),

@@ -74,7 +74,8 @@ def run_analyze(args):
                 print("\n".join(table_lines(capture, rows)))
             continue
         if args.json:
-            records.append(_histogram_record(capture, victim, aggressors, tolerance))
+            records.append(_histogram_record(capture, victim, aggressors, tolerance,
+                                             args.per_acquisition))
             continue
         histogram = capture.total_histogram()
         _print_header(path, capture, histogram)
@@ -183,14 +184,27 @@ def suppression_record(result):
     return {"value_db": result.suppression.s_db, "bound": result.suppression.bound}
 
 
-def _histogram_record(capture, victim, aggressors, tolerance):
-    # The analysis of a histogram or raw capture for --json.
+def _histogram_record(capture, victim, aggressors, tolerance, per_acquisition=False):
+    # The analysis of a histogram or raw capture for --json; with --per-acquisition, each
+    # histogram's own under "acquisitions", as the text prints them.
     histogram = capture.total_histogram()
     record = {"file": capture.path, "mode": capture.mode, "bin_s": capture.bin_s,
               "counts": int(histogram.sum()), "end_reason": capture.attrs.get("end_reason"),
               "settings": settings_text(capture.configuration) or None,
-              "false_alarm": FALSE_ALARM, "background": None, "peaks": [],
-              "suppression": None, "note": None}
+              "false_alarm": FALSE_ALARM,
+              **_analysis_record(histogram, capture, victim, aggressors, tolerance)}
+    if per_acquisition and capture.mode == "histogram":
+        record["acquisitions"] = [
+            {"index": index, "frame": int(capture.frames[index]),
+             "complete": bool(capture.complete[index]),
+             **_analysis_record(row.astype(np.int64), capture, victim, aggressors, tolerance)}
+            for index, row in enumerate(capture.histograms)]
+    return record
+
+
+def _analysis_record(histogram, capture, victim, aggressors, tolerance):
+    # Background, peaks with their roles, suppression and note of one histogram, for --json.
+    record = {"background": None, "peaks": [], "suppression": None, "note": None}
     if histogram.sum():
         result = _analysis(histogram, capture, victim, aggressors, tolerance)
         record["background"] = result.level

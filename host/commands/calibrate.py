@@ -7,7 +7,7 @@ from ..calibration import LEAST_HITS_PER_CODE, TABLE_ENTRIES, calibrate
 from ..errors import UserError
 from ..pace import REAL_TIME, host_s, measure_pace
 from ..settings import duration_s
-from .common import Progress
+from .common import Progress, sigterm_interrupts
 from .port_options import add_port_arguments, connect
 
 
@@ -52,7 +52,7 @@ def run(args):
         if not seconds > 0:
             raise UserError(f"--duration must be positive, not {args.duration}")
     quiet = getattr(args, "quiet", 0) > 0
-    with connect(args) as board:
+    with connect(args) as board, sigterm_interrupts():     # kill: as Ctrl-C, which it says
         pace = measure_pace(board)
         slow = pace < REAL_TIME
         frame_s = SIMULATION_FRAME_S if slow else 0.1

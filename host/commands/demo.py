@@ -101,6 +101,10 @@ def trace_gateware(settings, cycles, clock_hz=DEFAULT_CLOCK_HZ):
     return pulses, edges
 
 
+#: The options of the demo (``dest``), which --trace does not take.
+_DEMO_OPTIONS = {"sim", "out", "acquisitions", "integration", "target_m", "depth_frames"}
+
+
 def run_trace(pulses=12):
     period = period_cycles(DEFAULT_CLOCK_HZ, DEFAULT_PRF_HZ)
     settings = scheduler_model.Settings(mode=DelayMode.MSEQ, length=4, seed=1, period=period,
@@ -130,6 +134,10 @@ def _step(fliss, title, argv):
 
 def run(args):
     if args.trace:
+        typed = sorted(set(getattr(args, "given", ())) & _DEMO_OPTIONS)
+        if typed:
+            raise UserError(f"--{typed[0].replace('_', '-')} is an option of the demo on the "
+                            f"virtual board, not of --trace (a fixed trace of 12 pulses)")
         return run_trace()
     if args.acquisitions < 1:
         raise UserError(f"--acquisitions must be at least 1, not {args.acquisitions}")

@@ -6,7 +6,7 @@ when interrupted (the checks finished are printed)."""
 import sys
 
 from ..selftest import CHECKS, JUMPERS, SelfTestInterrupted, selftest
-from .common import Progress
+from .common import Progress, sigterm_interrupts
 from .port_options import add_port_arguments, connect
 
 
@@ -34,7 +34,7 @@ def register(subparsers, formatter):
                     "acquisitions and lengthens its waits to match. The delays are checked through "
                     "the aggressor only (the victim's own hits cannot show them). The trigger "
                     "outputs pulse during the test: disconnect laser drivers. The settings it "
-                    "changes are put back.")
+                    "changes are put back, after Ctrl-C or kill too.")
     add_port_arguments(parser)
     parser.add_argument("--jumper", choices=JUMPERS, default=None,
                         help="what a jumper wire carries to the photon input (none: the "
@@ -49,7 +49,7 @@ def run(args):
     from ...sim.models.delay import delays
 
     quiet = getattr(args, "quiet", 0) > 0
-    with connect(args) as board:
+    with connect(args) as board, sigterm_interrupts():     # kill: as Ctrl-C, settings put back
         progress = Progress(len(CHECKS), "checks", enabled=not quiet, interval_s=1.0)
         try:
             result = selftest(board, jumper=args.jumper, reference=delays, progress=progress)

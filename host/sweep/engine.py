@@ -221,13 +221,18 @@ class Store:
 
 
 def _evaluate(function, point, seed):
-    """Runs on a worker: the model on one point; a refusal becomes a one-line SweepError."""
+    """Runs on a worker: the model on one point; a refusal (ValueError) becomes a one-line
+    SweepError, and so does any other exception, named (a model's bug, or a function that is no
+    model)."""
     if isinstance(function, str):
         function = load_model(function)
     try:
         return function(dict(point), point_seed(seed, point))
     except ValueError as error:
         raise SweepError(f"point {canonical(point)}: {error}") from None
+    except Exception as error:
+        raise SweepError(f"point {canonical(point)}: the model failed: "
+                         f"{type(error).__name__}: {error}") from None
 
 
 def _check_result(point, result):

@@ -220,6 +220,8 @@ def load(path, *, defaults=None):
         raise SpecError(f"{path}: cannot read ({error.strerror or error})") from None
     except tomllib.TOMLDecodeError as error:
         raise SpecError(f"{path}: not valid TOML ({error})") from None
+    except UnicodeDecodeError as error:
+        raise SpecError(f"{path}: not valid TOML (not UTF-8 text: byte {error.start})") from None
     return parse(data, path, defaults=defaults)
 
 
