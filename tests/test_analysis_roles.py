@@ -314,6 +314,9 @@ def test_analyze_refuses_what_it_would_ignore(tmp_path, capsys):
         ([str(raw), "--per-acquisition"],
          f"--per-acquisition applies to histogram captures; {raw} is a raw capture, one stream "
          f"of events with no acquisitions"),
+        ([histogram, "--tolerance", "1s"],
+         f"--tolerance 1s is as wide as {histogram}'s histogram (0 to {span_ns:g} ns): every "
+         f"peak would be at every position"),
         ([histogram, "--aggressor-tof", "1e9s"],
          f"--aggressor-tof 1e+09 s is outside {histogram}'s histogram (0 to {span_ns:g} ns)"),
         ([histogram, "--victim-tof", f"{span_ns + 1:g}ns"],

@@ -469,3 +469,11 @@ def test_plot_range_refusals(capsys, tmp_path, argv, message):
                              "-o", str(tmp_path / "x.png"))
     assert (status, out, err) == (1, "", f"fliss: error: {message}\n")
     assert not (tmp_path / "x.png").exists()
+
+
+def test_show_key_without_a_key_is_refused(model, capsys):
+    # --show-key prints the key the command writes; alone it had printed nothing, silently.
+    status, out, err = fliss(capsys, "config", "--port", model.path, "--show-key")
+    assert (status, out) == (1, "")
+    assert err == ("fliss: error: --show-key prints the key this command writes: give --key "
+                   "with it (a key on the board is never read back)\n")

@@ -42,7 +42,10 @@ CASES = {
     "prf-table": ["--clock 0", "--clock abc", "--prf 0", "--prf 100MHz", "--lengths 1",
                   "--lengths 99", "--mask-widths 40", "--clock inf", "--prf 1e400Hz"],
     "sequence": ["--length 33", "--seed 0", "--seed zz", "--count -1", "--pulse-width 0",
-                 "--prf 0"],
+                 "--prf 0", "--seed 0x",
+                 # a setting the mode does not read, --grid without --times: not ignored
+                 "--mode masked --length 5", "--mode mseq --mask-width 3",
+                 "--mode off --key 00", "--mode off --seed 3", "--grid"],
     "demo": ["--out /proc/fliss", "--out {d}/file.txt", "--acquisitions 0", "--integration 10",
              "--integration 0ms", "--target-m -1", "--trace --acquisitions 0", "--trace --out {d}"],
     "reproduce": ["--out /proc/fliss", "--out {d}/file.txt", "--acquisitions 0",
@@ -91,7 +94,10 @@ CASES = {
                  "--fine-tdc --name OSCG", "--clock 1e12Hz"],
     "attack": ["--pulses 0", "--missed 1", "--jitter x", "--sources bogus", "--ghost-m -3",
                "--table /proc/x.txt", "--figure /proc/x.png", "--table {d}",
-               "--figure {d}/x.txt"],
+               "--figure {d}/x.txt",
+               # options of sources not asked for; a named file is not replaced unasked
+               "--sources masked --keyed-width 3", "--sources mseq,keyed --mask-widths 3",
+               "--sources off --key 00", "--table {d}/empty.h5", "--figure {d}/file.txt"],
     "sweep": ["{d}/file.txt -o {d}/out", "{d}/nothing.toml -o {d}/out", "{d}/file.txt -o /proc/x",
               "{d}/file.txt -o {d}/file.txt", "{d}/latin1.toml -o {d}/out"],
     "board": ["--baud 0", "--target-m -1", "--ambient x", "--signal -1", "--reset-after -1",

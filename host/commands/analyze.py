@@ -116,6 +116,10 @@ def _check_options_apply(args, path, capture, victim, aggressors):
         raise UserError(f"--per-acquisition applies to histogram captures; {path} is a "
                         f"{capture.mode} capture, one stream of events with no acquisitions")
     span_s = len(capture.total_histogram()) * capture.bin_s
+    if args.tolerance is not None and "tolerance" in getattr(args, "given", ()) and \
+            parse_times([args.tolerance], "--tolerance")[0] * 2 >= span_s:
+        raise UserError(f"--tolerance {args.tolerance} is as wide as {path}'s histogram "
+                        f"(0 to {span_s * 1e9:g} ns): every peak would be at every position")
     for flag, times in (("--victim-tof", [victim] if victim is not None else []),
                         ("--aggressor-tof", aggressors)):
         for time_s in times:

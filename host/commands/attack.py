@@ -390,7 +390,27 @@ def register(subparsers, formatter):
     parser.add_argument("--json", action="store_true",
                         help="print the table as JSON, and write only the outputs asked for "
                              "(--table, --figure)")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace an existing file named by --table or --figure (the "
+                             "default attack.txt and attack.png are replaced anyway)")
     parser.set_defaults(run=run)
+
+
+#: The options that only some sources read, and those sources.
+_SOURCE_OPTIONS = {"lengths": ("--lengths", ("mseq",)),
+                   "mask_widths": ("--mask-widths", ("masked",)),
+                   "keyed_width": ("--keyed-width", ("keyed", "random")),
+                   "key": ("--key", ("keyed",)), "iv": ("--iv", ("keyed",))}
+
+
+def _check_options_apply(args):
+    # An option of a source not in --sources would be ignored: refused instead.
+    given = getattr(args, "given", frozenset())
+    for name, (option, sources) in _SOURCE_OPTIONS.items():
+        if name in given and not set(sources) & set(args.sources):
+            raise UserError(f"{option} is an option of the {' and '.join(sources)} "
+                            f"victim{'s' if len(sources) > 1 else ''}, not in --sources "
+                            f"{','.join(args.sources)}")
 
 
 def _arguments(args):
@@ -414,6 +434,7 @@ def _arguments(args):
         args.jitter_s = parse_time(args.jitter, zero=True)
     except ValueError as error:
         raise UserError(f"--jitter {args.jitter}: {error}") from None
+    _check_options_apply(args)
     args.key = _hex80(args.key, "--key", "key")
     args.iv = _hex80(args.iv, "--iv", "IV")
     try:
@@ -428,10 +449,16 @@ def run(args):
     for name, default in (("table", "attack.txt"), ("figure", "attack.png")):
         setattr(args, name, getattr(args, name, "-" if args.json else default))
     # Outputs are checked before minutes of work; they are replaced as plot's are.
+    # (the default names are replaced, run after run; a file named by the user only with
+    # --overwrite)
+    given = getattr(args, "given", frozenset())
     if args.table != "-":
-        check_output_path(args.table, overwrite=None, flag="--table")
+        check_output_path(args.table, overwrite=None if "table" not in given else args.overwrite,
+                          flag="--table")
     if args.figure != "-":
-        check_output_path(args.figure, overwrite=None, flag="--figure")
+        check_output_path(args.figure,
+                          overwrite=None if "figure" not in given else args.overwrite,
+                          flag="--figure")
         _check_image_format(args.figure)
     observer = Observer(jitter_s=args.jitter_s, missed=args.missed, seed=args.seed)
 

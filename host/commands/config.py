@@ -2,6 +2,7 @@
 
 import sys
 
+from ..errors import UserError
 from ...hdl.delay.source import DelayMode
 from ...hdl.event import TIMESTAMP_BITS
 from ...hdl.codes import code_s
@@ -98,6 +99,9 @@ def _warn_if_running(board):
 
 
 def run(args):
+    if args.show_key and "key" not in getattr(args, "given", {"key"}):
+        raise UserError("--show-key prints the key this command writes: give --key with it "
+                        "(a key on the board is never read back)")
     check_offline(settings_from_args(args))     # before the board: wrong on any board
     with connect(args) as board:
         _warn_if_running(board)

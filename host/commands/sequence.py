@@ -1,5 +1,6 @@
 """``fliss sequence``: the delays (or laser fire times) of a delay source, one a line."""
 
+import argparse
 import sys
 
 import numpy as np
@@ -33,7 +34,7 @@ def register(subparsers, formatter):
                              "it)")
     parser.add_argument("--iv", metavar="HEX",
                         help="IV of the keyed source: the IV in use, as the board reads it")
-    parser.add_argument("--seed", type=lambda text: int(text, 0), default=1, metavar="S",
+    parser.add_argument("--seed", type=_seed, default=1, metavar="S",
                         help="non-zero register seed (decimal or 0x hex)")
     parser.add_argument("--count", type=int, default=16, metavar="N",
                         help="number of pulses (at most 16777216)")
@@ -47,8 +48,33 @@ def register(subparsers, formatter):
     parser.set_defaults(run=run_sequence)
 
 
+def _seed(text):
+    try:
+        return int(text, 0)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number (decimal or 0x hex)") from None
+
+
 #: The most pulses printed (their delays are made in memory at once: 16 Mi, 128 MB).
 MAX_COUNT = 1 << 24
+
+
+#: The option of each setting a delay mode may read (the mode table's ``needs``).
+_SETTING_OPTIONS = {"length": "--length", "mask_width": "--mask-width", "seed": "--seed",
+                    "key": "--key", "iv": "--iv"}
+
+
+def _check_settings_apply(args, row):
+    """Refuse an option that would be ignored: a setting ``row``'s mode does not read, or
+    --grid without --times."""
+    given = getattr(args, "given", frozenset())
+    for name, option in _SETTING_OPTIONS.items():
+        if name in given and name not in row.needs:
+            reads = ", ".join(_SETTING_OPTIONS[need] for need in row.needs) or "no setting"
+            raise ValueError(f"{option} is not a setting of --mode {row.name}, which reads "
+                             f"{reads}")
+    if args.grid and not args.times:
+        raise ValueError("--grid changes the fire times only: give --times with it")
 
 
 def run_sequence(args):
@@ -58,6 +84,7 @@ def run_sequence(args):
                         f" not {args.count}")
     try:
         mode = delay_model.parse_mode(args.mode)
+        _check_settings_apply(args, MODES[mode])
         keyed = {}
         if MODES[mode].keyed:
             if args.key is None or args.iv is None:
