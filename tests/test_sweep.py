@@ -427,3 +427,21 @@ def test_a_sweep_with_the_keyed_victim_and_the_predicting_aggressor(tmp_path, ca
         == [("mseq", "locked", None), ("mseq", "predicting", 2), ("keyed", "locked", None),
             ("keyed", "predicting", 0)]
     assert rows[1]["ghost"] == 2 and rows[1]["ghost_m"] == 10.0
+
+
+def test_compute_stops_when_a_stop_was_asked_even_if_its_exception_was_swallowed(client):
+    # kill during a sweep: the signal's KeyboardInterrupt may be raised inside Dask's own hooks
+    # and lost there; the flag the handler also sets stops the loop at the next result.
+    from fliss.host import interrupts
+    got = []
+
+    def on_result(key, result, elapsed_s):
+        got.append(key)
+        if len(got) == 2:
+            interrupts.requested.set()      # as the handler does, its exception lost
+
+    try:
+        assert compute(client, {k: (pow, (k, 2)) for k in range(50)}, on_result) is False
+    finally:
+        interrupts.requested.clear()
+    assert len(got) == 2

@@ -106,19 +106,29 @@ def progress_bar(stream=None, enabled=True):
 
 @contextlib.contextmanager
 def sigterm_interrupts():
-    """SIGTERM raises :exc:`KeyboardInterrupt` in the main thread, as Ctrl-C does."""
+    """SIGTERM raises :exc:`KeyboardInterrupt` in the main thread, as Ctrl-C does; both also
+    set :data:`fliss.host.interrupts.requested`, for loops where the exception may be swallowed
+    by a library's own code."""
+    from .. import interrupts
+
     def handler(signum, frame):
+        interrupts.requested.set()
         raise KeyboardInterrupt
 
+    interrupts.requested.clear()
     try:
-        previous = signal.signal(signal.SIGTERM, handler)
+        # (a SIGINT ignored, as in a background job of a shell, stays ignored)
+        previous = {number: signal.signal(number, handler)
+                    for number in (signal.SIGTERM, signal.SIGINT)
+                    if signal.getsignal(number) is not signal.SIG_IGN}
     except ValueError:                      # not the main thread
         yield
         return
     try:
         yield
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for number, action in previous.items():
+            signal.signal(number, action)
 
 
 def read_capture_file(path):

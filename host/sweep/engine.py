@@ -19,6 +19,7 @@ import time
 import uuid
 from dataclasses import dataclass
 
+from .. import interrupts
 from .spec import canonical, load_model, point_key, point_seed
 
 
@@ -169,10 +170,12 @@ def compute(client, tasks, on_result):
     futures = {}
     try:
         for key, (function, args) in tasks.items():
+            _stop_if_requested()
             future = client.submit(_timed, function, *args, key=f"fliss-{key}-{token}",
                                    pure=False)
             futures[future] = key
         for future in as_completed(futures):
+            _stop_if_requested()
             result, elapsed_s = future.result()
             on_result(futures[future], result, elapsed_s)
         return True
@@ -183,6 +186,12 @@ def compute(client, tasks, on_result):
         if unfinished:
             with contextlib.suppress(Exception):
                 client.cancel(unfinished)
+
+
+def _stop_if_requested():
+    # A signal's KeyboardInterrupt can be swallowed by Dask's own hooks: its flag is not.
+    if interrupts.requested.is_set():
+        raise KeyboardInterrupt
 
 
 class Store:
