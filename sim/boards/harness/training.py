@@ -9,6 +9,7 @@ profile is written when the process ends.
 
 import sys
 
+from ....hdl.clock import DEFAULT_CLOCK_HZ
 from ....hdl.protocol import PacketType, registers_layout
 from ....hdl.registers import BY_NAME
 from ....protocol import PacketEncoder, pack
@@ -25,15 +26,24 @@ def train(library, baud, cycles):
     board.start()
     harness = board.harness
     encoder = PacketEncoder()
-    harness.write(encoder.frame(PacketType.WRITE, pack(
-        registers_layout(1), address=BY_NAME["aggressor"].address, values=[1])))
-    harness.write(encoder.frame(PacketType.START))
-    end = harness.cycle + cycles
-    while harness.cycle < end:
+    commands = encoder.frame(PacketType.WRITE, pack(
+        registers_layout(1), address=BY_NAME["aggressor"].address, values=[1])) + \
+        encoder.frame(PacketType.START)
+    harness.write(commands)
+    # The commands take their time on the line first (a frame of bytes of 10 bits each; at
+    # 9600 baud, more than the training run itself): the acquisition is awaited for four times
+    # that, then trained on for ``cycles``.
+    line_cycles = len(commands) * 10 * DEFAULT_CLOCK_HZ // baud
+    started_by = harness.cycle + 4 * line_cycles + POLL_CYCLES
+    while not harness.running and harness.cycle < started_by:
         board.run(POLL_CYCLES)
         harness.read()
     if not harness.running:
         raise SystemExit("the training run did not start the acquisition")
+    end = harness.cycle + cycles
+    while harness.cycle < end:
+        board.run(POLL_CYCLES)
+        harness.read()
     harness.close()
 
 
