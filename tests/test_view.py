@@ -512,4 +512,5 @@ def test_view_command_replays_a_file(capsys, tmp_path):
     assert imager.configuration()["integration"] / imager.CLOCK_HZ == pytest.approx(0.01)
     assert lines[1:] == ["fliss: view: 5 frames played 10 times slower than --speed 100 asks: "
                          "a replay hands the view at most 1000 a second",
-                         "fliss: view: replayed 5 frames; the page stays until Ctrl-C"]
+                         "fliss: view: replayed 5 frames; the page stays until Ctrl-C or the end of "
+                         "--for 1s"]

@@ -124,7 +124,9 @@ def _replay(capture, feed, args, limit_s):
                 while end is None or time.monotonic() < end:
                     if not said and replay.wait(0.1):
                         said = True
-                        print(f"fliss: view: {feed.state}; the page stays until Ctrl-C",
+                        stays = ("until Ctrl-C" if end is None else
+                                 f"until Ctrl-C or the end of --for {args.duration}")
+                        print(f"fliss: view: {feed.state}; the page stays {stays}",
                               file=sys.stderr, flush=True)
                     elif said:
                         time.sleep(0.1)
