@@ -16,7 +16,7 @@ The blocks a design of your own reuses are importable from here::
     from fliss.hdl.histogram import Histogram, HistogramSettings
 """
 
-import importlib
+from ..lazy import lazy_names
 
 
 #: The public names, by the module that defines them, imported when first asked for (PEP 562),
@@ -28,12 +28,4 @@ _PUBLIC = {
 
 __all__ = list(_PUBLIC)
 
-
-def __getattr__(name):
-    if name not in _PUBLIC:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    return getattr(importlib.import_module(_PUBLIC[name], __name__), name)
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_PUBLIC))
+__getattr__, __dir__ = lazy_names(__name__, _PUBLIC)
