@@ -14,5 +14,5 @@ import threading
 __all__ = ["requested"]
 
 #: Set by the signal handler when the user asked the command to stop; cleared when a command
-#: installs the handler.
+#: installs the handler and when it takes it away.
 requested = threading.Event()

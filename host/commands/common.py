@@ -129,6 +129,7 @@ def sigterm_interrupts():
     finally:
         for number, action in previous.items():
             signal.signal(number, action)
+        interrupts.requested.clear()        # (a stop asked for is this command's only)
 
 
 def read_capture_file(path):

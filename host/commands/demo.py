@@ -198,7 +198,8 @@ def run(args):
           ["attack", "--sources", "off,mseq,masked,keyed", "--lengths", "8",
            "--mask-widths", "6", "--pulses", "6000", "--scene-pulses", "6000",
            "--acquisition-pulses", "3000", "--no-unknown-taps",
-           "--table", str(out / "attack.txt"), "--figure", str(out / "attack.png")])
+           "--table", str(out / "attack.txt"), "--figure", str(out / "attack.png"),
+           "--overwrite"])
 
     print("\n== Summary")
     for label, path in files.items():
