@@ -73,7 +73,7 @@ def test_the_core_file_names_the_files_that_are_there(folder):
     on_disk = {str(path.relative_to(folder)) for path in folder.rglob("*") if path.is_file()}
     assert on_disk == named | {"fliss_top.core", "ports.md",
                                "constraints/fliss_top_icebreaker.pcf",
-                               "constraints/fliss_top_ulx3s.lpf"}
+                               "constraints/fliss_top_ulx3s.lpf", ".fliss-generated"}
     lint, sim = core["targets"]["lint"], core["targets"]["sim"]
     assert (lint["default_tool"], lint["toplevel"], lint["filesets"]) == \
         ("verilator", "fliss_top", ["rtl"])

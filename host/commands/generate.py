@@ -46,7 +46,10 @@ def register(subparsers, formatter):
                     "FuseSoC core: targets lint and sim), ports.md, constraints/ (a template "
                     "per board), blackboxes/ (with --fine-tdc) and testbench/ (a testbench "
                     "that sets a delay source over the UART and checks the laser's delays "
-                    "against the model). Prints the path of each file, NAME.v first.")
+                    "against the model). Prints the path of each file, NAME.v first. The files an "
+                    "earlier `fliss generate` wrote into the folder and this one does not (an "
+                    "old testbench, a renamed module) are removed: DIR/.fliss-generated lists "
+                    "what was written.")
     parser.add_argument("-o", "--output", default="build/verilog", metavar="DIR",
                         help="output folder")
     parser.add_argument("--clock", default=f"{DEFAULT_CLOCK_HZ // 1_000_000}MHz", metavar="HZ",
@@ -112,5 +115,8 @@ def run(args):
         raise UserError(f"cannot write {args.output}: {error.strerror}") from None
     for path in generated.files:
         print(path)
+    for path in generated.removed:
+        print(f"fliss: note: removed {path}, written by an earlier `fliss generate` into this "
+              f"folder", file=sys.stderr)
     for reason in generated.skipped:
         print(f"fliss: warning: left out {reason}", file=sys.stderr)

@@ -15,8 +15,8 @@ from .core_file import core_text
 from .ports_table import ports_table, top_ports
 
 
-__all__ = ["Variant", "VARIANTS", "Generated", "check_build", "make_top", "victim_period",
-           "write_folder"]
+__all__ = ["Variant", "VARIANTS", "Generated", "MANIFEST", "check_build", "make_top",
+           "victim_period", "write_folder"]
 
 
 @dataclass(frozen=True)
@@ -57,10 +57,41 @@ class _Ecp5Cells:
 
 @dataclass
 class Generated:
-    """What :func:`write_folder` wrote (``files``, the Verilog first) and what it left out and
-    why (``skipped``: one line each)."""
+    """What :func:`write_folder` wrote (``files``, the Verilog first), what it left out and
+    why (``skipped``: one line each), and the files of an earlier ``fliss generate`` into the
+    same folder that this one did not write and removed (``removed``)."""
     files: list = field(default_factory=list)
     skipped: list = field(default_factory=list)
+    removed: list = field(default_factory=list)
+
+
+#: The list of the files a ``fliss generate`` wrote into its folder, one relative path a line,
+#: kept in that folder: the next one into the same folder removes the files of that list it does
+#: not write again (an earlier build's testbench, a renamed module's Verilog), and only those.
+MANIFEST = ".fliss-generated"
+
+
+def _remove_stale(output, generated):
+    # The files the manifest of an earlier run lists that this run did not write, then the
+    # folders they leave empty (the folder itself stays). A manifest line that leaves the
+    # folder is ignored: the list is a file anyone can edit.
+    try:
+        earlier = (output / MANIFEST).read_text().splitlines()
+    except FileNotFoundError:
+        return
+    written = {path.relative_to(output).as_posix() for path in generated.files}
+    root = output.resolve()
+    for relative in earlier:
+        path = output / relative
+        if (not relative or relative in written or root not in path.resolve().parents
+                or not path.is_file()):
+            continue
+        path.unlink()
+        generated.removed.append(path)
+        for parent in path.parents:
+            if parent == output or any(parent.iterdir()):
+                break
+            parent.rmdir()
 
 
 def make_top(variant, *, clock_hz, baud):
@@ -151,6 +182,9 @@ def write_folder(output, top, *, name, variant, check=None):
         testbench=testbench,
         description=f"FLISS top level, {VARIANTS[variant].what}; clock {top.clock_hz / 1e6:g} "
                     f"MHz, UART {top.baud} baud"))
+    _remove_stale(output, generated)
+    (output / MANIFEST).write_text(
+        "".join(f"{path.relative_to(output).as_posix()}\n" for path in generated.files))
     return generated
 
 
