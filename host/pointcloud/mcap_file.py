@@ -1,0 +1,94 @@
+"""Points to MCAP for Foxglove: one ``foxglove.PointCloud`` message (protobuf, the schema
+Foxglove publishes, from ``foxglove-schemas-protobuf``) per depth frame on the topic
+``/fliss/points``, logged at the frame's host time, so that Foxglove plays a capture frame by
+frame. Each message holds every field of :data:`~.points.POINT_DTYPE` as a packed field, in the
+frame ``fliss_optical`` (x right, y down, z forward: :mod:`.geometry`)."""
+
+import numpy as np
+
+from .points import POINT_DTYPE
+
+
+__all__ = ["McapWriter", "TOPIC", "FRAME_ID"]
+
+TOPIC = "/fliss/points"
+FRAME_ID = "fliss_optical"
+
+
+def _descriptor_set(descriptor):
+    # The FileDescriptorSet of a message type: its file and every file it imports, imports
+    # first (what a protobuf schema in MCAP holds)
+    from google.protobuf.descriptor_pb2 import FileDescriptorSet
+
+    files, seen = [], set()
+
+    def add(file):
+        if file.name in seen:
+            return
+        seen.add(file.name)
+        for dependency in file.dependencies:
+            add(dependency)
+        files.append(file)
+
+    add(descriptor.file)
+    result = FileDescriptorSet()
+    for file in files:
+        file.CopyToProto(result.file.add())
+    return result.SerializeToString()
+
+
+class McapWriter:
+    """Writes ``total`` points to ``path``, a message per frame: :meth:`write` each run (whole
+    frames), then :meth:`close`. ``comments`` go to the file's ``fliss`` metadata record."""
+
+    suffix = ".mcap"
+
+    def __init__(self, path, total, comments=()):
+        from foxglove_schemas_protobuf.PackedElementField_pb2 import PackedElementField
+        from foxglove_schemas_protobuf.PointCloud_pb2 import PointCloud
+        from mcap.writer import Writer
+
+        self.total, self.written = total, 0
+        self._message = PointCloud
+        types = {"<f4": PackedElementField.FLOAT32, "<f8": PackedElementField.FLOAT64,
+                 "<u4": PackedElementField.UINT32, "<u2": PackedElementField.UINT16}
+        self._fields = [PackedElementField(name=name, offset=POINT_DTYPE.fields[name][1],
+                                           type=types[POINT_DTYPE.fields[name][0].str])
+                        for name in POINT_DTYPE.names]
+        self._file = open(path, "wb")
+        self._writer = Writer(self._file)
+        self._writer.start(profile="", library="fliss")
+        schema = self._writer.register_schema(
+            name=PointCloud.DESCRIPTOR.full_name, encoding="protobuf",
+            data=_descriptor_set(PointCloud.DESCRIPTOR))
+        self._channel = self._writer.register_channel(
+            topic=TOPIC, message_encoding="protobuf", schema_id=schema)
+        self._writer.add_metadata("fliss", {str(k): line for k, line in enumerate(comments)})
+        self._sequence = 0
+
+    def write(self, points, frame_times):
+        """The points of a run of frames, and the host time of each frame of the run by its
+        number (``frame_times``: frame -> seconds): a frame without points is a message with
+        none (Foxglove then shows an empty cloud for it)."""
+        points = points.astype(POINT_DTYPE, copy=False)
+        order = np.argsort(points["frame"], kind="stable")
+        points = points[order]
+        for frame, time_s in frame_times.items():
+            mine = points[points["frame"] == frame]
+            nanoseconds = int(round(time_s * 1e9))
+            message = self._message(frame_id=FRAME_ID, point_stride=POINT_DTYPE.itemsize,
+                                    fields=self._fields, data=mine.tobytes())
+            message.timestamp.FromNanoseconds(nanoseconds)
+            message.pose.orientation.w = 1.0
+            self._writer.add_message(self._channel, log_time=nanoseconds,
+                                     publish_time=nanoseconds, sequence=self._sequence,
+                                     data=message.SerializeToString())
+            self._sequence += 1
+            self.written += len(mine)
+
+    def close(self, check=True):
+        """Finish the file; ``check``: refuse a count of points other than the one announced."""
+        self._writer.finish()
+        self._file.close()
+        if check and self.written != self.total:
+            raise RuntimeError(f"{self.total} points expected, {self.written} written")
