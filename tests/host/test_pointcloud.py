@@ -153,7 +153,7 @@ def test_mcap_read_with_its_schema(capture, tmp_path):
     assert len(messages) == FRAMES - 1 >= len(frames)
     assert [m.schema.name for m in messages] == ["foxglove.PointCloud"] * len(messages)
     columns = {name: [] for name in NAMES}
-    for schema, channel, message, decoded in messages:
+    for _schema, _channel, message, decoded in messages:
         fields = {field.name: field for field in decoded.fields}
         stride = decoded.point_stride
         assert decoded.frame_id == "fliss_optical"
