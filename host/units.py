@@ -4,7 +4,8 @@ import math
 import re
 
 
-__all__ = ["parse_frequency", "parse_time", "parse_baud", "format_frequency", "format_time"]
+__all__ = ["parse_frequency", "parse_time", "parse_baud", "parse_length", "parse_angle",
+           "format_frequency", "format_time"]
 
 
 _NUMBER = r"([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)"
@@ -14,7 +15,7 @@ _TIME = {"s": 1, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "ns": 1e-9, "ps": 1e-12}
 
 
 def _parse(text, units, what, example, zero=False):
-    match = re.fullmatch(_NUMBER + r"\s*([a-zµ]*)", str(text).strip(), flags=re.IGNORECASE)
+    match = re.fullmatch(_NUMBER + r"\s*([a-zµ°]*)", str(text).strip(), flags=re.IGNORECASE)
     if match is not None and not match.group(2) and "" not in units:
         raise ValueError(f"give a unit: {example}")
     if match is None or match.group(2).lower() not in units:
@@ -51,6 +52,20 @@ def parse_baud(text):
     if value != int(value):
         raise ValueError(f"baud rate must be a whole number, not {text!r}")
     return int(value)
+
+
+_LENGTH = {"m": 1, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "nm": 1e-9}
+_ANGLE = {"deg": math.pi / 180, "°": math.pi / 180, "rad": 1, "mrad": 1e-3}
+
+
+def parse_length(text):
+    """Length in metres from ``"30um"``, ``"2.5mm"``; the unit is required; positive."""
+    return _parse(text, _LENGTH, "length", "30um or 2.5mm")
+
+
+def parse_angle(text):
+    """Angle in radians from ``"40deg"``, ``"0.7rad"``; the unit is required; positive."""
+    return _parse(text, _ANGLE, "angle", "40deg or 0.7rad")
 
 
 def format_frequency(hz):
