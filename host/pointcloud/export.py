@@ -64,13 +64,15 @@ def export_points(capture_path, output, to, geometry, *, comments=(), run_frames
             for start in range(0, rows, run_frames):
                 stop = min(rows, start + run_frames)
                 keep = _rows(group, "complete", start, stop).astype(bool)
-                numbers = _rows(group, "frame", start, stop)[keep]
-                times = _rows(group, "time_s", start, stop)[keep]
+                # Every frame of a run whole (the usual case): its arrays as read, no copies
+                pick = slice(None) if keep.all() else keep
+                numbers = _rows(group, "frame", start, stop)[pick]
+                times = _rows(group, "time_s", start, stop)[pick]
                 points = frame_points(
-                    geometry, pixels, _rows(group, "depth_m", start, stop)[keep],
-                    _rows(group, "detected", start, stop)[keep],
-                    _rows(group, "height", start, stop)[keep],
-                    _rows(group, "background", start, stop)[keep], numbers, times)
+                    geometry, pixels, _rows(group, "depth_m", start, stop)[pick],
+                    _rows(group, "detected", start, stop)[pick],
+                    _rows(group, "height", start, stop)[pick],
+                    _rows(group, "background", start, stop)[pick], numbers, times)
                 writer.write(points, dict(zip(numbers.tolist(), times.tolist())))
                 frames += int(keep.sum())
                 incomplete += int((~keep).sum())

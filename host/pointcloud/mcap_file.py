@@ -71,20 +71,21 @@ class McapWriter:
         number (``frame_times``: frame -> seconds): a frame without points is a message with
         none (Foxglove then shows an empty cloud for it)."""
         points = points.astype(POINT_DTYPE, copy=False)
-        order = np.argsort(points["frame"], kind="stable")
-        points = points[order]
-        for frame, time_s in frame_times.items():
-            mine = points[points["frame"] == frame]
-            nanoseconds = int(round(time_s * 1e9))
+        points = points[np.argsort(points["frame"], kind="stable")]
+        numbers = np.fromiter(frame_times, dtype=np.int64, count=len(frame_times))
+        bounds = np.searchsorted(points["frame"], numbers, side="left")
+        ends = np.searchsorted(points["frame"], numbers, side="right")
+        for number, start, stop in zip(numbers.tolist(), bounds.tolist(), ends.tolist()):
+            nanoseconds = int(round(frame_times[number] * 1e9))
             message = self._message(frame_id=FRAME_ID, point_stride=POINT_DTYPE.itemsize,
-                                    fields=self._fields, data=mine.tobytes())
+                                    fields=self._fields, data=points[start:stop].tobytes())
             message.timestamp.FromNanoseconds(nanoseconds)
             message.pose.orientation.w = 1.0
             self._writer.add_message(self._channel, log_time=nanoseconds,
                                      publish_time=nanoseconds, sequence=self._sequence,
                                      data=message.SerializeToString())
             self._sequence += 1
-            self.written += len(mine)
+            self.written += stop - start
 
     def close(self, check=True):
         """Finish the file; ``check``: refuse a count of points other than the one announced."""

@@ -30,7 +30,8 @@ class PcdWriter:
         self._file.write(("\n".join(header) + "\n").encode("ascii"))
 
     def write(self, points, frame_times=None):
-        self._file.write(points.astype(POINT_DTYPE, copy=False).tobytes())
+        # Straight from the array: no copy of the run as bytes
+        points.astype(POINT_DTYPE, copy=False).tofile(self._file)
         self.written += len(points)
 
     def close(self, check=True):

@@ -23,17 +23,20 @@ def frame_points(geometry, pixels, depth_m, detected, height, background, frames
     ``background`` of shape ``(frames, pixels)``, ``pixels`` the sensor addresses of the
     columns, ``frames`` and ``times`` one per row. Frame after frame, pixel after pixel; a
     pixel that is not detected (or whose depth is not a finite number) gives no point."""
-    depth_m = np.asarray(depth_m, dtype=float)
+    depth_m = np.asarray(depth_m)
     keep = np.asarray(detected, dtype=bool) & np.isfinite(depth_m)
     rows, columns = np.nonzero(keep)
+    del keep
     rays = geometry.rays(pixels)
-    ranges = depth_m[rows, columns]
     points = np.zeros(len(rows), dtype=POINT_DTYPE)
-    place = rays[columns] * ranges[:, None]
-    points["x"], points["y"], points["z"] = place[:, 0], place[:, 1], place[:, 2]
+    ranges = depth_m[rows, columns].astype(float, copy=False)
     points["range"] = ranges
-    points["height"] = np.asarray(height, dtype=float)[rows, columns]
-    points["background"] = np.asarray(background, dtype=float)[rows, columns]
+    # One coordinate at a time: a temporary of one float per point, not three
+    for axis, name in enumerate("xyz"):
+        points[name] = rays[columns, axis] * ranges
+    del ranges
+    points["height"] = np.asarray(height)[rows, columns]
+    points["background"] = np.asarray(background)[rows, columns]
     points["frame"] = np.asarray(frames)[rows]
     points["pixel"] = np.asarray(pixels)[columns]
     points["time"] = np.asarray(times, dtype=float)[rows]
