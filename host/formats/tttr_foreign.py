@@ -2,8 +2,9 @@
 record type), HT3 files (HydraHarp 400), PT3 files (PicoHarp 300) and Becker & Hickl SPC files
 (the 32-bit FIFO records of the SPC-130/150/160/180/830 modules, with their ``.set`` file).
 
-ptufile decodes PTU files, phconvert PT3 files, tttrlib (Fluorescence-Tools, C++) HT3 and SPC
-files; why these, and what maps to what: docs/file-format.md. :func:`read_recording` gives the decoded photons
+ptufile decodes PicoQuant's T3 records (of PTU, HT3 and PT3 files; tttrlib reads the headers of
+HT3 and PT3 files), tttrlib (Fluorescence-Tools, C++) decodes SPC files; why these, and what
+maps to what: docs/file-format.md. :func:`read_recording` gives the decoded photons
 as the file holds them (a :class:`Recording`: the sync count, the micro time, the channel of
 each, and how many records were markers and overflows); :func:`to_capture` puts them in FLISS's
 terms (a :class:`ForeignCapture`, a raw capture: the sync period as the laser period, the
@@ -22,7 +23,6 @@ import math
 import os
 import sys
 import tempfile
-import warnings
 from dataclasses import dataclass, field
 from typing import Optional
 
@@ -32,6 +32,7 @@ from ...hdl.event import PULSE_BITS, TDC_LSB_S, TIMESTAMP_BITS
 from ...protocol.events import EVENT_DTYPE
 from ..errors import FormatError
 from ..fileformat import Capture
+from .ptu_records import header as ptu_header
 from .tttr_spc import spc_timing
 
 
@@ -42,11 +43,12 @@ __all__ = ["KINDS", "foreign_kind", "Recording", "read_recording", "ForeignCaptu
            "to_capture", "read_foreign"]
 
 
-#: What each kind of file is called, and tttrlib's name of its container.
+#: What each kind of file is called, and tttrlib's name of its container (tttrlib reads no PT3
+#: files: phconvert reads their header).
 KINDS = {
     "ptu": ("a PTU file", "PTU"),
     "ht3": ("an HT3 file", "HT3"),
-    "pt3": ("a PT3 file", "PT3"),
+    "pt3": ("a PT3 file", None),
     "spc": ("a Becker & Hickl SPC file", "SPC-130"),
 }
 
@@ -152,8 +154,8 @@ def _tags(header):
 def read_recording(path, kind, ptu_header=None):
     """The :class:`Recording` of the file ``path`` of ``kind`` (a key of :data:`KINDS`); for a
     PTU file, ``ptu_header`` is its header as :func:`.ptu_header.read_header` checked it.
-    PTU files are decoded by ptufile, PT3 files by phconvert, HT3 and SPC files by tttrlib
-    (docs/file-format.md says why)."""
+    PicoQuant's T3 records (PTU, HT3, PT3) are decoded by ptufile, the headers of HT3 and PT3
+    files read by tttrlib; SPC files are decoded by tttrlib (docs/file-format.md says why)."""
     what = KINDS[kind][0]
     path = str(path)
     if not os.path.isfile(path):
@@ -161,7 +163,7 @@ def read_recording(path, kind, ptu_header=None):
                           f"{path} is not a regular file, not {what}")
     if os.path.getsize(path) == 0:
         raise FormatError(f"{path} is empty, not {what}")
-    decode = {"ptu": _decode_ptu, "pt3": _decode_pt3}.get(kind, _decode_tttrlib)
+    decode = {"ptu": _decode_ptu, "spc": _decode_spc}.get(kind, _decode_classic)
     recording = decode(path, kind, ptu_header)
     if recording.announced is not None and recording.announced > recording.records:
         recording.problems.append(f"it is cut short: its header announces "
@@ -175,9 +177,9 @@ def _failure(path, reader, what, error):
     return FormatError(f"{path}: {reader} cannot read it as {what} ({detail})")
 
 
-def _decode_tttrlib(path, kind, _):
+def _read_tttrlib(path, kind):
+    # tttrlib's TTTR of the file and what it said; refused in one line if it cannot.
     what, container = KINDS[kind]
-    timing = spc_timing(path) if kind == "spc" else None      # (refused before decoding)
     tttrlib = _tttrlib()
     said = []
     with _console(said):
@@ -187,21 +189,22 @@ def _decode_tttrlib(path, kind, _):
             tttr, failure = None, error
     if tttr is None:
         raise _failure(path, "tttrlib", what, failure)
+    return tttr, [f"tttrlib: {line}" for line in said if line not in _KNOWN_NOTES]
+
+
+def _decode_spc(path, kind, _):
+    timing = spc_timing(path)                   # (refused before decoding)
+    tttr, problems = _read_tttrlib(path, kind)
     source, announced = _check_header(path, kind, _tags(tttr.header), timing)
     types = np.asarray(tttr.event_types)
     channels = np.asarray(tttr.routing_channels)
     photon = types == 0
-    header = tttr.header
-    recording = Recording(
+    return Recording(
         path, kind, source, np.asarray(tttr.macro_times)[photon].astype(np.uint64),
         np.asarray(tttr.micro_times)[photon].astype(np.uint16),
-        channels[photon].astype(np.int16), float(header.macro_time_resolution),
-        float(timing[0] if timing else header.micro_time_resolution),
-        int(tttr.n_records_in_file), int(np.count_nonzero(types == 1)),
-        sorted(int(c) for c in np.unique(channels[types == 1])),
-        [f"tttrlib: {line}" for line in said if line not in _KNOWN_NOTES])
-    recording.announced = announced
-    return recording
+        channels[photon].astype(np.int16), float(tttr.header.macro_time_resolution),
+        float(timing[0]), int(tttr.n_records_in_file), int(np.count_nonzero(types == 1)),
+        sorted(int(c) for c in np.unique(channels[types == 1])), problems)
 
 
 class _Notes(logging.Handler):
@@ -214,47 +217,91 @@ class _Notes(logging.Handler):
         self.messages.append(record.getMessage())
 
 
-def _decode_ptu(path, kind, header):
+def _ptufile():
     try:
         import ptufile
     except ImportError:
-        raise FormatError("PTU files need the ptufile package: pip install "
+        raise FormatError("PicoQuant files need the ptufile package: pip install "
                           "'fliss[formats]'") from None
+    return ptufile
+
+
+@contextlib.contextmanager
+def _ptufile_notes(problems):
+    notes, logger = _Notes(), logging.getLogger("ptufile")
+    logger.addHandler(notes)
+    propagate, logger.propagate = logger.propagate, False
+    try:
+        yield
+    finally:
+        logger.removeHandler(notes)
+        logger.propagate = propagate
+        problems.extend(f"ptufile: {message}" for message in notes.messages[:1])
+
+
+def _decode_ptu(path, kind, header):
+    ptufile = _ptufile()
     record_type = header.tags["TTResultFormat_TTTRRecType"]
     if record_type not in _PTU_T3:
         raise FormatError(f"{path}: not a PTU file fliss reads (its record type, "
                           f"TTResultFormat_TTTRRecType, is 0x{record_type:08X}: none of the "
                           f"T3 records {', '.join(_PTU_T3.values())})")
-    notes, logger = _Notes(), logging.getLogger("ptufile")
-    logger.addHandler(notes)
-    propagate, logger.propagate = logger.propagate, False
+    problems = []
     try:
-        with ptufile.PtuFile(path) as ptu:
+        with _ptufile_notes(problems), ptufile.PtuFile(path) as ptu:
             records = ptu.decode_records()
             period_s, width_s = ptu.global_resolution, ptu.tcspc_resolution
     except Exception as error:              # whatever ptufile finds wrong: one line
         raise _failure(path, "ptufile", "a PTU file", error) from None
-    finally:
-        logger.removeHandler(notes)
-        logger.propagate = propagate
-    photon = records["channel"] >= 0
-    marker = ~photon & (records["marker"] > 0)
-    instrument = header.tags.get("HW_Type") or "PicoQuant instrument"
-    problems = [f"ptufile: {message}" for message in notes.messages[:1]]
     extra = header.data_bytes - 4 * len(records)
     if extra > 0:
         problems.append(f"{extra} bytes after the {len(records)} records its header "
                         f"announces are left out")
-    recording = Recording(
-        path, kind, f"a PTU file of a {instrument} ({_PTU_T3[record_type]} records)",
-        records["time"][photon].astype(np.uint64), records["dtime"][photon].astype(np.uint16),
-        records["channel"][photon].astype(np.int16), float(period_s), float(width_s),
-        len(records), int(np.count_nonzero(marker)),
+    instrument = header.tags.get("HW_Type") or "PicoQuant instrument"
+    return _of_records(path, kind, f"a PTU file of a {instrument} ({_PTU_T3[record_type]} "
+                       f"records)", records, period_s, width_s, problems)
+
+
+def _of_records(path, kind, source, records, period_s, width_s, problems):
+    # The Recording of T3 records as ptufile decodes them: a channel of 0 and up a photon,
+    # else a marker (its bits in ``marker``) or an overflow.
+    photon = records["channel"] >= 0
+    marker = ~photon & (records["marker"] > 0)
+    return Recording(
+        path, kind, source, records["time"][photon].astype(np.uint64),
+        records["dtime"][photon].astype(np.uint16), records["channel"][photon].astype(np.int16),
+        float(period_s), float(width_s), len(records), int(np.count_nonzero(marker)),
         sorted(int(m) for m in np.unique(records["marker"][marker])), problems)
-    return recording
 
 
-def _decode_pt3(path, kind, _):
+#: PTU record types of the records of HT3 files (by format version) and of PT3 files.
+_HT3_RECORDS = {"1": 0x00010304, "2": 0x01010304}
+_PT3_RECORDS = 0x00010303
+
+
+def _ht3(path, kind):
+    # HT3: the header by tttrlib; (source, records announced, period, width, record type,
+    # the records, problems).
+    what = KINDS[kind][0]
+    tttr, problems = _read_tttrlib(path, kind)
+    tags = _tags(tttr.header)
+    source, announced = _check_header(path, kind, tags, None)
+    version = str(tags.get("FormatVersion", "")).strip()[:1]
+    if version not in _HT3_RECORDS:
+        raise FormatError(f"{path}: {what} of format version {tags.get('FormatVersion')!r}, "
+                          f"which fliss does not read (1.0 and 2.0)")
+    header = tttr.header
+    offset = int(header.end())
+    count, extra = divmod(max(0, os.path.getsize(path) - offset), 4)
+    if extra:
+        problems.append(f"its last {extra} bytes are not a whole record and are left out")
+    words = np.fromfile(path, dtype="<u4", count=count, offset=offset)
+    return (source, announced, header.macro_time_resolution, header.micro_time_resolution,
+            _HT3_RECORDS[version], words, problems)
+
+
+def _pt3(path, kind):
+    # PT3: the header and the records by phconvert (tttrlib reads no PT3 files).
     try:
         from phconvert import pqreader
     except ImportError:
@@ -262,27 +309,42 @@ def _decode_pt3(path, kind, _):
                           "'fliss[formats]'") from None
     said = []
     try:
-        with _console(said), warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            _, _, _, meta = pqreader.pt3_reader(path)
-            mode = int(meta["header"]["MeasurementMode"][0])
-            if mode == 3:
-                sync, detector, micro, meta, _ = pqreader.load_pt3(path)
+        with _console(said):
+            words, period_s, width_s, meta = pqreader.pt3_reader(path)
+        header = meta["header"]
+        tags = {"MeasurementMode": int(header["MeasurementMode"][0]),
+                "Ident": header["Ident"][0].decode(errors="replace").strip(),
+                "FormatVersion": header["FormatVersion"][0].decode(errors="replace").strip()}
+        announced = int(meta["ttmode"]["nRecords"][0])
     except Exception as error:              # whatever phconvert finds wrong: one line
-        raise _failure(path, "phconvert", "a PT3 file", error) from None
-    if mode != 3:
-        _check_header(path, kind, {"MeasurementMode": mode}, None)
-    # PicoHarp T3 records: photons on channels 1 to 4, 15 the special records (overflows
-    # stay 15, markers phconvert moves to 16 and up).
-    photon, marker = detector < 15, detector > 15
-    records = int(meta["ttmode"]["nRecords"][0])
-    recording = Recording(
-        path, kind, f"a PT3 file of a {meta.get('hardware_name', 'PicoHarp')}",
-        sync[photon].astype(np.uint64), micro[photon].astype(np.uint16),
-        detector[photon].astype(np.int16) - 1, float(meta["timestamps_unit"]),
-        float(meta["nanotimes_unit"]), len(detector), int(np.count_nonzero(marker)),
-        sorted(int(d) - 16 for d in np.unique(detector[marker])), [])
-    recording.announced = records
+        raise _failure(path, "phconvert", KINDS[kind][0], error) from None
+    source, _ = _check_header(path, kind, tags, None)
+    return (source, announced, period_s, width_s, _PT3_RECORDS, words,
+            [f"phconvert: {line}" for line in said])
+
+
+def _decode_classic(path, kind, _):
+    # HT3 and PT3: the records by ptufile's decoder of T3 records, their PTU record type named
+    # by a PTU header of no records.
+    what = KINDS[kind][0]
+    source, announced, period_s, width_s, record_type, words, problems = \
+        (_ht3 if kind == "ht3" else _pt3)(path, kind)
+    ptufile = _ptufile()
+    stub = ptu_header({
+        "Measurement_Mode": 3, "Measurement_SubMode": 0, "MeasDesc_Resolution": width_s,
+        "MeasDesc_GlobalResolution": period_s, "TTResult_NumberOfRecords": 0,
+        "TTResultFormat_TTTRRecType": record_type, "TTResultFormat_BitsPerRecord": 32})
+    try:
+        with tempfile.TemporaryDirectory() as folder:
+            name = os.path.join(folder, "records.ptu")
+            with open(name, "wb") as f:
+                f.write(stub)
+            with _ptufile_notes(problems), ptufile.PtuFile(name) as ptu:
+                records = ptu.decode_records(np.ascontiguousarray(words, dtype=np.uint32))
+    except Exception as error:              # whatever ptufile finds wrong: one line
+        raise _failure(path, "ptufile", what, error) from None
+    recording = _of_records(path, kind, source, records, period_s, width_s, problems)
+    recording.announced = announced
     return recording
 
 
@@ -299,7 +361,7 @@ def _check_header(path, kind, tags, timing):
     if mode != 3:
         raise FormatError(f"{path}: its MeasurementMode is {mode!r}, not 3 (T3 records); fliss "
                           f"reads T3 files")
-    version = tags.get("FormatVersion", "?")
+    version = str(tags.get("FormatVersion", "?")).strip()
     return (f"{what} of a {tags.get('Ident', 'PicoQuant instrument')} (format {version})",
             tags.get("nRecords") or None)
 
