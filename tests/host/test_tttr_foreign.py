@@ -8,6 +8,7 @@ cannot map is refused in one line; an HT3 file converts to Photon-HDF5 and PTU."
 
 import os
 import shutil
+import struct
 import urllib.request
 import warnings
 from pathlib import Path
@@ -278,3 +279,35 @@ def test_whole_public_recordings_read_event_for_event(tmp_path, name, repository
         assert_same_photons(got, second(file))
     capture = to_capture(got)
     assert capture.total_histogram().sum() == len(got.sync)
+
+
+def pt3_file(path, words, *, mode=3, sync_hz=78_020_000, resolution_ns=0.0969697):
+    """A PT3 file (PicoHarp 300, format 2.0) of the T3 ``words``: its header after PicoQuant's
+    documented layout, 728 bytes (text fields, then int32 and float32 fields; the measurement
+    mode at byte 348, the resolution in ns at 584, the sync rate at 704, the number of records
+    at 720, no imaging header). No public PT3 recording was found: the records are real ones,
+    the PicoHarp T3 records of hazelnut_z1.ptu."""
+    head = bytearray(728)
+    head[0:16] = b"PicoHarp 300".ljust(16, b"\0")
+    head[16:22] = b"2.0".ljust(6, b"\0")
+    struct.pack_into("<i", head, 332, 32)                       # bits per record
+    struct.pack_into("<i", head, 348, mode)
+    struct.pack_into("<f", head, 584, resolution_ns)
+    struct.pack_into("<i", head, 704, sync_hz)
+    struct.pack_into("<i", head, 720, len(words))
+    path.write_bytes(bytes(head) + words.astype("<u4").tobytes())
+    return path
+
+
+def test_pt3_files_read_event_for_event_and_t2_ones_are_refused(tmp_path, capsys):
+    words = picoharp_records(DATA / "hazelnut_z1.ptu")
+    got = recording(pt3_file(tmp_path / "z1.pt3", words))
+    assert_same_photons(got, picoharp_layout(words))
+    assert got.period_s == pytest.approx(1 / 78_020_000)
+    assert got.width_s == pytest.approx(96.9697e-12, rel=1e-6)
+    ptu = recording(DATA / "hazelnut_z1.ptu")
+    assert (got.records, got.markers, got.overflows) == (ptu.records, ptu.markers, ptu.overflows)
+    t2 = pt3_file(tmp_path / "t2.pt3", words, mode=2)
+    assert refused(capsys, t2) == (f"fliss: error: {t2}: a T2 PT3 file (time tags without a "
+                                   f"laser sync) holds no TCSPC histogram; fliss reads T3 "
+                                   f"files\n")
