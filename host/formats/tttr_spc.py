@@ -3,8 +3,8 @@
 module and the width of a micro-time channel (``SP_TAC_TC``, the TAC range over its gain and
 the ADC's channels). phconvert's :func:`phconvert.bhreader.load_set` reads it.
 
-The ``.spc`` file itself holds the macro-time clock (its first record) and the photons; tttrlib
-decodes them (:mod:`.tttr_foreign`). Only the 32-bit FIFO records of the SPC-130/150/160/180/
+The ``.spc`` file itself holds the macro-time clock (its first record) and the photons;
+phconvert decodes them (:mod:`.tttr_decode`). Only the 32-bit FIFO records of the SPC-130/150/160/180/
 830 modules are read: those of the SPC-600/630 and the SPC-QC are of other layouts.
 """
 
@@ -15,7 +15,7 @@ import warnings
 from ..errors import FormatError
 
 
-__all__ = ["spc_timing", "MODULES"]
+__all__ = ["spc_timing", "set_file", "MODULES"]
 
 
 #: Module codes of a ``.set`` file's header (bits 4 to 11 of its ``revision``) whose FIFO files
@@ -31,7 +31,8 @@ _OTHERS = {0x21: "SPC-600", 0x22: "SPC-630", 0x23: "SPC-700", 0x24: "SPC-730",
            0x8C: "SPC-QC-004", 0x8D: "SPC-QC-106", 0x8E: "SPC-QC-006"}
 
 
-def _set_file(path):
+def set_file(path):
+    """The `.set` file beside the SPC file ``path`` (same name), or None."""
     stem = os.path.splitext(str(path))[0]
     for ending in (".set", ".SET"):
         if os.path.isfile(stem + ending):
@@ -43,7 +44,7 @@ def spc_timing(path):
     """``(micro-time width in seconds, module name)`` of the SPC file ``path``, from its
     ``.set`` file; :exc:`FormatError` of one line when there is none, it cannot be read, or
     it names a module of another record layout."""
-    setting = _set_file(path)
+    setting = set_file(path)
     stem = os.path.splitext(str(path))[0]
     if setting is None:
         raise FormatError(f"{path}: a Becker & Hickl SPC file does not hold the width of its "

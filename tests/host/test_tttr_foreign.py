@@ -6,6 +6,9 @@ and tttrlib 0.26 get wrong), ptufile (PTU files fliss exports from them). Their 
 counted as the words of the file, decoded after PicoQuant's documented layout, count them; what
 cannot map is refused in one line; an HT3 file converts to Photon-HDF5 and PTU."""
 
+import contextlib
+import io
+import json
 import os
 import shutil
 import struct
@@ -17,9 +20,13 @@ import h5py
 import numpy as np
 import ptufile
 import pytest
+import tttrlib
 from phconvert import bhreader, pqreader
 
 from fliss.host.cli import main
+from fliss.host.errors import FormatError
+from fliss.host.formats import read_file
+from fliss.host.formats.ht3_header import read_ht3_header
 from fliss.host.formats.ptu_header import read_header
 from fliss.host.formats.tttr_foreign import foreign_kind, read_recording, to_capture
 
@@ -88,6 +95,16 @@ def phconvert_spc(path):
                    data["detectors"][photon])
 
 
+def tttrlib_events(path, container):
+    """tttrlib's photons (HT3 and SPC files: it misreads PicoHarp markers, see
+    docs/file-format.md)."""
+    with contextlib.redirect_stdout(io.StringIO()):
+        tttr = tttrlib.TTTR(str(path), container)
+    photon = np.asarray(tttr.event_types) == 0
+    return photons(np.asarray(tttr.macro_times)[photon], np.asarray(tttr.micro_times)[photon],
+                   np.asarray(tttr.routing_channels)[photon])
+
+
 def picoquant_dump(path, resolution_ps):
     """libpicoquant's decoding (lines "channel,sync,time in ps") of the first photons."""
     rows = [line.split(",") for line in Path(f"{path}.data").read_text().splitlines()]
@@ -100,6 +117,9 @@ SAMPLES = [("hydraharp_v10.ht3", phconvert_ht3), ("rh110_sm.ht3", phconvert_ht3)
            ("hazelnut_z1.ptu", phconvert_picoharp),
            ("hazelnut_z1.ptu", lambda path: picoharp_layout(picoharp_records(path))),
            ("test_noise.spc", phconvert_spc),
+           ("test_noise.spc", lambda path: tttrlib_events(path, "SPC-130")),
+           ("rh110_sm.ht3", lambda path: tttrlib_events(path, "HT3")),
+           ("hydraharp_v20.ht3", lambda path: tttrlib_events(path, "HT3")),
            ("hydraharp_v10.ht3", lambda path: picoquant_dump(path, 4)),
            ("hydraharp_v20.ht3", lambda path: picoquant_dump(path, 16))]
 
@@ -311,3 +331,43 @@ def test_pt3_files_read_event_for_event_and_t2_ones_are_refused(tmp_path, capsys
     assert refused(capsys, t2) == (f"fliss: error: {t2}: a T2 PT3 file (time tags without a "
                                    f"laser sync) holds no TCSPC histogram; fliss reads T3 "
                                    f"files\n")
+
+
+@pytest.mark.parametrize("name", ["hydraharp_v10.ht3", "hydraharp_v20.ht3", "rh110_sm.ht3"])
+def test_ht3_headers_read_as_tttrlib_reads_them(name):
+    header = read_ht3_header(DATA / name)
+    with contextlib.redirect_stdout(io.StringIO()):
+        tttr = tttrlib.TTTR(str(DATA / name), "HT3")
+    tags = {tag["name"]: tag["value"] for tag in json.loads(tttr.header.json)["tags"]}
+    assert (header.version, header.mode, header.sync_hz, header.announced) == (
+        tags["FormatVersion"], tags["MeasurementMode"], tags["SyncRate"], tags["nRecords"])
+    assert header.resolution_s == pytest.approx(tttr.header.micro_time_resolution)
+    assert header.data_offset == tttr.header.end()
+    assert header.records == tttr.n_records_in_file
+
+
+def one_line_or_capture(path):
+    try:
+        return read_file(path)
+    except FormatError as error:
+        message = str(error)
+        assert "\n" not in message and message.startswith(f"{path}"), message
+        return message
+
+
+def test_cut_and_damaged_recordings_are_read_or_refused_in_one_line(tmp_path):
+    good = (DATA / "hydraharp_v10.ht3").read_bytes()
+    for cut in range(0, 800, 7):            # (tttrlib, handed these, reads past the end)
+        path = tmp_path / f"cut{cut}.ht3"
+        path.write_bytes(good[:cut])
+        assert isinstance(one_line_or_capture(path), str), cut
+    shutil.copy(DATA / "test_noise.set", tmp_path / "s.set")
+    spc = (DATA / "test_noise.spc").read_bytes()
+    rng = np.random.default_rng(3)
+    outcomes = []
+    for name, data in [("d.ht3", good)] * 150 + [("s.spc", spc)] * 100:
+        damaged = bytearray(data)
+        damaged[int(rng.integers(0, len(data)))] = int(rng.integers(0, 256))
+        (tmp_path / name).write_bytes(bytes(damaged))
+        outcomes.append(isinstance(one_line_or_capture(tmp_path / name), str))
+    assert 0 < sum(outcomes) < len(outcomes)    # both outcomes were exercised
