@@ -202,7 +202,8 @@ def test_files_that_cannot_be_read_get_one_line(tmp_path, capsys, reference):
     (tmp_path / "h.phu").write_bytes(b"PQHISTO\0" + bytes(64))
     assert refused(capsys, tmp_path / "h.phu") == (
         f"fliss: error: {tmp_path / 'h.phu'}: a PicoQuant histogram (PHU) file; fliss reads "
-        f"PTU files (T3 records), Photon-HDF5 files and FLISS capture files\n")
+        f"PTU files (T3 records), HT3, PT3 and SPC files, Photon-HDF5 files and FLISS capture "
+        f"files\n")
     phconvert_file(tmp_path / "cw.hdf5", counts, 50e-12, lifetime=False)
     assert refused(capsys, tmp_path / "cw.hdf5") == (
         f"fliss: error: {tmp_path / 'cw.hdf5'}: /photon_data has no nanotimes (not a TCSPC "

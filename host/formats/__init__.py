@@ -105,7 +105,8 @@ def read_file(path):
         return read_foreign(path, kind)
     if head.startswith(_PHU):
         raise FormatError(f"{path}: a PicoQuant histogram (PHU) file; fliss reads PTU files "
-                          f"(T3 records), Photon-HDF5 files and FLISS capture files")
+                          f"(T3 records), HT3, PT3 and SPC files, Photon-HDF5 files and FLISS "
+                          f"capture files")
     if head.startswith(b"\x89HDF") and is_photon_hdf5(path):
         return read_photon_hdf5(path)
     return read_capture(path)

@@ -213,6 +213,13 @@ def _decode_spc(path, kind, _):
     problems = [f"phconvert: {line}" for line in said]
     if extra:
         problems.append(f"its last {extra} bytes are not a whole record and are left out")
+    # B&H's GAP flag (bit 29 of a record): the module's FIFO overflowed before it, photons lost.
+    gaps = int(np.count_nonzero(np.fromfile(path, dtype="<u4", count=records, offset=4)
+                                & np.uint32(1 << 29)))
+    if gaps:
+        problems.append(f"{gaps} record{'s' * (gaps > 1)} carry the GAP flag: the module's "
+                        f"FIFO overflowed there and the photons it could not hold were lost "
+                        f"in the recording")
     # (phconvert numbers a marker past the photons' channels: 16 and up for 4 routing bits)
     return Recording(
         path, kind, f"a Becker & Hickl SPC file of an {module} (its .set file gives the "

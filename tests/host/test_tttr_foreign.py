@@ -216,6 +216,20 @@ def test_what_cannot_map_is_refused_in_one_line(tmp_path, capsys):
         f"HydraHarp, the mark of one)\n")
 
 
+def test_photons_an_spc_module_lost_are_not_lost_silently(tmp_path):
+    # B&H's record: bit 29 the GAP flag, set where the FIFO overflowed and photons were lost.
+    data = bytearray((DATA / "test_noise.spc").read_bytes())
+    words = np.frombuffer(bytes(data[4:]), dtype="<u4").copy()
+    photon = np.flatnonzero((words >> 30) == 0)[[10, 20]]
+    words[photon] |= np.uint32(1 << 29)
+    (tmp_path / "gap.spc").write_bytes(bytes(data[:4]) + words.tobytes())
+    shutil.copy(DATA / "test_noise.set", tmp_path / "gap.set")
+    got = recording(tmp_path / "gap.spc")
+    assert got.problems == ["2 records carry the GAP flag: the module's FIFO overflowed there "
+                            "and the photons it could not hold were lost in the recording"]
+    assert recording(DATA / "test_noise.spc").problems == []
+
+
 def test_an_ht3_file_converts_to_photon_hdf5_and_ptu(tmp_path, capsys):
     source = DATA / "hydraharp_v20.ht3"
     got = recording(source)
