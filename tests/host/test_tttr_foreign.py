@@ -86,6 +86,17 @@ def phconvert_picoharp(path):
                    detector[photon].astype(np.int64) - 1)
 
 
+def phconvert_pt3(path):
+    """A PT3 file by phconvert's reader (right on files without markers)."""
+    with warnings.catch_warnings(), contextlib.redirect_stdout(io.StringIO()):
+        warnings.simplefilter("ignore")
+        sync, detector, micro, *_ = pqreader.load_pt3(str(path))
+        words = pqreader.pt3_reader(str(path))[0]
+    assert not np.any(((words >> 28) == 15) & (((words >> 16) & 0xFFF) != 0))  # no markers
+    photon = detector < 15
+    return photons(sync[photon], micro[photon], detector[photon].astype(np.int64) - 1)
+
+
 def phconvert_spc(path):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -277,6 +288,9 @@ FULL = [
                        (11, "9a0777384142ebce6dcb096592b8a335f39528b0"))] + [
     ("test_noise.spc", "Photon-HDF5/phconvert", "a46246a3b9bdf680204ffe88663059605034db2b",
      "tests/test_files/test_noise.spc", phconvert_spc),
+    # (GPL-2.0, so not kept in this repository: PicoHarp 300, FCS of TopFluor PE)
+    ("topfluorPE_2_1_1_1.pt3", "dwaithe/FCS_point_correlator",
+     "6332ad845ea0ec693179bb6e29535fe61e335499", "topfluorPE_2_1_1_1.pt3", phconvert_pt3),
 ]
 
 
@@ -305,6 +319,9 @@ def test_whole_public_recordings_read_event_for_event(tmp_path, name, repository
                                                       second):
     file = whole(name, repository, commit, path, tmp_path)
     got = recording(file)
+    if name.endswith(".pt3"):               # (and PicoQuant's layout, on the same records)
+        with contextlib.redirect_stdout(io.StringIO()):
+            assert_same_photons(got, picoharp_layout(pqreader.pt3_reader(str(file))[0]))
     if second is None:                      # (HT3 2.0: libpicoquant's dump of its start)
         assert_same_photons(got, picoquant_dump(DATA / "hydraharp_v20.ht3", 16),
                             first=100)
