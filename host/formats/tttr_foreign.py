@@ -65,7 +65,7 @@ class ForeignCapture(Capture):
     ``code_width_s`` wide (not a FLISS TDC's), its laser period is the file's sync period
     (``period_s``), and ``source`` names the format and the instrument. Its histogram
     (:meth:`total_histogram`) has a bin per code, as many as the sync period holds (or up to
-    the last photon's code); ``bin_shift`` is the power of two nearest the codes' width in
+    the last photon's code; at most FLISS's 8192); ``bin_shift`` is the power of two nearest the codes' width in
     50 ps codes, so that the analysis smooths it over the time it smooths a FLISS capture's
     (as for :class:`.metadata.ImportedCapture`)."""
     code_width_s: float = TDC_LSB_S
