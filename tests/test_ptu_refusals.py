@@ -109,7 +109,7 @@ def test_more_bytes_than_records_announced_are_not_lost_silently(tmp_path, good)
     path = tmp_path / "long.ptu"
     path.write_bytes(data + bytes(4 * 3))       # 3 more records: photons at dtime 0
     got = one_line_or_capture(path)
-    assert got.histograms.sum() == 200
+    assert got.total_histogram().sum() == 200
     assert got.problems == [f"12 bytes after the {count} records its header announces are "
                             f"left out"]
 

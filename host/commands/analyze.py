@@ -39,7 +39,7 @@ def register(subparsers, formatter):
                     "height, the background, detected or not; of a depth capture (--readout "
                     "depth) the median over the frames and the detection rate.")
     parser.add_argument("files", nargs="+", metavar="FILE",
-                        help="capture files (HDF5), PTU or Photon-HDF5 files")
+                        help="capture files (HDF5), PTU, Photon-HDF5, HT3, PT3 or SPC files")
     parser.add_argument("--victim-tof", metavar="TIME",
                         help="position of the victim's peak (e.g. 26.7ns)")
     parser.add_argument("--aggressor-tof", nargs="*", default=[], metavar="TIME",

@@ -25,8 +25,11 @@ def register(subparsers, formatter):
                     "histogram, one image pixel per sensor pixel); Photon-HDF5 holds photons "
                     "only. Depth captures have no form in either. The settings (delay mode, "
                     "L or Wm, seed or IV, PRF; never the key) go into the file's own "
-                    "metadata. Mapping and losses: docs/file-format.md.")
-    parser.add_argument("capture", metavar="CAPTURE", help="capture file (HDF5)")
+                    "metadata. A recording of another instrument (a PTU, HT3, PT3 or SPC file) "
+                    "converts as a raw capture of its photons. Mapping and losses: "
+                    "docs/file-format.md.")
+    parser.add_argument("capture", metavar="CAPTURE",
+                        help="capture file (HDF5), or a PTU, Photon-HDF5, HT3, PT3 or SPC file")
     parser.add_argument("--to", required=True, choices=sorted(FORMATS), default=argparse.SUPPRESS,
                         help="output format")
     parser.add_argument("-o", "--output", required=True, metavar="OUT",

@@ -35,7 +35,7 @@ def register(subparsers, formatter):
                     "--shape) and the intensity, for all frames together, a grid of frames, "
                     "or an animated GIF of them (--frames).")
     parser.add_argument("files", nargs="+", metavar="FILE",
-                        help="capture files (HDF5), PTU or Photon-HDF5 files")
+                        help="capture files (HDF5), PTU, Photon-HDF5, HT3, PT3 or SPC files")
     parser.add_argument("-o", "--output", required=True, metavar="PNG",
                         default=argparse.SUPPRESS,
                         help="image to write (an existing file only with --overwrite)")

@@ -40,7 +40,8 @@ def register(subparsers, formatter):
                     "back at the pace it was captured (--speed). `fliss capture --view` "
                     "shows a capture as it is written.")
     parser.add_argument("file", nargs="?", metavar="FILE",
-                        help="capture file to replay (instead of --port)")
+                        help="capture file (or a PTU, Photon-HDF5, HT3, PT3 or SPC file) to "
+                             "replay (instead of --port)")
     add_port_arguments(parser, required=False)
     parser.add_argument("--speed", type=float, default=1.0, metavar="X",
                         help="replay this many times faster than the capture ran")

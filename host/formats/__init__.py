@@ -1,8 +1,10 @@
-"""Captures in other programs' formats, both ways: PTU (PicoQuant) and Photon-HDF5.
+"""Captures in other programs' formats, both ways: PTU (PicoQuant) and Photon-HDF5; and the
+recordings of other TCSPC instruments (HT3, PT3, Becker & Hickl SPC) read.
 
 :func:`export_capture` writes a capture (:class:`~fliss.host.fileformat.Capture`) in one of
-:data:`FORMATS`; :func:`read_file` reads a FLISS capture file, a PTU file or a Photon-HDF5
-file as a capture, so that ``fliss analyze`` and ``fliss plot`` take any of them. What maps to
+:data:`FORMATS`; :func:`read_file` reads a FLISS capture file, a PTU file, an HT3, PT3 or SPC
+file (:mod:`.tttr_foreign`) or a Photon-HDF5 file as a capture, so that ``fliss analyze``,
+``fliss plot``, ``fliss view`` and ``fliss export`` take any of them. What maps to
 what, and what is lost: docs/file-format.md. Everything refused is a :exc:`FormatError` (a
 ``ValueError``) of one line.
 """
@@ -13,6 +15,8 @@ from ..errors import FormatError
 from ..fileformat import read_capture
 from .photon_hdf5 import is_photon_hdf5, read_photon_hdf5, write_photon_hdf5
 from .ptu import read_ptu, write_ptu
+from .ptu_header import read_header
+from .tttr_foreign import foreign_kind, read_foreign
 
 
 __all__ = ["FORMATS", "ENDINGS", "FormatError", "check_name", "export_capture", "read_file"]
@@ -81,19 +85,28 @@ def export_capture(capture, path, to):
 
 def read_file(path):
     """The capture in ``path``: a FLISS capture file (:func:`~fliss.host.fileformat.
-    read_capture`), a PTU file (T3) or a Photon-HDF5 file (:mod:`.ptu`, :mod:`.photon_hdf5`).
+    read_capture`), a PTU file (T3) or a Photon-HDF5 file (:mod:`.ptu`, :mod:`.photon_hdf5`),
+    an HT3, PT3 or SPC file (:mod:`.tttr_foreign`, as are PTU files other programs wrote).
     Raises :exc:`ValueError` of one line for what cannot be read."""
     path = str(path)
     try:
         with open(path, "rb") as f:
-            head = f.read(len(_PTU))
+            head = f.read(16)
     except OSError:
         head = b""                      # read_capture says why
-    if head == _PTU or (path.lower().endswith(".ptu") and not head.startswith(b"\x89HDF")):
-        return read_ptu(path)       # (a .ptu name without the mark: refused, saying so)
-    if head == _PHU:
+    if head.startswith(_PTU) or (path.lower().endswith(".ptu") and
+                                 not head.startswith(b"\x89HDF")):
+        header = read_header(path)  # (a .ptu name without the mark: refused, saying so)
+        if "FLISS_configuration" in header.tags:
+            return read_ptu(path)
+        return read_foreign(path, "ptu", header)
+    kind = foreign_kind(path, head) if not head.startswith(b"\x89HDF") else None
+    if kind is not None:
+        return read_foreign(path, kind)
+    if head.startswith(_PHU):
         raise FormatError(f"{path}: a PicoQuant histogram (PHU) file; fliss reads PTU files "
-                          f"(T3 records), Photon-HDF5 files and FLISS capture files")
+                          f"(T3 records), HT3, PT3 and SPC files, Photon-HDF5 files and FLISS "
+                          f"capture files")
     if head.startswith(b"\x89HDF") and is_photon_hdf5(path):
         return read_photon_hdf5(path)
     return read_capture(path)

@@ -29,6 +29,8 @@ __all__ = ["timing", "settings", "configuration", "metadata", "created", "laser_
 
 def timing(capture):
     """``(period_s, prf_hz)``: the laser period (the sync of a TCSPC file) and its rate."""
+    if getattr(capture, "period_s", None):          # (a recording of another instrument)
+        return capture.period_s, 1 / capture.period_s
     clock_hz = capture.clock_hz
     period = int(capture.configuration.get("period", 0))
     if not clock_hz or not period:
@@ -48,6 +50,10 @@ def settings(capture):
     the delay mode and its parameters (``length`` L and ``seed`` for mseq, ``mask_width`` Wm
     and ``seed`` for masked, Wm and ``iv`` for keyed; never the key), the PRF, the period, the
     clock, the TDC code and bin shift, and whether the aggressor was on."""
+    if getattr(capture, "source", None):            # (a recording of another instrument)
+        period_s, prf_hz = timing(capture)
+        return {"mode": capture.mode, "source": capture.source, "prf_hz": prf_hz,
+                "period_s": period_s, "code_s": capture.code_s, "bin_shift": capture.shift}
     c = configuration(capture)
     try:
         mode = DelayMode(c.get("delay_mode", 0)).name.lower()

@@ -83,7 +83,9 @@ def _photon_data(capture, h5file, tables):
         detected += np.bincount(run["address"], minlength=len(detected))
         first = int(cycles[0]) if first is None else first
         last = int(cycles[-1])
-    user = dict(settings(capture), **metadata(capture), collision=columns["collision"])
+    user = dict(settings(capture), collision=columns["collision"])
+    if not getattr(capture, "source", None):        # (not another instrument's recording)
+        user.update(metadata(capture))
     pixels = np.arange(1 << ADDRESS_BITS, dtype=np.uint8)
     ids = np.flatnonzero(detected).astype(np.uint8)
     duration_s = capture.attrs.get("capture_s")
@@ -157,7 +159,8 @@ def read_photon_hdf5(path):
 
 def _read(f, path):
     fliss = f.get("user/fliss")
-    if isinstance(fliss, h5py.Group) and _value(fliss, "mode") == "raw":
+    if isinstance(fliss, h5py.Group) and _value(fliss, "mode") == "raw" and \
+            "configuration" in fliss:
         texts = {name: _value(fliss, name) for name in ("configuration", "identity", "capture")}
         data = f["photon_data"]
         events = np.zeros(len(data["timestamps"]), dtype=EVENT_DTYPE)

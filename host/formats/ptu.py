@@ -43,13 +43,17 @@ def _ptufile():
 
 def ptu_tags(capture):
     """The ``FLISS_*`` tags of a capture's export: the settings that matter and the whole
-    metadata (JSON texts), never the key."""
+    metadata (JSON texts), never the key. Of another instrument's recording, its source and
+    timing only: read back, it is that recording again (:mod:`.tttr_foreign`)."""
     tags = {f"FLISS_{name}": value for name, value in settings(capture).items()}
-    tags.update({f"FLISS_{name}": text for name, text in metadata(capture).items()})
+    if not getattr(capture, "source", None):
+        tags.update({f"FLISS_{name}": text for name, text in metadata(capture).items()})
     return tags
 
 
 def _comment(capture):
+    if getattr(capture, "source", None):
+        return f"{capture.source}: {capture.path}, converted by fliss"
     s = settings(capture)
     detail = ", ".join(f"{name} {s[name]}" for name in ("length", "mask_width", "seed", "iv")
                        if name in s)
