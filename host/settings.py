@@ -209,12 +209,18 @@ def convert(settings: Mapping[str, Any], clock_hz: int, current: Mapping[str, in
         changes["depth_threshold"] = context.registers["depth_threshold"] = threshold
         written["depth_threshold"] = (f"{BY_OPTION['depth_threshold'].label(style)} {threshold}"
                                       f" (for the pixel split)")
-    found = _problems(context.registers, labels, context.clock_hz)
+    found = _problems(context.registers, labels, context.clock_hz, bank_bits)
     iv = iv_problem(changes, context.registers, value_of(current, "iv"))
     if iv:
         found.append(f"{BY_OPTION['iv'].label(style)}: {iv} (give a higher IV or a new key)")
     if found:
         raise SettingsError("; ".join(found))
+    for name, value in changes.items():
+        # (a choice the register map's row has, above a smaller range: the aggressor's keyed)
+        try:
+            BY_NAME[name].check(value)
+        except ValueError as error:
+            raise SettingsError(str(error)) from None
     return Conversion(changes, context.registers, context.notes, written)
 
 
@@ -273,7 +279,7 @@ def check_offline(settings: Mapping[str, Any], *, style: str = "flag") -> None:
             raise SettingsError(split)
 
 
-def _problems(registers, labels, clock_hz):
+def _problems(registers, labels, clock_hz, bank_bits):
     # The gateware's consistency checks, naming settings as the caller does, with units.
     found = []
     if registers["gate_start"] > registers["gate_end"]:
@@ -291,7 +297,7 @@ def _problems(registers, labels, clock_hz):
             text += f" ({format_time(cycles / clock_hz)}, {cycles} cycles)"
         return text
 
-    for message in problems(registers):
+    for message in problems(registers, bank_bits):
         if not message.startswith("gate_start "):
             found.append(re.sub(rf"(?<![*\w])({names})\b(?: \((\d+) cycles\))?", named,
                                 message))
