@@ -11,7 +11,7 @@ import time
 from dataclasses import dataclass
 from typing import Optional
 
-from ..hdl.registers import AcquisitionMode, TdcSource
+from ..hdl.registers import BY_NAME, AcquisitionMode, TdcSource
 from .calibration import read_table
 from .client import BoardClient
 from .errors import BoardLost, BoardReset, PathError, SettingsError
@@ -200,8 +200,12 @@ _HOST_CLOCK = "(host clock)"
 _FRAMED = {"histogram": "histograms", "image": "images", "depth": "depth frames"}
 
 
+#: The integration time a capture takes unless told: the register's reset value (10 ms).
+DEFAULT_INTEGRATION_S = BY_NAME["integration"].reset.seconds
+
+
 def capture(board: BoardClient, path: str, *, mode: str = "histogram",
-            integration_s: float = 10e-3, acquisitions: int = 10,
+            integration_s: float = DEFAULT_INTEGRATION_S, acquisitions: int = 10,
             duration_s: Optional[float] = None, port: str = "",
             progress=None, watch=None) -> CaptureResult:
     """Capture into ``path`` from an identified :class:`~fliss.host.client.BoardClient`.

@@ -198,7 +198,8 @@ class Board:
             warnings.warn(note, RoundingWarning, stacklevel=2)
         if conversion.changes:
             try:
-                self.client.write_registers(conversion.changes, current=current)
+                # (checked by `convert`, as `write_registers` would check it again)
+                self.client.write_checked(conversion.registers, conversion.changes)
             except BoardRefused as error:
                 # A smaller build's maximum: say which setting, as the caller wrote it.
                 name = error.register.name if error.register is not None else None

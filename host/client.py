@@ -160,7 +160,15 @@ class BoardClient(BoardLink):
             return dict(current) if current is not None else self.read_registers()
         if current is None:
             current = self.read_registers()
-        candidate = self.check_settings(current, changes)
+        return self.write_checked(self.check_settings(current, changes), changes)
+
+    def write_checked(self, candidate: Mapping[str, int],
+                      changes: Iterable[str]) -> Dict[str, int]:
+        """Write the registers named in ``changes`` with their values in ``candidate``, the
+        settings they make, already checked (:meth:`check_settings`, or
+        :func:`fliss.host.settings.convert`, which checks as it does and names the settings as
+        the caller wrote them), in one WRITE. Returns ``candidate``."""
+        candidate = dict(candidate)
         addresses = [BY_NAME[name].address for name in changes]
         first, last = min(addresses), max(addresses)
         values = [candidate[BY_ADDRESS[a].name] for a in range(first, last + 1)]

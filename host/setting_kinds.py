@@ -1,6 +1,7 @@
 """The kinds of board settings (:class:`Kind`): how a value with units becomes register values
 for a given clock, and back. The table of settings that uses them is
-:data:`fliss.host.settings.OPTIONS`; its rules are told there.
+:data:`fliss.host.settings.OPTIONS` (read from the register map, which names each register's
+kind: :data:`BY_KIND` maps the names to the kinds); its rules are told there.
 
 A converter gets the :class:`~fliss.host.settings.Option`, the value as given and a
 :class:`Context` (the clock, the registers so far, the notes), and returns
@@ -16,13 +17,14 @@ from typing import Any, Callable, Dict, List, Mapping
 
 from ..hdl.clock import MIN_PERIOD_CYCLES, period_cycles
 from ..hdl.registers import BY_NAME, value_of, words_of
+from ..hdl.register_rows import KINDS
 from ..hdl.codes import code_s as timestamp_code_s
 from ..hdl.delay.settings import as_int, parse_hex
 from .errors import SettingsError
 from .units import format_frequency, format_time, parse_frequency, parse_time
 
 
-__all__ = ["Kind", "Context", "said", "WHOLE", "CHOICE", "TIME", "FREQUENCY", "GATE", "KEY", "IV",
+__all__ = ["Kind", "Context", "said", "BY_KIND", "WHOLE", "CHOICE", "TIME", "FREQUENCY", "GATE", "KEY", "IV",
            "PIXELS", "PIXEL", "MAX_PIXELS", "refuse", "code_s", "exact_time", "exact_frequency"]
 
 #: Relative difference below which a value counts as a whole number of cycles (no note).
@@ -303,6 +305,11 @@ IV = Kind(_convert_iv, _show_iv)
 PIXELS = Kind(_convert_pixels, lambda option, registers, clock_hz: 1 << registers["pixel_bits"])
 #: One pixel by its address: ``pixel_bits`` 0 and ``first_pixel``.
 PIXEL = Kind(_convert_pixel, _show_pixel)
+
+#: The converter of each kind the register map names (:data:`fliss.hdl.register_rows.KINDS`).
+BY_KIND = {"whole": WHOLE, "choice": CHOICE, "time": TIME, "frequency": FREQUENCY, "gate": GATE,
+           "key": KEY, "iv": IV, "pixels": PIXELS, "pixel": PIXEL}
+assert set(BY_KIND) == set(KINDS)
 
 def exact_time(seconds: float) -> str:
     """A time as text with an SI prefix and every digit that matters (``"154.3125 µs"``), so

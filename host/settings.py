@@ -1,11 +1,12 @@
 """Board settings with units: ``{"integration": "10ms", "mode": "masked"}`` as register values.
 
-One table, :data:`OPTIONS`, says for each setting its name (a keyword of
+:data:`OPTIONS` says for each setting its name (a keyword of
 :meth:`fliss.host.board.Board.configure`, and with ``--`` and dashes the flag of ``fliss config``
 and ``fliss capture``), the register it sets and its :class:`Kind`: how a value with units
 becomes a register value for a given clock, and back (the kinds: :mod:`fliss.host.setting_kinds`).
-A new setting is one entry; one wider than a register (a key) is one entry whose kind returns
-several registers.
+It is read from the register map's rows (:data:`fliss.hdl.registers.ROWS`), which name each
+register's kind, keywords, help and choices: a new setting is a keyword of a row; one wider than
+a register (a key) is one keyword whose kind returns several registers.
 
 The rules, the same in the library and on the command line:
 
@@ -28,14 +29,11 @@ import numpy as np
 
 from ..hdl.event import TIMESTAMP_BITS
 from ..hdl.clock import DEFAULT_CLOCK_HZ
-from ..hdl.registers import (BY_NAME, AcquisitionMode, TdcSource, defaults, iv_problem, problems,
-                             value_of)
-from ..hdl.delay.modes import DelayMode
-from ..hdl.finetdc import HitInput
+from ..hdl.registers import BY_NAME, ROWS, defaults, iv_problem, problems, value_of
 from .errors import SettingsError
 from .imager.threshold import depth_threshold
-from .setting_kinds import (CHOICE, FREQUENCY, GATE, IV, KEY, MAX_PIXELS, PIXEL, PIXELS, TIME,
-                            WHOLE, Context, Kind, code_s, exact_frequency, exact_time, said)
+from .setting_kinds import (BY_KIND, CHOICE, PIXEL, PIXELS, WHOLE, MAX_PIXELS, Context, Kind,
+                            code_s, exact_frequency, exact_time, said)
 from .units import format_frequency, format_time, parse_time
 
 
@@ -75,10 +73,6 @@ class Option:
         return self.flag if style == "flag" else self.name
 
 
-def _names(enum):
-    return {member.name.lower(): member.value for member in enum}
-
-
 def _after_reset(register):
     """``after reset: 1 cycle, 12.5 ns at 80 MHz``: a time register's reset value."""
     cycles = BY_NAME[register].reset_value(DEFAULT_CLOCK_HZ)
@@ -86,88 +80,23 @@ def _after_reset(register):
             f"{format_time(cycles / DEFAULT_CLOCK_HZ)} at {format_frequency(DEFAULT_CLOCK_HZ)}")
 
 
-_MODES = _names(DelayMode)
-_ON_OFF = {"off": 0, "on": 1}
+def _help(row, keyword):
+    # The keyword's help, with the row's default (``10ms``) or reset value in it
+    text = keyword.help
+    if "{default}" in text:
+        text = text.replace("{default}", str(row.reset).replace(" ", ""))
+    if "{after_reset}" in text:
+        text = text.replace("{after_reset}", _after_reset(row.name))
+    return text
+
 
 #: Every setting, in the order they are converted (``tdc`` and ``fine_lsb`` before the gate,
-#: which depends on them) and shown.
-OPTIONS: Tuple[Option, ...] = (
-    Option("readout", "acquisition", CHOICE, "what the board sends: histograms made on the "
-           "board (image: the same, saved per pixel), every event (raw), or depth frames",
-           choices={**_names(AcquisitionMode), "image": AcquisitionMode.HISTOGRAM.value}),
-    Option("mode", "delay_mode", CHOICE, "victim delay source", choices=_MODES),
-    Option("length", "length", WHOLE, "register length of the mseq source (bits)", "L"),
-    Option("mask_width", "mask_width", WHOLE, "mask width of the masked source (bits)", "WM"),
-    Option("seed", "seed", WHOLE, "non-zero seed of the victim delay source (0x for hex)", "S"),
-    Option("prf", "period", FREQUENCY, "nominal pulse repetition frequency (1MHz): sets the "
-           "period", "HZ"),
-    Option("period_cycles", "period", WHOLE, "nominal laser period in clock cycles", "N",
-           shown=False),
-    Option("scheduler", "grid", CHOICE, "interval: pulses T + R apart; grid: pulse k at k T + R",
-           choices={"interval": 0, "grid": 1}),
-    Option("pulse_width", "pulse_width", TIME, f"laser trigger pulse width "
-           f"({_after_reset('pulse_width')})", "TIME"),
-    Option("aggressor", "aggressor", CHOICE, "aggressor emitter", choices=_ON_OFF),
-    Option("aggressor_prf", "aggressor_period", FREQUENCY, "aggressor pulse repetition "
-           "frequency", "HZ"),
-    Option("aggressor_period_cycles", "aggressor_period", WHOLE, "aggressor period in clock "
-           "cycles", "N", shown=False),
-    Option("aggressor_offset", "aggressor_offset", TIME, "aggressor offset after the victim "
-           "(75ns)", "TIME"),
-    Option("aggressor_width", "aggressor_width", TIME, f"aggressor trigger pulse width "
-           f"({_after_reset('aggressor_width')})", "TIME"),
-    Option("aggressor_mode", "aggressor_delay_mode", CHOICE, "aggressor's own delay source",
-           choices=_MODES),
-    Option("aggressor_length", "aggressor_length", WHOLE, "aggressor mseq register length "
-           "(bits)", "L"),
-    Option("aggressor_mask_width", "aggressor_mask_width", WHOLE, "aggressor mask width (bits)",
-           "WM"),
-    Option("aggressor_seed", "aggressor_seed", WHOLE, "aggressor delay source seed", "S"),
-    Option("tdc", "tdc_source", CHOICE, "event source: the sensor's timestamp bus, the "
-           "built-in coarse TDC, the fine TDC (calibrated) or its raw tap codes",
-           choices=_names(TdcSource)),
-    Option("fine_lsb", "fine_lsb", CHOICE, "fine TDC timestamp LSB (range 409.6, 204.8, "
-           "102.4 ns)", choices={"50ps": 0, "25ps": 1, "12.5ps": 2}),
-    Option("tdc_input", "tdc_input", CHOICE, "fine TDC input: the photon pin, the on-chip "
-           "oscillator (calibration), or the laser's or the aggressor's output read back at its "
-           "pad (the self-test)",
-           choices=_names(HitInput)),
-    Option("table_address", "table_address", WHOLE, "fine TDC calibration table: move its "
-           "pointer to entry N", "N"),
-    Option("table_data", "table_data", WHOLE, "fine TDC calibration table: write N (12.5 ps "
-           "units) at the pointer and move it on", "N"),
-    Option("gate_start", "gate_start", GATE, "first timestamp accepted (time from the TDC "
-           "start: 100ns, or 2000codes)", "TIME"),
-    Option("gate_end", "gate_end", GATE, "last timestamp accepted (100ns, or 2000codes)",
-           "TIME"),
-    Option("bin_shift", "bin_shift", WHOLE, "histogram bins are 2**N codes wide", "N"),
-    Option("integration", "integration", TIME, "histogram integration time (10ms), and raw "
-           "block length", "TIME"),
-    Option("collisions", "collisions", CHOICE, "events the sensor flags as collisions: kept, "
-           "or dropped and counted", choices={"keep": 0, "drop": 1}),
-    Option("pixels", "pixel_bits", PIXELS, f"pixels per frame, a power of two from 1 to "
-           f"{MAX_PIXELS} (the addresses --first-pixel ...); the bank holds 2**16 bins (2**14 on "
-           f"the iCEBreaker) shared among them", "N"),
-    Option("pixel_bits", "pixel_bits", WHOLE, "frames of 2**N pixels", "N", shown=False),
-    Option("first_pixel", "first_pixel", WHOLE, "address of the first pixel histogrammed",
-           "ADDRESS"),
-    Option("pixel", "first_pixel", PIXEL, "the single-pixel bench: only the pixel at ADDRESS "
-           "(--pixels 1 --first-pixel ADDRESS)", "ADDRESS", shown=False),
-    Option("histogram_format", "full_readout", CHOICE, "histogram readout: compact when "
-           "shorter, or always full", choices={"compact": 0, "full": 1}),
-    Option("depth_filter", "depth_filter", WHOLE, "width of the depth engine's matched filter "
-           "(bins)", "N"),
-    Option("depth_threshold", "depth_threshold", WHOLE, "least filtered peak height above "
-           "background for a depth (counts); a new pixel split (--pixels, --pixel, --bin-shift) "
-           "sets the one that suits it unless given, and it then follows the integration time, "
-           "PRF and filter: the height that background alone reaches in one of a hundred "
-           "frames of a pixel", "COUNTS"),
-    Option("key", "key0", KEY, "key of the keyed source: all 20 hex digits, as the test vectors "
-           "print it, or random (from the operating system's generator); write-only: the board never "
-           "reads it back", "HEX|random", shown=False),
-    Option("iv", "iv0", IV, "IV of the keyed source (up to 20 hex digits); reads as the IV in use, "
-           "and a new IV must be above it unless a new key is given too", "HEX"),
-)
+#: which depends on them) and shown: the keywords of the register map's rows
+#: (:data:`fliss.hdl.registers.ROWS`), in its order.
+OPTIONS: Tuple[Option, ...] = tuple(
+    Option(keyword.name, row.name, BY_KIND[keyword.kind or row.kind], _help(row, keyword),
+           keyword.metavar, keyword.choices or row.choices, keyword.shown)
+    for row in ROWS for keyword in row.keywords)
 
 #: The options by name.
 BY_OPTION = {option.name: option for option in OPTIONS}
@@ -280,12 +209,18 @@ def convert(settings: Mapping[str, Any], clock_hz: int, current: Mapping[str, in
         changes["depth_threshold"] = context.registers["depth_threshold"] = threshold
         written["depth_threshold"] = (f"{BY_OPTION['depth_threshold'].label(style)} {threshold}"
                                       f" (for the pixel split)")
-    found = _problems(context.registers, labels, context.clock_hz)
+    found = _problems(context.registers, labels, context.clock_hz, bank_bits)
     iv = iv_problem(changes, context.registers, value_of(current, "iv"))
     if iv:
         found.append(f"{BY_OPTION['iv'].label(style)}: {iv} (give a higher IV or a new key)")
     if found:
         raise SettingsError("; ".join(found))
+    for name, value in changes.items():
+        # (a choice the register map's row has, above a smaller range: the aggressor's keyed)
+        try:
+            BY_NAME[name].check(value)
+        except ValueError as error:
+            raise SettingsError(str(error)) from None
     return Conversion(changes, context.registers, context.notes, written)
 
 
@@ -344,7 +279,7 @@ def check_offline(settings: Mapping[str, Any], *, style: str = "flag") -> None:
             raise SettingsError(split)
 
 
-def _problems(registers, labels, clock_hz):
+def _problems(registers, labels, clock_hz, bank_bits):
     # The gateware's consistency checks, naming settings as the caller does, with units.
     found = []
     if registers["gate_start"] > registers["gate_end"]:
@@ -362,7 +297,7 @@ def _problems(registers, labels, clock_hz):
             text += f" ({format_time(cycles / clock_hz)}, {cycles} cycles)"
         return text
 
-    for message in problems(registers):
+    for message in problems(registers, bank_bits):
         if not message.startswith("gate_start "):
             found.append(re.sub(rf"(?<![*\w])({names})\b(?: \((\d+) cycles\))?", named,
                                 message))

@@ -19,14 +19,21 @@ from fliss.hdl.registers import REGISTERS
 DOC = Path(__file__).resolve().parent.parent / "docs" / "protocol.md"
 
 
+def _register_row(register):
+    # The line of the register table that says what the register map's row says
+    flags = ", ".join(f"`--{keyword.name.replace('_', '-')}`" for keyword in register.keywords)
+    return (f"| `0x{register.address:02x}` | `{register.name}` | {register.width} | "
+            f"{register.minimum} … {register.maximum} | {register.reset_value(80_000_000)} | "
+            f"{register.unit} | {flags} | {register.doc} |")
+
+
 def test_register_table_matches_the_register_map():
-    rows = re.findall(r"^\| `0x([0-9a-f]+)` \| `(\w+)` \| (\d+) \| (\d+) … (\d+) \| (\d+) \|",
-                      DOC.read_text(), flags=re.MULTILINE)
-    documented = [(int(a, 16), name, int(bits), int(lo), int(hi), int(reset))
-                  for a, name, bits, lo, hi, reset in rows]
-    defined = [(r.address, r.name, r.width, r.minimum, r.maximum, r.reset_value(80_000_000))
-               for r in REGISTERS]
-    assert documented == defined
+    # Every column of every row: address, name, width, range, reset, unit, flags and meaning
+    documented = re.findall(r"^\| `0x[0-9a-f]+` \| `\w+` \|.*$", DOC.read_text(),
+                            flags=re.MULTILINE)
+    defined = [_register_row(register) for register in REGISTERS]
+    assert documented == defined, "docs/protocol.md's register table should read:\n" + \
+        "\n".join(defined)
 
 
 def _payload_tables():

@@ -12,11 +12,11 @@ from .settings import DELAY_WIDTH, PERIOD_WIDTH, PULSE_WIDTH_WIDTH, check_widths
 __all__ = ["OFFSET_WIDTH", "PAPER_OFFSET_S", "EmitterSettings", "Aggressor"]
 
 
-#: Width of the start offset setting, in bits.
-OFFSET_WIDTH = 32
+#: Width of the start offset setting, in bits: its register's.
+OFFSET_WIDTH = AGGRESSOR.register("offset").width
 
-#: Start offset of the aggressor in the paper's experiments, in seconds (6 cycles at 80 MHz).
-PAPER_OFFSET_S = 75e-9
+#: Start offset of the aggressor in the paper's experiments, in seconds: its register's reset.
+PAPER_OFFSET_S = AGGRESSOR.register("offset").reset.seconds
 
 #: The emitter's own settings: ``enable`` (the emitter is on) and ``offset`` (start offset in
 #: clock cycles); the layout of the register group :data:`~fliss.hdl.registers.AGGRESSOR`.

@@ -27,8 +27,8 @@ MIN_COUNT_WIDTH = 16
 MAX_COUNT_WIDTH = 32
 #: Largest bin shift: with it every timestamp falls in bin 0.
 MAX_SHIFT = TIMESTAMP_BITS
-#: Width of the integration time setting, in clock cycles: up to 53 s at 80 MHz.
-INTEGRATION_WIDTH = 32
+#: Width of the integration time setting (its register's): up to 53 s at 80 MHz.
+INTEGRATION_WIDTH = HISTOGRAM.register("integration").width
 
 #: Settings of a :class:`~fliss.hdl.histogram.engine.Histogram`: ``bin_shift`` (bins are
 #: ``2**bin_shift`` timestamp codes wide) and ``integration`` (frame length in clock cycles); the

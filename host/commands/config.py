@@ -3,14 +3,12 @@
 import sys
 
 from ..errors import UserError
-from ...hdl.delay.source import DelayMode
-from ...hdl.event import TIMESTAMP_BITS
-from ...hdl.codes import code_s
-from ...hdl.registers import REGISTERS, BY_NAME, AcquisitionMode, TdcSource, value_of
+from ...hdl.registers import REGISTERS, value_of
 from .port_options import add_port_arguments, connect
 from .setting_options import add_setting_arguments, settings_from_args
 from ..settings import check_offline
-from ..units import format_frequency, format_time
+from ..setting_display import describe
+from ..units import format_frequency
 
 
 __all__ = ["register", "run", "describe"]
@@ -18,60 +16,6 @@ __all__ = ["register", "run", "describe"]
 #: Title of the setting flags in ``--help``.
 SETTINGS_TITLE = ("settings (each changes one register; times take a unit, 25ns, or are whole "
                   "clock cycles, 2cycles; values are rounded to whole cycles, with a warning)")
-
-
-def describe(name, value, settings, clock_hz):
-    """The value of a register in physical units, or its meaning, as text."""
-    cycle_s = 1 / clock_hz
-    if name in ("period", "aggressor_period"):
-        return f"{format_time(value * cycle_s)} ({format_frequency(clock_hz / value)})"
-    if name in ("pulse_width", "aggressor_offset", "aggressor_width", "integration"):
-        return format_time(value * cycle_s)
-    if name in ("delay_mode", "aggressor_delay_mode"):
-        try:
-            return DelayMode(value).name.lower()
-        except ValueError:
-            return "?"
-    if name == "acquisition":
-        modes = {mode.value: mode.name.lower() for mode in AcquisitionMode}
-        return modes.get(value, "?")
-    if name == "tdc_source":
-        return TdcSource(value).name.lower() if value in {s.value for s in TdcSource} else "?"
-    if name in ("grid",):
-        return "grid" if value else "interval"
-    if name == "aggressor":
-        return "on" if value else "off"
-    if name in ("gate_start", "gate_end"):
-        return format_time(value * _code_s(settings, clock_hz)) if value else "0 s"
-    if name == "bin_shift":
-        bins = (1 << TIMESTAMP_BITS) >> value
-        return f"bins of {format_time((1 << value) * _code_s(settings, clock_hz))}, {bins} per pixel"
-    if name == "pixel_bits":
-        return f"{1 << value} pixel{'s' if value else ''} per frame"
-    if name == "first_pixel":
-        last = value + (1 << settings.get("pixel_bits", 0)) - 1
-        return f"pixels {value} to {last}" if last != value else f"pixel {value}"
-    if name == "collisions":
-        return "drop (counted)" if value else "keep"
-    if name == "full_readout":
-        return "full" if value else "compact"
-    if name == "depth_filter":
-        bin_s = (1 << settings.get("bin_shift", 0)) * _code_s(settings, clock_hz)
-        return f"{value} bins, {format_time(value * bin_s)}"
-    if name == "depth_threshold":
-        return f"{value} counts"
-    if name in ("seed", "aggressor_seed"):
-        return f"{value:#x}"
-    if BY_NAME[name].write_only:
-        return "write-only"
-    if name == "iv0":
-        return f"IV in use {value_of(settings, 'iv'):#022x}"
-    return ""
-
-
-def _code_s(settings, clock_hz):
-    # Seconds per timestamp code (the coarse TDC's, the fine TDC's or the sensor's)
-    return code_s(settings, clock_hz)
 
 
 def register(subparsers, formatter):
