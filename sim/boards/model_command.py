@@ -10,7 +10,8 @@ import time
 from .loopback import Loopback
 from .model import model_board
 from .noisy_line import NoisyLine, add_line_arguments, describe, faults_from_args
-from .options import add_build_arguments, add_scene_arguments, baud_rate, rate_hz
+from .options import (add_build_arguments, add_scene_arguments, baud_rate, detector_from_args,
+                      rate_hz)
 from ..scene import Scene, pixels_named
 
 
@@ -47,7 +48,8 @@ def main(argv=None):
         pixels = pixels_named(args.scene, sensor=args.sensor, wall_m=args.target_m,
                               object_m=args.object_m)
         scene = Scene(distance_m=args.target_m, detections_per_pulse=args.signal,
-                      background_hz=rate_hz(args.ambient), pixels=pixels)
+                      background_hz=rate_hz(args.ambient), pixels=pixels,
+                      detector=detector_from_args(args))
         build = _build_from_args(args)
     except ValueError as error:
         parser.exit(2, f"{parser.prog}: error: {error}\n")

@@ -35,6 +35,7 @@ The sensor bus is driven by :class:`~fliss.sim.boards.sensor.SensorModel` (its t
 module).
 """
 
+import json
 import os
 import select
 import time
@@ -207,7 +208,9 @@ def scene_from_environment():
         distance_m=target_m,
         detections_per_pulse=env_setting("FLISS_BOARD_SIGNAL", 0.05),
         background_hz=env_setting("FLISS_BOARD_AMBIENT_HZ", 1e5),
-        aggressors=(aggressor,), pixels=pixels)
+        aggressors=(aggressor,), pixels=pixels,
+        detector=env_setting("FLISS_BOARD_DETECTOR", None,
+                             lambda text: _scene.Detector(**json.loads(text))))
 
 
 async def _reset(dut):
