@@ -1,0 +1,90 @@
+"""Pile-up correction of a single-hit TCSPC histogram: Coates' for a TDC that keeps the first
+photon of a laser cycle, and its counterpart for one that keeps the last.
+
+A single-hit TDC records at most one photon per laser cycle. With ``λ_i`` the mean number of
+photons (Poisson) that would be detected in bin ``i`` of a cycle, the first photon falls in bin
+``i`` when none fell in the bins before and at least one in bin ``i``. Of ``N`` cycles, the
+``M_i = N − Σ_{j<i} n_j`` cycles with no count before bin ``i`` are the ones "at risk" there,
+and ``n_i`` of them record bin ``i``: ``n_i / M_i`` estimates ``1 − exp(−λ_i)``, so
+
+    λ_i = −ln(1 − n_i / M_i)                     (Coates 1968, first photon)
+
+whatever the rates of the other bins. Keeping the last photon, the bins after play that part:
+``M_i = N − Σ_{j>i} n_j``. At low flux ``λ_i ≈ n_i / N``; at high flux the raw histogram piles
+up towards the kept end (first photon: its early bins; last: its late ones) and a peak's
+position moves with it; the corrected ``N λ_i`` does not.
+
+The estimate's standard error, from the binomial ``n_i`` of ``M_i``: ``σ_i = sqrt(p_i / ((1 −
+p_i) M_i))`` with ``p_i = n_i / M_i``.
+
+What it assumes: every photon of the cycle could be detected (``last``: a dead time shorter
+than a bin; ``first``: the SPAD ready at the start of the window: only the first photon
+matters), Poisson arrivals independent from bin to bin, and ``N`` the number of laser cycles
+(TDC windows) the histogram holds, each recorded at most once. A bin where every cycle at risk
+recorded a count (``n_i = M_i``) has no finite estimate: :exc:`PileupError`; a bin no cycle
+reached (``M_i = 0``: every cycle recorded a count before it) has none at all: NaN.
+"""
+
+from typing import NamedTuple
+
+import numpy as np
+
+
+__all__ = ["KEEPS", "PileupError", "Correction", "coates"]
+
+#: Which photon of a cycle the TDC keeps.
+KEEPS = ("first", "last")
+
+
+class PileupError(ValueError):
+    """A histogram the pile-up correction cannot take; the message says why."""
+
+
+class Correction(NamedTuple):
+    """Coates' estimate of a histogram: ``rate`` (mean detections per cycle in each bin,
+    ``λ_i``), its standard error ``sigma``, and ``at_risk`` (the cycles ``M_i`` with no
+    count kept before bin ``i``, ``first``, or after it, ``last``)."""
+    rate: np.ndarray
+    sigma: np.ndarray
+    at_risk: np.ndarray
+
+    def counts(self, cycles):
+        """The corrected histogram in counts: ``cycles × rate``."""
+        return cycles * self.rate
+
+
+def coates(histogram, cycles, keep="first"):
+    """Coates' correction (``keep="first"``) or its counterpart for a TDC that keeps the last
+    photon (``keep="last"``) of ``histogram`` (counts per bin) over ``cycles`` laser cycles;
+    returns a :class:`Correction`. Raises :exc:`PileupError`."""
+    if keep not in KEEPS:
+        raise PileupError(f"the TDC keeps the 'first' or the 'last' photon, not {keep!r}")
+    counts = np.asarray(histogram)
+    if counts.ndim != 1 or not len(counts) or not np.issubdtype(counts.dtype, np.number) \
+            or not np.all(np.isfinite(counts)) or np.any(counts < 0) \
+            or np.any(counts != np.round(counts)):
+        raise PileupError("a histogram is a list of counts: whole numbers, not negative")
+    if isinstance(cycles, bool) or not isinstance(cycles, (int, np.integer)) or cycles < 1:
+        raise PileupError(f"the number of laser cycles must be a whole number of at least 1, "
+                          f"not {cycles!r}")
+    counts = counts.astype(np.float64)
+    total = counts.sum()
+    if total > cycles:
+        raise PileupError(f"the histogram holds {int(total)} counts, more than its {cycles} "
+                          f"laser cycles: a single-hit TDC records one photon a cycle at most "
+                          f"(the cycle count is not this histogram's)")
+    ordered = counts if keep == "first" else counts[::-1]
+    before = np.concatenate(([0.0], np.cumsum(ordered)[:-1]))
+    at_risk = cycles - before
+    full = np.flatnonzero((ordered >= at_risk) & (ordered > 0))
+    if len(full):
+        index = int(full[0]) if keep == "first" else len(counts) - 1 - int(full[0])
+        raise PileupError(f"bin {index}: every laser cycle left there ({int(at_risk[full[0]])}) "
+                          f"recorded it: its rate is beyond what {cycles} cycles measure")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        p = np.where(at_risk > 0, ordered / np.maximum(at_risk, 1.0), np.nan)
+        rate = -np.log1p(-p)
+        sigma = np.sqrt(p / ((1.0 - p) * at_risk))
+    if keep == "last":
+        rate, sigma, at_risk = rate[::-1], sigma[::-1], at_risk[::-1]
+    return Correction(rate, sigma, at_risk.astype(np.int64))
