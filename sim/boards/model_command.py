@@ -15,7 +15,7 @@ from .options import (add_build_arguments, add_scene_arguments, baud_rate, detec
 from ..scene import Scene, pixels_named
 
 
-__all__ = ["build_parser", "main"]
+__all__ = ["build_parser", "main", "scene_from_args"]
 
 
 def build_parser():
@@ -45,11 +45,7 @@ def main(argv=None):
         parser.exit(2, f"{parser.prog}: error: --reset-after must be at least 1, not "
                        f"{args.reset_after}\n")
     try:
-        pixels = pixels_named(args.scene, sensor=args.sensor, wall_m=args.target_m,
-                              object_m=args.object_m)
-        scene = Scene(distance_m=args.target_m, detections_per_pulse=args.signal,
-                      background_hz=rate_hz(args.ambient), pixels=pixels,
-                      detector=detector_from_args(args))
+        scene = scene_from_args(args)
         build = _build_from_args(args)
     except ValueError as error:
         parser.exit(2, f"{parser.prog}: error: {error}\n")
@@ -76,6 +72,16 @@ def main(argv=None):
                 line.close()
                 print(f"{parser.prog}: noisy line: {describe(line)}", file=sys.stderr)
     return 0
+
+
+def scene_from_args(args):
+    """The :class:`~fliss.sim.scene.Scene` of the scene's and the detector's options;
+    ``ValueError`` for a bad one."""
+    pixels = pixels_named(args.scene, sensor=args.sensor, wall_m=args.target_m,
+                          object_m=args.object_m)
+    return Scene(distance_m=args.target_m, detections_per_pulse=args.signal,
+                 background_hz=rate_hz(args.ambient), pixels=pixels,
+                 detector=detector_from_args(args))
 
 
 def _build_from_args(args):

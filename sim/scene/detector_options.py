@@ -17,6 +17,7 @@ import the host (the layers of the README); the same forms are taken.
 import math
 import re
 from dataclasses import dataclass
+from decimal import Decimal
 
 from .detector import Detector
 from .presets import PRESETS
@@ -79,9 +80,10 @@ SETTINGS = (
 BY_NAME = {setting.name: setting for setting in SETTINGS}
 
 _NUMBER = r"([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)"
-_TIME = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "ns": 1e-9, "ps": 1e-12}
-_RATE = {"hz": 1.0, "khz": 1e3, "mhz": 1e6, "ghz": 1e9}
-_SHARE = {"%": 1e-2}
+# Units as powers of ten: the value is the decimal number given, rounded once (22ns is 22e-9)
+_TIME = {"s": 0, "ms": -3, "us": -6, "µs": -6, "ns": -9, "ps": -12}
+_RATE = {"hz": 0, "khz": 3, "mhz": 6, "ghz": 9}
+_SHARE = {"%": -2}
 _EXAMPLES = {"time": "40ns or 80ps", "rate": "7kHz or 25Hz", "share": "1.4%"}
 
 
@@ -106,7 +108,7 @@ def _quantity(text, kind, said):
     if match is None or match.group(2).lower() not in units:
         raise DetectorSettingError(f"{said}: cannot read it as a {kind} (for example "
                                    f"{_EXAMPLES[kind]})")
-    value = float(match.group(1)) * units[match.group(2).lower()]
+    value = float(Decimal(match.group(1)).scaleb(units[match.group(2).lower()]))
     if not math.isfinite(value) or value < 0:
         raise DetectorSettingError(f"{said}: must be a finite {kind}, not negative")
     if kind == "share" and value > 1:

@@ -91,7 +91,8 @@ if none does); ``s_db``: 10 log10 of the mean height of the target's peak over t
 the highest point outside the target's window (both above the background, whether detected or
 not); ``signal_recorded``: fraction of the victim's detected photons the TDC kept (pile-up and
 overwriting lower it); ``aggressor_counts_per_frame``: the aggressors' recorded photons per
-frame; ``attack_locked_runs``: runs in which the predicting attacker locked, and
+frame; ``background_counts_per_frame``: the recorded photons of ambient light and dark counts
+per frame; ``attack_locked_runs``: runs in which the predicting attacker locked, and
 ``attack_locked_after_mean``: its mean observed pulses until the first lock over those runs
 (``None`` for other kinds, or without a lock); and the detection curve as three JSON lists of equal length: ``curve_threshold`` (noise
 deviations), ``curve_p_detect`` and ``curve_false_per_frame``.
@@ -355,6 +356,7 @@ def evaluate(point, seed):
     floor = min(CURVE_THRESHOLDS[0], point["threshold_sigma"])
     judged, errors = [], []
     counts = np.zeros((1 + point["aggressors"], len(COUNTERS)), dtype=np.int64)
+    background = 0
     runs = -(-frames // per_run)
     predicting = point["aggressor_kind"] == "predicting" and point["aggressors"] > 0
     locked_after = []
@@ -378,6 +380,7 @@ def evaluate(point, seed):
         source_counts = acquisitions.counts.sum(axis=0)
         counts[0] += source_counts[0]
         counts[1:] += source_counts[2:2 + point["aggressors"]]     # (not the afterpulses)
+        background += int(source_counts[1, COUNTERS.index("recorded")])
         for histogram in acquisitions.histograms:
             frame = classify(histogram, tof_s, fwhm_s, threshold_sigma=point["threshold_sigma"],
                              floor_sigma=floor)
@@ -399,6 +402,7 @@ def evaluate(point, seed):
         counts[0, COUNTERS.index("dead")]
     result["signal_recorded"] = float(counts[0, recorded] / detected) if detected else None
     result["aggressor_counts_per_frame"] = float(counts[1:, recorded].sum() / frames)
+    result["background_counts_per_frame"] = background / frames
     result["attack_locked_runs"] = len(locked_after) if predicting else None
     result["attack_locked_after_mean"] = float(np.mean(locked_after)) if locked_after else None
     detect, false = detection_curve(judged, CURVE_THRESHOLDS)
