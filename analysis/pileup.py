@@ -21,8 +21,8 @@ What it assumes: every photon of the cycle could be detected (``last``: a dead t
 than a bin; ``first``: the SPAD ready at the start of the window: only the first photon
 matters), Poisson arrivals independent from bin to bin, and ``N`` the number of laser cycles
 (TDC windows) the histogram holds, each recorded at most once. A bin where every cycle at risk
-recorded a count (``n_i = M_i``) has no finite estimate: :exc:`PileupError`; a bin no cycle
-reached (``M_i = 0``: every cycle recorded a count before it) has none at all: NaN.
+recorded a count (``n_i = M_i``) has no finite estimate, nor have the bins no cycle reaches
+after it: :exc:`PileupError`.
 """
 
 from typing import NamedTuple

@@ -185,15 +185,8 @@ class Analysis(NamedTuple):
 def corrected(histogram, cycles, keep):
     """The pile-up corrected histogram, in counts: ``cycles`` times Coates' rates (``keep``
     ``"first"``) or their counterpart's (``"last"``); :exc:`~fliss.analysis.pileup.PileupError`
-    when the correction cannot be made, also for a bin no cycle reached (no estimate)."""
-    result = coates(histogram, cycles, keep)
-    unknown = np.flatnonzero(np.isnan(result.rate))
-    if len(unknown):
-        raise PileupError(f"every one of the {cycles} laser cycles recorded a count before bin "
-                          f"{int(unknown[0]) if keep == 'first' else int(unknown[-1])} "
-                          f"({'from' if keep == 'first' else 'up to'} there the rates are "
-                          f"unknown): the flux is too high to correct")
-    return result.counts(cycles)
+    when the correction cannot be made."""
+    return coates(histogram, cycles, keep).counts(cycles)
 
 
 def analyze(histogram, bin_s, *, configuration=None, victim_s=None, aggressors_s=(),
