@@ -54,10 +54,14 @@ def register(subparsers, formatter):
     parser.add_argument("--pileup", choices=KEEPS, default=None,
                         help="correct the histogram for pile-up before the analysis, for a TDC "
                              "that keeps the first photon of a laser cycle (Coates' "
-                             "correction) or the last (its counterpart; the paper's sensor "
-                             "and the virtual boards keep the last). Needs the histogram's "
-                             "number of laser cycles: a raw capture's is its board's pulse "
-                             "count; give --cycles for a histogram capture")
+                             "correction) or the last (its counterpart, exact when the SPAD "
+                             "detects every photon: a dead time shorter than a bin). A SPAD "
+                             "whose dead time outlasts the echo (the paper's sensor, the "
+                             "virtual and model boards: 20 ns) detects only the echo's first "
+                             "photon, whichever the TDC keeps: use first there (docs/scene.md, "
+                             "Pile-up). Needs the histogram's number of laser cycles: a raw "
+                             "capture's is its board's pulse count; give --cycles for a "
+                             "histogram capture")
     parser.add_argument("--cycles", type=int, default=None, metavar="N",
                         help="with --pileup: the laser cycles (TDC windows) the analysed "
                              "histogram holds (of a histogram capture: all its complete "
