@@ -97,3 +97,20 @@ def test_dark_counts_set_in_a_sweep_point_reach_its_frames():
     assert abs(counted - windows * p) < 4.5 * math.sqrt(windows * p * (1 - p)), (counted,
                                                                                   windows * p)
     assert evaluate(common, np.random.SeedSequence(4))["background_counts_per_frame"] == 0
+
+
+@pytest.mark.parametrize("text", ["40ns", "0.3 ns", "1.5e-9s", "80ps", "2us", "2µs", "1ms",
+                                  "0ns", "+22ns"])
+def test_times_read_as_the_host_reads_them(text):
+    # The simulator cannot import fliss.host.units; the detector's settings take its forms
+    from fliss.host.units import parse_time
+    setting = {"dead_time": text}
+    assert detector_from(None, setting).dead_time_s == pytest.approx(parse_time(text, zero=True),
+                                                                     rel=1e-15)
+
+
+@pytest.mark.parametrize("text", ["7kHz", "25Hz", "1.5MHz", "1e5Hz", "0.001GHz", "7 khz"])
+def test_rates_read_as_the_host_reads_them(text):
+    from fliss.host.units import parse_frequency
+    assert detector_from(None, {"dark_count": text}).dark_count_hz == \
+        pytest.approx(parse_frequency(text), rel=1e-15)
