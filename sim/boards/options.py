@@ -4,6 +4,7 @@ same setting: the scene's (``--target-m``, ``--ambient 100kHz``, ...), its detec
 (``--sensor-preset``, ``--dark-count 7kHz``, ...: :mod:`fliss.sim.scene.detector_options`) and
 the build's and its loopback's (``--baud``, ``--fine-tdc``, ``--small``, ``--jumper``)."""
 
+import argparse
 import re
 
 from ..scene import SCENE_NAMES, SENSOR_KINDS
@@ -79,24 +80,27 @@ def add_detector_arguments(parser):
     group = parser.add_argument_group(
         "detector", "the SPAD pixels' physics (docs/scene.md, The detector): a preset, and "
                     "each setting given replaces the preset's; values with their unit")
-    group.add_argument("--sensor-preset", default=None, metavar="NAME",
+    # (not given: no attribute, and no "(default: None)" in the help: the preset's value)
+    group.add_argument("--sensor-preset", default=argparse.SUPPRESS, metavar="NAME",
                        help=f"a detector with published figures: {preset_names()} (default: "
-                            f"the model's, paper: 20 ns non-paralysable dead time, 100 ps "
+                            f"the model's, as paper: 20 ns non-paralysable dead time, 100 ps "
                             f"jitter, nothing else)")
     for setting in SETTINGS:
         flag = "--" + setting.name.replace("_", "-")
         if setting.kind == "flag":
-            group.add_argument(flag, action="store_true", help=setting.help)
+            group.add_argument(flag, action="store_true", default=argparse.SUPPRESS,
+                               help=setting.help)
         else:
-            group.add_argument(flag, default=None, metavar=setting.metavar, help=setting.help)
+            group.add_argument(flag, default=argparse.SUPPRESS, metavar=setting.metavar,
+                               help=setting.help)
 
 
 def detector_from_args(args):
     """The :class:`~fliss.sim.scene.detector.Detector` the options of
     :func:`add_detector_arguments` describe; ``ValueError`` naming the flag (also for
     crosstalk asked of the single pixel, which has no neighbours)."""
-    settings = {setting.name: getattr(args, setting.name) for setting in SETTINGS}
-    detector = detector_from(args.sensor_preset, settings)
+    settings = {setting.name: getattr(args, setting.name, None) for setting in SETTINGS}
+    detector = detector_from(getattr(args, "sensor_preset", None), settings)
     if getattr(args, "scene", None) == "single":
         for name in ("crosstalk", "crosstalk_diagonal"):
             if settings[name] is not None:
