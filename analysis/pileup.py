@@ -27,10 +27,14 @@ after it: :exc:`PileupError`.
 
 from typing import NamedTuple
 
+import math
+
 import numpy as np
 
+from .peaks import FALSE_ALARM, measure_peak, smooth, smoothed_background, window_bins
 
-__all__ = ["KEEPS", "PileupError", "Correction", "coates"]
+
+__all__ = ["KEEPS", "PileupError", "Correction", "coates", "corrected_peaks"]
 
 #: Which photon of a cycle the TDC keeps.
 KEEPS = ("first", "last")
@@ -88,3 +92,38 @@ def coates(histogram, cycles, keep="first"):
     if keep == "last":
         rate, sigma, at_risk = rate[::-1], sigma[::-1], at_risk[::-1]
     return Correction(rate, sigma, at_risk.astype(np.int64))
+
+
+def corrected_peaks(histogram, cycles, keep, *, bin_s, sigma_bins=5.0, false_alarm=FALSE_ALARM):
+    """``(level, peaks)`` of a histogram corrected for pile-up (``cycles × λ``), as
+    :func:`~fliss.analysis.peaks.find_peaks` finds them but with the corrected counts' own
+    noise: a maximum of the smoothed corrected histogram is a peak when its test window
+    (:func:`~fliss.analysis.peaks.window_bins`) rises above the background ``level`` by
+    ``z`` standard deviations of the window's sum, the variance of each bin being the
+    estimate's binomial one (:class:`Correction`: ``sigma``; at least that of the
+    background's rate, so that an empty bin is not taken as exact), and ``z`` the Gaussian
+    quantile that background alone passes in ``false_alarm`` of histograms. (The Poisson test
+    of the recorded counts does not hold there: pile-up tilts their background, and the
+    corrected counts' noise grows where few cycles are left at risk.) Highest first."""
+    from statistics import NormalDist
+    from .peaks import local_maxima
+    result = coates(histogram, cycles, keep)
+    counts = result.counts(cycles)
+    smoothed = smooth(counts, sigma_bins)
+    level = smoothed_background(counts, smoothed, sigma_bins)
+    p = np.maximum(-np.expm1(-result.rate), -math.expm1(-level / cycles))
+    variance = cycles ** 2 * p / ((1.0 - p) * np.maximum(result.at_risk, 1))
+    width = window_bins(sigma_bins, len(counts))
+    inner = smoothed[1:-1]
+    maxima = np.flatnonzero((inner >= smoothed[:-2]) & (inner > smoothed[2:])) + 1
+    first = np.clip(maxima - width // 2, 0, len(counts) - width)
+    sums = np.concatenate(([0.0], np.cumsum(counts)))
+    spread = np.concatenate(([0.0], np.cumsum(variance)))
+    above = sums[first + width] - sums[first] - level * width
+    noise = np.sqrt(spread[first + width] - spread[first])
+    windows = max(len(counts) / width, 1.0)
+    z = NormalDist().inv_cdf(1.0 - false_alarm / windows)
+    significant = maxima[above >= z * noise]
+    separation = max(1, int(round(5e-9 / bin_s)))
+    chosen = local_maxima(smoothed, level, separation, among=significant)
+    return level, [measure_peak(smoothed, index, level, sigma_bins, bin_s) for index in chosen]

@@ -4,8 +4,9 @@ without the pile-up correction (:mod:`fliss.analysis.pileup`), side by side.
 The scene simulator (:mod:`fliss.sim.scene`) makes the histograms: one pixel, a target 4 m
 away, the paper's 2.1 ns laser pulse and 100 ps jitter, 100 kHz of ambient light, FLISS off at
 1 MHz, the echo from 0.01 to 5 detections per pulse. The depth is that of the tallest peak
-(:func:`fliss.analysis.peaks.find_peaks`, what ``fliss analyze`` prints as the ToF) of each
-histogram as it is and corrected over its laser cycles (``fliss analyze --pileup``); its bias
+(what ``fliss analyze`` prints as the ToF) of each histogram as it is
+(:func:`fliss.analysis.peaks.find_peaks`) and corrected over its laser cycles
+(:func:`fliss.analysis.pileup.corrected_peaks`, ``fliss analyze --pileup``); its bias
 is the mean over ``--acquisitions`` histograms, minus 4 m, ± the standard error of that mean.
 
 Cases (the TDC keeps the first or the last detected photon of a cycle; the SPAD's dead time):
@@ -24,7 +25,7 @@ import argparse
 import numpy as np
 
 from fliss.analysis.peaks import find_peaks
-from fliss.analysis.pileup import coates
+from fliss.analysis.pileup import corrected_peaks
 from fliss.hdl.event import TDC_LSB_S
 from fliss.sim.scene import SPEED_OF_LIGHT, Detector, Scene, acquire
 
@@ -35,9 +36,11 @@ CASES = (("first", 20e-9, ("first",)), ("last", 0.0, ("last",)),
          ("last", 20e-9, ("last", "first")))
 
 
-def depth_m(histogram):
-    """Depth of the tallest peak, or NaN without one."""
-    peaks = find_peaks(histogram, bin_s=TDC_LSB_S)
+def depth_m(histogram, cycles=None, keep=None):
+    """Depth of the tallest peak, or NaN without one; with ``keep``, corrected for pile-up
+    over ``cycles`` as ``fliss analyze --pileup`` does."""
+    peaks = find_peaks(histogram, bin_s=TDC_LSB_S) if keep is None else \
+        corrected_peaks(histogram, cycles, keep, bin_s=TDC_LSB_S)[1]
     if not peaks:
         return float("nan")
     return max(peaks, key=lambda peak: peak.height).position_s * SPEED_OF_LIGHT / 2
@@ -68,7 +71,7 @@ def main():
             raw = [depth_m(histogram) for histogram in run.histograms]
             row = f"{flux:>16g}  {bias_mm(raw):>15}"
             for name in corrections:
-                fixed = [depth_m(coates(histogram, int(cycles), name).counts(int(cycles)))
+                fixed = [depth_m(histogram, int(cycles), name)
                          for histogram, cycles in zip(run.histograms, run.cycles)]
                 row += f"  {bias_mm(fixed):>17}"
             print(row, flush=True)

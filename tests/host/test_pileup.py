@@ -127,11 +127,30 @@ def test_fliss_analyze_corrects_the_depth_of_a_piled_up_echo(tmp_path, capsys, k
     _, raw_tof = _tof(capsys, [path])
     record, corrected_tof = _tof(capsys, [path, "--pileup", keep])
     assert record["pileup"] == {"keep": keep, "cycles": cycles}
+    assert len(record["peaks"]) == 1            # the echo, and no ghost of the corrected noise
     # Three photons a pulse: the kept one is the earliest (latest) of them, some 0.85 sigma
     # (0.76 ns) off the echo's centre; the corrected histogram has the echo where it is
     shift = raw_tof - ECHO_S
     assert (shift < -0.3e-9) if keep == "first" else (shift > 0.3e-9), shift
     assert abs(corrected_tof - ECHO_S) < 0.1e-9, corrected_tof - ECHO_S
+
+
+@pytest.mark.parametrize("keep", ["first", "last"])
+def test_piled_up_background_makes_no_peak_once_corrected(keep):
+    # 5 MHz of ambient light, two photons a window: the recorded background is tilted (keep
+    # the first: falling; the last: rising), and the Poisson test of a flat background finds
+    # peaks all over it; corrected, the background is flat and background alone passes the test
+    # in 1e-3 of histograms
+    from fliss.analysis.peaks import find_peaks
+    from fliss.analysis.pileup import corrected_peaks
+    raw = corrected = 0
+    for seed in range(10):
+        events = _raw_events(20_000, keep, np.random.default_rng(seed), echo=0.0,
+                             background_hz=5e6)
+        histogram = np.bincount(events["timestamp"], minlength=8192)
+        raw += len(find_peaks(histogram, bin_s=LSB_S))
+        corrected += len(corrected_peaks(histogram, 20_000, keep, bin_s=LSB_S)[1])
+    assert raw > 100 and corrected == 0
 
 
 def test_fliss_analyze_refuses_the_correction_where_it_cannot_apply(tmp_path, capsys):
