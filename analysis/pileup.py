@@ -57,12 +57,18 @@ class Correction(NamedTuple):
         return cycles * self.rate
 
 
-def coates(histogram, cycles, keep="first"):
+def coates(histogram, cycles, keep="first", dead_bins=0):
     """Coates' correction (``keep="first"``) or its counterpart for a TDC that keeps the last
     photon (``keep="last"``) of ``histogram`` (counts per bin) over ``cycles`` laser cycles;
-    returns a :class:`Correction`. Raises :exc:`PileupError`."""
+    with ``keep="last"`` and ``dead_bins`` above 1, for a non-paralysable SPAD blind for that
+    many bins after each avalanche (:func:`_last_with_dead_time`). Returns a
+    :class:`Correction`. Raises :exc:`PileupError`."""
     if keep not in KEEPS:
         raise PileupError(f"the TDC keeps the 'first' or the 'last' photon, not {keep!r}")
+    if isinstance(dead_bins, bool) or not isinstance(dead_bins, (int, np.integer)) \
+            or dead_bins < 0:
+        raise PileupError(f"the dead time in bins must be a whole number, not negative, not "
+                          f"{dead_bins!r}")
     counts = np.asarray(histogram)
     if counts.ndim != 1 or not len(counts) or not np.issubdtype(counts.dtype, np.number) \
             or not np.all(np.isfinite(counts)) or np.any(counts < 0) \
@@ -77,6 +83,8 @@ def coates(histogram, cycles, keep="first"):
         raise PileupError(f"the histogram holds {int(total)} counts, more than its {cycles} "
                           f"laser cycles: a single-hit TDC records one photon a cycle at most "
                           f"(the cycle count is not this histogram's)")
+    if keep == "last" and dead_bins > 1:
+        return _last_with_dead_time(counts, cycles, int(dead_bins))
     ordered = counts if keep == "first" else counts[::-1]
     before = np.concatenate(([0.0], np.cumsum(ordered)[:-1]))
     at_risk = cycles - before
@@ -91,10 +99,47 @@ def coates(histogram, cycles, keep="first"):
         sigma = np.sqrt(p / ((1.0 - p) * at_risk))
     if keep == "last":
         rate, sigma, at_risk = rate[::-1], sigma[::-1], at_risk[::-1]
-    return Correction(rate, sigma, at_risk.astype(np.int64))
+    return Correction(rate, sigma, at_risk)
 
 
-def corrected_peaks(histogram, cycles, keep, *, bin_s, sigma_bins=5.0, false_alarm=FALSE_ALARM):
+def _last_with_dead_time(counts, cycles, dead):
+    """The last photon's counterpart for a non-paralysable SPAD blind ``dead`` bins after an
+    avalanche (see the module): bin ``i`` is recorded when an avalanche falls there (a photon,
+    the SPAD ready: ``a_i = p_i R_i``, ``R_i = 1 − Σ_{i−dead<j<i} a_j``, at most one avalanche
+    in a dead time) and no photon comes from its dead time's end on (``S_i = exp(−Σ_{k ≥
+    i+dead} λ_k)``): ``n_i = N a_i S_i``. Backwards from the last bin every ``S_j`` a step
+    needs is known (``j + dead`` > ``i``), so ``λ_i = −ln(1 − a_i / R_i)`` in one pass."""
+    bins = len(counts)
+    rate = np.zeros(bins)
+    at_risk = np.zeros(bins)
+    tail = np.zeros(bins + 1)               # tail[k]: Σ of the rates from bin k on
+    avalanche = np.zeros(bins)              # a_j: known once the rates from j + dead on are
+    for j in range(max(bins - dead, 0), bins):
+        avalanche[j] = counts[j] / cycles
+    window = float(avalanche[max(bins - dead, 0):bins - 1].sum())    # a_j, i - dead < j < i
+    for i in range(bins - 1, -1, -1):
+        at_risk[i] = cycles * math.exp(-tail[min(i + dead, bins)]) * (1.0 - window)
+        if counts[i] > 0 and counts[i] >= at_risk[i]:
+            raise PileupError(f"bin {i}: the laser cycles left there with a ready SPAD "
+                              f"({at_risk[i]:.4g}) all recorded it: its rate is beyond what "
+                              f"{cycles} cycles measure")
+        rate[i] = -math.log1p(-counts[i] / at_risk[i]) if counts[i] > 0 else 0.0
+        tail[i] = tail[i + 1] + rate[i]
+        # The window moves one bin earlier: a_{i-dead} comes in (its S needs tail[i]),
+        # a_{i-1} goes out
+        if i - dead >= 0:
+            avalanche[i - dead] = counts[i - dead] / (cycles * math.exp(-tail[i]))
+            window += avalanche[i - dead]
+        if i >= 1:
+            window -= avalanche[i - 1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        p = -np.expm1(-rate)
+        sigma = np.sqrt(p / ((1.0 - p) * at_risk))
+    return Correction(rate, sigma, at_risk)
+
+
+def corrected_peaks(histogram, cycles, keep, *, bin_s, sigma_bins=5.0, false_alarm=FALSE_ALARM,
+                    dead_bins=0):
     """``(level, peaks)`` of a histogram corrected for pile-up (``cycles × λ``), as
     :func:`~fliss.analysis.peaks.find_peaks` finds them but with the corrected counts' own
     noise: a maximum of the smoothed corrected histogram is a peak when its test window
@@ -107,7 +152,7 @@ def corrected_peaks(histogram, cycles, keep, *, bin_s, sigma_bins=5.0, false_ala
     corrected counts' noise grows where few cycles are left at risk.) Highest first."""
     from statistics import NormalDist
     from .peaks import local_maxima
-    result = coates(histogram, cycles, keep)
+    result = coates(histogram, cycles, keep, dead_bins)
     counts = result.counts(cycles)
     smoothed = smooth(counts, sigma_bins)
     level = smoothed_background(counts, smoothed, sigma_bins)

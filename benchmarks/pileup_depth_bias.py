@@ -12,10 +12,12 @@ is the mean over ``--acquisitions`` histograms, minus 4 m, ± the standard error
 Cases (the TDC keeps the first or the last detected photon of a cycle; the SPAD's dead time):
 
 * ``first, 20 ns``: Coates' correction (``--pileup first``);
-* ``last, 0 ns``: its counterpart (``--pileup last``), every photon of the cycle detected;
-* ``last, 20 ns`` (the paper's sensor): the dead time, longer than the pulse, lets the SPAD
-  detect only the first photon of the echo: the echo piles up as for a first-photon TDC, and
-  both corrections are printed.
+* ``last, 0 ns``: its counterpart (``--pileup last --dead-time 0ns``), every photon of the
+  cycle detected;
+* ``last, 20 ns`` (the paper's sensor, the virtual boards): the dead time, longer than the
+  pulse, lets the SPAD detect only the first photon of the echo, so the echo piles up as for a
+  first-photon TDC: the counterpart with the dead time (``--pileup last --dead-time 20ns``),
+  and, to show what a wrong law does, without it and Coates'.
 
 Usage: ``python benchmarks/pileup_depth_bias.py [--acquisitions N] [--t-int S]``
 """
@@ -32,15 +34,19 @@ from fliss.sim.scene import SPEED_OF_LIGHT, Detector, Scene, acquire
 
 DISTANCE_M = 4.0
 FLUXES = (0.01, 0.03, 0.1, 0.3, 0.5, 1.0, 2.0, 3.0, 5.0)
-CASES = (("first", 20e-9, ("first",)), ("last", 0.0, ("last",)),
-         ("last", 20e-9, ("last", "first")))
+#: (the photon kept, the dead time, the corrections: (label, keep, dead time given))
+CASES = (("first", 20e-9, (("first", "first", 0.0),)),
+         ("last", 0.0, (("last", "last", 0.0),)),
+         ("last", 20e-9, (("last 20ns", "last", 20e-9), ("last 0ns", "last", 0.0),
+                          ("first", "first", 0.0))))
 
 
-def depth_m(histogram, cycles=None, keep=None):
+def depth_m(histogram, cycles=None, keep=None, dead_s=0.0):
     """Depth of the tallest peak, or NaN without one; with ``keep``, corrected for pile-up
-    over ``cycles`` as ``fliss analyze --pileup`` does."""
+    over ``cycles`` as ``fliss analyze --pileup KEEP --dead-time DEAD`` does."""
     peaks = find_peaks(histogram, bin_s=TDC_LSB_S) if keep is None else \
-        corrected_peaks(histogram, cycles, keep, bin_s=TDC_LSB_S)[1]
+        corrected_peaks(histogram, cycles, keep, bin_s=TDC_LSB_S,
+                        dead_bins=int(round(dead_s / TDC_LSB_S)))[1]
     if not peaks:
         return float("nan")
     return max(peaks, key=lambda peak: peak.height).position_s * SPEED_OF_LIGHT / 2
@@ -62,7 +68,7 @@ def main():
           f"{args.t_int * 1e3:g} ms at 1 MHz ± its standard error; target {DISTANCE_M} m")
     for keep, dead_s, corrections in CASES:
         header = f"{'detections/pulse':>16}  {'raw':>15}" + "".join(
-            f"  {'corrected ' + name:>17}" for name in corrections)
+            f"  {'corrected ' + label:>19}" for label, _, _ in corrections)
         print(f"\nTDC keeps the {keep} photon, dead time {dead_s * 1e9:g} ns\n{header}")
         for flux in FLUXES:
             scene = Scene(distance_m=DISTANCE_M, detections_per_pulse=flux, keep=keep,
@@ -70,10 +76,10 @@ def main():
             run = acquire(scene, args.t_int, args.acquisitions, seed=1)
             raw = [depth_m(histogram) for histogram in run.histograms]
             row = f"{flux:>16g}  {bias_mm(raw):>15}"
-            for name in corrections:
-                fixed = [depth_m(histogram, int(cycles), name)
+            for _, name, given_s in corrections:
+                fixed = [depth_m(histogram, int(cycles), name, given_s)
                          for histogram, cycles in zip(run.histograms, run.cycles)]
-                row += f"  {bias_mm(fixed):>17}"
+                row += f"  {bias_mm(fixed):>19}"
             print(row, flush=True)
 
 

@@ -184,12 +184,13 @@ class Analysis(NamedTuple):
 
 def analyze(histogram, bin_s, *, configuration=None, victim_s=None, aggressors_s=(),
             tolerance_s=1.5e-9, shift=0, false_alarm=FALSE_ALARM, pileup=None,
-            cycles=None) -> Analysis:
+            cycles=None, dead_time_s=0.0) -> Analysis:
     """Background, peaks, their roles and (when the victim's peak is known) the suppression of
     one histogram of a capture taken with the registers ``configuration``; with ``pileup``
     (``"first"`` or ``"last"``, the photon the TDC keeps), the peaks found on the histogram as
     recorded and measured on the histogram corrected for pile-up over its ``cycles`` laser
-    cycles, the background too (:func:`~fliss.analysis.pileup.corrected_peaks`).
+    cycles, the background too (:func:`~fliss.analysis.pileup.corrected_peaks`); keeping the
+    last photon, with the SPAD's non-paralysable ``dead_time_s`` (in whole bins).
 
     S is against the highest aggressor peak; a lower bound (against the least significant
     peak) when the aggressor was on (or ``aggressors_s`` given) and no aggressor peak stands;
@@ -198,7 +199,8 @@ def analyze(histogram, bin_s, *, configuration=None, victim_s=None, aggressors_s
     sigma_bins = max(5.0 / (1 << shift), 1.0)
     if pileup is not None:
         level, peaks = corrected_peaks(histogram, cycles, pileup, bin_s=bin_s,
-                                       sigma_bins=sigma_bins, false_alarm=false_alarm)
+                                       sigma_bins=sigma_bins, false_alarm=false_alarm,
+                                       dead_bins=int(round(dead_time_s / bin_s)))
     else:
         level = background(histogram, sigma_bins=sigma_bins)
         peaks = find_peaks(histogram, bin_s=bin_s, sigma_bins=sigma_bins, level=level,

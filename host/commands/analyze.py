@@ -12,6 +12,7 @@ from ..errors import UserError
 from ..imager.analysis import capture_table
 from ..roles import COHERENT, SPREAD, check_references, relation, settings_text
 from ..imager.report import table_lines, table_record
+from ..units import parse_time
 from .common import parse_times, read_capture_file
 
 
@@ -54,18 +55,21 @@ def register(subparsers, formatter):
     parser.add_argument("--pileup", choices=KEEPS, default=None,
                         help="correct the histogram for pile-up before the analysis, for a TDC "
                              "that keeps the first photon of a laser cycle (Coates' "
-                             "correction) or the last (its counterpart, exact when the SPAD "
-                             "detects every photon: a dead time shorter than a bin). A SPAD "
-                             "whose dead time outlasts the echo (the paper's sensor, the "
-                             "virtual and model boards: 20 ns) detects only the echo's first "
-                             "photon, whichever the TDC keeps: use first there (docs/scene.md, "
-                             "Pile-up). Needs the histogram's number of laser cycles: a raw "
+                             "correction) or the last (its counterpart; give the SPAD's "
+                             "--dead-time: the paper's sensor and the virtual and model "
+                             "boards keep the last photon, with a 20 ns dead time by "
+                             "default). Needs the histogram's number of laser cycles: a raw "
                              "capture's is its board's pulse count; give --cycles for a "
-                             "histogram capture")
+                             "histogram capture (docs/scene.md, Pile-up)")
     parser.add_argument("--cycles", type=int, default=None, metavar="N",
                         help="with --pileup: the laser cycles (TDC windows) the analysed "
                              "histogram holds (of a histogram capture: all its complete "
                              "histograms together)")
+    parser.add_argument("--dead-time", default=None, metavar="TIME",
+                        help="with --pileup last (needed there): the SPAD's non-paralysable "
+                             "dead time (20ns on the virtual and model boards by default), "
+                             "which decides which photon can be the last; 0ns: every photon "
+                             "detected")
     parser.set_defaults(run=run_analyze)
 
 
@@ -196,29 +200,44 @@ def _print_header(path, capture, histogram):
 
 
 def _analysis(histogram, capture, victim, aggressors, tolerance, pileup=None):
-    keep, cycles = pileup or (None, None)
+    keep, cycles, dead_s = pileup or (None, None, 0.0)
     try:
         return analyze(histogram, capture.bin_s, configuration=capture.configuration,
                        victim_s=victim, aggressors_s=aggressors, tolerance_s=tolerance,
-                       shift=capture.shift, pileup=keep, cycles=cycles)
+                       shift=capture.shift, pileup=keep, cycles=cycles, dead_time_s=dead_s)
     except PileupError as error:
         raise UserError(f"--pileup {keep}: {capture.path}: {error}") from None
 
 
 def _pileup_text(pileup):
-    keep, cycles = pileup
-    return (f"{'Coates (first photon)' if keep == 'first' else 'last photon'}, {cycles} "
-            f"laser cycles")
+    keep, cycles, dead_s = pileup
+    dead = f", dead time {dead_s * 1e9:g} ns" if keep == "last" else ""
+    return (f"{'Coates (first photon)' if keep == 'first' else 'last photon'}{dead}, "
+            f"{cycles} laser cycles")
 
 
 def pileup_cycles(args, path, capture):
-    """``(keep, cycles)`` of ``--pileup`` for ``capture``, or None without it; refuses
+    """``(keep, cycles, dead_time_s)`` of ``--pileup`` for ``capture``, or None without it; refuses
     (:exc:`UserError`) when the cycle count is not known or the correction cannot apply."""
     if args.pileup is None:
-        if args.cycles is not None:
-            raise UserError(f"--cycles {args.cycles} applies with --pileup only")
+        for flag, value in (("--cycles", args.cycles), ("--dead-time", args.dead_time)):
+            if value is not None:
+                raise UserError(f"{flag} {value} applies with --pileup only")
         return None
     said = f"--pileup {args.pileup}"
+    dead_s = 0.0
+    if args.pileup == "last" and args.dead_time is None:
+        raise UserError(f"{said} needs the SPAD's --dead-time: it decides which photon can be "
+                        f"the last (20ns on the virtual and model boards by default; 0ns if "
+                        f"the SPAD detects every photon)")
+    if args.dead_time is not None:
+        if args.pileup != "last":
+            raise UserError(f"--dead-time {args.dead_time} applies with --pileup last: the "
+                            f"first photon of a cycle does not depend on it")
+        try:
+            dead_s = parse_time(args.dead_time, zero=True)
+        except ValueError as error:
+            raise UserError(f"--dead-time {args.dead_time}: {error}") from None
     if args.per_acquisition:
         raise UserError(f"{said} with --per-acquisition: the laser cycles of each histogram "
                         f"are not known, only of them all (--cycles)")
@@ -227,11 +246,11 @@ def pileup_cycles(args, path, capture):
             raise UserError(f"--cycles {args.cycles} is one histogram's: give one file")
         if args.cycles < 1:
             raise UserError(f"--cycles must be at least 1, not {args.cycles}")
-        return args.pileup, args.cycles
+        return args.pileup, args.cycles, dead_s
     if capture.mode != "raw":
         raise UserError(f"{said}: the number of laser cycles of {path}'s histograms is not "
                         f"known ({capture.mode} captures do not record it): give --cycles N")
-    return args.pileup, _raw_cycles(said, path, capture)
+    return args.pileup, _raw_cycles(said, path, capture), dead_s
 
 
 def _raw_cycles(said, path, capture):
@@ -274,7 +293,9 @@ def _histogram_record(capture, victim, aggressors, tolerance, per_acquisition=Fa
     histogram = capture.total_histogram()
     record = {"file": capture.path, "mode": capture.mode, "bin_s": capture.bin_s,
               "counts": int(histogram.sum()), "end_reason": capture.attrs.get("end_reason"),
-              "pileup": None if pileup is None else {"keep": pileup[0], "cycles": pileup[1]},
+              "pileup": None if pileup is None else
+              {"keep": pileup[0], "cycles": pileup[1],
+               "dead_time_s": pileup[2] if pileup[0] == "last" else None},
               "settings": settings_text(capture.configuration) or None,
               "false_alarm": FALSE_ALARM,
               **_analysis_record(histogram, capture, victim, aggressors, tolerance, pileup)}

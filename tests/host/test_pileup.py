@@ -58,6 +58,30 @@ def test_the_correction_recovers_the_rate_of_every_bin(law, keep):
     assert np.abs((raw - rates) / sigma).max() > 50
 
 
+@pytest.mark.parametrize("law", ["flat+pulse", "exponential"])
+def test_the_last_photon_behind_a_dead_time_recovers_the_rate_of_every_bin(law):
+    # A non-paralysable SPAD blind for 6 bins after each avalanche, the TDC keeping the last:
+    # drawn cycle by cycle, bin after bin (a photon in a bin while ready is an avalanche)
+    rates, dead = _laws()[law], 6
+    rng = np.random.default_rng(8)
+    photons = rng.poisson(rates, (CYCLES, BINS)) > 0
+    ready, last = np.zeros(CYCLES, dtype=np.int64), np.full(CYCLES, -1)
+    for index in range(BINS):
+        fired = photons[:, index] & (ready <= index)
+        last[fired] = index
+        ready[fired] = index + dead
+    histogram = np.bincount(last[last >= 0], minlength=BINS)
+    result = coates(histogram, CYCLES, "last", dead)
+    p = -np.expm1(-rates)
+    sigma = np.sqrt(p / ((1 - p) * result.at_risk))
+    z = (result.rate - rates) / sigma
+    assert np.abs(z).max() < 4.5, z
+    assert 0.5 < np.mean(z ** 2) < 1.6, np.mean(z ** 2)
+    # ... where the counterpart without the dead time is far off
+    plain = coates(histogram, CYCLES, "last")
+    assert np.abs((plain.rate - rates) / sigma).max() > 50
+
+
 def test_the_correction_refuses_what_it_cannot_measure():
     with pytest.raises(PileupError, match="more than its 10 laser cycles"):
         coates([5, 6], 10)
@@ -125,14 +149,36 @@ def test_fliss_analyze_corrects_the_depth_of_a_piled_up_echo(tmp_path, capsys, k
     events = _raw_events(cycles, keep, np.random.default_rng(11))
     path = _raw_file(tmp_path / "raw.h5", events, cycles)
     _, raw_tof = _tof(capsys, [path])
-    record, corrected_tof = _tof(capsys, [path, "--pileup", keep])
-    assert record["pileup"] == {"keep": keep, "cycles": cycles}
+    dead = ["--dead-time", "0ns"] if keep == "last" else []
+    record, corrected_tof = _tof(capsys, [path, "--pileup", keep, *dead])
+    assert record["pileup"] == {"keep": keep, "cycles": cycles,
+                                "dead_time_s": 0.0 if keep == "last" else None}
     assert len(record["peaks"]) == 1            # the echo, and no ghost of the corrected noise
     # Three photons a pulse: the kept one is the earliest (latest) of them, some 0.85 sigma
     # (0.76 ns) off the echo's centre; the corrected histogram has the echo where it is
     shift = raw_tof - ECHO_S
     assert (shift < -0.3e-9) if keep == "first" else (shift > 0.3e-9), shift
     assert abs(corrected_tof - ECHO_S) < 0.1e-9, corrected_tof - ECHO_S
+
+
+def test_fliss_analyze_corrects_the_paper_sensors_pile_up_with_its_dead_time(tmp_path,
+                                                                            capsys):
+    # The scene simulator's pixel as on the virtual boards: the TDC keeps the last photon, the
+    # SPAD is blind 20 ns after an avalanche (longer than the 2.1 ns pulse: of an echo of 3
+    # detections a pulse it detects the first), 100 kHz of ambient light; 4 m: 26.685 ns
+    from fliss.sim.scene import Detector, Scene, acquire, time_of_flight
+    scene = Scene(distance_m=4.0, detections_per_pulse=3.0, keep="last",
+                  detector=Detector(dead_time_s=20e-9))
+    run = acquire(scene, 0.05, 1, seed=2, keep_events=True)
+    cycles = int(run.cycles[0])
+    path = _raw_file(tmp_path / "paper.h5", run.events[0], cycles)
+    tof_s = time_of_flight(4.0)
+    _, raw_tof = _tof(capsys, [path])
+    _, blind_tof = _tof(capsys, [path, "--pileup", "last", "--dead-time", "0ns"])
+    record, corrected_tof = _tof(capsys, [path, "--pileup", "last", "--dead-time", "20ns"])
+    assert record["pileup"] == {"keep": "last", "cycles": cycles, "dead_time_s": 20e-9}
+    assert raw_tof - tof_s < -0.3e-9 and blind_tof - tof_s < -0.6e-9
+    assert abs(corrected_tof - tof_s) < 0.1e-9, corrected_tof - tof_s
 
 
 @pytest.mark.parametrize("keep", ["first", "last"])
@@ -162,18 +208,28 @@ def test_fliss_analyze_refuses_the_correction_where_it_cannot_apply(tmp_path, ca
         writer.add_histogram(HistogramFrame(0, 1, row, True, 0, 0.0))
     histogram = str(tmp_path / "hist.h5")
     for argv, message in (
-            ([histogram, "--pileup", "last"],
-             f"--pileup last: the number of laser cycles of {histogram}'s histograms is not "
+            ([histogram, "--pileup", "first"],
+             f"--pileup first: the number of laser cycles of {histogram}'s histograms is not "
              f"known (histogram captures do not record it): give --cycles N"),
             ([histogram, "--cycles", "2000"], "--cycles 2000 applies with --pileup only"),
+            ([histogram, "--dead-time", "20ns"], "--dead-time 20ns applies with --pileup only"),
+            ([histogram, "--pileup", "first", "--cycles", "2000", "--dead-time", "20ns"],
+             "--dead-time 20ns applies with --pileup last: the first photon of a cycle does "
+             "not depend on it"),
+            ([histogram, "--pileup", "last", "--cycles", "2000"],
+             "--pileup last needs the SPAD's --dead-time: it decides which photon can be the "
+             "last (20ns on the virtual and model boards by default; 0ns if the SPAD detects "
+             "every photon)"),
             ([lossy, "--pileup", "first"],
              f"--pileup first: {lossy} lost events on their way (dropped_fifo 3): the cycles "
              f"they were kept in would count as empty"),
-            ([histogram, "--pileup", "last", "--cycles", "100"],
-             f"--pileup last: {histogram}: the histogram holds {len(events)} counts, more "
+            ([histogram, "--pileup", "first", "--cycles", "100"],
+             f"--pileup first: {histogram}: the histogram holds {len(events)} counts, more "
              f"than its 100 laser cycles: a single-hit TDC records one photon a cycle at most "
              f"(the cycle count is not this histogram's)")):
         assert main(["analyze", *argv]) == 1
         assert capsys.readouterr().err == f"fliss: error: {message}\n"
-    assert main(["analyze", histogram, "--pileup", "last", "--cycles", "2000"]) == 0
-    assert "pile-up corrected: last photon, 2000 laser cycles" in capsys.readouterr().out
+    assert main(["analyze", histogram, "--pileup", "last", "--cycles", "2000",
+                 "--dead-time", "20ns"]) == 0
+    assert "pile-up corrected: last photon, dead time 20 ns, 2000 laser cycles" in \
+        capsys.readouterr().out
