@@ -17,21 +17,30 @@ position moves with it; the corrected ``N λ_i`` does not.
 The estimate's standard error, from the binomial ``n_i`` of ``M_i``: ``σ_i = sqrt(p_i / ((1 −
 p_i) M_i))`` with ``p_i = n_i / M_i``.
 
-What it assumes: every photon of the cycle could be detected (``last``: a dead time shorter
-than a bin; ``first``: the SPAD ready at the start of the window: only the first photon
-matters), Poisson arrivals independent from bin to bin, and ``N`` the number of laser cycles
-(TDC windows) the histogram holds, each recorded at most once. A bin where every cycle at risk
-recorded a count (``n_i = M_i``) has no finite estimate, nor have the bins no cycle reaches
-after it: :exc:`PileupError`.
+A TDC that keeps the last photon behind a non-paralysable SPAD dead time of ``D`` bins
+(``dead_bins``): bin ``i`` is recorded when an avalanche falls there and no photon comes after
+its dead time, ``n_i = N a_i S_i`` with ``S_i = exp(−Σ_{k ≥ i+D} λ_k)`` and ``a_i = (1 −
+e^{−λ_i}) R_i``, ``R_i = 1 − Σ_{i−D<j<i} a_j`` (:func:`_last_with_dead_time`). A SPAD whose
+dead time outlasts the echo pulse detects only its first photon, whichever photon the TDC
+keeps: the counterpart without the dead time is then wrong (it doubles the bias).
+
+What it assumes: Poisson arrivals independent from bin to bin, a SPAD ready at the start of
+the window, and ``N`` the number of laser cycles (TDC windows) the histogram holds, each
+recorded at most once. A bin where every cycle at risk recorded a count has no finite
+estimate, nor have the bins no cycle reaches after it: :exc:`PileupError`.
+
+:func:`corrected_peaks` finds the peaks of the corrected histogram, tested against its own
+noise.
 """
 
-from typing import NamedTuple
-
 import math
+from statistics import NormalDist
+from typing import NamedTuple
 
 import numpy as np
 
-from .peaks import FALSE_ALARM, measure_peak, smooth, smoothed_background, window_bins
+from .peaks import (FALSE_ALARM, local_maxima, measure_peak, smooth, smoothed_background,
+                    window_bins)
 
 
 __all__ = ["KEEPS", "PileupError", "Correction", "coates", "corrected_peaks"]
@@ -150,8 +159,6 @@ def corrected_peaks(histogram, cycles, keep, *, bin_s, sigma_bins=5.0, false_ala
     quantile that background alone passes in ``false_alarm`` of histograms. (The Poisson test
     of the recorded counts does not hold there: pile-up tilts their background, and the
     corrected counts' noise grows where few cycles are left at risk.) Highest first."""
-    from statistics import NormalDist
-    from .peaks import local_maxima
     result = coates(histogram, cycles, keep, dead_bins)
     counts = result.counts(cycles)
     smoothed = smooth(counts, sigma_bins)
