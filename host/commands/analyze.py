@@ -6,8 +6,7 @@ import json
 import numpy as np
 
 from ...analysis.peaks import FALSE_ALARM
-from ..analysis import KEEPS, analyze
-from ..analysis import PileupError
+from ..analysis import KEEPS, PileupError, analyze
 from ..errors import UserError
 from ..imager.analysis import capture_table
 from ..roles import COHERENT, SPREAD, check_references, relation, settings_text
@@ -85,7 +84,7 @@ def run_analyze(args):
     captures = [(path, read_capture_file(path)) for path in args.files]
     for path, capture in captures:
         _check_options_apply(args, path, capture, victim, aggressors)
-    pileups = {path: pileup_cycles(args, path, capture) for path, capture in captures}
+    pileups = {path: _pileup_of(args, path, capture) for path, capture in captures}
     for path, capture in captures:
         if capture.mode in ("image", "depth"):
             rows = capture_table(capture)
@@ -216,7 +215,7 @@ def _pileup_text(pileup):
             f"{cycles} laser cycles")
 
 
-def pileup_cycles(args, path, capture):
+def _pileup_of(args, path, capture):
     """``(keep, cycles, dead_time_s)`` of ``--pileup`` for ``capture``, or None without it; refuses
     (:exc:`UserError`) when the cycle count is not known or the correction cannot apply."""
     if args.pileup is None:
