@@ -11,7 +11,7 @@ import math
 from ...hdl.event import TDC_LSB_S, TIMESTAMP_BITS
 from ...sim.boards.noisy_line import NoisyLine, add_line_arguments, describe, faults_from_args
 from ...sim.boards.options import (add_build_arguments, add_scene_arguments, detector_from_args,
-                                  rate_hz)
+                                  detector_note, rate_hz)
 from ...sim.scene import LINE_PIXELS
 from ..errors import UserError
 from ..units import parse_baud
@@ -80,9 +80,10 @@ def run_board(args):
                          reset_after=args.reset_after, fine_tdc=args.fine_tdc,
                          small=args.small, jumper=args.jumper, detector=detector)
 
-    note = column_note(args.scene, args.sensor, args.aggressor_signal, ambient_hz)
-    if note:
-        print(f"fliss: note: {note}", file=sys.stderr, flush=True)
+    for note in (column_note(args.scene, args.sensor, args.aggressor_signal, ambient_hz),
+                 detector_note(args, detector)):
+        if note:
+            print(f"fliss: note: {note}", file=sys.stderr, flush=True)
 
     def terminate(number, frame):
         raise KeyboardInterrupt

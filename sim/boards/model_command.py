@@ -11,7 +11,7 @@ from .loopback import Loopback
 from .model import model_board
 from .noisy_line import NoisyLine, add_line_arguments, describe, faults_from_args
 from .options import (add_build_arguments, add_scene_arguments, baud_rate, detector_from_args,
-                      rate_hz)
+                      detector_note, rate_hz)
 from ..scene import Scene, pixels_named
 
 
@@ -49,6 +49,9 @@ def main(argv=None):
         build = _build_from_args(args)
     except ValueError as error:
         parser.exit(2, f"{parser.prog}: error: {error}\n")
+    note = detector_note(args, scene.spad)
+    if note:
+        print(f"{parser.prog}: note: {note}", file=sys.stderr, flush=True)
     signal.signal(signal.SIGTERM, _terminate)
     line = None
     with model_board(scene=scene, aggressor_detections_per_pulse=args.aggressor_signal,

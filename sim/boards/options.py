@@ -12,7 +12,7 @@ from ..scene.detector_options import SETTINGS, DetectorSettingError, detector_fr
 
 
 __all__ = ["add_scene_arguments", "add_detector_arguments", "add_build_arguments",
-           "detector_from_args", "rate_hz", "baud_rate"]
+           "detector_from_args", "detector_note", "rate_hz", "baud_rate"]
 
 
 _RATE = re.compile(r"\s*((?:\d+\.?\d*|\.\d+)(?:e[-+]?\d+)?)\s*(hz|khz|mhz|ghz)\s*",
@@ -108,6 +108,16 @@ def detector_from_args(args):
                     f"--{name.replace('_', '-')} {settings[name]}: crosstalk needs "
                     f"neighbours: the pixel array of --scene line, not the single pixel")
     return detector
+
+
+def detector_note(args, detector):
+    """A note when the detector has an effect the scene cannot show (a preset's crosstalk on
+    the single pixel, which has no neighbours), or None."""
+    if getattr(args, "scene", None) == "single" and detector.crosstalk:
+        return (f"the detector's crosstalk ({100 * detector.crosstalk_orthogonal:g} % "
+                f"orthogonal, {100 * detector.crosstalk_diagonal:g} % diagonal) needs "
+                f"neighbours: the single pixel has none (--scene line has)")
+    return None
 
 
 def add_build_arguments(parser, *, where=""):

@@ -112,3 +112,15 @@ def test_the_virtual_board_sees_the_dark_counts_it_is_given(engine):
         # (at 250 kHz the UART carries every event: 1 MHz would fill the raw FIFO)
         board.configure(prf="250kHz")
         _check_dark_rate(board.acquire_raw("5s"))
+
+
+def test_a_presets_crosstalk_on_the_single_pixel_is_noted():
+    # (given as an option it is refused; a preset's is kept, and the boards say it does
+    # nothing there)
+    from fliss.sim.boards.options import detector_note
+    single = build_parser().parse_args(["--sensor-preset", "linospad2"])
+    assert detector_note(single, detector_from_args(single)) == (
+        "the detector's crosstalk (0.22 % orthogonal, 0 % diagonal) needs neighbours: the "
+        "single pixel has none (--scene line has)")
+    line = build_parser().parse_args(["--sensor-preset", "linospad2", "--scene", "line"])
+    assert detector_note(line, detector_from_args(line)) is None
