@@ -12,8 +12,13 @@ virtual board on the shared 2-core development machine):
   makes 10 ms histograms at 1 MHz PRF with the aggressor on, as its statistics report them
   (the time the scene simulator took is ``scene``).
 
+With ``--detectors default,every`` each board runs also with every effect of the detector on
+(``every``: PDP 50 %, dark counts with 5 % hot pixels, a 20 % diffusion tail, afterpulsing 2 %
+with 20 and 200 ns, crosstalk 1 % and 0.2 %: ``benchmarks/detector_throughput.py``'s), as
+``fliss board``'s detector options would set it.
+
 Usage: ``python benchmarks/virtual_board.py [--seconds S] [--engines fast,cocotb]
-[--scenes single,line] [--threads 1,2] [--skip-raw]``
+[--scenes single,line] [--detectors default,every] [--threads 1,2] [--skip-raw]``
 """
 
 import argparse
@@ -25,6 +30,8 @@ from fliss.hdl.registers import BY_NAME
 from fliss.protocol import PacketEncoder, pack
 from fliss.host.client import BoardClient
 from fliss.host.virtual import VIRTUAL_BAUD, VirtualBoard, board_folder, build_root
+
+from detector_throughput import every_effect
 
 
 #: Before the fast harness: the cocotb virtual board (Verilator) on the shared development
@@ -71,10 +78,10 @@ def _timed(run, until):
     return cycles / (time.perf_counter() - wall), cycles / (time.process_time() - cpu)
 
 
-def on_board(engine, scene, seconds):
+def on_board(engine, scene, seconds, detector=None):
     """Start-up time and clock cycles/s of a virtual board making histograms."""
     began = time.perf_counter()
-    board = VirtualBoard("verilator", engine=engine, scene=scene, seed=1)
+    board = VirtualBoard("verilator", engine=engine, scene=scene, seed=1, detector=detector)
     path = board.start()
     startup_s = time.perf_counter() - began
     try:
@@ -113,6 +120,8 @@ def main(argv=None):
                         help="wall time measured per board")
     parser.add_argument("--engines", default="fast,cocotb")
     parser.add_argument("--scenes", default="single,line")
+    parser.add_argument("--detectors", default="default",
+                        help="default, every (every effect of the detector on), or both")
     parser.add_argument("--threads", default="1", help="Verilator threads of the raw figures")
     parser.add_argument("--skip-raw", action="store_true")
     args = parser.parse_args(argv)
@@ -124,13 +133,15 @@ def main(argv=None):
                   f"{figures['idle'][1]:.3g}), acquiring {figures['acquiring'][0]:.3g} "
                   f"({figures['acquiring'][1]:.3g})", flush=True)
     print("\nThe virtual board making 10 ms histograms at 1 MHz, aggressor on:")
-    print(f"{'engine':8} {'scene':7} {'cycles/s':>10} {'per CPU s':>10} {'before':>10} "
-          f"{'start-up s':>11} {'before':>7} {'scene share':>12}")
+    print(f"{'engine':8} {'scene':7} {'detector':8} {'cycles/s':>10} {'per CPU s':>10} "
+          f"{'before':>10} {'start-up s':>11} {'before':>7} {'scene share':>12}")
     for engine in args.engines.split(","):
-        for scene in args.scenes.split(","):
-            now = on_board(engine, scene, args.seconds)
-            before = BEFORE.get(("cocotb", scene), {})
-            print(f"{engine:8} {scene:7} {now['cycles_per_s']:>10.3g} "
+        for scene, kind in [(scene, kind) for scene in args.scenes.split(",")
+                            for kind in args.detectors.split(",")]:
+            now = on_board(engine, scene, args.seconds,
+                           detector=every_effect(False) if kind == "every" else None)
+            before = BEFORE.get(("cocotb", scene), {}) if kind == "default" else {}
+            print(f"{engine:8} {scene:7} {kind:8} {now['cycles_per_s']:>10.3g} "
                   f"{now['cycles_per_cpu_s']:>10.3g} {_figure(before.get('cycles_per_s')):>10} "
                   f"{now['startup_s']:>11.1f} "
                   f"{_figure(before.get('startup_s'), 2):>7} {now['scene_share']:>12.0%}",

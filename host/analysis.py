@@ -20,6 +20,10 @@ Conventions
   :mod:`fliss.analysis.peaks`).
 * Which peak is whose: :mod:`fliss.host.roles`. A suppression ratio is worked out only when the
   victim's peak is known.
+* At high flux a single-hit TDC piles up (it keeps one photon a laser cycle): :func:`analyze`
+  with ``pileup="first"`` or ``"last"`` and the histogram's number of laser cycles measures
+  the peaks on the corrected histogram (:mod:`fliss.analysis.pileup`: Coates' correction, or
+  its counterpart for a TDC that keeps the last photon), ``cycles × λ_i``.
 """
 
 from __future__ import annotations
@@ -36,12 +40,13 @@ from ..hdl.event import TDC_LSB_S
 from ..analysis.peaks import (FALSE_ALARM, FWHM_PER_SIGMA, Peak, background, detection_height,
                               find_peaks, noise_sigma, smooth)
 from ..analysis.peaks import check_histogram as _check_histogram
+from ..analysis.pileup import KEEPS, PileupError, coates, corrected_peaks
 from .roles import AGGRESSOR_ROLE, UNKNOWN_ROLE, Roles, assign, relation
 
 
 __all__ = ["analyze", "Analysis", "FWHM_PER_SIGMA", "Peak", "Suppression", "background", "smooth",
            "noise_sigma", "find_peaks", "identify", "suppression_db", "suppression",
-           "relative_deviation", "mean_std"]
+           "relative_deviation", "mean_std", "KEEPS", "PileupError", "coates"]
 
 
 @dataclass(frozen=True)
@@ -178,18 +183,28 @@ class Analysis(NamedTuple):
 
 
 def analyze(histogram, bin_s, *, configuration=None, victim_s=None, aggressors_s=(),
-            tolerance_s=1.5e-9, shift=0, false_alarm=FALSE_ALARM) -> Analysis:
+            tolerance_s=1.5e-9, shift=0, false_alarm=FALSE_ALARM, pileup=None,
+            cycles=None, dead_time_s=0.0) -> Analysis:
     """Background, peaks, their roles and (when the victim's peak is known) the suppression of
-    one histogram of a capture taken with the registers ``configuration``.
+    one histogram of a capture taken with the registers ``configuration``; with ``pileup``
+    (``"first"`` or ``"last"``, the photon the TDC keeps), the peaks found on the histogram as
+    recorded and measured on the histogram corrected for pile-up over its ``cycles`` laser
+    cycles, the background too (:func:`~fliss.analysis.pileup.corrected_peaks`); keeping the
+    last photon, with the SPAD's non-paralysable ``dead_time_s`` (in whole bins).
 
     S is against the highest aggressor peak; a lower bound (against the least significant
     peak) when the aggressor was on (or ``aggressors_s`` given) and no aggressor peak stands;
     not worked out when the victim's peak is unknown, when a peak is left whose role is
     unknown (it might be the aggressor's), or with the aggressor off."""
     sigma_bins = max(5.0 / (1 << shift), 1.0)
-    level = background(histogram, sigma_bins=sigma_bins)
-    peaks = find_peaks(histogram, bin_s=bin_s, sigma_bins=sigma_bins, level=level,
-                       false_alarm=false_alarm)
+    if pileup is not None:
+        level, peaks = corrected_peaks(histogram, cycles, pileup, bin_s=bin_s,
+                                       sigma_bins=sigma_bins, false_alarm=false_alarm,
+                                       dead_bins=int(round(dead_time_s / bin_s)))
+    else:
+        level = background(histogram, sigma_bins=sigma_bins)
+        peaks = find_peaks(histogram, bin_s=bin_s, sigma_bins=sigma_bins, level=level,
+                           false_alarm=false_alarm)
     roles = assign(peaks, configuration or {}, victim_s=victim_s, aggressors_s=aggressors_s,
                    tolerance_s=tolerance_s)
     result, note = None, roles.reason

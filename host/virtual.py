@@ -16,6 +16,7 @@ yielding the pty path, for tests, scripts and the demo; ``fliss board``
 """
 
 import contextlib
+import dataclasses
 import fcntl
 import hashlib
 import itertools
@@ -217,13 +218,20 @@ class VirtualBoard:
         A jumper wire from the ``"laser"`` or ``"aggressor"`` output to the photon input
         (:mod:`fliss.sim.boards.jumper`: the coarse TDC's pin; with ``fine_tdc``, the fine
         TDC's line too); the cocotb engine only.
+    detector : Detector or None
+        The SPAD pixels' physics (:class:`fliss.sim.scene.Detector`, passed to the simulation
+        as ``FLISS_BOARD_DETECTOR``, its fields in JSON); None: the scene's default detector.
     """
 
     def __init__(self, sim="verilator", *, engine=None, baud=VIRTUAL_BAUD, target_m=4.0,
                  ambient_hz=1e5, signal=0.05, aggressor_signal=0.05, aggressor_tof_s=None,
                  seed=None, scene="single", sensor="column", object_m=2.5, reset_after=None,
-                 root=None, fine_tdc=False, small=False, jumper=None):
+                 root=None, fine_tdc=False, small=False, jumper=None, detector=None):
+        from ..sim.scene.detector import Detector
         from ..sim.scene.pixels import SCENE_NAMES, SENSOR_KINDS
+        if detector is not None and not isinstance(detector, Detector):
+            raise VirtualBoardError(f"the detector must be a fliss.sim.scene.Detector or None, "
+                                    f"not {detector!r}")
         if scene not in SCENE_NAMES:
             raise VirtualBoardError(f"unknown scene {scene!r}: choose one of "
                                     f"{', '.join(SCENE_NAMES)}")
@@ -287,6 +295,8 @@ class VirtualBoard:
             "FLISS_BOARD_RESET_FILE": str(self.folder / f"{self.name}.reset"),
             "FLISS_BOARD_FINE_TDC": "1" if fine_tdc else "",
             "FLISS_BOARD_JUMPER": jumper or "",
+            "FLISS_BOARD_DETECTOR": "" if detector is None
+            else json.dumps(dataclasses.asdict(detector)),
         }
         if reset_after is not None and not reset_after >= 1:
             raise VirtualBoardError(f"reset_after must be at least 1, not {reset_after}")
@@ -426,7 +436,8 @@ def start_virtual_board(sim="verilator", **options):
 
     ``options`` are those of :class:`VirtualBoard` (``baud``, ``target_m``, ``ambient_hz``,
     ``signal``, ``aggressor_signal``, ``aggressor_tof_s``, ``seed``, ``scene``, ``sensor``,
-    ``object_m``, ``reset_after``, ``root``, ``fine_tdc``, ``small``, ``jumper``).
+    ``object_m``, ``reset_after``, ``root``, ``fine_tdc``, ``small``, ``jumper``,
+    ``detector``).
     """
     board = VirtualBoard(sim, **options)
     try:

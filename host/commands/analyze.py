@@ -6,11 +6,12 @@ import json
 import numpy as np
 
 from ...analysis.peaks import FALSE_ALARM
-from ..analysis import analyze
+from ..analysis import KEEPS, PileupError, analyze
 from ..errors import UserError
 from ..imager.analysis import capture_table
 from ..roles import COHERENT, SPREAD, check_references, relation, settings_text
 from ..imager.report import table_lines, table_record
+from ..units import parse_time
 from .common import parse_times, read_capture_file
 
 
@@ -50,6 +51,24 @@ def register(subparsers, formatter):
                         help="also analyse each histogram on its own")
     parser.add_argument("--json", action="store_true",
                         help="print the results as JSON (a list, one object per file)")
+    parser.add_argument("--pileup", choices=KEEPS, default=None,
+                        help="correct the histogram for pile-up before the analysis, for a TDC "
+                             "that keeps the first photon of a laser cycle (Coates' "
+                             "correction) or the last (its counterpart; give the SPAD's "
+                             "--dead-time: the paper's sensor and the virtual and model "
+                             "boards keep the last photon, with a 20 ns dead time by "
+                             "default). Needs the histogram's number of laser cycles: a raw "
+                             "capture's is its board's pulse count; give --cycles for a "
+                             "histogram capture (docs/scene.md, Pile-up)")
+    parser.add_argument("--cycles", type=int, default=None, metavar="N",
+                        help="with --pileup: the laser cycles (TDC windows) the analysed "
+                             "histogram holds (of a histogram capture: all its complete "
+                             "histograms together)")
+    parser.add_argument("--dead-time", default=None, metavar="TIME",
+                        help="with --pileup last (needed there): the SPAD's non-paralysable "
+                             "dead time (20ns on the virtual and model boards by default), "
+                             "which decides which photon can be the last; 0ns: every photon "
+                             "detected")
     parser.set_defaults(run=run_analyze)
 
 
@@ -65,6 +84,7 @@ def run_analyze(args):
     captures = [(path, read_capture_file(path)) for path in args.files]
     for path, capture in captures:
         _check_options_apply(args, path, capture, victim, aggressors)
+    pileups = {path: _pileup_of(args, path, capture) for path, capture in captures}
     for path, capture in captures:
         if capture.mode in ("image", "depth"):
             rows = capture_table(capture)
@@ -73,16 +93,20 @@ def run_analyze(args):
             else:
                 print("\n".join(table_lines(capture, rows)))
             continue
+        pileup = pileups[path]
         if args.json:
             records.append(_histogram_record(capture, victim, aggressors, tolerance,
-                                             args.per_acquisition))
+                                             args.per_acquisition, pileup))
             continue
         histogram = capture.total_histogram()
         _print_header(path, capture, histogram)
         if histogram.sum() == 0:
             print("  no counts: nothing to analyse")
             continue
-        result = _print_analysis(histogram, capture, victim, aggressors, tolerance)
+        if pileup is not None:
+            print(f"  pile-up corrected: {_pileup_text(pileup)}")
+        result = _print_analysis(histogram, capture, victim, aggressors, tolerance,
+                                 pileup=pileup)
         found.append((path, capture, result))
         if args.per_acquisition and capture.mode == "histogram":
             for index, row in enumerate(capture.histograms):
@@ -104,7 +128,8 @@ def _check_options_apply(args, path, capture, victim, aggressors):
     beyond the capture's histogram."""
     given = [flag for flag, value in (("--victim-tof", victim is not None),
                                       ("--aggressor-tof", bool(aggressors)),
-                                      ("--per-acquisition", args.per_acquisition)) if value]
+                                      ("--per-acquisition", args.per_acquisition),
+                                      ("--pileup", args.pileup is not None)) if value]
     if capture.mode in ("image", "depth"):
         if given:
             article = "an" if capture.mode == "image" else "a"
@@ -173,10 +198,82 @@ def _print_header(path, capture, histogram):
               f"{link.get('missing_packets', 0)} missing packets")
 
 
-def _analysis(histogram, capture, victim, aggressors, tolerance):
-    return analyze(histogram, capture.bin_s, configuration=capture.configuration,
-                   victim_s=victim, aggressors_s=aggressors, tolerance_s=tolerance,
-                   shift=capture.shift)
+def _analysis(histogram, capture, victim, aggressors, tolerance, pileup=None):
+    keep, cycles, dead_s = pileup or (None, None, 0.0)
+    try:
+        return analyze(histogram, capture.bin_s, configuration=capture.configuration,
+                       victim_s=victim, aggressors_s=aggressors, tolerance_s=tolerance,
+                       shift=capture.shift, pileup=keep, cycles=cycles, dead_time_s=dead_s)
+    except PileupError as error:
+        raise UserError(f"--pileup {keep}: {capture.path}: {error}") from None
+
+
+def _pileup_text(pileup):
+    keep, cycles, dead_s = pileup
+    dead = f", dead time {dead_s * 1e9:g} ns" if keep == "last" else ""
+    return (f"{'Coates (first photon)' if keep == 'first' else 'last photon'}{dead}, "
+            f"{cycles} laser cycles")
+
+
+def _pileup_of(args, path, capture):
+    """``(keep, cycles, dead_time_s)`` of ``--pileup`` for ``capture``, or None without it; refuses
+    (:exc:`UserError`) when the cycle count is not known or the correction cannot apply."""
+    if args.pileup is None:
+        for flag, value in (("--cycles", args.cycles), ("--dead-time", args.dead_time)):
+            if value is not None:
+                raise UserError(f"{flag} {value} applies with --pileup only")
+        return None
+    said = f"--pileup {args.pileup}"
+    dead_s = 0.0
+    if args.pileup == "last" and args.dead_time is None:
+        raise UserError(f"{said} needs the SPAD's --dead-time: it decides which photon can be "
+                        f"the last (20ns on the virtual and model boards by default; 0ns if "
+                        f"the SPAD detects every photon)")
+    if args.dead_time is not None:
+        if args.pileup != "last":
+            raise UserError(f"--dead-time {args.dead_time} applies with --pileup last: the "
+                            f"first photon of a cycle does not depend on it")
+        try:
+            dead_s = parse_time(args.dead_time, zero=True)
+        except ValueError as error:
+            raise UserError(f"--dead-time {args.dead_time}: {error}") from None
+    if args.per_acquisition:
+        raise UserError(f"{said} with --per-acquisition: the laser cycles of each histogram "
+                        f"are not known, only of them all (--cycles)")
+    if args.cycles is not None:
+        if len(args.files) > 1:
+            raise UserError(f"--cycles {args.cycles} is one histogram's: give one file")
+        if args.cycles < 1:
+            raise UserError(f"--cycles must be at least 1, not {args.cycles}")
+        return args.pileup, args.cycles, dead_s
+    if capture.mode != "raw":
+        raise UserError(f"{said}: the number of laser cycles of {path}'s histograms is not "
+                        f"known ({capture.mode} captures do not record it): give --cycles N")
+    return args.pileup, _raw_cycles(said, path, capture), dead_s
+
+
+def _raw_cycles(said, path, capture):
+    # A raw capture's cycles: its board's pulse count at the end (it starts again at START),
+    # valid when no event was lost on the way
+    start, end = capture.counters.get("board_start"), capture.counters.get("board_end")
+    if not start or not end or "pulses" not in end:
+        raise UserError(f"{said}: {path} does not record its board's pulse count at the end "
+                        f"(the capture did not end normally): give --cycles N")
+    lost = {name: int(end[name]) - int(start.get(name, 0)) for name in end
+            if name.startswith("dropped_") and name != "dropped_stopped"}
+    link = capture.counters.get("link", {})
+    lost["link"] = int(link.get("missing_packets", 0)) + int(link.get("dropped_frames", 0))
+    lost = {name: count for name, count in lost.items() if count > 0}
+    if lost:
+        raise UserError(f"{said}: {path} lost events on their way "
+                        f"({', '.join(f'{name} {count}' for name, count in lost.items())}): "
+                        f"the cycles they were kept in would count as empty")
+    pulses = capture.events["pulse"].astype(np.int64)
+    if len(pulses) != len(np.unique(pulses)):
+        raise UserError(f"{said}: {path} has laser cycles with more than one event (one TDC "
+                        f"per pixel?): the correction is for a TDC that keeps one photon a "
+                        f"cycle")
+    return int(end["pulses"])
 
 
 def suppression_record(result):
@@ -188,15 +285,19 @@ def suppression_record(result):
     return {"value_db": result.suppression.s_db, "bound": result.suppression.bound}
 
 
-def _histogram_record(capture, victim, aggressors, tolerance, per_acquisition=False):
+def _histogram_record(capture, victim, aggressors, tolerance, per_acquisition=False,
+                      pileup=None):
     # The analysis of a histogram or raw capture for --json; with --per-acquisition, each
     # histogram's own under "acquisitions", as the text prints them.
     histogram = capture.total_histogram()
     record = {"file": capture.path, "mode": capture.mode, "bin_s": capture.bin_s,
               "counts": int(histogram.sum()), "end_reason": capture.attrs.get("end_reason"),
+              "pileup": None if pileup is None else
+              {"keep": pileup[0], "cycles": pileup[1],
+               "dead_time_s": pileup[2] if pileup[0] == "last" else None},
               "settings": settings_text(capture.configuration) or None,
               "false_alarm": FALSE_ALARM,
-              **_analysis_record(histogram, capture, victim, aggressors, tolerance)}
+              **_analysis_record(histogram, capture, victim, aggressors, tolerance, pileup)}
     if per_acquisition and capture.mode == "histogram":
         record["acquisitions"] = [
             {"index": index, "frame": int(capture.frames[index]),
@@ -206,11 +307,11 @@ def _histogram_record(capture, victim, aggressors, tolerance, per_acquisition=Fa
     return record
 
 
-def _analysis_record(histogram, capture, victim, aggressors, tolerance):
+def _analysis_record(histogram, capture, victim, aggressors, tolerance, pileup=None):
     # Background, peaks with their roles, suppression and note of one histogram, for --json.
     record = {"background": None, "peaks": [], "suppression": None, "note": None}
     if histogram.sum():
-        result = _analysis(histogram, capture, victim, aggressors, tolerance)
+        result = _analysis(histogram, capture, victim, aggressors, tolerance, pileup)
         record["background"] = result.level
         record["peaks"] = [{"tof_s": peak.position_s, "fwhm_s": peak.fwhm_s,
                             "height": peak.height, "role": role}
@@ -220,8 +321,9 @@ def _analysis_record(histogram, capture, victim, aggressors, tolerance):
     return record
 
 
-def _print_analysis(histogram, capture, victim, aggressors, tolerance, indent="  "):
-    result = _analysis(histogram, capture, victim, aggressors, tolerance)
+def _print_analysis(histogram, capture, victim, aggressors, tolerance, indent="  ",
+                    pileup=None):
+    result = _analysis(histogram, capture, victim, aggressors, tolerance, pileup)
     print(f"{indent}background: {result.level:.4g} counts per bin")
     if not result.peaks:
         print(f"{indent}no peak above the detection threshold (background alone passes it in "

@@ -10,7 +10,8 @@ import math
 
 from ...hdl.event import TDC_LSB_S, TIMESTAMP_BITS
 from ...sim.boards.noisy_line import NoisyLine, add_line_arguments, describe, faults_from_args
-from ...sim.boards.options import add_build_arguments, add_scene_arguments, rate_hz
+from ...sim.boards.options import (add_build_arguments, add_scene_arguments, detector_from_args,
+                                  detector_note, rate_hz)
 from ...sim.scene import LINE_PIXELS
 from ..errors import UserError
 from ..units import parse_baud
@@ -67,6 +68,7 @@ def run_board(args):
         raise UserError(str(error)) from None
     try:
         ambient_hz = rate_hz(args.ambient)
+        detector = detector_from_args(args)
     except ValueError as error:
         raise UserError(str(error)) from None
     if args.reset_after is not None and args.reset_after < 1:
@@ -76,11 +78,12 @@ def run_board(args):
                          aggressor_signal=args.aggressor_signal, seed=args.seed,
                          scene=args.scene, sensor=args.sensor, object_m=args.object_m,
                          reset_after=args.reset_after, fine_tdc=args.fine_tdc,
-                         small=args.small, jumper=args.jumper)
+                         small=args.small, jumper=args.jumper, detector=detector)
 
-    note = column_note(args.scene, args.sensor, args.aggressor_signal, ambient_hz)
-    if note:
-        print(f"fliss: note: {note}", file=sys.stderr, flush=True)
+    for note in (column_note(args.scene, args.sensor, args.aggressor_signal, ambient_hz),
+                 detector_note(args, detector)):
+        if note:
+            print(f"fliss: note: {note}", file=sys.stderr, flush=True)
 
     def terminate(number, frame):
         raise KeyboardInterrupt

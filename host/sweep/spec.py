@@ -64,10 +64,12 @@ class Spec:
     path: str = "<spec>"
 
     def points(self):
-        """Every point of the grid, in grid order, with the model's defaults filled in."""
+        """Every point of the grid, in grid order, with the model's defaults filled in; a
+        default of None (an optional setting, not given) is left out, so that a model's new
+        optional parameter leaves the keys and seeds of the points before it unchanged."""
         points = []
         for parts in itertools.product(*self.axes):
-            point = dict(self.defaults)
+            point = {name: value for name, value in self.defaults.items() if value is not None}
             for part in parts:
                 point.update(part)
             points.append(point)

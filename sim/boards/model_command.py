@@ -10,11 +10,12 @@ import time
 from .loopback import Loopback
 from .model import model_board
 from .noisy_line import NoisyLine, add_line_arguments, describe, faults_from_args
-from .options import add_build_arguments, add_scene_arguments, baud_rate, rate_hz
+from .options import (add_build_arguments, add_scene_arguments, baud_rate, detector_from_args,
+                      detector_note, rate_hz)
 from ..scene import Scene, pixels_named
 
 
-__all__ = ["build_parser", "main"]
+__all__ = ["build_parser", "main", "scene_from_args"]
 
 
 def build_parser():
@@ -44,13 +45,13 @@ def main(argv=None):
         parser.exit(2, f"{parser.prog}: error: --reset-after must be at least 1, not "
                        f"{args.reset_after}\n")
     try:
-        pixels = pixels_named(args.scene, sensor=args.sensor, wall_m=args.target_m,
-                              object_m=args.object_m)
-        scene = Scene(distance_m=args.target_m, detections_per_pulse=args.signal,
-                      background_hz=rate_hz(args.ambient), pixels=pixels)
+        scene = scene_from_args(args)
         build = _build_from_args(args)
     except ValueError as error:
         parser.exit(2, f"{parser.prog}: error: {error}\n")
+    note = detector_note(args, scene.spad)
+    if note:
+        print(f"{parser.prog}: note: {note}", file=sys.stderr, flush=True)
     signal.signal(signal.SIGTERM, _terminate)
     line = None
     with model_board(scene=scene, aggressor_detections_per_pulse=args.aggressor_signal,
@@ -74,6 +75,16 @@ def main(argv=None):
                 line.close()
                 print(f"{parser.prog}: noisy line: {describe(line)}", file=sys.stderr)
     return 0
+
+
+def scene_from_args(args):
+    """The :class:`~fliss.sim.scene.Scene` of the scene's and the detector's options;
+    ``ValueError`` for a bad one."""
+    pixels = pixels_named(args.scene, sensor=args.sensor, wall_m=args.target_m,
+                          object_m=args.object_m)
+    return Scene(distance_m=args.target_m, detections_per_pulse=args.signal,
+                 background_hz=rate_hz(args.ambient), pixels=pixels,
+                 detector=detector_from_args(args))
 
 
 def _build_from_args(args):

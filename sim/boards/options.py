@@ -1,14 +1,18 @@
 """The options of a board without hardware, defined once: ``fliss board`` (the virtual
 board) and ``python -m fliss.sim.boards.model`` (the model board) take the same name for the
-same setting: the scene's (``--target-m``, ``--ambient 100kHz``, ...) and the build's and its
-loopback's (``--baud``, ``--fine-tdc``, ``--small``, ``--jumper``)."""
+same setting: the scene's (``--target-m``, ``--ambient 100kHz``, ...), its detector's
+(``--sensor-preset``, ``--dark-count 7kHz``, ...: :mod:`fliss.sim.scene.detector_options`) and
+the build's and its loopback's (``--baud``, ``--fine-tdc``, ``--small``, ``--jumper``)."""
 
+import argparse
 import re
 
 from ..scene import SCENE_NAMES, SENSOR_KINDS
+from ..scene.detector_options import SETTINGS, DetectorSettingError, detector_from, preset_names
 
 
-__all__ = ["add_scene_arguments", "add_build_arguments", "rate_hz", "baud_rate"]
+__all__ = ["add_scene_arguments", "add_detector_arguments", "add_build_arguments",
+           "detector_from_args", "detector_note", "rate_hz", "baud_rate"]
 
 
 _RATE = re.compile(r"\s*((?:\d+\.?\d*|\.\d+)(?:e[-+]?\d+)?)\s*(hz|khz|mhz|ghz)\s*",
@@ -66,6 +70,54 @@ def add_scene_arguments(parser, *, seed=None):
                             "flag) or per_pixel (one TDC per pixel)")
     group.add_argument("--object-m", type=float, default=2.5, metavar="M",
                        help="distance of the line scene's object, metres")
+    add_detector_arguments(parser)
+
+
+def add_detector_arguments(parser):
+    """The detector's settings (:data:`fliss.sim.scene.detector_options.SETTINGS`) as options
+    of an argparse ``parser``: ``--sensor-preset NAME`` and one option per effect, each value
+    with its unit."""
+    group = parser.add_argument_group(
+        "detector", "the SPAD pixels' physics (docs/scene.md, The detector): a preset, and "
+                    "each setting given replaces the preset's; values with their unit")
+    # (not given: no attribute, and no "(default: None)" in the help: the preset's value)
+    group.add_argument("--sensor-preset", default=argparse.SUPPRESS, metavar="NAME",
+                       help=f"a detector with published figures: {preset_names()} (default: "
+                            f"the model's, as paper: 20 ns non-paralysable dead time, 100 ps "
+                            f"jitter, nothing else)")
+    for setting in SETTINGS:
+        flag = "--" + setting.name.replace("_", "-")
+        if setting.kind == "flag":
+            group.add_argument(flag, action="store_true", default=argparse.SUPPRESS,
+                               help=setting.help)
+        else:
+            group.add_argument(flag, default=argparse.SUPPRESS, metavar=setting.metavar,
+                               help=setting.help)
+
+
+def detector_from_args(args):
+    """The :class:`~fliss.sim.scene.detector.Detector` the options of
+    :func:`add_detector_arguments` describe; ``ValueError`` naming the flag (also for
+    crosstalk asked of the single pixel, which has no neighbours)."""
+    settings = {setting.name: getattr(args, setting.name, None) for setting in SETTINGS}
+    detector = detector_from(getattr(args, "sensor_preset", None), settings)
+    if getattr(args, "scene", None) == "single":
+        for name in ("crosstalk", "crosstalk_diagonal"):
+            if settings[name] is not None:
+                raise DetectorSettingError(
+                    f"--{name.replace('_', '-')} {settings[name]}: crosstalk needs "
+                    f"neighbours: the pixel array of --scene line, not the single pixel")
+    return detector
+
+
+def detector_note(args, detector):
+    """A note when the detector has an effect the scene cannot show (a preset's crosstalk on
+    the single pixel, which has no neighbours), or None."""
+    if getattr(args, "scene", None) == "single" and detector.crosstalk:
+        return (f"the detector's crosstalk ({100 * detector.crosstalk_orthogonal:g} % "
+                f"orthogonal, {100 * detector.crosstalk_diagonal:g} % diagonal) needs "
+                f"neighbours: the single pixel has none (--scene line has)")
+    return None
 
 
 def add_build_arguments(parser, *, where=""):

@@ -22,7 +22,9 @@ This is the cocotb test module that :mod:`fliss.host.virtual` runs in Icarus or 
   away, an object ``FLISS_BOARD_OBJECT_M`` away before pixels 20 to 39) seen by the sensor
   ``FLISS_BOARD_SENSOR``: ``column`` (the paper's: one event per window, the address of the
   pixel that fired last, the collision flag) or ``per_pixel`` (one TDC per pixel: a window's
-  events one after the other, in address order; see *Bus timing*);
+  events one after the other, in address order; see *Bus timing*). The SPADs are the detector
+  ``FLISS_BOARD_DETECTOR`` describes (a :class:`~fliss.sim.scene.Detector`'s fields in JSON;
+  empty: the scene's default detector);
 * resets the gateware (``rst`` high for :data:`RESET_CYCLES` cycles, as a power cycle or the
   reset button would: registers, counters, sequence and histogram numbers back to reset) once
   ``FLISS_BOARD_RESET_AFTER`` data packets (HISTOGRAM, EVENTS) have gone to the host, and each
@@ -35,6 +37,7 @@ The sensor bus is driven by :class:`~fliss.sim.boards.sensor.SensorModel` (its t
 module).
 """
 
+import json
 import os
 import select
 import time
@@ -207,7 +210,9 @@ def scene_from_environment():
         distance_m=target_m,
         detections_per_pulse=env_setting("FLISS_BOARD_SIGNAL", 0.05),
         background_hz=env_setting("FLISS_BOARD_AMBIENT_HZ", 1e5),
-        aggressors=(aggressor,), pixels=pixels)
+        aggressors=(aggressor,), pixels=pixels,
+        detector=env_setting("FLISS_BOARD_DETECTOR", None,
+                             lambda text: _scene.Detector(**json.loads(text))))
 
 
 async def _reset(dut):

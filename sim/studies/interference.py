@@ -71,7 +71,16 @@ frames [1000], frames_per_run [1]
     Frames of the point, and consecutive frames per run (more per run is cheaper, fewer
     independent draws of the aggressors).
 distance_m [4.0], detections_per_pulse [0.05], background_hz [1e5]
-    Target distance, the victim's echo in detections per pulse, ambient rate at the pixel.
+    Target distance, the victim's echo in detections per pulse, ambient rate at the pixel
+    (photons a ready SPAD would detect with a PDP of 1: the detector's ``pdp`` thins them).
+sensor_preset, pdp, dark_count, hot_pixels, hot_dark_count, dead_time, paralysable, jitter,
+jitter_tail, jitter_tail_share, afterpulsing, afterpulse_tau, afterpulse_weights [not given]
+    The victim's detector (:class:`~fliss.sim.scene.detector.Detector`), by the names of
+    ``fliss board``'s options and with the same values as text with units (``dead_time =
+    "22ns"``, ``afterpulsing = "1.4%"``, ``paralysable = true``;
+    :mod:`fliss.sim.scene.detector_options`): a preset, each setting given replacing its
+    value; none given: the model's default detector (20 ns non-paralysable, 100 ps jitter).
+    One pixel: no crosstalk.
 
 Results
 -------
@@ -82,7 +91,8 @@ if none does); ``s_db``: 10 log10 of the mean height of the target's peak over t
 the highest point outside the target's window (both above the background, whether detected or
 not); ``signal_recorded``: fraction of the victim's detected photons the TDC kept (pile-up and
 overwriting lower it); ``aggressor_counts_per_frame``: the aggressors' recorded photons per
-frame; ``attack_locked_runs``: runs in which the predicting attacker locked, and
+frame; ``background_counts_per_frame``: the recorded photons of ambient light and dark counts
+per frame; ``attack_locked_runs``: runs in which the predicting attacker locked, and
 ``attack_locked_after_mean``: its mean observed pulses until the first lock over those runs
 (``None`` for other kinds, or without a lock); and the detection curve as three JSON lists of equal length: ``curve_threshold`` (noise
 deviations), ``curve_p_detect`` and ``curve_false_per_frame``.
@@ -100,6 +110,7 @@ from ..models import scheduler as _scheduler
 from .detection import classify, detection_curve, wilson
 from .predicting_aggressor import attack_edges
 from ..scene.acquisition import acquire
+from ..scene.detector_options import SETTINGS as _DETECTOR_SETTINGS, detector_from
 from ..scene.description import (COUNTERS, FINE_STEPS, SPEED_OF_LIGHT, TDC_CODES, Aggressor, Scene,
                                  time_of_flight)
 
@@ -131,6 +142,10 @@ PARAMETERS = {
     "distance_m": 4.0,
     "detections_per_pulse": 0.05,
     "background_hz": 1e5,
+    # The detector, by the names of fliss board's options (None: not given)
+    "sensor_preset": None,
+    **{setting.name: None for setting in _DETECTOR_SETTINGS
+       if not setting.name.startswith("crosstalk")},
 }
 
 #: Victim delay sources.
@@ -212,7 +227,15 @@ def check_point(point):
                          f"fine_step 1, not {full['fine_step']!r}")
     # The victim's settings must hold together (seed range, grid room for the delays)
     _victim(full, 1)
+    _detector(full)
     return full
+
+
+def _detector(point):
+    """The point's :class:`~fliss.sim.scene.detector.Detector`."""
+    return detector_from(point["sensor_preset"],
+                         {setting.name: point[setting.name] for setting in _DETECTOR_SETTINGS
+                          if setting.name in point}, style="key")
 
 
 def _keyed(point):
@@ -293,7 +316,7 @@ def scene_of(point, rng):
     return Scene(victim=victim, distance_m=point["distance_m"],
                  detections_per_pulse=point["detections_per_pulse"], fwhm_s=_FWHM_S,
                  aggressors=tuple(aggressors), background_hz=point["background_hz"],
-                 fine_step=point["fine_step"])
+                 fine_step=point["fine_step"], detector=_detector(point))
 
 
 def _child(seed, *key):
@@ -329,10 +352,11 @@ def evaluate(point, seed):
     point = check_point(point)
     frames, per_run = point["frames"], point["frames_per_run"]
     tof_s = time_of_flight(point["distance_m"])
-    fwhm_s = math.hypot(_FWHM_S, Scene.jitter_fwhm_s)
+    fwhm_s = math.hypot(_FWHM_S, _detector(point).jitter_fwhm_s)
     floor = min(CURVE_THRESHOLDS[0], point["threshold_sigma"])
     judged, errors = [], []
     counts = np.zeros((1 + point["aggressors"], len(COUNTERS)), dtype=np.int64)
+    background = 0
     runs = -(-frames // per_run)
     predicting = point["aggressor_kind"] == "predicting" and point["aggressors"] > 0
     locked_after = []
@@ -355,7 +379,8 @@ def evaluate(point, seed):
                                chunk_cycles=1 << 14, aggressor_edges=edges)
         source_counts = acquisitions.counts.sum(axis=0)
         counts[0] += source_counts[0]
-        counts[1:] += source_counts[2:]
+        counts[1:] += source_counts[2:2 + point["aggressors"]]     # (not the afterpulses)
+        background += int(source_counts[1, COUNTERS.index("recorded")])
         for histogram in acquisitions.histograms:
             frame = classify(histogram, tof_s, fwhm_s, threshold_sigma=point["threshold_sigma"],
                              floor_sigma=floor)
@@ -377,6 +402,7 @@ def evaluate(point, seed):
         counts[0, COUNTERS.index("dead")]
     result["signal_recorded"] = float(counts[0, recorded] / detected) if detected else None
     result["aggressor_counts_per_frame"] = float(counts[1:, recorded].sum() / frames)
+    result["background_counts_per_frame"] = background / frames
     result["attack_locked_runs"] = len(locked_after) if predicting else None
     result["attack_locked_after_mean"] = float(np.mean(locked_after)) if locked_after else None
     detect, false = detection_curve(judged, CURVE_THRESHOLDS)
