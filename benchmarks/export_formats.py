@@ -1,4 +1,5 @@
-"""Export time, size and peak memory of a large raw capture: the figures of docs/file-format.md.
+"""Export time, size and peak memory of a large raw capture (docs/file-format.md, "Export time,
+size and memory").
 
 Makes a raw capture of ``--events`` synthetic events (10**7 by default; 125 000 000 make a
 capture file of 1.0 GB, 8 bytes an event: laser cycles at about one event per ten cycles, every

@@ -1,4 +1,4 @@
-"""The fine TDC's figures from its model: the tables of docs/finetdc.md.
+"""The fine TDC's figures from its model (docs/finetdc.md, "The model and its figures").
 
 For model lines in two builds: one line of 640 taps (the baseline: the ``CCU2C`` cell model's
 21.5 ps taps with 5 ps of random variation; the same with 30 ps more at every eighth tap, a hop

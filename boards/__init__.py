@@ -3,7 +3,11 @@
 * :mod:`.icebreaker`, :mod:`.ulx3s`: platforms on top of amaranth-boards, each with a PLL from the
   board oscillator to the design clock and the FLISS pin map on the PMOD (or GPIO) headers;
 * :mod:`.build`: ``python -m fliss.boards.build BOARD``, bitstreams with the YoWASP tools, Fmax
-  and utilisation from nextpnr, a non-zero exit when timing fails.
+  and utilisation from nextpnr, a non-zero exit when timing fails;
+* :mod:`.constraints`: the constraints templates (PCF, LPF) of ``fliss generate``'s folder;
+* :mod:`.netlist`, :mod:`.routed`: the builds' gate-level and routed netlists, for simulation;
+* :mod:`.vendors`: ``python -m fliss.boards.vendors``, the generated Verilog synthesised for
+  other vendors' FPGAs.
 
 This module holds what both boards share and needs no board package: the pin names, the board
 top level :class:`BoardTop` that puts any design on any of the boards, and the factories of the

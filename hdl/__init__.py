@@ -16,13 +16,19 @@ One block per module; the larger blocks are subpackages of several:
 * :mod:`.counters`, :mod:`.status`: event counters and the STATUS reply's counters;
 * :mod:`.block_ram`, :mod:`.spram`: block RAM and single-port RAM, the FPGA's or generic;
 * :mod:`.divider`: a serial divider;
-* :mod:`.top`: :class:`~.top.FlissTop`, everything behind a UART.
+* :mod:`.top`: :class:`~.top.FlissTop`, everything behind a UART; :mod:`.ports`, what each of
+  its ports means (the ports table of ``fliss generate`` and ``docs/ports.md``).
 
 Definitions shared by gateware, models and host: :mod:`.clock` (the default clock and PRF,
 and what the parameters come to in clock cycles), :mod:`.event` (the photon event layout),
 :mod:`.protocol` (packets), :mod:`.registers` (the register map: rows, :mod:`.register_rows`),
 :mod:`.codes` (a timestamp code's width for each event source), :mod:`.delay.settings` (the
-delay core's limits). :mod:`.verilog` writes Verilog that every simulator reads the same way.
+delay core's limits). :mod:`.verilog` writes Verilog that every simulator reads the same way;
+:mod:`.testbench` holds the Verilog testbench ``fliss generate`` writes beside it.
+:mod:`.lazy` gives a package its public names imported when first asked for (as
+:mod:`.delay`, :mod:`.histogram` and :mod:`.link` offer their blocks).
+
+Here: :func:`lookup`, a constant table read at a signal's value, as LUTs or a ROM.
 """
 
 from amaranth.hdl import Array, Cat, Const, Value

@@ -18,7 +18,10 @@ What is a reference, and how it is checked:
   as a file or a folder. Trailing punctuation is not part of it; ``path:123`` (a line) and
   ``path::name`` (a test) are the file ``path``, and with ``::name`` the file must define
   ``name``; ``path#anchor`` is checked as a Markdown link (below). A path with a glob
-  character (``tests/test_cocotb_*``) must match at least one file. ``fliss/<tree>/...`` is a
+  character (``tests/test_cocotb_*``) must match at least one file. A test file named as
+  ``tests/NAME`` may sit in a layer's folder (``tests/<layer>/NAME``): the one file of that name
+  under ``tests/`` is taken (a glob, the files under ``tests/``), so that references to tests
+  survive their moves between layers. ``fliss/<tree>/...`` is a
   path inside the installed package: it is checked as ``<tree>/...`` (``fliss/hdl/top.py`` is
   ``hdl/top.py``). Paths under folders the repository does not keep (``build/``,
   ``sim_build/``, ``~/.cache``, ...) are outputs, not references, and are not read.
@@ -50,6 +53,18 @@ What is a reference, and how it is checked:
   without amaranth-boards) is read from its source instead: its top-level classes (with their
   methods, class attributes and ``self.`` names), functions, assignments and the names it
   imports; a member of anything but a class is taken as there.
+* **A make target**: ``make TARGET`` in a code span (in the Markdown files, the Python texts
+  and the build's files), in a Markdown file's code blocks and in ``.ci/run``: ``TARGET`` is a
+  target of the Makefile (variables before it, ``make BOARD=ulx3s bitstream``, are skipped).
+* **A class or function name** in a code span of a Markdown file (a capitalised identifier
+  without underscores, of more than three characters: ``DualPortBanks``,
+  ``FlissTop.register_maxima()``, not ``Wm``): a class, function or
+  name defined, assigned or imported somewhere in the package's trees, ``tests/``,
+  ``benchmarks/`` or ``examples/``, a builtin, or a name of an outside library listed in
+  :data:`OUTSIDE_NAMES` (checked there when that library is installed).
+* **A package's list of its modules**: a package's ``__init__.py`` docstring that lists its
+  modules (a bullet that starts with ``:mod:`.name```) names every one of them (each module and
+  subpackage whose name does not start with ``_``) somewhere in it.
 * **A Markdown link** ``[text](target)`` in a Markdown file (outside code blocks), unless the
   target is an address (``scheme:``): the file, relative to the Markdown file, exists, and
   ``#anchor`` is one of its headings' anchors by GitHub's rule (lower case, punctuation other
@@ -90,6 +105,14 @@ _BARE = re.compile(r"`+([\w\-]+\.(?:py|md))`+")
 _DOTTED = re.compile(r"(?<![\w.])fliss(?:\.\w+)+(?::\w+)?")
 _ROLE = re.compile(r":(mod|class|func|meth|attr|data|exc|obj):`~?([^`]+)`")
 _LINK = re.compile(r"\[[^\]]*\]\(([^)\s]+)\)")
+_SPAN = re.compile(r"`+([^`]+)`+")
+_MAKE = re.compile(r"(?<![\w./$-])make +(?:[A-Z_]+=\S* +)*([a-z][\w-]*)")
+_CLASS = re.compile(r"^([A-Z][A-Za-z0-9]*[a-z][A-Za-z0-9]*)(?:$|[(.\[])")
+_LISTED = re.compile(r"^\s*\* :mod:`~?\.(\w+)", flags=re.MULTILINE)
+
+#: Names of outside libraries the docs give in code spans: name -> where it is.
+OUTSIDE_NAMES = {"PtuWriter": "ptufile.PtuWriter", "GenericT3": "ptufile.PtuRecordType.GenericT3",
+                 "CLSMImage": "tttrlib.CLSMImage"}
 
 
 # Sources ----------------------------------------------------------------------------------------
@@ -198,6 +221,17 @@ def _file_names():
     return names
 
 
+def _test_file(path):
+    # ``tests/NAME`` kept in a layer's folder: the one path under tests/ of that name (or glob).
+    parts = path.split("/")
+    if len(parts) != 2 or parts[0] != "tests":
+        return None
+    found = [p for p in (ROOT / "tests").rglob(parts[1]) if "__pycache__" not in p.parts]
+    if any(c in parts[1] for c in "*?"):
+        return path if found else None
+    return str(found[0].relative_to(ROOT)) if len(found) == 1 else None
+
+
 def _check_path(reference):
     reference = reference.rstrip(".,;:")
     path, _, test = reference.partition("::")
@@ -206,9 +240,12 @@ def _check_path(reference):
     if parts[0] == "fliss" and len(parts) > 1 and parts[1] in TREES and parts[1] != "fliss":
         path = "/".join(parts[1:])          # a path inside the installed package
     if any(c in path for c in "*?"):
-        return None if glob.glob(str(ROOT / path)) else "matches no file"
+        found = glob.glob(str(ROOT / path)) or _test_file(path)
+        return None if found else "matches no file"
     if not (ROOT / path).exists():
-        return "no such file or folder"
+        path = _test_file(path)
+        if path is None:
+            return "no such file or folder"
     if test and not re.search(rf"^\s*(async )?def {test}\b|^class {test}\b",
                               (ROOT / path).read_text(), flags=re.MULTILINE):
         return f"{path} defines no {test}"
@@ -387,20 +424,99 @@ def _text_problems(text, names=True):
                 yield offset, "name", match.group(0), why
 
 
+@functools.cache
+def _make_targets():
+    makefile = (ROOT / "Makefile").read_text()
+    heads = re.findall(r"^([\w.\- ]+?)\s*::?(?!=)", makefile, flags=re.MULTILINE)
+    return {target for head in heads for target in head.split()}
+
+
+def _make_problems(text, *, spans=True):
+    # (line offset, kind, reference, why) of the make targets of ``text``'s code spans (or of
+    # all of it) that the Makefile does not have.
+    for offset, line in enumerate(text.splitlines()):
+        for part in ([m.group(1) for m in _SPAN.finditer(line)] if spans else [line]):
+            for match in _MAKE.finditer(part):
+                if match.group(1) not in _make_targets():
+                    yield offset, "make target", match.group(1), "not in the Makefile"
+
+
+@functools.cache
+def _defined_names():
+    # Every name a class, function, assignment or import gives in the repository's Python files.
+    names = set(dir(builtins))
+    for folder in (*TREES, "tests", "benchmarks", "examples", "docs"):
+        for path in (ROOT / folder).rglob("*.py"):
+            for node in ast.walk(ast.parse(path.read_text())):
+                if isinstance(node, (ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
+                    names.add(node.name)
+                elif isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store):
+                    names.add(node.id)
+                elif isinstance(node, ast.Attribute) and isinstance(node.ctx, ast.Store):
+                    names.add(node.attr)
+                elif isinstance(node, (ast.Import, ast.ImportFrom)):
+                    names.update((alias.asname or alias.name).split(".")[-1]
+                                 for alias in node.names)
+    return names
+
+
+def _class_problems(text):
+    # (line offset, kind, reference, why) of the capitalised names in ``text``'s code spans
+    # that nothing defines.
+    for offset, line in enumerate(text.splitlines()):
+        for span in _SPAN.finditer(line):
+            match = _CLASS.match(span.group(1))
+            if match and len(match.group(1)) > 3 and match.group(1) not in _defined_names() \
+                    and match.group(1) not in OUTSIDE_NAMES:
+                yield offset, "name", match.group(1), "defined nowhere in the repository"
+
+
+def _package_problems(init):
+    # The modules of the package ``init`` (an __init__.py) that its docstring's list leaves out.
+    doc = ast.get_docstring(ast.parse(init.read_text())) or ""
+    if not _LISTED.search(doc):
+        return []                   # not a list of its modules
+    named = set(re.findall(r":mod:`~?\.(\w+)", doc))
+    modules = {path.stem for path in init.parent.glob("*.py")} | \
+        {path.parent.name for path in init.parent.glob("*/__init__.py")}
+    return sorted(name for name in modules - named if not name.startswith("_"))
+
+
+def test_outside_names_exist():
+    # The outside libraries' names that the docs may give, where they are (when installed).
+    for name, where in OUTSIDE_NAMES.items():
+        module, _, rest = where.partition(".")
+        library = importlib.util.find_spec(module)
+        if library is None:
+            continue
+        obj = importlib.import_module(module)
+        for attribute in rest.split("."):
+            obj = getattr(obj, attribute)
+        assert rest.split(".")[-1] == name and obj is not None
+
+
 def _problems():
     problems = []
     for build in BUILD_FILES:
-        for offset, kind, reference, why in _text_problems((ROOT / build).read_text()):
+        text = (ROOT / build).read_text()
+        for offset, kind, reference, why in [*_text_problems(text), *_make_problems(
+                text, spans=build != ".ci/run")]:
             problems.append(f"{build}:{offset + 1}: {kind}: {reference} ({why})")
+    for init in sorted(p for folder in TREES for p in (ROOT / folder).rglob("__init__.py")):
+        for module in _package_problems(init):
+            problems.append(f"{init.relative_to(ROOT)}:1: module list: leaves out .{module}")
     for markdown in _markdown_files():
         relative = markdown.relative_to(ROOT)
         text = markdown.read_text()
-        for offset, kind, reference, why in _text_problems(text):
+        for offset, kind, reference, why in [*_text_problems(text), *_make_problems(text),
+                                             *_class_problems(text)]:
             problems.append(f"{relative}:{offset + 1}: {kind}: {reference} ({why})")
         fenced = False
         for number, line in enumerate(text.splitlines(), 1):
             if line.startswith("```"):
                 fenced = not fenced
+            for _, kind, reference, why in _make_problems(line, spans=not fenced):
+                problems.append(f"{relative}:{number}: {kind}: {reference} ({why})")
             for match in _LINK.finditer("" if fenced else line):
                 target = match.group(1)
                 if re.match(r"[a-z]+:", target):
@@ -411,7 +527,8 @@ def _problems():
     for source in _python_files():
         relative, module = source.relative_to(ROOT), _module_name(source)
         for start, text, classes, roles in _python_texts(source):
-            for offset, kind, reference, why in _text_problems(text, names=roles):
+            for offset, kind, reference, why in [*_text_problems(text, names=roles),
+                                                 *_make_problems(text if roles else "")]:
                 problems.append(f"{relative}:{start + offset}: {kind}: {reference} ({why})")
             for offset, line in enumerate(text.splitlines() if roles else ()):
                 for match in _ROLE.finditer(line):

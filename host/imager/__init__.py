@@ -3,6 +3,7 @@
 * :mod:`.results`: :class:`~.results.Images` and :class:`~.results.DepthFrames`, numpy arrays;
 * :mod:`.files`: their groups in a capture file;
 * :mod:`.analysis`: per-pixel peaks and depths;
+* :mod:`.threshold`: the depth threshold that suits a pixel split;
 * :mod:`.report`: tables and figures of an imager capture;
 * :mod:`.demo`: the imager's part of ``fliss demo``.
 """

@@ -5,5 +5,7 @@
 * :mod:`.attacker`, :mod:`.generators`, :mod:`.gf2`: an attacker that predicts the victim's
   delays from its emission times, and the public generators it may assume;
 * :mod:`.attack_scene`: the attacker in the scene simulator;
-* :mod:`.predicting_aggressor`: the attacker as an aggressor of the interference study.
+* :mod:`.predicting_aggressor`: the attacker as an aggressor of the interference study;
+* :mod:`.finetdc`: the fine TDC's figures from its model (non-linearity, precision,
+  temperature drift, a scene through the lines).
 """
