@@ -116,7 +116,7 @@ def main():
         floor_run = child(capture, None, "floor", args.run)
         floor = floor_run["peak"]
         print(f"{'what':<10} {'seconds':>8} {'points/s':>10} {'size MB':>8} {'peak MB':>8} "
-              f"{'above floor':>12} {'/ run':>6}")
+              f"{'above start':>12} {'/ run':>6}")
         print(f"{'floor':<10} {'':>8} {'':>10} {'':>8} {floor / 1e6:>8.1f}")
         for what in ("baseline", "ply", "pcd", "las", "mcap"):
             output = folder / f"points.{what}"

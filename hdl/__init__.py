@@ -21,7 +21,8 @@ One block per module; the larger blocks are subpackages of several:
 
 Definitions shared by gateware, models and host: :mod:`.clock` (the default clock and PRF,
 and what the parameters come to in clock cycles), :mod:`.event` (the photon event layout),
-:mod:`.protocol` (packets), :mod:`.registers` (the register map: rows, :mod:`.register_rows`),
+:mod:`.protocol` (packets), :mod:`.registers` (the register map: rows, :mod:`.register_rows`;
+the checks across registers, :mod:`.register_checks`),
 :mod:`.codes` (a timestamp code's width for each event source), :mod:`.delay.settings` (the
 delay core's limits). :mod:`.verilog` writes Verilog that every simulator reads the same way;
 :mod:`.testbench` holds the Verilog testbench ``fliss generate`` writes beside it.

@@ -112,7 +112,7 @@ _LISTED = re.compile(r"^\s*\* :mod:`~?\.(\w+)", flags=re.MULTILINE)
 
 #: Names of outside libraries the docs give in code spans: name -> where it is.
 OUTSIDE_NAMES = {"PtuWriter": "ptufile.PtuWriter", "GenericT3": "ptufile.PtuRecordType.GenericT3",
-                 "CLSMImage": "tttrlib.CLSMImage"}
+                 "CLSMImage": "tttrlib.CLSMImage", "PtuFile": "ptufile.PtuFile"}
 
 
 # Sources ----------------------------------------------------------------------------------------
