@@ -1,0 +1,99 @@
+"""A macro-pixel of ``n`` SPADs, its coincidence gate and its TDC, vectorised over a frame.
+
+* **SPADs.** The photons that reach the macro-pixel (echo, aggressors, ambient light) fall on
+  its ``n`` SPADs uniformly; each SPAD has the scene's :class:`~fliss.sim.scene.Detector`: its
+  dead time (paralysable or not, each SPAD its own), timing tail, afterpulses and crosstalk
+  to its neighbours (the SPADs on a grid of ``ceil(sqrt(n))`` columns), through the same
+  functions as the scene simulator (:func:`~fliss.sim.scene.avalanches.pixel_avalanches`,
+  :class:`~fliss.sim.scene.avalanches.Avalanches`). The whole frame is drawn, gaps between
+  windows included, so the dead time carries from every photon.
+* **Coincidence** (``k`` of ``n`` within ``window``): each SPAD's count is a pulse of length
+  ``window``; the gate fires when the number of SPADs whose pulse is high rises to ``k``, at
+  the time of that ``k``-th count. With ``k = 1`` every count passes. The window is at most the
+  dead time, so a SPAD counts at most once within it.
+* **TDC.** Window ``i`` runs from start ``i`` for ``length`` LSBs or until the next start. A
+  single-hit TDC keeps one event per window (the last, as the paper's sensor, or the first);
+  a multi-hit TDC keeps every event.
+"""
+
+import math
+
+import numpy as np
+
+from ...scene.avalanches import Avalanches, pixel_avalanches
+from ...scene.detection import non_paralysable
+from ....hdl.event import TDC_LSB_S
+
+
+__all__ = ["grid_neighbours", "avalanches", "coincidences", "tdc"]
+
+
+def grid_neighbours(n):
+    """``(orthogonal, diagonal)`` neighbours of ``n`` SPADs on a grid of ``ceil(sqrt(n))``
+    columns (as :meth:`fliss.sim.scene.PixelArray.neighbours`: ``-1`` for none)."""
+    columns = max(1, math.ceil(math.sqrt(n)))
+    row, column = np.divmod(np.arange(n), columns)
+    tables = []
+    for steps in (((-1, 0), (1, 0), (0, -1), (0, 1)), ((-1, -1), (-1, 1), (1, -1), (1, 1))):
+        table = np.full((n, 4), -1, dtype=np.int64)
+        for at, (down, right) in enumerate(steps):
+            r, c = row + down, column + right
+            index = r * columns + c
+            inside = (r >= 0) & (c >= 0) & (c < columns) & (index < n)
+            table[inside, at] = index[inside]
+        tables.append(table)
+    return tuple(tables)
+
+
+def _whole_frame(times):
+    count = len(times)
+    return np.zeros(count, dtype=np.int64), np.ones(count, dtype=bool), np.ones(count, dtype=bool)
+
+
+def avalanches(times, sources, spad, detector, n, rng, first_child_source):
+    """The counts of the SPADs: ``(times, sources)`` in time order of the photons (and their
+    afterpulses and crosstalk) that the SPADs count. ``times`` in LSBs, ``spad`` the SPAD of
+    each photon; ``sources`` as the scene numbers them (1: background, else pulsed)."""
+    dead = detector.dead_time_s / TDC_LSB_S
+    if not detector.avalanche_effects:
+        order = np.argsort(times, kind="stable")
+        times, sources, spad = times[order], sources[order], spad[order]
+        counted = non_paralysable(times, dead, -np.inf) if n == 1 else \
+            pixel_avalanches(times, spad, np.full(n, -np.inf), dead, False)[1]
+        return times[counted], sources[counted]
+    neighbours = grid_neighbours(n) if n > 1 else None
+    effects = Avalanches(detector, rng.spawn(4), neighbours, first_child_source)
+    times = effects.tail(times, sources, 0)
+    order = np.argsort(times, kind="stable")
+    (times, sources, _, _, _, counted), _ = effects.resolve(
+        times[order], sources[order], spad[order], _whole_frame, np.full(n, -np.inf), np.inf)
+    return times[counted], sources[counted]
+
+
+def coincidences(times, k, window):
+    """Which counts (``times`` sorted, LSBs) fire a ``k``-of-``n`` gate of ``window`` LSBs: those
+    at which the number of counts in ``(t - window, t]`` is exactly ``k``."""
+    if k == 1:
+        return np.ones(len(times), dtype=bool)
+    inside = np.arange(len(times)) - np.searchsorted(times, times - window, side="right") + 1
+    return inside == k
+
+
+def tdc(times, starts, length, *, keep="last", multi=False):
+    """``(index, offset)`` of the events (``times`` sorted) a TDC records: the event's index in
+    ``times`` and its time after its window's start, LSBs. ``starts`` increasing; window ``i``
+    ends ``length`` after its start or at the next start."""
+    span = np.searchsorted(starts, times, side="right") - 1
+    clipped = np.maximum(span, 0)
+    ends = starts + length
+    ends[:-1] = np.minimum(ends[:-1], starts[1:])
+    inside = np.flatnonzero((span >= 0) & (times < ends[clipped]))
+    if not multi and len(inside):
+        owner = span[inside]
+        chosen = np.ones(len(inside), dtype=bool)
+        if keep == "last":
+            chosen[:-1] = owner[1:] != owner[:-1]
+        else:
+            chosen[1:] = owner[1:] != owner[:-1]
+        inside = inside[chosen]
+    return inside, times[inside] - starts[span[inside]]
