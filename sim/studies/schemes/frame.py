@@ -9,7 +9,7 @@ import numpy as np
 from ....hdl.event import TDC_LSB_S
 from ...scene.description import FWHM_PER_SIGMA, TDC_CODES
 from .emitters import Camera, LSB_PER_CYCLE
-from .macropixel import avalanches, coincidences, tdc
+from .macropixel import avalanches, coincidences, correlate, tdc
 
 
 __all__ = ["FWHM_S", "Frame", "simulate_frame", "window_codes"]
@@ -108,7 +108,7 @@ def simulate_frame(point, detector, rng):
     raw = np.bincount(np.minimum(offset.astype(np.int64), length - 1), minlength=length)
     if point["scheme"] == "code":
         chips = np.rint(victim.chip_offsets_lsb).astype(np.int64)
-        histogram = sum(raw[chip:chip + TDC_CODES] for chip in chips)
+        histogram = correlate(raw, chips, TDC_CODES)
     else:
         histogram = raw
     sources_count = first_child + 2

@@ -11,6 +11,7 @@
   ``window``; the gate fires when the number of SPADs whose pulse is high rises to ``k``, at
   the time of that ``k``-th count. With ``k = 1`` every count passes. The window is at most the
   dead time, so a SPAD counts at most once within it.
+* **Correlation** (the ``code`` scheme): the histogram summed over the shifts of the chips.
 * **TDC.** Window ``i`` runs from start ``i`` for ``length`` LSBs or until the next start. A
   single-hit TDC keeps one event per window (the last, as the paper's sensor, or the first);
   a multi-hit TDC keeps every event.
@@ -25,7 +26,7 @@ from ...scene.detection import non_paralysable
 from ....hdl.event import TDC_LSB_S
 
 
-__all__ = ["grid_neighbours", "avalanches", "coincidences", "tdc"]
+__all__ = ["grid_neighbours", "avalanches", "coincidences", "tdc", "correlate"]
 
 
 def grid_neighbours(n):
@@ -97,3 +98,10 @@ def tdc(times, starts, length, *, keep="last", multi=False):
             chosen[1:] = owner[1:] != owner[:-1]
         inside = inside[chosen]
     return inside, times[inside] - starts[span[inside]]
+
+
+def correlate(raw, chips, length):
+    """The correlation of a histogram ``raw`` with a code whose chips start ``chips`` codes
+    after the burst: ``length`` values, value ``t`` the sum of ``raw[t + chip]`` over the chips
+    (``raw`` at least ``length + max(chips)`` long)."""
+    return sum(raw[chip:chip + length] for chip in chips)
