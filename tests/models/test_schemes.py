@@ -32,7 +32,7 @@ def test_accidental_coincidences_follow_the_binomial_law(n, k):
     rate, window, duration = 5e6, 20e-9, 4e-3
     detector = Detector(dead_time_s=window)
     count = rng.poisson(n * rate * duration)
-    times = rng.uniform(0, duration / TDC_LSB_S, count)
+    times = np.sort(rng.uniform(0, duration / TDC_LSB_S, count))
     spads = rng.integers(0, n, count)
     counted, _ = avalanches(times, np.ones(count, dtype=np.int16), spads, detector, n, rng, 2)
     fired = coincidences(counted, k, window / TDC_LSB_S).sum()

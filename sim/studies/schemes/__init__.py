@@ -21,7 +21,7 @@ Schemes (``scheme``; ``coincidence`` > 1 adds the gate to any of them):
   with the victim's code.
 
 The point's parameters and defaults are :data:`PARAMETERS`; :func:`evaluate` returns ``frames``,
-``miss``/``ghost``/``wrong_depth`` counts with ``p_*`` and 95 % Wilson bounds ``p_*_lo`` and
+``miss``/``ghost``/``wrong_depth``/``failure`` (a miss or a wrong depth) counts with ``p_*`` and 95 % Wilson bounds ``p_*_lo`` and
 ``p_*_hi``, the depth error's mean and RMS, ``s_db``, ``pulses_per_frame``,
 ``detections_per_pulse``, ``windows_per_frame`` and the TDC's events per frame by origin
 (``echo_``, ``background_``, ``aggressor_``, ``effect_events_per_frame``: afterpulses and

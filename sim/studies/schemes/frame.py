@@ -54,21 +54,46 @@ def _pulsed(rng, emissions, mean, shift, sigma):
 
 
 def _background(rng, rate_hz, start, end):
+    """A Poisson process of ``rate_hz`` from ``start`` to ``end``, in time order (the order
+    statistics of uniforms: cumulative sums of exponentials, scaled)."""
     count = int(rng.poisson(rate_hz * (end - start) * TDC_LSB_S))
-    return rng.uniform(start, end, count)
+    if not count:
+        return np.zeros(0)
+    gaps = np.cumsum(rng.standard_exponential(count + 1))
+    return start + (end - start) * (gaps[:-1] / gaps[-1])
+
+
+def _merge(ordered, times, sources, spads):
+    """The photons ``times`` (any order, with their ``sources`` and ``spads``) merged into the
+    sorted ``ordered = (times, sources, spads)``: the three arrays, in time order."""
+    order = np.argsort(times, kind="stable")
+    times, sources, spads = times[order], sources[order], spads[order]
+    at = np.searchsorted(ordered[0], times, side="right") + np.arange(len(times))
+    rest = np.ones(len(ordered[0]) + len(times), dtype=bool)
+    rest[at] = False
+    merged = []
+    for old, new in zip(ordered, (times, sources, spads)):
+        both = np.empty(len(rest), dtype=np.result_type(old, new))
+        both[at] = new
+        both[rest] = old
+        merged.append(both)
+    return tuple(merged)
 
 
 def photons(point, detector, victim, aggressors, rng, frame_lsb, margin):
     """``(times, sources, spads)`` of every photon that reaches the macro-pixel in the frame
-    (and ``margin`` LSBs before it, so that the SPADs' state at its start is drawn too);
-    ``victim``: the emissions of the victim's pulses."""
+    (and ``margin`` LSBs before it, so that the SPADs' state at its start is drawn too), in
+    time order; ``victim``: the emissions of the victim's pulses."""
     n = point["spads"]
     tof = point["_tof_lsb"]
     sigma = math.hypot(FWHM_S / FWHM_PER_SIGMA, detector.sigma_s) / TDC_LSB_S
     mean = point["_detections_per_pulse"] * detector.pdp
     start, end = -margin, frame_lsb + window_codes(point)
-    parts = [_pulsed(rng, victim, mean, tof, sigma)]
-    parts.append(_background(rng, point["background_hz"] * detector.pdp, start, end))
+    # The ambient light, drawn in order (it is most of the photons at high rates)
+    ambient = _background(rng, point["background_hz"] * detector.pdp, start, end)
+    ordered = (ambient, np.full(len(ambient), _BACKGROUND, dtype=np.int16),
+               rng.integers(0, n, len(ambient)))
+    parts = [_pulsed(rng, victim, mean, tof, sigma), np.zeros(0)]
     for camera in aggressors:
         parts.append(_pulsed(rng, camera.pulses(start - tof, end), mean *
                              point["aggressor_power"], tof, sigma))
@@ -82,7 +107,7 @@ def photons(point, detector, victim, aggressors, rng, frame_lsb, margin):
             times.append(dark)
             sources = np.concatenate((sources, np.full(len(dark), _BACKGROUND, np.int16)))
             spads = np.concatenate((spads, np.full(len(dark), spad)))
-    return np.concatenate(times), sources, spads
+    return _merge(ordered, np.concatenate(times), sources, spads)
 
 
 def simulate_frame(point, detector, rng):

@@ -51,16 +51,27 @@ def _whole_frame(times):
     return np.zeros(count, dtype=np.int64), np.ones(count, dtype=bool), np.ones(count, dtype=bool)
 
 
+def _counted(times, spad, n, dead):
+    """Which photons (sorted ``times``) the ``n`` non-paralysable SPADs count."""
+    if n == 1:
+        return non_paralysable(times, dead, -np.inf)
+    if n > 8:
+        return pixel_avalanches(times, spad, np.full(n, -np.inf), dead, False)[1]
+    counted = np.empty(len(times), dtype=bool)
+    for one in range(n):
+        mine = spad == one
+        counted[mine] = non_paralysable(times[mine], dead, -np.inf)
+    return counted
+
+
 def avalanches(times, sources, spad, detector, n, rng, first_child_source):
     """The counts of the SPADs: ``(times, sources)`` in time order of the photons (and their
-    afterpulses and crosstalk) that the SPADs count. ``times`` in LSBs, ``spad`` the SPAD of
-    each photon; ``sources`` as the scene numbers them (1: background, else pulsed)."""
+    afterpulses and crosstalk) that the SPADs count. ``times`` in LSBs, in time order, ``spad``
+    the SPAD of each photon; ``sources`` as the scene numbers them (1: background, else
+    pulsed)."""
     dead = detector.dead_time_s / TDC_LSB_S
     if not detector.avalanche_effects:
-        order = np.argsort(times, kind="stable")
-        times, sources, spad = times[order], sources[order], spad[order]
-        counted = non_paralysable(times, dead, -np.inf) if n == 1 else \
-            pixel_avalanches(times, spad, np.full(n, -np.inf), dead, False)[1]
+        counted = _counted(times, spad, n, dead)
         return times[counted], sources[counted]
     neighbours = grid_neighbours(n) if n > 1 else None
     effects = Avalanches(detector, rng.spawn(4), neighbours, first_child_source)

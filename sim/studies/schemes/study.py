@@ -194,6 +194,8 @@ def evaluate(point, seed):
     _proportion(result, "miss", sum(frame.miss for frame in judged), frames)
     _proportion(result, "ghost", sum(frame.ghost for frame in judged), frames)
     _proportion(result, "wrong_depth", sum(frame.wrong_depth for frame in judged), frames)
+    _proportion(result, "failure", sum(frame.wrong_depth or frame.miss for frame in judged),
+                frames)
     errors = np.asarray(errors)
     result["depth_error_mean_m"] = float(errors.mean()) if len(errors) else None
     result["depth_error_rms_m"] = float(np.sqrt(np.mean(errors ** 2))) if len(errors) else None
