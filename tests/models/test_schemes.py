@@ -177,3 +177,20 @@ def test_bad_points_are_refused_in_one_line(change, message):
 
 def test_parameters_document_every_default():
     assert set(check_point({})) == set(PARAMETERS)
+
+
+def test_ambient_light_is_thinned_by_the_pdp_and_counted_through_the_dead_time():
+    # spcm20a: PDP 0.35, 25 Hz dark counts, 35 ns non-paralysable dead time: a SPAD under a
+    # Poisson rate r counts r / (1 + r tau)
+    from fliss.sim.studies.schemes.frame import simulate_frame, window_codes
+    from fliss.sim.scene import PRESETS
+    point = check_point(dict(scheme="none", background_hz=1e7, detections_per_frame=0.0,
+                             sensor_preset="spcm20a"))
+    point.update(_tof_lsb=0.0, _detections_per_pulse=0.0)
+    detector = PRESETS["spcm20a"]
+    frame = simulate_frame(point, detector, np.random.default_rng(8))
+    length = window_codes(point)
+    span = (0.01 / TDC_LSB_S + length + 2.0 * length + 35e-9 / TDC_LSB_S) * TDC_LSB_S
+    rate = 1e7 * 0.35 + 25.0
+    expected = rate / (1 + rate * 35e-9) * span
+    assert abs(frame.counts[1] - expected) < 4 * math.sqrt(expected), (frame.counts[1], expected)

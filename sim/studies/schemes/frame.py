@@ -3,6 +3,7 @@ coincidence gate, its TDC and its histogram (see :mod:`fliss.sim.studies.schemes
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -63,6 +64,12 @@ def _background(rng, rate_hz, start, end):
     return start + (end - start) * (gaps[:-1] / gaps[-1])
 
 
+@lru_cache(maxsize=16)
+def _dark_rates(detector, n):
+    """The SPADs' dark count rates (a property of the sensor, the same every frame)."""
+    return tuple(float(rate) for rate in detector.dark_rates(n))
+
+
 def _merge(ordered, times, sources, spads):
     """The photons ``times`` (any order, with their ``sources`` and ``spads``) merged into the
     sorted ``ordered = (times, sources, spads)``: the three arrays, in time order."""
@@ -102,7 +109,7 @@ def photons(point, detector, victim, aggressors, rng, frame_lsb, margin):
     spads = rng.integers(0, n, len(sources))
     times = [np.concatenate(parts)]
     if detector.dark_count_hz or detector.hot_dark_count_hz:
-        for spad, rate in enumerate(detector.dark_rates(n)):
+        for spad, rate in enumerate(_dark_rates(detector, n)):
             dark = _background(rng, rate, start, end)
             times.append(dark)
             sources = np.concatenate((sources, np.full(len(dark), _BACKGROUND, np.int16)))
