@@ -110,6 +110,12 @@ def results_tables(rows):
     return lines
 
 
+def _named(rows, top):
+    """Short names with their P(failure); ``≈`` marks an interval that reaches below ``top``."""
+    return ", ".join(f"{row['short']} {row['p_failure']:.3f}"
+                     f"{' ≈' if row['p_failure_lo'] <= top else ''}" for row in rows)
+
+
 def choices(rows):
     """Per ambient level and number of cameras: the scheme with the fewest failed frames (a
     miss or a wrong depth), and how many others' intervals reach below its upper bound."""
@@ -128,14 +134,16 @@ def choices(rows):
             lowest = min(row["p_failure"] for row in candidates)
             tied = [row for row in candidates if row["p_failure"] == lowest]
             top = min(row["p_failure_hi"] for row in tied)
-            equal = [row for row in candidates if row["p_failure"] > lowest
-                     and row["p_failure_lo"] <= top]
-            if len(tied) == len(candidates):
-                text = f"all {len(tied)} equal ({lowest:.3f})"
+            rest = [row for row in candidates if row["p_failure"] > lowest]
+            if not rest:
+                text = f"any: all {len(tied)} at {lowest:.3f}"
+            elif len(tied) > len(rest):
+                text = f"all but {_named(rest, top)}: {lowest:.3f}"
             else:
-                text = ", ".join(row["short"] for row in tied) + f" ({lowest:.3f})"
+                text = ", ".join(row["short"] for row in tied) + f": {lowest:.3f}"
+                equal = [row for row in rest if row["p_failure_lo"] <= top]
                 if equal:
-                    text += f"; {len(equal)} more within the interval"
+                    text += f" ({_named(equal, top)} within the interval)"
             cells.append(text)
         lines.append(f"| {background:.0e} | " + " | ".join(cells) + " |")
     return lines
@@ -154,9 +162,9 @@ def section(rows, directory):
              f"sensor preset `{rows[0]['sensor_preset']}`, threshold "
              f"{rows[0]['threshold_sigma']:g} σ.", "",
              "**Which scheme fails least** (a frame fails on a miss or a wrong depth): the "
-             "schemes with the lowest P(failure) (in brackets), and how many others have "
-             "intervals that reach below its upper bound (not worse within the 95 % "
-             "intervals). `+ 2/4`: coincidence 2 of 4 SPADs.", ""]
+             "schemes with the lowest P(failure), or all but the others with theirs; `≈` marks "
+             "one whose 95 % interval reaches below the best's upper bound (not worse within "
+             "the intervals). `+ 2/4`: coincidence 2 of 4 SPADs.", ""]
     lines += choices(rows) + [""]
     lines += results_tables(rows)
     lines.append(END)
@@ -188,8 +196,8 @@ def figures(rows, out):
                           if (scheme, n, background) in at]
                 x = [row["cameras"] for row in points]
                 y = [row[f"p_{name}"] for row in points]
-                error = [[row[f"p_{name}"] - row[f"p_{name}_lo"] for row in points],
-                         [row[f"p_{name}_hi"] - row[f"p_{name}"] for row in points]]
+                error = [[max(0.0, row[f"p_{name}"] - row[f"p_{name}_lo"]) for row in points],
+                         [max(0.0, row[f"p_{name}_hi"] - row[f"p_{name}"]) for row in points]]
                 axis.errorbar(x, y, yerr=error, marker="os^vD<>ph*"[index % 10], capsize=2,
                               color=colours(index % 10), label=scheme)
             axis.set_xscale("log", base=2)

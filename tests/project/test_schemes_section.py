@@ -28,14 +28,19 @@ def test_the_choice_is_the_fewest_failures_and_counts_the_undecided():
     lines = section.choices(rows)
     # masked has 0 of 100 (upper bound 0.037); fliss mseq's 2 of 100 (lower bound 0.0055) and
     # code's 4 (0.016) reach below it; none's 30 (0.22) does not
-    assert lines[2] == "| 1e+05 | FLISS masked (0.000); 2 more within the interval |"
+    assert lines[2] == ("| 1e+05 | FLISS masked: 0.000 (FLISS mseq 0.020 ≈, code 0.040 ≈ within "
+                        "the interval) |")
 
 
 def test_ties_are_named_and_all_equal_is_said():
     rows = [_row(0, scheme="none"), _row(0, scheme="hopping")]
-    assert section.choices(rows)[2] == "| 1e+05 | all 2 equal (0.000) |"
+    assert section.choices(rows)[2] == "| 1e+05 | any: all 2 at 0.000 |"
     rows.append(_row(50, scheme="code"))
-    assert section.choices(rows)[2] == "| 1e+05 | none, hopping (0.000) |"
+    assert section.choices(rows)[2] == "| 1e+05 | all but code 0.500: 0.000 |"
+    rows.append(_row(1, scheme="fliss"))
+    rows.append(_row(3, scheme="fliss", delay_mode="masked"))
+    assert section.choices(rows)[2] == ("| 1e+05 | none, hopping: 0.000 (FLISS mseq 0.010 ≈, "
+                                        "FLISS masked 0.030 ≈ within the interval) |")
 
 
 def test_labels_name_the_options_that_differ_from_the_sweep_defaults():
