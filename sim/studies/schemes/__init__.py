@@ -20,6 +20,16 @@ Schemes (``scheme``; ``coincidence`` > 1 adds the gate to any of them):
   of ``code_slot_cycles`` cycles every period, a multi-hit TDC, and the histogram correlated
   with the victim's code.
 
+The other point parameters (defaults in :data:`PARAMETERS`): ``cameras`` (1 to 64, the victim
+included; the others are its aggressors), ``aggressor_power`` (each aggressor's detections at
+the victim's pixel over the victim's echo), ``ppm_spread`` (the aggressors' oscillators, uniform
+in ± that many ppm), ``detections_per_frame`` (the echo's energy), ``background_hz`` (ambient
+light at the macro-pixel, thinned by the PDP; the sensor's dark counts come on top, per SPAD),
+``spads``, ``coincidence`` and ``coincidence_window_ns`` (the gate), ``multi_hit`` and ``keep``
+(the TDC: every event, or the ``"last"``/``"first"`` of a window), ``sensor_preset`` (a name of
+:data:`fliss.sim.scene.PRESETS`), ``distance_m``, ``t_int_s``, ``threshold_sigma`` (the
+detector's) and ``frames`` (each its own draw of every camera).
+
 The point's parameters and defaults are :data:`PARAMETERS`; :func:`evaluate` returns ``frames``,
 ``miss``/``ghost``/``wrong_depth``/``failure`` (a miss or a wrong depth) counts with ``p_*`` and 95 % Wilson bounds ``p_*_lo`` and
 ``p_*_hi``, the depth error's mean and RMS, ``s_db``, ``pulses_per_frame``,
