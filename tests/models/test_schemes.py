@@ -194,3 +194,22 @@ def test_ambient_light_is_thinned_by_the_pdp_and_counted_through_the_dead_time()
     rate = 1e7 * 0.35 + 25.0
     expected = rate / (1 + rate * 35e-9) * span
     assert abs(frame.counts[1] - expected) < 4 * math.sqrt(expected), (frame.counts[1], expected)
+
+
+@pytest.mark.parametrize("keep", ["last", "first"])
+def test_the_single_hit_tdc_keeps_the_echo_as_poisson_statistics_say(keep):
+    # One camera, ambient b: a counted echo photon at the time of flight t is the last of its
+    # window when no ambient photon comes after its dead time d, before the window's end W:
+    # exp(-b (W - t - d)); it is the first when no ambient photon was counted in the window
+    # before it: one within d before it would have blinded the SPAD (the echo photon is then
+    # not counted at all), so exp(-b (t - d))
+    b, tof = 1e6, 2 * 4.0 / 299_792_458
+    point = dict(scheme="none", background_hz=b, frames=20, keep=keep)
+    result = evaluate(point, np.random.SeedSequence(9))
+    kept = result["echo_events_per_frame"] / result["echo_counts_per_frame"]
+    window = 8192 * TDC_LSB_S
+    expected = math.exp(-b * (window - tof - 20e-9)) if keep == "last" else \
+        math.exp(-b * (tof - 20e-9))
+    counts = result["echo_counts_per_frame"] * 20
+    assert abs(kept - expected) < 4 * math.sqrt(expected * (1 - expected) / counts), \
+        (kept, expected)
