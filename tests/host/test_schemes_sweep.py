@@ -22,6 +22,8 @@ def test_the_full_spec_is_the_quick_one_widened():
     assert len(quick.points()) == 9 * 2 and len(full.points()) == 9 * 7 * 3
     schemes = {tuple(sorted(axis[0].items())) for axis in quick.axes if len(axis[0]) > 1}
     assert schemes == {tuple(sorted(axis[0].items())) for axis in full.axes if len(axis[0]) > 1}
+    # and the PRF sweep of the coincidence gate: 3 PRFs, without and with FLISS
+    assert len(load(str(ROOT / "examples" / "schemes-coincidence-prf.toml")).points()) == 6
 
 
 def test_the_quick_spec_runs_and_makes_the_docs_section(tmp_path):
