@@ -213,3 +213,39 @@ def test_the_single_hit_tdc_keeps_the_echo_as_poisson_statistics_say(keep):
     counts = result["echo_counts_per_frame"] * 20
     assert abs(kept - expected) < 4 * math.sqrt(expected * (1 - expected) / counts), \
         (kept, expected)
+
+
+@pytest.mark.parametrize("paralysable", [False, True])
+def test_afterpulses_of_one_spad_follow_their_geometric_series(paralysable):
+    # Isolated primaries: an avalanche releases an afterpulse with probability p after an
+    # exponential delay of mean tau. Non-paralysable, it counts (and can afterpulse again) only
+    # after the dead time d: q = p exp(-d / tau) a generation, q / (1 - q) counted a primary.
+    # Paralysable, every afterpulse is an avalanche that can afterpulse, counted when d after
+    # its parent: exp(-d / tau) p / (1 - p).
+    p, tau, dead = 0.2, 40e-9, 20e-9
+    detector = Detector(dead_time_s=dead, paralysable=paralysable, afterpulse_probability=p,
+                        afterpulse_s=(tau,))
+    primaries = 20000
+    times = np.arange(primaries) * (10e-6 / TDC_LSB_S)
+    rng = np.random.default_rng(11)
+    counted, sources = avalanches(times, np.zeros(primaries, dtype=np.int16),
+                                  np.zeros(primaries, dtype=np.int64), detector, 1, rng, 2)
+    assert (sources == 0).sum() == primaries
+    q = p * math.exp(-dead / tau)
+    expected = (math.exp(-dead / tau) * p / (1 - p) if paralysable else q / (1 - q)) * primaries
+    measured = (sources == 2).sum()
+    assert abs(measured - expected) < 4 * math.sqrt(expected), (measured, expected)
+
+
+def test_the_diffusion_tail_delays_its_share_of_the_pulsed_photons():
+    detector = Detector(tail_fraction=0.3, tail_s=2e-9)
+    primaries = 20000
+    times = np.arange(primaries) * (10e-6 / TDC_LSB_S)
+    counted, sources = avalanches(times, np.zeros(primaries, dtype=np.int16),
+                                  np.zeros(primaries, dtype=np.int64), detector, 1,
+                                  np.random.default_rng(12), 2)
+    late = (counted - times) * TDC_LSB_S
+    # a share 0.3 late by an exponential of mean 2 ns: mean 0.6 ns, and 0.3 exp(-1) beyond 2 ns
+    assert abs(late.mean() - 0.6e-9) < 4 * math.sqrt(0.3 * 2 * 4e-18 - 0.36e-18) / \
+        math.sqrt(primaries)
+    assert abs((late > 2e-9).mean() - 0.3 * math.exp(-1)) < 0.01
