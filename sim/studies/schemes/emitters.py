@@ -134,8 +134,9 @@ class Camera:
         period = point["period_cycles"]
         scheme = point["scheme"]
         if scheme == "fliss":
-            # One block length per power of two: the masked source caches its basis per length
-            block = 1 << max(10, (count - 1).bit_length())
+            # Block lengths in steps of 2048 pulses: the masked source caches its basis per
+            # length (a few lengths serve every camera of a point)
+            block = 2048 * -(-count // 2048)
             return _fliss_cycles(point["delay_mode"], point["length"], point["mask_width"],
                                  self.seed, period, block)[:count]
         if scheme == "hopping":
