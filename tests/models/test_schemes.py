@@ -168,6 +168,8 @@ def test_the_echo_of_n_spads_meets_k_of_n_as_the_binomial_says():
     (dict(scheme="code", code_chips=6, code_slots=10), "slots"),
     (dict(scheme="code", period_cycles=40), "fit in a period"),
     (dict(gain=1), "Unknown point parameter"),
+    (dict(multi_hit=True, keep="first"), "single-hit"),
+    (dict(scheme="code", keep="first"), "single-hit"),
 ])
 def test_bad_points_are_refused_in_one_line(change, message):
     with pytest.raises(ValueError, match=message) as error:

@@ -100,6 +100,9 @@ def _check_scheme(full):
         if window_codes(full) > full["period_cycles"] * LSB_PER_CYCLE:
             raise ValueError(f"The code's window ({window_codes(full)} TDC codes) must fit in "
                              f"a period of {full['period_cycles']} cycles")
+    if (scheme == "code" or full["multi_hit"]) and full["keep"] != "last":
+        raise ValueError(f"Point parameter keep ({full['keep']!r}) chooses the event of a "
+                         f"single-hit TDC: the TDC of this point keeps every event")
     if full["coincidence"] > full["spads"]:
         raise ValueError(f"Point parameter coincidence ({full['coincidence']}) must be at most "
                          f"spads ({full['spads']})")
