@@ -38,6 +38,9 @@ def test_the_quick_spec_runs_and_makes_the_docs_section(tmp_path):
     module_spec = importlib.util.spec_from_file_location("schemes_section", path)
     section = importlib.util.module_from_spec(module_spec)
     module_spec.loader.exec_module(section)
-    text = section.section(section.load(tmp_path), tmp_path)
+    text = section.section(section.load(tmp_path), "examples/schemes-quick.toml")
     assert text.startswith(section.BEGIN) and text.endswith(section.END)
     assert "| 1e+05 | any: all 9 at 0.000 |" in text
+    assert "From `examples/schemes-quick.toml`: 18 points, 10 frames a point" in text
+    # a table of fewer points than its spec says so
+    assert "18 of its 189 points" in section.section(section.load(tmp_path))
