@@ -77,6 +77,8 @@ BENCHMARKS = [
               "detector_throughput.py", docs=("scene.md",)),
     Benchmark("pileup_depth_bias", "Depth bias of a piled-up echo, raw and corrected",
               "pileup_depth_bias.py", docs=("scene.md",)),
+    Benchmark("schemes_throughput", "Interference schemes: laser cycles per second",
+              "schemes_throughput.py", docs=("interference.md",)),
     Benchmark("scene_pixels", "Scene simulator: a 60-pixel line against one pixel",
               "scene_pixels.py", docs=("scene.md",)),
     Benchmark("host_decode", "Host decoding of the link's data", "host_decode.py",
