@@ -11,6 +11,7 @@ import os
 
 from ..errors import FormatError
 from ..fileformat import read_capture
+from ..kinds import KINDS
 from .photon_hdf5 import is_photon_hdf5, read_photon_hdf5, write_photon_hdf5
 from .ptu import read_ptu, write_ptu
 
@@ -18,10 +19,12 @@ from .ptu import read_ptu, write_ptu
 __all__ = ["FORMATS", "ENDINGS", "FormatError", "check_name", "export_capture", "read_file"]
 
 
-#: Export formats by name: (description, writer, what it takes).
+#: Export formats by name: (description, writer). Which kinds of data each takes is the kind's
+#: (:attr:`fliss.host.kinds.DataKind.exports`): a new format is a row here and its name in the
+#: kinds it takes.
 FORMATS = {
-    "ptu": ("PTU (PicoQuant)", write_ptu, ("raw", "histogram", "image")),
-    "photon-hdf5": ("Photon-HDF5", write_photon_hdf5, ("raw",)),
+    "ptu": ("PTU (PicoQuant)", write_ptu),
+    "photon-hdf5": ("Photon-HDF5", write_photon_hdf5),
 }
 
 #: What a file of each format (and a FLISS capture, ``"fliss"``) is called, and the endings of
@@ -58,12 +61,11 @@ def export_capture(capture, path, to):
     ``path`` as it was."""
     if to not in FORMATS:
         raise FormatError(f"no export format {to!r}; the formats are {', '.join(FORMATS)}")
-    if capture.mode == "depth":
-        raise FormatError(f"{capture.path}: a depth capture cannot be exported: PTU and "
-                          f"Photon-HDF5 hold photons and TCSPC histograms, not depth frames; "
-                          f"the FLISS capture file (HDF5) is the format that holds them")
-    name, write, modes = FORMATS[to]
-    if capture.mode not in modes:
+    kind = KINDS.get(capture.mode)
+    if kind is not None and kind.refusal:
+        raise FormatError(f"{capture.path}: {kind.refusal}")
+    name, write = FORMATS[to]
+    if kind is None or to not in kind.exports:
         article = "an" if capture.mode[0] in "aeiou" else "a"
         raise FormatError(f"{capture.path}: {article} {capture.mode} capture cannot go to {name}, "
                           f"which holds photons one by one, not histograms: export it to PTU "

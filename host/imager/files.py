@@ -12,15 +12,11 @@ readers that do not know dimension scales.
 import numpy as np
 
 from ...hdl.event import TIMESTAMP_BITS
-from .results import depth_m, tof_s
-from ..stream import DepthFrame, HistogramFrame
+from .distance import depth_m, tof_s
 
 
-__all__ = ["IMAGE_MODES", "ROW_DATASETS", "DEPTH_DATASETS", "create_image", "create_depth",
-           "append_image", "append_depth", "blank_frame", "read_imager"]
-
-#: Capture modes that write the imager's groups.
-IMAGE_MODES = ("image", "depth")
+__all__ = ["ROW_DATASETS", "DEPTH_DATASETS", "split_of", "create_image", "create_depth",
+           "append_image", "append_depth", "read_imager"]
 
 #: Datasets of one row per frame (``complete`` False where never written).
 ROW_DATASETS = (("frame", np.uint32), ("shift", np.uint8), ("time_s", np.float64),
@@ -32,7 +28,8 @@ DEPTH_DATASETS = (("position", np.float32, "bins"), ("depth_m", np.float64, "m")
                   ("detected", np.bool_, ""))
 
 
-def _split(configuration):
+def split_of(configuration):
+    """``(pixels, first pixel, bin shift)`` of a frame at the registers ``configuration``."""
     pixels = 1 << int(configuration.get("pixel_bits", 0))
     first = int(configuration.get("first_pixel", 0))
     shift = int(configuration.get("bin_shift", 0))
@@ -61,7 +58,7 @@ def _attach(dataset, scales, labels):
 def create_image(file, configuration, code_s):
     """Make ``/image``: ``counts`` (frame, pixel, bin) and its axes. Returns the bins per
     pixel."""
-    pixels, first, shift = _split(configuration)
+    pixels, first, shift = split_of(configuration)
     bins = (1 << TIMESTAMP_BITS) >> shift
     group = file.create_group("image")
     frame, pixel = _rows_and_axes(group, pixels, first)
@@ -81,7 +78,7 @@ def create_image(file, configuration, code_s):
 def create_depth(file, configuration, code_s):
     """Make ``/depth``: ``position``, ``depth_m``, ``height``, ``background``, ``detected``
     (frame, pixel) and their axes. Returns the pixels of a frame."""
-    pixels, first, shift = _split(configuration)
+    pixels, first, shift = split_of(configuration)
     group = file.create_group("depth")
     frame, pixel = _rows_and_axes(group, pixels, first)
     group.attrs["bin_s"] = code_s * (1 << shift)
@@ -104,7 +101,7 @@ def _append_rows(group, index, item, complete, missing):
     group["complete"][index] = complete        # last: False marks a row not on the disk
 
 
-def append_image(file, index, frame: HistogramFrame, pixels, bins):
+def append_image(file, index, frame, pixels, bins):
     """Write :class:`~fliss.host.stream.HistogramFrame` ``frame`` as row ``index`` of
     ``/image``; False (nothing written) when its split is not the capture's."""
     group = file["image"]
@@ -117,7 +114,7 @@ def append_image(file, index, frame: HistogramFrame, pixels, bins):
     return True
 
 
-def append_depth(file, index, frame: DepthFrame, pixels, complete=True):
+def append_depth(file, index, frame, pixels, complete=True):
     """Write :class:`~fliss.host.stream.DepthFrame` ``frame`` as row ``index`` of ``/depth``
     (``depth_m`` from its position); False when its pixels are not the capture's."""
     group = file["depth"]
@@ -135,21 +132,11 @@ def append_depth(file, index, frame: DepthFrame, pixels, complete=True):
     return True
 
 
-def blank_frame(mode, number, configuration, time_s=float("nan")):
-    """The row of a frame that never arrived: zeros (image) or nothing detected (depth)."""
-    pixels, first, shift = _split(configuration)
-    if mode == "depth":
-        nan = np.full(pixels, np.nan)
-        return DepthFrame(number, first, shift, nan, nan, nan, np.zeros(pixels, bool), time_s)
-    bins = (1 << TIMESTAMP_BITS) >> shift
-    return HistogramFrame(number, shift, np.zeros(pixels * bins, np.uint32), False,
-                          pixels * bins, time_s, pixels.bit_length() - 1, first)
-
-
-def read_imager(group, mode, rows_of, problems):
-    """The arrays of ``/image`` or ``/depth`` (``group``) by name, cut to the rows that every
-    dataset holds; ``rows_of(dataset, problems)`` reads a dataset's readable rows."""
-    names = ["counts"] if mode == "image" else [name for name, _, _ in DEPTH_DATASETS]
+def read_imager(group, names, rows_of, problems):
+    """The arrays of ``/image`` or ``/depth`` (``group``) by name: its datasets ``names`` and
+    the rows', cut to the rows that every dataset holds, the pixel addresses, ``bin_time_s``
+    where the group has it and ``bin_s``; ``rows_of(dataset, problems)`` reads a dataset's
+    readable rows."""
     columns = {name: rows_of(group[name], problems) for name in names}
     for name, _ in ROW_DATASETS:
         if name in group:
@@ -161,7 +148,7 @@ def read_imager(group, mode, rows_of, problems):
         problems.append(f"frames after the first {rows} are incomplete on disk and left out")
     columns = {name: column[:rows] for name, column in columns.items()}
     columns["pixel"] = group["pixel"][()].astype(np.int64)
-    if mode == "image":
+    if "bin_time_s" in group:
         columns["bin_time_s"] = group["bin_time_s"][()]
     columns["bin_s"] = float(group.attrs["bin_s"])
     return columns

@@ -23,6 +23,7 @@ from ...hdl.registers import AcquisitionMode
 from ..analysis import analyze
 from ..imager.analysis import pixel_peak
 from ..imager.results import C_M_S, depth_m, tof_s
+from ..kinds import KINDS, mode_of
 from ..settings import code_s as code_seconds
 from ..stream import DepthFrame, EventBatch, HistogramFrame
 
@@ -31,8 +32,9 @@ __all__ = ["READOUTS", "Setup", "PeakRow", "Picture", "Status", "Feed"]
 
 _logger = logging.getLogger(__name__)
 
-#: Readouts the view shows: histograms, per-pixel histograms, depth frames, raw events.
-READOUTS = ("histogram", "image", "depth", "raw")
+#: Readouts the view shows: every kind of data (histograms, per-pixel histograms, depth frames,
+#: raw events).
+READOUTS = tuple(KINDS)
 
 #: Board counters of events lost against the settings' wishes (not the gate's or the filters').
 BOARD_DROPS = ("dropped_fifo", "dropped_overrun", "dropped_histogram")
@@ -65,9 +67,7 @@ class Setup:
     @classmethod
     def of_registers(cls, source, registers, clock_hz, **more):
         """The setup of a board whose registers (by name) are ``registers``."""
-        readout = AcquisitionMode(registers["acquisition"]).name.lower()
-        if readout == "histogram" and registers.get("pixel_bits", 0):
-            readout = "image"
+        readout = mode_of(AcquisitionMode(registers["acquisition"]), registers.get("pixel_bits", 0))
         return cls(source, readout, registers["integration"] / clock_hz,
                    code_seconds(registers, clock_hz), registers.get("bin_shift", 0),
                    bool(registers.get("aggressor", 0)), configuration=dict(registers), **more)

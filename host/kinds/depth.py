@@ -1,0 +1,123 @@
+"""Depth frames (capture mode ``"depth"``): DEPTH packets, a frame each, saved by frame and
+pixel in ``/depth``; no export format holds them."""
+
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+
+from ...hdl.protocol import DEPTH_FRACTION_BITS, DEPTH_BACKGROUND_FRACTION_BITS
+from ...hdl.registers import AcquisitionMode
+from ...protocol.depth import unpack_depth
+from ..imager.files import DEPTH_DATASETS, append_depth, create_depth, read_imager, split_of
+from .kind import DataKind
+
+
+__all__ = ["DepthFrame", "depth_frame_of", "DepthAssembler", "KIND"]
+
+
+@dataclass
+class DepthFrame:
+    """One depth frame (a DEPTH packet): per pixel, its strongest peak.
+
+    Pixel ``p`` of the arrays is the sensor's address ``first_pixel + p``. ``position`` is the
+    peak's centre in bins of ``2**shift`` timestamp codes from the start of bin 0 (bin ``j``
+    spans ``j … j + 1``), NaN where ``detected`` is False; ``height`` the filtered peak above
+    background, in counts; ``background`` the mean count per bin outside the peak window.
+    ``records`` holds the packet's integers as sent (``position`` in 1/16 bin, also where not
+    detected; ``background`` in 1/16 count), ``filter`` and ``threshold`` the settings it was
+    made with. ``time_s`` is the host's receive time.
+    """
+    frame: int
+    first_pixel: int
+    shift: int
+    position: np.ndarray
+    height: np.ndarray
+    background: np.ndarray
+    detected: np.ndarray
+    time_s: float
+    pixel_bits: int = 0
+    filter: int = 0
+    threshold: int = 0
+    records: Optional[np.ndarray] = None
+
+
+def depth_frame_of(payload: bytes, time_s: float) -> DepthFrame:
+    """The :class:`DepthFrame` of a DEPTH payload; raises :exc:`ValueError` with one line for
+    a malformed one."""
+    head, records = unpack_depth(payload)
+    detected = records["detected"].copy()
+    position = records["position"] / (1 << DEPTH_FRACTION_BITS)
+    position[~detected] = np.nan
+    return DepthFrame(head["frame"], head["first_pixel"], head["shift"], position,
+                      records["height"].copy(),
+                      records["background"] / (1 << DEPTH_BACKGROUND_FRACTION_BITS), detected,
+                      time_s, head["pixel_bits"], head["filter"], head["threshold"], records)
+
+
+class DepthAssembler:
+    """A :class:`DepthFrame` of each DEPTH packet; a malformed one is counted and dropped (its
+    reason in the stream's ``last_malformed``), a jump in frame numbers counts the frames lost
+    in ``lost_depth_frames``."""
+
+    def __init__(self, stream):
+        self.stream = stream
+        self._next = None
+
+    def add(self, packet, time_s):
+        stream, counters = self.stream, self.stream.counters
+        try:
+            frame = depth_frame_of(packet.payload, time_s)
+        except ValueError as error:
+            counters.malformed += 1
+            stream.last_malformed = str(error)
+            return []
+        if self._next is not None and frame.frame != self._next:
+            counters.lost_depth_frames += (frame.frame - self._next) % (1 << 32)
+        self._next = stream.frames_ended = (frame.frame + 1) % (1 << 32)
+        counters.depth_frames += 1
+        return [frame]
+
+    def flush(self, time_s=None):
+        return []
+
+
+def append(file, index, frame, pixels, complete=True):
+    """Row ``index`` of ``/depth``; ``complete`` False marks a frame that never arrived."""
+    return append_depth(file, index, frame, pixels, complete)
+
+
+def blank(number, configuration):
+    """The row of a frame that never arrived: nothing detected."""
+    pixels, first, shift = split_of(configuration)
+    nan = np.full(pixels, np.nan)
+    return DepthFrame(number, first, shift, nan, nan, nan, np.zeros(pixels, bool),
+                      float("nan"))
+
+
+def read(file, group_of, rows_of, problems):
+    """The frames of ``/depth``: their rows, the pixels and the arrays by name (``depth``)."""
+    names = [name for name, _, _ in DEPTH_DATASETS]
+    columns = read_imager(group_of(file, "depth"), names, rows_of, problems)
+    return {"histograms": np.zeros((0, 0, 0), dtype=np.uint32), "frames": columns["frame"],
+            "shifts": columns["shift"], "times_s": columns["time_s"],
+            "complete": columns["complete"], "pixels": columns["pixel"],
+            "depth": {name: columns[name] for name in ("position", "depth_m", "height",
+                                                       "background", "detected")}}
+
+
+def tally(totals, item):
+    """A saved frame's detections, its highest peak and its threshold."""
+    totals.detections += int(item.detected.sum())
+    totals.highest = max(totals.highest, int(item.height.max()))
+    totals.threshold = item.threshold
+
+
+KIND = DataKind(
+    name="depth", rank=2, readout=AcquisitionMode.DEPTH, packet="depth",
+    assembler=DepthAssembler, item=DepthFrame, rows="depth frames", format_version=3,
+    what="depth frames", counted=False, imager=True,
+    create=create_depth, append=append, blank=blank, read=read, tally=tally,
+    refusal="a depth capture cannot be exported: PTU and Photon-HDF5 hold photons and TCSPC "
+            "histograms, not depth frames; the FLISS capture file (HDF5) is the format that "
+            "holds them")
