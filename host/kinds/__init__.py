@@ -24,7 +24,8 @@ from ...hdl.registers import AcquisitionMode
 from .kind import DataKind
 
 
-__all__ = ["DataKind", "KINDS", "kind_of", "mode_of", "assemblers"]
+__all__ = ["DataKind", "KINDS", "kind_of", "of_capture", "article", "names", "mode_of",
+           "assemblers"]
 
 
 def _discover():
@@ -46,6 +47,25 @@ def kind_of(mode: str) -> DataKind:
     except KeyError:
         raise ValueError(f"no kind of data {mode!r}; the kinds are "
                          f"{', '.join(KINDS)}") from None
+
+
+def of_capture(capture) -> DataKind:
+    """The kind of a capture read back (:class:`~fliss.host.fileformat.Capture`); a file of a
+    mode of no kind (another program's) holds histograms."""
+    return KINDS.get(capture.mode, KINDS["histogram"])
+
+
+def article(name: str) -> str:
+    """``"an image"``, ``"a depth"``: a kind's name with its article."""
+    return f"{'an' if name[:1] in 'aeiou' else 'a'} {name}"
+
+
+def names(test, joined="and") -> str:
+    """The names of the kinds for which ``test(kind)`` holds, as text: ``"image and
+    depth"``, ``"histogram, image and depth"``."""
+    found = [name for name, kind in KINDS.items() if test(kind)]
+    return " ".join(filter(None, [", ".join(found[:-1]), joined if len(found) > 1 else "",
+                                  found[-1]]))
 
 
 def mode_of(readout, pixel_bits=0, image=None) -> str:

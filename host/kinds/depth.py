@@ -10,6 +10,7 @@ from ...hdl.protocol import DEPTH_FRACTION_BITS, DEPTH_BACKGROUND_FRACTION_BITS
 from ...hdl.registers import AcquisitionMode
 from ...protocol.depth import unpack_depth
 from ..imager.files import DEPTH_DATASETS, append_depth, create_depth, read_imager, split_of
+from .histogram import frame_rows
 from .kind import DataKind
 
 
@@ -106,6 +107,19 @@ def read(file, group_of, rows_of, problems):
                                                        "background", "detected")}}
 
 
+def replay(capture):
+    """The :class:`DepthFrame` of each row of ``capture``."""
+    pixels = capture.pixels
+    first = int(pixels[0]) if len(pixels) else 0
+    pixel_bits = int(len(pixels)).bit_length() - 1 if len(pixels) else 0
+    depth = capture.depth
+    for index, frame, _, shift, time_s in frame_rows(capture):
+        detected = np.asarray(depth["detected"][index], dtype=bool)
+        yield DepthFrame(frame, first, shift, np.asarray(depth["position"][index]),
+                         np.asarray(depth["height"][index]),
+                         np.asarray(depth["background"][index]), detected, time_s, pixel_bits)
+
+
 def tally(totals, item):
     """A saved frame's detections, its highest peak and its threshold."""
     totals.detections += int(item.detected.sum())
@@ -117,7 +131,7 @@ KIND = DataKind(
     name="depth", rank=2, readout=AcquisitionMode.DEPTH, packet="depth",
     assembler=DepthAssembler, item=DepthFrame, rows="depth frames", format_version=3,
     what="depth frames", counted=False, imager=True,
-    create=create_depth, append=append, blank=blank, read=read, tally=tally,
+    create=create_depth, append=append, blank=blank, read=read, tally=tally, replay=replay,
     refusal="a depth capture cannot be exported: PTU and Photon-HDF5 hold photons and TCSPC "
             "histograms, not depth frames; the FLISS capture file (HDF5) is the format that "
             "holds them")

@@ -175,6 +175,32 @@ def read(file, group_of, rows_of, problems):
             "complete": columns["complete"][:rows]}
 
 
+def _split_of(capture):
+    pixels = capture.pixels
+    first = int(pixels[0]) if len(pixels) else 0
+    pixel_bits = int(len(pixels)).bit_length() - 1 if len(pixels) else 0
+    return first, pixel_bits
+
+
+def frame_rows(capture):
+    """``(index, frame, complete, shift, time_s)`` of each row of a framed capture."""
+    for index in range(len(capture.frames)):
+        frame, complete = int(capture.frames[index]), bool(capture.complete[index])
+        shift = int(capture.shifts[index]) if len(capture.shifts) else capture.shift
+        time_s = float(capture.times_s[index]) if len(capture.times_s) else 0.0
+        yield index, frame, complete, shift, time_s
+
+
+def replay(capture):
+    """The :class:`HistogramFrame` of each row of ``capture`` (of each pixel's histograms
+    where it has several)."""
+    first, pixel_bits = _split_of(capture)
+    for index, frame, complete, shift, time_s in frame_rows(capture):
+        counts = np.asarray(capture.histograms[index])
+        yield HistogramFrame(frame, shift, counts.reshape(-1), complete, 0, time_s,
+                             pixel_bits if counts.ndim > 1 else 0, first)
+
+
 def tally(totals, item):
     """A saved histogram's photons."""
     totals.events += int(item.counts.sum())
@@ -184,4 +210,5 @@ KIND = DataKind(
     name="histogram", rank=0, readout=AcquisitionMode.HISTOGRAM, packet="histogram",
     assembler=HistogramAssembler, item=HistogramFrame, rows="histograms", format_version=2,
     what="histograms", counted=True, imager=False, per_pixel="image",
-    create=create, append=append, blank=blank, read=read, tally=tally, exports=("ptu",))
+    create=create, append=append, blank=blank, read=read, tally=tally, replay=replay,
+    exports=("ptu",))

@@ -67,6 +67,10 @@ class DataKind:
         ``tally(totals, item)``: adds a saved item to a capture's totals (``events``,
         ``detections``, ``highest``, ``threshold`` of
         :class:`fliss.host.acquisition.CaptureResult`).
+    replay : callable
+        ``replay(capture)``: the items a board sent for a capture read back
+        (:class:`~fliss.host.fileformat.Capture`), as the assembler made them: what the live
+        view's replays hand it.
     exports : tuple of str
         The export formats (:data:`fliss.host.formats.FORMATS`) that take it.
     refusal : str
@@ -85,6 +89,7 @@ class DataKind:
     imager: bool
     read: Callable
     tally: Callable
+    replay: Callable
     per_pixel: Optional[str] = None
     create: Optional[Callable] = None
     append: Optional[Callable] = None

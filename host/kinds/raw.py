@@ -71,6 +71,15 @@ class EventAssembler:
         return []
 
 
+def replay(capture):
+    """The events of ``capture`` cut into as many :class:`EventBatch` items as the file
+    records batches."""
+    batches = max(len(capture.batch_times_s), 1)
+    times = capture.batch_times_s if len(capture.batch_times_s) else [0.0]
+    for events, time_s in zip(np.array_split(capture.events, batches), times):
+        yield EventBatch(events, float(time_s))
+
+
 def tally(totals, item):
     """A saved batch's events."""
     totals.events += len(item.events)
@@ -81,4 +90,4 @@ KIND = DataKind(
     assembler=EventAssembler, item=EventBatch, rows=None, format_version=2,
     what="raw events", counted=True, imager=False,
     # (its events are in /events, which every capture has; /histograms is empty)
-    read=histogram.read, tally=tally, exports=("ptu", "photon-hdf5"))
+    read=histogram.read, tally=tally, replay=replay, exports=("ptu", "photon-hdf5"))

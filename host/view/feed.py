@@ -64,6 +64,11 @@ class Setup:
     live: bool = True
     configuration: Optional[dict] = field(default=None, compare=False)
 
+    @property
+    def kind(self):
+        """The kind of data shown (:class:`fliss.host.kinds.DataKind`)."""
+        return KINDS[self.readout]
+
     @classmethod
     def of_registers(cls, source, registers, clock_hz, **more):
         """The setup of a board whose registers (by name) are ``registers``."""
@@ -274,7 +279,7 @@ class Feed:
         then, frames_then, events_then = history[0]
         span = now - then
         frame_rate = (frames - frames_then) / span if span > 0 else 0.0
-        if self.setup.readout == "raw" or self.setup.integration_s <= 0:
+        if not self.setup.kind.framed or self.setup.integration_s <= 0:
             count_rate = (events - events_then) / span if span > 0 else 0.0
         else:
             done = frames - frames_then
@@ -306,11 +311,11 @@ class Feed:
         setup = self.setup
         latest = self._latest
         total, frames = self._sum
-        if setup.readout == "depth":
+        if not setup.kind.counted:
             if not isinstance(latest, DepthFrame):
                 return Picture(seq, summed)
             return self._depth_picture(seq, latest)
-        if summed or setup.readout == "raw":
+        if summed or not setup.kind.framed:
             if total is None:
                 return Picture(seq, summed)
             image, frames = total, frames
