@@ -11,7 +11,7 @@ import os
 
 from ..errors import FormatError
 from ..fileformat import read_capture
-from ..kinds import KINDS
+from ..kinds import KINDS, article
 from .photon_hdf5 import is_photon_hdf5, read_photon_hdf5, write_photon_hdf5
 from .ptu import read_ptu, write_ptu
 
@@ -66,8 +66,7 @@ def export_capture(capture, path, to):
         raise FormatError(f"{capture.path}: {kind.refusal}")
     name, write = FORMATS[to]
     if kind is None or to not in kind.exports:
-        article = "an" if capture.mode[0] in "aeiou" else "a"
-        raise FormatError(f"{capture.path}: {article} {capture.mode} capture cannot go to {name}, "
+        raise FormatError(f"{capture.path}: {article(capture.mode)} capture cannot go to {name}, "
                           f"which holds photons one by one, not histograms: export it to PTU "
                           f"(--to ptu)")
     folder, base = os.path.split(os.path.abspath(path))
