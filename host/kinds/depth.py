@@ -11,7 +11,7 @@ from ...hdl.registers import AcquisitionMode
 from ...protocol.depth import unpack_depth
 from ..imager.files import DEPTH_DATASETS, append_depth, create_depth, read_imager, split_of
 from .histogram import frame_rows
-from .kind import DataKind
+from .kind import DataKind, Seen
 
 
 __all__ = ["DepthFrame", "depth_frame_of", "DepthAssembler", "KIND"]
@@ -120,6 +120,11 @@ def replay(capture):
                          np.asarray(depth["background"][index]), detected, time_s, pixel_bits)
 
 
+def seen(item, shift):
+    """A depth frame in the live view: a numbered frame, drawn as it is, no photons."""
+    return Seen(item.frame, True, None, 0, True)
+
+
 def tally(totals, item):
     """A saved frame's detections, its highest peak and its threshold."""
     totals.detections += int(item.detected.sum())
@@ -131,7 +136,7 @@ KIND = DataKind(
     name="depth", rank=2, readout=AcquisitionMode.DEPTH, packet="depth",
     assembler=DepthAssembler, item=DepthFrame, rows="depth frames", format_version=3,
     what="depth frames", counted=False, imager=True,
-    create=create_depth, append=append, blank=blank, read=read, tally=tally, replay=replay,
+    create=create_depth, append=append, blank=blank, read=read, tally=tally, replay=replay, seen=seen,
     refusal="a depth capture cannot be exported: PTU and Photon-HDF5 hold photons and TCSPC "
             "histograms, not depth frames; the FLISS capture file (HDF5) is the format that "
             "holds them")

@@ -10,7 +10,7 @@ import numpy as np
 from ...hdl.event import TIMESTAMP_BITS
 from ...hdl.registers import AcquisitionMode
 from ...protocol.histograms import MalformedChunk, decode_chunk
-from .kind import DataKind
+from .kind import DataKind, Seen
 
 
 __all__ = ["HistogramFrame", "HistogramAssembler", "ROW_DATASETS", "KIND"]
@@ -201,6 +201,12 @@ def replay(capture):
                              pixel_bits if counts.ndim > 1 else 0, first)
 
 
+def seen(item, shift):
+    """A histogram in the live view: a numbered frame, summed, its photons counted."""
+    photons = int(item.counts.sum())
+    return Seen(item.frame, item.complete, item.image, photons, True)
+
+
 def tally(totals, item):
     """A saved histogram's photons."""
     totals.events += int(item.counts.sum())
@@ -211,4 +217,4 @@ KIND = DataKind(
     assembler=HistogramAssembler, item=HistogramFrame, rows="histograms", format_version=2,
     what="histograms", counted=True, imager=False, per_pixel="image",
     create=create, append=append, blank=blank, read=read, tally=tally, replay=replay,
-    exports=("ptu",))
+    seen=seen, exports=("ptu",))

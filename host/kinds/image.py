@@ -6,7 +6,7 @@ import numpy as np
 from ...hdl.event import TIMESTAMP_BITS
 from ...hdl.registers import AcquisitionMode
 from ..imager.files import append_image, create_image, read_imager, split_of
-from .histogram import HistogramAssembler, HistogramFrame, replay
+from .histogram import HistogramAssembler, HistogramFrame, replay, seen
 from .kind import DataKind
 
 
@@ -52,4 +52,4 @@ KIND = DataKind(
     assembler=HistogramAssembler, item=HistogramFrame, rows="images", format_version=3,
     what="per-pixel histograms", counted=True, imager=True,
     create=create, append=append, blank=blank, read=read, tally=tally, replay=replay,
-    exports=("ptu",))
+    seen=seen, exports=("ptu",))

@@ -2,12 +2,25 @@
 its exports and the live view find through :mod:`fliss.host.kinds`."""
 
 from dataclasses import dataclass
-from typing import Callable, Optional, Tuple
+from typing import Callable, NamedTuple, Optional, Tuple
+
+import numpy as np
 
 from ...hdl.registers import AcquisitionMode
 
 
-__all__ = ["DataKind"]
+__all__ = ["Seen", "DataKind"]
+
+
+class Seen(NamedTuple):
+    """What the live view takes of an item: its frame number (None: not numbered, an event
+    batch) and whether it is complete, the counts it adds to the sum (``(pixels, bins)``,
+    None: nothing), the photons it counts, and whether it is the latest frame to draw."""
+    frame: Optional[int]
+    complete: bool
+    counts: Optional[np.ndarray]
+    photons: int
+    latest: bool
 
 
 @dataclass(frozen=True)
@@ -71,6 +84,9 @@ class DataKind:
         ``replay(capture)``: the items a board sent for a capture read back
         (:class:`~fliss.host.fileformat.Capture`), as the assembler made them: what the live
         view's replays hand it.
+    seen : callable
+        ``seen(item, shift)``: what the live view (:class:`fliss.host.view.feed.Feed`) takes of
+        an item, a :class:`Seen`; ``shift`` is the view's bin shift.
     exports : tuple of str
         The export formats (:data:`fliss.host.formats.FORMATS`) that take it.
     refusal : str
@@ -90,6 +106,7 @@ class DataKind:
     read: Callable
     tally: Callable
     replay: Callable
+    seen: Callable
     per_pixel: Optional[str] = None
     create: Optional[Callable] = None
     append: Optional[Callable] = None

@@ -7,12 +7,12 @@ from dataclasses import dataclass
 import numpy as np
 from amaranth.lib import data
 
-from ...hdl.event import Event
+from ...hdl.event import Event, TIMESTAMP_BITS
 from ...hdl.protocol import EVENT_BYTES
 from ...hdl.registers import AcquisitionMode
 from ...protocol.events import EVENT_DTYPE
 from . import histogram
-from .kind import DataKind
+from .kind import DataKind, Seen
 
 
 __all__ = ["EventBatch", "unpack_event_payload", "EventAssembler", "KIND"]
@@ -80,6 +80,15 @@ def replay(capture):
         yield EventBatch(events, float(time_s))
 
 
+def seen(item, shift):
+    """An event batch in the live view: its events histogrammed with the view's bin shift and
+    summed; not a numbered frame."""
+    bins = (1 << TIMESTAMP_BITS) >> shift
+    stamps = item.events["timestamp"].astype(np.int64) >> shift
+    return Seen(None, True, np.bincount(stamps, minlength=bins)[:bins][np.newaxis],
+                len(item.events), False)
+
+
 def tally(totals, item):
     """A saved batch's events."""
     totals.events += len(item.events)
@@ -90,4 +99,4 @@ KIND = DataKind(
     assembler=EventAssembler, item=EventBatch, rows=None, format_version=2,
     what="raw events", counted=True, imager=False,
     # (its events are in /events, which every capture has; /histograms is empty)
-    read=histogram.read, tally=tally, replay=replay, exports=("ptu", "photon-hdf5"))
+    read=histogram.read, tally=tally, replay=replay, seen=seen, exports=("ptu", "photon-hdf5"))

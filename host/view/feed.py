@@ -25,7 +25,7 @@ from ..imager.analysis import pixel_peak
 from ..imager.results import C_M_S, depth_m, tof_s
 from ..kinds import KINDS, mode_of
 from ..settings import code_s as code_seconds
-from ..stream import DepthFrame, EventBatch, HistogramFrame
+from ..stream import HistogramFrame
 
 
 __all__ = ["READOUTS", "Setup", "PeakRow", "Picture", "Status", "Feed"]
@@ -35,6 +35,9 @@ _logger = logging.getLogger(__name__)
 #: Readouts the view shows: every kind of data (histograms, per-pixel histograms, depth frames,
 #: raw events).
 READOUTS = tuple(KINDS)
+
+#: The kind of data of each type of item (of kinds that share one, the first).
+_KIND_OF_ITEM = {kind.item: kind for kind in reversed(KINDS.values())}
 
 #: Board counters of events lost against the settings' wishes (not the gate's or the filters').
 BOARD_DROPS = ("dropped_fifo", "dropped_overrun", "dropped_histogram")
@@ -189,22 +192,19 @@ class Feed:
                             type(error).__name__, error)
 
     def _add(self, item):
-        if isinstance(item, HistogramFrame):
-            self._count_frame(item.frame, item.complete)
-            self._events += int(item.counts.sum())
-            self._accumulate(item.image)
-            self._latest = item
-        elif isinstance(item, DepthFrame):
-            self._count_frame(item.frame, True)
-            self._latest = item
-        elif isinstance(item, EventBatch):
-            bins = (1 << TIMESTAMP_BITS) >> self.setup.shift
-            stamps = item.events["timestamp"].astype(np.int64) >> self.setup.shift
-            self._accumulate(np.bincount(stamps, minlength=bins)[:bins][np.newaxis])
-            self._events += len(item.events)
+        kind = _KIND_OF_ITEM.get(type(item))
+        if kind is None:
+            return
+        seen = kind.seen(item, self.setup.shift)
+        if seen.frame is None:
             self._frames += 1
         else:
-            return
+            self._count_frame(seen.frame, seen.complete)
+        self._events += seen.photons
+        if seen.counts is not None:
+            self._accumulate(seen.counts)
+        if seen.latest:
+            self._latest = item
         if self._seq == 0:
             self._begun = time.monotonic()
             self._state = "acquiring" if self.setup.live else "replaying"
@@ -312,7 +312,7 @@ class Feed:
         latest = self._latest
         total, frames = self._sum
         if not setup.kind.counted:
-            if not isinstance(latest, DepthFrame):
+            if not isinstance(latest, setup.kind.item):
                 return Picture(seq, summed)
             return self._depth_picture(seq, latest)
         if summed or not setup.kind.framed:
@@ -322,7 +322,7 @@ class Feed:
             frame = self._last_frame
             complete = True
         else:
-            if not isinstance(latest, HistogramFrame):
+            if not isinstance(latest, setup.kind.item):
                 return Picture(seq, summed)
             image, frames, frame, complete = latest.image, 1, latest.frame, latest.complete
             summed = False
