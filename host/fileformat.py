@@ -22,7 +22,7 @@ from ..hdl.event import TDC_LSB_S, TIMESTAMP_BITS
 from ..hdl.registers import BY_NAME
 from ..hdl.codes import code_s as timestamp_code_s
 from ..protocol.events import EVENT_DTYPE
-from .kinds import KINDS, kind_of
+from .kinds import DEFAULT, KINDS, for_mode, kind_of
 
 
 __all__ = ["FORMAT", "FORMAT_VERSION", "FLUSH_S", "RUNNING", "CaptureWriter", "Capture",
@@ -234,7 +234,7 @@ class Capture:
 
     @property
     def mode(self):
-        return self.attrs.get("mode", "histogram")
+        return self.attrs.get("mode", DEFAULT)
 
     @property
     def clock_hz(self):
@@ -371,7 +371,7 @@ def _read(path, f):
                      if key != "units"}
     _group(f, "histograms")
     # (a mode of no kind, from another program: its /histograms, as of a histogram capture)
-    kind = KINDS.get(attrs.get("mode"), KINDS["histogram"])
+    kind = for_mode(attrs.get("mode"))
     rows = {"histograms": np.zeros((0, 0), dtype=np.uint32),
             "frames": np.zeros(0, dtype=np.uint32), "shifts": np.zeros(0, dtype=np.uint8),
             "times_s": np.zeros(0), "complete": np.zeros(0, dtype=bool),

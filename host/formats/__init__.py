@@ -5,6 +5,12 @@
 file as a capture, so that ``fliss analyze`` and ``fliss plot`` take any of them. What maps to
 what, and what is lost: docs/file-format.md. Everything refused is a :exc:`FormatError` (a
 ``ValueError``) of one line.
+
+Which kinds of data an export format takes is the kind's (:attr:`fliss.host.kinds.DataKind.
+exports`, and its :attr:`~fliss.host.kinds.DataKind.refusal` when none does): a new export
+format is a row of :data:`FORMATS` and its name in the kinds that it takes. A new reader of
+another program's files is a module here and a test of its files' mark in :func:`read_file`;
+it returns a capture of one of the kinds (``mode``), as :mod:`.metadata` makes them.
 """
 
 import os

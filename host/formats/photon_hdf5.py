@@ -21,6 +21,7 @@ from ... import __version__
 from ...hdl.event import ADDRESS_BITS, TIMESTAMP_BITS
 from ...protocol.events import EVENT_DTYPE
 from ..errors import FormatError
+from ..kinds import for_mode
 from .metadata import cycle_chunks, imported, metadata, restored, settings, timing
 
 
@@ -157,7 +158,8 @@ def read_photon_hdf5(path):
 
 def _read(f, path):
     fliss = f.get("user/fliss")
-    if isinstance(fliss, h5py.Group) and _value(fliss, "mode") == "raw":
+    # (FLISS captures of events, the kind that Photon-HDF5 takes, carry a fliss group)
+    if isinstance(fliss, h5py.Group) and not for_mode(_value(fliss, "mode")).framed:
         texts = {name: _value(fliss, name) for name in ("configuration", "identity", "capture")}
         data = f["photon_data"]
         events = np.zeros(len(data["timestamps"]), dtype=EVENT_DTYPE)

@@ -24,8 +24,8 @@ from ...hdl.registers import AcquisitionMode
 from .kind import DataKind
 
 
-__all__ = ["DataKind", "KINDS", "kind_of", "of_capture", "article", "names", "mode_of",
-           "assemblers"]
+__all__ = ["DataKind", "KINDS", "DEFAULT", "kind_of", "for_mode", "of_capture", "article",
+           "names", "mode_of", "assemblers"]
 
 
 def _discover():
@@ -49,10 +49,19 @@ def kind_of(mode: str) -> DataKind:
                          f"{', '.join(KINDS)}") from None
 
 
+#: The kind of a capture file that names none (the first kind: histograms), and of one whose
+#: mode is of no kind (another program's), which is read as that kind's.
+DEFAULT = next(iter(KINDS))
+
+
+def for_mode(mode) -> DataKind:
+    """The kind of a capture file's ``mode`` (:data:`DEFAULT`'s for one of no kind)."""
+    return KINDS.get(mode, KINDS[DEFAULT])
+
+
 def of_capture(capture) -> DataKind:
-    """The kind of a capture read back (:class:`~fliss.host.fileformat.Capture`); a file of a
-    mode of no kind (another program's) holds histograms."""
-    return KINDS.get(capture.mode, KINDS["histogram"])
+    """The kind of a capture read back (:class:`~fliss.host.fileformat.Capture`)."""
+    return for_mode(capture.mode)
 
 
 def article(name: str) -> str:
