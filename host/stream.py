@@ -16,7 +16,7 @@ import numpy as np
 from ..hdl.protocol import PacketType
 from ..protocol.frames import Packet
 from ..protocol.packets import KIND
-from .kinds import assemblers
+from .kinds import KINDS, assemblers
 from .kinds.depth import DepthFrame, depth_frame_of
 from .kinds.histogram import HistogramFrame
 from .kinds.raw import EventBatch, unpack_event_payload
@@ -28,7 +28,8 @@ __all__ = ["HistogramFrame", "EventBatch", "DepthFrame", "StreamCounters", "Stre
 
 @dataclass
 class StreamCounters:
-    """What the stream assembler has seen (the link's own counters are the decoder's)."""
+    """What the stream assembler has seen (the link's own counters are the decoder's): these,
+    and any more that a kind's assembler declares (its ``COUNTERS``), from 0."""
     histogram_chunks: int = 0
     frames: int = 0
     incomplete_frames: int = 0
@@ -40,6 +41,12 @@ class StreamCounters:
     unexpected: int = 0
     depth_frames: int = 0
     lost_depth_frames: int = 0
+
+    def __post_init__(self):
+        for assembler in dict.fromkeys(kind.assembler for kind in KINDS.values()):
+            for name in assembler.COUNTERS:
+                if not hasattr(self, name):
+                    setattr(self, name, 0)
 
     def as_dict(self) -> Dict[str, int]:
         return dict(self.__dict__)
@@ -67,6 +74,13 @@ class StreamAssembler:
         #: Why the last malformed packet was dropped (one line), or None.
         self.last_malformed = None
         self._assemblers = assemblers(self)
+
+    @property
+    def frames_arrived(self) -> int:
+        """The frames of every kind assembled so far (histograms and depth frames, which the
+        board numbers apart, as its STATUS ``frames`` counts them together)."""
+        return sum(getattr(self.counters, assembler.FRAMES)
+                   for assembler in self._assemblers.values() if assembler.FRAMES)
 
     def add(self, packet: Packet, time_s: Optional[float] = None) -> list:
         time_s = time.time() if time_s is None else time_s

@@ -61,6 +61,9 @@ class DepthAssembler:
     reason in the stream's ``last_malformed``), a jump in frame numbers counts the frames lost
     in ``lost_depth_frames``."""
 
+    COUNTERS = ("depth_frames", "lost_depth_frames")
+    FRAMES = "depth_frames"
+
     def __init__(self, stream):
         self.stream = stream
         self._next = None

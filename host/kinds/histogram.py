@@ -50,6 +50,12 @@ class HistogramAssembler:
     ``complete`` False, and a jump in frame numbers counts the frames lost in between. A chunk
     that does not fit its frame is counted in ``malformed`` and dropped."""
 
+    #: Its counters in the stream's (:class:`~fliss.host.stream.StreamCounters`), and the one
+    #: that counts the frames it made.
+    COUNTERS = ("histogram_chunks", "frames", "incomplete_frames", "lost_frames",
+                "missing_bins")
+    FRAMES = "frames"
+
     def __init__(self, stream):
         self.stream = stream
         self._frame = None

@@ -62,7 +62,9 @@ class DataKind:
     assembler : type
         ``assembler(stream)``: turns its packets (``add(packet, time_s)``) into items, counted
         in ``stream.counters`` (a :class:`~fliss.host.stream.StreamAssembler`); ``flush()``
-        gives what is in progress at the end. One per kind of packet.
+        gives what is in progress at the end. One per kind of packet. Its ``COUNTERS`` name
+        the counters it keeps in the stream's (made from 0 for it), ``FRAMES`` the one of
+        them that counts the frames it made (None: it makes no numbered frames).
     create : callable or None
         ``create(file, configuration, code_s)``: its datasets in a new capture file; returns
         the writer's state for :attr:`append`.

@@ -49,6 +49,9 @@ def unpack_event_payload(payload: bytes) -> np.ndarray:
 class EventAssembler:
     """An :class:`EventBatch` of each EVENTS packet; a malformed one is counted and dropped."""
 
+    COUNTERS = ("event_packets", "events")
+    FRAMES = None
+
     def __init__(self, stream):
         self.stream = stream
 
