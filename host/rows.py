@@ -31,8 +31,8 @@ class FrameRows:
         return self.saved >= self.acquisitions
 
     def add(self, item):
-        """Store a :class:`HistogramFrame`, after rows for the frames lost before it; returns
-        the rows added."""
+        """Store a frame (of the capture's kind of data), after rows for the frames lost
+        before it; returns the rows added."""
         if self.next is None:
             ahead = (item.frame - self.first_expected) % (1 << 32)
             self.first = self.first_expected if ahead < self.acquisitions else item.frame
