@@ -9,12 +9,13 @@ import numpy as np
 from ...hdl.protocol import DEPTH_FRACTION_BITS, DEPTH_BACKGROUND_FRACTION_BITS
 from ...hdl.registers import AcquisitionMode
 from ...protocol.depth import unpack_depth
-from ..imager.files import DEPTH_DATASETS, append_depth, create_depth, read_imager, split_of
+from ..imager.distance import depth_m, tof_s
+from ..imager.files import append_rows, attach, read_imager, rows_and_axes, split_of
 from .histogram import frame_rows
 from .kind import DataKind, Seen
 
 
-__all__ = ["DepthFrame", "depth_frame_of", "DepthAssembler", "KIND"]
+__all__ = ["DepthFrame", "depth_frame_of", "DepthAssembler", "DEPTH_DATASETS", "KIND"]
 
 
 @dataclass
@@ -86,9 +87,45 @@ class DepthAssembler:
         return []
 
 
+#: Datasets of ``/depth`` by frame and pixel, with their types and units.
+DEPTH_DATASETS = (("position", np.float32, "bins"), ("depth_m", np.float64, "m"),
+                  ("height", np.float32, "counts"), ("background", np.float32, "counts"),
+                  ("detected", np.bool_, ""))
+
+
+def create(file, configuration, code_s):
+    """Make ``/depth``: ``position``, ``depth_m``, ``height``, ``background``, ``detected``
+    (frame, pixel) and their axes. Returns the pixels of a frame."""
+    pixels, first, shift = split_of(configuration)
+    group = file.create_group("depth")
+    frame, pixel = rows_and_axes(group, pixels, first)
+    group.attrs["bin_s"] = code_s * (1 << shift)
+    group.attrs["code_s"] = code_s
+    for name, dtype, unit in DEPTH_DATASETS:
+        dataset = group.create_dataset(name, shape=(0, pixels), maxshape=(None, pixels),
+                                       dtype=dtype, chunks=(max(1, 4096 // pixels), pixels))
+        dataset.attrs["unit"] = unit
+        attach(dataset, (frame, pixel), ("frame", "pixel"))
+    return pixels
+
+
 def append(file, index, frame, pixels, complete=True):
-    """Row ``index`` of ``/depth``; ``complete`` False marks a frame that never arrived."""
-    return append_depth(file, index, frame, pixels, complete)
+    """Write :class:`DepthFrame` ``frame`` as row ``index`` of ``/depth`` (``depth_m`` from its
+    position); False when its pixels are not the capture's. ``complete`` False marks a frame
+    that never arrived."""
+    group = file["depth"]
+    if len(frame.position) != pixels or frame.first_pixel != int(group["pixel"][0]):
+        return False
+    detected = np.asarray(frame.detected, dtype=bool)
+    position = np.where(detected, np.asarray(frame.position, dtype=float), np.nan)
+    values = {"position": position, "height": frame.height, "background": frame.background,
+              "detected": detected,
+              "depth_m": depth_m(tof_s(position, group.attrs["code_s"] * (1 << frame.shift)))}
+    for name, _, _ in DEPTH_DATASETS:
+        group[name].resize(index + 1, axis=0)
+        group[name][index] = values[name]
+    append_rows(group, index, frame, complete, 0)
+    return True
 
 
 def blank(number, configuration):
@@ -139,7 +176,7 @@ KIND = DataKind(
     name="depth", rank=2, readout=AcquisitionMode.DEPTH, packet="depth",
     assembler=DepthAssembler, item=DepthFrame, rows="depth frames", format_version=3,
     what="depth frames", counted=False, imager=True,
-    create=create_depth, append=append, blank=blank, read=read, tally=tally, replay=replay, seen=seen,
+    create=create, append=append, blank=blank, read=read, tally=tally, replay=replay, seen=seen,
     refusal="a depth capture cannot be exported: PTU and Photon-HDF5 hold photons and TCSPC "
             "histograms, not depth frames; the FLISS capture file (HDF5) is the format that "
             "holds them")

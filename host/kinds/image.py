@@ -5,7 +5,7 @@ import numpy as np
 
 from ...hdl.event import TIMESTAMP_BITS
 from ...hdl.registers import AcquisitionMode
-from ..imager.files import append_image, create_image, read_imager, split_of
+from ..imager.files import append_rows, attach, read_imager, rows_and_axes, split_of
 from .histogram import HistogramAssembler, HistogramFrame, replay, seen
 from .kind import DataKind
 
@@ -14,15 +14,38 @@ __all__ = ["KIND"]
 
 
 def create(file, configuration, code_s):
-    """``/image`` and its axes; returns ``(pixels, bins per pixel)``."""
-    bins = create_image(file, configuration, code_s)
-    pixels = len(file["image/pixel"])
-    return pixels, bins // pixels
+    """Make ``/image``: ``counts`` (frame, pixel, bin) and its axes; returns ``(pixels, bins
+    per pixel)``."""
+    pixels, first, shift = split_of(configuration)
+    bins = (1 << TIMESTAMP_BITS) >> shift
+    group = file.create_group("image")
+    frame, pixel = rows_and_axes(group, pixels, first)
+    times = group.create_dataset("bin_time_s",
+                                 data=(np.arange(bins) + 0.5) * code_s * (1 << shift))
+    times.attrs["unit"] = "s"
+    times.make_scale("bin_time_s")
+    group.attrs["bin_s"] = code_s * (1 << shift)
+    counts = group.create_dataset("counts", shape=(0, pixels, bins),
+                                  maxshape=(None, pixels, bins), dtype=np.uint32,
+                                  chunks=(1, pixels, bins), compression="gzip",
+                                  compression_opts=1)
+    attach(counts, (frame, pixel, times), ("frame", "pixel", "bin"))
+    return pixels, bins
 
 
 def append(file, index, frame, split, complete=True):
-    """Row ``index`` of ``/image`` (a histogram says itself whether it is complete)."""
-    return append_image(file, index, frame, *split)
+    """Write :class:`~fliss.host.stream.HistogramFrame` ``frame`` as row ``index`` of
+    ``/image``; False (nothing written) when its split is not the capture's (a histogram says
+    itself whether it is complete)."""
+    pixels, bins = split
+    group = file["image"]
+    if len(frame.counts) != pixels * bins or (1 << frame.pixel_bits) != pixels or \
+            frame.first_pixel != int(group["pixel"][0]):
+        return False
+    group["counts"].resize(index + 1, axis=0)
+    group["counts"][index] = frame.image
+    append_rows(group, index, frame, frame.complete, frame.missing_bins)
+    return True
 
 
 def blank(number, configuration):
