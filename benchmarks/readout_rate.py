@@ -10,7 +10,7 @@ chunks where shorter), in the same run.
 
 Link time comes from the exact wire bytes of those packets (header, payload, CRC, COBS,
 delimiter: :func:`fliss.protocol.encode_frame`) at 10 bits a byte. The packetizer's time per
-frame follows :class:`fliss.hdl.histogram.packetizer.HistogramPacketizer` at 80 MHz: each
+frame follows :class:`fliss.hdl.packets.histogram.HistogramPacketizer` at 80 MHz: each
 window of 128 bins is taken at the readout's 6 cycles a bin (``READOUT_CYCLES_PER_BIN``: the
 ULX3S's banks of 64 block RAMs), a compact window is then encoded (2 cycles an empty bin, 3 a bin
 with a count, one a token byte), and a packet the window sends occupies the packetizer until it

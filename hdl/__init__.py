@@ -7,11 +7,13 @@ One block per module; the larger blocks are subpackages of several:
   start, and an aggressor's independent trigger;
 * :mod:`.tdc`: the sensor's timestamp interface and a built-in coarse TDC;
 * :mod:`.finetdc`: a fine TDC in the FPGA fabric (a tapped delay line) and its calibration table;
-* :mod:`.histogram`: the two-bank histogram engine and its readout as packets;
-* :mod:`.depth`: the depth engine, a DEPTH packet per frame from the histogram readout;
+* :mod:`.histogram`: the two-bank histogram engine and its readout;
+* :mod:`.depth`: the depth engine, a depth record per pixel of each frame of the readout;
 * :mod:`.rawfifo`: the raw event FIFO that counts what it drops;
-* :mod:`.link`: the UART, the framing (CRC, COBS), the command processor, the packetizers and
-  the arbiter that merges their packets onto the link;
+* :mod:`.packets`: the data packetizers, one per kind of data packet (EVENTS, HISTOGRAM and
+  HISTOGRAM_COMPACT, DEPTH);
+* :mod:`.link`: the UART, the framing (CRC, COBS), the command processor and the arbiter that
+  merges the packetizers' packets onto the link;
 * :mod:`.regfile`: register file (settings, their checks, groups as structs);
 * :mod:`.counters`, :mod:`.status`: event counters and the STATUS reply's counters;
 * :mod:`.block_ram`, :mod:`.spram`: block RAM and single-port RAM, the FPGA's or generic;

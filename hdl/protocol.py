@@ -1,6 +1,6 @@
 """The FLISS link protocol: the one definition of packet types, header, CRC, limits and NAK codes.
 
-Gateware (:mod:`fliss.hdl.link.framing`, :mod:`fliss.hdl.link.command`, :mod:`fliss.hdl.link.packetizer`), the
+Gateware (:mod:`fliss.hdl.link.framing`, :mod:`fliss.hdl.link.command`, :mod:`fliss.hdl.packets`), the
 software codec (:mod:`fliss.protocol`), the models, the testbenches and the host all import
 these names; no number of the protocol is written anywhere else. Every payload is an
 :mod:`amaranth.lib.data` layout here, and software packs and unpacks payloads from these layouts

@@ -11,7 +11,9 @@ from .histogram.engine import Histogram, RAM_KINDS
 from .histogram.layout import ReadoutSplit
 from .delay.keyed import Keying
 from .link.link import Link
-from .link.packetizer import EventPacketizer, FullHistogramPacketizer, HistogramPacketizer
+from .packets.events import EventPacketizer
+from .packets.histogram import HistogramPacketizer
+from .packets.histogram_full import FullHistogramPacketizer
 from .protocol import DEFAULT_BAUD
 from .rawfifo import RawFifo
 from .registers import (VICTIM, AGGRESSOR, AGGRESSOR_DELAY, KEYING, DEPTH, FINE_TDC,
@@ -109,9 +111,9 @@ class FlissTop(wiring.Component):
 
     compact_readout : bool
         Build the histogram packetizer that sends compact chunks where shorter
-        (:class:`~fliss.hdl.histogram.packetizer.HistogramPacketizer`). Without it (some 590
+        (:class:`~fliss.hdl.packets.histogram.HistogramPacketizer`). Without it (some 590
         LUTs and two block RAMs less on an iCE40), every histogram goes out in full HISTOGRAM
-        chunks (:class:`~fliss.hdl.link.packetizer.FullHistogramPacketizer`), whatever
+        chunks (:class:`~fliss.hdl.packets.histogram_full.FullHistogramPacketizer`), whatever
         ``full_readout`` says; hosts read both forms alike.
     fine_tdc : bool
         Build the fine TDC (:class:`~fliss.hdl.finetdc.tdc.FineTdc`: delay lines of ECP5 carry

@@ -11,13 +11,14 @@ import time
 from dataclasses import dataclass
 from typing import Optional
 
-from ..hdl.registers import BY_NAME, AcquisitionMode, TdcSource
+from ..hdl.registers import BY_NAME, TdcSource
 from .calibration import read_table
 from .client import BoardClient
 from .errors import BoardLost, BoardReset, PathError, SettingsError
 from .fileformat import CaptureWriter
+from .kinds import KINDS, kind_of, mode_of
 from .rows import FrameRows
-from .stream import DepthFrame, EventBatch, HistogramFrame
+from .stream import EventBatch
 from .units import format_time
 
 
@@ -77,8 +78,9 @@ class CaptureResult:
     @property
     def what(self) -> str:
         """What was saved, as text: ``"10 histograms"``, ``"1234 events in 40 packets"``."""
-        if self.mode in _FRAMED:
-            return f"{self.histograms} {_FRAMED[self.mode]}"
+        kind = KINDS[self.mode]
+        if kind.framed:
+            return f"{self.histograms} {kind.rows}"
         return f"{self.events} events in {self.batches} packets"
 
     @property
@@ -196,10 +198,6 @@ def check_reset(board: BoardClient, before: dict, now: dict) -> None:
 #: What the progress line's rates are per second of.
 _HOST_CLOCK = "(host clock)"
 
-#: Capture modes that save frames (one row each), and what a row is called.
-_FRAMED = {"histogram": "histograms", "image": "images", "depth": "depth frames"}
-
-
 #: The integration time a capture takes unless told: the register's reset value (10 ms).
 DEFAULT_INTEGRATION_S = BY_NAME["integration"].reset.seconds
 
@@ -210,11 +208,11 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
             progress=None, watch=None) -> CaptureResult:
     """Capture into ``path`` from an identified :class:`~fliss.host.client.BoardClient`.
 
-    ``mode`` is ``"histogram"`` (``acquisitions`` histograms; saved as ``"image"`` when the
-    board's frames hold several pixels), ``"image"`` (``acquisitions`` frames of per-pixel
-    histograms), ``"depth"`` (``acquisitions`` depth frames) or ``"raw"``
-    (events for ``duration_s``); each frame (and raw-mode block) integrates for
-    ``integration_s``.
+    ``mode`` is a kind of data (:data:`fliss.host.kinds.KINDS`): ``"histogram"``
+    (``acquisitions`` histograms; saved as ``"image"`` when the board's frames hold several
+    pixels), ``"image"`` (``acquisitions`` frames of per-pixel histograms), ``"depth"``
+    (``acquisitions`` depth frames) or ``"raw"`` (events for ``duration_s``); each frame (and
+    raw-mode block) integrates for ``integration_s``.
     ``progress``, if given, has ``update(done, extra="", force=False)`` and ``close()`` (as
     :class:`fliss.host.commands.capture.Progress`). Ctrl-C stops the acquisition and keeps what was
     captured; a board lost mid-capture leaves a file with everything received. Both are told
@@ -259,12 +257,13 @@ def _configure(board, mode, cycles):
     board.stop()
     board.drain(quiet_s=0.1, limit_s=2.0)
     current = board.read_registers()
-    readout = AcquisitionMode.HISTOGRAM if mode == "image" else AcquisitionMode[mode.upper()]
-    board.write_registers({"acquisition": readout.value,
+    kind = kind_of(mode)
+    board.write_registers({"acquisition": kind.readout.value,
                            "integration": cycles}, current=current)
     configuration = board.read_registers()
-    if mode == "histogram" and configuration.get("pixel_bits", 0):
-        mode = "image"          # several pixels a frame: saved per pixel
+    if mode == kind.readout.name.lower():
+        # several pixels a frame: saved per pixel, where the kind has a form for it
+        mode = mode_of(kind.readout, configuration.get("pixel_bits", 0))
     return mode, configuration, board.status()
 
 
@@ -275,11 +274,12 @@ class _Capture:
     def __init__(self, board, path, mode, configuration, status_start, *, acquisitions,
                  duration_s, cycles, port, progress, watch=None, table=None):
         self.board, self.path, self.mode = board, path, mode
+        self.kind = kind_of(mode)
         self.status_start, self.status_end = status_start, None
         self.acquisitions, self.duration_s = acquisitions, duration_s
         self.seconds = cycles / board.identity.clock_hz     # integration time
         attrs = {"integration_s": self.seconds}
-        if mode in _FRAMED:
+        if self.kind.framed:
             attrs["acquisitions_requested"] = acquisitions
         else:
             attrs["duration_s_requested"] = duration_s
@@ -293,7 +293,6 @@ class _Capture:
         self.bar = progress if progress is not None else _NoProgress()
         self.watch = watch
         self.rows = FrameRows(self.writer, acquisitions, status_start["frames"], configuration, mode)
-        self.wanted = DepthFrame if mode == "depth" else HistogramFrame
         self.events = self.discarded = 0
         # depth captures: pixels detected, the highest peak, the last frame's threshold
         self.detections = self.highest = 0
@@ -308,26 +307,21 @@ class _Capture:
         if self.file_error is not None:
             return
         try:
-            if isinstance(item, (HistogramFrame, DepthFrame)):
-                if self.mode not in _FRAMED or not isinstance(item, self.wanted):
-                    self.discarded += 1
-                elif self.rows.add(item):
-                    if self.mode == "depth":
-                        self.detections += int(item.detected.sum())
-                        self.highest = max(self.highest, int(item.height.max()))
-                        self.threshold = item.threshold
-                    else:
-                        self.events += int(item.counts.sum())
-            elif isinstance(item, EventBatch):
+            if isinstance(item, EventBatch):
+                # (every capture file keeps the events it receives: /events)
                 self.writer.add_events(item)
                 self.events += len(item.events)
+            elif not self.kind.framed or not isinstance(item, self.kind.item):
+                self.discarded += 1
+            elif self.rows.add(item):
+                self.kind.tally(self, item)
         except OSError as error:
             self.file_error = error
 
     def acquire(self):
         """Start the board and store what it sends until the capture is complete, interrupted
         or the board lost; returns ``(reason, complete, lost)``."""
-        board, framed = self.board, self.mode in _FRAMED
+        board, framed = self.board, self.kind.framed
         reason, complete, lost = "completed", True, None
         board.reset_counters()
         idle_timeout_s = max(3.0, 3 * self.seconds + 1.0)
@@ -373,10 +367,10 @@ class _Capture:
         elapsed = time.monotonic() - self.started
         link = self.board.link_counters()
         damaged = f"{link['dropped_frames']} corrupt, {link['missing_packets']} lost"
-        if self.mode in _FRAMED:
+        if self.kind.framed:
             # (a depth frame carries no event count: its pace is in frames)
             pace = (f"{self.rows.saved / elapsed:.1f} frames/s"
-                    if self.mode == "depth" and elapsed > 0 else rate(self.events, elapsed))
+                    if not self.kind.counted and elapsed > 0 else rate(self.events, elapsed))
             self.bar.update(self.rows.saved, f"{pace} {_HOST_CLOCK}  link: {damaged}")
             return self.rows.done
         self.bar.update(min(elapsed, self.duration_s),
@@ -384,7 +378,7 @@ class _Capture:
         return elapsed >= self.duration_s
 
     def end_progress(self):
-        self.bar.update(self.rows.saved if self.mode in _FRAMED else
+        self.bar.update(self.rows.saved if self.kind.framed else
                         min(time.monotonic() - self.started, self.duration_s), force=True)
         self.bar.close()
 

@@ -39,6 +39,7 @@ from ..protocol.events import EVENT_DTYPE
 from .client import BoardClient, IdentityInfo
 from .errors import BoardLost, BoardMismatch, BoardRefused, SettingsError
 from .imager.results import DepthFrames, Images, acquire_depth, acquire_image
+from .kinds import mode_of
 from .paths import check_output_path
 from .results import Events, Histogram, Histograms
 from .settings import (DEFAULT_BANK_BITS, Conversion, RoundingWarning, Settings, convert, describe,
@@ -432,9 +433,7 @@ class Board:
                           overwrite_flag="overwrite=True")
         duration_s = _duration(duration)
         registers = self.client.read_registers()
-        readout = AcquisitionMode(registers["acquisition"]).name.lower()
-        if readout == "histogram" and (image or (image is None and registers["pixel_bits"])):
-            readout = "image"
+        readout = mode_of(AcquisitionMode(registers["acquisition"]), registers["pixel_bits"], image)
         return capture(self.client, path, mode=readout,
                        integration_s=registers["integration"] / self.clock_hz,
                        acquisitions=acquisitions, duration_s=duration_s, port=self.port,

@@ -245,7 +245,7 @@ class BoardClient(BoardLink):
             items += received
             frames = self.status()["frames"]
             ended = self.assembler.frames_ended
-            arrived = self.assembler.counters.frames + self.assembler.counters.depth_frames
+            arrived = self.assembler.frames_arrived
             if frames == 0 or ended == frames or time.monotonic() > end or (
                     frames_at_start is not None and arrived >= frames - frames_at_start):
                 return items

@@ -22,8 +22,7 @@ from ..hdl.event import TDC_LSB_S, TIMESTAMP_BITS
 from ..hdl.registers import BY_NAME
 from ..hdl.codes import code_s as timestamp_code_s
 from ..protocol.events import EVENT_DTYPE
-from .imager.files import (IMAGE_MODES, append_depth, append_image, create_depth, create_image,
-                           read_imager)
+from .kinds import DEFAULT, KINDS, for_mode, kind_of
 
 
 __all__ = ["FORMAT", "FORMAT_VERSION", "FLUSH_S", "RUNNING", "CaptureWriter", "Capture",
@@ -32,22 +31,17 @@ __all__ = ["FORMAT", "FORMAT_VERSION", "FLUSH_S", "RUNNING", "CaptureWriter", "C
 
 #: Value of the root attribute ``format``.
 FORMAT = "fliss-capture"
-#: Version of this schema; readers refuse newer major versions. Histogram and raw files are
-#: still written as version 2 (unchanged), which older readers take; image and depth files
-#: (the imager's groups) are version 3.
+#: Version of this schema; readers refuse newer major versions. Each kind of data writes its
+#: files with its own version (:attr:`fliss.host.kinds.DataKind.format_version`): histogram and
+#: raw files still as version 2 (unchanged), which older readers take; image and depth files
+#: (the imager's groups) as version 3.
 FORMAT_VERSION = 3
-#: Version written for histogram and raw captures.
-_PLAIN_VERSION = 2
 
 #: Most seconds between two flushes of a capture file: what a ``kill -9`` can cost.
 FLUSH_S = 0.5
 
 #: ``end_reason`` of a file that the writer never closed (still being written, or killed).
 RUNNING = "running"
-
-# Datasets of /histograms, one row per histogram; ``complete`` is False where never written.
-_ROW_DATASETS = (("frame", np.uint32), ("shift", np.uint8), ("time_s", np.float64),
-                 ("complete", np.bool_), ("missing_bins", np.uint32))
 
 
 class CaptureWriter:
@@ -62,8 +56,9 @@ class CaptureWriter:
     ----------
     path : str
     mode : str
-        ``"histogram"``, ``"raw"``, ``"image"`` (per-pixel histograms, ``/image``) or
-        ``"depth"`` (depth frames, ``/depth``).
+        The kind of data (:data:`fliss.host.kinds.KINDS`): ``"histogram"``, ``"raw"``,
+        ``"image"`` (per-pixel histograms, ``/image``) or ``"depth"`` (depth frames,
+        ``/depth``).
     identity : dict
         The board's identity (``protocol``, ``gateware_version``, ``registers``, ``clock_hz``,
         ``baud``).
@@ -82,6 +77,7 @@ class CaptureWriter:
         self.path = str(path)
         self.flush_s = flush_s
         self._counters = {}
+        self.kind = kind_of(mode)
         self.file = h5py.File(self.path, "w", libver=("v110", "latest"))
         try:
             self._create(mode, identity, configuration, port, attrs or {})
@@ -95,7 +91,7 @@ class CaptureWriter:
     def _create(self, mode, identity, configuration, port, attrs):
         f = self.file
         f.attrs["format"] = FORMAT
-        f.attrs["format_version"] = FORMAT_VERSION if mode in IMAGE_MODES else _PLAIN_VERSION
+        f.attrs["format_version"] = self.kind.format_version
         f.attrs["host_version"] = __version__
         f.attrs["created_utc"] = datetime.datetime.now(datetime.timezone.utc).isoformat()
         f.attrs["port"] = port
@@ -114,25 +110,15 @@ class CaptureWriter:
         for name, value in configuration.items():
             group.attrs[name] = np.uint32(value)
         group.attrs["units"] = json.dumps({name: BY_NAME[name].unit for name in configuration})
-        group = f.create_group("histograms")
-        self._bins = None
-        if mode == "histogram":
-            self._bins = (1 << TIMESTAMP_BITS) >> int(configuration.get("bin_shift", 0))
-            group.create_dataset("counts", shape=(0, self._bins), maxshape=(None, self._bins),
-                                 dtype=np.uint32,
-                                 chunks=(max(1, min(64, (1 << 16) // self._bins)), self._bins),
-                                 compression="gzip", compression_opts=1)
-            for name, dtype in _ROW_DATASETS:
-                group.create_dataset(name, shape=(0,), maxshape=(None,), dtype=dtype,
-                                     chunks=(1024,))
+        # Every file has /histograms (empty but in histogram captures) and /events (empty but
+        # in raw captures); the kind adds its datasets.
+        f.create_group("histograms")
         self.histograms = 0
-        self.mode, self._pixels = mode, None
+        self.mode = mode
         code_s = (timestamp_code_s(configuration, identity["clock_hz"])
                   if identity.get("clock_hz") else TDC_LSB_S)
-        if mode == "image":
-            self._bins = create_image(f, configuration, code_s)
-        elif mode == "depth":
-            self._pixels = create_depth(f, configuration, code_s)
+        self._state = None if self.kind.create is None else \
+            self.kind.create(f, configuration, code_s)
         group = f.create_group("events")
         group.create_dataset("events", shape=(0,), maxshape=(None,), dtype=EVENT_DTYPE,
                              chunks=(1 << 14,))
@@ -145,48 +131,20 @@ class CaptureWriter:
         f.create_group("counters")
 
     def add_frame(self, frame, *, complete=True):
-        """Append a frame: a :class:`~fliss.host.stream.HistogramFrame` (histogram and image
-        modes) or a :class:`~fliss.host.stream.DepthFrame` (depth mode); returns False (and
-        stores nothing) if it does not fit the capture (another split, another mode).
-        ``complete`` False marks a depth frame that never arrived (a histogram says it
-        itself)."""
-        if self.mode == "image":
-            done = append_image(self.file, self.histograms, frame, *self._image_split)
-        elif self.mode == "depth":
-            done = append_depth(self.file, self.histograms, frame, self._pixels, complete)
-        else:
-            return self.add_histogram(frame)
+        """Append a frame as its kind of data stores it (:attr:`fliss.host.kinds.DataKind.
+        append`): a :class:`~fliss.host.stream.HistogramFrame` (histogram and image modes) or
+        a :class:`~fliss.host.stream.DepthFrame` (depth mode); returns False (and stores
+        nothing) if it does not fit the capture (another split, another mode). ``complete``
+        False marks a depth frame that never arrived (a histogram says it itself)."""
+        if self.kind.append is None:
+            return False
+        done = self.kind.append(self.file, self.histograms, frame, self._state, complete)
         self.histograms += done
         self._maybe_flush()
         return done
 
-    @property
-    def _image_split(self):
-        pixels = len(self.file["image/pixel"])
-        return pixels, self._bins // pixels
-
-    def add_histogram(self, frame):
-        """Append a :class:`~fliss.host.stream.HistogramFrame`; returns False (and stores
-        nothing) if its bin count is not the configured one (or the capture is in raw mode)."""
-        if self.mode in IMAGE_MODES:
-            return self.add_frame(frame)
-        if not hasattr(frame, "counts") or len(frame.counts) != self._bins:
-            return False
-        group = self.file["histograms"]
-        index = self.histograms
-        # The row's data first, then ``complete`` (its fill value False marks a row whose
-        # data never reached the disk).
-        for name in ("counts",) + tuple(name for name, _ in _ROW_DATASETS):
-            group[name].resize(index + 1, axis=0)
-        group["counts"][index] = frame.counts
-        group["frame"][index] = frame.frame
-        group["shift"][index] = frame.shift
-        group["time_s"][index] = frame.time_s
-        group["missing_bins"][index] = frame.missing_bins
-        group["complete"][index] = frame.complete
-        self.histograms += 1
-        self._maybe_flush()
-        return True
+    #: Appends a :class:`~fliss.host.stream.HistogramFrame` (the name of former versions).
+    add_histogram = add_frame
 
     def add_events(self, batch):
         """Append an :class:`~fliss.host.stream.EventBatch`."""
@@ -276,7 +234,7 @@ class Capture:
 
     @property
     def mode(self):
-        return self.attrs.get("mode", "histogram")
+        return self.attrs.get("mode", DEFAULT)
 
     @property
     def clock_hz(self):
@@ -310,7 +268,8 @@ class Capture:
     def total_histogram(self, complete_only=True):
         """Sum of the histograms (the complete ones by default); for a raw capture, the
         histogram of the events' timestamps with the configured bin shift."""
-        if self.mode == "raw" or not len(self.histograms):
+        kind = KINDS.get(self.mode)
+        if (kind is not None and not kind.framed) or not len(self.histograms):
             bins = (1 << TIMESTAMP_BITS) >> self.shift
             stamps = self.events["timestamp"].astype(np.int64) >> self.shift
             return np.bincount(stamps, minlength=bins)[:bins].astype(np.int64)
@@ -410,48 +369,22 @@ def _read(path, f):
     identity = {key: _plain(value) for key, value in _group(f, "identity").attrs.items()}
     configuration = {key: int(value) for key, value in _group(f, "configuration").attrs.items()
                      if key != "units"}
-    group = _group(f, "histograms")
-    imager, depth, pixels = None, None, np.zeros(0, dtype=np.int64)
-    if attrs.get("mode") in IMAGE_MODES:
-        imager = read_imager(_group(f, attrs["mode"]), attrs["mode"], _rows, problems)
-        pixels = imager["pixel"]
-    if imager is not None:
-        histograms = imager.get("counts", np.zeros((0, 0, 0), dtype=np.uint32))
-        frames, shifts = imager["frame"], imager["shift"]
-        times, complete = imager["time_s"], imager["complete"]
-        if attrs["mode"] == "depth":
-            depth = {name: imager[name] for name in ("position", "depth_m", "height",
-                                                     "background", "detected")}
-    elif "counts" in group:
-        noted = len(problems)
-        columns = {"counts": _rows(group["counts"], problems)}
-        for name, _ in _ROW_DATASETS:
-            columns[name] = _rows(group[name], problems) if name in group else None
-        for name in ("frame", "shift", "time_s", "complete"):
-            if columns[name] is None:
-                raise ValueError(f"no /histograms/{name}")
-        rows = min(len(column) for column in columns.values() if column is not None)
-        if len(problems) == noted and any(len(column) > rows for column in columns.values()
-                                          if column is not None):
-            problems.append(f"histograms after the first {rows} are incomplete on disk and "
-                            f"left out")
-        histograms = columns["counts"][:rows]
-        frames, shifts = columns["frame"][:rows], columns["shift"][:rows]
-        times, complete = columns["time_s"][:rows], columns["complete"][:rows]
-    else:
-        histograms = np.zeros((0, 0), dtype=np.uint32)
-        frames = np.zeros(0, dtype=np.uint32)
-        shifts = np.zeros(0, dtype=np.uint8)
-        times = np.zeros(0)
-        complete = np.zeros(0, dtype=bool)
+    _group(f, "histograms")
+    # (a mode of no kind, from another program: its /histograms, as of a histogram capture)
+    kind = for_mode(attrs.get("mode"))
+    rows = {"histograms": np.zeros((0, 0), dtype=np.uint32),
+            "frames": np.zeros(0, dtype=np.uint32), "shifts": np.zeros(0, dtype=np.uint8),
+            "times_s": np.zeros(0), "complete": np.zeros(0, dtype=bool),
+            "pixels": np.zeros(0, dtype=np.int64), "depth": None}
+    rows.update(kind.read(f, _group, _rows, problems))
     events_group = _group(f, "events")
     events = _rows(events_group["events"], problems)
     batch_times = _rows(events_group["batch_time_s"], problems)
     counters = {name: {key: _plain(value) for key, value in group.attrs.items()}
                 for name, group in _group(f, "counters").items()}
-    return Capture(path, attrs, identity, configuration, histograms, frames, shifts,
-                   times, complete.astype(bool), events, batch_times, counters, problems,
-                   pixels, depth)
+    return Capture(path, attrs, identity, configuration, rows["histograms"], rows["frames"],
+                   rows["shifts"], rows["times_s"], rows["complete"].astype(bool), events,
+                   batch_times, counters, problems, rows["pixels"], rows["depth"])
 
 
 def _plain(value):

@@ -1,12 +1,6 @@
 """The rows of a framed capture file: frames stored in order, and rows of zeros for those lost."""
 
-import math
-
-import numpy as np
-
-from ..hdl.event import TIMESTAMP_BITS
-from .imager.files import blank_frame
-from .stream import HistogramFrame
+from .kinds import kind_of
 
 
 __all__ = ["FrameRows"]
@@ -27,6 +21,7 @@ class FrameRows:
         self.writer, self.acquisitions = writer, acquisitions
         self.first_expected, self.shift = first_expected, configuration["bin_shift"]
         self.configuration, self.mode = configuration, mode
+        self.kind = kind_of(mode)
         self.first = None       # frame number of the first row
         self.next = None        # frame number of the next row
         self.saved = self.lost = self.incomplete = self.discarded = 0
@@ -36,8 +31,8 @@ class FrameRows:
         return self.saved >= self.acquisitions
 
     def add(self, item):
-        """Store a :class:`HistogramFrame`, after rows for the frames lost before it; returns
-        the rows added."""
+        """Store a frame (of the capture's kind of data), after rows for the frames lost
+        before it; returns the rows added."""
         if self.next is None:
             ahead = (item.frame - self.first_expected) % (1 << 32)
             self.first = self.first_expected if ahead < self.acquisitions else item.frame
@@ -72,15 +67,9 @@ class FrameRows:
         """Rows of zeros for the frames from the next one up to ``frame`` (excluded)."""
         if self.next is None:
             return
-        bins = (1 << TIMESTAMP_BITS) >> self.shift
         while self.next != frame and not self.done:
-            if self.mode == "histogram":
-                self.writer.add_histogram(HistogramFrame(self.next, self.shift,
-                                                         np.zeros(bins, np.uint32), False, bins,
-                                                         math.nan))
-            else:
-                self.writer.add_frame(blank_frame(self.mode, self.next, self.configuration),
-                                      complete=False)
+            self.writer.add_frame(self.kind.blank(self.next, self.configuration),
+                                  complete=False)
             self.saved += 1
             self.lost += 1
             self.next = (self.next + 1) % (1 << 32)

@@ -1,6 +1,6 @@
 """HISTOGRAM and HISTOGRAM_COMPACT packets: the board's choice between them, and their decoding.
 
-The bit-exact model of :class:`fliss.hdl.histogram.packetizer.HistogramPacketizer`
+The bit-exact model of :class:`fliss.hdl.packets.histogram.HistogramPacketizer`
 (``docs/protocol.md``, "Histogram readout").
 
 A frame of ``bins`` bins (flat index ``pixel << (13 - shift) | bin``) is cut into *windows* of

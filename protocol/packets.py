@@ -3,10 +3,12 @@
 A board sends data packets unasked while it acquires; every other packet it sends is a reply.
 :data:`DATA_TYPES` tells the two apart; :data:`KIND` names what a data packet carries
 (``"events"``, ``"histogram"``, ``"depth"``), and :data:`HISTOGRAM_TYPES` are the packets that
-carry histogram chunks (decoded by :func:`fliss.protocol.histograms.decode_chunk`).
+carry histogram chunks (decoded by :func:`fliss.protocol.histograms.decode_chunk`). The host
+finds the assembler of each kind of data packet in :mod:`fliss.host.kinds`, the model board
+the producer of each readout in :mod:`fliss.sim.boards.producers`.
 """
 
-from ..hdl.protocol import DATA_PACKETS
+from ..hdl.protocol import DATA_PACKETS, PacketType
 
 
 __all__ = ["KIND", "DATA_TYPES", "HISTOGRAM_TYPES"]
@@ -18,5 +20,6 @@ KIND = dict(DATA_PACKETS)
 #: The data packet types.
 DATA_TYPES = frozenset(KIND)
 
-#: The packet types that carry histogram chunks.
-HISTOGRAM_TYPES = frozenset(type for type, kind in KIND.items() if kind == "histogram")
+#: The packet types that carry histogram chunks: those of HISTOGRAM's kind.
+HISTOGRAM_TYPES = frozenset(type for type, kind in KIND.items()
+                            if kind == KIND[PacketType.HISTOGRAM])

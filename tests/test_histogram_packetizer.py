@@ -6,8 +6,8 @@ import random
 import numpy as np
 import pytest
 
-from fliss.hdl.histogram.packetizer import HistogramPacketizer
-from fliss.hdl.link.packetizer import FullHistogramPacketizer
+from fliss.hdl.packets.histogram import HistogramPacketizer
+from fliss.hdl.packets.histogram_full import FullHistogramPacketizer
 from fliss.hdl.protocol import PacketType
 from fliss.protocol.histograms import assemble, encode_histogram, frame_bins
 from simulation import simulate

@@ -339,14 +339,14 @@ def test_unwritable_capture_outputs_are_refused_before_the_board(tmp_path, capsy
 def test_a_full_disk_mid_capture_stops_the_board_and_keeps_the_rows(tmp_path, capsys,
                                                                     monkeypatch):
     output = tmp_path / "full.h5"
-    add_histogram = CaptureWriter.add_histogram
+    add_frame = CaptureWriter.add_frame      # (every row of every kind of data goes through it)
 
-    def full_after_three(self, frame):
+    def full_after_three(self, frame, **options):
         if self.histograms == 3:
             raise OSError(errno.ENOSPC, "No space left on device")
-        return add_histogram(self, frame)
+        return add_frame(self, frame, **options)
 
-    monkeypatch.setattr(CaptureWriter, "add_histogram", full_after_three)
+    monkeypatch.setattr(CaptureWriter, "add_frame", full_after_three)
     with model_board(scene=SCENE) as model:
         with BoardClient(model.path, timeout_s=2.0) as board:
             board.write_registers({"bin_shift": SHIFT})

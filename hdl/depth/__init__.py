@@ -2,6 +2,8 @@
 
 * :mod:`.engine`: :class:`~.engine.DepthEngine`, the blocks below wired to the readout;
 * :mod:`.peak`: the box filter and strongest window of each pixel;
-* :mod:`.record`: a pixel's record (position, height, background) from its peak search;
-* :mod:`.packet`: the records of a frame stored and sent after a header.
+* :mod:`.record`: a pixel's record (position, height, background) from its peak search.
+
+Its packetizer, the records of a frame stored and sent after a header, is
+:mod:`fliss.hdl.packets.depth`, with the other data packetizers.
 """

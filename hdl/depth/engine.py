@@ -5,11 +5,11 @@ from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from .. import lookup
-from .packet import DepthPacketizer
 from .peak import MAX_FILTER, PeakFinder
 from .record import QUOTIENT_BITS, RecordMaker
 from ..event import ADDRESS_BITS, TIMESTAMP_BITS
 from ..link.framing import PacketBeat
+from ..packets.depth import DepthPacketizer
 from ..histogram.layout import BIN_BITS, COUNT_WIDTH, MAX_SHIFT, readout_layout
 from ..protocol import DepthHeader, DEPTH_PIXELS
 from ..registers import DEPTH
@@ -35,7 +35,7 @@ class DepthEngine(wiring.Component):
     After each pixel's last bin the engine holds ``readout`` (``ready`` low) while a
     :class:`~fliss.hdl.depth.record.RecordMaker` works out the pixel's record (three serial
     divisions of :data:`QUOTIENT_BITS` cycles and ``W`` cycles of multiplication: about
-    ``W + 67`` cycles with the pipeline) and a :class:`~fliss.hdl.depth.packet.DepthPacketizer`
+    ``W + 67`` cycles with the pipeline) and a :class:`~fliss.hdl.packets.depth.DepthPacketizer`
     stores it; after the frame's last pixel the packetizer sends the DEPTH packet (a
     :class:`~fliss.hdl.protocol.DepthHeader`, then a :class:`~fliss.hdl.protocol.DepthRecord`
     per pixel) and only then does the engine take the next frame. The records are those of

@@ -6,10 +6,10 @@
 * :mod:`.banks`: two banks of single-port RAM and the pipeline that counts events;
 * :mod:`.dual`: dual-port block RAM banks, one event per cycle;
 * :mod:`.readout`: a full bank read bin after bin, cleared as it goes;
-* :mod:`.packetizer`: HISTOGRAM and HISTOGRAM_COMPACT packets from the readout, made by
-  :mod:`.scanner` (the readout in windows, each weighed compact or full), :mod:`.compact` (the
-  tokens of compact chunks) and :mod:`.chunk` (a chunk sent as a packet, also the full-chunk
-  packetizer's).
+* the parts of the readout's packets: :mod:`.scanner` (the readout in windows, each weighed
+  compact or full), :mod:`.compact` (the tokens of compact chunks) and :mod:`.chunk` (a chunk
+  sent as a packet); the packetizers that use them are :mod:`fliss.hdl.packets.histogram` and
+  :mod:`fliss.hdl.packets.histogram_full`.
 
 The blocks a design of your own reuses are importable from here::
 

@@ -27,8 +27,8 @@ class ChunkEmitter(wiring.Component):
     little-endian u16; with ``compact``, a HISTOGRAM_COMPACT chunk is a
     :class:`~fliss.hdl.protocol.HistogramCompact` ``compact_header`` and ``size`` token bytes
     (each in an item's low byte). The chunk path of both histogram packetizers
-    (:class:`~fliss.hdl.histogram.packetizer.HistogramPacketizer` feeds it from its buffers,
-    :class:`~fliss.hdl.link.packetizer.FullHistogramPacketizer` from the readout).
+    (:class:`~fliss.hdl.packets.histogram.HistogramPacketizer` feeds it from its buffers,
+    :class:`~fliss.hdl.packets.histogram_full.FullHistogramPacketizer` from the readout).
 
     Cycles: ``start`` is taken while idle (``busy`` low) and the header beat is offered the next
     cycle; a header byte goes in every cycle ``packets`` is ready; an item is waited for

@@ -23,7 +23,7 @@ def token_length(value):
 
 
 #: The compact encoder's controls, seen from the block that drives it (the window scanner of
-#: :class:`~fliss.hdl.histogram.packetizer.HistogramPacketizer`). A job is taken while the
+#: :class:`~fliss.hdl.packets.histogram.HistogramPacketizer`). A job is taken while the
 #: encoder is idle: ``append`` encodes the window into the chunk in progress (a new one if none
 #: is open), ``close`` sends the chunk in progress first; ``close`` alone sends it and ends.
 #: ``done`` is high in the job's last cycle (the window is encoded and, if it ends the frame,
@@ -40,7 +40,7 @@ CompactControl = wiring.Signature({
 
 
 class CompactEncoder(wiring.Component):
-    """The compact chunks of :class:`~fliss.hdl.histogram.packetizer.HistogramPacketizer`: a
+    """The compact chunks of :class:`~fliss.hdl.packets.histogram.HistogramPacketizer`: a
     window's counts, read from the window buffer, become tokens appended to the chunk in
     progress in the token buffer; a chunk closed is sent by the chunk emitter
     (:class:`~fliss.hdl.histogram.chunk.ChunkEmitter`), from ``header`` and the token buffer.

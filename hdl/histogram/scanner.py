@@ -19,7 +19,7 @@ _WINDOW_TOKENS = 6 * CHUNK_BINS
 
 
 class WindowScanner(wiring.Component):
-    """The window scanner of :class:`~fliss.hdl.histogram.packetizer.HistogramPacketizer`:
+    """The window scanner of :class:`~fliss.hdl.packets.histogram.HistogramPacketizer`:
     takes each window of ``min(CHUNK_BINS, bins)`` bins of a frame into the window buffer
     while the lengths of its compact tokens are counted (SCAN: one bin per cycle the readout
     offers), weighs the window's compact tokens against its full chunk (the rule of
@@ -39,7 +39,7 @@ class WindowScanner(wiring.Component):
     Members
     -------
     readout, shift, pixel_bits, first_pixel, full_readout : In
-        As in :func:`~fliss.hdl.histogram.packetizer.histogram_packetizer_members`.
+        As in :func:`~fliss.hdl.packets.histogram.histogram_packetizer_members`.
     buffer : Out(wiring.Signature({"addr": ..., "data": Out(COUNT_WIDTH), "en": Out(1)}))
         Write port of the window buffer (``CHUNK_BINS`` counts).
     window : Out(HistogramChunk)

@@ -1,5 +1,5 @@
 """The link: a UART carrying framed, checked packets (``docs/protocol.md``) to and from the
-command processor and the data packetizers.
+command processor and the data packetizers (:mod:`fliss.hdl.packets`).
 
 * :mod:`.uart`: UART transmitter and receiver;
 * :mod:`.crc`: the CRC-16, appended and checked as stream stages;
@@ -7,7 +7,6 @@ command processor and the data packetizers.
 * :mod:`.framing`: frame encoder and decoder, packets to and from the stages above;
 * :mod:`.buffer`: a stream buffer in block RAM;
 * :mod:`.command`: the command processor (register file access, status, NAKs);
-* :mod:`.packetizer`: EVENTS packets and full histogram chunks;
 * :mod:`.arbiter`: merges packet streams onto the link;
 * :mod:`.link`: :class:`~.link.Link`, the UART, the frames, the command processor and the
   arbiter as one block.

@@ -9,6 +9,7 @@ from ...analysis.peaks import FALSE_ALARM
 from ..analysis import KEEPS, PileupError, analyze
 from ..errors import UserError
 from ..imager.analysis import capture_table
+from ..kinds import article, names, of_capture
 from ..roles import COHERENT, SPREAD, check_references, relation, settings_text
 from ..imager.report import table_lines, table_record
 from ..units import parse_time
@@ -86,7 +87,7 @@ def run_analyze(args):
         _check_options_apply(args, path, capture, victim, aggressors)
     pileups = {path: _pileup_of(args, path, capture) for path, capture in captures}
     for path, capture in captures:
-        if capture.mode in ("image", "depth"):
+        if of_capture(capture).imager:
             rows = capture_table(capture)
             if args.json:
                 records.append(table_record(capture, rows))
@@ -108,7 +109,7 @@ def run_analyze(args):
         result = _print_analysis(histogram, capture, victim, aggressors, tolerance,
                                  pileup=pileup)
         found.append((path, capture, result))
-        if args.per_acquisition and capture.mode == "histogram":
+        if args.per_acquisition and of_capture(capture).framed:
             for index, row in enumerate(capture.histograms):
                 print(f"  acquisition {index} (frame {capture.frames[index]}"
                       f"{'' if capture.complete[index] else ', incomplete'}):")
@@ -130,16 +131,18 @@ def _check_options_apply(args, path, capture, victim, aggressors):
                                       ("--aggressor-tof", bool(aggressors)),
                                       ("--per-acquisition", args.per_acquisition),
                                       ("--pileup", args.pileup is not None)) if value]
-    if capture.mode in ("image", "depth"):
+    kind = of_capture(capture)
+    if kind.imager:
         if given:
-            article = "an" if capture.mode == "image" else "a"
-            raise UserError(f"{given[0]} applies to histogram and raw captures; {path} is "
-                            f"{article} {capture.mode} capture, analysed pixel by pixel "
-                            f"without it")
+            raise UserError(f"{given[0]} applies to {names(lambda kind: not kind.imager)} "
+                            f"captures; {path} is {article(capture.mode)} capture, analysed "
+                            f"pixel by pixel without it")
         return
-    if args.per_acquisition and capture.mode != "histogram":
-        raise UserError(f"--per-acquisition applies to histogram captures; {path} is a "
-                        f"{capture.mode} capture, one stream of events with no acquisitions")
+    if args.per_acquisition and not kind.framed:
+        raise UserError(f"--per-acquisition applies to "
+                        f"{names(lambda kind: kind.framed and not kind.imager)} captures; "
+                        f"{path} is a {capture.mode} capture, one stream of events with no "
+                        f"acquisitions")
     span_s = len(capture.total_histogram()) * capture.bin_s
     if args.tolerance is not None and "tolerance" in getattr(args, "given", ()) and \
             parse_times([args.tolerance], "--tolerance")[0] * 2 >= span_s:
@@ -184,7 +187,7 @@ def victim_hints(found, tolerance_s=1.5e-9):
 
 
 def _print_header(path, capture, histogram):
-    complete = int(capture.complete.sum()) if capture.mode == "histogram" else None
+    complete = int(capture.complete.sum()) if of_capture(capture).framed else None
     settings = settings_text(capture.configuration)
     print(f"{path}: {capture.mode} capture, "
           + (f"{complete} complete histograms of {len(capture.histograms)}"
@@ -298,7 +301,7 @@ def _histogram_record(capture, victim, aggressors, tolerance, per_acquisition=Fa
               "settings": settings_text(capture.configuration) or None,
               "false_alarm": FALSE_ALARM,
               **_analysis_record(histogram, capture, victim, aggressors, tolerance, pileup)}
-    if per_acquisition and capture.mode == "histogram":
+    if per_acquisition and of_capture(capture).framed:
         record["acquisitions"] = [
             {"index": index, "frame": int(capture.frames[index]),
              "complete": bool(capture.complete[index]),

@@ -10,9 +10,11 @@ import signal
 import sys
 
 from ..acquisition import left_running
+from ...hdl.registers import BY_NAME, AcquisitionMode
 from ..errors import BoardReset, FormatError, UserError
 from ..formats import check_name
 from ..imager.threshold import nothing_detected
+from ..kinds import KINDS, kind_of, mode_of
 from ..paths import check_output_path
 from .common import Progress
 from .port_options import add_port_arguments, connect
@@ -95,11 +97,11 @@ def run(args):
             setup_options(args, 1 << registers["pixel_bits"])
         board.configure(settings, style="flag")
         readout = board.settings["readout"]
-        image = True if settings.get("readout") == "image" else None
-        if readout in ("histogram", "depth"):
-            unit = "depth frames" if readout == "depth" else \
-                "images" if image or board.settings["pixels"] > 1 else "histograms"
-            bar = Progress(args.acquisitions, unit, enabled=not quiet)
+        # (a kind that is the per-pixel form of another is asked for by its name)
+        image = True if settings.get("readout") in _PER_PIXEL else None
+        kind = kind_of(mode_of(readout, int(board.settings["pixels"] > 1), image))
+        if kind.framed:
+            bar = Progress(args.acquisitions, kind.rows, enabled=not quiet)
         else:
             bar = Progress(round(duration_s(args.duration, ""), 1), "s", enabled=not quiet)
         with viewing(board, args) as feed:
@@ -112,8 +114,16 @@ def run(args):
         return 128 + result.signal if result.signal else 1
 
 
-#: The readouts that capture frames (--acquisitions of them); raw captures for --duration.
-_FRAMED = ("histogram", "image", "depth")
+#: The readouts that capture frames (--acquisitions of them), and those that capture for
+#: --duration (raw).
+_FRAMED = [name for name, kind in KINDS.items() if kind.framed]
+_TIMED = [name for name, kind in KINDS.items() if not kind.framed]
+
+#: The board's readout at reset.
+_RESET = AcquisitionMode(BY_NAME["acquisition"].reset).name.lower()
+
+#: The readouts that are the per-pixel form of another (image).
+_PER_PIXEL = {kind.per_pixel for kind in KINDS.values() if kind.per_pixel}
 
 
 def check_applies(given, requested, board_readout):
@@ -125,15 +135,17 @@ def check_applies(given, requested, board_readout):
         source = f"--readout {requested} is given here"
     else:
         source = (f"the board's readout is {board_readout} (" + (
-            "its reset value, or as an earlier command left it)" if board_readout == "histogram"
+            "its reset value, or as an earlier command left it)" if board_readout == _RESET
             else "set by an earlier `fliss config` or capture)"))
-    if readout == "raw" and "acquisitions" in given:
-        raise UserError(f"--acquisitions applies to the histogram, image and depth readouts, "
-                        f"not raw, and {source}: give --readout histogram (or image, depth), "
-                        f"or --duration TIME for raw events")
+    if readout in _TIMED and "acquisitions" in given:
+        framed = f"{', '.join(_FRAMED[:-1])} and {_FRAMED[-1]}"
+        raise UserError(f"--acquisitions applies to the {framed} readouts, not {readout}, and "
+                        f"{source}: give --readout {_FRAMED[0]} (or {', '.join(_FRAMED[1:])}), "
+                        f"or --duration TIME for {KINDS[readout].what}")
     if readout in _FRAMED and "duration" in given:
-        raise UserError(f"--duration applies to the raw readout only, and {source}: give "
-                        f"--acquisitions N for {readout} frames, or --readout raw")
+        raise UserError(f"--duration applies to the {' and '.join(_TIMED)} readout only, and "
+                        f"{source}: give --acquisitions N for {readout} frames, or --readout "
+                        f"{_TIMED[0]}")
 
 
 def report(result, *, quiet=False, out=None):
@@ -157,7 +169,7 @@ def report(result, *, quiet=False, out=None):
             print(f"board: {status_end['events'] - status_start['events']} events accepted, "
                   f"{board_dropped} dropped on the board, "
                   f"{status_end['frames'] - status_start['frames']} "
-                  f"{'histograms' if result.mode != 'depth' else 'frames'}", file=out)
+                  f"{'histograms' if KINDS[result.mode].counted else 'frames'}", file=out)
         deliberate = result.board_deliberate
         if any(deliberate.values()):
             print(f"board: {deliberate.get('dropped_collision', 0)} events flagged as "
@@ -169,13 +181,14 @@ def report(result, *, quiet=False, out=None):
               file=sys.stderr)
     if board_dropped:
         advice = ("the link is too slow for this event rate; use a higher baud rate or "
-                  "histogram mode") if result.mode == "raw" else \
+                  "histogram mode") if not KINDS[result.mode].framed else \
             ("events arrived while no histogram was filling, as the previous one was still "
              "being sent; use a longer integration time, a larger bin shift or a higher baud "
              "rate")
         print(f"fliss: warning: {board_dropped} events dropped on the board (counted in the "
               f"file): {advice}", file=sys.stderr)
-    if result.mode == "depth" and result.threshold is not None and not result.detections:
+    # (a threshold is known of captures of depth frames only)
+    if result.threshold is not None and not result.detections:
         arrived = result.histograms - result.lost_histograms
         print(f"fliss: warning: "
               f"{nothing_detected(arrived, result.highest, result.threshold)}", file=sys.stderr)

@@ -9,6 +9,7 @@ import numpy as np
 from ..analysis import analyze
 from ..errors import UserError
 from ..imager.report import image_format, plot_imager
+from ..kinds import article, names, of_capture
 from ..paths import check_output_path
 from ..plotting import legend_below, literal, mark_peaks
 from ..roles import check_references, settings_text
@@ -80,18 +81,18 @@ def run_plot(args):
         raise UserError(f"--output: cannot write a .{suffix} image; use one of "
                         f"{', '.join('.' + name for name in sorted(formats))}")
     captures = [(path, read_capture_file(path)) for path in args.files]
-    imager = [path for path, capture in captures if capture.mode in ("image", "depth")]
+    imager = [path for path, capture in captures if of_capture(capture).imager]
     if imager and len(captures) > 1:
         mode = captures[args.files.index(imager[0])][1].mode
-        raise UserError(f"{imager[0]} is {'an image' if mode == 'image' else 'a depth'} "
-                        f"capture: plot one image or depth capture at a time")
+        raise UserError(f"{imager[0]} is {article(mode)} capture: plot one "
+                        f"{names(lambda kind: kind.imager, 'or')} capture at a time")
     if imager:
         plot_imager(captures[0][1], args.output, frames=args.frames, shape=args.shape,
                     title=args.title, quiet=getattr(args, "quiet", 0) > 0)
         return 0
     if args.frames != "summary" or args.shape:
-        raise UserError("--frames and --shape are for image and depth captures (--readout "
-                        "image or depth)")
+        raise UserError(f"--frames and --shape are for {names(lambda kind: kind.imager)} "
+                        f"captures (--readout {names(lambda kind: kind.imager, 'or')})")
     window = _time_range(args.range) if args.range else None
     victim = parse_times([args.victim_tof], "--victim-tof")[0] if args.victim_tof else None
     aggressors = parse_times(args.aggressor_tof, "--aggressor-tof")

@@ -7,12 +7,19 @@ file (:mod:`.tttr_foreign`) or a Photon-HDF5 file as a capture, so that ``fliss 
 ``fliss plot``, ``fliss view`` and ``fliss export`` take any of them. What maps to
 what, and what is lost: docs/file-format.md. Everything refused is a :exc:`FormatError` (a
 ``ValueError``) of one line.
+
+Which kinds of data an export format takes is the kind's (:attr:`fliss.host.kinds.DataKind.
+exports`, and its :attr:`~fliss.host.kinds.DataKind.refusal` when none does): a new export
+format is a row of :data:`FORMATS` and its name in the kinds that it takes. A new reader of
+another program's files is a module here and a test of its files' mark in :func:`read_file`;
+it returns a capture of one of the kinds (``mode``), as :mod:`.metadata` makes them.
 """
 
 import os
 
 from ..errors import FormatError
 from ..fileformat import read_capture
+from ..kinds import KINDS, article
 from .photon_hdf5 import is_photon_hdf5, read_photon_hdf5, write_photon_hdf5
 from .ptu import read_ptu, write_ptu
 from .ptu_header import read_header
@@ -22,10 +29,12 @@ from .tttr_foreign import foreign_kind, read_foreign
 __all__ = ["FORMATS", "ENDINGS", "FormatError", "check_name", "export_capture", "read_file"]
 
 
-#: Export formats by name: (description, writer, what it takes).
+#: Export formats by name: (description, writer). Which kinds of data each takes is the kind's
+#: (:attr:`fliss.host.kinds.DataKind.exports`): a new format is a row here and its name in the
+#: kinds it takes.
 FORMATS = {
-    "ptu": ("PTU (PicoQuant)", write_ptu, ("raw", "histogram", "image")),
-    "photon-hdf5": ("Photon-HDF5", write_photon_hdf5, ("raw",)),
+    "ptu": ("PTU (PicoQuant)", write_ptu),
+    "photon-hdf5": ("Photon-HDF5", write_photon_hdf5),
 }
 
 #: What a file of each format (and a FLISS capture, ``"fliss"``) is called, and the endings of
@@ -62,14 +71,12 @@ def export_capture(capture, path, to):
     ``path`` as it was."""
     if to not in FORMATS:
         raise FormatError(f"no export format {to!r}; the formats are {', '.join(FORMATS)}")
-    if capture.mode == "depth":
-        raise FormatError(f"{capture.path}: a depth capture cannot be exported: PTU and "
-                          f"Photon-HDF5 hold photons and TCSPC histograms, not depth frames; "
-                          f"the FLISS capture file (HDF5) is the format that holds them")
-    name, write, modes = FORMATS[to]
-    if capture.mode not in modes:
-        article = "an" if capture.mode[0] in "aeiou" else "a"
-        raise FormatError(f"{capture.path}: {article} {capture.mode} capture cannot go to {name}, "
+    kind = KINDS.get(capture.mode)
+    if kind is not None and kind.refusal:
+        raise FormatError(f"{capture.path}: {kind.refusal}")
+    name, write = FORMATS[to]
+    if kind is None or to not in kind.exports:
+        raise FormatError(f"{capture.path}: {article(capture.mode)} capture cannot go to {name}, "
                           f"which holds photons one by one, not histograms: export it to PTU "
                           f"(--to ptu)")
     folder, base = os.path.split(os.path.abspath(path))

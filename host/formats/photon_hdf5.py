@@ -21,6 +21,7 @@ from ... import __version__
 from ...hdl.event import ADDRESS_BITS, TIMESTAMP_BITS
 from ...protocol.events import EVENT_DTYPE
 from ..errors import FormatError
+from ..kinds import for_mode
 from .metadata import cycle_chunks, imported, metadata, restored, settings, timing
 
 
@@ -159,7 +160,9 @@ def read_photon_hdf5(path):
 
 def _read(f, path):
     fliss = f.get("user/fliss")
-    if isinstance(fliss, h5py.Group) and _value(fliss, "mode") == "raw" and \
+    # (FLISS captures of events, the kind that Photon-HDF5 takes, carry a fliss group with
+    # their configuration; an export of another instrument's recording has none)
+    if isinstance(fliss, h5py.Group) and not for_mode(_value(fliss, "mode")).framed and \
             "configuration" in fliss:
         texts = {name: _value(fliss, name) for name in ("configuration", "identity", "capture")}
         data = f["photon_data"]

@@ -24,6 +24,7 @@ from ... import __version__
 from ...hdl.event import TIMESTAMP_BITS
 from ...protocol.events import EVENT_DTYPE
 from ..errors import FormatError
+from ..kinds import KINDS, names
 from .metadata import created, cycle_chunks, imported, metadata, restored, settings, timing
 from .ptu_header import read_header
 from .ptu_records import GENERIC_T3, header, number_records_at, t3_records
@@ -62,13 +63,15 @@ def _comment(capture):
 
 
 def write_ptu(capture, path):
-    """Write ``capture`` (raw, histogram or image) to the PTU file ``path``; returns the
-    number of records."""
-    if capture.mode == "raw":
+    """Write ``capture`` (of a kind of data that PTU takes: raw, histogram or image) to the PTU
+    file ``path``: its events as T3 records, or its frames as an image of T3 records; returns
+    the number of records."""
+    kind = KINDS.get(capture.mode)
+    if kind is None or "ptu" not in kind.exports:
+        raise FormatError(f"{capture.path}: a {capture.mode} capture has no PTU form")
+    if not kind.framed:
         return _write_events(capture, path)
-    if capture.mode in ("histogram", "image"):
-        return _write_histograms(capture, path)
-    raise FormatError(f"{capture.path}: a {capture.mode} capture has no PTU form")
+    return _write_histograms(capture, path)
 
 
 def _write_events(capture, path):
@@ -115,7 +118,7 @@ def _write_histograms(capture, path):
     counts = capture.histograms
     if not len(counts):
         raise FormatError(f"{capture.path}: the capture holds no histograms to export")
-    if capture.mode == "histogram":
+    if counts.ndim == 2:        # (one pixel: a histogram per frame)
         counts = counts[:, np.newaxis, :]
     if capture.bin_s > period_s:
         raise FormatError(f"{capture.path}: its bins ({capture.bin_s * 1e9:g} ns) are wider "
@@ -125,7 +128,7 @@ def _write_histograms(capture, path):
     tags.update(CreatorSW_Name="fliss", CreatorSW_Version=__version__,
                 FLISS_first_frame=int(capture.frames[0]),
                 FLISS_incomplete_rows=json.dumps(np.flatnonzero(~capture.complete).tolist()))
-    if capture.mode == "image":
+    if capture.histograms.ndim == 3:        # (per-pixel histograms)
         tags["FLISS_first_pixel"] = int(capture.pixels[0])
     # (frames, Y, X, channels, bins): a line of pixels, one channel.
     data = np.ascontiguousarray(counts[:, np.newaxis, :, np.newaxis, :])
@@ -216,7 +219,11 @@ def _restore(ptu, path):
     texts = {name: tags.get(f"FLISS_{name}") for name in ("configuration", "identity",
                                                            "capture")}
     mode = tags.get("FLISS_mode")
-    if mode == "raw":
+    kind = KINDS.get(mode)
+    if kind is None or "ptu" not in kind.exports:
+        raise FormatError(f"{path}: its FLISS_mode tag is {mode!r}, not "
+                          f"{names(lambda kind: 'ptu' in kind.exports, 'or')}")
+    if not kind.framed:
         records = ptu.decode_records()
         photons = records[records["channel"] >= 0]
         events = np.zeros(len(photons), dtype=EVENT_DTYPE)
@@ -224,14 +231,11 @@ def _restore(ptu, path):
         events["timestamp"] = photons["dtime"]
         events["address"] = photons["channel"]
         return restored(path, texts, events=events)
-    if mode not in ("histogram", "image"):
-        raise FormatError(f"{path}: its FLISS_mode tag is {mode!r}, not raw, histogram or "
-                          f"image")
     registers = json.loads(texts["configuration"] or "{}")
     bins = (1 << TIMESTAMP_BITS) >> int(registers.get("bin_shift", 0))
     counts = ptu.decode_image(dtype=np.uint32, dtime=bins)[:, 0, :, 0, :]
     pixels = None
-    if mode == "histogram":
+    if not kind.imager:         # (one pixel)
         counts = counts[:, 0, :]
     else:
         pixels = int(tags.get("FLISS_first_pixel", 0)) + np.arange(counts.shape[1])

@@ -13,6 +13,7 @@ from typing import List, Optional
 import numpy as np
 
 from ...analysis.peaks import FALSE_ALARM, background, find_peaks
+from ..kinds import names, of_capture
 from .results import C_M_S
 
 
@@ -130,11 +131,11 @@ def depth_table(depth: dict, pixels, complete=None) -> List[PixelResult]:
 def capture_table(capture, *, false_alarm: float = FALSE_ALARM) -> List[PixelResult]:
     """The per-pixel table of an image or depth :class:`~fliss.host.fileformat.Capture`
     (complete frames only). Raises :exc:`ValueError` for another mode."""
-    if capture.mode == "depth":
-        return depth_table(capture.depth, capture.pixels, capture.complete)
-    if capture.mode != "image":
+    if not of_capture(capture).imager:
         raise ValueError(f"{capture.path}: a {capture.mode} capture has no pixels; "
-                         f"per-pixel tables need --readout image or depth")
+                         f"per-pixel tables need --readout {names(lambda kind: kind.imager, 'or')}")
+    if capture.depth is not None:
+        return depth_table(capture.depth, capture.pixels, capture.complete)
     rows = capture.histograms[capture.complete]
     total = rows.sum(axis=0, dtype=np.int64) if len(rows) else \
         np.zeros(capture.histograms.shape[1:], dtype=np.int64)

@@ -1,7 +1,7 @@
-"""The imager's parts of a capture file (``docs/file-format.md``): ``/image`` (per-pixel
-histograms, ``counts`` by frame, pixel and bin) and ``/depth`` (depth frames, by frame and
-pixel), written by :class:`fliss.host.fileformat.CaptureWriter` and read by
-:func:`fliss.host.fileformat.read_capture`.
+"""What the imager's groups of a capture file share (``docs/file-format.md``): ``/image``
+(per-pixel histograms, :mod:`fliss.host.kinds.image`) and ``/depth`` (depth frames,
+:mod:`fliss.host.kinds.depth`), by frame and pixel: the rows of the frames, the pixel axis, how
+a dataset names its axes, and how a group is read back.
 
 Every dataset names its axes twice: HDF5 dimension scales (``pixel``: the sensor addresses,
 ``bin_time_s``: the time of each bin's centre, ``frame``: the board's frame numbers), which
@@ -11,36 +11,25 @@ readers that do not know dimension scales.
 
 import numpy as np
 
-from ...hdl.event import TIMESTAMP_BITS
-from .results import depth_m, tof_s
-from ..stream import DepthFrame, HistogramFrame
 
 
-__all__ = ["IMAGE_MODES", "ROW_DATASETS", "DEPTH_DATASETS", "create_image", "create_depth",
-           "append_image", "append_depth", "blank_frame", "read_imager"]
-
-#: Capture modes that write the imager's groups.
-IMAGE_MODES = ("image", "depth")
+__all__ = ["ROW_DATASETS", "split_of", "rows_and_axes", "attach", "append_rows", "read_imager"]
 
 #: Datasets of one row per frame (``complete`` False where never written).
 ROW_DATASETS = (("frame", np.uint32), ("shift", np.uint8), ("time_s", np.float64),
                 ("complete", np.bool_), ("missing_bins", np.uint32))
 
-#: Datasets of ``/depth`` by frame and pixel, with their types and units.
-DEPTH_DATASETS = (("position", np.float32, "bins"), ("depth_m", np.float64, "m"),
-                  ("height", np.float32, "counts"), ("background", np.float32, "counts"),
-                  ("detected", np.bool_, ""))
-
-
-def _split(configuration):
+def split_of(configuration):
+    """``(pixels, first pixel, bin shift)`` of a frame at the registers ``configuration``."""
     pixels = 1 << int(configuration.get("pixel_bits", 0))
     first = int(configuration.get("first_pixel", 0))
     shift = int(configuration.get("bin_shift", 0))
     return pixels, first, shift
 
 
-def _rows_and_axes(group, pixels, first):
-    # The per-frame rows and the pixel axis; returns the frame and pixel scales.
+def rows_and_axes(group, pixels, first):
+    """The per-frame rows and the pixel axis of a new group; returns the frame and pixel
+    scales."""
     for name, dtype in ROW_DATASETS:
         group.create_dataset(name, shape=(0,), maxshape=(None,), dtype=dtype, chunks=(1024,))
     group["frame"].make_scale("frame")
@@ -50,7 +39,9 @@ def _rows_and_axes(group, pixels, first):
     return group["frame"], pixel
 
 
-def _attach(dataset, scales, labels):
+def attach(dataset, scales, labels):
+    """Name the axes of ``dataset`` ``labels``, with the dimension scales ``scales`` (None:
+    none)."""
     for index, (scale, label) in enumerate(zip(scales, labels)):
         dataset.dims[index].label = label
         if scale is not None:
@@ -58,43 +49,9 @@ def _attach(dataset, scales, labels):
     dataset.attrs["axes"] = ",".join(labels)
 
 
-def create_image(file, configuration, code_s):
-    """Make ``/image``: ``counts`` (frame, pixel, bin) and its axes. Returns the bins per
-    pixel."""
-    pixels, first, shift = _split(configuration)
-    bins = (1 << TIMESTAMP_BITS) >> shift
-    group = file.create_group("image")
-    frame, pixel = _rows_and_axes(group, pixels, first)
-    times = group.create_dataset("bin_time_s",
-                                 data=(np.arange(bins) + 0.5) * code_s * (1 << shift))
-    times.attrs["unit"] = "s"
-    times.make_scale("bin_time_s")
-    group.attrs["bin_s"] = code_s * (1 << shift)
-    counts = group.create_dataset("counts", shape=(0, pixels, bins),
-                                  maxshape=(None, pixels, bins), dtype=np.uint32,
-                                  chunks=(1, pixels, bins), compression="gzip",
-                                  compression_opts=1)
-    _attach(counts, (frame, pixel, times), ("frame", "pixel", "bin"))
-    return pixels * bins
-
-
-def create_depth(file, configuration, code_s):
-    """Make ``/depth``: ``position``, ``depth_m``, ``height``, ``background``, ``detected``
-    (frame, pixel) and their axes. Returns the pixels of a frame."""
-    pixels, first, shift = _split(configuration)
-    group = file.create_group("depth")
-    frame, pixel = _rows_and_axes(group, pixels, first)
-    group.attrs["bin_s"] = code_s * (1 << shift)
-    group.attrs["code_s"] = code_s
-    for name, dtype, unit in DEPTH_DATASETS:
-        dataset = group.create_dataset(name, shape=(0, pixels), maxshape=(None, pixels),
-                                       dtype=dtype, chunks=(max(1, 4096 // pixels), pixels))
-        dataset.attrs["unit"] = unit
-        _attach(dataset, (frame, pixel), ("frame", "pixel"))
-    return pixels
-
-
-def _append_rows(group, index, item, complete, missing):
+def append_rows(group, index, item, complete, missing):
+    """Row ``index`` of the frames' rows of ``group``: ``item``'s frame number, shift and
+    time, ``missing`` bins, and ``complete`` last (False marks a row not on the disk)."""
     for name, _ in ROW_DATASETS:
         group[name].resize(index + 1, axis=0)
     group["frame"][index] = item.frame
@@ -104,52 +61,11 @@ def _append_rows(group, index, item, complete, missing):
     group["complete"][index] = complete        # last: False marks a row not on the disk
 
 
-def append_image(file, index, frame: HistogramFrame, pixels, bins):
-    """Write :class:`~fliss.host.stream.HistogramFrame` ``frame`` as row ``index`` of
-    ``/image``; False (nothing written) when its split is not the capture's."""
-    group = file["image"]
-    if len(frame.counts) != pixels * bins or (1 << frame.pixel_bits) != pixels or \
-            frame.first_pixel != int(group["pixel"][0]):
-        return False
-    group["counts"].resize(index + 1, axis=0)
-    group["counts"][index] = frame.image
-    _append_rows(group, index, frame, frame.complete, frame.missing_bins)
-    return True
-
-
-def append_depth(file, index, frame: DepthFrame, pixels, complete=True):
-    """Write :class:`~fliss.host.stream.DepthFrame` ``frame`` as row ``index`` of ``/depth``
-    (``depth_m`` from its position); False when its pixels are not the capture's."""
-    group = file["depth"]
-    if len(frame.position) != pixels or frame.first_pixel != int(group["pixel"][0]):
-        return False
-    detected = np.asarray(frame.detected, dtype=bool)
-    position = np.where(detected, np.asarray(frame.position, dtype=float), np.nan)
-    values = {"position": position, "height": frame.height, "background": frame.background,
-              "detected": detected,
-              "depth_m": depth_m(tof_s(position, group.attrs["code_s"] * (1 << frame.shift)))}
-    for name, _, _ in DEPTH_DATASETS:
-        group[name].resize(index + 1, axis=0)
-        group[name][index] = values[name]
-    _append_rows(group, index, frame, complete, 0)
-    return True
-
-
-def blank_frame(mode, number, configuration, time_s=float("nan")):
-    """The row of a frame that never arrived: zeros (image) or nothing detected (depth)."""
-    pixels, first, shift = _split(configuration)
-    if mode == "depth":
-        nan = np.full(pixels, np.nan)
-        return DepthFrame(number, first, shift, nan, nan, nan, np.zeros(pixels, bool), time_s)
-    bins = (1 << TIMESTAMP_BITS) >> shift
-    return HistogramFrame(number, shift, np.zeros(pixels * bins, np.uint32), False,
-                          pixels * bins, time_s, pixels.bit_length() - 1, first)
-
-
-def read_imager(group, mode, rows_of, problems):
-    """The arrays of ``/image`` or ``/depth`` (``group``) by name, cut to the rows that every
-    dataset holds; ``rows_of(dataset, problems)`` reads a dataset's readable rows."""
-    names = ["counts"] if mode == "image" else [name for name, _, _ in DEPTH_DATASETS]
+def read_imager(group, names, rows_of, problems):
+    """The arrays of ``/image`` or ``/depth`` (``group``) by name: its datasets ``names`` and
+    the rows', cut to the rows that every dataset holds, the pixel addresses, ``bin_time_s``
+    where the group has it and ``bin_s``; ``rows_of(dataset, problems)`` reads a dataset's
+    readable rows."""
     columns = {name: rows_of(group[name], problems) for name in names}
     for name, _ in ROW_DATASETS:
         if name in group:
@@ -161,7 +77,7 @@ def read_imager(group, mode, rows_of, problems):
         problems.append(f"frames after the first {rows} are incomplete on disk and left out")
     columns = {name: column[:rows] for name, column in columns.items()}
     columns["pixel"] = group["pixel"][()].astype(np.int64)
-    if mode == "image":
+    if "bin_time_s" in group:
         columns["bin_time_s"] = group["bin_time_s"][()]
     columns["bin_s"] = float(group.attrs["bin_s"])
     return columns

@@ -20,7 +20,7 @@ __all__ = ["table_lines", "table_record", "parse_shape", "plot_imager", "image_f
 
 def table_lines(capture, rows):
     """The per-pixel table of ``capture`` as lines of text."""
-    depth = capture.mode == "depth"
+    depth = capture.depth is not None       # (depth frames; else per-pixel histograms)
     pixels = (f"{len(capture.pixels)} pixels ({capture.pixels[0]} to {capture.pixels[-1]})"
               if len(capture.pixels) > 1 else f"pixel {capture.pixels[0]}")
     lines = [f"{capture.path}: {capture.mode} capture, {pixels}, "
@@ -73,7 +73,7 @@ def parse_shape(text, pixels):
 def _depths(capture):
     # Depth per frame (n, P) of the complete frames, and the summary (P,) from the table.
     keep = capture.complete
-    if capture.mode == "depth":
+    if capture.depth is not None:
         per_frame = np.asarray(capture.depth["depth_m"])[keep]
         intensity = np.asarray(capture.depth["height"])[keep]
     else:
@@ -114,7 +114,7 @@ def plot_imager(capture, output, *, frames="summary", shape=None, title=None, qu
         figure, axes = plt.subplots(1, 2, figsize=(11, 4.2))
         figure.suptitle(f"{label}{settings}")
         _depth_panel(axes[0], capture.pixels, summary, shape, f"{label}: depth")
-        if capture.mode == "image":
+        if capture.depth is None:       # (per-pixel histograms)
             _histogram_panel(figure, axes[1], capture)
         else:
             _intensity_panel(figure, axes[1], capture.pixels, intensity)

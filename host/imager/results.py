@@ -23,6 +23,7 @@ from ..errors import SettingsError
 from ..results import FrameCounts
 from ..settings import Settings
 from ..stream import DepthFrame, HistogramFrame
+from .distance import C_M_S, depth_m, tof_s
 from .threshold import nothing_detected
 
 
@@ -30,22 +31,6 @@ __all__ = ["C_M_S", "tof_s", "depth_m", "Images", "DepthFrames", "images_from_fr
            "depth_from_frames", "acquire_image", "acquire_depth"]
 
 _logger = logging.getLogger(__name__)
-
-#: Speed of light, m/s.
-C_M_S = 299_792_458.0
-
-
-def tof_s(position_bins, bin_s: float) -> np.ndarray:
-    """Time of flight in seconds of a peak at ``position_bins`` (bins, fractional, from the
-    start of bin 0, as DEPTH packets give it: bin ``j`` spans ``j … j + 1``; NaN stays NaN)
-    with bins of ``bin_s`` seconds."""
-    return np.asarray(position_bins, dtype=float) * bin_s
-
-
-def depth_m(time_of_flight_s) -> np.ndarray:
-    """Distance in metres of a target whose echo takes ``time_of_flight_s`` (there and back)."""
-    return np.asarray(time_of_flight_s, dtype=float) * C_M_S / 2
-
 
 @dataclass(frozen=True)
 class Images(FrameCounts):

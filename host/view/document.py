@@ -67,13 +67,14 @@ def build_document(doc, feed: Feed, period_s: float, notify=None) -> "PageFlow":
                  sizing_mode="stretch_width", height=66)
     parts = [title, status, flow.sent, flow.taken]
 
-    histogram = setup.readout in ("histogram", "image", "raw")
-    imager = setup.readout in ("image", "depth")
+    # Data that count photons are drawn as a histogram; data of pixels as a profile or image.
+    kind = setup.kind
+    histogram, imager = kind.counted, kind.imager
     show = RadioButtonGroup(labels=["latest frame", "sum of frames"], active=0, width=260)
     clear = Button(label="clear the sum", width=120)
-    if setup.readout == "raw":
+    if not kind.framed:
         show.labels, show.disabled = ["sum of events"], True
-    elif setup.readout == "depth":
+    elif not kind.counted:
         show.labels, show.disabled, clear.visible = ["latest frame"], True, False
 
     def choose(attr, old, new):
@@ -195,8 +196,7 @@ class PageFlow:
 
 def _title_html(feed):
     setup = feed.setup
-    what = {"histogram": "histograms", "image": "per-pixel histograms",
-            "depth": "depth frames", "raw": "raw events"}[setup.readout]
+    what = setup.kind.what
     source = "board on" if setup.live else "replay of"
     integration = format_time(setup.integration_s) if setup.integration_s else "?"
     return (f"<b>FLISS live view</b> &mdash; {source} {html.escape(setup.source)}: {what}, "
@@ -232,7 +232,7 @@ def _imager_figures(setup, profile, depth_image, intensity_image):
                     color_mapper=mapper)
         depth.add_layout(ColorBar(color_mapper=mapper, title="m", width=12), "right")
     figures.append(depth)
-    if setup.readout == "image":
+    if setup.kind.counted:       # (per-pixel histograms)
         intensity = figure(title="intensity: counts per bin and pixel", height=300,
                            sizing_mode="stretch_width", x_axis_label="time of flight (ns)",
                            y_axis_label="pixel address", tools="pan,box_zoom,reset,save")
@@ -304,24 +304,24 @@ def status_html(feed: Feed, status: Status, picture: Picture, skipped: int = 0) 
     setup = feed.setup
     if not picture.frames:
         shown = "nothing yet"
-    elif picture.summed or setup.readout == "raw":
+    elif picture.summed or not setup.kind.framed:
         shown = f"sum of <span class='n-summed'>{picture.frames}</span> " + \
-            ("event batches" if setup.readout == "raw" else "frames") + \
+            ("frames" if setup.kind.framed else "event batches") + \
             f", <span class='n-total'>{picture.total}</span> counts"
     else:
         shown = f"frame <span class='n-frame'>{picture.frame}</span>" + \
             ("" if picture.complete else " (incomplete)") + \
-            ("" if setup.readout == "depth" else
-             f", <span class='n-total'>{picture.total}</span> counts")
+            (f", <span class='n-total'>{picture.total}</span> counts" if setup.kind.counted
+             else "")
     if picture.pixels is not None:
         detected = int(np.isfinite(picture.depth_m).sum())
         shown += (f" &middot; <span class='n-detected'>{detected}</span> of "
                   f"{len(picture.pixels)} pixels detect a target")
-    rate_unit = "events/s" if setup.readout == "raw" else "counts/s of integration"
+    rate_unit = "counts/s of integration" if setup.kind.framed else "events/s"
     drops = "&ndash; " if status.drop_rate_hz is None else _si(status.drop_rate_hz)
-    counted = "" if setup.readout == "depth" else \
-        f"count rate {_si(status.count_rate_hz)}{rate_unit} &middot; "
-    received = "event batches" if setup.readout == "raw" else "frames"
+    counted = f"count rate {_si(status.count_rate_hz)}{rate_unit} &middot; " \
+        if setup.kind.counted else ""
+    received = "frames" if setup.kind.framed else "event batches"
     lines = [
         f"<b class='n-state'>{html.escape(status.state)}</b> &middot; showing {shown}",
         f"{received} received <span class='n-frames'>{status.frames}</span>, "

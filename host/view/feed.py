@@ -23,16 +23,21 @@ from ...hdl.registers import AcquisitionMode
 from ..analysis import analyze
 from ..imager.analysis import pixel_peak
 from ..imager.results import C_M_S, depth_m, tof_s
+from ..kinds import KINDS, mode_of
 from ..settings import code_s as code_seconds
-from ..stream import DepthFrame, EventBatch, HistogramFrame
+from ..stream import HistogramFrame
 
 
 __all__ = ["READOUTS", "Setup", "PeakRow", "Picture", "Status", "Feed"]
 
 _logger = logging.getLogger(__name__)
 
-#: Readouts the view shows: histograms, per-pixel histograms, depth frames, raw events.
-READOUTS = ("histogram", "image", "depth", "raw")
+#: Readouts the view shows: every kind of data (histograms, per-pixel histograms, depth frames,
+#: raw events).
+READOUTS = tuple(KINDS)
+
+#: The kind of data of each type of item (of kinds that share one, the first).
+_KIND_OF_ITEM = {kind.item: kind for kind in reversed(KINDS.values())}
 
 #: Board counters of events lost against the settings' wishes (not the gate's or the filters').
 BOARD_DROPS = ("dropped_fifo", "dropped_overrun", "dropped_histogram")
@@ -62,12 +67,15 @@ class Setup:
     live: bool = True
     configuration: Optional[dict] = field(default=None, compare=False)
 
+    @property
+    def kind(self):
+        """The kind of data shown (:class:`fliss.host.kinds.DataKind`)."""
+        return KINDS[self.readout]
+
     @classmethod
     def of_registers(cls, source, registers, clock_hz, **more):
         """The setup of a board whose registers (by name) are ``registers``."""
-        readout = AcquisitionMode(registers["acquisition"]).name.lower()
-        if readout == "histogram" and registers.get("pixel_bits", 0):
-            readout = "image"
+        readout = mode_of(AcquisitionMode(registers["acquisition"]), registers.get("pixel_bits", 0))
         return cls(source, readout, registers["integration"] / clock_hz,
                    code_seconds(registers, clock_hz), registers.get("bin_shift", 0),
                    bool(registers.get("aggressor", 0)), configuration=dict(registers), **more)
@@ -184,22 +192,19 @@ class Feed:
                             type(error).__name__, error)
 
     def _add(self, item):
-        if isinstance(item, HistogramFrame):
-            self._count_frame(item.frame, item.complete)
-            self._events += int(item.counts.sum())
-            self._accumulate(item.image)
-            self._latest = item
-        elif isinstance(item, DepthFrame):
-            self._count_frame(item.frame, True)
-            self._latest = item
-        elif isinstance(item, EventBatch):
-            bins = (1 << TIMESTAMP_BITS) >> self.setup.shift
-            stamps = item.events["timestamp"].astype(np.int64) >> self.setup.shift
-            self._accumulate(np.bincount(stamps, minlength=bins)[:bins][np.newaxis])
-            self._events += len(item.events)
+        kind = _KIND_OF_ITEM.get(type(item))
+        if kind is None:
+            return
+        seen = kind.seen(item, self.setup.shift)
+        if seen.frame is None:
             self._frames += 1
         else:
-            return
+            self._count_frame(seen.frame, seen.complete)
+        self._events += seen.photons
+        if seen.counts is not None:
+            self._accumulate(seen.counts)
+        if seen.latest:
+            self._latest = item
         if self._seq == 0:
             self._begun = time.monotonic()
             self._state = "acquiring" if self.setup.live else "replaying"
@@ -274,7 +279,7 @@ class Feed:
         then, frames_then, events_then = history[0]
         span = now - then
         frame_rate = (frames - frames_then) / span if span > 0 else 0.0
-        if self.setup.readout == "raw" or self.setup.integration_s <= 0:
+        if not self.setup.kind.framed or self.setup.integration_s <= 0:
             count_rate = (events - events_then) / span if span > 0 else 0.0
         else:
             done = frames - frames_then
@@ -306,18 +311,18 @@ class Feed:
         setup = self.setup
         latest = self._latest
         total, frames = self._sum
-        if setup.readout == "depth":
-            if not isinstance(latest, DepthFrame):
+        if not setup.kind.counted:
+            if not isinstance(latest, setup.kind.item):
                 return Picture(seq, summed)
             return self._depth_picture(seq, latest)
-        if summed or setup.readout == "raw":
+        if summed or not setup.kind.framed:
             if total is None:
                 return Picture(seq, summed)
             image, frames = total, frames
             frame = self._last_frame
             complete = True
         else:
-            if not isinstance(latest, HistogramFrame):
+            if not isinstance(latest, setup.kind.item):
                 return Picture(seq, summed)
             image, frames, frame, complete = latest.image, 1, latest.frame, latest.complete
             summed = False

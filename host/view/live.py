@@ -22,7 +22,7 @@ def watch(board: Board, feed: Feed, *, should_stop=lambda: False) -> str:
     :exc:`~fliss.host.errors.BoardReset`) when the board goes, after telling the feed."""
     client = board.client
     integration_s = feed.setup.integration_s
-    framed = feed.setup.readout != "raw"
+    framed = feed.setup.kind.framed
     client.stop()
     client.drain(quiet_s=0.1, limit_s=2.0)
     client.reset_counters()

@@ -8,7 +8,7 @@ import time
 
 import numpy as np
 
-from ..stream import DepthFrame, EventBatch, HistogramFrame
+from ..kinds import of_capture
 from .feed import BOARD_DROPS, Feed
 
 
@@ -19,31 +19,7 @@ def items_of(capture):
     """The items a board sent for ``capture`` (a :class:`~fliss.host.fileformat.Capture`),
     as the stream assembler makes them: histogram frames, depth frames, or the raw events cut
     into as many batches as the file records."""
-    mode = capture.mode
-    if mode == "raw":
-        batches = max(len(capture.batch_times_s), 1)
-        times = capture.batch_times_s if len(capture.batch_times_s) else [0.0]
-        for events, time_s in zip(np.array_split(capture.events, batches), times):
-            yield EventBatch(events, float(time_s))
-        return
-    pixels = capture.pixels
-    first = int(pixels[0]) if len(pixels) else 0
-    pixel_bits = int(len(pixels)).bit_length() - 1 if len(pixels) else 0
-    for index in range(len(capture.frames)):
-        frame, complete = int(capture.frames[index]), bool(capture.complete[index])
-        shift = int(capture.shifts[index]) if len(capture.shifts) else capture.shift
-        time_s = float(capture.times_s[index]) if len(capture.times_s) else 0.0
-        if mode == "depth":
-            depth = capture.depth
-            detected = np.asarray(depth["detected"][index], dtype=bool)
-            yield DepthFrame(frame, first, shift, np.asarray(depth["position"][index]),
-                             np.asarray(depth["height"][index]),
-                             np.asarray(depth["background"][index]), detected, time_s,
-                             pixel_bits)
-        else:
-            counts = np.asarray(capture.histograms[index])
-            yield HistogramFrame(frame, shift, counts.reshape(-1), complete, 0, time_s,
-                                 pixel_bits if counts.ndim > 1 else 0, first)
+    return of_capture(capture).replay(capture)
 
 
 #: The most items a replay hands the view a second: a file whose frames came faster (times
@@ -131,7 +107,7 @@ class Replay:
             if self._clock() > begun + self._round_s:
                 begun = self._clock()       # a round behind (a slow machine): no burst to catch up
         feed.finish(f"replayed {len(self.items)} "
-                    f"{'event batches' if self.capture.mode == 'raw' else 'frames'}"
+                    f"{'frames' if of_capture(self.capture).framed else 'event batches'}"
                     + (f" {self.rounds} times" if self.rounds > 1 else ""))
     def stop(self) -> None:
         self._stop.set()

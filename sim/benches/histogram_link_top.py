@@ -10,7 +10,7 @@ from ...hdl.link.arbiter import PacketArbiter
 from ...hdl.event import ADDRESS_BITS
 from ...hdl.link.framing import FrameEncoder
 from ...hdl.histogram.layout import COUNT_WIDTH, MAX_SHIFT, readout_layout
-from ...hdl.histogram.packetizer import HistogramPacketizer
+from ...hdl.packets.histogram import HistogramPacketizer
 
 
 __all__ = ["INDEX_BITS", "HistogramLinkTop"]

@@ -1,7 +1,8 @@
 """Boards without hardware, behind a pseudo-terminal.
 
-* :mod:`.model`: the model board, the bit-exact models in Python; :mod:`.model_command`, its
-  command line (``python -m fliss.sim.boards.model``);
+* :mod:`.model`: the model board, the bit-exact models in Python; its data packets are made by
+  :mod:`.producers`, one per readout; :mod:`.model_command`, its command line
+  (``python -m fliss.sim.boards.model``);
 * :mod:`.virtual`: the virtual board, the top level's Verilog in a simulator (a cocotb module);
 * :mod:`.fast`: the fast virtual board, the top level Verilated in a C++ harness
   (:mod:`.harness`), driven through ctypes;

@@ -4,8 +4,10 @@ simulator.
 :class:`ModelBoard` speaks the real protocol bytes (:mod:`fliss.hdl.protocol`) over a pty: it
 decodes commands with the software codec (:mod:`fliss.protocol`), answers them with
 :class:`fliss.sim.models.command.CommandModel` (the reply semantics of the gateware command processor)
-and, while acquiring, sends HISTOGRAM chunks or EVENTS batches made from the photon scene
-simulator (:mod:`fliss.sim.scene`) with the configured delay settings, paced by the wall clock.
+and, while acquiring, sends the data packets of its readout (HISTOGRAM chunks, DEPTH frames or
+EVENTS batches, each made by its producer in :mod:`fliss.sim.boards.producers`) made from the
+photon scene simulator (:mod:`fliss.sim.scene`) with the configured delay settings, paced by the
+wall clock.
 
 It is a behavioural model of the whole board, not a cycle-accurate one: frame ``k`` of an
 acquisition holds the laser cycles whose TDC start falls in clock cycles ``[k I, (k + 1) I)``
@@ -28,8 +30,8 @@ import numpy as np
 
 from ...hdl.clock import DEFAULT_CLOCK_HZ
 from ...hdl.histogram.layout import MAX_COUNT_WIDTH
-from ...hdl.protocol import (DEFAULT_BAUD, HISTOGRAM_COUNT_BITS, PacketType, STATUS_FIELDS,
-                             LINK_COUNTERS, MAX_EVENTS_PER_PACKET, version_numbers)
+from ...hdl.protocol import (DEFAULT_BAUD, PacketType, STATUS_FIELDS, LINK_COUNTERS,
+                             version_numbers)
 from ...hdl.delay.modes import MODES, DelayMode
 from ...hdl.event import TDC_LSB_S
 from ...hdl.finetdc import TAP_S as FINE_TAP_S
@@ -37,15 +39,13 @@ from ...hdl.tdc import MAX_TIMESTAMP
 from ...hdl.registers import (AGGRESSOR_DELAY, VICTIM, AcquisitionMode, TdcSource, group_values,
                               value_of, words_of)
 from ...protocol.frames import LinkError, Packet, packet_type
-from ...protocol.events import link_events_per_s, pack_events
 from ..models import scheduler as _scheduler
 from ..models import histogram as _histogram
 from ..models.command import CommandModel
-from ...protocol.histograms import decode_chunk, encode_histogram, frame_bins
+from ...protocol.histograms import decode_chunk, frame_bins
 from ...protocol.packets import HISTOGRAM_TYPES
-from ..models.depth import depth_frame
-from ...protocol.depth import depth_payload
 from .loopback import Loopback
+from .producers import PRODUCERS
 from .pty_server import PtyServer
 from ..scene import Aggressor, Scene, simulation_for
 
@@ -151,8 +151,8 @@ class ModelBoard(PtyServer):
         self.status = dict.fromkeys(STATUS_FIELDS, 0)
         #: Acquisitions started so far (each START while stopped).
         self.starts = 0
-        self._frame = 0          # histogram number since reset
-        self._depth_frame = 0    # depth frame number since reset
+        #: The producer of each readout, whose frame numbers count from reset.
+        self.producers = {readout: producer() for readout, producer in PRODUCERS.items()}
 
     def sent_histograms(self, bins, *, whole=False):
         """The histograms sent so far, from this board's own record (``sent``): counts of
@@ -182,7 +182,7 @@ class ModelBoard(PtyServer):
     def next_frame(self):
         """Number the next histogram will carry (frames count from 0 since the board was
         made)."""
-        return self._frame
+        return self.producers[AcquisitionMode.HISTOGRAM].number
 
     # Serving
 
@@ -201,10 +201,9 @@ class ModelBoard(PtyServer):
         self.model = CommandModel(self.clock_hz, self.baud, maxima=self.maxima,
                                   keyed_source=True)
         self.status = dict.fromkeys(STATUS_FIELDS, 0)
-        self._frame = 0
-        self._depth_frame = 0
         self._frame_counts = None
-        self._pending_events = []
+        for producer in self.producers.values():
+            producer.reset()
 
     def _receive(self, item):
         if isinstance(item, LinkError):
@@ -251,9 +250,8 @@ class ModelBoard(PtyServer):
         self._t0 = now
         self._done_cycles = 0           # clock cycles simulated
         self._frame_counts = None
-        self._pending_events = []
-        self._raw = settings["acquisition"] == AcquisitionMode.RAW.value
-        self._depth = settings["acquisition"] == AcquisitionMode.DEPTH.value
+        self._producer = self.producers[AcquisitionMode(settings["acquisition"])]
+        self._producer.begin()
         self._looped = self.loopback.run(settings, scene.victim, self.clock_hz,
                                          self.model.table, self.seed_for(self.starts))
 
@@ -274,24 +272,23 @@ class ModelBoard(PtyServer):
         if final:
             # A model slower than real time stops where it has got to, within a block.
             self._block(min(max(target, self._done_cycles), block_end))
-            if self._raw:
-                self._send_events(flush=True)
+            self._producer.send(self, final=True)
             return
         # One block at a time, so that commands are served while the model catches up.
         if block_end <= target:
             self._block(block_end)
-            if self._raw:
-                self._send_events(flush=False)
+            self._producer.send(self, final=False)
 
     def _block(self, end):
         events = self._events(self._simulate(end))
         self._done_cycles = end
-        if not self._raw:
+        if self._producer.histograms:
             self._accumulate(events)
-            if self._depth:
-                self._send_depth()
-            else:
-                self._send_histogram()
+            s = self.settings
+            counts = self._frame_counts if self._frame_counts is not None else \
+                np.zeros(frame_bins(s["bin_shift"], s.get("pixel_bits", 0)), dtype=np.int64)
+            self._frame_counts = None
+            self._producer.frame(self, counts)
 
     def _simulate(self, end):
         simulation = self.simulation
@@ -341,18 +338,8 @@ class ModelBoard(PtyServer):
         self.status["dropped_gate"] += int(np.count_nonzero(~inside))
         events = events[inside]
         self.status["events"] += len(events)
-        if self._raw:
-            if self.line_limited:
-                allowed = self._line_events(len(events))
-                self.status["dropped_fifo"] += len(events) - allowed
-                events = events[:allowed]
-            self._pending_events.append(events)
+        self._producer.take(self, events)
         return events
-
-    def _line_events(self, count):
-        """Events the line carries in one block, in full EVENTS frames (8N1 characters)."""
-        seconds = self.settings["integration"] / self.clock_hz
-        return min(count, int(seconds * link_events_per_s(self.baud)))
 
     def _accumulate(self, events):
         # Per-pixel histograms, flat in readout order (pixel << (13 - bin_shift) | bin);
@@ -371,50 +358,6 @@ class ModelBoard(PtyServer):
             self.status["histogram_overflow"] += overflow
             self.status["dropped_pixel"] += outside
 
-    def _send_histogram(self):
-        # The frame's packets as the gateware's packetizer makes them (full or compact chunks).
-        s = self.settings
-        shift, pixel_bits = s["bin_shift"], s.get("pixel_bits", 0)
-        counts = self._frame_counts if self._frame_counts is not None else \
-            np.zeros(frame_bins(shift, pixel_bits), dtype=np.int64)
-        for type, payload in encode_histogram(counts, frame=self._frame, shift=shift,
-                                              pixel_bits=pixel_bits,
-                                              first_pixel=s.get("first_pixel", 0),
-                                              full_readout=s.get("full_readout", 0)):
-            self._send(type, payload, data=True)
-        self._frame += 1
-        self.status["frames"] += 1
-        self._frame_counts = None
-
-    def _send_depth(self):
-        """The frame as the depth engine sends it: one DEPTH packet (:mod:`fliss.sim.models.depth`)."""
-        s = self.settings
-        shift, pixel_bits = s["bin_shift"], s["pixel_bits"]
-        counts = self._frame_counts if self._frame_counts is not None else \
-            np.zeros(frame_bins(shift, pixel_bits), dtype=np.int64)
-        counts = np.minimum(counts, (1 << HISTOGRAM_COUNT_BITS) - 1).reshape(1 << pixel_bits, -1)
-        first_pixel = s["first_pixel"]
-        records = depth_frame(counts, shift=s["bin_shift"], filter=s["depth_filter"],
-                              threshold=s["depth_threshold"])
-        self._send(PacketType.DEPTH, depth_payload(
-            records, frame=self._depth_frame, first_pixel=first_pixel, pixel_bits=pixel_bits,
-            shift=s["bin_shift"], filter=s["depth_filter"], threshold=s["depth_threshold"]),
-            data=True)
-        self._depth_frame = (self._depth_frame + 1) & 0xffffffff
-        self.status["frames"] += 1
-        self._frame_counts = None
-
-    def _send_events(self, flush):
-        if not self._pending_events:
-            return
-        events = np.concatenate(self._pending_events)
-        whole = len(events) - len(events) % MAX_EVENTS_PER_PACKET
-        cut = len(events) if flush else whole
-        for start in range(0, cut, MAX_EVENTS_PER_PACKET):
-            batch = events[start:min(start + MAX_EVENTS_PER_PACKET, cut)]
-            self._send(PacketType.EVENTS, pack_events(batch), data=True)
-        rest = events[cut:]
-        self._pending_events = [rest] if len(rest) else []
 
 @contextmanager
 def model_board(**options):

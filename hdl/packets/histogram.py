@@ -7,10 +7,10 @@ from amaranth.lib.wiring import In, Out
 from ..block_ram import RegisteredRam
 from ..event import ADDRESS_BITS
 from ..link.framing import PacketBeat
-from .chunk import ChunkEmitter
-from .compact import CompactEncoder
-from .layout import BIN_BITS, COUNT_WIDTH, MAX_SHIFT, readout_layout
-from .scanner import WindowScanner
+from ..histogram.chunk import ChunkEmitter
+from ..histogram.compact import CompactEncoder
+from ..histogram.layout import BIN_BITS, COUNT_WIDTH, MAX_SHIFT, readout_layout
+from ..histogram.scanner import WindowScanner
 from ..protocol import CHUNK_BINS, COMPACT_BYTES, MAX_FRAME_BITS
 
 
@@ -19,7 +19,7 @@ __all__ = ["histogram_packetizer_members", "HistogramPacketizer"]
 
 def histogram_packetizer_members(index_bits):
     """Members of a histogram packetizer (this one, or the full-chunk one of
-    :mod:`fliss.hdl.link.packetizer`): the readout's bins and the frame's settings in, packets out."""
+    :mod:`fliss.hdl.packets.histogram_full`): the readout's bins and the frame's settings in, packets out."""
     return {
         "readout":      In(stream.Signature(readout_layout(index_bits, COUNT_WIDTH))),
         "shift":        In(range(MAX_SHIFT + 1)),
@@ -50,7 +50,7 @@ class HistogramPacketizer(wiring.Component):
     a chunk goes out at a byte every 2 cycles at most, far faster than a UART. Readout beats and
     RAM words are registered before any logic uses them. Cost: some 770 LUTs, 500 flip-flops
     and two block RAMs on an iCE40 (the full-only
-    :class:`~fliss.hdl.link.packetizer.FullHistogramPacketizer`: 175 LUTs, no RAM).
+    :class:`~fliss.hdl.packets.histogram_full.FullHistogramPacketizer`: 175 LUTs, no RAM).
 
     Parameters
     ----------
