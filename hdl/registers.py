@@ -24,7 +24,7 @@ from amaranth.lib import data, enum
 
 from .clock import DEFAULT_PRF_HZ, MIN_PERIOD_CYCLES, period_cycles
 from .event import ADDRESS_BITS, TIMESTAMP_BITS
-from .delay.modes import DelayMode, MODES, delay_problems
+from .delay.modes import DelayMode, core_modes, delay_problems, mode_maximum
 from .finetdc import CODE_BITS as FINE_CODE_BITS, LSB_SELECTS as FINE_LSB_SELECTS, \
     TABLE_BITS as FINE_TABLE_BITS, HitInput
 from .delay.settings import (BANK_BITS, IV_BITS, KEY_BITS, MIN_LENGTH, MAX_LENGTH,
@@ -32,8 +32,8 @@ from .delay.settings import (BANK_BITS, IV_BITS, KEY_BITS, MIN_LENGTH, MAX_LENGT
 
 
 __all__ = ["AcquisitionMode", "TdcSource", "Register", "Setting", "RegisterGroup",
-           "DELAY_SETTINGS", "VICTIM", "AGGRESSOR", "AGGRESSOR_DELAY", "ACQUISITION", "GATE",
-           "HISTOGRAM", "DEPTH", "FINE_TDC", "KEYING", "GROUPS",
+           "DELAY_SETTINGS", "KEYED_SOURCE", "VICTIM", "AGGRESSOR", "AGGRESSOR_DELAY",
+           "ACQUISITION", "GATE", "HISTOGRAM", "DEPTH", "FINE_TDC", "KEYING", "GROUPS",
            "REGISTERS", "BY_NAME", "BY_ADDRESS", "RECORDED", "DelaySettings", "settings_layout",
            "register_maxima", "defaults", "group_values", "problems", "split_problems", "words_of",
            "value_of",
@@ -165,16 +165,20 @@ def _period(clock_hz):
 
 
 _U32 = (1 << 32) - 1
-_MODE_MAX = max(mode.value for mode in DelayMode)
+_MODE_MAX = mode_maximum()
 
-#: The aggressor's largest delay mode: it has no keyed source (see :data:`AGGRESSOR_DELAY`).
-_AGGRESSOR_MODE_MAX = DelayMode.MASKED.value
+#: The delay cores' groups, by name, with whether their core may have the keyed source (the
+#: victim's, in a build with it); the aggressor's has none (see :data:`AGGRESSOR_DELAY`).
+KEYED_SOURCE = {"victim": True, "aggressor_delay": False}
+
+#: The aggressor's delay modes: its largest, and their list for the register's doc.
+_AGGRESSOR_KEYED = KEYED_SOURCE["aggressor_delay"]
+_AGGRESSOR_MODE_MAX = mode_maximum(_AGGRESSOR_KEYED)
 
 
-def _modes_doc(top=_MODE_MAX):
-    # "0 off, 1 mseq, …": the delay modes up to value `top`
-    return ", ".join(f"{row.mode.value} {row.name}" for row in MODES.values()
-                     if row.mode.value <= top)
+def _modes_doc(keyed=True):
+    # "0 off, 1 mseq, …": the delay modes of a core (with the keyed source or without)
+    return ", ".join(f"{row.mode.value} {row.name}" for row in core_modes(keyed))
 
 #: The settings of a delay core (:class:`~fliss.hdl.delay.core.DelayCore`): delay source, then
 #: scheduler and laser trigger.
@@ -210,7 +214,7 @@ AGGRESSOR_DELAY = RegisterGroup("aggressor_delay", DELAY_SETTINGS, {
     "pulse_width": ("aggressor_width", 0x0b, 1,
                     "aggressor trigger pulse width, shorter than its period"),
     "mode":        ("aggressor_delay_mode", 0x0c, DelayMode.OFF.value,
-                    f"aggressor's own delay source: {_modes_doc(_AGGRESSOR_MODE_MAX)} "
+                    f"aggressor's own delay source: {_modes_doc(_AGGRESSOR_KEYED)} "
                     f"(not keyed)"),
     "length":      ("aggressor_length", 0x0d, 6, "register length of the aggressor's mseq source"),
     "mask_width":  ("aggressor_mask_width", 0x0e, 6,
@@ -435,10 +439,11 @@ def group_values(group, values):
     return {**group.fixed, **{r.field: values[r.name] for r in group.members}}
 
 
-def _delay_problems(group, values):
+def _delay_problems(group, values, keyed):
     # The checks of one delay core's settings together (each register is checked on its own)
     return delay_problems(group_values(group, values),
-                          names={r.field: r.name for r in group.members}, ranges=False)
+                          names={r.field: r.name for r in group.members}, ranges=False,
+                          keyed=keyed and KEYED_SOURCE[group.name])
 
 
 def split_problems(values, bank_bits=BANK_BITS):
@@ -462,16 +467,17 @@ def split_problems(values, bank_bits=BANK_BITS):
     return found
 
 
-def problems(values, bank_bits=BANK_BITS):
+def problems(values, bank_bits=BANK_BITS, keyed=True):
     """Inconsistencies between settings (each register already in range), as messages;
-    ``bank_bits`` is the build's histogram bank (:func:`split_problems`).
+    ``bank_bits`` is the build's histogram bank (:func:`split_problems`), ``keyed`` whether it
+    has the keyed source (:data:`KEYED_SOURCE`).
 
     The gateware refuses a write that would leave any of these.
     """
     found = []
     for group in GROUPS:
         if group.settings is DELAY_SETTINGS:
-            found += _delay_problems(group, values)
+            found += _delay_problems(group, values, keyed)
     if values["gate_start"] > values["gate_end"]:
         found.append(f"gate_start ({values['gate_start']}) must not be after gate_end "
                      f"({values['gate_end']})")
