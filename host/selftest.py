@@ -59,7 +59,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from ..hdl.delay.modes import DelayMode, core_modes
+from ..hdl.delay.modes import MODES, DelayMode, core_modes
 from ..hdl.event import TIMESTAMP_BITS
 from ..hdl.protocol import LINK_FIELDS, NakCode
 from ..hdl.codes import code_s
@@ -316,8 +316,8 @@ class _Test:
         shift = self.allowed.bit_length() - 1
         expected = self.delay_codes >> shift
         checked, absent = [], []
-        for mode in DelayMode:
-            if not self.write({"delay_mode": mode.value, "grid": 0, "bin_shift": shift,
+        for mode in MODES.values():
+            if not self.write({"delay_mode": mode.mode.value, "grid": 0, "bin_shift": shift,
                                "acquisition": AcquisitionMode.HISTOGRAM.value}):
                 absent.append(mode.name)
                 continue
