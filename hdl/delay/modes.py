@@ -70,9 +70,9 @@ class Mode:
     name says (the register checks refuse a seed above it); None: the seed is not used.
     (A number of bits is the seed register's 32, which its range checks.) ``keyed``: it needs
     the key and IV, and so the keyed source: only a delay core built with it has the mode (the
-    aggressor's core has none, :func:`core_modes`). ``period`` and ``mean`` give, of ``n``, the number of
-    pulses after which the sequence repeats (None: unknown, beyond any run) and the mean delay
-    over one whole period, in cycles. (The gateware's consistency check builds ``2**n - 1`` and
+    aggressor's core has none, :func:`core_modes`). ``period`` and ``mean`` give, of ``n``, the
+    number of pulses after which the sequence repeats (None: unknown, beyond any run) and the
+    mean delay over one whole period, in cycles. (The gateware's consistency check builds ``2**n - 1`` and
     ``2**n - 2``: ``less`` is 1 or 2.)
     """
     mode: DelayMode
