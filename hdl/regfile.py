@@ -10,10 +10,10 @@ from amaranth.lib.wiring import In, Out
 from . import lookup
 from .clock import DEFAULT_CLOCK_HZ
 from .protocol import NakCode
-from .registers import (REGISTERS, GROUPS, DELAY_SETTINGS, FINE_TDC, KEYING, settings_layout,
-                        defaults, register_maxima)
+from .registers import (REGISTERS, GROUPS, DELAY_SETTINGS, FINE_TDC, KEYED_SOURCE, KEYING,
+                        settings_layout, defaults, register_maxima)
 from .event import ADDRESS_BITS, TIMESTAMP_BITS
-from .delay.modes import MODES
+from .delay.modes import MODES, missing_modes
 from .finetdc import TABLE_BITS as FINE_TABLE_BITS
 from .delay.settings import BANK_BITS, MAX_BANK_BITS, MIN_BANK_BITS, IV_BITS
 
@@ -304,6 +304,9 @@ class RegisterFile(wiring.Component):
                 continue
             g = {r.field: c[r.name] for r in group.members}
             simple.append(narrow_less(g["pulse_width"], g["period"]))
+            # a mode that the core has not, below its register's maximum
+            simple += [g["mode"] != row.mode for row in
+                       missing_modes(self._keyed and KEYED_SOURCE[group.name])]
             # a mode whose seed is a state of a register as long as a setting says
             for row in MODES.values():
                 if not isinstance(row.seed_bits, str):

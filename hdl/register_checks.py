@@ -44,11 +44,13 @@ def group_values(group, values):
     return {**group.fixed, **{r.field: values[r.name] for r in group.members}}
 
 
-def delay_group_problems(group, values):
+def delay_group_problems(group, values, keyed=True):
     """The checks of one delay core's settings (its register ``group``) together, as messages
-    naming its registers (each register is checked on its own)."""
+    naming its registers (each register is checked on its own); ``keyed``: whether its core
+    has the keyed source."""
     return delay_problems(group_values(group, values),
-                          names={r.field: r.name for r in group.members}, ranges=False)
+                          names={r.field: r.name for r in group.members}, ranges=False,
+                          keyed=keyed)
 
 
 def split_problems(values, bank_bits=BANK_BITS):

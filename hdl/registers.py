@@ -27,7 +27,7 @@ from amaranth.lib import data, enum
 
 from .clock import DEFAULT_PRF_HZ, MIN_PERIOD_CYCLES
 from .event import ADDRESS_BITS, TIMESTAMP_BITS
-from .delay.modes import DelayMode, MODES, SIZES
+from .delay.modes import DelayMode, SIZES, core_modes, mode_maximum
 from .finetdc import CODE_BITS as FINE_CODE_BITS, LSB_SELECTS as FINE_LSB_SELECTS, \
     TABLE_BITS as FINE_TABLE_BITS, HitInput
 from .delay.settings import BANK_BITS, IV_BITS, KEY_BITS, PERIOD_WIDTH, PULSE_WIDTH_WIDTH
@@ -39,7 +39,7 @@ from .register_rows import (CHOICE, FREQUENCY, GATE, IV, KEY, PIXEL, PIXELS, TIM
 
 __all__ = ["AcquisitionMode", "TdcSource", "Register", "Setting", "RegisterGroup", "Row",
            "Keyword", "ROWS",
-           "DELAY_SETTINGS", "VICTIM", "AGGRESSOR", "AGGRESSOR_DELAY", "ACQUISITION", "GATE",
+           "DELAY_SETTINGS", "KEYED_SOURCE", "VICTIM", "AGGRESSOR", "AGGRESSOR_DELAY", "ACQUISITION", "GATE",
            "HISTOGRAM", "DEPTH", "FINE_TDC", "KEYING", "GROUPS",
            "REGISTERS", "BY_NAME", "BY_ADDRESS", "RECORDED", "DelaySettings", "settings_layout",
            "register_maxima", "defaults", "group_values", "problems", "split_problems", "words_of",
@@ -72,16 +72,20 @@ class TdcSource(enum.Enum, shape=2):
 
 
 _U32 = (1 << 32) - 1
-_MODE_MAX = max(mode.value for mode in DelayMode)
+_MODE_MAX = mode_maximum()
 
-#: The aggressor's largest delay mode: it has no keyed source (see :data:`AGGRESSOR_DELAY`).
-_AGGRESSOR_MODE_MAX = DelayMode.MASKED.value
+#: The delay cores' groups, by name, with whether their core may have the keyed source (the
+#: victim's, in a build with it); the aggressor's has none (see :data:`AGGRESSOR_DELAY`).
+KEYED_SOURCE = {"victim": True, "aggressor_delay": False}
+
+#: The aggressor's delay modes: its largest, and their list for the register's doc.
+_AGGRESSOR_KEYED = KEYED_SOURCE["aggressor_delay"]
+_AGGRESSOR_MODE_MAX = mode_maximum(_AGGRESSOR_KEYED)
 
 
-def _modes_doc(top=_MODE_MAX):
-    # "0 off, 1 mseq, …": the delay modes up to value `top`
-    return ", ".join(f"{row.mode.value} {row.name}" for row in MODES.values()
-                     if row.mode.value <= top)
+def _modes_doc(keyed=True):
+    # "0 off, 1 mseq, …": the delay modes of a core (with the keyed source or without)
+    return ", ".join(f"{row.mode.value} {row.name}" for row in core_modes(keyed))
 
 
 def _sized(name):
@@ -214,7 +218,7 @@ ROWS = (
         "aggressor trigger pulse width, shorter than its period", TIME,
         (Keyword("aggressor_width", "aggressor trigger pulse width ({after_reset})", "TIME"),)),
     Row("aggressor_delay_mode", 0x0c, "aggressor_delay.mode", DelayMode.OFF.value,
-        f"aggressor's own delay source: {_modes_doc(_AGGRESSOR_MODE_MAX)} (not keyed)", CHOICE,
+        f"aggressor's own delay source: {_modes_doc(_AGGRESSOR_KEYED)} (not keyed)", CHOICE,
         (Keyword("aggressor_mode", "aggressor's own delay source"),),
         choices=choices_of(DelayMode)),
     Row("aggressor_length", 0x0d, "aggressor_delay.length", 6,
@@ -405,16 +409,18 @@ def defaults(clock_hz):
     return {register.name: register.reset_value(clock_hz) for register in REGISTERS}
 
 
-def problems(values, bank_bits=BANK_BITS):
+def problems(values, bank_bits=BANK_BITS, keyed=True):
     """Inconsistencies between settings (each register already in range), as messages;
-    ``bank_bits`` is the build's histogram bank (:func:`split_problems`).
+    ``bank_bits`` is the build's histogram bank (:func:`split_problems`), ``keyed`` whether it
+    has the keyed source (:data:`KEYED_SOURCE`).
 
     The gateware refuses a write that would leave any of these.
     """
     found = []
     for group in GROUPS:
         if group.settings is DELAY_SETTINGS:
-            found += delay_group_problems(group, values)
+            found += delay_group_problems(group, values,
+                                          keyed=keyed and KEYED_SOURCE[group.name])
     if values["gate_start"] > values["gate_end"]:
         found.append(f"gate_start ({values['gate_start']}) must not be after gate_end "
                      f"({values['gate_end']})")

@@ -18,7 +18,7 @@ from .protocol import DEFAULT_BAUD
 from .rawfifo import RawFifo
 from .registers import (VICTIM, AGGRESSOR, AGGRESSOR_DELAY, KEYING, DEPTH, FINE_TDC,
                         AcquisitionMode, TdcSource)
-from .delay.modes import DelayMode
+from .delay.modes import mode_maximum
 from .delay.settings import (BANK_BITS, MAX_BANK_BITS, MIN_BANK_BITS, PERIOD_WIDTH,
                              PULSE_WIDTH_WIDTH, check_widths)
 from .spram import SPRAM_DEPTH
@@ -256,7 +256,7 @@ class FlissTop(wiring.Component):
         elif not self.aggressor:
             maxima[FINE_TDC.register("input").name] = HitInput.LASER.value
         if not self.keyed:
-            maxima[VICTIM.register("mode").name] = DelayMode.MASKED.value
+            maxima[VICTIM.register("mode").name] = mode_maximum(keyed=False)
             for register in KEYING.members:
                 maxima[register.name] = 0
         return maxima

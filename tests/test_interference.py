@@ -185,7 +185,7 @@ def test_overwriting_by_aggressors_keeps_what_poisson_statistics_predict():
 
 @pytest.mark.parametrize("seed", [1, 0x9E3779B9, (1 << 32) - 1])
 def test_masked_delays_for_many_seeds_are_the_gateware_sequence(seed):
-    from fliss.sim.scene.pulses import MaskedDelays
+    from fliss.sim.models.delay import MaskedDelays
     stream = MaskedDelays(5, seed, 700)
     got = np.concatenate([stream.block() for _ in range(3)])
     assert np.array_equal(got, delay_model.delays("masked", 2100, mask_width=5, seed=seed))

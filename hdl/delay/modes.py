@@ -3,10 +3,12 @@ and mean of its delay sequence, and its name in labels.
 
 The register checks read it (:func:`fliss.hdl.registers.problems`, and the gateware's, which
 :class:`~fliss.hdl.regfile.RegisterFile` generates from it per delay core), and so do the models
-(:mod:`fliss.sim.models.delay`), the formal harnesses and the host's commands and plots. The
-delays themselves come from the delay source (:mod:`.source`) and its model
-(:mod:`fliss.sim.models.delay`). A new mode is a member of :class:`DelayMode` and a row of
-:data:`MODES` here, a block of the source, and its model.
+(:mod:`fliss.sim.models.delay`), the formal harnesses and the host's commands and plots, the
+files' metadata (:func:`fliss.host.formats.metadata.settings`), the scene simulator and the
+interference study; which delay cores have a mode (:func:`core_modes`) sets the largest value of
+each core's ``mode`` register. The delays themselves come from the delay source (:mod:`.source`)
+and its model (:mod:`fliss.sim.models.delay`). A new mode is a member of :class:`DelayMode` and a
+row of :data:`MODES` here, a block of the source, and its model.
 
 A definitions module: it imports no gateware.
 """
@@ -20,7 +22,8 @@ from amaranth.lib import enum
 from .settings import MASKED_LENGTH, MAX_LENGTH, MAX_MASK_WIDTH, MIN_LENGTH
 
 
-__all__ = ["DelayMode", "Size", "SIZES", "Mode", "MODES", "mode_row", "label", "delay_problems"]
+__all__ = ["DelayMode", "Size", "SIZES", "Mode", "MODES", "mode_row", "label", "core_modes",
+           "mode_maximum", "missing_modes", "delay_problems"]
 
 
 class DelayMode(enum.Enum, shape=2):
@@ -66,9 +69,10 @@ class Mode:
     is a non-zero state of a register of this many bits, or of as many as the setting of that
     name says (the register checks refuse a seed above it); None: the seed is not used.
     (A number of bits is the seed register's 32, which its range checks.) ``keyed``: it needs
-    the key and IV. ``period`` and ``mean`` give, of ``n``, the number of
-    pulses after which the sequence repeats (None: unknown, beyond any run) and the mean delay
-    over one whole period, in cycles. (The gateware's consistency check builds ``2**n - 1`` and
+    the key and IV, and so the keyed source: only a delay core built with it has the mode (the
+    aggressor's core has none, :func:`core_modes`). ``period`` and ``mean`` give, of ``n``, the
+    number of pulses after which the sequence repeats (None: unknown, beyond any run) and the
+    mean delay over one whole period, in cycles. (The gateware's consistency check builds ``2**n - 1`` and
     ``2**n - 2``: ``less`` is 1 or 2.)
     """
     mode: DelayMode
@@ -149,6 +153,28 @@ def mode_row(mode):
         return None
 
 
+def core_modes(keyed=True):
+    """The rows of the modes a delay core has, in value order: every mode with its keyed source
+    (``keyed``), those that need no key without it (the aggressor's core; the victim's in a
+    build without ``keyed``)."""
+    return tuple(row for row in MODES.values() if keyed or not row.keyed)
+
+
+def mode_maximum(keyed=True):
+    """The largest value of a mode of :func:`core_modes`: the maximum of the core's ``mode``
+    register."""
+    return max(row.mode.value for row in core_modes(keyed))
+
+
+def missing_modes(keyed=True):
+    """The rows of the modes below :func:`mode_maximum` that a core of :func:`core_modes` has
+    not, which its register's range lets through: the register checks refuse them
+    (:func:`delay_problems`). None while the modes that need a key are the last."""
+    have = core_modes(keyed)
+    return tuple(row for row in MODES.values()
+                 if row not in have and row.mode.value < mode_maximum(keyed))
+
+
 def label(mode, /, **settings):
     """:meth:`Mode.label` of ``mode`` (a :class:`DelayMode` or its value), ``"?"`` for a value
     that is no mode."""
@@ -160,15 +186,16 @@ def label(mode, /, **settings):
 _FIELDS = ("mode", "length", "mask_width", "seed", "period", "grid", "pulse_width")
 
 
-def delay_problems(settings, *, names=None, ranges=True):
+def delay_problems(settings, *, names=None, ranges=True, keyed=True):
     """What is wrong with a delay core's settings, as messages (none: the core takes them).
 
     ``settings`` maps each field of :class:`~fliss.hdl.registers.DelaySettings` (``mode``,
     ``length``, ``mask_width``, ``seed``, ``period``, ``grid``, ``pulse_width``) to its value;
     ``names`` gives the name a message uses for a field (a register's), by default the field's.
     With ``ranges``, each value is checked against its own limits first; then the settings
-    together: the pulse shorter than the period, the largest delay plus the pulse shorter than
-    the period in ``grid`` mode, and an ``mseq`` seed below ``2**length``.
+    together: a mode the core has (``keyed``: it has the keyed source, :func:`core_modes`), the
+    pulse shorter than the period, the largest delay plus the pulse shorter than the period in
+    ``grid`` mode, and an ``mseq`` seed below ``2**length``.
     """
     missing = [name for name in _FIELDS if name not in settings]
     if missing:
@@ -189,6 +216,9 @@ def delay_problems(settings, *, names=None, ranges=True):
         if found:
             return found
     found = []
+    if mode in missing_modes(keyed):
+        found.append(f"{name['mode']} ({v['mode']}) is the {mode.name} mode, which this delay "
+                     f"core has not (it has no keyed source)")
     if v["pulse_width"] >= v["period"]:
         found.append(f"{name['pulse_width']} ({v['pulse_width']} cycles) must be shorter than "
                      f"{name['period']} ({v['period']} cycles)")

@@ -148,7 +148,7 @@ class PulseScheduler(wiring.Component):
         armed = Signal()    # the pulse of this frame has not fired yet
         due = Signal()      # the pulse of this frame is due in this cycle, from the timers
         pulse = Signal()    # the pulse of this frame fires in this cycle (unless stopped)
-        kind = Signal(2)    # `kind` of this frame's delay
+        kind = Signal(len(delay.kind))      # `kind` of this frame's delay
         narrow = Signal(16)
         m.submodules.wide = wide = _Timer(DELAY_WIDTH, target=1)
         m.d.comb += [

@@ -1,4 +1,4 @@
-from amaranth.hdl import Cat, Module, Mux, Signal
+from amaranth.hdl import Cat, Module, Mux, Shape, Signal
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
@@ -24,7 +24,7 @@ class Delay(data.Struct):
     #: The delay ``R`` in clock cycles.
     value:     DELAY_WIDTH
     #: The mode (a :class:`DelayMode` value).
-    kind:      2
+    kind:      Shape.cast(DelayMode).width
     #: ``R == 0``, valid unless a transfer was made in the last cycle; low in the cycle after a
     #: load.
     zero:      1

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...hdl.delay.modes import DelayMode
+from ...hdl.delay.modes import mode_row
 from ...hdl.event import PULSE_BITS, TDC_LSB_S
 from ...hdl.registers import BY_NAME, value_of
 from ...protocol.events import EVENT_DTYPE
@@ -47,27 +47,25 @@ def configuration(capture):
 
 def settings(capture):
     """The settings that matter, by name, in the order they are written: the capture's mode,
-    the delay mode and its parameters (``length`` L and ``seed`` for mseq, ``mask_width`` Wm
-    and ``seed`` for masked, Wm and ``iv`` for keyed; never the key), the PRF, the period, the
+    the delay mode and the settings its row of :data:`~fliss.hdl.delay.modes.MODES` needs
+    (``length`` L and ``seed`` for mseq, ``mask_width`` Wm and ``seed`` for masked, Wm and
+    ``iv`` for keyed; never the key), the PRF, the period, the
     clock, the TDC code and bin shift, and whether the aggressor was on."""
     if getattr(capture, "source", None):            # (a recording of another instrument)
         period_s, prf_hz = timing(capture)
         return {"mode": capture.mode, "source": capture.source, "prf_hz": prf_hz,
                 "period_s": period_s, "code_s": capture.code_s, "bin_shift": capture.shift}
     c = configuration(capture)
-    try:
-        mode = DelayMode(c.get("delay_mode", 0)).name.lower()
-    except ValueError:
-        mode = f"unknown ({c.get('delay_mode')})"
-    out = {"mode": capture.mode, "delay_mode": mode}
-    if mode == "mseq":
-        out.update(length=c["length"], seed=c["seed"])
-    elif mode == "masked":
-        out.update(mask_width=c["mask_width"], seed=c["seed"])
-    elif mode == "keyed":
-        out["mask_width"] = c["mask_width"]
-        if all(f"iv{k}" in c for k in range(3)):
-            out["iv"] = f"0x{value_of(c, 'iv'):020x}"
+    row = mode_row(c.get("delay_mode", 0))
+    out = {"mode": capture.mode,
+           "delay_mode": f"unknown ({c.get('delay_mode')})" if row is None else row.name}
+    # the settings the mode needs (its row of the mode table), the key left out
+    for name in () if row is None else row.needs:
+        if name == "iv":
+            if all(f"iv{k}" in c for k in range(3)):
+                out["iv"] = f"0x{value_of(c, 'iv'):020x}"
+        elif name != "key":
+            out[name] = c[name]
     period_s, prf_hz = timing(capture)
     out.update(prf_hz=prf_hz, period_s=period_s, clock_hz=int(capture.clock_hz),
                code_s=capture.code_s, bin_shift=capture.shift,

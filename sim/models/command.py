@@ -6,7 +6,7 @@ from ...hdl.protocol import (PROTOCOL_VERSION, GATEWARE_MAJOR, GATEWARE_MINOR, G
                              CONSISTENCY, REGISTER_BYTES, registers_layout)
 from ...hdl.registers import (REGISTERS, BY_ADDRESS, KEYING, TdcSource, defaults, problems,
                               register_maxima, iv_problem, value_of, words_of)
-from ...hdl.delay.modes import DelayMode
+from ...hdl.delay.modes import mode_row
 from ...hdl.delay.settings import BANK_BITS
 from ...protocol.layout import pack, unpack, byte_size, unpack_words
 from ...hdl.finetdc.table import nominal_table
@@ -62,7 +62,8 @@ class CommandModel:
 
     def _keyed_load(self):
         # A load of the delay source (every cycle while stopped, on update while running)
-        if self.keyed_source and self.settings["delay_mode"] == DelayMode.KEYED.value:
+        row = mode_row(self.settings["delay_mode"])
+        if self.keyed_source and row is not None and row.keyed:
             self.restarts.load()
             if self.running:
                 self.restarts.take()
@@ -139,7 +140,7 @@ class CommandModel:
                 candidate[register.name] = value
                 written.append(register.name)
             keyed = any(self.maxima[r.name] for r in KEYING.members)    # (else no IV rule)
-            if problems(candidate, self.bank_bits) or \
+            if problems(candidate, self.bank_bits, keyed) or \
                     keyed and iv_problem(written, candidate, self.iv_in_use):
                 return self._nak(seq, NakCode.OUT_OF_RANGE, CONSISTENCY)
             self.settings = candidate

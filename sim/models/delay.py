@@ -5,6 +5,7 @@ table of modes (:data:`fliss.hdl.delay.modes.MODES`); the delays of each mode ar
 """
 
 import sys
+from functools import lru_cache
 
 import numpy as np
 
@@ -14,7 +15,8 @@ from . import lfsr, trivium
 
 
 __all__ = ["DelayMode", "parse_mode", "check_settings", "delays", "max_delay", "mean_delay",
-           "sequence_period", "DelayStream", "next_iv", "KeyedRestarts"]
+           "sequence_period", "DelayStream", "MaskedDelays", "block_stream", "next_iv",
+           "KeyedRestarts"]
 
 
 def parse_mode(mode):
@@ -205,6 +207,49 @@ class DelayStream:
         self._position = len(self._states)
         return self._delays_of(states)
 
+
+@lru_cache(maxsize=4)
+def _basis_states(count):
+    """States ``0 … count - 1`` of the masked source's register loaded with each basis vector:
+    ``(MASKED_LENGTH, count)`` ``uint32``. The register is linear over GF(2), so the states after
+    any seed are the XOR of the rows of its set bits."""
+    return np.stack([lfsr.states(MASKED_LENGTH, 1 << bit, count,
+                                  steps=MASKED_STEPS).astype(np.uint32)
+                     for bit in range(MASKED_LENGTH)])
+
+
+class MaskedDelays:
+    """The delays of the ``masked`` source, block after block, as
+    :class:`fliss.sim.models.delay.DelayStream` gives them (the same sequence), made cheaply for many
+    seeds: one set of basis states is computed per block length and process, and each block of
+    a seed is an XOR of its rows."""
+
+    table = None
+
+    def __init__(self, mask_width, seed, block):
+        self._mask = np.uint32((1 << mask_width) - 1)
+        self._basis = _basis_states(block)
+        self._state = lfsr.load(seed, MASKED_LENGTH)
+
+    def block(self):
+        states = np.zeros(self._basis.shape[1], dtype=np.uint32)
+        for bit in range(MASKED_LENGTH):
+            if self._state >> bit & 1:
+                states ^= self._basis[bit]
+        # The next block starts one step of the source after the last state
+        self._state = int(lfsr.states(MASKED_LENGTH, int(states[-1]), 2,
+                                       steps=MASKED_STEPS)[1])
+        return (states & self._mask).astype(np.int64)
+
+
+def block_stream(mode, block, *, length=None, mask_width=None, seed=1, key=None, iv=None):
+    """The delays of a delay source after a load, block after block, as the scene simulator
+    takes them: an object with ``table`` (:attr:`DelayStream.table`) and ``block()``. The
+    ``masked`` source's are :class:`MaskedDelays` of ``block`` delays (cheap for many seeds), the
+    other modes' a :class:`DelayStream`."""
+    if parse_mode(mode) == DelayMode.MASKED:
+        return MaskedDelays(mask_width, seed, block)
+    return DelayStream(mode, length=length, mask_width=mask_width, seed=seed, key=key, iv=iv)
 
 
 def next_iv(iv):

@@ -101,7 +101,7 @@ class Settings:
 
     @property
     def keyed(self):
-        return _delay.parse_mode(self.mode) == _delay.DelayMode.KEYED
+        return MODES[_delay.parse_mode(self.mode)].keyed
 
     def delays(self, count):
         return _delay.delays(self.mode, count, length=self.length, mask_width=self.mask_width,

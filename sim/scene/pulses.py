@@ -6,51 +6,14 @@ and :class:`PulseTrain` hands out the arrival times of one pulsed source in incr
 """
 
 import math
-from functools import lru_cache
 
 import numpy as np
 
-from ...hdl.delay.settings import MASKED_LENGTH, MASKED_STEPS
-from ..models import lfsr as _lfsr
 from ..models import scheduler as _scheduler
-from ..models.delay import DelayMode, DelayStream
+from ..models.delay import block_stream
 
 
-__all__ = ["MaskedDelays", "EdgeSchedule", "EdgeBuffer", "PulseTrain", "fed_edges"]
-
-
-@lru_cache(maxsize=4)
-def _basis_states(count):
-    """States ``0 … count - 1`` of the masked source's register loaded with each basis vector:
-    ``(MASKED_LENGTH, count)`` ``uint32``. The register is linear over GF(2), so the states after
-    any seed are the XOR of the rows of its set bits."""
-    return np.stack([_lfsr.states(MASKED_LENGTH, 1 << bit, count,
-                                  steps=MASKED_STEPS).astype(np.uint32)
-                     for bit in range(MASKED_LENGTH)])
-
-
-class MaskedDelays:
-    """The delays of the ``masked`` source, block after block, as
-    :class:`fliss.sim.models.delay.DelayStream` gives them (the same sequence), made cheaply for many
-    seeds: one set of basis states is computed per block length and process, and each block of
-    a seed is an XOR of its rows."""
-
-    table = None
-
-    def __init__(self, mask_width, seed, block):
-        self._mask = np.uint32((1 << mask_width) - 1)
-        self._basis = _basis_states(block)
-        self._state = _lfsr.load(seed, MASKED_LENGTH)
-
-    def block(self):
-        states = np.zeros(self._basis.shape[1], dtype=np.uint32)
-        for bit in range(MASKED_LENGTH):
-            if self._state >> bit & 1:
-                states ^= self._basis[bit]
-        # The next block starts one step of the source after the last state
-        self._state = int(_lfsr.states(MASKED_LENGTH, int(states[-1]), 2,
-                                       steps=MASKED_STEPS)[1])
-        return (states & self._mask).astype(np.int64)
+__all__ = ["EdgeSchedule", "EdgeBuffer", "PulseTrain", "fed_edges"]
 
 
 class EdgeSchedule:
@@ -62,12 +25,9 @@ class EdgeSchedule:
     def __init__(self, settings, block, fine_step=1):
         self._settings = settings
         self._fine = fine_step
-        if settings.mode == DelayMode.MASKED:
-            self._delays = MaskedDelays(settings.mask_width, settings.seed, block)
-        else:
-            self._delays = DelayStream(settings.mode, length=settings.length,
-                                       mask_width=settings.mask_width, seed=settings.seed,
-                                       key=settings.key, iv=settings.iv)
+        self._delays = block_stream(settings.mode, block, length=settings.length,
+                                    mask_width=settings.mask_width, seed=settings.seed,
+                                    key=settings.key, iv=settings.iv)
         self._take = 0
         self._block = block
         self._pattern = None

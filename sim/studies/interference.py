@@ -22,9 +22,10 @@ make them; runs are independent. The confidence intervals treat frames as indepe
 Point parameters (:data:`PARAMETERS`, defaults in brackets)
 -----------------------------------------------------------
 scheme ["mseq"]
-    The victim's delay source: ``"off"``, ``"mseq"``, ``"masked"`` or ``"keyed"`` (Trivium,
-    :mod:`fliss.sim.models.trivium`: ``Wm``-bit delays from the keystream of an 80-bit key drawn per
-    run from the point's seed, or ``victim_seed`` if not 0, and IV 0).
+    The victim's delay source, a delay mode (:data:`SCHEMES`, those of
+    :data:`~fliss.hdl.delay.modes.MODES`): ``"off"``, ``"mseq"``, ``"masked"`` or ``"keyed"``
+    (Trivium, :mod:`fliss.sim.models.trivium`: ``Wm``-bit delays from the keystream of an 80-bit
+    key drawn per run from the point's seed, or ``victim_seed`` if not 0, and IV 0).
 grid [False]
     Grid scheduler (pulse ``k`` fires ``R[k]`` after ``k T``) instead of interval mode.
 length [6], mask_width [6]
@@ -104,6 +105,8 @@ import math
 import numpy as np
 
 from ...hdl.clock import DEFAULT_CLOCK_HZ
+from ...hdl.delay.modes import MODES, SIZES
+from ...hdl.delay.settings import KEY_BITS, MAX_LENGTH
 from ...hdl.event import TDC_LSB_S
 from ..models import delay as _delay
 from ..models import scheduler as _scheduler
@@ -148,8 +151,8 @@ PARAMETERS = {
        if not setting.name.startswith("crosstalk")},
 }
 
-#: Victim delay sources.
-SCHEMES = ("off", "mseq", "masked", "keyed")
+#: Victim delay sources: the delay modes (:data:`~fliss.hdl.delay.modes.MODES`).
+SCHEMES = tuple(row.name for row in MODES.values())
 
 #: Aggressor kinds.
 KINDS = ("free", "fliss", "locked", "predicting")
@@ -204,8 +207,8 @@ def check_point(point):
     _choice(full, "aggressor_kind", KINDS)
     if not isinstance(full["grid"], (bool, np.bool_)):
         raise ValueError(f"Point parameter grid must be true or false, not {full['grid']!r}")
-    full["length"] = _integer(full, "length", 2, 32)
-    full["mask_width"] = _integer(full, "mask_width", 1, 16)
+    for name, size in SIZES.items():            # length, mask_width
+        full[name] = _integer(full, name, size.minimum, size.maximum)
     full["period_cycles"] = _integer(full, "period_cycles", 2, 1 << 20)
     full["victim_seed"] = _integer(full, "victim_seed", 0, (1 << 32) - 1)
     _choice(full, "fine_step", FINE_STEPS)
@@ -238,8 +241,13 @@ def _detector(point):
                           if setting.name in point}, style="key")
 
 
+def _row(point):
+    # The row of the point's scheme in the table of delay modes
+    return MODES[_delay.parse_mode(point["scheme"])]
+
+
 def _keyed(point):
-    return _delay.parse_mode(point["scheme"]) == _delay.DelayMode.KEYED
+    return _row(point).keyed
 
 
 def _seed_fields(point, seed):
@@ -259,8 +267,12 @@ def _victim(point, seed):
 
 
 def _seed_bits(point):
-    mode = _delay.parse_mode(point["scheme"])
-    return {_delay.DelayMode.MSEQ: point["length"], _delay.DelayMode.KEYED: 80}.get(mode, 32)
+    # The bits of a drawn seed: the key's, those of the setting that sizes the seed's register,
+    # or the seed register's 32
+    row = _row(point)
+    if row.keyed:
+        return KEY_BITS
+    return point[row.seed_bits] if isinstance(row.seed_bits, str) else MAX_LENGTH
 
 
 def _draw_seed(rng, bits):
