@@ -26,7 +26,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from fliss.host.imager.files import create_depth
+from fliss.host.kinds.depth import create as create_depth
 
 
 PIXELS = 64

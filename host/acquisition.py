@@ -205,7 +205,7 @@ DEFAULT_INTEGRATION_S = BY_NAME["integration"].reset.seconds
 def capture(board: BoardClient, path: str, *, mode: str = "histogram",
             integration_s: float = DEFAULT_INTEGRATION_S, acquisitions: int = 10,
             duration_s: Optional[float] = None, port: str = "",
-            progress=None, watch=None) -> CaptureResult:
+            progress=None, watch=None, attrs=None) -> CaptureResult:
     """Capture into ``path`` from an identified :class:`~fliss.host.client.BoardClient`.
 
     ``mode`` is a kind of data (:data:`fliss.host.kinds.KINDS`): ``"histogram"``
@@ -221,7 +221,8 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
     starts, are raised. ``watch``, if given, has ``add(item)``, ``add_status(status, link)``
     and ``finish(reason)`` (a live view's :class:`fliss.host.view.feed.Feed`): it sees each
     item as it is stored, the board's STATUS at each heartbeat and how the capture ended, and
-    must return at once without raising.
+    must return at once without raising. ``attrs``: more attributes of the file (name ->
+    value: the sensor's ``geometry``).
     """
     clock_hz = board.identity.clock_hz
     cycles = round(integration_s * clock_hz)
@@ -234,7 +235,7 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
         if configuration["tdc_source"] == TdcSource.FINE.value else None
     run = _Capture(board, path, mode, configuration, status_start, acquisitions=acquisitions,
                    duration_s=duration_s, cycles=cycles, port=port, progress=progress,
-                   watch=watch, table=table)
+                   watch=watch, table=table, attrs=attrs)
     reason, complete, lost = run.acquire()
     run.interrupt.install()     # again: a signal while stopping and closing only sets the flag
     try:
@@ -272,13 +273,13 @@ class _Capture:
     :func:`capture` (acquire, stop, close)."""
 
     def __init__(self, board, path, mode, configuration, status_start, *, acquisitions,
-                 duration_s, cycles, port, progress, watch=None, table=None):
+                 duration_s, cycles, port, progress, watch=None, table=None, attrs=None):
         self.board, self.path, self.mode = board, path, mode
         self.kind = kind_of(mode)
         self.status_start, self.status_end = status_start, None
         self.acquisitions, self.duration_s = acquisitions, duration_s
         self.seconds = cycles / board.identity.clock_hz     # integration time
-        attrs = {"integration_s": self.seconds}
+        attrs = {**(attrs or {}), "integration_s": self.seconds}
         if self.kind.framed:
             attrs["acquisitions_requested"] = acquisitions
         else:

@@ -41,6 +41,7 @@ from .errors import BoardLost, BoardMismatch, BoardRefused, SettingsError
 from .imager.results import DepthFrames, Images, acquire_depth, acquire_image
 from .kinds import mode_of
 from .paths import check_output_path
+from .pointcloud.options import geometry_attribute
 from .results import Events, Histogram, Histograms
 from .settings import (DEFAULT_BANK_BITS, Conversion, RoundingWarning, Settings, convert, describe,
                        duration_s)
@@ -409,14 +410,16 @@ class Board:
 
     def capture(self, path: str, *, acquisitions: int = 10, duration: str = "1s",
                 progress=None, image: Optional[bool] = None, overwrite: bool = False,
-                watch=None):
+                watch=None, geometry=None):
         """Capture into an HDF5 file (docs/file-format.md) at the board's settings: its
         readout (``acquisitions`` histograms or depth frames, or raw events for ``duration``),
         its integration time; the file records the registers used. Histograms are saved per
         pixel (``image``) when ``image`` is True, or None and a frame has several pixels.
         ``progress`` and ``watch`` (a live view's feed) as in
         :func:`fliss.host.acquisition.capture`. An existing file is replaced only with
-        ``overwrite``.
+        ``overwrite``. ``geometry``, a :class:`~fliss.host.pointcloud.geometry.SensorGeometry`
+        (or its JSON, as ``fliss capture`` records it), is recorded for the depth frames'
+        points (docs/point-clouds.md).
 
         Returns
         -------
@@ -434,10 +437,14 @@ class Board:
         duration_s = _duration(duration)
         registers = self.client.read_registers()
         readout = mode_of(AcquisitionMode(registers["acquisition"]), registers["pixel_bits"], image)
+        attrs = {}
+        if geometry is not None:
+            attrs["geometry"] = geometry if isinstance(geometry, str) else \
+                geometry_attribute(geometry)
         return capture(self.client, path, mode=readout,
                        integration_s=registers["integration"] / self.clock_hz,
                        acquisitions=acquisitions, duration_s=duration_s, port=self.port,
-                       progress=progress, watch=watch)
+                       progress=progress, watch=watch, attrs=attrs)
 
 
 def _duration(value):

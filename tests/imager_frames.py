@@ -115,6 +115,13 @@ class FakeClient:
         self.registers.update(changes)
         return dict(self.registers)
 
+    def write_checked(self, candidate, changes):
+        # (the settings already checked, as BoardClient.write_checked takes them)
+        changes = list(changes)
+        self.written.append({name: candidate[name] for name in changes})
+        self.registers.update({name: candidate[name] for name in changes})
+        return dict(candidate)
+
     def status(self):
         return {"running": self.running, "frames": self.sent, "pulses": 0, "events": 0,
                 "dropped_fifo": 0, "dropped_overrun": 0, "dropped_histogram": 0}

@@ -207,14 +207,15 @@ def test_analyze_of_an_export_is_the_analysis_of_the_capture(tmp_path, capsys):
 
 def test_depth_captures_are_refused_with_the_formats_that_hold_them(tmp_path, capsys):
     depth_capture(tmp_path / "d.h5")
-    for to, name in (("ptu", "d.ptu"), ("photon-hdf5", "d.hdf5")):
+    for to, name, title in (("ptu", "d.ptu", "PTU (PicoQuant)"),
+                            ("photon-hdf5", "d.hdf5", "Photon-HDF5")):
         status, out, err = fliss(capsys, "export", tmp_path / "d.h5", "--to", to, "-o",
                                  tmp_path / name)
         assert (status, out) == (1, "")
-        assert err == (f"fliss: error: {tmp_path / 'd.h5'}: a depth capture cannot be "
-                       f"exported: PTU and Photon-HDF5 hold photons and TCSPC histograms, not "
-                       f"depth frames; the FLISS capture file (HDF5) is the format that holds "
-                       f"them\n")
+        assert err == (f"fliss: error: {tmp_path / 'd.h5'}: a depth capture cannot go to "
+                       f"{title}: PTU and Photon-HDF5 hold photons and TCSPC histograms, not "
+                       f"depth frames: a depth capture goes to a point cloud (--to ply, pcd, "
+                       f"las or mcap; docs/point-clouds.md)\n")
         assert not (tmp_path / name).exists()
 
 

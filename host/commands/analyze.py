@@ -249,7 +249,7 @@ def _pileup_of(args, path, capture):
         if args.cycles < 1:
             raise UserError(f"--cycles must be at least 1, not {args.cycles}")
         return args.pileup, args.cycles, dead_s
-    if capture.mode != "raw":
+    if of_capture(capture).framed:
         raise UserError(f"{said}: the number of laser cycles of {path}'s histograms is not "
                         f"known ({capture.mode} captures do not record it): give --cycles N")
     return args.pileup, _raw_cycles(said, path, capture), dead_s

@@ -16,6 +16,7 @@ from ..formats import check_name
 from ..imager.threshold import nothing_detected
 from ..kinds import KINDS, kind_of, mode_of
 from ..paths import check_output_path
+from ..pointcloud.options import add_geometry_options, recorded_geometry
 from .common import Progress
 from .port_options import add_port_arguments, connect
 from .setting_options import add_setting_arguments, settings_from_args
@@ -60,6 +61,7 @@ def register(subparsers, formatter):
                         help="show the capture live in the browser meanwhile (as `fliss view`; "
                              "the view samples what is written and never holds it up)")
     add_view_arguments(parser, "the live view (with --view)")
+    add_geometry_options(parser)
     add_setting_arguments(parser, "settings (as in `fliss config`; those not given keep the "
                                   "board's values: --readout histogram|image|depth|raw, "
                                   "--pixels N, --integration TIME, --mode for the delay "
@@ -80,6 +82,7 @@ def run(args):
         except FormatError as error:
             raise UserError(str(error)) from None
     given = getattr(args, "given", frozenset())
+    geometry = recorded_geometry(args)      # (recorded for the depth frames' points)
     if args.view:
         check_bokeh()
     else:
@@ -107,7 +110,7 @@ def run(args):
         with viewing(board, args) as feed:
             result = board.capture(args.output, acquisitions=args.acquisitions,
                                    duration=args.duration, progress=bar, image=image,
-                                   overwrite=args.overwrite, watch=feed)
+                                   overwrite=args.overwrite, watch=feed, geometry=geometry)
     try:
         return report(result, quiet=quiet)
     except OSError:     # the terminal went away (SIGHUP); the file is saved all the same

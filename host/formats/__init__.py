@@ -26,7 +26,8 @@ from .ptu_header import read_header
 from .tttr_foreign import foreign_kind, read_foreign
 
 
-__all__ = ["FORMATS", "ENDINGS", "FormatError", "check_name", "export_capture", "read_file"]
+__all__ = ["FORMATS", "ENDINGS", "FormatError", "check_name", "export_capture", "export_refusal",
+           "read_file"]
 
 
 #: Export formats by name: (description, writer). Which kinds of data each takes is the kind's
@@ -43,6 +44,10 @@ ENDINGS = {
     "ptu": ("a PTU file", (".ptu",)),
     "photon-hdf5": ("a Photon-HDF5 file", (".hdf5", ".h5")),
     "fliss": ("a FLISS capture (HDF5)", (".h5", ".hdf5")),
+    "ply": ("a PLY file", (".ply",)),
+    "pcd": ("a PCD file", (".pcd",)),
+    "las": ("a LAS file", (".las",)),
+    "mcap": ("an MCAP file", (".mcap",)),
 }
 
 _PTU = b"PQTTTR\0\0"
@@ -64,6 +69,20 @@ def check_name(path, to, *, flag="--output", allow="--any-extension"):
                       f"{stem}{endings[0]}, or {allow} to keep the name")
 
 
+def export_refusal(kind, mode, name):
+    """Why a capture of ``kind`` (its ``mode``; None: of no kind) cannot go to the format called
+    ``name``, in one line."""
+    if kind is not None and kind.refusal:
+        if not kind.exports:            # no format takes it: the refusal says why
+            return kind.refusal
+        return f"{article(mode)} capture cannot go to {name}: {kind.refusal}"
+    if kind is not None and kind.exports:
+        return (f"{article(mode)} capture cannot go to {name}, which holds photons one by one, "
+                f"not histograms: export it to {' or '.join(e.upper() for e in kind.exports)} "
+                f"(--to {kind.exports[0]})")
+    return f"{article(mode)} capture cannot be exported"
+
+
 def export_capture(capture, path, to):
     """Write ``capture`` to ``path`` in the format ``to`` (a key of :data:`FORMATS`); returns
     the number of records (PTU) or photons (Photon-HDF5) written. The file is written under
@@ -72,13 +91,9 @@ def export_capture(capture, path, to):
     if to not in FORMATS:
         raise FormatError(f"no export format {to!r}; the formats are {', '.join(FORMATS)}")
     kind = KINDS.get(capture.mode)
-    if kind is not None and kind.refusal:
-        raise FormatError(f"{capture.path}: {kind.refusal}")
     name, write = FORMATS[to]
     if kind is None or to not in kind.exports:
-        raise FormatError(f"{capture.path}: {article(capture.mode)} capture cannot go to {name}, "
-                          f"which holds photons one by one, not histograms: export it to PTU "
-                          f"(--to ptu)")
+        raise FormatError(f"{capture.path}: {export_refusal(kind, capture.mode, name)}")
     folder, base = os.path.split(os.path.abspath(path))
     partial = os.path.join(folder, f".{base}.{os.getpid()}.part")
     try:

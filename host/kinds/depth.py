@@ -177,6 +177,6 @@ KIND = DataKind(
     assembler=DepthAssembler, item=DepthFrame, rows="depth frames", format_version=3,
     what="depth frames", counted=False, imager=True,
     create=create, append=append, blank=blank, read=read, tally=tally, replay=replay, seen=seen,
-    refusal="a depth capture cannot be exported: PTU and Photon-HDF5 hold photons and TCSPC "
-            "histograms, not depth frames; the FLISS capture file (HDF5) is the format that "
-            "holds them")
+    exports=("ply", "pcd", "las", "mcap"),
+    refusal="PTU and Photon-HDF5 hold photons and TCSPC histograms, not depth frames: a depth "
+            "capture goes to a point cloud (--to ply, pcd, las or mcap; docs/point-clouds.md)")

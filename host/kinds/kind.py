@@ -92,7 +92,9 @@ class DataKind:
     exports : tuple of str
         The export formats (:data:`fliss.host.formats.FORMATS`) that take it.
     refusal : str
-        Why no export format takes it (the refusal's message), when none does.
+        Why an export format that does not take it does not: the refusal's message when no
+        format takes it, its reason after "cannot go to FORMAT" when some do (empty: the
+        message names those).
     """
     name: str
     rank: int

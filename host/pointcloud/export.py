@@ -18,6 +18,9 @@ __all__ = ["WRITERS", "PointsExport", "export_points", "RUN_FRAMES"]
 #: The formats, by the name ``fliss export --to`` takes.
 WRITERS = {"ply": PlyWriter, "pcd": PcdWriter, "las": LasWriter, "mcap": McapWriter}
 
+#: The group of a capture file that holds its depth frames (:mod:`fliss.host.kinds.depth`).
+_GROUP = "depth"
+
 #: Frames read, turned into points and written at a time.
 RUN_FRAMES = 4096
 
@@ -43,10 +46,10 @@ def export_points(capture_path, output, to, geometry, *, comments=(), run_frames
     depth capture, :exc:`OSError` for one that cannot be read or written."""
     writer_type = WRITERS[to]
     with h5py.File(capture_path, "r") as f:
-        if f.attrs.get("mode") != "depth" or "depth" not in f:
+        group = f.get(_GROUP)
+        if not isinstance(group, h5py.Group):
             raise ValueError(f"{capture_path} is not a depth capture (fliss capture "
                              f"--readout depth): it has no depth frames to make points of")
-        group = f["depth"]
         rows = min(len(group[name]) for name in ("complete", "detected", "depth_m",
                                                  "height", "background", "frame", "time_s"))
         pixels = group["pixel"][()]

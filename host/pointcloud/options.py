@@ -13,7 +13,8 @@ from ..units import parse_angle, parse_length
 from .geometry import PAPER_SENSOR, SensorGeometry
 
 
-__all__ = ["add_geometry_options", "geometry_of", "geometry_attribute", "FLAGS"]
+__all__ = ["add_geometry_options", "geometry_of", "geometry_attribute", "recorded_geometry",
+           "FLAGS"]
 
 #: The options' flags, by attribute.
 FLAGS = {"pixel_layout": "--pixel-layout", "pitch": "--pitch", "focal_length": "--focal-length",
@@ -97,10 +98,47 @@ def _from_json(text, source):
 def geometry_of(args, recorded=None, source="the capture"):
     """The geometry of the flags in ``args`` over the one ``recorded`` (a capture's JSON
     attribute, or None) over the default; returns ``(geometry, note)``, ``note`` a line saying
-    which values are the default's when any is (None when none is)."""
-    base = PAPER_SENSOR if recorded is None else _from_json(recorded, source)
+    that the lens is assumed (the default's, given neither by a flag nor by the capture), or
+    None."""
+    geometry, assumed = _geometry_and_assumed(args, recorded, source)
+    note = None
+    if "lens" in assumed:
+        where = "the capture records none" if recorded is None else "the capture assumed it"
+        note = (f"the lens is not known ({where}, and no --focal-length or --fov is given): "
+                f"the points assume a {geometry.focal_m * 1e3:g} mm lens; their ranges are "
+                f"measured, their directions are not")
+    return geometry, note
+
+
+def recorded_geometry(args):
+    """The JSON a capture records of the geometry of the flags in ``args`` over the default,
+    with the settings no flag gave listed as ``assumed``."""
+    geometry, assumed = _geometry_and_assumed(args, None, "")
+    return geometry_attribute(geometry, assumed)
+
+
+def _given(args, *names):
+    return any(getattr(args, name, None) is not None for name in names)
+
+
+def _geometry_and_assumed(args, recorded, source):
+    # The geometry, and the names of its settings ("layout", "pitch", "lens", "centre") that
+    # neither a flag nor the recording gave (the recording's own assumptions carried on)
+    if recorded is None:
+        base, assumed = PAPER_SENSOR, {"layout", "pitch", "lens", "centre"}
+    else:
+        base = _from_json(recorded, source)
+        try:
+            assumed = set(json.loads(recorded).get("assumed", ()))
+        except (ValueError, AttributeError):
+            assumed = set()
+    for name, flags in (("layout", ("pixel_layout",)), ("pitch", ("pitch",)),
+                        ("lens", ("focal_length", "fov")), ("centre", ("optical_centre",))):
+        if _given(args, *flags):
+            assumed.discard(name)
     options = {"columns": base.columns, "pitch_m": base.pitch_m, "focal_m": base.focal_m,
                "centre": base.centre, "positions": base.positions}
+
     def given(name, parse):
         text = getattr(args, name, None)
         if text is None:
@@ -127,14 +165,7 @@ def geometry_of(args, recorded=None, source="the capture"):
                 k: v for k, v in options.items() if k != "focal_m"})
         except ValueError as error:
             raise UserError(f"--fov {args.fov}: {error}") from None
-    lens_given = getattr(args, "focal_length", None) is not None or \
-        getattr(args, "fov", None) is not None
-    note = None
-    if recorded is None and not lens_given:
-        note = (f"the lens is not known ({source} records no geometry, and no --focal-length "
-                f"or --fov is given): the points assume a {geometry.focal_m * 1e3:g} mm lens; "
-                f"their ranges are measured, their directions are not")
-    return geometry, note
+    return geometry, assumed
 
 
 def _long_side(geometry):
@@ -148,6 +179,7 @@ def _long_side(geometry):
     return max(geometry.columns, pixels // geometry.columns)
 
 
-def geometry_attribute(geometry):
-    """The JSON a capture records of ``geometry``."""
-    return json.dumps(geometry.describe())
+def geometry_attribute(geometry, assumed=()):
+    """The JSON a capture records of ``geometry``; ``assumed``, the names of its settings that
+    are defaults nobody gave (``"lens"``, ...)."""
+    return json.dumps({**geometry.describe(), "assumed": sorted(assumed)})

@@ -10,7 +10,7 @@ import h5py
 import numpy as np
 import pytest
 
-from fliss.host.imager.files import append_depth, create_depth
+from fliss.host.kinds.depth import append as append_depth, create as create_depth
 from fliss.host.pointcloud.export import WRITERS, export_points
 from fliss.host.pointcloud.geometry import SensorGeometry
 from fliss.host.stream import DepthFrame
