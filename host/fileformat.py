@@ -18,6 +18,7 @@ import h5py
 import numpy as np
 
 from .. import __version__
+from .filespace import Room
 from ..hdl.event import TDC_LSB_S, TIMESTAMP_BITS
 from ..hdl.registers import BY_NAME
 from ..hdl.codes import code_s as timestamp_code_s
@@ -91,6 +92,7 @@ class CaptureWriter:
             self.file = None
             raise
         self._flushed = time.monotonic()
+        self._room = Room(self.file, self.path)     # FileFull before a write that fails
 
     def _create(self, mode, identity, configuration, port, attrs):
         f = self.file
@@ -150,6 +152,8 @@ class CaptureWriter:
         stores nothing) if it does not fit the capture (another split, another mode).
         ``complete`` False marks a depth frame that never arrived (a histogram says it
         itself)."""
+        self._room.check(sum(value.nbytes for value in vars(frame).values()
+                             if isinstance(value, np.ndarray)))
         if self.mode == "image":
             done = append_image(self.file, self.histograms, frame, *self._image_split)
         elif self.mode == "depth":
@@ -172,6 +176,7 @@ class CaptureWriter:
             return self.add_frame(frame)
         if not hasattr(frame, "counts") or len(frame.counts) != self._bins:
             return False
+        self._room.check(frame.counts.nbytes)
         group = self.file["histograms"]
         index = self.histograms
         # The row's data first, then ``complete`` (its fill value False marks a row whose
@@ -190,6 +195,7 @@ class CaptureWriter:
 
     def add_events(self, batch):
         """Append an :class:`~fliss.host.stream.EventBatch`."""
+        self._room.check(batch.events.nbytes)
         group = self.file["events"]
         count = len(batch.events)
         group["events"].resize(self.events + count, axis=0)
@@ -206,6 +212,7 @@ class CaptureWriter:
         """Write everything appended so far to the disk."""
         self.file.flush()
         self._flushed = time.monotonic()
+        self._room.flushed()
 
     def _maybe_flush(self):
         if time.monotonic() - self._flushed >= self.flush_s:
