@@ -343,23 +343,51 @@ def read_capture(path):
                          f"file")
     if os.path.getsize(path) == 0:
         raise ValueError(f"{path} is empty, not a capture file")
+    size = os.path.getsize(path)
     f = _open(path)
-    with f:
-        if _plain(f.attrs.get("format")) != FORMAT:
-            raise ValueError(f"{path!r} is not a FLISS capture file")
-        version = _plain(f.attrs.get("format_version", 0))
-        if not isinstance(version, int):
-            raise ValueError(f"{path!r} has format version {version!r}, not a number: it is "
-                             f"damaged or not written by fliss")
-        if version > FORMAT_VERSION:
-            raise ValueError(f"{path!r} has format version {version}, newer than this fliss "
-                             f"reads ({FORMAT_VERSION}); update fliss")
-        try:
-            return _read(path, f)
-        except (KeyError, TypeError, ValueError, AttributeError) as error:
-            detail = str(error).splitlines()[0] if str(error) else type(error).__name__
-            raise ValueError(f"{path!r} claims the FLISS capture format but is damaged or not "
-                             f"written by fliss ({detail})") from None
+    try:
+        with f:
+            capture = _read_open(path, f)
+    except (ValueError, KeyError, OSError, RuntimeError) as error:
+        _check_whole(path, size)        # cut short meanwhile: says so first
+        if isinstance(error, ValueError):
+            raise
+        raise ValueError(f"{path!r} cannot be read ({str(error).splitlines()[0]})") from None
+    _check_whole(path, size)
+    return capture
+
+
+def _read_open(path, f):
+    """The capture in ``f``, the open HDF5 file at ``path``."""
+    if _plain(f.attrs.get("format")) != FORMAT:
+        raise ValueError(f"{path!r} is not a FLISS capture file")
+    version = _plain(f.attrs.get("format_version", 0))
+    if not isinstance(version, int):
+        raise ValueError(f"{path!r} has format version {version!r}, not a number: it is "
+                         f"damaged or not written by fliss")
+    if version > FORMAT_VERSION:
+        raise ValueError(f"{path!r} has format version {version}, newer than this fliss "
+                         f"reads ({FORMAT_VERSION}); update fliss")
+    try:
+        return _read(path, f)
+    except (KeyError, TypeError, ValueError, AttributeError) as error:
+        detail = str(error).splitlines()[0] if str(error) else type(error).__name__
+        raise ValueError(f"{path!r} claims the FLISS capture format but is damaged or not "
+                         f"written by fliss ({detail})") from None
+
+
+def _check_whole(path, size):
+    """Refuse what was read of ``path`` if the file is now shorter than the ``size`` bytes it
+    had when it was opened: another program cut it short (or replaced it) meanwhile, and HDF5
+    read garbage, or zeros past its end. (Removed meanwhile, it was read whole: an open file
+    keeps its data.)"""
+    try:
+        now = os.path.getsize(path)
+    except OSError:
+        return
+    if now < size:
+        raise ValueError(f"{path!r} was cut short while it was read (from {size} to {now} "
+                         f"bytes): nothing of it is used")
 
 
 def _open(path):
