@@ -428,12 +428,14 @@ class _Capture:
             writer.close(reason, complete=complete, capture_s=time.monotonic() - self.started)
         except OSError as error:
             self.file_error = self.file_error or error
-        if self.file_error is not None:
-            raise PathError(f"cannot write {self.path}: {_strerror(self.file_error)}; the "
-                            f"board was stopped, and the file holds what was written before")
-        return CaptureResult(
+        result = CaptureResult(
             path=str(self.path), mode=self.mode, histograms=rows.saved,
             lost_histograms=rows.lost, events=writer.events,
             batches=writer.batches, reason=reason, complete=complete, lost=lost, link=link,
             stream=stream, status_start=self.status_start, status_end=self.status_end,
             detections=self.detections, highest=self.highest, threshold=self.threshold)
+        if self.file_error is not None:
+            raise PathError(f"cannot write {self.path}: {_strerror(self.file_error)}; the "
+                            f"board was stopped, and the file holds the {result.what} written "
+                            f"before")
+        return result

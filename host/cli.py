@@ -10,6 +10,7 @@ import argparse
 import importlib
 import logging
 import re
+import signal
 import sys
 import warnings
 
@@ -122,6 +123,7 @@ def main(argv=None):
         return 130
     from .settings import RoundingWarning
 
+    _ignore_file_size_signal()
     level = logging.WARNING - 10 * (args.verbose - args.quiet)
     handler = logging.StreamHandler()
     handler.setFormatter(_LogFormatter())
@@ -142,6 +144,16 @@ def main(argv=None):
         return 130
     except BrokenPipeError:
         return 0
+
+
+def _ignore_file_size_signal():
+    # A write past the file-size limit (ulimit -f) then fails with EFBIG, which the capture
+    # reports, rather than kill fliss with SIGXFSZ. (Python ignores it when it starts; a
+    # program that embeds it may not.)
+    try:
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    except ValueError:      # not the main thread
+        pass
 
 
 class _LogFormatter(logging.Formatter):

@@ -7,7 +7,7 @@ it does with :exc:`UserError`, a mistake in what the user asked a command for.
 """
 
 __all__ = ["BoardError", "BoardLost", "BoardReset", "PortError", "BoardRefused", "BoardMismatch",
-           "SettingsError", "CalibrationError", "VirtualBoardError", "PathError", "FormatError", "ViewError",
+           "SettingsError", "CalibrationError", "VirtualBoardError", "PathError", "FileFull", "FormatError", "ViewError",
            "UserError", "GatewareVersionWarning"]
 
 
@@ -84,6 +84,13 @@ class PathError(ValueError):
     message is one line that says what and what to do. Raised before anything is started, by
     :mod:`fliss.host.paths`, or when a file stops taking data (a full disk) during a capture,
     after the board is stopped and the file closed."""
+
+
+class FileFull(OSError):
+    """A capture file cannot grow by what comes next: the disk is full, or the process's
+    file-size limit (``ulimit -f``) would be passed. Raised by the writer before it writes, so
+    that the file stays whole (HDF5 that fails mid-write leaves a file no one can open);
+    ``errno`` is ``ENOSPC`` or ``EFBIG`` and ``strerror`` says which, with the bytes left."""
 
 
 class FormatError(ValueError):

@@ -18,6 +18,7 @@ import h5py
 import numpy as np
 
 from .. import __version__
+from .filespace import Room
 from ..hdl.event import TDC_LSB_S, TIMESTAMP_BITS
 from ..hdl.registers import BY_NAME
 from ..hdl.codes import code_s as timestamp_code_s
@@ -87,6 +88,7 @@ class CaptureWriter:
             self.file = None
             raise
         self._flushed = time.monotonic()
+        self._room = Room(self.file, self.path)     # FileFull before a write that fails
 
     def _create(self, mode, identity, configuration, port, attrs):
         f = self.file
@@ -138,6 +140,8 @@ class CaptureWriter:
         False marks a depth frame that never arrived (a histogram says it itself)."""
         if self.kind.append is None:
             return False
+        self._room.check(sum(value.nbytes for value in vars(frame).values()
+                             if isinstance(value, np.ndarray)))
         done = self.kind.append(self.file, self.histograms, frame, self._state, complete)
         self.histograms += done
         self._maybe_flush()
@@ -148,6 +152,7 @@ class CaptureWriter:
 
     def add_events(self, batch):
         """Append an :class:`~fliss.host.stream.EventBatch`."""
+        self._room.check(batch.events.nbytes)
         group = self.file["events"]
         count = len(batch.events)
         group["events"].resize(self.events + count, axis=0)
@@ -164,6 +169,7 @@ class CaptureWriter:
         """Write everything appended so far to the disk."""
         self.file.flush()
         self._flushed = time.monotonic()
+        self._room.flushed()
 
     def _maybe_flush(self):
         if time.monotonic() - self._flushed >= self.flush_s:
@@ -295,23 +301,51 @@ def read_capture(path):
                          f"file")
     if os.path.getsize(path) == 0:
         raise ValueError(f"{path} is empty, not a capture file")
+    size = os.path.getsize(path)
     f = _open(path)
-    with f:
-        if _plain(f.attrs.get("format")) != FORMAT:
-            raise ValueError(f"{path!r} is not a FLISS capture file")
-        version = _plain(f.attrs.get("format_version", 0))
-        if not isinstance(version, int):
-            raise ValueError(f"{path!r} has format version {version!r}, not a number: it is "
-                             f"damaged or not written by fliss")
-        if version > FORMAT_VERSION:
-            raise ValueError(f"{path!r} has format version {version}, newer than this fliss "
-                             f"reads ({FORMAT_VERSION}); update fliss")
-        try:
-            return _read(path, f)
-        except (KeyError, TypeError, ValueError, AttributeError) as error:
-            detail = str(error).splitlines()[0] if str(error) else type(error).__name__
-            raise ValueError(f"{path!r} claims the FLISS capture format but is damaged or not "
-                             f"written by fliss ({detail})") from None
+    try:
+        with f:
+            capture = _read_open(path, f)
+    except (ValueError, KeyError, OSError, RuntimeError) as error:
+        _check_whole(path, size)        # cut short meanwhile: says so first
+        if isinstance(error, ValueError):
+            raise
+        raise ValueError(f"{path!r} cannot be read ({str(error).splitlines()[0]})") from None
+    _check_whole(path, size)
+    return capture
+
+
+def _read_open(path, f):
+    """The capture in ``f``, the open HDF5 file at ``path``."""
+    if _plain(f.attrs.get("format")) != FORMAT:
+        raise ValueError(f"{path!r} is not a FLISS capture file")
+    version = _plain(f.attrs.get("format_version", 0))
+    if not isinstance(version, int):
+        raise ValueError(f"{path!r} has format version {version!r}, not a number: it is "
+                         f"damaged or not written by fliss")
+    if version > FORMAT_VERSION:
+        raise ValueError(f"{path!r} has format version {version}, newer than this fliss "
+                         f"reads ({FORMAT_VERSION}); update fliss")
+    try:
+        return _read(path, f)
+    except (KeyError, TypeError, ValueError, AttributeError) as error:
+        detail = str(error).splitlines()[0] if str(error) else type(error).__name__
+        raise ValueError(f"{path!r} claims the FLISS capture format but is damaged or not "
+                         f"written by fliss ({detail})") from None
+
+
+def _check_whole(path, size):
+    """Refuse what was read of ``path`` if the file is now shorter than the ``size`` bytes it
+    had when it was opened: another program cut it short (or replaced it) meanwhile, and HDF5
+    read garbage, or zeros past its end. (Removed meanwhile, it was read whole: an open file
+    keeps its data.)"""
+    try:
+        now = os.path.getsize(path)
+    except OSError:
+        return
+    if now < size:
+        raise ValueError(f"{path!r} was cut short while it was read (from {size} to {now} "
+                         f"bytes): nothing of it is used")
 
 
 def _open(path):

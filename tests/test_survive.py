@@ -358,7 +358,7 @@ def test_a_full_disk_mid_capture_stops_the_board_and_keeps_the_rows(tmp_path, ca
     assert status == 1
     assert capsys.readouterr().err == (
         f"fliss: error: cannot write {output}: no space left on device; the board was "
-        f"stopped, and the file holds what was written before\n")
+        f"stopped, and the file holds the 3 histograms written before\n")
     assert len(capture.histograms) == 3
     assert capture.attrs["end_reason"] == f"cannot write {output}: no space left on device"
     assert capture.problems == []

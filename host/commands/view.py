@@ -6,6 +6,7 @@ captures.
 """
 
 import math
+import os
 import sys
 import time
 
@@ -120,9 +121,11 @@ def _replay(capture, feed, args, limit_s):
                   f"{MAX_RATE_HZ:g} a second", file=sys.stderr, flush=True)
         replay.start()
         said = False
+        watched = _FileWatch(capture.path)
         try:
             with sigterm_interrupts():
                 while end is None or time.monotonic() < end:
+                    watched.check()
                     if not said and replay.wait(0.1):
                         said = True
                         stays = ("until Ctrl-C" if end is None else
@@ -136,3 +139,31 @@ def _replay(capture, feed, args, limit_s):
         finally:
             replay.stop()
     return 0
+
+
+class _FileWatch:
+    """The replayed file, read whole when the view started: removed or cut short since, it
+    says so in one warning line, once, and the view goes on with what it read."""
+
+    def __init__(self, path):
+        self.path = path
+        self.size = self._size()
+        self.said = False
+
+    def _size(self):
+        try:
+            return os.path.getsize(self.path)
+        except OSError:
+            return None
+
+    def check(self):
+        if self.said or self.size is None:
+            return
+        now = self._size()
+        if now is not None and now >= self.size:
+            return
+        self.said = True
+        what = "was removed" if now is None else \
+            f"was cut short (from {self.size} to {now} bytes)"
+        print(f"fliss: warning: {self.path} {what} while shown; the view goes on with the "
+              f"capture as it was read when it started", file=sys.stderr, flush=True)
