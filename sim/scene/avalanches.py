@@ -31,6 +31,7 @@ from ...protocol.events import EVENT_DTYPE
 from .description import COUNTERS, TDC_CODES
 from .detection import non_paralysable, spans
 from .draws import Ahead
+from .few_avalanches import resolve_few, tdc_few
 
 
 __all__ = ["Avalanches", "DetectorPath", "pixel_avalanches"]
@@ -215,6 +216,9 @@ class DetectorPath:
             return prepared
         cycles, count, (starts, span_starts, ends, boundary), (times, sources, pixel) = prepared
         array = self._pixel_count is not None
+        if not array and not self._separated and len(times) <= self.few_photons:
+            return self._few_detector_step(cycles, count, (starts, span_starts, ends, boundary),
+                                           times, sources, carried)
         if not array:
             pixel = np.zeros(len(times), dtype=np.int16)
         times = self._avalanches.tail(times, sources, carried)
@@ -258,3 +262,24 @@ class DetectorPath:
         counts[:, _GENERATED] = counts.sum(axis=1)
         return self._advance(cycles, count, starts, ends, events, counts)
 
+
+    def _few_detector_step(self, cycles, count, windows, times, sources, carried):
+        """The rest of :meth:`_detector_step` for a few photons of one pixel, in plain Python
+        (:mod:`.few_avalanches`: the same results)."""
+        starts, span_starts, ends, boundary = windows
+        begins = starts.tolist()
+        resolved, (carry_times, carry_sources), last = resolve_few(
+            self._avalanches, times.tolist(), sources.tolist(), carried,
+            (begins, span_starts.tolist(), ends.tolist()), self._last_detection, boundary)
+        self._last_detection = float(last)
+        self._carry_times = np.array(carry_times, dtype=np.float64)
+        self._carry_sources = np.array(carry_sources, dtype=np.int8)
+        recorded, counts = tdc_few(resolved, begins, self.scene.keep == "last", self._sources)
+        events = np.zeros(len(recorded), dtype=EVENT_DTYPE)
+        if recorded:
+            events["timestamp"] = [stamp for _, stamp in recorded]
+            events["address"] = self.scene.address
+            events["pulse"] = [(self.pulse + span) & ((1 << PULSE_BITS) - 1)
+                               for span, _ in recorded]
+        return self._advance(cycles, count, starts, ends, events,
+                             np.array(counts, dtype=np.int64))
