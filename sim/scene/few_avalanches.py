@@ -19,9 +19,10 @@ import math
 import numpy as np
 
 from .description import COUNTERS, TDC_CODES
+from .few import _column as few_column
 
 
-__all__ = ["resolve_few", "tdc_few"]
+__all__ = ["resolve_few", "tdc_few", "counters"]
 
 
 _GENERATED, _OUTSIDE, _DEAD, _OVERWRITTEN, _RECORDED = range(len(COUNTERS))
@@ -44,45 +45,69 @@ def _tail(effects, times, sources, first):
             times[index[at]] -= mean * log
 
 
-def _children(effects, times, parents):
-    """The afterpulses of the avalanches ``parents`` (indices): ``(time, source, parent)``."""
-    probability, cumulative, means, source = effects._after
-    draws = effects._after_draws.list(3 * len(parents))
-    has = [at for at in range(len(parents)) if draws[3 * at] < probability]
-    if not has:
-        return []
-    cumulative, means = cumulative.tolist(), means.tolist()
-    logs = np.log1p(-np.array([draws[3 * at + 2] for at in has])).tolist()
+def _children(effects, times, pixels, parents):
+    """The afterpulses and crosstalk of the avalanches ``parents`` (indices), as
+    :meth:`Avalanches._children`: ``(time, source, pixel, parent)`` of each."""
     children = []
-    for at, log in zip(has, logs):
-        kind = min(bisect_right(cumulative, draws[3 * at + 1]), len(means) - 1)
-        owner = parents[at]
-        children.append((times[owner] - means[kind] * log, source, owner))
+    if effects._after is not None:
+        probability, cumulative, means, source = effects._after
+        draws = effects._after_draws.list(3 * len(parents))
+        has = [at for at in range(len(parents)) if draws[3 * at] < probability]
+        if has:
+            cumulative, means = cumulative.tolist(), means.tolist()
+            logs = np.log1p(-np.array([draws[3 * at + 2] for at in has])).tolist()
+            for at, log in zip(has, logs):
+                kind = min(bisect_right(cumulative, draws[3 * at + 1]), len(means) - 1)
+                owner = parents[at]
+                children.append((times[owner] - means[kind] * log, source, pixels[owner],
+                                 owner))
+    if effects._cross is not None:
+        targets, chance, source = _cross_lists(effects)
+        draws = effects._cross_draws.list(8 * len(parents))
+        hits = [(owner, column) for at, owner in enumerate(parents)
+                for column, odds in enumerate(chance[pixels[owner]])
+                if draws[8 * at + column] < odds]
+        delays = effects._cross_delays.list(len(hits))
+        sigma = effects._sigma
+        for (owner, column), normal in zip(hits, delays):
+            children.append((times[owner] + sigma * abs(normal), source,
+                             targets[pixels[owner]][column], owner))
     return children
 
 
-def _avalanches(times, last, dead, paralysable):
-    """:func:`~fliss.sim.scene.avalanches.pixel_avalanches` of one pixel, on lists."""
+def _cross_lists(effects):
+    """The crosstalk's targets and chances of ``effects``, as lists (made once)."""
+    lists = getattr(effects, "_few_cross", None)
+    if lists is None:
+        targets, chance, source = effects._cross
+        lists = effects._few_cross = (targets.tolist(), chance.tolist(), source)
+    return lists
+
+
+def _avalanches(times, pixels, last, dead, paralysable):
+    """:func:`~fliss.sim.scene.avalanches.pixel_avalanches` on lists (``last``: each pixel's
+    last avalanche): for each photon, whether it starts an avalanche and whether it counts."""
     count = len(times)
     if count == 0 or dead <= 0:
         return [True] * count, [True] * count
     if paralysable:
-        counted, previous = [], last
-        for time in times:
-            counted.append(time - previous >= dead)
-            previous = time
+        counted, previous = [], {}
+        for time, pixel in zip(times, pixels):
+            counted.append(time - previous.get(pixel, last[pixel]) >= dead)
+            previous[pixel] = time
         return [True] * count, counted
-    # The keys of pixel_avalanches' one axis (pixel 0: its offsets add nothing), in its order
+    # pixel_avalanches' one axis: each pixel's block from its last avalanche, the blocks more
+    # than a dead time apart, so each pixel on its own (the same keys, the same arithmetic)
     origin = times[0]
-    keys = [max(last - origin, -2.0 * dead)] + [time - origin for time in times]
-    order = sorted(range(count + 1), key=keys.__getitem__)
-    result = [False] * (count + 1)
-    reference = -math.inf
-    for at in order:
-        if keys[at] - reference >= dead:
-            result[at] = True
-            reference = keys[at]
-    counted = result[1:]
+    stride = (times[-1] - origin) + 4.0 * dead + 1.0
+    references, counted = {}, []
+    for time, pixel in zip(times, pixels):
+        if pixel not in references:
+            references[pixel] = max(last[pixel] - origin, -2.0 * dead) + pixel * stride
+        key = (time - origin) + pixel * stride
+        counted.append(key - references[pixel] >= dead)
+        if counted[-1]:
+            references[pixel] = key
     return counted, counted
 
 
@@ -96,43 +121,44 @@ def _locate(time, windows):
     return span, in_span, in_span and time >= starts[clipped]
 
 
-def resolve_few(effects, times, sources, carried, windows, last, boundary):
-    """A step's photons of one pixel through the detector's effects (``effects``: the step's
-    :class:`~fliss.sim.scene.avalanches.Avalanches`): ``times`` and ``sources`` (lists, not
-    sorted; the first ``carried`` carried over), ``windows`` as :func:`_locate` takes them,
-    ``last`` the pixel's last avalanche. Returns the photons before ``boundary`` with their
-    children in time order, ``(times, sources, located, counted)`` (``located``: each one's
-    ``(span, in_span, in_window)``), the photons and children carried over (``(times,
-    sources)``) and the last avalanche."""
-    times, sources = list(times), list(sources)
+def resolve_few(effects, photons, carried, windows, last, boundary):
+    """A step's photons through the detector's effects (``effects``: the step's
+    :class:`~fliss.sim.scene.avalanches.Avalanches`): ``photons`` ``(times, sources, pixels)``
+    (lists, not sorted; the first ``carried`` carried over), ``windows`` as :func:`_locate`
+    takes them, ``last`` each pixel's last avalanche (a list, updated). Returns the photons
+    before ``boundary`` with their children in time order, ``(times, sources, pixels, located,
+    counted)`` (``located``: each one's ``(span, in_span, in_window)``), and the photons and
+    children carried over, ``(times, sources, pixels)``."""
+    times, sources, pixels = (list(values) for values in photons)
     _tail(effects, times, sources, carried)
     carry = [at for at in range(len(times)) if times[at] >= boundary]
-    carry_times = [times[at] for at in carry]
-    carry_sources = [sources[at] for at in carry]
+    carried_over = [[values[at] for at in carry] for values in (times, sources, pixels)]
     now = sorted((at for at in range(len(times)) if times[at] < boundary),
                  key=times.__getitem__)
-    times, sources = [times[at] for at in now], [sources[at] for at in now]
+    times, sources, pixels = ([values[at] for at in now] for values in (times, sources, pixels))
     parent, depth = [-1] * len(times), [0] * len(times)
     expanded, active = [False] * len(times), [True] * len(times)
+    initial = list(last)
     while True:
         index = sorted((at for at in range(len(times)) if active[at] and times[at] < boundary),
                        key=times.__getitem__)
-        step_times = [times[at] for at in index]
-        located = [_locate(time, windows) for time in step_times]
+        located = [_locate(times[at], windows) for at in index]
         spanned = [at for at, (_, in_span, _) in enumerate(located) if in_span]
-        avalanche, counted = _avalanches([step_times[at] for at in spanned], last,
+        avalanche, counted = _avalanches([times[index[at]] for at in spanned],
+                                         [pixels[index[at]] for at in spanned], initial,
                                          effects.dead, effects.paralysable)
         fired = [False] * len(times)
         for at, started in zip(spanned, avalanche):
             if started:
                 fired[index[at]] = True
         new = [at for at in range(len(times)) if fired[at] and not expanded[at]]
-        if new and effects._after is not None:
+        if new and (effects._after is not None or effects._cross is not None):
             for at in new:
                 expanded[at] = True
-            for time, source, owner in _children(effects, times, new):
+            for time, source, pixel, owner in _children(effects, times, pixels, new):
                 times.append(time)
                 sources.append(source)
+                pixels.append(pixel)
                 parent.append(owner)
                 depth.append(depth[owner] + 1)
                 expanded.append(False)
@@ -145,24 +171,27 @@ def resolve_few(effects, times, sources, carried, windows, last, boundary):
         if present == active:
             break
         active = present
-    hits = [times[index[at]] for at, started in zip(spanned, avalanche) if started]
-    if hits:
-        last = max(last, max(hits))
-    kept = [False] * len(step_times)
+    for at, started in zip(spanned, avalanche):
+        if started:
+            pixel = pixels[index[at]]
+            last[pixel] = max(last[pixel], times[index[at]])
+    kept = [False] * len(index)
     for at, count in zip(spanned, counted):
         kept[at] = count
     later = [at for at in range(len(times)) if active[at] and times[at] >= boundary]
-    carry_times += [times[at] for at in later]
-    carry_sources += [sources[at] for at in later]
-    return ((step_times, [sources[at] for at in index], located, kept),
-            (carry_times, carry_sources), last)
+    for values, more in zip(carried_over, (times, sources, pixels)):
+        values += [more[at] for at in later]
+    return ([[values[at] for at in index] for values in (times, sources, pixels)]
+            + [located, kept], carried_over)
 
 
-def tdc_few(resolved, starts, keep_last, source_count):
+def tdc_few(resolved, starts, options, source_count):
     """The TDC's detections of :func:`resolve_few`'s photons (``starts``: the windows' TDC
-    starts, a list) and the photon counters: ``(recorded, counts)``, ``recorded`` a list of
-    ``(span, timestamp)``, ``counts`` a list of rows per source (:data:`COUNTERS`)."""
-    times, sources, located, counted = resolved
+    starts, a list; ``options``: ``(keep_last, column, collision window in LSBs)``; one pixel
+    is a column) and what became of each photon: ``(recorded, what)``, ``recorded`` a
+    list of ``(span, timestamp, pixel, collision flag)`` in the sensor's order."""
+    keep_last, column, collision = options
+    times, sources, pixels, located, counted = resolved
     what = [_OUTSIDE] * len(times)
     fires = []
     for at, ((_, _, in_window), count) in enumerate(zip(located, counted)):
@@ -170,15 +199,26 @@ def tdc_few(resolved, starts, keep_last, source_count):
             what[at] = _OVERWRITTEN if count else _DEAD
             if count:
                 fires.append(at)
-    recorded = []
-    for position, at in enumerate(fires):
-        span = located[at][0]
-        neighbour = position + 1 if keep_last else position - 1
-        if not 0 <= neighbour < len(fires) or located[fires[neighbour]][0] != span:
-            what[at] = _RECORDED
-            recorded.append((span, min(math.floor(times[at] - starts[span]), TDC_CODES - 1)))
+    if not column:
+        # One TDC per pixel: per (window, pixel) the last (first) detection, in address order
+        groups = {}
+        for at in fires:
+            key = (located[at][0], pixels[at])
+            if keep_last or key not in groups:
+                groups[key] = at
+        recorded = [(key[0], times[at], key[1], 0, at) for key, at in sorted(groups.items())]
+    else:
+        recorded = few_column(fires, times, pixels, located, keep_last, collision)
+    for *_, at in recorded:
+        what[at] = _RECORDED
+    return [(span, min(math.floor(time - starts[span]), TDC_CODES - 1), pixel, near)
+            for span, time, pixel, near, _ in recorded], what
+
+
+def counters(sources, what, source_count):
+    """The photon counters of one pixel (rows per source, :data:`COUNTERS`)."""
     counts = [[0] * len(COUNTERS) for _ in range(source_count)]
     for source, kind in zip(sources, what):
         counts[source][kind] += 1
         counts[source][_GENERATED] += 1
-    return recorded, counts
+    return counts
