@@ -65,7 +65,7 @@ def _children(effects, times, pixels, parents):
         targets, chance, source = _cross_lists(effects)
         draws = effects._cross_draws.list(8 * len(parents))
         hits = [(owner, column) for at, owner in enumerate(parents)
-                for column, odds in enumerate(chance[pixels[owner]])
+                for column, odds in chance[pixels[owner]]
                 if draws[8 * at + column] < odds]
         delays = effects._cross_delays.list(len(hits))
         sigma = effects._sigma
@@ -76,11 +76,14 @@ def _children(effects, times, pixels, parents):
 
 
 def _cross_lists(effects):
-    """The crosstalk's targets and chances of ``effects``, as lists (made once)."""
+    """The crosstalk's targets of ``effects`` and each pixel's ``(column, chance)`` of its
+    neighbours with a chance above 0 (a uniform draw is never below 0), as lists (made once)."""
     lists = getattr(effects, "_few_cross", None)
     if lists is None:
         targets, chance, source = effects._cross
-        lists = effects._few_cross = (targets.tolist(), chance.tolist(), source)
+        chances = [[(column, odds) for column, odds in enumerate(row) if odds > 0]
+                   for row in chance.tolist()]
+        lists = effects._few_cross = (targets.tolist(), chances, source)
     return lists
 
 
