@@ -9,7 +9,8 @@ from ....hdl.clock import DEFAULT_CLOCK_HZ
 from ...models import delay as _delay
 from ...models import scheduler as _scheduler
 from ...scene.description import SPEED_OF_LIGHT, TDC_CODES, time_of_flight
-from ...scene.detector_options import SETTINGS as _DETECTOR_SETTINGS, detector_from
+from ...scene.detector_options import (SETTINGS as _DETECTOR_SETTINGS, DetectorSettingError,
+                                       detector_from)
 from ....hdl.event import TDC_LSB_S
 from ..detection import classify, wilson
 from .emitters import EMISSIONS, LSB_PER_CYCLE, golomb_code, mean_period_cycles
@@ -97,8 +98,8 @@ def detector_of(point):
     if point.get("spads", 1) == 1:
         for name in ("crosstalk", "crosstalk_diagonal"):
             if settings[name] is not None:
-                raise ValueError(f"{name} = {settings[name]!r}: does nothing with one SPAD "
-                                 f"(spads = 1)")
+                raise DetectorSettingError(f"{name} = {settings[name]!r}: does nothing with "
+                                           f"one SPAD (spads = 1)")
     return detector
 
 
