@@ -31,6 +31,7 @@ from ...protocol.events import EVENT_DTYPE
 from .description import COUNTERS, TDC_CODES
 from .detection import non_paralysable, spans
 from .draws import Ahead
+from .few_avalanches import counters, resolve_few, tdc_few
 
 
 __all__ = ["Avalanches", "DetectorPath", "pixel_avalanches"]
@@ -215,6 +216,9 @@ class DetectorPath:
             return prepared
         cycles, count, (starts, span_starts, ends, boundary), (times, sources, pixel) = prepared
         array = self._pixel_count is not None
+        if not self._separated and len(times) <= self.few_photons:
+            return self._few_detector_step(cycles, count, (starts, span_starts, ends, boundary),
+                                           (times, sources, pixel), carried)
         if not array:
             pixel = np.zeros(len(times), dtype=np.int16)
         times = self._avalanches.tail(times, sources, carried)
@@ -258,3 +262,39 @@ class DetectorPath:
         counts[:, _GENERATED] = counts.sum(axis=1)
         return self._advance(cycles, count, starts, ends, events, counts)
 
+
+    def _few_detector_step(self, cycles, count, windows, photons, carried):
+        """The rest of :meth:`_detector_step` for a few photons, in plain Python
+        (:mod:`.few_avalanches`: the same results)."""
+        starts, span_starts, ends, boundary = windows
+        array = self._pixel_count is not None
+        times, sources, pixel = photons
+        begins = starts.tolist()
+        last = self._last_detections.tolist() if array else [self._last_detection]
+        resolved, carry = resolve_few(
+            self._avalanches, (times.tolist(), sources.tolist(),
+                               pixel.tolist() if array else [0] * len(times)),
+            carried, (begins, span_starts.tolist(), ends.tolist()), last, boundary)
+        self._carry_times = np.array(carry[0], dtype=np.float64)
+        self._carry_sources = np.array(carry[1], dtype=np.int8)
+        options = (self.scene.keep == "last", self._column, self._collision) if array else \
+            (self.scene.keep == "last", True, 0.0)
+        recorded, what = tdc_few(resolved, begins, options, self._sources)
+        events = np.zeros(len(recorded), dtype=EVENT_DTYPE)
+        if recorded:
+            span, stamps, pixels, collisions = zip(*recorded)
+            events["timestamp"] = stamps
+            events["address"] = self._addresses[list(pixels)] if array else self.scene.address
+            events["collision"] = collisions
+            events["pulse"] = [(self.pulse + index) & ((1 << PULSE_BITS) - 1) for index in span]
+        if array:
+            self._last_detections[:] = last
+            self._carry_pixels = np.array(carry[2], dtype=np.int16)
+            return self._advance_pixels(cycles, count, starts, ends, events,
+                                        np.array(resolved[2], dtype=np.int16),
+                                        np.array(resolved[1], dtype=np.int8),
+                                        np.array(what, dtype=np.int64))
+        self._last_detection = float(last[0])
+        return self._advance(cycles, count, starts, ends, events,
+                             np.array(counters(resolved[1], what, self._sources),
+                                      dtype=np.int64))

@@ -26,9 +26,14 @@ the victim's pixel over the victim's echo), ``ppm_spread`` (the aggressors' osci
 in ± that many ppm), ``detections_per_frame`` (the echo's energy), ``background_hz`` (ambient
 light at the macro-pixel, thinned by the PDP; the sensor's dark counts come on top, per SPAD),
 ``spads``, ``coincidence`` and ``coincidence_window_ns`` (the gate), ``multi_hit`` and ``keep``
-(the TDC: every event, or the ``"last"``/``"first"`` of a window), ``sensor_preset`` (a name of
-:data:`fliss.sim.scene.PRESETS`), ``distance_m``, ``t_int_s``, ``threshold_sigma`` (the
-detector's) and ``frames`` (each its own draw of every camera).
+(the TDC: every event, or the ``"last"``/``"first"`` of a window), ``distance_m``,
+``t_int_s``, ``threshold_sigma`` (the detector's) and ``frames`` (each its own draw of every
+camera). The SPADs' detector: ``sensor_preset`` (a name of :data:`fliss.sim.scene.PRESETS`;
+default ``"paper"``) and each setting of ``fliss board`` by the same name with the same values
+as text with units (``dead_time = "22ns"``, ``afterpulsing = "1.4%"``, ``dark_count = "7kHz"``,
+``paralysable = true``, ``crosstalk = "3.5%"`` with ``spads`` > 1; the table of
+:mod:`fliss.sim.scene.detector_options`, as the interference study), each given replacing the
+preset's value.
 
 The point's parameters and defaults are :data:`PARAMETERS`; :func:`evaluate` returns ``frames``,
 ``miss``/``ghost``/``wrong_depth``/``failure`` (a miss or a wrong depth) counts with ``p_*`` and 95 % Wilson bounds ``p_*_lo`` and

@@ -9,14 +9,15 @@ from ....hdl.clock import DEFAULT_CLOCK_HZ
 from ...models import delay as _delay
 from ...models import scheduler as _scheduler
 from ...scene.description import SPEED_OF_LIGHT, TDC_CODES, time_of_flight
-from ...scene.presets import PRESETS
+from ...scene.detector_options import (SETTINGS as _DETECTOR_SETTINGS, DetectorSettingError,
+                                       detector_from)
 from ....hdl.event import TDC_LSB_S
 from ..detection import classify, wilson
 from .emitters import EMISSIONS, LSB_PER_CYCLE, golomb_code, mean_period_cycles
 from .frame import FWHM_S, simulate_frame, window_codes
 
 
-__all__ = ["PARAMETERS", "REFERENCE_DETECTIONS", "check_point", "evaluate"]
+__all__ = ["PARAMETERS", "REFERENCE_DETECTIONS", "check_point", "detector_of", "evaluate"]
 
 
 #: FLISS's echo per 10 ms frame at the interference study's defaults: 0.05 detections a pulse,
@@ -41,7 +42,6 @@ PARAMETERS = {
     "coincidence_window_ns": 2.0,
     "multi_hit": False,
     "keep": "last",
-    "sensor_preset": "paper",
     "cameras": 1,
     "aggressor_power": 1.0,
     "ppm_spread": 50.0,
@@ -51,6 +51,9 @@ PARAMETERS = {
     "distance_m": 4.0,
     "threshold_sigma": 5.0,
     "frames": 200,
+    # The detector, by the names of fliss board's options (None: not given; the paper's sensor)
+    "sensor_preset": "paper",
+    **{setting.name: None for setting in _DETECTOR_SETTINGS},
 }
 
 _DELAY_MODES = ("mseq", "masked")
@@ -84,6 +87,22 @@ def _choice(point, name, choices):
     return point[name]
 
 
+def detector_of(point):
+    """The point's :class:`~fliss.sim.scene.detector.Detector`: its ``sensor_preset`` with the
+    settings it gives (:func:`fliss.sim.scene.detector_options.detector_from`, the table of
+    ``fliss board`` and the interference study); raises
+    :exc:`~fliss.sim.scene.detector_options.DetectorSettingError` (a :exc:`ValueError`) naming
+    the setting as written."""
+    settings = {setting.name: point.get(setting.name) for setting in _DETECTOR_SETTINGS}
+    detector = detector_from(point.get("sensor_preset"), settings, style="key")
+    if point.get("spads", 1) == 1:
+        for name in ("crosstalk", "crosstalk_diagonal"):
+            if settings[name] is not None:
+                raise DetectorSettingError(f"{name} = {settings[name]!r}: does nothing with "
+                                           f"one SPAD (spads = 1)")
+    return detector
+
+
 def _check_scheme(full):
     """The checks that tie parameters of one scheme together."""
     scheme = full["scheme"]
@@ -106,7 +125,7 @@ def _check_scheme(full):
     if full["coincidence"] > full["spads"]:
         raise ValueError(f"Point parameter coincidence ({full['coincidence']}) must be at most "
                          f"spads ({full['spads']})")
-    dead_ns = PRESETS[full["sensor_preset"]].dead_time_s * 1e9
+    dead_ns = detector_of(full).dead_time_s * 1e9
     if full["coincidence"] > 1 and full["coincidence_window_ns"] > dead_ns:
         raise ValueError(f"Point parameter coincidence_window_ns must be at most the dead time "
                          f"({dead_ns:g} ns), not {full['coincidence_window_ns']!r}")
@@ -125,7 +144,6 @@ def check_point(point):
     _choice(full, "scheme", EMISSIONS)
     _choice(full, "delay_mode", _DELAY_MODES)
     _choice(full, "keep", ("last", "first"))
-    _choice(full, "sensor_preset", tuple(PRESETS))
     if not isinstance(full["multi_hit"], (bool, np.bool_)):
         raise ValueError(f"Point parameter multi_hit must be true or false, "
                          f"not {full['multi_hit']!r}")
@@ -172,7 +190,7 @@ def evaluate(point, seed):
     if not isinstance(seed, np.random.SeedSequence):
         raise ValueError(f"The seed must be a numpy.random.SeedSequence, not {seed!r}")
     point = check_point(point)
-    detector = PRESETS[point["sensor_preset"]]
+    detector = detector_of(point)
     pulses = pulses_per_frame(point)
     tof_s = time_of_flight(point["distance_m"])
     inner = dict(point, _tof_lsb=tof_s / TDC_LSB_S,
