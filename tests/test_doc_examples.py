@@ -67,6 +67,11 @@ INPUTS = {
                  "--bin-shift", "6", "--integration", "2ms", "--acquisitions", "2"],
 }
 
+#: Recordings of other instruments that examples read: copies of the samples the readers' tests
+#: use (tests/host/data/tttr/, with their sources and licences).
+SAMPLES = {"run.ht3": "hydraharp_v10.ht3", "FILE.ht3": "hydraharp_v10.ht3"}
+SAMPLE_FOLDER = Path(__file__).resolve().parent / "host" / "data" / "tttr"
+
 #: Folders an example expects to exist: the README's demo commands write into the folder that
 #: ``fliss demo`` makes for its files.
 FOLDERS = ("build/demo",)
@@ -234,7 +239,9 @@ def make_inputs(argv, boards, capsys):
     if argv[0] not in ("analyze", "plot", "export", "view"):
         return
     for name in positionals(argv[0], argv[1:]):
-        if not Path(name).exists():
+        if not Path(name).exists() and name in SAMPLES:
+            Path(name).write_bytes((SAMPLE_FOLDER / SAMPLES[name]).read_bytes())
+        elif not Path(name).exists():
             code, _, err = fliss(on_boards([*INPUTS[name], "-o", name], boards), capsys)
             assert code == 0, f"making the input {name}: {err}"
 
@@ -411,6 +418,8 @@ QUOTED = {
     "75 ns": (["config", "--port", "/dev/pts/N", "--aggressor-offset", "80ns"], {}, 0),
     "fliss: error: --line-errors must be from 0 to 1, not 1.5":
         (["board", "--line-errors", "1.5"], None, 1),
+    "fliss: error: --afterpulsing 140%: a share is from 0 to 100 %":
+        (["board", "--afterpulsing", "140%"], None, 1),
     "fliss: error: the board on /dev/pts/3 was reset during the capture: its STATUS (sequence "
     "number 0) shows it stopped; its IDENTITY reads protocol 4, gateware 0.2.0; saved what was "
     "received (30 histograms) to run.h5":
