@@ -29,7 +29,7 @@ _GENERATED, _OUTSIDE, _DEAD, _OVERWRITTEN, _RECORDED = range(len(COUNTERS))
 
 
 def _tail(effects, times, sources, first):
-    """:meth:`Avalanches.tail` on lists (``times`` changed in place)."""
+    """:meth:`~fliss.sim.scene.avalanches.Avalanches.tail` on lists (``times`` changed in place)."""
     fraction, mean = effects._tail
     if fraction <= 0 or len(times) <= first:
         return
@@ -47,7 +47,7 @@ def _tail(effects, times, sources, first):
 
 def _children(effects, times, pixels, parents):
     """The afterpulses and crosstalk of the avalanches ``parents`` (indices), as
-    :meth:`Avalanches._children`: ``(time, source, pixel, parent)`` of each."""
+    :meth:`~fliss.sim.scene.avalanches.Avalanches._children`: ``(time, source, pixel, parent)`` of each."""
     children = []
     if effects._after is not None:
         probability, cumulative, means, source = effects._after
