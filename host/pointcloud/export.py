@@ -77,6 +77,7 @@ def export_points(capture_path, output, to, geometry, *, comments=(), run_frames
                     _rows(group, "height", start, stop)[pick],
                     _rows(group, "background", start, stop)[pick], numbers, times)
                 writer.write(points, dict(zip(numbers.tolist(), times.tolist())))
+                del points          # (before the next run is read: one run's points at a time)
                 frames += int(keep.sum())
                 incomplete += int((~keep).sum())
             finished = True

@@ -17,6 +17,8 @@ __all__ = ["LasWriter", "SCALE_M"]
 #: The coordinates' step: 0.1 mm.
 SCALE_M = 1e-4
 _EXTRA = ("range", "height", "background", "frame")
+#: Points handed to laspy at a time.
+_SLICE = 1 << 16
 
 
 class LasWriter:
@@ -42,6 +44,11 @@ class LasWriter:
         self._writer = laspy.open(path, mode="w", header=header)
 
     def write(self, points, frame_times=None):
+        # In slices: laspy's record of a slice, not of the whole run, beside the run's points
+        for start in range(0, len(points), _SLICE):
+            self._write(points[start:start + _SLICE])
+
+    def _write(self, points):
         record = self._record_type.zeros(len(points), header=self._header)
         record.x, record.y, record.z = points["x"], points["y"], points["z"]
         record.intensity = np.clip(np.rint(points["height"]), 0, 65535).astype(np.uint16)

@@ -71,7 +71,8 @@ class McapWriter:
         number (``frame_times``: frame -> seconds): a frame without points is a message with
         none (Foxglove then shows an empty cloud for it)."""
         points = points.astype(POINT_DTYPE, copy=False)
-        points = points[np.argsort(points["frame"], kind="stable")]
+        if len(points) and (np.diff(points["frame"].astype(np.int64)) < 0).any():
+            points = points[np.argsort(points["frame"], kind="stable")]
         numbers = np.fromiter(frame_times, dtype=np.int64, count=len(frame_times))
         bounds = np.searchsorted(points["frame"], numbers, side="left")
         ends = np.searchsorted(points["frame"], numbers, side="right")

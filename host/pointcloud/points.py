@@ -24,20 +24,29 @@ def frame_points(geometry, pixels, depth_m, detected, height, background, frames
     columns, ``frames`` and ``times`` one per row. Frame after frame, pixel after pixel; a
     pixel that is not detected (or whose depth is not a finite number) gives no point."""
     depth_m = np.asarray(depth_m)
+    width = depth_m.shape[1] if depth_m.ndim == 2 else 1
     keep = np.asarray(detected, dtype=bool) & np.isfinite(depth_m)
-    rows, columns = np.nonzero(keep)
+    # Where the points are, as flat indices (frame * width + pixel): one integer a point
+    flat = np.flatnonzero(keep)
     del keep
-    rays = geometry.rays(pixels)
-    points = np.zeros(len(rows), dtype=POINT_DTYPE)
-    ranges = depth_m[rows, columns].astype(float, copy=False)
+    count = len(flat)
+    points = np.empty(count, dtype=POINT_DTYPE)
+    ranges = depth_m.reshape(-1)[flat].astype(float, copy=False)
     points["range"] = ranges
-    # One coordinate at a time: a temporary of one float per point, not three
+    columns = flat % width
+    rays = geometry.rays(pixels)
+    # One coordinate at a time, through one scratch array: a float a point
+    scratch = np.empty(count)
     for axis, name in enumerate("xyz"):
-        points[name] = rays[columns, axis] * ranges
-    del ranges
-    points["height"] = np.asarray(height)[rows, columns]
-    points["background"] = np.asarray(background)[rows, columns]
-    points["frame"] = np.asarray(frames)[rows]
+        np.take(rays[:, axis], columns, out=scratch)
+        scratch *= ranges
+        points[name] = scratch
+    del ranges, scratch
     points["pixel"] = np.asarray(pixels)[columns]
+    del columns
+    points["height"] = np.asarray(height).reshape(-1)[flat]
+    points["background"] = np.asarray(background).reshape(-1)[flat]
+    rows = np.floor_divide(flat, width, out=flat)
+    points["frame"] = np.asarray(frames)[rows]
     points["time"] = np.asarray(times, dtype=float)[rows]
     return points
