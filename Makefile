@@ -81,15 +81,15 @@ program: $(BOARDS_STAMP)
 	$(PY) -m fliss.boards.build program $(BOARD)
 
 test-boards: $(BOARDS_STAMP)
-	FLISS_BUILD_BOARDS=1 $(PY) -m pytest tests/test_boards.py tests/test_block_ram.py \
-		tests/test_example_amaranth.py $(PYTEST_ARGS)
+	FLISS_BUILD_BOARDS=1 $(PY) -m pytest tests/boards/test_boards.py tests/gateware/test_block_ram.py \
+		tests/project/test_example_amaranth.py $(PYTEST_ARGS)
 
 # Gate-level: each board's netlist, synthesized by its bitstream build's Yosys script, under the
 # top level's cocotb tests with Yosys's cell models (docs/verification.md), and the Verilog of
 # `fliss generate` through Yosys for Xilinx, Intel and Gowin (docs/boards.md).
 # `make test-netlist` (in .ci/run, about 7.5 minutes on two cores) runs the benches sized for
 # gate level; `make test-netlist NETLIST=full` adds the top level's longer benches and the
-# routed netlists (tests/test_netlist.py).
+# routed netlists (tests/formal/test_netlist.py).
 # `make test-vendors` (some 10 minutes, not in .ci/run) runs the other vendors' syntheses.
 .PHONY: test-netlist test-vendors
 
@@ -97,10 +97,10 @@ NETLIST ?= 1
 test-netlist: $(BOARDS_STAMP)
 	@case "$(NETLIST)" in 1|full) ;; *) echo "make test-netlist: NETLIST is 1 (the CI tier)"\
 		"or full, not '$(NETLIST)'" >&2; exit 2;; esac
-	FLISS_NETLIST=$(NETLIST) $(PY) -m pytest -n 2 tests/test_netlist.py $(PYTEST_ARGS)
+	FLISS_NETLIST=$(NETLIST) $(PY) -m pytest -n 2 tests/formal/test_netlist.py $(PYTEST_ARGS)
 
 test-vendors: $(BOARDS_STAMP)
-	FLISS_NETLIST=1 $(PY) -m pytest -n 0 tests/test_vendors.py $(PYTEST_ARGS)
+	FLISS_NETLIST=1 $(PY) -m pytest -n 0 tests/formal/test_vendors.py $(PYTEST_ARGS)
 
 # Formal proofs with SymbiYosys from PyPI: the runner's own tests (skipped by `make test`, which
 # lacks the formal extra), then every proof, its covers and its mutant (docs/verification.md). FORMAL_ARGS: e.g. `-j 1`, or proof names.
@@ -114,7 +114,7 @@ $(FORMAL_STAMP): pyproject.toml $(STAMP)
 	@touch $@
 
 formal: $(FORMAL_STAMP)
-	$(PY) -m pytest -n 0 tests/test_formal.py tests/test_formal_link.py $(PYTEST_ARGS)
+	$(PY) -m pytest -n 0 tests/formal/test_formal.py tests/formal/test_formal_link.py $(PYTEST_ARGS)
 	$(PY) -m fliss.formal --mutants $(FORMAL_ARGS)
 	$(PY) -m fliss.formal.equivalence --mutant -j 2 crc cobs_encoder cobs_decoder uart_tx uart_rx
 	$(PY) -m fliss.formal.equivalence --mutant -j 2 --family ecp5 delay_core

@@ -5,7 +5,7 @@ The repository keeps one top-level folder per subpackage (``hdl/`` is ``fliss.hd
 layout the README describes. :data:`TREES` maps each folder to its package; every folder below
 it that holds an ``__init__.py`` is a package, and every other file in a package's folder
 (``harness.cpp``, templates, Verilog declarations, ...) is its data. Caches and editor leftovers
-(:data:`LEFT_OUT`) are not. The metadata is in ``pyproject.toml``; ``tests/test_wheel.py``
+(:data:`LEFT_OUT`) are not. The metadata is in ``pyproject.toml``; ``tests/project/test_wheel.py``
 checks the wheel against ``git ls-files`` and builds it again from the sdist.
 """
 

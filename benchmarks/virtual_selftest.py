@@ -1,7 +1,7 @@
 """Time ``fliss selftest`` (no jumper: the internal loopback) on the virtual board with the fine
 TDC, check by check: wall time, clock cycles simulated and bytes each way, from the board's
 statistics file (docs/virtual-board.md). The durations are the virtual self-test's
-(``tests/test_virtual_selftest.py``) unless ``--durations`` gives others (JSON)."""
+(``tests/boards/test_virtual_selftest.py``) unless ``--durations`` gives others (JSON)."""
 
 import argparse
 import json
@@ -13,7 +13,7 @@ from fliss.host.virtual import VirtualBoard
 from fliss.sim.models.delay import delays
 
 
-#: The virtual self-test's durations (tests/test_virtual_selftest.py).
+#: The virtual self-test's durations (tests/boards/test_virtual_selftest.py).
 DURATIONS_S = {"raw": 0.3, "histogram": 0.0005, "calibration": 0.012, "calibration_frame": 0.002}
 
 

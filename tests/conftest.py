@@ -12,24 +12,30 @@ _COCOTB_COUNTS = {}
 
 #: Tests that run for a minute or more on a 2-core machine, longest first (node id prefixes):
 #: they start first, so that the parallel workers finish together. Each worker takes a few tests
-#: at a time (:func:`pytest_xdist_make_scheduler`), in this order, then the others.
+#: at a time (:func:`pytest_xdist_make_scheduler`), in this order, then the others. The first
+#: six are `make test-long`'s (marker long), the others `make test`'s.
 _LONG_FIRST = (
-    "tests/test_cocotb_link.py::test_link_fuzz[icarus-long]",
-    "tests/test_virtual_board.py::test_demo_runs_again",
-    "tests/test_cocotb_top.py::test_top[icarus]",
-    "tests/test_histogram_pixels.py::test_pixels_match_model[16-6-0-10-3300-dual]",
-    "tests/test_cocotb_top_depth.py::test_top_depth[verilator]",
-    "tests/test_cocotb_scene.py::test_line_scene_on_the_sensor_bus[icarus-",
-    "tests/test_cocotb_link.py::test_link_fuzz[verilator-long]",
-    "tests/test_virtual_board.py::test_virtual_board[verilator-cocotb]",
-    "tests/test_virtual_board.py::test_virtual_board[verilator-fast]",
-    "tests/test_cocotb_top.py::test_top[verilator]",
-    "tests/test_virtual_board.py::test_demo_replaces_its_files",
-    "tests/test_virtual_board.py::test_reset_mid_capture",
-    "tests/test_cocotb_delay_core.py::test_delay_core[icarus]",
-    "tests/test_cocotb_top.py::test_top_small[",
-    "tests/test_generate_ip.py::",
-    "tests/test_cocotb_",
+    "tests/boards/test_virtual_selftest.py::test_calibration_through_the_gateware",
+    "tests/gateware/test_cocotb_link.py::test_link_fuzz[icarus-long]",
+    "tests/gateware/test_cocotb_top.py::test_top[icarus-full]",
+    "tests/boards/test_virtual_board.py::test_demo_runs_again",
+    "tests/gateware/test_cocotb_delay_core.py::test_delay_core[icarus-full]",
+    "tests/gateware/test_cocotb_link.py::test_link_fuzz[verilator-long]",
+    "tests/boards/test_virtual_selftest.py::test_internal_loopback_on_the_gateware",
+    "tests/boards/test_cocotb_scene.py::test_line_scene_on_the_sensor_bus[icarus-",
+    "tests/gateware/test_cocotb_top.py::test_top[icarus-short]",
+    "tests/gateware/test_cocotb_link.py::test_link_fuzz[icarus-short]",
+    "tests/gateware/test_histogram_pixels.py::test_pixels_match_model[16-6-0-10-3300-dual]",
+    "tests/gateware/test_cocotb_top_depth.py::test_top_depth[verilator]",
+    "tests/boards/test_virtual_board.py::test_virtual_board[verilator-cocotb]",
+    "tests/boards/test_virtual_board.py::test_virtual_board[verilator-fast]",
+    "tests/gateware/test_cocotb_top.py::test_top[verilator]",
+    "tests/boards/test_virtual_board.py::test_demo_replaces_its_files",
+    "tests/boards/test_virtual_board.py::test_reset_mid_capture",
+    "tests/gateware/test_cocotb_top.py::test_top_small[",
+    "tests/project/test_generate_ip.py::",
+    "tests/gateware/test_cocotb_",
+    "tests/boards/test_cocotb_",
 )
 
 
@@ -47,6 +53,18 @@ def simulator(request):
             pytest.fail(message + " (FLISS_REQUIRE_SIMULATORS is set)")
         pytest.skip(message)
     return name
+
+
+def bench_runs():
+    """Parameters ``simulator, run`` of a cocotb test whose whole bench is long on Icarus (with
+    ``indirect=["simulator"]``): Verilator runs the whole bench (``run`` "full") in `make test`;
+    Icarus runs a short version there ("short": a few of the bench's tests, chosen by the test,
+    for what only a four-state, event-driven simulator shows, such as values left unknown after
+    power-up or reset, or memory read before it is written) and the whole bench in
+    `make test-long` (marker long)."""
+    return [pytest.param("icarus", "short", id="icarus-short"),
+            pytest.param("icarus", "full", id="icarus-full", marks=pytest.mark.long),
+            pytest.param("verilator", "full", id="verilator")]
 
 
 @pytest.fixture
@@ -81,18 +99,18 @@ def pytest_collection_modifyitems(items):
 
 def _build_scope(nodeid):
     """The runs of a cocotb test on one simulator (its parametrisations, its short and long
-    versions) share a build folder and its results file, so they must not run side by side:
-    ``tests/test_cocotb_x.py::test_y[icarus-a]`` and ``[icarus-b]`` are one scope,
-    ``tests/test_cocotb_x.py::test_y[icarus]``; a board's gate-level runs
-    (``tests/test_netlist.py::test_x[board-...]``) are one scope, ``tests/test_netlist.py::board``;
-    the tests of the folder of `fliss generate` (``tests/test_generate_ip.py``) are one scope;
-    any other test is a scope of its own."""
+    versions) write one results file in one folder, so they must not run side by side:
+    ``tests/gateware/test_cocotb_x.py::test_y[icarus-a]`` and ``[icarus-b]`` are one scope,
+    ``tests/gateware/test_cocotb_x.py::test_y[icarus]``; a board's gate-level runs
+    (``tests/formal/test_netlist.py::test_x[board-...]``) are one scope,
+    ``tests/formal/test_netlist.py::board``; the tests of the folder of `fliss generate`
+    (``tests/project/test_generate_ip.py``) are one scope; any other test is a scope of its own."""
     path, _, name = nodeid.partition("::")
     function, _, ids = name.partition("[")
-    if path == "tests/test_generate_ip.py":
+    if path == "tests/project/test_generate_ip.py":
         # Its tests share the folders that `fliss generate` writes once per worker.
         return path
-    if path == "tests/test_netlist.py" and ids:
+    if path == "tests/formal/test_netlist.py" and ids:
         # A board's runs share its synthesized netlist and its simulators' build folders.
         return f"{path}::{ids.split('-')[0]}"
     if path.rpartition("/")[2].startswith("test_cocotb_"):

@@ -12,7 +12,7 @@ __all__ = ["POLYNOMIALS", "MIN_LENGTH", "MAX_LENGTH", "Lfsr"]
 #:
 #: Each entry is the lowest-weight primitive polynomial of its degree (a trinomial where one
 #: exists, a pentanomial otherwise), the one with the smallest middle exponents among those.
-#: ``tests/test_lfsr.py`` proves every entry primitive.
+#: ``tests/gateware/test_lfsr.py`` proves every entry primitive.
 #:
 #: The register is a Galois (right-shifting) LFSR: ``state' = (state >> 1) ^ (poly >> 1)`` when the
 #: bit shifted out is 1, else ``state' = state >> 1``. Read as a polynomial ``S(x)``, the state is

@@ -50,7 +50,7 @@ KEYED_INIT_CYCLES = 4 * 288 // KEYED_ROUNDS
 #: Longest wait of a run start for the keyed source, in cycles: from the cycle of the load that
 #: (re)keys it to the first cycle in which the scheduler may run (load, initialisation, first
 #: 16 keystream bits). The first pulse comes at most this many cycles later than it would in
-#: another mode (measured in ``tests/test_keyed.py``).
+#: another mode (measured in ``tests/gateware/test_keyed.py``).
 KEYED_START_CYCLES = KEYED_INIT_CYCLES + 2
 
 #: Width of a delay, in bits.

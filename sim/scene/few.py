@@ -7,7 +7,7 @@ thirty calls a step) outweighs the work. :func:`detect` does what the vectorised
 non-paralysable SPAD, the single-hit TDC, the counters) with the same float64 arithmetic on
 Python floats, so it gives the same events and counters, bit for bit; :func:`detect_pixels`
 does the same for a pixel array (:meth:`~fliss.sim.scene.array.PixelSimulation.step`, both
-sensors). ``tests/test_scene.py`` runs both paths on the same draws.
+sensors). ``tests/models/test_scene.py`` runs both paths on the same draws.
 """
 
 from bisect import bisect_right

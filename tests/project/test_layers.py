@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 #: Folder of each top-level package of ``fliss``.
 FOLDERS = {"hdl": "hdl", "protocol": "protocol", "analysis": "analysis", "sim": "sim",

@@ -1,6 +1,6 @@
 """The histogram engine's bench for the tests: stimulus, a run of the gateware in Amaranth's
-simulator, and the check of its frames against the model (tests/test_histogram.py,
-tests/test_histogram_pixels.py)."""
+simulator, and the check of its frames against the model (tests/gateware/test_histogram.py,
+tests/gateware/test_histogram_pixels.py)."""
 
 import numpy as np
 

@@ -15,14 +15,16 @@ from fliss.hdl.delay.settings import BANK_BITS
 from fliss.hdl.top import FlissTop, SMALL
 from fliss.sim.benches.runner import run_cocotb, write_verilog
 
+from conftest import bench_runs
 
-BUILD = Path(__file__).resolve().parent.parent / "build" / "cocotb" / "fliss_top"
+
+BUILD = Path(__file__).resolve().parents[2] / "build" / "cocotb" / "fliss_top"
 BUILD_SMALL = BUILD.with_name("fliss_top_small")
 BAUD = 12_000_000
 #: Fuzz frames through the UART pins per simulator. A frame and its reply take about 40 µs of
 #: simulated time (3200 cycles), and the whole top level simulates at some 10^5 cycles/s in
 #: Verilator and 10^4 in Icarus; the 10 000-frame fuzz runs on the link at one byte per cycle
-#: (tests/test_cocotb_link.py).
+#: (tests/gateware/test_cocotb_link.py).
 FUZZ_FRAMES = {"icarus": 100, "verilator": 300}
 
 
@@ -32,8 +34,16 @@ FUZZ_FRAMES = {"icarus": 100, "verilator": 300}
 #: time).
 TOP_BANK_BITS = {"icarus": 13, "verilator": BANK_BITS}
 
+#: The short runs on Icarus (`make test`; `make test-long` runs the whole bench there): the
+#: closed loops from power-up, through the histogram's memories (the small build's single-port
+#: banks, cleared after reset), the raw FIFO and the link. Verilator runs the whole bench in
+#: `make test`: the registers written and read back, the fuzz.
+TOP_SHORT = ["test_raw_events_closed_loop", "test_histogram_closed_loop"]
+SMALL_SHORT = ["test_histogram_closed_loop", "test_pixel_histograms"]
 
-def test_top(simulator, cocotb_counts):
+
+@pytest.mark.parametrize("simulator, run", bench_runs(), indirect=["simulator"])
+def test_top(simulator, run, cocotb_counts):
     bank_bits = TOP_BANK_BITS[simulator]
     top = FlissTop(baud=BAUD, bank_bits=bank_bits)
     maxima = top.register_maxima()      # (no fine TDC: tdc_source up to 1)
@@ -41,6 +51,7 @@ def test_top(simulator, cocotb_counts):
     results = run_cocotb(
         simulator, verilog_path=verilog, toplevel="fliss_top",
         test_module="fliss.sim.benches.top", build_dir=BUILD,
+        testcase=TOP_SHORT if run == "short" else None,
         extra_env={"FLISS_TB_BAUD": str(BAUD), "FLISS_TB_BANK_BITS": str(bank_bits),
                    "FLISS_TB_MAXIMA": json.dumps(maxima),
                    "FLISS_TB_FUZZ_FRAMES": str(FUZZ_FRAMES[simulator])})
@@ -49,18 +60,19 @@ def test_top(simulator, cocotb_counts):
     assert results.passed == results.expected
 
 
-def test_top_small(simulator, cocotb_counts):
+@pytest.mark.parametrize("simulator, run", bench_runs(), indirect=["simulator"])
+def test_top_small(simulator, run, cocotb_counts):
     # The iCE40UP5K build through its pins: every register written (in range, at its maximum,
     # above it) and read back against the model with this build's maxima and bank, a
-    # histogram, and per-pixel histograms.
+    # histogram, and per-pixel histograms (Icarus's short run: SMALL_SHORT).
     top = FlissTop(baud=BAUD, **SMALL)
     maxima = top.register_maxima()
     verilog_path = write_verilog(top, "fliss_top", BUILD_SMALL / "fliss_top.v")
     results = run_cocotb(
         simulator, verilog_path=verilog_path, toplevel="fliss_top",
         test_module="fliss.sim.benches.top", build_dir=BUILD_SMALL,
-        testcase=["test_identify_and_registers", "test_histogram_closed_loop",
-                  "test_pixel_histograms"],
+        testcase=SMALL_SHORT if run == "short" else [
+            "test_identify_and_registers", "test_histogram_closed_loop", "test_pixel_histograms"],
         extra_env={"FLISS_TB_BAUD": str(BAUD), "FLISS_TB_MAXIMA": json.dumps(maxima),
                    "FLISS_TB_BANK_BITS": str(top.bank_bits),
                    "FLISS_TB_INIT_CYCLES": str(1 << top.bank_bits)})   # (clearing the SPRAMs)

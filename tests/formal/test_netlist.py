@@ -2,7 +2,7 @@
 
 Each board's bitstream design is synthesized by the Yosys script of its build
 (:mod:`fliss.boards.netlist`) and simulated with Yosys's cell models, with the expected values of
-the RTL runs (tests/test_cocotb_top.py). The runs take minutes: they run with
+the RTL runs (tests/gateware/test_cocotb_top.py). The runs take minutes: they run with
 ``FLISS_NETLIST=1`` (``make test-netlist``), and need the ``boards`` extra.
 """
 
@@ -23,7 +23,7 @@ FULL = os.environ.get("FLISS_NETLIST") == "full"
 pytestmark = pytest.mark.skipif(
     not NETLIST, reason="gate-level runs take minutes: set FLISS_NETLIST=1 to run them")
 
-BUILD = Path(__file__).resolve().parent.parent / "build" / "netlist"
+BUILD = Path(__file__).resolve().parents[2] / "build" / "netlist"
 
 #: Fuzz frames on a netlist: enough for a NAK of every kind of damage (the 10 000-frame fuzz
 #: runs on the RTL).

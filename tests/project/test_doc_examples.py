@@ -1,8 +1,8 @@
 """Every ``fliss`` command example of the README, of ``docs/*.md`` and of the ``--help`` texts
 parses with the current command line, and runs (in this process, through
 :func:`fliss.host.cli.main`) against Python model boards, unless :data:`PARSE_ONLY` says why
-not. The examples are found by ``tests/doc_examples.py``; a fenced block reads as a session (its
-``config`` and ``capture`` examples run first, in order, before each later one).
+not. The examples are found by ``tests/project/doc_examples.py``; a fenced block reads as a
+session (its ``config`` and ``capture`` examples run first, in order, before each later one).
 
 What a run changes from the example as written, all in the tables below: the docs' ports are
 model boards (:data:`BOARDS`), files are written in a fresh folder per case, an example's
@@ -70,7 +70,7 @@ INPUTS = {
 #: Recordings of other instruments that examples read: copies of the samples the readers' tests
 #: use (tests/host/data/tttr/, with their sources and licences).
 SAMPLES = {"run.ht3": "hydraharp_v10.ht3", "FILE.ht3": "hydraharp_v10.ht3"}
-SAMPLE_FOLDER = Path(__file__).resolve().parent / "host" / "data" / "tttr"
+SAMPLE_FOLDER = Path(__file__).resolve().parents[1] / "host" / "data" / "tttr"
 
 #: Folders an example expects to exist: the README's demo commands write into the folder that
 #: ``fliss demo`` makes for its files.
@@ -93,18 +93,18 @@ PARSE_ONLY = [
     ("demo", "--trace", None),
     ("demo", "", "builds and runs two virtual boards in Verilator: minutes (make demo runs it)"),
     ("board", "", "builds the gateware for Verilator (about a minute), then serves it until "
-                  "Ctrl-C; tests/test_virtual_board.py runs it"),
+                  "Ctrl-C; tests/boards/test_virtual_board.py runs it"),
     ("generate", "", "elaborates the whole top level to Verilog (about 10 s); "
-                     "tests/test_generate.py and tests/test_generate_ip.py run it"),
+                     "tests/project/test_generate.py and tests/project/test_generate_ip.py run it"),
     ("sweep", "--scheduler", "needs a Dask scheduler running at that address"),
     ("sweep", "big.toml", "stands for a spec of the reader's own: not in the repository"),
     ("reproduce", "--quick", None),
     ("reproduce", "", "the paper's 300 acquisitions per setting, or other counts: the same "
                       "experiments as --quick, which runs"),
-    ("selftest", "", "needs a board with a loopback; tests/test_selftest.py runs it on the "
+    ("selftest", "", "needs a board with a loopback; tests/boards/test_selftest.py runs it on the "
                      "model board's"),
-    ("calibrate", "", "needs a board whose fine TDC has a delay line; tests/test_selftest.py "
-                      "runs it on the model board's loopback"),
+    ("calibrate", "", "needs a board whose fine TDC has a delay line; "
+                      "tests/boards/test_selftest.py runs it on the model board's loopback"),
     ("view", "--port", None),
     ("view", "run.h5", None),
     ("view", "", "names neither a board nor a file: the examples that do run"),

@@ -7,7 +7,7 @@ from fliss.hdl.top import FlissTop
 from fliss.sim.benches.runner import run_cocotb, write_verilog
 
 
-BUILD = Path(__file__).resolve().parent.parent / "build" / "cocotb" / "fliss_top_depth"
+BUILD = Path(__file__).resolve().parents[2] / "build" / "cocotb" / "fliss_top_depth"
 BAUD = 12_000_000
 
 

@@ -20,6 +20,7 @@ from fliss.host.sweep.spec import SpecError, load, parse, point_key, point_seed
 
 MODEL = "sweep_points:evaluate"
 TESTS = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(os.path.dirname(TESTS))
 
 
 @pytest.fixture(scope="module")
@@ -374,7 +375,7 @@ def test_ctrl_c_stops_the_workers_and_keeps_the_finished_points(tmp_path, whom, 
 
 def test_the_example_spec_is_valid_for_the_interference_model():
     pytest.importorskip("fliss.sim.studies.interference")
-    spec = load(os.path.join(TESTS, "..", "examples", "sweep-quick.toml"))
+    spec = load(os.path.join(ROOT, "examples", "sweep-quick.toml"))
     assert spec.model == "fliss.sim.studies.interference:evaluate"
     assert len(spec.points()) == 3 * 4 * 3
     assert set(spec.varied()) == {"scheme", "aggressors", "aggressor_power"}
@@ -407,7 +408,7 @@ def test_sweep_command_on_an_existing_scheduler(client, tmp_path, capsys):
 
 def test_the_spec_in_the_docs_gives_the_points_it_says(tmp_path):
     pytest.importorskip("fliss.sim.studies.interference")
-    text = open(os.path.join(TESTS, "..", "docs", "sweeps.md")).read()
+    text = open(os.path.join(ROOT, "docs", "sweeps.md")).read()
     block = text.split("```toml\n", 1)[1].split("```", 1)[0]
     (tmp_path / "doc.toml").write_text(block)
     spec = load(tmp_path / "doc.toml")

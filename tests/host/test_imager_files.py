@@ -1,6 +1,6 @@
 """Image and depth captures (issue 17): HDF5 round trip with named axes, the capture loop with
 frames of the imager, `fliss analyze` and `fliss plot` of them, against a synthetic line scene
-whose depths are known (tests/imager_frames.py)."""
+whose depths are known (tests/host/imager_frames.py)."""
 
 import json
 import math

@@ -7,7 +7,7 @@ delay core, with the user's own registers and TDC.
   delays after each (delayed) laser pulse: each must be measured at that delay, with its pulse.
 * Its imports: only the public API of ``fliss.hdl`` (names in ``__all__``), as from a wheel.
 * Built for the iCEBreaker, timing met at its clock: only with ``FLISS_BUILD_BOARDS=1``
-  (``make test-boards``), as ``tests/test_boards.py``.
+  (``make test-boards``), as ``tests/boards/test_boards.py``.
 """
 
 import ast
@@ -25,7 +25,7 @@ from fliss.sim.models.scheduler import LATENCY, Settings, simulate
 from simulation import simulate as run_simulation
 
 
-EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "amaranth_delay_core"
+EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "amaranth_delay_core"
 
 #: The example's clock in the simulations, in Hz (it sets nothing in the logic).
 CLOCK_HZ = 48_000_000

@@ -22,7 +22,7 @@ from fliss.protocol.frames import decode_frame
 from fliss.sim.benches.runner import verilator_bin
 
 
-DOCS = Path(__file__).resolve().parent.parent / "docs" / "ports.md"
+DOCS = Path(__file__).resolve().parents[2] / "docs" / "ports.md"
 #: The testbench's delay source in the folders here (not the defaults, so that a folder that
 #: ignored them would fail).
 TB = ["--tb-mode", "masked", "--tb-mask-width", "5", "--tb-seed", "0x1234", "--tb-pulses", "24"]

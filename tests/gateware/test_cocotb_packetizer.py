@@ -12,7 +12,7 @@ from fliss.sim.benches.histogram_link_top import HistogramLinkTop
 from fliss.sim.benches.packetizer import readout_frames
 
 
-BUILD = Path(__file__).resolve().parent.parent / "build" / "cocotb" / "histogram_link_top"
+BUILD = Path(__file__).resolve().parents[2] / "build" / "cocotb" / "histogram_link_top"
 
 
 def test_histogram_packets(simulator, cocotb_counts):

@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 #: The repository's folders and where their files go in the wheel (the README's folder map).
 FOLDERS = {"fliss": "fliss", "hdl": "fliss/hdl", "protocol": "fliss/protocol",

@@ -46,7 +46,7 @@ def test_identify(board_pair):
     assert identity.registers == len(REGISTERS)
     assert identity.baud == model.baud
     # The gateware reports the package's whole version, written once in fliss/__init__.py.
-    init = (Path(__file__).resolve().parent.parent / "fliss" / "__init__.py").read_text()
+    init = (Path(__file__).resolve().parents[2] / "fliss" / "__init__.py").read_text()
     assert identity.gateware_version == re.search(r'__version__ = "([^"]+)"', init).group(1)
 
 

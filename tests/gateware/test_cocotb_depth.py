@@ -6,7 +6,7 @@ from fliss.hdl.depth.engine import DepthEngine
 from fliss.sim.benches.runner import run_cocotb, write_verilog
 
 
-BUILD = Path(__file__).resolve().parent.parent / "build" / "cocotb" / "depth_engine"
+BUILD = Path(__file__).resolve().parents[2] / "build" / "cocotb" / "depth_engine"
 #: Frames per simulator: Icarus calls into Python far more slowly than Verilator.
 FRAMES = {"icarus": 30, "verilator": 60}
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 
-_PATH = Path(__file__).resolve().parent.parent / "benchmarks" / "finetdc_chain.py"
+_PATH = Path(__file__).resolve().parents[2] / "benchmarks" / "finetdc_chain.py"
 _SPEC = importlib.util.spec_from_file_location("finetdc_chain", _PATH)
 chain = importlib.util.module_from_spec(_SPEC)
 _SPEC.loader.exec_module(chain)

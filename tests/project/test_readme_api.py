@@ -13,7 +13,7 @@ from fliss.sim.boards.model import model_board
 from fliss.sim.scene import Scene, line_pixels, time_of_flight
 
 
-README = Path(__file__).resolve().parent.parent / "README.md"
+README = Path(__file__).resolve().parents[2] / "README.md"
 
 
 def examples():

@@ -86,7 +86,7 @@ import tokenize
 from pathlib import Path
 
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 #: The package's trees: folder -> package (as setup.py lays them out).
 TREES = {"fliss": "fliss", "hdl": "fliss.hdl", "protocol": "fliss.protocol",

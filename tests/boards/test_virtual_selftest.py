@@ -8,7 +8,12 @@ registers, and the victim's delays against the reference model through the aggre
 
 Without it, the coarse TDC on a jumper (:mod:`fliss.sim.boards.jumper`): every line of the
 self-test through the laser's jumper and the aggressor's on the board ``make test`` builds
-anyway, and through the laser's on the iCEBreaker's build (histograms only: ``make test-long``).
+anyway, and through the laser's on the iCEBreaker's build (histograms only).
+
+``make test`` runs the fine TDC's internal loopback (every check) and the coarse TDC's two
+jumpers; ``make test-long`` (marker long, in CI) the self-tests that take a minute or more each:
+the fine TDC's calibration, its laser's and aggressor's jumpers, the command line's own pace,
+and the iCEBreaker's build.
 
 A missing Verilator skips these tests, or fails them when ``FLISS_REQUIRE_SIMULATORS`` is set.
 """
@@ -84,6 +89,7 @@ def test_the_command_line_finds_the_boards_pace(board, capsys):
                         r"board at [0-9.e-]+ of real time\)", err.splitlines()[-1]), err
 
 
+@pytest.mark.long
 def test_laser_jumper_on_the_gateware(board):
     with connect(board.path, timeout_s=10.0) as client:
         result = selftest(client, jumper="laser", reference=delays, durations_s=DURATIONS_S)
@@ -95,6 +101,7 @@ def test_laser_jumper_on_the_gateware(board):
     assert JITTER_S / 2 < result.jitter_s < 2 * JITTER_S
 
 
+@pytest.mark.long
 def test_calibration_through_the_gateware(board):
     with connect(board.path, timeout_s=10.0) as client:
         # (the table read back and compared)
@@ -116,6 +123,7 @@ def test_calibration_through_the_gateware(board):
         3 * sigma_s + edges[code] - edges[code - 1] + 12.5e-12 + 3 * 1.25 * JITTER_S / hits ** 0.5
 
 
+@pytest.mark.long
 def test_the_delays_through_the_aggressors_jumper():
     if not simulator_available("verilator"):
         pytest.skip("Verilator is missing")

@@ -1,4 +1,4 @@
-"""Captures for the tests of the exports and imports (tests/test_formats_*.py), written with
+"""Captures for the tests of the exports and imports (tests/host/test_formats_*.py), written with
 :class:`~fliss.host.fileformat.CaptureWriter`, and a TCSPC histogram of two echoes worked out
 from the physics for the imports' analysis."""
 

@@ -11,8 +11,18 @@ from fliss.hdl.delay.core import DelayCore
 from fliss.hdl.delay.source import Delay, DelaySource
 from fliss.sim.benches.runner import run_cocotb, write_verilog
 
+from conftest import bench_runs
 
-BUILD = Path(__file__).resolve().parent.parent / "build" / "cocotb"
+
+BUILD = Path(__file__).resolve().parents[2] / "build" / "cocotb"
+#: The delay core's short run on Icarus (`make test`; `make test-long` runs the whole bench
+#: there, Verilator in both): one case of each kind from reset, the reconfigurations, the
+#: resets in the middle of a run, and the keyed source over a few of its runs (its
+#: pulses below: 100 000 in the whole bench).
+DELAY_CORE_SHORT = ["test_mseq/length=5", "test_masked/mask_width=6", "test_grid/mode=MASKED",
+                    "test_effective_prf/length=5", "test_reconfigure", "test_reset_and_restart",
+                    "test_keyed"]
+DELAY_CORE_SHORT_KEYED_PULSES = 5_000
 
 
 @pytest.fixture(scope="module")
@@ -20,10 +30,14 @@ def delay_core_verilog():
     return write_verilog(DelayCore(), "delay_core", BUILD / "delay_core" / "delay_core.v")
 
 
-def test_delay_core(simulator, delay_core_verilog, cocotb_counts):
+@pytest.mark.parametrize("simulator, run", bench_runs(), indirect=["simulator"])
+def test_delay_core(simulator, run, delay_core_verilog, cocotb_counts):
+    short = run == "short"
     results = run_cocotb(
         simulator, verilog_path=delay_core_verilog, toplevel="delay_core",
-        test_module="fliss.sim.benches.delay_core", build_dir=BUILD / "delay_core")
+        test_module="fliss.sim.benches.delay_core", build_dir=BUILD / "delay_core",
+        testcase=DELAY_CORE_SHORT if short else None,
+        extra_env={"FLISS_TB_KEYED_PULSES": str(DELAY_CORE_SHORT_KEYED_PULSES)} if short else {})
     cocotb_counts(simulator, results)
     assert results.failed == []
     assert results.passed == results.expected

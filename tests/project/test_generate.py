@@ -6,7 +6,7 @@ from pathlib import Path
 from fliss.host.cli import main
 
 
-DOCS = Path(__file__).resolve().parent.parent / "docs" / "ports.md"
+DOCS = Path(__file__).resolve().parents[2] / "docs" / "ports.md"
 
 
 def documented_ports():

@@ -145,7 +145,7 @@ def test_acquire_depth_says_when_nothing_is_detected(caplog):
         board.configure(pixels=64, bin_shift=3, integration="1ms")
         depth = board.acquire_depth(2)
     assert not depth.detected.any()
-    # (64 pixels of 1024 bins, 1 ms: the threshold 3 of tests/test_depth_host.py)
+    # (64 pixels of 1024 bins, 1 ms: the threshold 3 of tests/host/test_depth_host.py)
     assert [record.getMessage() for record in caplog.records] == [
         f"no pixel detected a target in 2 depth frames: the highest peak was "
         f"{int(depth.height.max())} counts above the background, depth_threshold is 3; try a "

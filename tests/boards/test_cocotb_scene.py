@@ -13,7 +13,7 @@ from fliss.sim.benches.runner import run_cocotb, write_verilog
 from conftest import require_fast_harness
 
 
-BUILD = Path(__file__).resolve().parent.parent / "build" / "cocotb" / "fliss_top_scene"
+BUILD = Path(__file__).resolve().parents[2] / "build" / "cocotb" / "fliss_top_scene"
 BAUD = 12_000_000
 
 
@@ -22,7 +22,14 @@ def top_verilog():
     return write_verilog(FlissTop(baud=BAUD), "fliss_top", BUILD / "fliss_top.v")
 
 
-@pytest.mark.parametrize("case", ["column", "per_pixel", "burst"])
+#: Each case on each simulator: on Icarus, `make test` runs the column sensor's case (and
+#: compares it with the fast board), `make test-long` the other two; Verilator runs all three.
+RUNS = [pytest.param(simulator, case, id=f"{simulator}-{case}",
+                     marks=[pytest.mark.long] if simulator == "icarus" and case != "column" else [])
+        for simulator in ("icarus", "verilator") for case in ("column", "per_pixel", "burst")]
+
+
+@pytest.mark.parametrize("simulator, case", RUNS, indirect=["simulator"])
 def test_line_scene_on_the_sensor_bus(simulator, top_verilog, cocotb_counts, case, tmp_path):
     record = tmp_path / "cocotb.json"
     results = run_cocotb(

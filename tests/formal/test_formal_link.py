@@ -1,5 +1,5 @@
 """The link and histogram harnesses (``formal/link.py``, ``formal/histogram.py``) are found by
-the runner (one of them runs in ``tests/test_formal.py``). ``make formal`` runs every proof
+the runner (one of them runs in ``tests/formal/test_formal.py``). ``make formal`` runs every proof
 (needs the formal extra)."""
 
 import pytest

@@ -1,5 +1,5 @@
 """Every ``fliss`` command example of the README, of ``docs/*.md`` and of the ``--help`` texts, as
-argument lists (the tests: ``tests/test_doc_examples.py``).
+argument lists (the tests: ``tests/project/test_doc_examples.py``).
 
 Where examples are found:
 
@@ -39,7 +39,7 @@ from typing import List, Optional, Tuple
 from fliss.host.cli import build_parser
 
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 DOCS = (ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")))
 
 #: The values given to the placeholders of the examples. Ports stay names of the docs' own

@@ -27,7 +27,7 @@ SCENE = host_cli.SCENE         # the scene of the reference blocks
 
 def reference_blocks(settings, seed, blocks):
     """Events of each integration block straight from the scene simulator, gated (the command
-    line's reference, tests/test_host_cli.py, with the same scene)."""
+    line's reference, tests/host/test_host_cli.py, with the same scene)."""
     return host_cli.reference_blocks(settings, seed, blocks, integration=settings["integration"])
 
 

@@ -1,4 +1,4 @@
-"""The live view without a browser (tests/test_view_browser.py has one): the feed's numbers
+"""The live view without a browser (tests/host/test_view_browser.py has one): the feed's numbers
 against scenes worked out here, the server's refusals and its count of pages (Bokeh's Python
 client standing in for a browser), `fliss view` and `fliss capture --view` on the model board,
 and replays of capture files."""

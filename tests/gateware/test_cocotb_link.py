@@ -8,7 +8,7 @@ from fliss.sim.benches.runner import run_cocotb, write_verilog
 from fliss.sim.benches.link_top import LinkTop
 
 
-BUILD = Path(__file__).resolve().parent.parent / "build" / "cocotb" / "link_top"
+BUILD = Path(__file__).resolve().parents[2] / "build" / "cocotb" / "link_top"
 #: Frames per simulator and run: `make test` runs the short fuzz (the same frames' first
 #: thousand, every check), `make test-long` (marker ``long``, run by CI) the full 10 000 frames.
 FRAMES = {"short": 1_000, "long": 10_000}

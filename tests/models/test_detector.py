@@ -58,7 +58,7 @@ def chi_square(observed, expected):
 
 def test_default_detector_is_the_old_scene():
     # A scene given the default detector (its dead time and jitter) runs as one without
-    # (the old runs, which tests/test_scene*.py check): same events, same counters.
+    # (the old runs, which tests/models/test_scene*.py check): same events, same counters.
     old = Scene(dead_time_s=30e-9, jitter_fwhm_s=200e-12)
     new = Scene(detector=Detector(dead_time_s=30e-9, jitter_fwhm_s=200e-12))
     assert new.dead_time_s == 30e-9 and new.sources == old.sources
@@ -401,7 +401,7 @@ def test_scene_and_detector_disagreeing_is_refused():
 
 
 def test_every_preset_has_its_sources_in_the_docs():
-    table = (Path(__file__).parent.parent / "docs" / "scene.md").read_text()
+    table = (Path(__file__).resolve().parents[2] / "docs" / "scene.md").read_text()
     assert set(PRESETS) == {"paper", "spcm20a", "linospad2"}
     for name, detector in PRESETS.items():
         assert isinstance(detector, Detector)

@@ -16,7 +16,7 @@ from fliss.hdl.protocol import (GATEWARE_VERSION, GATEWARE_MAJOR, GATEWARE_MINOR
 from fliss.hdl.registers import REGISTERS
 
 
-DOC = Path(__file__).resolve().parent.parent / "docs" / "protocol.md"
+DOC = Path(__file__).resolve().parents[2] / "docs" / "protocol.md"
 
 
 def _register_row(register):
