@@ -45,7 +45,7 @@ def export_points(capture_path, output, to, geometry, *, comments=(), run_frames
     :class:`~.geometry.SensorGeometry`). Raises :exc:`ValueError` for a file that is not a
     depth capture, :exc:`OSError` for one that cannot be read or written."""
     writer_type = WRITERS[to]
-    with h5py.File(capture_path, "r") as f:
+    with h5py.File(capture_path, "r", rdcc_nbytes=0) as f:
         group = f.get(_GROUP)
         if not isinstance(group, h5py.Group):
             raise ValueError(f"{capture_path} is not a depth capture (fliss capture "
