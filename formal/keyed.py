@@ -41,7 +41,7 @@ PROOFS = [
           "the key is write-only: with different keys written, the register file's read data, "
           "errors, consistency, strobes and every setting but the key are the same",
           mutant=lambda: KeyHiddenHarness(mutate=_reading_key), cover_depth=12),
-    Proof("keyed.iv_rule", lambda: IvRuleHarness(), "bmc", 24,
+    Proof("keyed.iv_rule", lambda: IvRuleHarness(), "bmc", 20,
           "under one key, every initialisation of the keystream uses an IV above the one before "
           "(a WRITE of an IV not above the IV in use, without a key, is refused)",
           mutant=lambda: IvRuleHarness(mutate=_iv_at_or_above)),
