@@ -63,10 +63,12 @@ def inverted_pairs(folder, models, bits, *, seed=1):
         return {}
     gate = (folder / "gate.v").read_text()
     # (only the RTL's registers: `reg` in its Verilog; their width)
-    registers = {name: int(high) + 1 if high else 1 for high, name in re.findall(
+    registers = {name: int(high) + 1 if high else None for high, name in re.findall(
         r"^\s*reg (?:\[(\d+):0\] )?\\?(\S+)\s*(?:=|;)", (folder / "pairs_gold.v").read_text(),
         re.M)}
     bits = [(name, bit) for name, bit in bits if name in registers]
+    every = [(name, bit) for name, width in registers.items()
+             for bit in (range(width) if width else [None])]
     header = gate[gate.index("module top("):]
     header = header[:header.index("endmodule")]
     ports = [(kind, int(high) + 1 if high else 1, name.lstrip("\\"))
@@ -79,7 +81,7 @@ def inverted_pairs(folder, models, bits, *, seed=1):
     lines += [f"  reg [{width - 1}:0] {name} = 0;" for width, name in inputs]
     connections = ", ".join(f".{name}({name if kind == 'input' else ''})"
                             for kind, _, name in ports)
-    shown = [_ref("g", name, bit) for name, bit in bits] + [f"n.{q}" for q in outputs]
+    shown = [_ref("g", name, bit) for name, bit in every] + [f"n.{q}" for q in outputs]
     lines += [f"  gold g({connections});", f"  gate n({connections});", "  initial begin",
               f"    for (i = 0; i < {CYCLES}; i = i + 1) begin"]
     for width, name in inputs:
@@ -105,18 +107,36 @@ def inverted_pairs(folder, models, bits, *, seed=1):
     rows = rows[RESET_CYCLES + 1:]
     # the concatenation's bits, first shown first
     columns = list(zip(*rows))
-    gold_columns, gate_columns = columns[:len(bits)], columns[len(bits):]
+    gold = dict(zip(every, columns[:len(every)]))
+    gate_columns = columns[len(every):]
     pairs = {}
-    for key, column in zip(bits, gold_columns):
+    for key in bits:
+        column = gold[key]
         if set(column) != {"0", "1"}:
             continue
         inverse = tuple("1" if v == "0" else "0" for v in column)
         matches = [q for q, other in zip(outputs, gate_columns) if other == inverse]
         if len(matches) == 1:
             pairs[key] = (matches[0], True)
+    # netlist flip-flops named by synthesis (`..._SB_...`: of no RTL name), paired with an
+    # RTL register bit that they equal or invert (the first of those not paired yet)
+    by_value = {}
+    for key, column in gold.items():
+        if set(column) == {"0", "1"}:
+            by_value.setdefault(column, []).append(key)
+    used = set(pairs.values())
+    for q, column in zip(outputs, gate_columns):
+        if "_SB_" not in q or (q, True) in used:
+            continue
+        inverse = tuple("1" if v == "0" else "0" for v in column)
+        for inverted, value in ((False, column), (True, inverse)):
+            free = [key for key in by_value.get(value, []) if key not in pairs]
+            if free:
+                pairs[free[0]] = (q, inverted)
+                break
     # the name is left out of the pairing by name: pair its other bits as they are
     for name in {name for name, _ in pairs}:
-        for bit in range(registers[name]):
+        for bit in range(registers[name] or 0):
             if (name, bit) not in pairs and (name, bit) not in bits:
                 pairs[name, bit] = (f"\\{name} [{bit}] ", False)
     return pairs

@@ -1,8 +1,8 @@
 """Harness ``keyed.trivium_vectors``: the gateware's Trivium (``hdl/delay/trivium.py``, at the
 keyed source's ``KEYED_ROUNDS`` bits a cycle), loaded in its first cycle with a known key and IV,
-gives the published keystream: eSTREAM set 1 vector 0 (key ``80 00 … 00``, IV 0, bytes 0 to 15)
-and, for another key and IV, the model's (``fliss.sim.models.trivium``, tested
-against the published vectors). Its ``ready`` rises exactly 1152 / ``KEYED_ROUNDS`` cycles after
+gives the published keystream: eSTREAM set 1 vector 0 (key ``80 00 … 00``, IV 0, bytes 0 to 15).
+(The model, ``fliss.sim.models.trivium``, is a layer above ``formal``; the simulations hold the
+gateware to it for other keys and IVs, ``tests/test_keyed.py``.) Its ``ready`` rises exactly 1152 / ``KEYED_ROUNDS`` cycles after
 the load. Bounded: the initialisation and :data:`CHECKED` cycles of keystream."""
 
 from amaranth.hdl import Assert, Assume, Const, Cover, Module, ResetSignal, Signal
@@ -10,7 +10,6 @@ from amaranth.lib import wiring
 
 from ..hdl.delay.settings import KEYED_ROUNDS
 from ..hdl.delay.trivium import INIT_ROUNDS, TriviumCore
-from ..sim.models.trivium import keystream
 from ._harness import assigned
 
 
@@ -32,12 +31,7 @@ def _published_bits():
 
 
 #: (key, IV, the first keystream bits) of each Trivium of the harness.
-CASES = [
-    (0x80000000000000000000, 0, _published_bits()),
-    (0x0123456789ABCDEF0123, 0x3C5A96F00F69A5C3E187,
-     [int(bit) for bit in keystream(0x0123456789ABCDEF0123, 0x3C5A96F00F69A5C3E187,
-                                    CHECKED * KEYED_ROUNDS)]),
-]
+CASES = [(0x80000000000000000000, 0, _published_bits())]
 
 
 class _MistappedTrivium(TriviumCore):

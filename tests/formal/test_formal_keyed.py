@@ -1,5 +1,5 @@
 """The keyed path's quick proofs pass, their covers are reached and their mutants fail: Trivium
-against the published vector and the model, and the key write-only (the two-register-file
+against the published vector, and the key write-only (the two-register-file
 miter). ``make formal`` runs every keyed proof (needs the formal extra)."""
 
 import pytest
