@@ -27,7 +27,7 @@ __all__ = [
     "GATEWARE_PATCH",
     "DEFAULT_BAUD", "DELIMITER", "COBS_MAX_RUN",
     "CRC_WIDTH", "CRC_POLY", "CRC_INIT", "CRC_CHECK", "CRC_BYTES",
-    "PacketType", "DATA_PACKETS", "Header", "HEADER_BYTES", "MAX_PAYLOAD", "MAX_PACKET", "MAX_ENCODED",
+    "PacketType", "AcquisitionMode", "DATA_PACKETS", "Header", "HEADER_BYTES", "MAX_PAYLOAD", "MAX_PACKET", "MAX_ENCODED",
     "NakCode", "Ack", "Nak", "Identity", "ReadRequest", "REGISTER_BITS",
     "REGISTER_BYTES", "registers_layout", "READ_MAX", "CONSISTENCY", "COUNTER_BITS", "Status",
     "STATUS_FIELDS", "LINK_COUNTERS", "LINK_FIELDS", "LINK_ERRORS", "HistogramChunk",
@@ -120,6 +120,18 @@ class PacketType(enum.Enum, shape=8):
     #: Compact histogram chunk: a :class:`HistogramCompact`, then up to :data:`COMPACT_BYTES`
     #: bytes of tokens (runs of empty bins and counts, see :class:`HistogramCompact`).
     HISTOGRAM_COMPACT = 0x88
+
+
+class AcquisitionMode(enum.Enum, shape=2):
+    """What the board sends while acquiring (the ``acquisition`` register): its data packets
+    are :data:`DATA_PACKETS`'s of the same kind."""
+    #: Histograms, one per integration time (per pixel: see ``pixel_bits``).
+    HISTOGRAM = 0
+    #: Every event, as EVENTS packets.
+    RAW       = 1
+    #: Depth frames: per pixel, the position, height and background of its strongest peak,
+    #: one DEPTH packet per integration time.
+    DEPTH     = 2
 
 
 #: The packets a board sends unasked while it acquires, and the kind of data each carries; every

@@ -27,6 +27,7 @@ from amaranth.lib import data, enum
 
 from .clock import DEFAULT_PRF_HZ, MIN_PERIOD_CYCLES
 from .event import ADDRESS_BITS, TIMESTAMP_BITS
+from .protocol import AcquisitionMode
 from .delay.modes import DelayMode, SIZES, core_modes, mode_maximum
 from .finetdc import CODE_BITS as FINE_CODE_BITS, LSB_SELECTS as FINE_LSB_SELECTS, \
     TABLE_BITS as FINE_TABLE_BITS, HitInput
@@ -45,17 +46,6 @@ __all__ = ["AcquisitionMode", "TdcSource", "Register", "Setting", "RegisterGroup
            "register_maxima", "defaults", "group_values", "problems", "split_problems", "words_of",
            "value_of",
            "iv_problem"]
-
-
-class AcquisitionMode(enum.Enum, shape=2):
-    """What the board sends while acquiring."""
-    #: Histograms, one per integration time (per pixel: see ``pixel_bits``).
-    HISTOGRAM = 0
-    #: Every event, as EVENTS packets.
-    RAW       = 1
-    #: Depth frames: per pixel, the position, height and background of its strongest peak,
-    #: one DEPTH packet per integration time.
-    DEPTH     = 2
 
 
 class TdcSource(enum.Enum, shape=2):

@@ -14,7 +14,11 @@ a frame lost), what a capture counts of it and the export formats that take it. 
 * :mod:`.depth`: depth frames (DEPTH packets, ``/depth``);
 * :mod:`.raw`: raw events (EVENTS packets, ``/events``).
 
-A new kind is a new module here: every module of this package is read for its ``KIND``.
+A new kind is a new module here: every module of this package is read for its ``KIND``. A new
+kind of data from the board is five files: its packet and readout in :mod:`fliss.hdl.protocol`
+(``PacketType``, ``AcquisitionMode``, ``DATA_PACKETS`` and the payload's layout), its packetizer
+in :mod:`fliss.hdl.packets`, its wiring in :mod:`fliss.hdl.top`, its module here, and the model
+board's producer in :mod:`fliss.sim.boards.producers`.
 """
 
 import importlib
