@@ -114,7 +114,8 @@ $(FORMAL_STAMP): pyproject.toml $(STAMP)
 	@touch $@
 
 formal: $(FORMAL_STAMP)
-	$(PY) -m pytest -n 0 tests/formal/test_formal.py tests/formal/test_formal_link.py $(PYTEST_ARGS)
+	$(PY) -m pytest -n 0 tests/formal/test_formal.py tests/formal/test_formal_link.py \
+		tests/formal/test_formal_keyed.py tests/formal/test_inverted_pairs.py $(PYTEST_ARGS)
 	$(PY) -m fliss.formal --mutants $(FORMAL_ARGS)
 	$(PY) -m fliss.formal.equivalence --mutant -j 2 crc cobs_encoder cobs_decoder uart_tx uart_rx
 	$(PY) -m fliss.formal.equivalence --mutant -j 2 --family ecp5 delay_core
