@@ -14,7 +14,6 @@ TCSPC histogram of all its photons.
 """
 
 import json
-import logging
 import struct
 import uuid
 
@@ -27,7 +26,7 @@ from ..errors import FormatError
 from ..kinds import KINDS, names
 from .metadata import created, cycle_chunks, imported, metadata, restored, settings, timing
 from .ptu_header import read_header
-from .ptu_records import GENERIC_T3, header, number_records_at, t3_records
+from .ptu_records import GENERIC_T3, header, number_records_at, ptufile_notes, t3_records
 
 
 __all__ = ["write_ptu", "read_ptu", "ptu_tags"]
@@ -145,16 +144,6 @@ def _write_histograms(capture, path):
         return written.number_records
 
 
-class _Notes(logging.Handler):
-    # ptufile's complaints about a file it reads anyway, kept as the capture's problems.
-    def __init__(self):
-        super().__init__(logging.WARNING)
-        self.messages = []
-
-    def emit(self, record):
-        self.messages.append(record.getMessage())
-
-
 def read_ptu(path):
     """The capture of a PTU file: a FLISS export as the capture it was made of; any other T3
     file as one TCSPC histogram (all its photons, all channels). Refused with one line
@@ -170,10 +159,7 @@ def read_ptu(path):
         raise FormatError(f"{path}: not a PTU file fliss reads (its record type, "
                           f"TTResultFormat_TTTRRecType, is 0x{kind:08X}: none of the T3 "
                           f"records {', '.join(t3.values())})")
-    notes, logger = _Notes(), logging.getLogger("ptufile")
-    logger.addHandler(notes)
-    propagate, logger.propagate = logger.propagate, False
-    try:
+    with ptufile_notes() as notes:
         try:
             ptu = ptufile.PtuFile(path)
         except Exception as error:          # whatever ptufile finds wrong: one line
@@ -182,9 +168,6 @@ def read_ptu(path):
                 from None
         with ptu:
             return _read(ptufile, ptu, path, notes, header)
-    finally:
-        logger.removeHandler(notes)
-        logger.propagate = propagate
 
 
 def _read(ptufile, ptu, path, notes, header):

@@ -13,7 +13,9 @@ sync counts), so events, whose sync counts are the data, are written here; ptufi
 read the files back in the tests.
 """
 
+import contextlib
 import datetime
+import logging
 import struct
 
 import numpy as np
@@ -94,3 +96,27 @@ def t3_records(sync, dtime, channel, before=0):
     free[at] = False
     records[free] = np.uint32(1 << 31 | 63 << 25) | counts.astype(np.uint32)
     return records
+
+
+class _Notes(logging.Handler):
+    # ptufile's complaints about a file it reads anyway.
+    def __init__(self):
+        super().__init__(logging.WARNING)
+        self.messages = []
+
+    def emit(self, record):
+        self.messages.append(record.getMessage())
+
+
+@contextlib.contextmanager
+def ptufile_notes():
+    """What ptufile logs (its complaints about a file it reads anyway) while in the block,
+    kept from the terminal: yields a handler whose ``messages`` are the lines it logged."""
+    notes, logger = _Notes(), logging.getLogger("ptufile")
+    logger.addHandler(notes)
+    propagate, logger.propagate = logger.propagate, False
+    try:
+        yield notes
+    finally:
+        logger.removeHandler(notes)
+        logger.propagate = propagate

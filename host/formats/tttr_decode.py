@@ -11,7 +11,6 @@ file (:mod:`.tttr_spc`). Why these and not tttrlib: docs/file-format.md.
 """
 
 import contextlib
-import logging
 import os
 import sys
 import tempfile
@@ -21,7 +20,7 @@ import numpy as np
 
 from ..errors import FormatError
 from .ht3_header import read_ht3_header
-from .ptu_records import header as ptu_header
+from .ptu_records import header as ptu_header, ptufile_notes
 from .tttr_recording import KINDS, Recording, check_mode
 from .tttr_spc import set_file, spc_timing
 
@@ -77,27 +76,13 @@ def _console(said):
                         .splitlines() if line.strip() and "numba" not in line)
 
 
-class _Notes(logging.Handler):
-    # ptufile's complaints about a file it reads anyway.
-    def __init__(self):
-        super().__init__(logging.WARNING)
-        self.messages = []
-
-    def emit(self, record):
-        self.messages.append(record.getMessage())
-
-
 @contextlib.contextmanager
 def _ptufile_notes(problems):
-    notes, logger = _Notes(), logging.getLogger("ptufile")
-    logger.addHandler(notes)
-    propagate, logger.propagate = logger.propagate, False
-    try:
-        yield
-    finally:
-        logger.removeHandler(notes)
-        logger.propagate = propagate
-        problems.extend(f"ptufile: {message}" for message in notes.messages[:1])
+    with ptufile_notes() as notes:
+        try:
+            yield
+        finally:
+            problems.extend(f"ptufile: {message}" for message in notes.messages[:1])
 
 
 def _of_records(path, kind, source, records, period_s, width_s, problems):

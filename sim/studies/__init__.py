@@ -2,6 +2,7 @@
 
 * :mod:`.detection`: target detection in a histogram, and decision metrics over frames;
 * :mod:`.interference`: how often a frame reports a wrong distance, per point of a sweep;
+* :mod:`.parameters`: a sweep point's parameters checked one by one;
 * :mod:`.schemes`: the field's other interference schemes (no scheme, PRF hopping, pulse codes,
   coincidence) beside FLISS, on one photon-level model of a frame;
 * :mod:`.attacker`, :mod:`.generators`, :mod:`.gf2`: an attacker that predicts the victim's

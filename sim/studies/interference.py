@@ -111,6 +111,7 @@ from ...hdl.event import TDC_LSB_S
 from ..models import delay as _delay
 from ..models import scheduler as _scheduler
 from .detection import classify, detection_curve, wilson
+from .parameters import integer as _integer, real as _real
 from .predicting_aggressor import attack_edges
 from ..scene.acquisition import acquire
 from ..scene.detector_options import SETTINGS as _DETECTOR_SETTINGS, detector_from
@@ -164,25 +165,8 @@ _MAX_AGGRESSORS = 64
 _FWHM_S = 2.1e-9
 
 
-def _integer(point, name, low, high):
-    value = point[name]
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) \
-            or not low <= value <= high:
-        raise ValueError(f"Point parameter {name} must be an integer from {low} to {high}, "
-                         f"not {value!r}")
-    return int(value)
 
 
-def _real(point, name, low, high=math.inf, *, open_low=False):
-    value = point[name]
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
-            or not math.isfinite(value) or value > high or value < low \
-            or (open_low and value == low):
-        side = ">" if open_low else ">="
-        bound = "" if high == math.inf else f" and <= {high:g}"
-        raise ValueError(f"Point parameter {name} must be a finite number {side} {low:g}{bound}, "
-                         f"not {value!r}")
-    return float(value)
 
 
 def _choice(point, name, choices):

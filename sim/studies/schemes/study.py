@@ -13,6 +13,7 @@ from ...scene.detector_options import (SETTINGS as _DETECTOR_SETTINGS, DetectorS
                                        detector_from)
 from ....hdl.event import TDC_LSB_S
 from ..detection import classify, wilson
+from ..parameters import integer as _integer, real as _real
 from .emitters import EMISSIONS, LSB_PER_CYCLE, golomb_code, mean_period_cycles
 from .frame import FWHM_S, simulate_frame, window_codes
 
@@ -59,25 +60,8 @@ PARAMETERS = {
 _DELAY_MODES = ("mseq", "masked")
 
 
-def _integer(point, name, low, high):
-    value = point[name]
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) \
-            or not low <= value <= high:
-        raise ValueError(f"Point parameter {name} must be an integer from {low} to {high}, "
-                         f"not {value!r}")
-    return int(value)
 
 
-def _real(point, name, low, high=math.inf, *, open_low=False):
-    value = point[name]
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
-            or not math.isfinite(value) or not low <= value <= high \
-            or (open_low and value == low):
-        side = ">" if open_low else ">="
-        bound = "" if high == math.inf else f" and <= {high:g}"
-        raise ValueError(f"Point parameter {name} must be a finite number {side} {low:g}{bound}, "
-                         f"not {value!r}")
-    return float(value)
 
 
 def _choice(point, name, choices):
