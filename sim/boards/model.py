@@ -184,6 +184,13 @@ class ModelBoard(PtyServer):
         made)."""
         return self.producers[AcquisitionMode.HISTOGRAM].number
 
+    @property
+    def simulated_s(self):
+        """Seconds of board time the current (or last) acquisition has simulated: the wall
+        clock's time since its START, or less when the model or the host is slower than real
+        time (it never runs ahead)."""
+        return getattr(self, "_done_cycles", 0) / self.clock_hz
+
     # Serving
 
     @property
