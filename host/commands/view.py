@@ -113,6 +113,7 @@ def _replay(capture, feed, args, limit_s):
     from ..view.replay import MAX_RATE_HZ, Replay
 
     end = None if limit_s is None else time.monotonic() + limit_s
+    watched = _FileWatch(capture.path)     # (its size as read: before the page is served)
     with serving(feed, args):
         replay = Replay(capture, feed, speed=args.speed, loop=args.loop)
         if replay.slowed > 1:
@@ -121,7 +122,6 @@ def _replay(capture, feed, args, limit_s):
                   f"{MAX_RATE_HZ:g} a second", file=sys.stderr, flush=True)
         replay.start()
         said = False
-        watched = _FileWatch(capture.path)
         try:
             with sigterm_interrupts():
                 while end is None or time.monotonic() < end:
