@@ -132,6 +132,12 @@ def _check_options_apply(args, path, capture, victim, aggressors):
                                       ("--per-acquisition", args.per_acquisition),
                                       ("--pileup", args.pileup is not None)) if value]
     kind = of_capture(capture)
+    if kind.imager and args.pileup is not None:
+        raise UserError(f"--pileup applies to {names(lambda kind: not kind.imager)} captures; "
+                        f"{path} is {article(capture.mode)} capture: its pixels share the "
+                        f"sensor's TDC (one photon a cycle among them all), so one pixel's "
+                        f"pile-up depends on the others' and a correction pixel by pixel would "
+                        f"not hold")
     if kind.imager:
         if given:
             raise UserError(f"{given[0]} applies to {names(lambda kind: not kind.imager)} "

@@ -233,3 +233,16 @@ def test_fliss_analyze_refuses_the_correction_where_it_cannot_apply(tmp_path, ca
                  "--dead-time", "20ns"]) == 0
     assert "pile-up corrected: last photon, dead time 20 ns, 2000 laser cycles" in \
         capsys.readouterr().out
+
+
+@pytest.mark.parametrize("make", ["image", "depth"])
+def test_pileup_of_pixels_that_share_a_tdc_is_refused(tmp_path, capsys, make):
+    from format_captures import depth_capture, image_capture
+
+    path = tmp_path / f"{make}.h5"
+    (image_capture if make == "image" else depth_capture)(path)
+    assert main(["analyze", str(path), "--pileup", "first", "--cycles", "1000"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("fliss: error: --pileup applies to ") and err.count("\n") == 1
+    assert f"{path} is an {make} capture" in err or f"{path} is a {make} capture" in err
+    assert "share the sensor's TDC" in err
