@@ -111,7 +111,7 @@ from ...hdl.event import TDC_LSB_S
 from ..models import delay as _delay
 from ..models import scheduler as _scheduler
 from .detection import classify, detection_curve, wilson
-from .parameters import integer as _integer, real as _real
+from .parameters import choice as _choice, filled, integer as _integer, real as _real
 from .predicting_aggressor import attack_edges
 from ..scene.acquisition import acquire
 from ..scene.detector_options import SETTINGS as _DETECTOR_SETTINGS, detector_from
@@ -169,24 +169,12 @@ _FWHM_S = 2.1e-9
 
 
 
-def _choice(point, name, choices):
-    value = point[name]
-    if value not in choices:
-        raise ValueError(f"Point parameter {name} must be one of {', '.join(map(str, choices))}, "
-                         f"not {value!r}")
-    return value
 
 
 def check_point(point):
     """The point with defaults filled in and every value checked; raises :exc:`ValueError` with
     one line for an unknown name or a bad value."""
-    if not isinstance(point, dict):
-        raise ValueError(f"A sweep point must be a dict of parameters, not {point!r}")
-    unknown = sorted(set(point) - set(PARAMETERS))
-    if unknown:
-        raise ValueError(f"Unknown point parameter {unknown[0]!r}; known: "
-                         f"{', '.join(PARAMETERS)}")
-    full = dict(PARAMETERS, **point)
+    full = filled(point, PARAMETERS)
     _choice(full, "scheme", SCHEMES)
     _choice(full, "aggressor_kind", KINDS)
     if not isinstance(full["grid"], (bool, np.bool_)):

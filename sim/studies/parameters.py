@@ -7,7 +7,28 @@ import math
 import numpy as np
 
 
-__all__ = ["integer", "real"]
+__all__ = ["filled", "choice", "integer", "real"]
+
+
+def filled(point, defaults):
+    """``point`` (a dict of parameters) over ``defaults`` (every parameter's default, by name);
+    :exc:`ValueError` for a point that is not a dict or names a parameter not in ``defaults``."""
+    if not isinstance(point, dict):
+        raise ValueError(f"A sweep point must be a dict of parameters, not {point!r}")
+    unknown = sorted(set(point) - set(defaults))
+    if unknown:
+        raise ValueError(f"Unknown point parameter {unknown[0]!r}; known: "
+                         f"{', '.join(defaults)}")
+    return dict(defaults, **point)
+
+
+def choice(point, name, choices):
+    """``point[name]``, one of ``choices``; :exc:`ValueError` otherwise."""
+    value = point[name]
+    if value not in choices:
+        raise ValueError(f"Point parameter {name} must be one of {', '.join(map(str, choices))}, "
+                         f"not {value!r}")
+    return value
 
 
 def integer(point, name, low, high):

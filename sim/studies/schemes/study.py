@@ -13,7 +13,7 @@ from ...scene.detector_options import (SETTINGS as _DETECTOR_SETTINGS, DetectorS
                                        detector_from)
 from ....hdl.event import TDC_LSB_S
 from ..detection import classify, wilson
-from ..parameters import integer as _integer, real as _real
+from ..parameters import choice as _choice, filled, integer as _integer, real as _real
 from .emitters import EMISSIONS, LSB_PER_CYCLE, golomb_code, mean_period_cycles
 from .frame import FWHM_S, simulate_frame, window_codes
 
@@ -64,11 +64,6 @@ _DELAY_MODES = ("mseq", "masked")
 
 
 
-def _choice(point, name, choices):
-    if point[name] not in choices:
-        raise ValueError(f"Point parameter {name} must be one of {', '.join(map(str, choices))}, "
-                         f"not {point[name]!r}")
-    return point[name]
 
 
 def detector_of(point):
@@ -118,13 +113,7 @@ def _check_scheme(full):
 def check_point(point):
     """The point with defaults filled in and every value checked; raises :exc:`ValueError` with
     one line for an unknown name or a bad value."""
-    if not isinstance(point, dict):
-        raise ValueError(f"A sweep point must be a dict of parameters, not {point!r}")
-    unknown = sorted(set(point) - set(PARAMETERS))
-    if unknown:
-        raise ValueError(f"Unknown point parameter {unknown[0]!r}; known: "
-                         f"{', '.join(PARAMETERS)}")
-    full = dict(PARAMETERS, **point)
+    full = filled(point, PARAMETERS)
     _choice(full, "scheme", EMISSIONS)
     _choice(full, "delay_mode", _DELAY_MODES)
     _choice(full, "keep", ("last", "first"))
