@@ -42,7 +42,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import dataclass, field
+from dataclasses import replace, dataclass, field
 from pathlib import Path
 
 import h5py
@@ -211,6 +211,10 @@ def run_phase(engine, phase, target_s, folder, sample_s, seed, log):
                 if sample.rss_mb:       # (0 or None: not yet started, or gone)
                     result.samples.append(sample)
                     log(format_sample(phase, sample))
+                elif ended and result.samples:
+                    # The file as the capture left it, with the RSS of its last sample (the
+                    # process is gone): the table's last row is the file's end
+                    log(format_sample(phase, replace(sample, rss_mb=result.samples[-1].rss_mb)))
             if ended:
                 break
             # The raw capture stops when the board has run long enough (polled more often)
