@@ -28,7 +28,7 @@ test: lint
 # The full-length runs whose shorter versions `make test` runs (marker long): the link fuzz's
 # 10 000 frames on each simulator, the demo twice. CI runs them too (.ci/run).
 test-long: $(STAMP)
-	$(PY) -m pytest -m long $(PYTEST_ARGS)
+	$(PY) -m pytest -n 2 -m long $(PYTEST_ARGS)
 
 lint: $(STAMP)
 	$(PY) -m ruff check .
@@ -81,7 +81,7 @@ program: $(BOARDS_STAMP)
 	$(PY) -m fliss.boards.build program $(BOARD)
 
 test-boards: $(BOARDS_STAMP)
-	FLISS_BUILD_BOARDS=1 $(PY) -m pytest tests/boards/test_boards.py tests/gateware/test_block_ram.py \
+	FLISS_BUILD_BOARDS=1 $(PY) -m pytest -n 2 tests/boards/test_boards.py tests/gateware/test_block_ram.py \
 		tests/project/test_example_amaranth.py $(PYTEST_ARGS)
 
 # Gate-level: each board's netlist, synthesized by its bitstream build's Yosys script, under the
