@@ -1,4 +1,4 @@
-"""Fmax and utilisation of the board designs (issue 6), over several placement seeds.
+"""Fmax and utilisation of the board designs, over several placement seeds.
 
 Builds each design with the YoWASP tools (``pip install -e '.[boards]'``), as
 ``python -m fliss.boards.build`` does, and prints per design and seed the Fmax of the design

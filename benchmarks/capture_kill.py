@@ -1,4 +1,4 @@
-"""What a ``kill -9`` of ``fliss capture`` costs (issue 18; docs/file-format.md says why).
+"""What a ``kill -9`` of ``fliss capture`` costs (docs/file-format.md says why).
 
 A real ``fliss capture`` process captures 2 ms histograms from the Python model board and is
 killed with SIGKILL at a range of moments. For each kill it prints the histograms the board had

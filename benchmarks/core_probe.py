@@ -29,7 +29,7 @@ class DelayCoreProbe(wiring.Component):
     def __init__(self, clock_hz):
         self.clock_hz = clock_hz
         super().__init__()
-        # The baseline stays the LFSR delay core of issue 6: no keyed source (its key would
+        # The baseline stays the LFSR delay core alone: no keyed source (its key would
         # need another chain; up5k_fit.py measures it inside the top level instead).
 
     def elaborate(self, platform):

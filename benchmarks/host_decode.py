@@ -1,4 +1,4 @@
-"""Host decode speed (issue 5): can the client keep up with the link, and how close does decoding
+"""Host decode speed: can the client keep up with the link, and how close does decoding
 plus histogramming of recorded raw data come to ``numpy.bincount`` alone?
 
 Recorded data: a stream of full EVENTS frames (37 events each) and a stream of HISTOGRAM chunks,

@@ -1,4 +1,4 @@
-"""Captures through a noisy line (issue 15; docs/verification.md, "A noisy line").
+"""Captures through a noisy line (docs/verification.md, "A noisy line").
 
 For each seed, the Python model board behind a :class:`fliss.sim.boards.noisy_line.NoisyLine` with a
 bit error rate in both directions; the host captures histograms through it

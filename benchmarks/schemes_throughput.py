@@ -13,7 +13,7 @@ frames, timed in the process's CPU time (``time.process_time``: per core, and le
 than wall time to other jobs on a shared machine; a core's caches shared with them still slow
 it).
 
-Goal (issue 43): at least 1e7 laser cycles per second per core with the effects on.
+Goal: at least 1e7 laser cycles per second per core with the effects on.
 
 Usage: ``python benchmarks/schemes_throughput.py [--frames N] [--repeat R] [--cameras N]``
 """

@@ -1,4 +1,4 @@
-"""A long capture, measured (issue 44): the host's memory, the file's size and every counter
+"""A long capture, measured: the host's memory, the file's size and every counter
 over a given length of board time, in three phases, each a real ``fliss capture`` process on a
 board's pty (as ``tests/test_survive.py`` runs it):
 

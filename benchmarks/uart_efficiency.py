@@ -1,4 +1,4 @@
-"""UART payload efficiency of raw event streaming (issue 3), next to one event per frame.
+"""UART payload efficiency of raw event streaming, next to one event per frame.
 
 Definitions (8N1: every byte on the line is a 10-bit character, start + 8 data + stop):
 

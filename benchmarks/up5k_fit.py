@@ -1,4 +1,4 @@
-"""Size of the FLISS top level on the iCEBreaker's iCE40UP5K (issue 6): logic cells after
+"""Size of the FLISS top level on the iCEBreaker's iCE40UP5K: logic cells after
 packing, against the 5 280 of the chip.
 
 Synthesises each design with the YoWASP tools (``pip install -e '.[boards]'``) and runs nextpnr

@@ -1,6 +1,6 @@
 """``fliss view FILE --loop`` on a short file: is the replay paced, and what CPU does it take?
 
-Issue 41 found a 2-frame file looped at 478 784 "frames received" in 7 s at 97 % CPU: each round
+A 2-frame file was once looped at 478 784 "frames received" in 7 s at 97 % CPU: each round
 started again as soon as the last frame was handed over, without waiting out its frame time.
 
 Two figures per file (2 histogram frames of 8192 bins, integration 1 ms and 10 ms, and the same

@@ -24,7 +24,7 @@ from ...hdl.event import TDC_LSB_S
 from ..scene.description import SPEED_OF_LIGHT
 
 
-__all__ = ["Frame", "classify", "wilson", "detection_curve"]
+__all__ = ["Frame", "classify", "wilson", "proportion", "detection_curve"]
 
 
 @dataclass(frozen=True)
@@ -122,6 +122,16 @@ def wilson(successes: int, trials: int, z: float = 1.959964) -> tuple[float, flo
     centre = (p + z2 / (2 * trials)) / (1 + z2 / trials)
     half = z / (1 + z2 / trials) * math.sqrt(p * (1 - p) / trials + z2 / (4 * trials ** 2))
     return max(0.0, centre - half), min(1.0, centre + half)
+
+
+def proportion(result, name, count, frames):
+    """Record ``count`` of ``frames`` in ``result`` as ``name``, ``p_name`` and its Wilson
+    interval ``p_name_lo``, ``p_name_hi`` (the columns of a sweep's results)."""
+    low, high = wilson(count, frames)
+    result[name] = count
+    result[f"p_{name}"] = count / frames
+    result[f"p_{name}_lo"] = low
+    result[f"p_{name}_hi"] = high
 
 
 def detection_curve(frames, thresholds) -> tuple[np.ndarray, np.ndarray]:

@@ -110,7 +110,7 @@ from ...hdl.delay.settings import KEY_BITS, MAX_LENGTH
 from ...hdl.event import TDC_LSB_S
 from ..models import delay as _delay
 from ..models import scheduler as _scheduler
-from .detection import classify, detection_curve, wilson
+from .detection import classify, detection_curve, proportion as _proportion
 from .parameters import choice as _choice, filled, integer as _integer, real as _real
 from .predicting_aggressor import attack_edges
 from ..scene.acquisition import acquire
@@ -307,12 +307,6 @@ def _child(seed, *key):
     return np.random.SeedSequence(seed.entropy, spawn_key=tuple(seed.spawn_key) + key)
 
 
-def _proportion(result, name, count, frames):
-    low, high = wilson(count, frames)
-    result[name] = count
-    result[f"p_{name}"] = count / frames
-    result[f"p_{name}_lo"] = low
-    result[f"p_{name}_hi"] = high
 
 
 def evaluate(point, seed):

@@ -79,3 +79,15 @@ def test_reference_pages_carry_no_measurement_history(page):
              for number, line in enumerate(page.read_text().splitlines(), 1)
              if HISTORY.search(line)]
     assert not found, "\n".join(found)
+
+
+@pytest.mark.parametrize("page", [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")),
+                                  *sorted((ROOT / "benchmarks").glob("*.py"))],
+                         ids=lambda path: path.name)
+def test_no_page_names_an_issue(page):
+    # Readers see the docs and the benchmarks' texts (the measurements page quotes them), never
+    # the project's issue tracker: "issue 44" tells them nothing
+    found = [f"{page.name}:{number}: {line.strip()}"
+             for number, line in enumerate(page.read_text().splitlines(), 1)
+             if re.search(r"\bissues? \d+", line, flags=re.IGNORECASE)]
+    assert not found, "\n".join(found)

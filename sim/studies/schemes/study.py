@@ -12,7 +12,7 @@ from ...scene.description import SPEED_OF_LIGHT, TDC_CODES, time_of_flight
 from ...scene.detector_options import (SETTINGS as _DETECTOR_SETTINGS, DetectorSettingError,
                                        detector_from)
 from ....hdl.event import TDC_LSB_S
-from ..detection import classify, wilson
+from ..detection import classify, proportion as _proportion
 from ..parameters import choice as _choice, filled, integer as _integer, real as _real
 from .emitters import EMISSIONS, LSB_PER_CYCLE, golomb_code, mean_period_cycles
 from .frame import FWHM_S, simulate_frame, window_codes
@@ -148,12 +148,6 @@ def pulses_per_frame(point):
     return point["t_int_s"] * DEFAULT_CLOCK_HZ / mean_period_cycles(point) * chips
 
 
-def _proportion(result, name, count, frames):
-    low, high = wilson(count, frames)
-    result[name] = count
-    result[f"p_{name}"] = count / frames
-    result[f"p_{name}_lo"] = low
-    result[f"p_{name}_hi"] = high
 
 
 def evaluate(point, seed):
