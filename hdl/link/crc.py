@@ -11,7 +11,7 @@ its XOR network, which cost 22 logic cells on the iCE40UP5K for the two engines 
 ``docs/boards.md``). :data:`LINK_CRC` stays the reference the tests hold the engine to.
 """
 
-from amaranth.hdl import Array, C, Cat, Module, Mux, Signal, Value
+from amaranth.hdl import Array, Cat, Module, Signal, Value
 from amaranth.lib import crc as lib_crc, data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
@@ -28,19 +28,31 @@ LINK_CRC = lib_crc.Algorithm(crc_width=CRC_WIDTH, polynomial=CRC_POLY, initial_c
                              reflect_input=False, reflect_output=False, xor_output=0)
 
 
+def _next_bits(crc, byte):
+    # The software step (most significant bit first), on integers.
+    for bit in reversed(range(8)):
+        feedback = (crc >> (CRC_WIDTH - 1) ^ byte >> bit) & 1
+        crc = ((crc << 1) & ((1 << CRC_WIDTH) - 1)) ^ (CRC_POLY if feedback else 0)
+    return crc
+
+
+#: The step as a matrix over GF(2): bit ``j`` of the next CRC is the parity of the bits of
+#: ``Cat(crc, byte)`` that ``_MASKS[j]`` selects (the step is linear in the CRC and the byte).
+_MASKS = [sum(1 << i for i in range(CRC_WIDTH + 8)
+              if _next_bits((1 << i) & 0xffff, (1 << i) >> CRC_WIDTH) >> j & 1)
+          for j in range(CRC_WIDTH)]
+
+
 def crc16_next(crc, byte):
     """CRC after one more byte: ``crc`` (16 bits) and ``byte`` (8 bits) are Amaranth values.
 
     The byte is processed most significant bit first with :data:`~fliss.hdl.protocol.CRC_POLY`,
-    as CRC-16/IBM-3740 does; the result is a combinational expression.
+    as CRC-16/IBM-3740 does. The result is a combinational expression: each bit the parity of
+    the input bits it depends on (one reduction a bit, which simulators evaluate far faster than
+    the network of single XOR gates a bit-serial description gives).
     """
-    crc = Value.cast(crc)
-    byte = Value.cast(byte)
-    for bit in reversed(range(8)):
-        feedback = crc[CRC_WIDTH - 1] ^ byte[bit]
-        shifted = Cat(C(0, 1), crc[:CRC_WIDTH - 1])
-        crc = shifted ^ Mux(feedback, CRC_POLY, 0)
-    return crc
+    bits = Cat(Value.cast(crc), Value.cast(byte))
+    return Cat(*((bits & mask).xor() for mask in _MASKS))
 
 
 class Crc16(wiring.Component):
