@@ -10,7 +10,7 @@ from .las import LasWriter
 from .mcap_file import McapWriter
 from .pcd import PcdWriter
 from .ply import PlyWriter
-from .points import frame_points
+from .points import POINT_DTYPE, frame_points
 
 
 __all__ = ["WRITERS", "PointsExport", "export_points", "RUN_FRAMES"]
@@ -45,6 +45,11 @@ class PointsExport:
 
 def _rows(group, name, start, stop):
     return group[name][start:stop]
+
+
+def _run(group, start, stop, pick):
+    # The run's arrays by name, each read when asked for (frame_points lets each go once used)
+    return lambda name: _rows(group, name, start, stop)[pick]
 
 
 def _open(path):
@@ -84,6 +89,10 @@ def export_points(capture_path, output, to, geometry, *, comments=(), run_frames
         writer = writer_type(output, total, comments)
         frames = incomplete = 0
         finished = False
+        # Every run's points in one array, made once: a run's points never fill a new block of
+        # memory, which the memory each run frees between (a message, a chunk) would leave
+        # fragmented (its pages resident only as far as the most points of a run)
+        buffer = np.empty(run_frames * len(pixels), dtype=POINT_DTYPE)
         try:
             for start in range(0, rows, run_frames):
                 stop = min(rows, start + run_frames)
@@ -92,13 +101,9 @@ def export_points(capture_path, output, to, geometry, *, comments=(), run_frames
                 pick = slice(None) if keep.all() else keep
                 numbers = _rows(group, "frame", start, stop)[pick]
                 times = _rows(group, "time_s", start, stop)[pick]
-                points = frame_points(
-                    geometry, pixels, _rows(group, "depth_m", start, stop)[pick],
-                    _rows(group, "detected", start, stop)[pick],
-                    _rows(group, "height", start, stop)[pick],
-                    _rows(group, "background", start, stop)[pick], numbers, times)
+                points = frame_points(geometry, pixels, _run(group, start, stop, pick),
+                                      numbers, times, out=buffer)
                 writer.write(points, dict(zip(numbers.tolist(), times.tolist())))
-                del points          # (before the next run is read: one run's points at a time)
                 frames += int(keep.sum())
                 incomplete += int((~keep).sum())
             finished = True

@@ -12,6 +12,7 @@ from .points import POINT_DTYPE
 __all__ = ["McapWriter", "TOPIC", "FRAME_ID"]
 
 TOPIC = "/fliss/points"
+CHUNK_BYTES = 1 << 20
 FRAME_ID = "fliss_optical"
 
 
@@ -49,14 +50,14 @@ class McapWriter:
         from mcap.writer import Writer
 
         self.total, self.written = total, 0
-        self._message = PointCloud
         types = {"<f4": PackedElementField.FLOAT32, "<f8": PackedElementField.FLOAT64,
                  "<u4": PackedElementField.UINT32, "<u2": PackedElementField.UINT16}
+        self._message = PointCloud
         self._fields = [PackedElementField(name=name, offset=POINT_DTYPE.fields[name][1],
                                            type=types[POINT_DTYPE.fields[name][0].str])
                         for name in POINT_DTYPE.names]
         self._file = open(path, "wb")
-        self._writer = Writer(self._file)
+        self._writer = Writer(self._file, chunk_size=CHUNK_BYTES)
         self._writer.start(profile="", library="fliss")
         schema = self._writer.register_schema(
             name=PointCloud.DESCRIPTOR.full_name, encoding="protobuf",
@@ -71,11 +72,19 @@ class McapWriter:
         number (``frame_times``: frame -> seconds): a frame without points is a message with
         none (Foxglove then shows an empty cloud for it)."""
         points = points.astype(POINT_DTYPE, copy=False)
-        if len(points) and (np.diff(points["frame"].astype(np.int64)) < 0).any():
-            points = points[np.argsort(points["frame"], kind="stable")]
+        # The frame numbers, in order (as frame_points makes them) unless told otherwise: one
+        # copy of them, and a flag a point to check the order
+        frames = np.ascontiguousarray(points["frame"])
+        if (frames[1:] < frames[:-1]).any():
+            order = np.argsort(frames, kind="stable")
+            points, frames = points[order], frames[order]
+            del order
         numbers = np.fromiter(frame_times, dtype=np.int64, count=len(frame_times))
-        bounds = np.searchsorted(points["frame"], numbers, side="left")
-        ends = np.searchsorted(points["frame"], numbers, side="right")
+        bounds = np.searchsorted(frames, numbers, side="left")
+        ends = np.searchsorted(frames, numbers, side="right")
+        del frames
+        # A message a frame (the protobuf runtime frees a message's memory with the message:
+        # one message reused would keep every frame's points until the end)
         for number, start, stop in zip(numbers.tolist(), bounds.tolist(), ends.tolist()):
             nanoseconds = int(round(frame_times[number] * 1e9))
             message = self._message(frame_id=FRAME_ID, point_stride=POINT_DTYPE.itemsize,
