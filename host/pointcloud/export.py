@@ -10,13 +10,15 @@ from .las import LasWriter
 from .mcap_file import McapWriter
 from .pcd import PcdWriter
 from .ply import PlyWriter
+from .ros2 import Ros2Writer
 from .points import POINT_DTYPE, frame_points
 
 
 __all__ = ["WRITERS", "PointsExport", "export_points", "RUN_FRAMES"]
 
 #: The formats, by the name ``fliss export --to`` takes.
-WRITERS = {"ply": PlyWriter, "pcd": PcdWriter, "las": LasWriter, "mcap": McapWriter}
+WRITERS = {"ply": PlyWriter, "pcd": PcdWriter, "las": LasWriter, "mcap": McapWriter,
+           "mcap-ros2": Ros2Writer}
 
 #: The group of a capture file that holds its depth frames (:mod:`fliss.host.kinds.depth`).
 _GROUP = "depth"
