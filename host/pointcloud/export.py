@@ -27,9 +27,9 @@ _GROUP = "depth"
 RUN_FRAMES = 4096
 
 #: HDF5's metadata cache while a capture is read, in the bytes it counts (the entries' size on
-#: disk). A chunked dataset's chunk index (a B-tree) costs about nine times its counted size in
+#: disk). A chunked dataset's chunk index (a B-tree) costs about eight times its counted size in
 #: memory, and HDF5 keeps every node a read passes through until the cache is full (at first 2
-#: MB counted, about 18 MB resident, and more as it grows): read front to back, run after run,
+#: MB counted, some 16 MB resident, and more as it grows): read front to back, run after run,
 #: that was memory growing with the capture, not the run. A small fixed cache still holds the
 #: path down each dataset's index.
 _METADATA_CACHE = 128 * 1024

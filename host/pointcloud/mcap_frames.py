@@ -14,7 +14,7 @@ __all__ = ["FrameMessages", "TOPIC", "FRAME_ID", "CHUNK_BYTES"]
 TOPIC = "/fliss/points"
 FRAME_ID = "fliss_optical"
 #: The MCAP chunks' size before compression. The writer keeps an index entry of each chunk in
-#: memory to the end (some 660 bytes: about 0.8 MB for a 1 GB capture's 1.3 GB of points),
+#: memory to the end (some 660 bytes: about 0.9 MB for a 1 GB capture's 1.3 GB of points),
 #: and a chunk's own copies while it is compressed and written (a few times its size).
 CHUNK_BYTES = 1 << 20
 
