@@ -18,6 +18,30 @@ POINT_DTYPE = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("range", "<f4
                         ("pixel", "<u2"), ("time", "<f8")])
 
 
+#: Points placed at a time (:func:`_place`): its scratch arrays are a block's, not a run's.
+_BLOCK = 1 << 16
+
+
+def _place(points, rays, pixels, depths, flat, width):
+    # x, y, z, range and pixel of the points at flat indices ``flat`` of the run's cells,
+    # ``width`` a row, ``depths`` the run's depths by cell, ``rays`` the unit rays by column; a
+    # block of points at a time, one coordinate at a time through one scratch array
+    for start in range(0, len(flat), _BLOCK):
+        block = points[start:start + _BLOCK]
+        cells = flat[start:start + _BLOCK]
+        ranges = depths[cells].astype(float, copy=False)
+        block["range"] = ranges
+        # (the index numpy's take works in, so that it makes no copy of it; and clipped,
+        # never out of range, so that it writes straight to the scratch, not through a buffer)
+        columns = np.remainder(cells, width, dtype=np.intp)
+        block["pixel"] = pixels[columns]
+        scratch = np.empty(len(cells))
+        for axis, name in enumerate("xyz"):
+            np.take(rays[:, axis], columns, out=scratch, mode="clip")
+            scratch *= ranges
+            block[name] = scratch
+
+
 def frame_points(geometry, pixels, column, frames, times, out=None):
     """The points of a run of depth frames. ``column(name)`` gives the run's array ``name``,
     of shape ``(frames, pixels)``: ``depth_m``, ``detected``, ``height`` and ``background``,
@@ -40,22 +64,8 @@ def frame_points(geometry, pixels, column, frames, times, out=None):
     count = len(flat)
     points = (out[:count] if out is not None and len(out) >= count
               else np.empty(count, dtype=POINT_DTYPE))
-    ranges = depth_m.reshape(-1)[flat].astype(float, copy=False)
+    _place(points, geometry.rays(pixels), np.asarray(pixels), depth_m.reshape(-1), flat, width)
     del depth_m
-    points["range"] = ranges
-    # (the index numpy's take works in, so that it makes no copy of it; and clipped, never
-    # out of range, so that it writes straight to the scratch array, not through a buffer)
-    columns = np.remainder(flat, width, dtype=np.intp)
-    rays = geometry.rays(pixels)
-    # One coordinate at a time, through one scratch array: a float a point
-    scratch = np.empty(count)
-    for axis, name in enumerate("xyz"):
-        np.take(rays[:, axis], columns, out=scratch, mode="clip")
-        scratch *= ranges
-        points[name] = scratch
-    del ranges, scratch
-    points["pixel"] = np.asarray(pixels)[columns]
-    del columns
     for name in ("height", "background"):
         points[name] = np.asarray(column(name)).reshape(-1)[flat]
     rows = np.floor_divide(flat, width, out=flat)

@@ -12,6 +12,7 @@ import pytest
 
 from fliss.host.kinds.depth import append as append_depth, create as create_depth
 from fliss.host.pointcloud.export import WRITERS, export_points
+from fliss.host.pointcloud import points as points_module
 from fliss.host.pointcloud.geometry import SensorGeometry
 from fliss.host.stream import DepthFrame
 
@@ -89,6 +90,16 @@ def test_ply_read_by_plyfile(capture, tmp_path):
     expected = _expected(capture)
     _compare({name: vertex[name] for name in NAMES}, expected)
     assert (result.points, result.frames, result.incomplete) == (len(expected), FRAMES - 1, 1)
+
+
+def test_points_placed_a_block_at_a_time(capture, tmp_path, monkeypatch):
+    # Blocks of 7 points, runs of 3 frames (some 30 points): blocks that end inside a run, and
+    # runs that end inside a block
+    plyfile = pytest.importorskip("plyfile")
+    monkeypatch.setattr(points_module, "_BLOCK", 7)
+    export_points(capture, tmp_path / "a.ply", "ply", GEOMETRY, run_frames=3)
+    vertex = plyfile.PlyData.read(str(tmp_path / "a.ply"))["vertex"]
+    _compare({name: vertex[name] for name in NAMES}, _expected(capture))
 
 
 def test_pcd_read_by_pypcd4(capture, tmp_path):
