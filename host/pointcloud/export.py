@@ -10,8 +10,8 @@ from .las import LasWriter
 from .mcap_file import McapWriter
 from .pcd import PcdWriter
 from .ply import PlyWriter
-from .ros2 import Ros2Writer
 from .points import POINT_DTYPE, frame_points
+from .ros2 import Ros2Writer
 
 
 __all__ = ["WRITERS", "PointsExport", "export_points", "RUN_FRAMES"]
@@ -58,12 +58,16 @@ def _open(path):
     """``path`` opened to read run by run: no cache of raw chunks (every chunk is read once)
     and a metadata cache of fixed size (:data:`_METADATA_CACHE`, never grown)."""
     f = h5py.File(path, "r", rdcc_nbytes=0)
-    config = f.id.get_mdc_config()
-    config.set_initial_size = True
-    config.initial_size = config.max_size = _METADATA_CACHE
-    config.min_size = min(config.min_size, _METADATA_CACHE)
-    config.incr_mode = config.flash_incr_mode = config.decr_mode = 0
-    f.id.set_mdc_config(config)
+    try:
+        config = f.id.get_mdc_config()
+        config.set_initial_size = True
+        config.initial_size = config.max_size = _METADATA_CACHE
+        config.min_size = min(config.min_size, _METADATA_CACHE)
+        config.incr_mode = config.flash_incr_mode = config.decr_mode = 0
+        f.id.set_mdc_config(config)
+    except BaseException:
+        f.close()
+        raise
     return f
 
 
