@@ -7,9 +7,14 @@ the per-frame rows), 70 % of the pixels detected, written straight into the capt
 ``/depth`` datasets a block at a time. Then, each in a process of its own, its peak
 memory measured from after its imports (Linux's VmHWM, reset through ``/proc/self/clear_refs``):
 a process that opens the capture and reads nothing (the floor), the depths read whole (the baseline), and the export to each format
-(:func:`fliss.host.pointcloud.export.export_points`, runs of ``--run`` frames). Prints seconds,
-points per second, file size, peak memory, and the peak above the floor against the size of a
-run's arrays (above what the process held before the work; the goal: under 2x a run). Files go in a temporary folder under ``--folder``.
+(:func:`fliss.host.pointcloud.export.export_points`, runs of ``--run`` frames). Prints, per
+format: seconds, points per second, file size, peak memory, the peak above what the process
+held before the work, the size of a run (its arrays as read and its points, every pixel
+detected) and the peak above the start against it (the goal: under 2x a run, whatever the
+number of runs). For MCAP, the chunks written: the writer keeps an index entry of each in
+memory until the file's end (by design: the summary that lets a reader seek), the one part
+of an export's memory that grows with the capture. Files go in a temporary folder under
+``--folder``.
 
 Usage: python benchmarks/pointcloud_export.py [--frames 100000] [--run 4096] [--folder DIR]
 """
@@ -27,6 +32,7 @@ import h5py
 import numpy as np
 
 from fliss.host.kinds.depth import create as create_depth
+from fliss.host.pointcloud.export import WRITERS
 
 
 PIXELS = 64
@@ -89,6 +95,32 @@ print(json.dumps({"seconds": time.perf_counter() - start, "points": points,
 """
 
 
+def mcap_chunks(path):
+    # The chunks of an MCAP file, from its summary's statistics
+    from mcap.reader import make_reader
+
+    with open(path, "rb") as stream:
+        return make_reader(stream).get_summary().statistics.chunk_count
+
+
+def chunk_index_bytes(count=1000):
+    # What one of the writer's chunk index entries costs in memory: ``count`` of them made as
+    # the writer makes them (a dict of one channel's message index offset), through tracemalloc
+    import tracemalloc
+
+    from mcap.records import ChunkIndex
+
+    tracemalloc.start()
+    entries = [ChunkIndex(message_start_time=2**60 + n, message_end_time=2**60 + n,
+                          chunk_start_offset=2**30 + n, chunk_length=2**20 + n,
+                          message_index_offsets={1: 2**31 + n}, message_index_length=2**14 + n,
+                          compression="zstd", compressed_size=2**19 + n,
+                          uncompressed_size=2**20 + n) for n in range(count)]
+    size = tracemalloc.get_traced_memory()[0] / len(entries)
+    tracemalloc.stop()
+    return size
+
+
 def child(capture, output, what, run):
     result = subprocess.run([sys.executable, "-c", CHILD, str(capture), str(output), what,
                              str(run)], capture_output=True, text=True, check=True)
@@ -115,10 +147,13 @@ def main():
         print(f"a run: {args.run} frames, {run_bytes / 1e6:.1f} MB of arrays and points")
         floor_run = child(capture, None, "floor", args.run)
         floor = floor_run["peak"]
+        runs = -(-args.frames // args.run)
+        print(f"{runs} runs; the goal: a peak under 2x a run above the start, in every format")
         print(f"{'what':<10} {'seconds':>8} {'points/s':>10} {'size MB':>8} {'peak MB':>8} "
-              f"{'above start':>12} {'/ run':>6}")
+              f"{'above start':>12} {'run MB':>7} {'/ run':>6}")
         print(f"{'floor':<10} {'':>8} {'':>10} {'':>8} {floor / 1e6:>8.1f}")
-        for what in ("baseline", "ply", "pcd", "las", "mcap"):
+        chunks = None
+        for what in ("baseline", *WRITERS):
             output = folder / f"points.{what}"
             figures = child(capture, output, what, args.run)
             written = os.path.getsize(output) / 1e6 if output.exists() else float("nan")
@@ -126,9 +161,15 @@ def main():
             print(f"{what:<10} {figures['seconds']:>8.2f} "
                   f"{figures['points'] / figures['seconds']:>10.3g} {written:>8.1f} "
                   f"{figures['peak'] / 1e6:>8.1f} {above / 1e6:>10.1f}MB "
-                  f"{above / run_bytes:>6.2f}")
+                  f"{run_bytes / 1e6:>7.1f} {above / run_bytes:>6.2f}")
+            if what == "mcap":
+                chunks = mcap_chunks(output)
             if output.exists():
                 output.unlink()
+        if chunks is not None:
+            entry = chunk_index_bytes()
+            print(f"mcap: {chunks} chunks, an index entry each held by the writer to the end: "
+                  f"{chunks * entry / 1e6:.2f} MB ({entry:.0f} bytes an entry)")
 
 
 if __name__ == "__main__":

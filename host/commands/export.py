@@ -1,5 +1,5 @@
-"""``fliss export CAPTURE --to ptu|photon-hdf5|ply|pcd|las|mcap -o OUT``: a capture in another
-program's format; a depth capture as a point cloud (:mod:`.export_points`)."""
+"""``fliss export CAPTURE --to ptu|photon-hdf5|ply|pcd|las|mcap|mcap-ros2 -o OUT``: a capture
+in another program's format; a depth capture as a point cloud (:mod:`.export_points`)."""
 
 import argparse
 import os

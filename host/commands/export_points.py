@@ -1,5 +1,5 @@
-"""``fliss export DEPTH --to ply|pcd|las|mcap -o OUT``: a depth capture's frames as a point
-cloud (docs/point-clouds.md), read and written a run of frames at a time."""
+"""``fliss export DEPTH --to ply|pcd|las|mcap|mcap-ros2 -o OUT``: a depth capture's frames as a
+point cloud (docs/point-clouds.md), read and written a run of frames at a time."""
 
 import os
 import sys
@@ -17,7 +17,8 @@ __all__ = ["POINT_FORMATS", "run_points", "refuse_geometry_flags"]
 
 #: The point cloud formats, by ``--to`` name: their description.
 POINT_FORMATS = {"ply": "PLY point cloud", "pcd": "PCD point cloud", "las": "LAS point cloud",
-                 "mcap": "MCAP of Foxglove point clouds"}
+                 "mcap": "MCAP of Foxglove point clouds",
+                 "mcap-ros2": "MCAP of ROS 2 PointCloud2 messages"}
 assert set(POINT_FORMATS) == set(WRITERS)
 
 

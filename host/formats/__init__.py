@@ -48,6 +48,7 @@ ENDINGS = {
     "pcd": ("a PCD file", (".pcd",)),
     "las": ("a LAS file", (".las",)),
     "mcap": ("an MCAP file", (".mcap",)),
+    "mcap-ros2": ("an MCAP file", (".mcap",)),
 }
 
 _PTU = b"PQTTTR\0\0"

@@ -177,6 +177,7 @@ KIND = DataKind(
     assembler=DepthAssembler, item=DepthFrame, rows="depth frames", format_version=3,
     what="depth frames", counted=False, imager=True,
     create=create, append=append, blank=blank, read=read, tally=tally, replay=replay, seen=seen,
-    exports=("ply", "pcd", "las", "mcap"),
+    exports=("ply", "pcd", "las", "mcap", "mcap-ros2"),
     refusal="PTU and Photon-HDF5 hold photons and TCSPC histograms, not depth frames: a depth "
-            "capture goes to a point cloud (--to ply, pcd, las or mcap; docs/point-clouds.md)")
+            "capture goes to a point cloud (--to ply, pcd, las, mcap or mcap-ros2; "
+            "docs/point-clouds.md)")

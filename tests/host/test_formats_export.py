@@ -215,7 +215,7 @@ def test_depth_captures_are_refused_with_the_formats_that_hold_them(tmp_path, ca
         assert err == (f"fliss: error: {tmp_path / 'd.h5'}: a depth capture cannot go to "
                        f"{title}: PTU and Photon-HDF5 hold photons and TCSPC histograms, not "
                        f"depth frames: a depth capture goes to a point cloud (--to ply, pcd, "
-                       f"las or mcap; docs/point-clouds.md)\n")
+                       f"las, mcap or mcap-ros2; docs/point-clouds.md)\n")
         assert not (tmp_path / name).exists()
 
 

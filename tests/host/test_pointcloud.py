@@ -12,6 +12,7 @@ import pytest
 
 from fliss.host.kinds.depth import append as append_depth, create as create_depth
 from fliss.host.pointcloud.export import WRITERS, export_points
+from fliss.host.pointcloud import points as points_module
 from fliss.host.pointcloud.geometry import SensorGeometry
 from fliss.host.stream import DepthFrame
 
@@ -91,6 +92,16 @@ def test_ply_read_by_plyfile(capture, tmp_path):
     assert (result.points, result.frames, result.incomplete) == (len(expected), FRAMES - 1, 1)
 
 
+def test_points_placed_a_block_at_a_time(capture, tmp_path, monkeypatch):
+    # Blocks of 7 points, runs of 3 frames (some 30 points): blocks that end inside a run, and
+    # runs that end inside a block
+    plyfile = pytest.importorskip("plyfile")
+    monkeypatch.setattr(points_module, "_BLOCK", 7)
+    export_points(capture, tmp_path / "a.ply", "ply", GEOMETRY, run_frames=3)
+    vertex = plyfile.PlyData.read(str(tmp_path / "a.ply"))["vertex"]
+    _compare({name: vertex[name] for name in NAMES}, _expected(capture))
+
+
 def test_pcd_read_by_pypcd4(capture, tmp_path):
     pypcd4 = pytest.importorskip("pypcd4")
     export_points(capture, tmp_path / "a.pcd", "pcd", GEOMETRY, run_frames=3)
@@ -167,6 +178,60 @@ def test_mcap_read_with_its_schema(capture, tmp_path):
     _compare(columns, expected)
 
 
+def _ros2_columns(clouds):
+    # The points of (stamp in nanoseconds, cloud) pairs, a cloud as a PointCloud2 decoded
+    # (rosbags' or mcap_ros2's object): each field where the message's fields say it is
+    columns = {name: [] for name in NAMES}
+    for stamp, cloud in clouds:
+        assert (cloud.height, cloud.is_bigendian, cloud.is_dense) == (1, False, True)
+        assert cloud.header.frame_id == "fliss_optical"
+        fields = {field.name: field for field in cloud.fields}
+        assert set(fields) == set(NAMES) - {"time"}
+        assert all(field.count == 1 for field in fields.values())
+        data = bytes(cloud.data)
+        assert len(data) == cloud.width * cloud.point_step == cloud.row_step
+        for k in range(cloud.width):
+            for name, field in fields.items():
+                kind = {7: "<f", 6: "<I"}[field.datatype]
+                columns[name].append(struct.unpack_from(kind, data,
+                                                        k * cloud.point_step + field.offset)[0])
+            columns["time"].append(stamp / 1e9)
+    return columns
+
+
+def test_mcap_ros2_read_by_rosbags_and_by_its_schema(capture, tmp_path):
+    pytest.importorskip("rosbags")
+    pytest.importorskip("mcap_ros2")
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+    from rosbags.typesys import Stores, get_typestore
+
+    export_points(capture, tmp_path / "a.mcap", "mcap-ros2", GEOMETRY, run_frames=4)
+    expected = _expected(capture)
+    with open(tmp_path / "a.mcap", "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        assert reader.get_header().profile == "ros2"
+        messages = list(reader.iter_decoded_messages(topics=["/fliss/points"]))
+    assert len(messages) == FRAMES - 1
+    for schema, channel, _message, _decoded in messages:
+        assert (schema.name, schema.encoding) == ("sensor_msgs/msg/PointCloud2", "ros2msg")
+        assert channel.message_encoding == "cdr"
+    # rosbags: its own definition of PointCloud2 (ROS 2 Humble's), not the file's schema
+    typestore = get_typestore(Stores.ROS2_HUMBLE)
+    clouds = [typestore.deserialize_cdr(message.data, "sensor_msgs/msg/PointCloud2")
+              for _schema, _channel, message, _decoded in messages]
+    for cloud, (_schema, _channel, message, _decoded) in zip(clouds, messages):
+        stamp = cloud.header.stamp.sec * 10**9 + cloud.header.stamp.nanosec
+        assert stamp == message.log_time
+    columns = _ros2_columns([(message.log_time, cloud) for (_schema, _channel, message, _d),
+                             cloud in zip(messages, clouds)])
+    # (each point's time: its message's stamp, the frame's time to the nanosecond)
+    _compare(columns, expected)
+    # mcap_ros2: the schema the file carries, parsed, decodes the same points
+    _compare(_ros2_columns([(m.log_time, decoded) for _s, _c, m, decoded in messages]),
+             expected)
+
+
 def test_a_file_that_is_not_a_depth_capture_is_refused(tmp_path):
     path = tmp_path / "histograms.h5"
     with h5py.File(path, "w") as f:
@@ -176,4 +241,4 @@ def test_a_file_that_is_not_a_depth_capture_is_refused(tmp_path):
 
 
 def test_every_writer_is_tested():
-    assert set(WRITERS) == {"ply", "pcd", "las", "mcap"}
+    assert set(WRITERS) == {"ply", "pcd", "las", "mcap", "mcap-ros2"}

@@ -95,7 +95,7 @@ def test_what_holds_no_depth_frames_is_refused(tmp_path, capsys):
                  "--pitch", "20um"]) == 1
     assert capsys.readouterr().err.startswith(
         "fliss: error: --pitch: the sensor's geometry places a depth capture's points: it is "
-        "for --to ply, pcd, las, mcap, not --to ptu")
+        "for --to ply, pcd, las, mcap, mcap-ros2, not --to ptu")
     assert main(["export", str(tmp_path / "missing.h5"), "--to", "ply", "-o",
                  str(tmp_path / "m.ply")]) == 1
     assert "missing.h5" in capsys.readouterr().err
