@@ -47,7 +47,7 @@ class DelayCoreTB:
         return round(get_sim_time("ps") / CLOCK_PERIOD_PS)
 
     async def start(self):
-        Clock(self.dut.clk, CLOCK_PERIOD_PS, unit="ps").start()
+        Clock(self.dut.clk, CLOCK_PERIOD_PS, unit="ps", impl="gpi").start()
         self.dut.rst.value = 1
         self.dut.enable.value = 0
         self.dut.update.value = 0

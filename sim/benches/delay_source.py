@@ -31,7 +31,7 @@ def settings_bits(**settings):
 
 
 async def check_stream(dut, mode, *, length=2, mask_width=1, seed=1, transfers=TRANSFERS):
-    Clock(dut.clk, CLOCK_PERIOD_PS, unit="ps").start()
+    Clock(dut.clk, CLOCK_PERIOD_PS, unit="ps", impl="gpi").start()
     dut.rst.value = 1
     dut.delays__ready.value = 0
     dut.load.value = 0

@@ -89,7 +89,7 @@ class TB:
 
     async def reset(self):
         dut = self.dut
-        Clock(dut.clk, CLOCK_PERIOD_PS, unit="ps").start()
+        Clock(dut.clk, CLOCK_PERIOD_PS, unit="ps", impl="gpi").start()
         dut.rst.value = 1
         dut.readout__valid.value = 0
         dut.packets__ready.value = 0

@@ -72,7 +72,7 @@ class TopTB:
 
     async def start(self):
         dut = self.dut
-        Clock(dut.clk, CLOCK_PERIOD_PS, unit="ps").start()
+        Clock(dut.clk, CLOCK_PERIOD_PS, unit="ps", impl="gpi").start()
         for name in ("sensor_valid", "sensor_timestamp", "sensor_address", "sensor_collision",
                      "photon_hit"):
             getattr(dut, name).value = 0

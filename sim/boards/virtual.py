@@ -259,7 +259,7 @@ async def virtual_board(dut):
     reset_file = os.environ.get("FLISS_BOARD_RESET_FILE")
     resets = 0
 
-    Clock(dut.clk, CLOCK_PERIOD_PS, unit="ps").start()
+    Clock(dut.clk, CLOCK_PERIOD_PS, unit="ps", impl="gpi").start()
     dut.uart_rx.value = 1
     sensor = SensorModel(dut, scene_from_environment(), seed=seed)
     dut.rst.value = 1
