@@ -1,0 +1,38 @@
+"""The keyed source's IVs as the host sees them: a run in ``keyed`` mode refused before its
+START when the board reports that its keyed source has used every IV under its key (STATUS
+``ivs_used_up``: the IV in use is the last, ``2**80 - 1``, and its keystream was used). The board
+would run and fire no laser pulse (it never wraps the IV around to 0 under the same key); only a
+new key ends it (no IV is above the last).
+"""
+
+from typing import Mapping, Optional
+
+from ..hdl.delay.modes import mode_row
+from ..hdl.registers import value_of
+from .errors import IvsUsedUp
+
+
+__all__ = ["used_up", "refuse_used_up"]
+
+
+def _keyed(registers: Mapping[str, int]) -> bool:
+    row = mode_row(registers["delay_mode"])
+    return row is not None and row.keyed
+
+
+def used_up(registers: Mapping[str, int], status: Mapping[str, int]) -> Optional[str]:
+    """One line saying why a run with ``registers`` (as the board reads them: the IV in use)
+    fires no pulse, when the board's STATUS ``status`` says its keyed source has used every IV
+    under its key and the mode is keyed; else None."""
+    if not status.get("ivs_used_up") or not _keyed(registers):
+        return None
+    return (f"the keyed source has used every IV under its key (the IV in use, "
+            f"{value_of(registers, 'iv'):#022x}, is the last): in keyed mode the board would "
+            f"fire no laser pulse; write a new key (fliss config --key HEX, or --key random)")
+
+
+def refuse_used_up(registers: Mapping[str, int], status: Mapping[str, int]) -> None:
+    """Raise :exc:`~fliss.host.errors.IvsUsedUp` with :func:`used_up`'s line, if it has one."""
+    message = used_up(registers, status)
+    if message is not None:
+        raise IvsUsedUp(message)
