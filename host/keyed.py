@@ -12,7 +12,7 @@ from ..hdl.registers import value_of
 from .errors import IvsUsedUp
 
 
-__all__ = ["used_up", "refuse_used_up"]
+__all__ = ["used_up", "refuse_used_up", "used_up_by"]
 
 
 def _keyed(registers: Mapping[str, int]) -> bool:
@@ -36,3 +36,16 @@ def refuse_used_up(registers: Mapping[str, int], status: Mapping[str, int]) -> N
     message = used_up(registers, status)
     if message is not None:
         raise IvsUsedUp(message)
+
+
+def used_up_by(status_start: Mapping[str, int], status_end: Optional[Mapping[str, int]]
+               ) -> Optional[str]:
+    """One line when the board's keyed source used its last IV during a run (STATUS
+    ``ivs_used_up`` from 0 at ``status_start`` to 1 at ``status_end``): the next run in keyed
+    mode will fire no pulse; else None."""
+    if status_end is None or not status_end.get("ivs_used_up") or \
+            status_start.get("ivs_used_up"):
+        return None
+    return ("the keyed source has used every IV under its key (this run used the last): a run "
+            "in keyed mode fires no laser pulse until a new key is written (fliss config "
+            "--key HEX, or --key random)")
