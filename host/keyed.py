@@ -12,7 +12,11 @@ from ..hdl.registers import value_of
 from .errors import IvsUsedUp
 
 
-__all__ = ["used_up", "refuse_used_up", "used_up_by"]
+__all__ = ["USED_UP", "used_up", "refuse_used_up", "used_up_by"]
+
+
+#: Why a run in keyed mode fires no pulse, in a few words.
+USED_UP = "the keyed source has used every IV under its key; write a new key"
 
 
 def _keyed(registers: Mapping[str, int]) -> bool:
