@@ -8,12 +8,14 @@
 - ``keyed.key_hidden``: two register files, given the same commands but different keys,
   answer alike (``formal/_keyed_key.py``).
 - ``keyed.iv_rule``: under one key, every initialisation of the keystream uses an IV above the
-  one before (``formal/_keyed_iv.py``).
+  one before, with no exception: the IV never wraps around (``formal/_keyed_iv.py``; two
+  mutants: the register file's IV rule letting an equal IV through, and the stream wrapping
+  around after the last IV as it did before).
 - ``keyed.trivium_vectors``: Trivium's keystream from its load equals the published test vector (``formal/_keyed_vectors.py``).
 """
 
 from .delay_core import CoreHarness
-from ._keyed_iv import IvRuleHarness, _iv_at_or_above
+from ._keyed_iv import IvRuleHarness, _iv_at_or_above, _wrapping_stream
 from ._keyed_key import KeyHiddenHarness, _reading_key
 from ._keyed_vectors import VECTORS_DEPTH, TriviumVectorHarness, _mistapped_trivium
 from ._mutants import _LateStartTrigger, _NoDelayScheduler, _RuntTrigger
@@ -42,8 +44,10 @@ PROOFS = [
           mutant=lambda: KeyHiddenHarness(mutate=_reading_key), cover_depth=12),
     Proof("keyed.iv_rule", lambda: IvRuleHarness(), "bmc", 20,
           "under one key, every initialisation of the keystream uses an IV above the one before "
-          "(a WRITE of an IV not above the IV in use, without a key, is refused)",
-          mutant=lambda: IvRuleHarness(mutate=_iv_at_or_above)),
+          "(a WRITE of an IV not above the IV in use, without a key, is refused; after the last "
+          "IV the stream is spent until a key is written, never wrapping around to IV 0)",
+          mutant=(lambda: IvRuleHarness(mutate=_iv_at_or_above),
+                  lambda: IvRuleHarness(mutate_stream=_wrapping_stream))),
     Proof("keyed.trivium_vectors", lambda: TriviumVectorHarness(), "bmc", VECTORS_DEPTH,
           "Trivium's keystream equals the published vector from its load",
           mutant=lambda: TriviumVectorHarness(mutate=_mistapped_trivium)),

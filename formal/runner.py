@@ -22,7 +22,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Optional
+from typing import Callable, Optional, Union
 
 from amaranth.back import rtlil
 from amaranth.hdl import Fragment
@@ -63,9 +63,9 @@ class Proof:
         Induction length, or BMC depth in cycles.
     doc : str
         The property in one line.
-    mutant : callable or None
+    mutant : callable, tuple of callables, or None
         Returns the same harness around a deliberately broken block: BMC to ``mutant_depth``
-        must fail on it with a counterexample.
+        must fail on it with a counterexample (on each, for several).
     cover_depth, mutant_depth : int or None
         Depths of the cover and mutant checks; by default ``depth`` in ``bmc`` mode,
         :data:`COVER_DEPTH` in ``prove`` mode.
@@ -75,9 +75,16 @@ class Proof:
     mode: str
     depth: int
     doc: str
-    mutant: Optional[Callable] = None
+    mutant: Optional[Union[Callable, tuple]] = None
     cover_depth: Optional[int] = None
     mutant_depth: Optional[int] = None
+
+    @property
+    def mutants(self):
+        """The mutants, as a tuple (empty without one)."""
+        if self.mutant is None:
+            return ()
+        return tuple(self.mutant) if isinstance(self.mutant, tuple) else (self.mutant,)
 
     def __post_init__(self):
         if self.mode not in ("prove", "bmc"):
@@ -102,17 +109,25 @@ class Proof:
 
 @dataclass(frozen=True)
 class Check:
-    """One run of SymbiYosys: the ``proof``, ``cover`` or ``mutant`` check of a proof."""
+    """One run of SymbiYosys: the ``proof``, ``cover`` or ``mutant`` check of a proof (its mutant
+    ``number``, from 1, when it has several)."""
     proof: Proof
     kind: str
+    number: int = 1
 
     @property
     def expected(self):
         return "FAIL" if self.kind == "mutant" else "PASS"
 
     @property
+    def folder(self):
+        """Its build folder's name, under the proof's: ``proof``, ``cover``, ``mutant``,
+        ``mutant2``, ..."""
+        return self.kind if self.number == 1 else f"{self.kind}{self.number}"
+
+    @property
     def label(self):
-        return f"{self.proof.name} [{self.kind}]"
+        return f"{self.proof.name} [{self.folder}]"
 
 
 @dataclass(frozen=True)
@@ -178,8 +193,8 @@ def checks(proofs, *, cover=True, mutants=False):
     """The checks to run for ``proofs``: the proofs first (the long ones), then their covers,
     then their mutants."""
     kinds = ["proof"] + (["cover"] if cover else []) + (["mutant"] if mutants else [])
-    return [Check(proof, kind) for kind in kinds for proof in proofs
-            if kind != "mutant" or proof.mutant is not None]
+    return [Check(proof, kind, number) for kind in kinds for proof in proofs
+            for number in (range(1, len(proof.mutants) + 1) if kind == "mutant" else [1])]
 
 
 def _rtlil(design):
@@ -242,11 +257,12 @@ def warm_up(env):
 def prepare(check, *, build_dir=BUILD_DIR):
     """Write the check's RTLIL and .sby file into a fresh folder; returns the folder. Harnesses
     are elaborated one at a time (a mutant may swap a block in while it elaborates)."""
-    folder = Path(build_dir) / check.proof.name / check.kind
+    folder = Path(build_dir) / check.proof.name / check.folder
     if folder.exists():
         shutil.rmtree(folder)
     folder.mkdir(parents=True)
-    build = check.proof.mutant if check.kind == "mutant" else check.proof.design
+    build = check.proof.mutants[check.number - 1] if check.kind == "mutant" else \
+        check.proof.design
     (folder / "design.il").write_text(_rtlil(build()))
     (folder / "check.sby").write_text(_sby(check))
     return folder
@@ -254,7 +270,7 @@ def prepare(check, *, build_dir=BUILD_DIR):
 
 def run_check(check, env, *, build_dir=BUILD_DIR, timeout=None):
     """Run one prepared check (:func:`prepare`); returns its :class:`Result`."""
-    folder = Path(build_dir) / check.proof.name / check.kind
+    folder = Path(build_dir) / check.proof.name / check.folder
     start = time.monotonic()
     try:
         with open(folder / "sby.log", "w") as log:

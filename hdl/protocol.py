@@ -39,7 +39,7 @@ __all__ = [
 
 
 #: Version of this protocol, reported in the identity packet.
-PROTOCOL_VERSION = 4
+PROTOCOL_VERSION = 5
 
 #: Version of the gateware: the package's version (:data:`fliss.__version__`, written there
 #: only). The identity packet reports its major, minor and patch numbers.
@@ -310,7 +310,9 @@ COUNTER_BITS = 32
 
 class Status(data.Struct):
     """Payload of a STATUS packet: the board's counters, in this order, each a u32 that starts
-    at zero after reset and saturates at ``2**32 - 1``."""
+    at zero after reset and saturates at ``2**32 - 1``; and three fields that are not counts:
+    ``running``, ``pulses`` (of the run) and ``ivs_used_up`` (a level: the victim's keyed
+    source gives no delay, so no pulse fires in ``keyed`` mode, until a key is written)."""
     running:             COUNTER_BITS   # 1 while acquiring
     pulses:              COUNTER_BITS   # victim laser pulses since the start
     frames:              COUNTER_BITS   # histograms completed
@@ -332,6 +334,7 @@ class Status(data.Struct):
     bad_length:          COUNTER_BITS   # frames dropped: header length wrong
     commands:            COUNTER_BITS   # commands received
     refused:             COUNTER_BITS   # commands refused with a NAK
+    ivs_used_up:         COUNTER_BITS   # 1 while the keyed source has used every IV under its key
 
 
 #: Names of the :class:`Status` counters, in payload order.

@@ -7,7 +7,7 @@ A definitions module: it imports no gateware.
 
 from .event import ADDRESS_BITS, TIMESTAMP_BITS
 from .delay.modes import delay_problems
-from .delay.settings import BANK_BITS
+from .delay.settings import BANK_BITS, LAST_IV
 
 
 __all__ = ["words_of", "value_of", "iv_problem", "group_values", "delay_group_problems",
@@ -28,13 +28,17 @@ def value_of(values, prefix):
 
 def iv_problem(written, values, iv_in_use):
     """The IV rule, as a message or None: a WRITE of the registers named in ``written`` that
-    writes the IV (to ``values``) and no key must put the IV above ``iv_in_use``."""
+    writes the IV (to ``values``) and no key must put the IV above ``iv_in_use``. (None is above
+    the last IV, ``2**80 - 1``: after it only a new key goes.)"""
     writes = set(written)
     if not writes & {"iv0", "iv1", "iv2"} or writes & {"key0", "key1", "key2"}:
         return None
     iv = value_of(values, "iv")
     if iv > iv_in_use:
         return None
+    if iv_in_use == LAST_IV:
+        return (f"the IV in use is the last ({iv_in_use:#022x}): no IV is above it, so only a "
+                f"new key can go with a new IV: under one key no IV is used twice")
     return (f"the IV ({iv:#022x}) must be above the IV in use ({iv_in_use:#022x}) unless a "
             f"new key is written with it: under one key no IV is used twice")
 

@@ -13,8 +13,10 @@ __all__ = ["COUNTED_FIELDS", "LINK_FIELDS", "strobes_layout", "StatusCounters"]
 
 
 #: The STATUS fields counted here from strobes: all but ``running`` (a level, from the command
-#: processor) and ``pulses`` (the victim scheduler's pulse index).
-COUNTED_FIELDS = STATUS_FIELDS[2:]
+#: processor), ``pulses`` (the victim scheduler's pulse index) and ``ivs_used_up`` (a level, from
+#: the victim's keyed source), which come first and last.
+COUNTED_FIELDS = STATUS_FIELDS[2:-1]
+assert STATUS_FIELDS[-1] == "ivs_used_up"
 
 
 def strobes_layout():
@@ -27,7 +29,8 @@ class StatusCounters(wiring.Component):
     Each counted field has a strobe; a :class:`~fliss.hdl.counters.CounterBank` counts them
     (saturating at ``2**32 - 1``, zero after reset). A capture on ``port`` takes an exact
     snapshot of all of them and of ``pulses`` in one cycle (the bank's ``captured``), at most
-    ``len(COUNTED_FIELDS)`` cycles after it is asked for; the port reads field ``addr`` of
+    ``len(COUNTED_FIELDS)`` cycles after it is asked for, with ``pulses`` and ``ivs_used_up``
+    of the same cycle; the port reads field ``addr`` of
     :data:`~fliss.hdl.protocol.STATUS_FIELDS` one cycle later (``running`` reads as zero: the
     command processor sends its own).
 
@@ -37,6 +40,8 @@ class StatusCounters(wiring.Component):
         One strobe per field of :data:`COUNTED_FIELDS`: each cycle it is high counts one.
     pulses : In(32)
         Victim pulses since the start.
+    ivs_used_up : In(1)
+        The victim's keyed source has used every IV under its key (its ``spent``).
     port : In(StatusSignature)
         To the command processor's ``status``.
 
@@ -45,6 +50,7 @@ class StatusCounters(wiring.Component):
 
     strobes: In(strobes_layout())
     pulses:  In(COUNTER_BITS)
+    ivs_used_up: In(1)
     port:    In(StatusSignature)
 
     def count(self, tally, **names):
@@ -77,8 +83,9 @@ class StatusCounters(wiring.Component):
         ]
 
         pulses = Signal(COUNTER_BITS)
+        ivs_used_up = Signal()
         with m.If(bank.captured):
-            m.d.sync += pulses.eq(self.pulses)
+            m.d.sync += [pulses.eq(self.pulses), ivs_used_up.eq(self.ivs_used_up)]
 
         first = STATUS_FIELDS.index(COUNTED_FIELDS[0])
         field = Signal.like(self.port.addr)
@@ -87,6 +94,8 @@ class StatusCounters(wiring.Component):
         with m.Switch(field):
             with m.Case(STATUS_FIELDS.index("pulses")):
                 m.d.comb += self.port.data.eq(pulses)
+            with m.Case(STATUS_FIELDS.index("ivs_used_up")):
+                m.d.comb += self.port.data.eq(ivs_used_up)
             with m.Case(STATUS_FIELDS.index("running")):
                 m.d.comb += self.port.data.eq(0)
             with m.Default():

@@ -402,6 +402,8 @@ class FlissTop(wiring.Component):
         ]
         if self.raw_events:
             m.d.comb += status.count(raw_fifo.tally, accepted=None, dropped="dropped_fifo")
+        if self.keyed:
+            m.d.comb += status.ivs_used_up.eq(core.spent)
 
         return m
 

@@ -16,6 +16,7 @@ from .calibration import read_table
 from .client import BoardClient
 from .errors import BoardLost, BoardReset, PathError, SettingsError
 from .fileformat import CaptureWriter
+from .keyed import refuse_used_up
 from .kinds import KINDS, kind_of, mode_of
 from .rows import FrameRows
 from .stream import EventBatch
@@ -254,7 +255,8 @@ def capture(board: BoardClient, path: str, *, mode: str = "histogram",
 def _configure(board, mode, cycles):
     """Stop the board, set its readout and integration time (``cycles``); returns the capture
     mode (``"histogram"`` becomes ``"image"`` when a frame holds several pixels), the registers
-    and the STATUS before the start."""
+    and the STATUS before the start. A run that would fire no pulse (keyed mode, every IV under
+    the key used) is refused here, before its START."""
     board.stop()
     board.drain(quiet_s=0.1, limit_s=2.0)
     current = board.read_registers()
@@ -265,7 +267,9 @@ def _configure(board, mode, cycles):
     if mode == kind.readout.name.lower():
         # several pixels a frame: saved per pixel, where the kind has a form for it
         mode = mode_of(kind.readout, configuration.get("pixel_bits", 0))
-    return mode, configuration, board.status()
+    status = board.status()
+    refuse_used_up(configuration, status)
+    return mode, configuration, status
 
 
 class _Capture:

@@ -39,6 +39,7 @@ from ..protocol.events import EVENT_DTYPE
 from .client import BoardClient, IdentityInfo
 from .errors import BoardLost, BoardMismatch, BoardRefused, SettingsError
 from .imager.results import DepthFrames, Images, acquire_depth, acquire_image
+from .keyed import refuse_used_up
 from .kinds import mode_of
 from .paths import check_output_path
 from .pointcloud.options import geometry_attribute
@@ -188,7 +189,8 @@ class Board:
         ------
         SettingsError
             A setting unknown, unreadable, out of range or inconsistent with the others:
-            nothing is written.
+            nothing is written. (:exc:`~fliss.host.errors.IvsUsedUp`: the mode set to keyed
+            without a new key when the board's keyed source has used every IV under its key.)
         BoardRefused
             The board's build does not take a value.
         """
@@ -196,6 +198,10 @@ class Board:
         current = self.client.read_registers()
         conversion = convert(values, self.clock_hz, current, style=style,
                              bank_bits=self.bank_bits)
+        if "delay_mode" in conversion.said and not {"key0", "key1", "key2"} & set(
+                conversion.changes):
+            # keyed mode chosen without a new key, when every IV under the key is used
+            refuse_used_up(conversion.registers, self.client.status())
         for note in conversion.notes:
             warnings.warn(note, RoundingWarning, stacklevel=2)
         if conversion.changes:
@@ -241,7 +247,9 @@ class Board:
             registers = self.client.write_registers({"acquisition": readout.value},
                                                     current=registers)
         # (what settle waits for: the frames made from here on)
-        self._frames_at_start = self.client.status()["frames"]
+        status = self.client.status()
+        refuse_used_up(registers, status)       # (keyed mode, every IV under the key used)
+        self._frames_at_start = status["frames"]
         self.client.reset_counters()
         self.client.start()
         return describe(registers, self.clock_hz)

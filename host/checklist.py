@@ -8,11 +8,23 @@ from typing import List, Optional
 from .calibration import Calibration
 
 
-__all__ = ["CHECKS", "Check", "SelfTest", "SelfTestInterrupted"]
+__all__ = ["CHECKS", "Check", "SelfTest", "SelfTestInterrupted", "advice"]
 
 
 #: The checks, in order.
 CHECKS = ("same time", "delays", "histogram", "calibration", "link")
+
+
+def advice(check, has_aggressor):
+    """What would run ``check`` on a build (with an aggressor emitter or not) when the loopback
+    cannot (the start of a sentence), or why nothing would."""
+    if check == "delays":
+        if has_aggressor:
+            return ": loop the aggressor's trigger to the photon input (--jumper aggressor)"
+        return " (this build has no aggressor emitter, whose trigger shows them)"
+    if check == "histogram":
+        return ": loop the laser output to the photon input (--jumper laser)"
+    return ""
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,7 @@ it does with :exc:`UserError`, a mistake in what the user asked a command for.
 """
 
 __all__ = ["BoardError", "BoardLost", "BoardReset", "PortError", "BoardRefused", "BoardMismatch",
-           "SettingsError", "CalibrationError", "VirtualBoardError", "PathError", "FileFull", "FormatError", "ViewError",
+           "SettingsError", "IvsUsedUp", "CalibrationError", "VirtualBoardError", "PathError", "FileFull", "FormatError", "ViewError",
            "UserError", "GatewareVersionWarning"]
 
 
@@ -66,6 +66,12 @@ class GatewareVersionWarning(UserWarning):
 class SettingsError(BoardError, ValueError):
     """Settings refused on the host before they were sent: an unknown register, a value out of
     its range, or settings that are not consistent."""
+
+
+class IvsUsedUp(SettingsError):
+    """A run in ``keyed`` mode would fire no laser pulse: the board's keyed source has used every
+    IV under its key (STATUS ``ivs_used_up``) and no new key is written
+    (:mod:`fliss.host.keyed`)."""
 
 
 class CalibrationError(BoardError):

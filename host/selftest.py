@@ -30,7 +30,8 @@ The checks (:func:`selftest`), one :class:`Check` each:
     In every delay mode the build has, the board's histogram of the loopback, in bins as wide as
     the spread allowed (at most), has its tallest bin at the loopback delay or next to it, and
     those three bins hold at least :data:`PEAK_SHARE` of its counts: the victim's own pulses
-    stay put whatever the delays (not with the aggressor's jumper).
+    stay put whatever the delays (not with the aggressor's jumper); ``keyed`` is skipped while
+    the board's keyed source has used every IV under its key (it would fire no pulse).
 ``calibration``
     A code-density histogram of the on-chip oscillator (:func:`fliss.host.calibration.code_counts`)
     hits the codes from the first to the last, all but at most :data:`EMPTY_SHARE` of them (the
@@ -66,10 +67,11 @@ from ..hdl.codes import code_s
 from ..hdl.finetdc import HitInput
 from ..hdl.registers import AcquisitionMode, TdcSource
 from ..protocol.events import link_events_per_s
-from .checklist import CHECKS, Check, SelfTest, SelfTestInterrupted
+from .checklist import CHECKS, Check, SelfTest, SelfTestInterrupted, advice
 from .calibration import (LEAST_HITS_PER_CODE, TABLE_SAMPLES, Calibration, code_counts,
                           has_fine_tdc, table_check)
 from .errors import BoardRefused, SettingsError
+from .keyed import USED_UP
 from .pace import REAL_TIME, acquire_timeout_s, host_s, measure_pace
 
 
@@ -82,7 +84,7 @@ __all__ = ["JUMPERS", "NO_LOOPBACK", "PERIOD_CYCLES", "LINK_SHARE", "AGGRESSOR_O
 #: What a jumper wire can carry to the photon input.
 JUMPERS = ("laser", "aggressor")
 #: Why the checks that need hits are skipped with no jumper on a build without the internal
-#: loopback (and what runs them, by check: :func:`_advice`).
+#: loopback (and what runs them, by check: :func:`~fliss.host.checklist.advice`).
 NO_LOOPBACK = "no jumper, and this build has no internal loopback (the fine TDC's)"
 #: ``tdc_input`` of each trigger's pad read back (the internal loopback).
 _PAD_INPUTS = {"laser": HitInput.LASER.value, "aggressor": HitInput.AGGRESSOR.value}
@@ -266,7 +268,8 @@ class _Test:
     def delays(self):
         if self.kind != "aggressor":
             return Check("delays", "skipped", "the victim's own hits are timed from its own "
-                         "delayed start, so its delays do not show" + _advice(self, "delays"))
+                         "delayed start, so its delays do not show"
+                         + advice("delays", self.has_aggressor))
         if not self.raw_events:
             return Check("delays", "skipped", "no raw events in this build (the pulse index "
                                               "of each hit is needed)")
@@ -308,18 +311,23 @@ class _Test:
     def histogram(self):
         if self.kind == "aggressor":
             return Check("histogram", "skipped", "the photon input carries the aggressor's "
-                         "trigger, not the victim's laser" + _advice(self, "histogram"))
+                         "trigger, not the victim's laser"
+                         + advice("histogram", self.has_aggressor))
         if self.delay_codes is None:
             return Check("histogram", "skipped", "no loopback delay measured")
         lsb = self.code_s
         # Bins as wide as the spread allowed, at most: the peak's bin and its neighbours
         shift = self.allowed.bit_length() - 1
         expected = self.delay_codes >> shift
-        checked, absent = [], []
+        checked, skipped = [], {}
         for mode in MODES.values():
             if not self.write({"delay_mode": mode.mode.value, "grid": 0, "bin_shift": shift,
                                "acquisition": AcquisitionMode.HISTOGRAM.value}):
-                absent.append(mode.name)
+                skipped.setdefault("not in this build", []).append(mode.name)
+                continue
+            if mode.keyed and self.client.status()["ivs_used_up"]:
+                # (it would fire no pulse)
+                skipped.setdefault(f"skipped: {USED_UP}", []).append(mode.name)
                 continue
             counts = self.histogram_counts()
             peak = int(np.argmax(counts))
@@ -333,8 +341,8 @@ class _Test:
             checked.append(mode.name)
         self.write({"delay_mode": DelayMode.OFF.value})
         detail = f"peak at {_ns(self.delay_codes * lsb)} in {', '.join(checked)}"
-        if absent:
-            detail += f" ({', '.join(absent)} not in this build)"
+        for why, modes in skipped.items():
+            detail += f" ({', '.join(modes)} {why})"
         return Check("histogram", "pass", detail)
 
     def calibration(self):
@@ -385,18 +393,6 @@ class _Test:
     def _hint(self):
         # The wire's hint after a finding ("" on the internal loopback: no wire)
         return "" if self.internal else f"; {self._wire()}"
-
-
-def _advice(test, check):
-    """What would run ``check`` on this build (the start of a sentence), or why nothing
-    would."""
-    if check == "delays":
-        if test.has_aggressor:
-            return ": loop the aggressor's trigger to the photon input (--jumper aggressor)"
-        return " (this build has no aggressor emitter, whose trigger shows them)"
-    if check == "histogram":
-        return ": loop the laser output to the photon input (--jumper laser)"
-    return ""
 
 
 def _link_errors(board):
@@ -471,9 +467,10 @@ def _run_checks(test, result, progress):
         loops = [(test.jumper, (test.same_time, test.delays, test.histogram))]
     else:
         loops = []
-        advice = {"same time": ": loop the laser output to the photon input (--jumper laser)",
-                  "histogram": _advice(test, "histogram"), "delays": _advice(test, "delays")}
-        result.checks += [Check(name, "skipped", NO_LOOPBACK + advice[name])
+        runs = {"same time": ": loop the laser output to the photon input (--jumper laser)",
+                "histogram": advice("histogram", test.has_aggressor),
+                "delays": advice("delays", test.has_aggressor)}
+        result.checks += [Check(name, "skipped", NO_LOOPBACK + runs[name])
                           for name in ("same time", "delays", "histogram")]
     try:
         for kind, checks in loops:

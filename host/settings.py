@@ -29,6 +29,7 @@ import numpy as np
 
 from ..hdl.event import TIMESTAMP_BITS
 from ..hdl.clock import DEFAULT_CLOCK_HZ
+from ..hdl.delay.settings import LAST_IV
 from ..hdl.registers import BY_NAME, ROWS, defaults, iv_problem, problems, value_of
 from .errors import SettingsError
 from .imager.threshold import depth_threshold
@@ -210,9 +211,11 @@ def convert(settings: Mapping[str, Any], clock_hz: int, current: Mapping[str, in
         written["depth_threshold"] = (f"{BY_OPTION['depth_threshold'].label(style)} {threshold}"
                                       f" (for the pixel split)")
     found = _problems(context.registers, labels, context.clock_hz, bank_bits)
-    iv = iv_problem(changes, context.registers, value_of(current, "iv"))
+    in_use = value_of(current, "iv")
+    iv = iv_problem(changes, context.registers, in_use)
     if iv:
-        found.append(f"{BY_OPTION['iv'].label(style)}: {iv} (give a higher IV or a new key)")
+        remedy = "a new key" if in_use == LAST_IV else "a higher IV or a new key"
+        found.append(f"{BY_OPTION['iv'].label(style)}: {iv} (give {remedy})")
     if found:
         raise SettingsError("; ".join(found))
     for name, value in changes.items():

@@ -92,11 +92,14 @@ class DelayCore(wiring.Component):
     keying : In(Keying)
     rekey : In(1)
     iv : Out(80)
-        Key and IV of the ``keyed`` source, their write strobe, and the IV in use (only if
-        ``keyed``; see :class:`DelaySource`). In ``keyed`` mode a run starts only once the
-        source has a delay in hand, at most :data:`~fliss.hdl.delay.settings.KEYED_START_CYCLES`
-        after the load that initialises it; an ``update`` that initialises it stops the run
-        until then, and it starts again (``pulse_index`` from 0).
+    spent : Out(1)
+        Key and IV of the ``keyed`` source, their write strobe, the IV in use and whether every
+        IV under the key is used (only if ``keyed``; see :class:`DelaySource`). In ``keyed``
+        mode a run starts only once the source has a delay in hand, at most
+        :data:`~fliss.hdl.delay.settings.KEYED_START_CYCLES` after the load that initialises it;
+        an ``update`` that initialises it stops the run until then, and it starts again
+        (``pulse_index`` from 0). A spent source never has one: no pulse fires in ``keyed``
+        mode until a key is written.
     """
 
     def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, period_width=PERIOD_WIDTH,
@@ -109,7 +112,8 @@ class DelayCore(wiring.Component):
         if not isinstance(keyed, bool):
             raise TypeError(f"keyed must be True or False, not {keyed!r}")
         self.keyed = keyed
-        keying = dict(keying=In(Keying), rekey=In(1), iv=Out(IV_BITS)) if keyed else {}
+        keying = dict(keying=In(Keying), rekey=In(1), iv=Out(IV_BITS),
+                      spent=Out(1)) if keyed else {}
         super().__init__({
             "enable":      In(1),
             "update":      In(1),
@@ -156,6 +160,7 @@ class DelayCore(wiring.Component):
                 source.keying.eq(self.keying),
                 source.rekey.eq(self.rekey),
                 self.iv.eq(source.iv),
+                self.spent.eq(source.spent),
             ]
 
         # A run starts only once the last pulse of the one before has ended: after a stop and

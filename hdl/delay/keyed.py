@@ -34,7 +34,10 @@ class KeyedStream(wiring.Component):
     The IV rule: a load in keyed mode initialises Trivium again if the key or IV was written
     since the last initialisation (``rekey``; from the IV written), or if bits were taken since
     (with the IV in use plus one). Under one key the IVs used thus only grow, so the keystream is
-    never replayed (the register file refuses an IV written below the one in use).
+    never replayed (the register file refuses an IV written not above the one in use). The IV
+    never wraps around: once bits of the last IV's (``2**80 - 1``) keystream were taken, the
+    next load does not initialise but leaves the source ``spent`` (its buffer emptied, so
+    ``busy`` stays high and no delay is given) until a load after a key write initialises it.
 
     Members
     -------
@@ -53,10 +56,14 @@ class KeyedStream(wiring.Component):
         The next keystream bits, the first at bit 0.
     busy : Out(1)
         No delay in hand: from the cycle after a load that initialises until the buffer has
-        its first bits (a take then is ignored). Straight from a register's compare, for the
-        scheduler's enable.
+        its first bits, and while spent (a take then is ignored). Straight from a register's
+        compare, for the scheduler's enable.
     iv : Out(80)
         The IV of the keystream in use (or being initialised).
+    spent : Out(1)
+        Every IV under the key is used: a load (in any mode) found the last IV's keystream
+        taken from and no key or IV written since, so the source gives no delay; low again from
+        the cycle after a write of the key (``rekey``). From registers only.
     """
 
     keying: In(Keying)
@@ -68,6 +75,7 @@ class KeyedStream(wiring.Component):
     bits:   Out(MAX_MASK_WIDTH)
     busy:   Out(1)
     iv:     Out(IV_BITS)
+    spent:  Out(1)
 
     def elaborate(self, platform):
         m = Module()
@@ -85,14 +93,23 @@ class KeyedStream(wiring.Component):
         level_w = Signal.like(level)
         has_bits = Signal()
 
-        # When to initialise, and with which IV. `iv_next` follows `iv` a cycle late: bits are
-        # taken only long after an initialisation.
+        # When to initialise, and with which IV. `iv_next` and `last` (the IV in use is all
+        # ones: `iv + 1` carries out) follow `iv` a cycle late: bits are taken only long after
+        # an initialisation. Once bits of the last IV's keystream were taken, any load (in any
+        # mode: every cycle while stopped) with no key or IV written since makes the source
+        # `spent` (`refuse`) instead, until an initialisation after a key write.
         pending = Signal(init=1)    # key or IV written since the last initialisation
         used = Signal()             # bits taken since the last initialisation
+        spent = Signal()            # every IV under the key used: no keystream
         iv_next = Signal(IV_BITS)
+        last = Signal()
         restart = Signal()
-        m.d.comb += restart.eq(self.load & self.keyed & (pending | used))
-        m.d.sync += iv_next.eq(self.iv + 1)
+        refuse = Signal()
+        m.d.comb += [
+            restart.eq(self.load & self.keyed & (pending | (used & ~last))),
+            refuse.eq(self.load & ~pending & used & last),
+        ]
+        m.d.sync += Cat(iv_next, last).eq(self.iv + 1)
         written_iv = Cat(keying.iv0, keying.iv1, keying.iv2)
         start_iv = Mux(pending, written_iv, iv_next)
         m.d.comb += [
@@ -105,7 +122,9 @@ class KeyedStream(wiring.Component):
             m.d.sync += used.eq(1)
         with m.If(restart):
             # (a take in this cycle is of the keystream before)
-            m.d.sync += [self.iv.eq(start_iv), pending.eq(0), used.eq(0)]
+            m.d.sync += [self.iv.eq(start_iv), pending.eq(0), used.eq(0), spent.eq(0)]
+        with m.If(refuse):
+            m.d.sync += spent.eq(1)
         with m.If(self.rekey):
             m.d.sync += pending.eq(1)
 
@@ -118,13 +137,15 @@ class KeyedStream(wiring.Component):
         buffer_n = buffer | Mux(fill_n, trivium.z << level, 0)
         level_t = level_w + Mux(fill_t, KEYED_ROUNDS, 0)
         level_n = level + Mux(fill_n, KEYED_ROUNDS, 0)
+        # (emptied by an initialisation, and kept empty while spent)
+        empty = restart | refuse | spent
         level_next = Signal.like(level)
         m.d.comb += [
-            level_next.eq(Mux(restart, 0, Mux(taking, level_t, level_n))),
+            level_next.eq(Mux(empty, 0, Mux(taking, level_t, level_n))),
             trivium.next.eq(Mux(taking, fill_t, fill_n)),
         ]
         m.d.sync += [
-            buffer.eq(Mux(restart, 0, Mux(taking, buffer_t, buffer_n))),
+            buffer.eq(Mux(empty, 0, Mux(taking, buffer_t, buffer_n))),
             level.eq(level_next),
             level_w.eq(level_next - width_next),
             has_bits.eq(level_next != 0),
@@ -132,6 +153,7 @@ class KeyedStream(wiring.Component):
         m.d.comb += [
             self.bits.eq(buffer[:MAX_MASK_WIDTH]),
             self.busy.eq(~has_bits),
+            self.spent.eq(spent & ~pending),
         ]
 
         return m

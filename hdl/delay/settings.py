@@ -11,7 +11,7 @@ import numbers
 
 
 __all__ = ["MIN_LENGTH", "MAX_LENGTH", "MAX_MASK_WIDTH", "MASKED_LENGTH", "MASKED_STEPS",
-           "KEY_BITS", "IV_BITS", "KEY_BYTES", "as_int", "parse_hex", "KEYED_ROUNDS", "KEYED_INIT_CYCLES", "KEYED_START_CYCLES",
+           "KEY_BITS", "IV_BITS", "LAST_IV", "KEY_BYTES", "as_int", "parse_hex", "KEYED_ROUNDS", "KEYED_INIT_CYCLES", "KEYED_START_CYCLES",
            "DELAY_WIDTH", "PERIOD_WIDTH",
            "PULSE_WIDTH_WIDTH", "BANK_BITS", "MIN_BANK_BITS", "MAX_BANK_BITS",
            "check_widths"]
@@ -35,6 +35,10 @@ MASKED_STEPS = 16
 #: Key and IV of the ``keyed`` source (Trivium), in bits.
 KEY_BITS = 80
 IV_BITS = 80
+
+#: The last IV of the ``keyed`` source under one key: its restarts count the IV up and never
+#: wrap around past this one to 0 (the source is spent instead, until a key is written).
+LAST_IV = (1 << IV_BITS) - 1
 
 #: Key and IV length in bytes, as the Trivium test vectors print them.
 KEY_BYTES = KEY_BITS // 8

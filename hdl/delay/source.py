@@ -72,9 +72,13 @@ class DelaySource(wiring.Component):
         starts again once ``busy`` falls). A load in ``KEYED`` mode after a key or IV write, or
         after delays were taken, initialises Trivium again: ``busy`` from the cycle after it
         until :data:`~fliss.hdl.delay.settings.KEYED_START_CYCLES` cycles after it (a transfer while
-        ``busy`` is ignored). From registers only. Low if not ``keyed``.
+        ``busy`` is ignored). It stays high while the source is ``spent``. From registers only.
+        Low if not ``keyed``.
     iv : Out(80)
         The IV of the ``KEYED`` source in use (only if ``keyed``).
+    spent : Out(1)
+        The ``KEYED`` source has used every IV under its key and gives no delay until a key is
+        written (only if ``keyed``; :class:`~fliss.hdl.delay.keyed.KeyedStream` ``spent``).
     """
 
     def __init__(self, *, layout=None, keyed=True):
@@ -89,7 +93,7 @@ class DelaySource(wiring.Component):
             "busy":     Out(1),
         }
         if keyed:
-            ports.update(keying=In(Keying), rekey=In(1), iv=Out(IV_BITS))
+            ports.update(keying=In(Keying), rekey=In(1), iv=Out(IV_BITS), spent=Out(1))
         super().__init__(ports)
 
     def elaborate(self, platform):
@@ -203,6 +207,7 @@ class DelaySource(wiring.Component):
                 keyed.width.eq(keyed_width),
                 keyed_delay.eq(keyed.bits & keyed_mask),
                 self.iv.eq(keyed.iv),
+                self.spent.eq(keyed.spent),
                 self.busy.eq(keyed.busy & (mode == DelayMode.KEYED)),
             ]
         narrow = masked_delay | keyed_delay

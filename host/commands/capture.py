@@ -14,6 +14,7 @@ from ...hdl.registers import BY_NAME, AcquisitionMode
 from ..errors import BoardReset, FormatError, UserError
 from ..formats import check_name
 from ..imager.threshold import nothing_detected
+from ..keyed import used_up_by
 from ..kinds import KINDS, kind_of, mode_of
 from ..paths import check_output_path
 from ..pointcloud.options import add_geometry_options, recorded_geometry
@@ -195,6 +196,9 @@ def report(result, *, quiet=False, out=None):
         arrived = result.histograms - result.lost_histograms
         print(f"fliss: warning: "
               f"{nothing_detected(arrived, result.highest, result.threshold)}", file=sys.stderr)
+    spent = used_up_by(status_start, status_end)
+    if spent:
+        print(f"fliss: warning: {spent}", file=sys.stderr)
     if result.lost is not None:
         raise UserError(f"{result.lost}; saved what was received ({what}) to {path}")
     if result.interrupted:

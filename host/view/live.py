@@ -9,6 +9,7 @@ import time
 from ..acquisition import DATA_TIMEOUT_S, HEARTBEAT_S, check_reset
 from ..board import Board
 from ..errors import BoardLost
+from ..keyed import refuse_used_up
 from .feed import Feed
 
 
@@ -27,6 +28,7 @@ def watch(board: Board, feed: Feed, *, should_stop=lambda: False) -> str:
     client.drain(quiet_s=0.1, limit_s=2.0)
     client.reset_counters()
     before = dict(client.status(), pulses=None)
+    refuse_used_up(client.read_registers(), before)     # (a keyed run that would fire nothing)
     client.start()
     feed.add_status(before, client.link_counters())
     heartbeat = time.monotonic()

@@ -336,8 +336,8 @@ async def test_keyed(dut):
         end = await tb.edge() - 1      # (low from the cycle this edge ends)
         expected += simulate(first, end, enable=enable, disable=end, updates=updates,
                              restarts=restarts)
-        if current.keyed:       # stopped, the source loads again: the next IV if used
-            restarts.load()
+        # stopped, the source loads again: the next IV if used (in keyed mode)
+        restarts.load(keyed=current.keyed)
         await ClockCycles(dut.clk, 100)
         ivs.append((int(dut.iv.value), restarts.iv))
         run += 1

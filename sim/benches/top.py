@@ -365,6 +365,33 @@ async def test_histogram_closed_loop(dut):
     assert np.array_equal(counts, want)
 
 
+@cocotb.test()
+async def test_keyed_last_iv(dut):
+    """Keyed mode with the last IV (``2**80 - 1``): one run fires; after it STATUS ``ivs_used_up``
+    reads 1 and the next run fires nothing (never IV 0 again under the key); a new key ends it
+    (its run uses the last IV again). Every reply, STATUS included, against the command model."""
+    tb = TopTB(dut)
+    await tb.start()
+    words = {f"iv{k}": ((1 << 80) - 1 >> (32 * k)) & 0xFFFFFFFF for k in range(3)}
+    await tb.write(**words, key0=0x89ABCDEF, key1=0x01234567, key2=0x0123,
+                   delay_mode=3, mask_width=4, period=40)
+
+    async def run():
+        before = tb.pulses
+        await tb.command(PacketType.START)
+        await ClockCycles(tb.dut.clk, 4000)
+        await tb.command(PacketType.STOP)
+        await ClockCycles(tb.dut.clk, 200)
+        return tb.pulses - before, (await tb.status())["ivs_used_up"]
+
+    first, again = await run(), await run()
+    await tb.write(key0=0x42)
+    assert (await tb.status())["ivs_used_up"] == 0
+    renewed = await run()
+    assert first[0] > 40 and again == (0, 1) and renewed[0] > 40, (first, again, renewed)
+    assert first[1] == renewed[1] == 1
+
+
 async def inject_events(tb, rng, count, *, pixel_bits, first_pixel):
     """Drive ``count`` random events straight onto the sensor bus, at least 5 cycles apart
     (the strobe high 2 cycles, low at least 3): addresses mostly those of the frame, some

@@ -59,6 +59,11 @@ __all__ = ["DEFAULT_BAUD", "BACKLOG_BYTES", "ModelBoard", "scene_for", "model_bo
 BACKLOG_BYTES = 32 * 1024
 
 
+class _NoPulses:
+    """A simulation of a run without a laser pulse or TDC start: nothing to simulate."""
+    next_start_cycle = None
+
+
 def scene_for(settings, template=None, *, aggressor_detections_per_pulse=0.05, clock_hz=None):
     """The scene a board with register ``settings`` (by name) sees: ``template`` (a
     :class:`Scene`, for the physics, and its pixel array if it has one: then the events carry
@@ -261,6 +266,9 @@ class ModelBoard(PtyServer):
         self._producer.begin()
         self._looped = self.loopback.run(settings, scene.victim, self.clock_hz,
                                          self.model.table, self.seed_for(self.starts))
+        if self.model.no_pulses:
+            # (the keyed source has used every IV under its key: no laser pulse, no TDC start)
+            self.simulation, self._looped = _NoPulses(), None
 
     def _cycles_at(self, now):
         return int((now - self._t0) * self.time_scale * self.clock_hz)

@@ -33,7 +33,8 @@ class CommandModel:
     ``keyed_source``: the board has a delay core with the keyed source (a whole board; not the
     command side alone, whose IV in use stays 0). The IV registers read its IV in use
     (:attr:`restarts`, :class:`~fliss.sim.models.delay.KeyedRestarts`); a run in keyed mode is taken
-    to use its keystream (commands take far longer than a start).
+    to use its keystream (commands take far longer than a start), and STATUS ``ivs_used_up``
+    says when the source has used every IV under its key.
 
     The fine TDC's calibration table (:attr:`table`, a build with the fine TDC: ``tdc_source``
     up to 3) is reached as in the gateware: a WRITE of ``table_address`` moves its pointer, each
@@ -60,12 +61,27 @@ class CommandModel:
     def iv_in_use(self):
         return self.restarts.iv if self.keyed_source else 0
 
+    @property
+    def ivs_used_up(self):
+        """STATUS ``ivs_used_up``: the keyed source has used every IV under its key."""
+        return self.keyed_source and self.restarts.spent
+
+    @property
+    def no_pulses(self):
+        """The victim fires no pulse (nor TDC start) when started: its mode is keyed and its
+        source has used every IV under its key."""
+        return self.ivs_used_up and self._keyed_mode
+
+    @property
+    def _keyed_mode(self):
+        row = mode_row(self.settings["delay_mode"])
+        return row is not None and row.keyed
+
     def _keyed_load(self):
         # A load of the delay source (every cycle while stopped, on update while running)
-        row = mode_row(self.settings["delay_mode"])
-        if self.keyed_source and row is not None and row.keyed:
-            self.restarts.load()
-            if self.running:
+        if self.keyed_source:
+            self.restarts.load(keyed=self._keyed_mode)
+            if self.running and self._keyed_mode:
                 self.restarts.take()
 
     def read_value(self, register):
@@ -112,6 +128,8 @@ class CommandModel:
             counters.update(status or {})
             counters.update(running=int(self.running), commands=self.commands,
                             refused=self.refused)
+            if self.keyed_source:
+                counters["ivs_used_up"] = int(self.ivs_used_up)
             return PacketType.STATUS, pack(Status, {f: counters[f] for f in STATUS_FIELDS})
         if type == PacketType.READ.value:
             if length != byte_size(ReadRequest):

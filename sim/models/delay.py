@@ -10,7 +10,7 @@ from functools import lru_cache
 import numpy as np
 
 from ...hdl.delay.modes import MODES, SIZES, DelayMode
-from ...hdl.delay.settings import MAX_LENGTH, MASKED_LENGTH, MASKED_STEPS, as_int
+from ...hdl.delay.settings import LAST_IV, MAX_LENGTH, MASKED_LENGTH, MASKED_STEPS, as_int
 from . import lfsr, trivium
 
 
@@ -253,9 +253,10 @@ def block_stream(mode, block, *, length=None, mask_width=None, seed=1, key=None,
 
 
 def next_iv(iv):
-    """The IV after ``iv`` (80-bit integer) in the ``keyed`` source's restarts: ``iv + 1``,
-    modulo ``2**80``."""
-    return (as_int(iv, "IV") + 1) % (1 << 80)
+    """The IV after ``iv`` (80-bit integer) in the ``keyed`` source's restarts: ``iv + 1``, or
+    None after the last IV (``2**80 - 1``): the IV never wraps around to 0."""
+    iv = as_int(iv, "IV")
+    return iv + 1 if iv != LAST_IV else None
 
 
 class KeyedRestarts:
@@ -265,8 +266,12 @@ class KeyedRestarts:
     A load of the source in ``keyed`` mode (a start, or an update while running) initialises
     Trivium again if the key or IV was written since the last initialisation (with the IV
     written), or if delays were taken since (with :func:`next_iv` of the IV in use); otherwise
-    the keystream goes on where it is. The board starts with key and IV zero, not yet
-    initialised.
+    the keystream goes on where it is. The IV never wraps around: once delays were taken from
+    the last IV's keystream, the next load (in any mode: the board loads its source in every
+    cycle while stopped) with no key or IV written since does not initialise but leaves the
+    source spent (it gives no delay) until a load after a key write initialises it;
+    :attr:`spent` is True from that load until the write. The board starts with key and IV
+    zero, not yet initialised.
     """
 
     def __init__(self):
@@ -275,6 +280,13 @@ class KeyedRestarts:
         self.iv = 0
         self._pending = True
         self._used = False
+        self._spent = False
+
+    @property
+    def spent(self):
+        """Every IV under the key is used and no key was written since: no delay (the gateware's
+        ``spent``, and STATUS ``ivs_used_up``)."""
+        return self._spent and not self._pending
 
     def write(self, *, key=None, iv=None):
         """The host writes the key, the IV, or both."""
@@ -284,14 +296,20 @@ class KeyedRestarts:
             self.written_iv = as_int(iv, "IV")
         self._pending = True
 
-    def load(self):
-        """A load in ``keyed`` mode; True if it initialises (the IV in use is then :attr:`iv`,
-        the keystream from its start)."""
+    def load(self, keyed=True):
+        """A load of the source, in ``keyed`` mode unless ``keyed`` is False; True if it
+        initialises (the IV in use is then :attr:`iv`, the keystream from its start)."""
+        following = next_iv(self.iv)
+        if not self._pending and self._used and following is None:
+            self._spent = True
+            return False
+        if not keyed:
+            return False
         if self._pending:
-            self.iv, self._pending, self._used = self.written_iv, False, False
+            self.iv, self._pending, self._used, self._spent = self.written_iv, False, False, False
             return True
         if self._used:
-            self.iv, self._used = next_iv(self.iv), False
+            self.iv, self._used = following, False
             return True
         return False
 

@@ -6,6 +6,7 @@ a ``start`` is given. Pulse ``k`` is fired (``fire`` high) in cycle ``b[k] + 1 +
 rises and the TDC starts ``LATENCY`` cycles later.
 """
 
+import math
 from dataclasses import dataclass
 from fractions import Fraction
 
@@ -120,7 +121,8 @@ class _Keystream:
         self.ready_at = None
 
     def load(self, settings, cycle):
-        """A load in ``keyed`` mode with ``settings`` in ``cycle``; True if it initialises."""
+        """A load with ``settings`` (in any mode: a load in another mode may leave the source
+        spent) in ``cycle``; True if it initialises."""
         restarts = self.restarts
         if (settings.key, settings.iv) != (restarts.key, restarts.written_iv):
             restarts.write(key=settings.key, iv=settings.iv)
@@ -128,13 +130,18 @@ class _Keystream:
         just_used = self._first_take == cycle
         if just_used:
             restarts._used = False
-        initialises = restarts.load()
+        initialises = restarts.load(keyed=settings.keyed)
+        if not settings.keyed:
+            restarts._used = restarts._used or just_used
+            return False
         if initialises or self._stream is None:
             # (a stream not initialised here was, before the run, with the IV in use)
             self._stream = _trivium.Trivium(restarts.key, restarts.iv)
             self._first_take = None
         if initialises:
             self.ready_at = cycle + KEYED_START_CYCLES
+        elif restarts.spent:
+            self.ready_at = math.inf    # (no IV left under the key: never ready)
         elif just_used:
             restarts._used = True
         return initialises
@@ -171,7 +178,10 @@ def simulate(settings, until, *, updates=(), enable=0, disable=None, restarts=No
     settings while the source is not ready (it initialises now or did recently) stops the run
     in the next cycle (no pulse fires after the update's cycle); it starts again once the
     source is ready, or a cycle after an update presenting another mode (and once the laser is
-    off), its pulses counted from 0.
+    off), its pulses counted from 0. A source spent (every IV under its key used,
+    :class:`~fliss.sim.models.delay.KeyedRestarts`) is never ready: no pulse fires in ``keyed``
+    mode until settings with a new key or IV (the register file lets only a new key through
+    then), or of another mode, are presented.
 
     Parameters
     ----------
@@ -207,9 +217,9 @@ def simulate(settings, until, *, updates=(), enable=0, disable=None, restarts=No
         while next_update < len(updates) and updates[next_update][0] < start:
             cycle, current = updates[next_update]
             next_update += 1
+            keystream.load(current, cycle)
             if not current.keyed:
                 return cycle + 1        # (the source's mode changes a cycle after the load)
-            keystream.load(current, cycle)
             start = keystream.ready_at
         return start
 
@@ -225,9 +235,9 @@ def simulate(settings, until, *, updates=(), enable=0, disable=None, restarts=No
             cycle, current = updates[next_update]
             restart = True
             next_update += 1
+            keystream.load(current, cycle)
             if not current.keyed:
                 continue
-            keystream.load(current, cycle)
             if not keystream.busy(cycle):
                 continue
             # The run stops, and starts again once the keystream is ready, or on settings of

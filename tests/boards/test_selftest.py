@@ -91,6 +91,22 @@ def test_victim_loopback(jumper, delay_s, jitter_s):
     assert {k: v for k, v in after.items() if before[k] != v} == {"iv0": before["iv0"] + 1}
 
 
+def test_a_keyed_source_without_ivs_is_skipped_not_failed():
+    # The keyed source with the last IV: the first self-test's keyed histogram uses it; the next
+    # one skips keyed (it would fire no pulse), saying why, rather than fail on an empty
+    # histogram
+    loopback = Loopback(jumper="laser", delay_s=2.3e-9, jitter_s=10e-12, line=LINE)
+    with model_board(loopback=loopback) as board, connect(board.path) as client:
+        client.configure(key="0123456789abcdef0123", iv=f"{(1 << 80) - 1:#x}")
+        first = selftest(client, jumper="laser", reference=delays)
+        second = selftest(client, jumper="laser", reference=delays)
+    assert line_of(first, "histogram").detail.endswith("in off, mseq, masked, keyed")
+    assert line_of(second, "histogram").detail.endswith(
+        "in off, mseq, masked (keyed skipped: the keyed source has used every IV under its key; "
+        "write a new key)")
+    assert outcomes(first) == outcomes(second) == ["pass", "skipped", "pass", "pass", "pass"]
+
+
 def test_aggressor_loopback_shows_the_delays():
     loopback = Loopback(jumper="aggressor", delay_s=4.1e-9, jitter_s=20e-12, line=LINE)
     with model_board(loopback=loopback) as board, connect(board.path) as client:

@@ -12,3 +12,11 @@ from fliss.formal.runner import checks, discover, prepare
 def test_harness_elaborates(tmp_path, check):
     folder = prepare(check, build_dir=tmp_path)
     assert "module \\top" in (folder / "design.il").read_text()
+
+
+def test_a_proof_checks_each_of_its_mutants():
+    # keyed.iv_rule has two: the register file's IV rule broken, and the stream wrapping around
+    proof = discover()["keyed.iv_rule"]
+    assert [(check.label, check.expected) for check in checks([proof], mutants=True)] == [
+        ("keyed.iv_rule [proof]", "PASS"), ("keyed.iv_rule [cover]", "PASS"),
+        ("keyed.iv_rule [mutant]", "FAIL"), ("keyed.iv_rule [mutant2]", "FAIL")]

@@ -143,3 +143,40 @@ def test_status_counters_refuse_a_strobe_with_no_counter(construction_error):
     assert construction_error(lambda: count(dropped_busy=None, accepted="events")) == \
         "No tally strobe 'accepted' to count"
     assert construction_error(lambda: count(dropped_busy=None)) is None
+
+
+def test_status_levels_are_snapshots():
+    # `pulses` and `ivs_used_up` are read as they were when the snapshot was taken (held across
+    # the capture, changed at once after it is ready), `running` as 0, and a counter as its
+    # strobes counted: every field at its address of STATUS_FIELDS.
+    from fliss.hdl.protocol import STATUS_FIELDS
+    dut = StatusCounters()
+    reads = []
+
+    async def snapshot(ctx, pulses, used_up, strobes):
+        ctx.set(dut.pulses, pulses)
+        ctx.set(dut.ivs_used_up, used_up)
+        ctx.set(dut.strobes.bad_crc, 1)
+        for _ in range(strobes):
+            await ctx.tick()
+        ctx.set(dut.strobes.bad_crc, 0)
+        ctx.set(dut.port.capture, 1)
+        await ctx.tick()
+        ctx.set(dut.port.capture, 0)
+        await ctx.tick().until(dut.port.ready)
+        ctx.set(dut.pulses, pulses + 1000)         # after the snapshot: not read
+        ctx.set(dut.ivs_used_up, 1 - used_up)
+        values = {}
+        for name in ("running", "pulses", "ivs_used_up", "bad_crc"):
+            ctx.set(dut.port.addr, STATUS_FIELDS.index(name))
+            await ctx.tick()
+            values[name] = ctx.get(dut.port.data)
+        reads.append(values)
+
+    async def testbench(ctx):
+        await snapshot(ctx, 1234, 1, 3)
+        await snapshot(ctx, 77, 0, 2)
+
+    simulate(dut, testbench)
+    assert reads == [{"running": 0, "pulses": 1234, "ivs_used_up": 1, "bad_crc": 3},
+                     {"running": 0, "pulses": 77, "ivs_used_up": 0, "bad_crc": 5}]

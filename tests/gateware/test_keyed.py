@@ -151,6 +151,85 @@ def test_keyed_source_against_model():
     assert sorted(set(waits)) == [0, KEYED_START_CYCLES]
 
 
+def test_keyed_source_never_wraps_the_iv():
+    # From the IV 2**80 - 2: one initialisation with it, one with the last IV; the load after
+    # delays were taken from the last IV's keystream does not initialise (with IV 0, reused
+    # under the key) but leaves the source spent: `busy` for good in keyed mode, no delay, the
+    # IV in use stays the last. A load in another mode keeps it spent, and so does one in keyed
+    # mode again; a new key (`rekey`) ends it, and the next load initialises with its IV. A
+    # load in another mode after the last IV's keystream was used spends the source too.
+    # Each step against the model's restarts (`spent`, IV in use, initialisation) and delays.
+    dut = DelaySource()
+    restarts = model.KeyedRestarts()
+    last = (1 << 80) - 1
+    errors, compared = [], [0]
+
+    async def write(ctx, key, iv):
+        for name, value in keying(key, iv).items():
+            ctx.set(dut.keying[name], value)
+        ctx.set(dut.rekey, 1)
+        await ctx.tick()
+        ctx.set(dut.rekey, 0)
+        restarts.write(key=key, iv=iv)
+
+    async def load(ctx, step, mode):
+        ctx.set(dut.settings.mode, mode)
+        ctx.set(dut.load, 1)
+        initialises = restarts.load(keyed=mode == DelayMode.KEYED)
+        await ctx.tick()
+        ctx.set(dut.load, 0)
+        busy = 0                    # cycles busy in the 200 after the load
+        for _ in range(200):
+            busy += ctx.get(dut.busy)
+            await ctx.tick()
+        keyed_now = mode == DelayMode.KEYED
+        expected_busy = (200 if restarts.spent else
+                         KEYED_START_CYCLES - 1 if initialises else 0) if keyed_now else 0
+        state = (busy, ctx.get(dut.spent), ctx.get(dut.iv))
+        if state != (expected_busy, int(restarts.spent), restarts.iv):
+            errors.append((step, state, (expected_busy, restarts.spent, restarts.iv)))
+
+    async def take(ctx, step, count=20):
+        expected = model.delays("keyed", count, mask_width=4, key=restarts.key, iv=restarts.iv)
+        for index in range(count):
+            if ctx.get(dut.delays.payload.value) != expected[index]:
+                errors.append(("delay", step, index))
+            compared[0] += 1
+            ctx.set(dut.delays.ready, 1)
+            await ctx.tick()
+            ctx.set(dut.delays.ready, 0)
+            await ctx.tick()
+        restarts.take(count)
+
+    async def testbench(ctx):
+        ctx.set(dut.settings.mask_width, 4)
+        ctx.set(dut.settings.seed, 1)
+        ctx.set(dut.settings.length, 5)
+        await write(ctx, 0x0123456789ABCDEF0123, last - 1)
+        await load(ctx, "last - 1", DelayMode.KEYED)
+        await take(ctx, "last - 1")
+        await load(ctx, "last", DelayMode.KEYED)
+        await take(ctx, "last")
+        await load(ctx, "spent", DelayMode.KEYED)
+        await load(ctx, "spent, masked", DelayMode.MASKED)
+        await load(ctx, "spent, keyed again", DelayMode.KEYED)
+        await write(ctx, 0x42, 7)
+        if ctx.get(dut.spent) or restarts.spent:
+            errors.append(("spent after a new key", ctx.get(dut.spent), restarts.spent))
+        await load(ctx, "new key", DelayMode.KEYED)
+        await take(ctx, "new key")
+        await write(ctx, 0x43, last)
+        await load(ctx, "last, new key", DelayMode.KEYED)
+        await take(ctx, "last, new key")
+        await load(ctx, "spent by a masked load", DelayMode.MASKED)
+        await load(ctx, "spent, keyed", DelayMode.KEYED)
+
+    simulate(dut, testbench, clock_hz=100e6)
+    assert errors == []
+    assert compared[0] == 4 * 20
+    assert restarts.spent and restarts.iv == last and restarts.key == 0x43
+
+
 def test_keyed_mode_name():
     assert model.parse_mode("keyed") == DelayMode.KEYED
     with pytest.raises(ValueError, match=r"^The keyed delay source needs a key and an IV$"):
@@ -160,35 +239,21 @@ def test_keyed_mode_name():
         model.check_settings("keyed", mask_width=4, key=1 << 80, iv=0)
 
 
-def test_delay_core_keyed_updates_against_model():
-    # Random updates, half of them keyed, some with a new key or IV (written, `rekey`, in the
-    # cycle before the update): every pulse's fire cycle, delay and index against the model,
-    # which stops a run while the keystream initialises and starts it again.
-    import random
+CORE_FIELDS = ("mode", "length", "mask_width", "seed", "period", "grid", "pulse_width")
+
+
+def run_core(first, updates, cycles):
+    """A :class:`DelayCore` enabled from cycle 0 with settings ``first`` (key and IV written,
+    ``rekey``, the cycle before), then ``updates`` ``(cycle, Settings)`` (a new key or IV
+    written in the cycle before its update): the pulses fired ``(cycle, delay, index)`` and
+    ``spent`` at the end; and the model's pulses and :class:`KeyedRestarts` after them."""
     from fliss.hdl.delay.core import DelayCore
-    from fliss.sim.models.scheduler import LATENCY, Settings, simulate as schedule
-    fields = ("mode", "length", "mask_width", "seed", "period", "grid", "pulse_width")
-    rng = random.Random(1414)
-    key, iv = 0x0123456789ABCDEF0123, 0x00000000000000000007
-    first = Settings(mode=DelayMode.KEYED, mask_width=4, period=12, pulse_width=2, key=key,
-                     iv=iv).check()
-    updates, cycle = [], 0
-    for _ in range(60):
-        cycle += rng.randrange(2, 600)
-        mode = rng.choice([DelayMode.KEYED] * 3 + [DelayMode.OFF, DelayMode.MSEQ,
-                                                   DelayMode.MASKED])
-        if rng.random() < 0.3:
-            key, iv = rng.getrandbits(80), rng.getrandbits(80)
-        updates.append((cycle, Settings(
-            mode=mode, length=rng.choice([3, 4]), mask_width=rng.randrange(1, 8),
-            seed=rng.randrange(1, 8), period=rng.randrange(2, 40), grid=False,
-            pulse_width=1, key=key, iv=iv).check()))
-    cycles = cycle + 400
+    from fliss.sim.models.scheduler import LATENCY, simulate as schedule
     dut = DelayCore()
-    pulses = []
+    pulses, spent = [], []
 
     def present(ctx, settings):
-        for name in fields:
+        for name in CORE_FIELDS:
             ctx.set(dut.settings[name], getattr(settings, name))
         for name, value in keying(settings.key, settings.iv).items():
             ctx.set(dut.keying[name], value)
@@ -216,14 +281,72 @@ def test_delay_core_keyed_updates_against_model():
             if ctx.get(dut.fire):
                 pulses.append((cycle, ctx.get(dut.fire_delay), ctx.get(dut.pulse_index)))
             await ctx.tick()
+        spent.append(ctx.get(dut.spent))
 
     simulate(dut, testbench, clock_hz=80e6)
     restarts = model.KeyedRestarts()
     restarts.write(key=first.key, iv=first.iv)
     expected = [(f, d, i) for f, d, _, i in schedule(first, cycles - 1 - LATENCY, enable=0,
                                                      updates=updates, restarts=restarts)]
+    return pulses, spent[0], expected, restarts
+
+
+def test_delay_core_keyed_updates_against_model():
+    # Random updates, half of them keyed, some with a new key or IV (written, `rekey`, in the
+    # cycle before the update): every pulse's fire cycle, delay and index against the model,
+    # which stops a run while the keystream initialises and starts it again.
+    import random
+    from fliss.sim.models.scheduler import Settings
+    rng = random.Random(1414)
+    key, iv = 0x0123456789ABCDEF0123, 0x00000000000000000007
+    first = Settings(mode=DelayMode.KEYED, mask_width=4, period=12, pulse_width=2, key=key,
+                     iv=iv).check()
+    updates, cycle = [], 0
+    for _ in range(60):
+        cycle += rng.randrange(2, 600)
+        mode = rng.choice([DelayMode.KEYED] * 3 + [DelayMode.OFF, DelayMode.MSEQ,
+                                                   DelayMode.MASKED])
+        if rng.random() < 0.3:
+            key, iv = rng.getrandbits(80), rng.getrandbits(80)
+        updates.append((cycle, Settings(
+            mode=mode, length=rng.choice([3, 4]), mask_width=rng.randrange(1, 8),
+            seed=rng.randrange(1, 8), period=rng.randrange(2, 40), grid=False,
+            pulse_width=1, key=key, iv=iv).check()))
+    pulses, _, expected, _ = run_core(first, updates, cycle + 400)
     assert pulses[:len(expected)] == expected
     assert len(expected) > 500, len(expected)
+
+
+def test_delay_core_stops_at_the_last_iv():
+    # Keyed updates without a new key move the IV on by one: from 2**80 - 3 to the last, then
+    # the next finds no IV left and the run stops (no pulse, no IV 0 again under the key); an
+    # update to masked mode runs, one back to keyed stops again, and a new key starts it; the
+    # pulses against the model, cycle for cycle, and `spent` with it.
+    from fliss.sim.models.scheduler import Settings
+    key, last = 0x0123456789ABCDEF0123, (1 << 80) - 1
+
+    def keyed(key=key, iv=last - 2):
+        return Settings(mode=DelayMode.KEYED, mask_width=3, period=9, pulse_width=1, key=key,
+                        iv=iv).check()
+
+    masked = Settings(mode=DelayMode.MASKED, mask_width=3, seed=5, period=9, pulse_width=1,
+                      key=key, iv=last - 2).check()
+    steps = [keyed(), keyed(), keyed(), masked, keyed(), keyed(key=0x42, iv=3)]
+    updates = [(400 * (k + 1), settings) for k, settings in enumerate(steps)]
+    pulses, spent, expected, restarts = run_core(keyed(), updates, 400 * (len(steps) + 1))
+    assert pulses == expected
+    assert (spent, restarts.spent) == (0, False)
+    # (a pulse may fire in an update's cycle, none after it until the run starts again)
+    fired = [sum(1 for f, _, _ in pulses if 400 * k < f <= 400 * (k + 1))
+             for k in range(len(steps) + 1)]
+    # IVs last - 2, last - 1, last: pulses; then none; masked: pulses; none; the new key: pulses
+    assert [n > 20 for n in fired] == [True, True, True, False, True, False, True], fired
+    assert [n == 0 for n in fired] == [False, False, False, True, False, True, False], fired
+    assert restarts.key == 0x42 and restarts.iv == 3
+    # Ended while spent: `spent` high, as in the model
+    pulses, spent, expected, restarts = run_core(keyed(), updates[:3], 400 * 4)
+    assert pulses == expected
+    assert (spent, restarts.spent, restarts.iv) == (1, True, last)
 
 
 def test_key_write_only_and_iv_rule(monkeypatch):

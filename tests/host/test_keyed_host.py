@@ -165,3 +165,63 @@ def test_a_keyed_capture_is_labelled_keyed(tmp_path, capsys, monkeypatch):
     status, out, err = fliss(capsys, "-q", "plot", str(path), "-o", str(tmp_path / "k.png"))
     assert status == 0, err
     assert legends == [["keyed.h5 (FLISS keyed Wm=5, aggressor off)"]]
+
+
+LAST_IV = (1 << 80) - 1
+
+
+def test_the_last_iv_runs_once_then_a_new_key(tmp_path, capsys):
+    # The IV 2**80 - 1 (above the IV in use, so taken) runs one capture; after it the board's
+    # keyed source has used every IV under its key (STATUS ivs_used_up): it never goes on with
+    # IV 0. The next capture in keyed mode is refused before its START, with one line and no
+    # file, and so are a higher IV (there is none) and keyed mode chosen again without a key;
+    # a new key runs again.
+    from fliss.host.errors import IvsUsedUp
+    with model_board() as board:
+        status, out, err = fliss(capsys, "config", "--port", board.path, "--mode", "keyed",
+                                 "--mask-width", "4", "--key", KEY, "--iv", "0x10")
+        assert status == 0, err
+        status, out, err = fliss(capsys, "config", "--port", board.path,
+                                 "--iv", f"{LAST_IV:#x}")
+        assert status == 0, err
+        first = tmp_path / "first.h5"
+        status, out, err = fliss(capsys, "capture", "--port", board.path, "-o", str(first),
+                                 "--acquisitions", "1", "--integration", "1ms")
+        assert (status, err.splitlines()[-1]) == (
+            0, "fliss: warning: the keyed source has used every IV under its key (this run used "
+               "the last): a run in keyed mode fires no laser pulse until a new key is written "
+               "(fliss config --key HEX, or --key random)")
+        with BoardClient(board.path, timeout_s=2.0) as client:
+            assert client.status()["ivs_used_up"] == 1
+            assert value_of(client.read_registers(), "iv") == LAST_IV
+        second = tmp_path / "second.h5"
+        status, out, err = fliss(capsys, "capture", "--port", board.path, "-o", str(second),
+                                 "--acquisitions", "1", "--integration", "1ms")
+        used_up = (f"the keyed source has used every IV under its key (the IV in use, "
+                   f"{LAST_IV:#022x}, is the last): in keyed mode the board would fire no "
+                   f"laser pulse; write a new key (fliss config --key HEX, or --key random)")
+        assert (status, err) == (1, f"fliss: error: {used_up}\n")
+        assert not second.exists()
+        assert board.starts == 1
+        status, out, err = fliss(capsys, "config", "--port", board.path, "--iv", "0x11")
+        assert (status, err) == (1, f"fliss: error: --iv: the IV in use is the last "
+                                    f"({LAST_IV:#022x}): no IV is above it, so only a new key "
+                                    f"can go with a new IV: under one key no IV is used twice "
+                                    f"(give a new key)\n")
+        status, out, err = fliss(capsys, "config", "--port", board.path, "--mode", "keyed")
+        assert (status, err) == (1, f"fliss: error: {used_up}\n")
+        with fliss_api.connect(board.path, timeout_s=2.0) as api:
+            with pytest.raises(IvsUsedUp) as error:
+                api.configure(mode="keyed", mask_width=5)
+        assert str(error.value) == used_up
+        assert board.model.settings["mask_width"] == 4       # nothing written
+        # A new key (with IV 0 again: a new key starts afresh) runs
+        status, out, err = fliss(capsys, "config", "--port", board.path, "--mode", "keyed",
+                                 "--key", "random", "--iv", "0")
+        assert status == 0, err
+        with BoardClient(board.path, timeout_s=2.0) as client:
+            assert client.status()["ivs_used_up"] == 0
+        status, out, err = fliss(capsys, "capture", "--port", board.path, "-o", str(second),
+                                 "--acquisitions", "1", "--integration", "1ms")
+        assert status == 0 and "warning" not in err, err    # (IV 0, the new key's)
+        assert board.starts == 2

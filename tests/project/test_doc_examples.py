@@ -421,7 +421,7 @@ QUOTED = {
     "fliss: error: --afterpulsing 140%: a share is from 0 to 100 %":
         (["board", "--afterpulsing", "140%"], None, 1),
     "fliss: error: the board on /dev/pts/3 was reset during the capture: its STATUS (sequence "
-    "number 0) shows it stopped; its IDENTITY reads protocol 4, gateware 0.2.0; saved what was "
+    "number 0) shows it stopped; its IDENTITY reads protocol 5, gateware 0.2.0; saved what was "
     "received (30 histograms) to run.h5":
         (["capture", "--port", "/dev/pts/3", "--integration", "0.2ms", "--acquisitions", "100",
           "-o", "run.h5"], {"reset_after": 30}, 1),
