@@ -23,7 +23,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-from ._inverted import dead_bits, gate_text, gold_script, inverted_pairs
+from ._inverted import alive_pairs, dead_bits, gate_text, gold_script, inverted_pairs
 
 
 __all__ = ["BLOCKS", "FAMILIES", "EquivalenceError", "check", "main"]
@@ -112,7 +112,7 @@ def _mutate(netlist, lut):
     return netlist[:match.start(2)] + flipped + netlist[match.end(2):]
 
 
-def _inverted_pairs(folder, family, gate):
+def _inverted_pairs(folder, family, dead):
     # (only the iCE40's flip-flops cannot start at 1)
     if family != "ice40":
         return {}
@@ -122,7 +122,7 @@ def _inverted_pairs(folder, family, gate):
         return {}
     _run("read_rtlil gold.il\nproc\nflatten\nopt_clean\nrename top gold\n"
          "write_verilog -noattr pairs_gold.v\n", folder, "pairs")
-    return inverted_pairs(folder, models, dead_bits(gate))
+    return inverted_pairs(folder, models, dead)
 
 
 def check(block, family="ecp5", *, mutant=False, build_dir=BUILD_DIR):
@@ -141,21 +141,20 @@ def check(block, family="ecp5", *, mutant=False, build_dir=BUILD_DIR):
     gate = (folder / "gate.v").read_text()
     if mutant:
         (folder / "gate.v").write_text(_mutate(gate, lut))
-    # Signals that synthesis found dead (some or all bits) and left undriven have no pair to
-    # prove: those assigned an `x` (`assign \a [3] = 1'hx;`, `assign { \a [7:4], \b } =
-    # { 4'hx, c };`).
-    dead = sorted({name
-                   for target, value in re.findall(r"^\s*assign (.+?) = (.+);$", gate, re.M)
-                   if re.search(r"\d+'h[0-9a-f]*x", value)
-                   for name in re.findall(r"\\?([^\s\[\]{},:]+)(?:\s*\[[\d:]+\])?", target)})
-    (folder / "dead.txt").write_text("".join(f"{name}\n" for name in dead))
-    # On the iCE40, registers whose init value has a 1 bit are stored inverted: their RTL bits
-    # are among the dead ones; each is paired with the inverse of its flip-flop (`_inverted`)
-    pairs = _inverted_pairs(folder, family, gate if not mutant else _mutate(gate, lut))
+    # Wires that synthesis found dead (some or all bits) and left undriven (`assign \a [3] =
+    # 1'hx;`, `assign { \a [7:4], \b } = { 4'hx, c };`) are left out of the pairing by name;
+    # their other bits are paired one by one, and on the iCE40 a register bit whose init value
+    # is 1 is stored inverted and its RTL name left dead: each is paired with the inverse of its
+    # flip-flop (`_inverted`)
+    dead = dead_bits(gate)
+    (folder / "dead.txt").write_text("".join(f"{name}\n" for name in dict.fromkeys(
+        name for name, _ in dead)))
+    pairs = {**alive_pairs(gate, dead), **_inverted_pairs(folder, family, dead)}
     if pairs:
         (folder / "gate.v").write_text(gate_text((folder / "gate.v").read_text(), pairs))
-    (folder / "pairs.txt").write_text("".join(f"{name}[{bit}] = {'~' if inverted else ''}{q}\n"
-                                              for (name, bit), (q, inverted) in pairs.items()))
+    (folder / "pairs.txt").write_text("".join(
+        f"{name}{'' if bit is None else f'[{bit}]'} = {'~' if inverted else ''}{q}\n"
+        for (name, bit), (q, inverted) in pairs.items()))
     # The RTL's memories go through the flow's own mapping to RAM cells (and any left to
     # flip-flops); on both sides every RAM cell is then cut out, its inputs made outputs and its
     # outputs inputs (`expose -evert`, before `hierarchy` gives parametrized cells new types), so
