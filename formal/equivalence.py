@@ -84,8 +84,14 @@ FAMILIES = {
 
 BUILD_DIR = Path("build") / "equivalence"
 
-#: Cycles of equiv_simple's and equiv_induct's unrolling.
-SEQ = 5
+#: Cycles of equiv_induct's unrolling, and of the base case after the reset: each block's
+#: (the delay core's pairs, every register paired, are proved by a 1-cycle induction; its base
+#: case grows fast with the depth), else SEQ.
+SEQ, DEPTHS = 5, {"delay_core": 1}
+
+#: Cycles of the reset in the base case (from any state: by then the reset-less stages of
+#: synchronizers hold their input too).
+RESET_CYCLES = 3
 
 
 class EquivalenceError(Exception):
@@ -160,6 +166,7 @@ def check(block, family="ecp5", *, mutant=False, build_dir=BUILD_DIR):
     # outputs inputs (`expose -evert`, before `hierarchy` gives parametrized cells new types), so
     # the proof covers all the logic around the RAMs: the same read data in, the same addresses,
     # data and enables out.
+    depth = DEPTHS.get(block, SEQ)
     evert = f"expose -evert {' '.join(f't:{cell}' for cell in rams)}"
     script = "\n".join([
         "read_rtlil gold.il", "proc", "flatten", "memory -nomap", "opt_clean",
@@ -170,7 +177,15 @@ def check(block, family="ecp5", *, mutant=False, build_dir=BUILD_DIR):
         "flatten -wb", "opt_clean", "design -stash gate",
         "design -copy-from gold -as gold gold", "design -copy-from gate -as gate gate",
         "equiv_make -blacklist dead.txt gold gate equiv", "hierarchy -top equiv", "async2sync",
-        f"equiv_simple -seq {SEQ}", f"equiv_induct -seq {SEQ}", "equiv_status -assert", ""])
+        # the base case: every pair equal in the `depth` cycles after a reset from any state (all
+        # of them, in a miter whose `trigger` is any pair unequal), then the induction step:
+        # `depth` cycles of equal pairs give an equal next one
+        "design -save equiv", "equiv_miter -trigger base equiv", "hierarchy -top base",
+        f"sat -seq {RESET_CYCLES + depth} "
+        + "".join(f"-set-at {cycle} rst 1 " for cycle in range(1, RESET_CYCLES + 1))
+        + f"-prove trigger 0 -prove-skip {RESET_CYCLES} -verify",
+        "design -load equiv", "hierarchy -top equiv",
+        f"equiv_induct -seq {depth}", "equiv_status -assert", ""])
     process = _run(script, folder, "equiv")
     proven = process.returncode == 0
     if proven == mutant:
