@@ -1,13 +1,19 @@
-"""Registers that synthesis stored inverted, paired with the RTL's for the equivalence proofs.
+"""Pairs for the equivalence proofs beyond the pairing by name: the live bits of wires with dead
+bits, and the registers that synthesis stored inverted.
+
+A netlist leaves the bits that synthesis found dead undriven (``1'hx``, :func:`dead_bits`, read
+bit by bit), and ``equiv_make -blacklist`` can only leave out a whole wire: its other bits are
+paired one by one (:func:`alive_pairs`; the delay core's m-sequence register is named in its
+iCE40 netlist only as bits of the delay payload, whose unread bits are dead).
 
 The iCE40's flip-flops power up at 0, so ``synth_ice40`` stores a register bit whose init value
 is 1 inverted (a flip-flop of the inverse, the inversion absorbed into the LUTs around it), and
-leaves the RTL's name of that bit undriven (``1'hx``). :func:`inverted_pairs` finds, for each
-such bit, the netlist flip-flop that holds its inverse: both designs are simulated side by side
-(Icarus, the family's cell models) on random inputs, and a bit is paired with the one flip-flop
-whose output is its inverse in every cycle after the reset (the bit having taken both values).
-The proof then pairs the RTL bit with the inverse of that flip-flop's output (a new wire on each
-side, :func:`gold_script` and :func:`gate_text`), as ``equiv_make`` pairs the others by name; a
+leaves the RTL's name of that bit undriven. :func:`inverted_pairs` finds, for each dead bit, the
+netlist flip-flop that holds its inverse: both designs are simulated side by side (Icarus, the
+family's cell models) on random inputs, and a bit is paired with the one flip-flop whose output
+is its inverse in every cycle after the reset (the bit having taken both values).
+The proof then pairs the RTL bit with the netlist's (a new wire on each side,
+:func:`gold_script` and :func:`gate_text`), as ``equiv_make`` pairs the others by name; a
 wrong pairing makes the proof fail, never pass.
 """
 

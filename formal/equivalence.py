@@ -7,10 +7,13 @@ Each block (:data:`BLOCKS`) is converted to RTLIL, synthesized by the board flow
 (``synth_ecp5`` of the ULX3S, ``synth_ice40`` of the iCEBreaker) and written as a Verilog netlist,
 as :mod:`fliss.boards.netlist` does for the whole top level. A second Yosys run reads that
 netlist with Yosys's cell models of the family (flattened into logic), pairs its signals with
-the RTL's by name (``equiv_make``) and proves every pair equal, cycle by cycle from the same
-state (``equiv_simple`` then ``equiv_induct``, 5 cycles deep); ``equiv_status -assert`` fails on
-any pair left unproven. Signals that synthesis found dead and left undriven (``x`` in the
-netlist) are not paired. ``--mutant`` breaks the netlist first (the first LUT's truth
+the RTL's by name (``equiv_make``) and proves every pair equal by induction: equal in the
+first cycles after a reset from any state (the base case, a SAT proof on a miter of all pairs),
+and equal in the next cycle whenever equal in as many cycles before (``equiv_induct``; 5 cycles
+deep, the delay core 1); ``equiv_status -assert`` fails on any pair left unproven. Bits that
+synthesis found dead and left undriven (``x`` in the netlist) are not paired, the other bits of
+their wires are one by one, and on the iCE40 the register bits stored inverted are paired with
+their flip-flops (:mod:`._inverted`). ``--mutant`` breaks the netlist first (the first LUT's truth
 table inverted) and expects the proof to fail.
 """
 
