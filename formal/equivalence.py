@@ -155,7 +155,10 @@ def check(block, family="ecp5", *, mutant=False, build_dir=BUILD_DIR):
     # their other bits are paired one by one, and on the iCE40 a register bit whose init value
     # is 1 is stored inverted and its RTL name left dead: each is paired with the inverse of its
     # flip-flop (`_inverted`)
-    dead = dead_bits(gate)
+    try:
+        dead = dead_bits(gate)
+    except ValueError as error:
+        raise EquivalenceError(f"{block}: netlist not understood: {error}") from None
     (folder / "dead.txt").write_text("".join(f"{name}\n" for name in dict.fromkeys(
         name for name, _ in dead)))
     pairs = {**alive_pairs(gate, dead), **_inverted_pairs(folder, family, dead)}

@@ -1,6 +1,8 @@
 """The pairing of registers that iCE40 synthesis stores inverted (``formal/_inverted.py``): the
 undriven bits read from a netlist's ``x`` assignments, and the pair wires added on each side."""
 
+import pytest
+
 from fliss.formal._inverted import alive_pairs, dead_bits, gate_text, gold_script
 
 
@@ -23,6 +25,11 @@ def test_dead_bits_of_every_x_assignment():
                                   ("source.taps", 31), ("delays__payload", 5),
                                   ("delays__payload", 2), ("delays__payload", 3),
                                   ("source.fine", 0)]
+
+
+def test_a_term_not_understood_is_refused():
+    with pytest.raises(ValueError, match="not a wire or a constant"):
+        dead_bits("module top();\n  assign { a, { b, c } } = { 2'hx, d };\nendmodule\n")
 
 
 def test_other_bits_of_a_dead_wire_paired_as_they_are():
