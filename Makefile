@@ -118,4 +118,4 @@ formal: $(FORMAL_STAMP)
 		tests/formal/test_formal_keyed.py tests/formal/test_inverted_pairs.py $(PYTEST_ARGS)
 	$(PY) -m fliss.formal --mutants $(FORMAL_ARGS)
 	$(PY) -m fliss.formal.equivalence --mutant -j 2 crc cobs_encoder cobs_decoder uart_tx uart_rx
-	$(PY) -m fliss.formal.equivalence --mutant -j 2 --family ecp5 delay_core
+	$(PY) -m fliss.formal.equivalence --mutant -j 2 delay_core

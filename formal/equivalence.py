@@ -7,10 +7,13 @@ Each block (:data:`BLOCKS`) is converted to RTLIL, synthesized by the board flow
 (``synth_ecp5`` of the ULX3S, ``synth_ice40`` of the iCEBreaker) and written as a Verilog netlist,
 as :mod:`fliss.boards.netlist` does for the whole top level. A second Yosys run reads that
 netlist with Yosys's cell models of the family (flattened into logic), pairs its signals with
-the RTL's by name (``equiv_make``) and proves every pair equal, cycle by cycle from the same
-state (``equiv_simple`` then ``equiv_induct``, 5 cycles deep); ``equiv_status -assert`` fails on
-any pair left unproven. Signals that synthesis found dead and left undriven (``x`` in the
-netlist) are not paired. ``--mutant`` breaks the netlist first (the first LUT's truth
+the RTL's by name (``equiv_make``) and proves every pair equal by induction: equal in the
+first cycles after a reset from any state (the base case, a SAT proof on a miter of all pairs),
+and equal in the next cycle whenever equal in as many cycles before (``equiv_induct``; 5 cycles
+deep, the delay core 1); ``equiv_status -assert`` fails on any pair left unproven. Bits that
+synthesis found dead and left undriven (``x`` in the netlist) are not paired, the other bits of
+their wires are one by one, and on the iCE40 the register bits stored inverted are paired with
+their flip-flops (:mod:`._inverted`). ``--mutant`` breaks the netlist first (the first LUT's truth
 table inverted) and expects the proof to fail.
 """
 
@@ -23,7 +26,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-from ._inverted import dead_bits, gate_text, gold_script, inverted_pairs
+from ._inverted import alive_pairs, dead_bits, gate_text, gold_script, inverted_pairs
 
 
 __all__ = ["BLOCKS", "FAMILIES", "EquivalenceError", "check", "main"]
@@ -84,8 +87,14 @@ FAMILIES = {
 
 BUILD_DIR = Path("build") / "equivalence"
 
-#: Cycles of equiv_simple's and equiv_induct's unrolling.
-SEQ = 5
+#: Cycles of equiv_induct's unrolling, and of the base case after the reset: each block's
+#: (the delay core's pairs, every register paired, are proved by a 1-cycle induction; its base
+#: case grows fast with the depth), else SEQ.
+SEQ, DEPTHS = 5, {"delay_core": 1}
+
+#: Cycles of the reset in the base case (from any state: by then the reset-less stages of
+#: synchronizers hold their input too).
+RESET_CYCLES = 3
 
 
 class EquivalenceError(Exception):
@@ -112,7 +121,7 @@ def _mutate(netlist, lut):
     return netlist[:match.start(2)] + flipped + netlist[match.end(2):]
 
 
-def _inverted_pairs(folder, family, gate):
+def _inverted_pairs(folder, family, dead):
     # (only the iCE40's flip-flops cannot start at 1)
     if family != "ice40":
         return {}
@@ -122,7 +131,7 @@ def _inverted_pairs(folder, family, gate):
         return {}
     _run("read_rtlil gold.il\nproc\nflatten\nopt_clean\nrename top gold\n"
          "write_verilog -noattr pairs_gold.v\n", folder, "pairs")
-    return inverted_pairs(folder, models, dead_bits(gate))
+    return inverted_pairs(folder, models, dead)
 
 
 def check(block, family="ecp5", *, mutant=False, build_dir=BUILD_DIR):
@@ -141,26 +150,29 @@ def check(block, family="ecp5", *, mutant=False, build_dir=BUILD_DIR):
     gate = (folder / "gate.v").read_text()
     if mutant:
         (folder / "gate.v").write_text(_mutate(gate, lut))
-    # Signals that synthesis found dead (some or all bits) and left undriven have no pair to
-    # prove: those assigned an `x` (`assign \a [3] = 1'hx;`, `assign { \a [7:4], \b } =
-    # { 4'hx, c };`).
-    dead = sorted({name
-                   for target, value in re.findall(r"^\s*assign (.+?) = (.+);$", gate, re.M)
-                   if re.search(r"\d+'h[0-9a-f]*x", value)
-                   for name in re.findall(r"\\?([^\s\[\]{},:]+)(?:\s*\[[\d:]+\])?", target)})
-    (folder / "dead.txt").write_text("".join(f"{name}\n" for name in dead))
-    # On the iCE40, registers whose init value has a 1 bit are stored inverted: their RTL bits
-    # are among the dead ones; each is paired with the inverse of its flip-flop (`_inverted`)
-    pairs = _inverted_pairs(folder, family, gate if not mutant else _mutate(gate, lut))
+    # Wires that synthesis found dead (some or all bits) and left undriven (`assign \a [3] =
+    # 1'hx;`, `assign { \a [7:4], \b } = { 4'hx, c };`) are left out of the pairing by name;
+    # their other bits are paired one by one, and on the iCE40 a register bit whose init value
+    # is 1 is stored inverted and its RTL name left dead: each is paired with the inverse of its
+    # flip-flop (`_inverted`)
+    try:
+        dead = dead_bits(gate)
+    except ValueError as error:
+        raise EquivalenceError(f"{block}: netlist not understood: {error}") from None
+    (folder / "dead.txt").write_text("".join(f"{name}\n" for name in dict.fromkeys(
+        name for name, _ in dead)))
+    pairs = {**alive_pairs(gate, dead), **_inverted_pairs(folder, family, dead)}
     if pairs:
         (folder / "gate.v").write_text(gate_text((folder / "gate.v").read_text(), pairs))
-    (folder / "pairs.txt").write_text("".join(f"{name}[{bit}] = {'~' if inverted else ''}{q}\n"
-                                              for (name, bit), (q, inverted) in pairs.items()))
+    (folder / "pairs.txt").write_text("".join(
+        f"{name}{'' if bit is None else f'[{bit}]'} = {'~' if inverted else ''}{q}\n"
+        for (name, bit), (q, inverted) in pairs.items()))
     # The RTL's memories go through the flow's own mapping to RAM cells (and any left to
     # flip-flops); on both sides every RAM cell is then cut out, its inputs made outputs and its
     # outputs inputs (`expose -evert`, before `hierarchy` gives parametrized cells new types), so
     # the proof covers all the logic around the RAMs: the same read data in, the same addresses,
     # data and enables out.
+    depth = DEPTHS.get(block, SEQ)
     evert = f"expose -evert {' '.join(f't:{cell}' for cell in rams)}"
     script = "\n".join([
         "read_rtlil gold.il", "proc", "flatten", "memory -nomap", "opt_clean",
@@ -171,7 +183,15 @@ def check(block, family="ecp5", *, mutant=False, build_dir=BUILD_DIR):
         "flatten -wb", "opt_clean", "design -stash gate",
         "design -copy-from gold -as gold gold", "design -copy-from gate -as gate gate",
         "equiv_make -blacklist dead.txt gold gate equiv", "hierarchy -top equiv", "async2sync",
-        f"equiv_simple -seq {SEQ}", f"equiv_induct -seq {SEQ}", "equiv_status -assert", ""])
+        # the base case: every pair equal in the `depth` cycles after a reset from any state (all
+        # of them, in a miter whose `trigger` is any pair unequal), then the induction step:
+        # `depth` cycles of equal pairs give an equal next one
+        "design -save equiv", "equiv_miter -trigger base equiv", "hierarchy -top base",
+        f"sat -seq {RESET_CYCLES + depth} "
+        + "".join(f"-set-at {cycle} rst 1 " for cycle in range(1, RESET_CYCLES + 1))
+        + f"-prove trigger 0 -prove-skip {RESET_CYCLES} -verify",
+        "design -load equiv", "hierarchy -top equiv",
+        f"equiv_induct -seq {depth}", "equiv_status -assert", ""])
     process = _run(script, folder, "equiv")
     proven = process.returncode == 0
     if proven == mutant:
