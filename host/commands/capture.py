@@ -17,12 +17,12 @@ from ..imager.threshold import nothing_detected
 from ..keyed import used_up_by
 from ..kinds import KINDS, kind_of, mode_of
 from ..paths import check_output_path
-from ..pointcloud.options import add_geometry_options, recorded_geometry
+from ..pointcloud.options import add_geometry_options, geometry_of, recorded_geometry
 from .common import Progress
 from .port_options import add_port_arguments, connect
 from .setting_options import add_setting_arguments, settings_from_args
-from .view_options import (add_view_arguments, check_bokeh, check_view_flags, setup_options,
-                           viewing)
+from .view_options import (add_view_arguments, check_bokeh, check_view_flags, frame_addresses,
+                           setup_options, viewing)
 from ..settings import check_offline, convert, duration_s
 
 
@@ -98,7 +98,7 @@ def run(args):
         if args.view:       # the view's options against the frame the settings will make
             registers = convert(settings, board.clock_hz, board.client.read_registers(),
                                 style="flag", bank_bits=board.bank_bits).registers
-            setup_options(args, 1 << registers["pixel_bits"])
+            setup_options(args, frame_addresses(registers))
         board.configure(settings, style="flag")
         readout = board.settings["readout"]
         # (a kind that is the per-pixel form of another is asked for by its name)
@@ -108,7 +108,7 @@ def run(args):
             bar = Progress(args.acquisitions, kind.rows, enabled=not quiet)
         else:
             bar = Progress(round(duration_s(args.duration, ""), 1), "s", enabled=not quiet)
-        with viewing(board, args) as feed:
+        with viewing(board, args, geometry_of(args)[0]) as feed:
             result = board.capture(args.output, acquisitions=args.acquisitions,
                                    duration=args.duration, progress=bar, image=image,
                                    overwrite=args.overwrite, watch=feed, geometry=geometry)

@@ -16,7 +16,9 @@ from ..settings import check_offline, duration_s
 from .common import read_capture_file, sigterm_interrupts
 from .port_options import add_port_arguments, connect
 from .setting_options import add_setting_arguments, settings_from_args
-from .view_options import add_view_arguments, check_bokeh, serving, setup_options
+from .view_options import (add_view_arguments, check_bokeh, frame_addresses, serving,
+                           setup_options)
+from ..pointcloud.options import geometry_of
 
 
 __all__ = ["register", "run"]
@@ -74,7 +76,9 @@ def run(args):
         if not 0 < args.speed < math.inf:
             raise UserError(f"--speed must be positive and finite, not {args.speed:g}")
         capture = read_capture_file(args.file)
-        setup = Setup.of_capture(capture, **setup_options(args, max(len(capture.pixels), 1)))
+        recorded = capture.attrs.get("geometry")
+        geometry = None if recorded is None else geometry_of(args, str(recorded), args.file)[0]
+        setup = Setup.of_capture(capture, **setup_options(args, capture.pixels, geometry))
         return _replay(capture, Feed(setup), args, limit_s)
     if args.port is None:
         raise UserError("give a capture FILE to replay, or --port (or FLISS_PORT) to watch a "
@@ -88,7 +92,7 @@ def run(args):
         board.configure(settings, style="flag")
         registers = board.client.read_registers()
         setup = Setup.of_registers(board.port, registers, board.clock_hz,
-                                   **setup_options(args, 1 << registers["pixel_bits"]))
+                                   **setup_options(args, frame_addresses(registers)))
         if setup.readout not in READOUTS:
             raise UserError(f"fliss view shows {', '.join(READOUTS)} readouts, not "
                             f"{setup.readout}")

@@ -11,7 +11,7 @@ from .common import parse_times
 
 
 __all__ = ["VIEW_FLAGS", "add_view_arguments", "setup_options", "check_bokeh",
-           "check_view_flags", "serving", "viewing"]
+           "check_view_flags", "frame_addresses", "serving", "viewing"]
 
 
 #: The view's options, by ``dest``, as typed.
@@ -36,16 +36,30 @@ def add_view_arguments(parser: argparse.ArgumentParser, title: str) -> None:
                             "roles come from the board's settings, as in fliss analyze (with "
                             "FLISS off: unknown, and no S)")
     group.add_argument("--shape", metavar="ROWSxCOLUMNS",
-                       help="the imager's pixels as an image (8x8) rather than a profile")
+                       help="the imager's pixels as an image (8x8) rather than a profile (by "
+                            "default: an image when the sensor's geometry is a grid the "
+                            "frame's pixels fill, a profile otherwise)")
 
 
-def setup_options(args, pixels: int) -> dict:
+def setup_options(args, addresses, geometry=None) -> dict:
     """``victim_s`` and ``shape`` for :class:`~fliss.host.view.feed.Setup`, from the
-    arguments (``pixels``: the frame's pixels, that ``--shape`` must hold)."""
+    arguments: ``addresses`` are the frame's pixel addresses (``--shape`` must hold as many);
+    without ``--shape``, the image shape the sensor's ``geometry`` (a
+    :class:`~fliss.host.pointcloud.geometry.SensorGeometry`, or None) gives them, if any."""
     from ..imager.report import parse_shape
 
     victim = parse_times([args.victim_tof], "--victim-tof")[0] if args.victim_tof else None
-    return {"victim_s": victim, "shape": parse_shape(args.shape, pixels)}
+    if args.shape is not None or geometry is None:
+        shape = parse_shape(args.shape, max(len(addresses), 1))
+    else:
+        shape = geometry.image_shape(addresses)
+    return {"victim_s": victim, "shape": shape}
+
+
+def frame_addresses(registers) -> range:
+    """The pixel addresses of a frame at the board's ``registers``."""
+    first = registers["first_pixel"]
+    return range(first, first + (1 << registers["pixel_bits"]))
 
 
 def check_view_flags(given) -> None:
@@ -83,10 +97,11 @@ def serving(feed, args, *, quiet=False):
 
 
 @contextlib.contextmanager
-def viewing(board, args):
+def viewing(board, args, geometry=None):
     """For ``fliss capture``: with ``--view``, the view of ``board`` at its settings served for
     the length of the ``with`` block, which gets its :class:`~fliss.host.view.feed.Feed` to
-    hand the capture; None without."""
+    hand the capture; None without. ``geometry``: the sensor's, which may make the depth an
+    image (:func:`setup_options`)."""
     if not args.view:
         yield None
         return
@@ -94,7 +109,7 @@ def viewing(board, args):
 
     registers = board.client.read_registers()
     feed = Feed(Setup.of_registers(board.port, registers, board.clock_hz,
-                                   **setup_options(args, 1 << registers["pixel_bits"])))
+                                   **setup_options(args, frame_addresses(registers), geometry)))
     with serving(feed, args, quiet=getattr(args, "quiet", 0) > 0):
         yield feed
 

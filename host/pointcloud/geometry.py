@@ -87,6 +87,19 @@ class SensorGeometry:
             return table[addresses, 0], table[addresses, 1]
         return (addresses % self.columns).astype(float), (addresses // self.columns).astype(float)
 
+    def image_shape(self, addresses):
+        """``(rows, columns)`` of the image that the pixels of ``addresses`` fill, row by row, in
+        their order: for a grid (``columns`` above 1, no ``positions``) whose addresses run on,
+        one by one, from the start of a row to the end of one; else None (a column, pixels
+        placed by a table, or part rows: shown as a profile)."""
+        addresses = np.asarray(addresses, dtype=np.int64)
+        if self.positions is not None or self.columns < 2 or addresses.size < self.columns:
+            return None
+        if addresses[0] % self.columns or addresses.size % self.columns \
+                or np.any(np.diff(addresses) != 1):
+            return None
+        return addresses.size // self.columns, self.columns
+
     def rays(self, addresses):
         """The unit vector each pixel of ``addresses`` looks along, shape ``(len, 3)``; the
         optical centre, when not given, is the middle of these pixels."""

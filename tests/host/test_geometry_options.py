@@ -74,3 +74,23 @@ def test_a_layout_file_with_a_bad_line(tmp_path):
     layout.write_text("0,0\n1;2\n")
     with pytest.raises(UserError, match=r"line 2: give column,row in pixels, not '1;2'"):
         geometry_of(_args("--pixel-layout", str(layout)))
+
+
+@pytest.mark.parametrize("layout, addresses, shape", [
+    ("grid:8", range(64), (8, 8)),
+    ("grid:4", range(8, 16), (2, 4)),       # two whole rows, from the start of row 2
+    ("grid:4", range(2, 10), None),         # starts mid-row
+    ("grid:4", range(0, 6), None),          # ends mid-row
+    ("grid:4", [0, 1, 2, 3, 5, 6, 7, 8], None),   # not one by one
+    ("column", range(64), None),
+])
+def test_the_image_a_grids_pixels_fill(layout, addresses, shape):
+    geometry, _ = geometry_of(_args("--pixel-layout", layout))
+    assert geometry.image_shape(addresses) == shape
+
+
+def test_pixels_placed_by_a_table_make_no_image(tmp_path):
+    layout = tmp_path / "pixels.csv"
+    layout.write_text("".join(f"{a % 2},{a // 2}\n" for a in range(4)))
+    geometry, _ = geometry_of(_args("--pixel-layout", str(layout)))
+    assert geometry.image_shape(range(4)) is None

@@ -107,3 +107,26 @@ def test_a_bad_geometry_flag_is_refused_before_the_board(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.startswith("fliss: error: --fov 200deg: ") and err.count("\n") == 1
     assert not (tmp_path / "d.h5").exists()
+
+
+def test_the_view_shows_a_grids_depth_as_an_image(line_capture, tmp_path, monkeypatch):
+    """`fliss view FILE` of a depth capture takes the image's shape from the geometry it
+    records: eight rows of eight for a grid 8 wide; a profile (no shape) for the column."""
+    pytest.importorskip("bokeh", reason="the live view needs Bokeh (pip install 'fliss[view]')")
+    import fliss.host.commands.view as view
+
+    shown = []
+    monkeypatch.setattr(view, "_replay", lambda capture, feed, args, limit: shown.append(
+        feed.setup.shape) or 0)
+    grid = tmp_path / "grid.h5"
+    scene = Scene(distance_m=4.0, detections_per_pulse=0.05, background_hz=1e5,
+                  pixels=line_pixels())
+    with model_board(scene=scene) as model:
+        port = ["--port", model.path, "--timeout", "2"]
+        assert main(["-q", "config", *port, "--pixels", "64", "--bin-shift", "3"]) == 0
+        assert main(["-q", "capture", *port, "--readout", "depth", "--acquisitions", "1",
+                     "--pixel-layout", "grid:8", "-o", str(grid)]) == 0
+    assert main(["view", str(grid)]) == 0
+    assert main(["view", str(line_capture)]) == 0
+    assert main(["view", str(grid), "--shape", "4x16"]) == 0
+    assert shown == [(8, 8), None, (4, 16)]
