@@ -1,61 +1,28 @@
-"""``fliss selftest`` and ``fliss calibrate`` on the model board with a loopback
-(:mod:`fliss.sim.boards.loopback`): the figures against the loopback's stated delay and jitter
-and the modelled line's own tap delays, a fault of each kind against its exact line, refusals."""
+"""``fliss selftest`` on the model board with a loopback (:mod:`fliss.sim.boards.loopback`): the
+figures against the loopback's stated delay and jitter, a fault of each kind against its exact
+line, refusals, interruptions."""
 
 import gc
-import os
 import re
-import signal
 import warnings
 
 import numpy as np
 import pytest
 from amaranth.hdl import UnusedElaboratable
 
-from fliss.analysis import calibration as analysis
-from fliss.boards import fliss_top_up5k
-from fliss.hdl.finetdc import UNIT_S
-from fliss.hdl.finetdc.table import nominal_table
 from fliss.hdl.top import FlissTop
 from fliss.host.board import connect
-from fliss.host.calibration import calibrate, read_table
+from fliss.host.calibration import calibrate
 from fliss.host.cli import main
-from fliss.host.errors import CalibrationError
-from fliss.host.fileformat import read_capture
 from fliss.host.selftest import (AGGRESSOR_OFFSET, CHECKS, PERIOD_CYCLES, period_cycles,
                                  selftest)
 from fliss.sim.boards.loopback import Loopback
 from fliss.sim.boards.model import model_board
 from fliss.sim.models.delay import delays
-from fliss.sim.models.finetdc import Line
 from fliss.sim.scene import Scene
 
-
-CLOCK_HZ = 80_000_000
-LINE = Line()
-#: The line's input delay: in every fine timestamp (the table leaves it out).
-INPUT_S = LINE.offset_s
-#: The time from the line's input to its first tap: in every calibrated fine timestamp.
-FIRST_TAP_S = LINE.thresholds_s[0]
-
-
-def fliss(capsys, *argv):
-    status = main([*argv, "--timeout", "2"])
-    out, err = capsys.readouterr()
-    return status, out, err
-
-
-def outcomes(result):
-    return [check.outcome for check in result.checks]
-
-
-def line_of(result, name):
-    return next(check for check in result.checks if check.name == name)
-
-
-@pytest.fixture(scope="module")
-def up5k_maxima():
-    return fliss_top_up5k(CLOCK_HZ).register_maxima()
+from loopback_runs import (CLOCK_HZ, FIRST_TAP_S, INPUT_S, LINE, _InterruptAfter, _KillAfter,
+                           fliss, line_of, outcomes)
 
 
 @pytest.mark.parametrize("jumper, delay_s, jitter_s", [
@@ -204,20 +171,10 @@ def test_raw_events_fit_the_link():
     assert outcomes(result) == ["pass"] * 5 and dropped == 0
     hits, pulses = map(int, line_of(result, "same time").detail.split()[:4:3])
     assert hits == pulses
-    # (50 ms of raw events at the longer period)
-    assert abs(pulses - 0.05 * CLOCK_HZ / period_cycles(CLOCK_HZ, 3_000_000)) < 0.2 * pulses
-
-
-def test_calibration_needs_enough_hits_to_mean_something():
-    # A calibration too short for its cover to mean anything fails, whatever it covered
-    with model_board(loopback=Loopback(line=LINE)) as board, connect(board.path) as client:
-        result = selftest(client, reference=delays,
-                          durations_s={"calibration": 0.002, "calibration_frame": 0.002})
-    detail = line_of(result, "calibration").detail
-    assert line_of(result, "calibration").outcome == "fail"
-    assert detail.endswith(": too few hits to check the cover (at least 25 a code)")
-    hits = int(detail.split()[0])
-    assert hits < 25 * 585
+    # At least 50 ms of raw events at the longer period (the host stops the board at the first
+    # block after 50 ms of its own clock: on a loaded machine that block comes later, and the
+    # board has fired more; at the default period the line-limited board would have dropped)
+    assert pulses > 0.8 * 0.05 * CLOCK_HZ / period_cycles(CLOCK_HZ, 3_000_000)
 
 
 def test_internal_loopback_finds_wrong_delays():
@@ -305,47 +262,6 @@ def test_icebreaker_build_skips_what_it_cannot_run(capsys, up5k_maxima):
     assert [c.detail for c in result.checks[:3]] == ["no aggressor emitter in this build"] * 3
 
 
-def test_calibrate_stores_the_table_and_captures_record_it(capsys, tmp_path):
-    with model_board(loopback=Loopback(line=LINE)) as board:
-        status, _, err = fliss(capsys, "calibrate", "--port", board.path, "--duration",
-                               "500ms")
-        assert status == 0, err
-        table = np.array(board.model.table)
-        path = tmp_path / "fine.h5"
-        status, _, err = fliss(capsys, "capture", "--port", board.path, "--tdc", "fine",
-                               "--readout", "raw", "--duration", "50ms", "-o", str(path), "-q")
-        assert status == 0, err
-        with connect(board.path) as client:
-            assert np.array_equal(read_table(client.client), table)
-    assert not np.array_equal(table, nominal_table())
-    assert np.array_equal(read_capture(path).calibration_table, table)
-    # Against the line's own taps: code c is the hit between thresholds c - 1 and c
-    edges = LINE.thresholds_s
-    true = (edges[:-1] + edges[1:]) / 2                 # centre of code 1, 2, ...
-    codes = np.arange(2, 560)
-    error = table[codes] * UNIT_S - true[codes - 1]
-    error -= np.median(error)
-    assert np.abs(error).max() < 20e-12
-
-
-def test_calibration_table_from_the_histogram():
-    # The library's table is the analysis's table of the codes it histogrammed
-    with model_board(loopback=Loopback(line=LINE)) as board, connect(board.path) as client:
-        result = calibrate(client, 0.2)
-        assert np.array_equal(board.model.table, result.table)
-    expected = analysis.table(result.counts, 1 / CLOCK_HZ, 12.5e-12, width=12)
-    assert np.array_equal(result.table, expected)
-    assert result.first_code == 1 and len(result.empty_codes) == 0
-
-
-def test_calibrate_refuses_a_board_without_the_fine_tdc(capsys, up5k_maxima):
-    with model_board(maxima=up5k_maxima) as board:
-        status, out, err = fliss(capsys, "calibrate", "--port", board.path)
-    assert (status, out) == (1, "")
-    assert err == f"fliss: error: the board on {board.path} has no fine TDC (its build refuses " \
-                  f"the fine TDC's registers; only the ULX3S's has one)\n"
-
-
 @pytest.mark.parametrize("command", ["selftest", "calibrate"])
 def test_unknown_port(capsys, command):
     status, out, err = fliss(capsys, command, "--port", "/dev/fliss-no-such-port")
@@ -431,22 +347,6 @@ def test_the_wire_on_the_laser_said_to_be_on_the_aggressor(capsys):
                                 "nothing else, on the photon input?")
 
 
-class _InterruptAfter:
-    """A progress display whose ``update`` raises KeyboardInterrupt (Ctrl-C) at its n-th
-    call."""
-
-    def __init__(self, calls):
-        self.calls = calls
-
-    def update(self, done, extra=""):
-        self.calls -= 1
-        if self.calls == 0:
-            raise KeyboardInterrupt
-
-    def close(self):
-        pass
-
-
 def test_an_interrupted_selftest_keeps_the_checks_finished(capsys, monkeypatch):
     import fliss.host.commands.selftest as command
     monkeypatch.setattr(command, "Progress", lambda *args, **kwargs: _InterruptAfter(2))
@@ -482,44 +382,6 @@ def test_port_options_take_units(capsys):
     assert status == 0
 
 
-def test_calibrate_refuses_too_few_hits(capsys):
-    # 5 µs of a 2.4 MHz oscillator: some 12 hits over 680 codes, not 25 a code
-    with model_board(loopback=Loopback(line=LINE)) as board:
-        with connect(board.path) as client:
-            before = read_table(client.client)
-        status, _, err = fliss(capsys, "calibrate", "--port", board.path, "--duration", "5us")
-        with connect(board.path) as client:
-            after = read_table(client.client)
-        assert status == 1
-        assert err.startswith("fliss: error: 1")
-        assert " hits are too few for a table: it needs 25 a code on average, " in err
-        assert err.endswith("the board's table is left as it was (force it to write this "
-                            "one)\n")
-        assert np.array_equal(before, after)
-        # Forced, it writes it; the next self-test finds the table far from the oscillator's
-        status, _, err = fliss(capsys, "calibrate", "--port", board.path, "--duration", "5us",
-                               "--force")
-        assert status == 0 and "(forced: too few hits)" in err
-        status, out, _ = fliss(capsys, "selftest", "--port", board.path)
-    assert status == 1
-    calibration = next(line for line in out.splitlines() if line.startswith("calibration"))
-    assert "the board's calibration table looks bad: code " in calibration
-    assert calibration.endswith("(more than 1000 ps apart): run fliss calibrate again")
-
-
-def test_an_interrupted_calibration_says_the_table_is_partial():
-    def progress(stage):
-        return _InterruptAfter(300 if stage == "table" else 10 ** 6)
-
-    with model_board(loopback=Loopback(line=LINE)) as board, connect(board.path) as client:
-        with pytest.raises(CalibrationError) as caught:
-            calibrate(client, 0.3, progress=progress)
-    assert str(caught.value) == (
-        "interrupted while writing the calibration table: the board's table is partial (codes "
-        "0 to 298 new, 299 to 1023 as they were); run fliss calibrate again, or configure the "
-        "FPGA again for the nominal table")
-
-
 @pytest.mark.parametrize("outcomes_, verdict, summary", [
     (["pass"] * 5, "pass", "passed 5 of 5"),
     (["pass", "skipped", "pass", "pass", "pass"], "incomplete",
@@ -534,23 +396,6 @@ def test_a_skipped_check_is_never_a_pass(outcomes_, verdict, summary):
                                             for name, outcome in zip(CHECKS, outcomes_)])
     assert (result.verdict, result.summary()) == (verdict, summary)
     assert result.passed == (verdict == "pass")
-
-
-def test_calibrate_interrupted_before_the_table_leaves_it(capsys, monkeypatch):
-    import fliss.host.commands.calibrate as command
-    monkeypatch.setattr(command, "Progress", lambda *args, **kwargs: _InterruptAfter(2))
-    with model_board(loopback=Loopback(line=LINE)) as board:
-        with connect(board.path) as client:
-            before = read_table(client.client)
-        status, _, err = fliss(capsys, "calibrate", "--port", board.path, "--duration", "0.3s")
-        with connect(board.path) as client:
-            after = read_table(client.client)
-            settings = client.registers
-    assert status == 130
-    assert err.splitlines()[-1] == "fliss calibrate: interrupted before the table was written: " \
-                                   "the board's table is left as it was"
-    assert np.array_equal(before, after)
-    assert settings["tdc_input"] == 0 and settings["tdc_source"] != 3     # put back
 
 
 def test_a_histogram_of_scene_photons_fails_naming_its_share_and_the_wire(capsys):
@@ -570,34 +415,6 @@ def test_a_histogram_of_scene_photons_fails_naming_its_share_and_the_wire(capsys
     assert int(match.group(1)) < 90
 
 
-def test_a_calibration_pass_says_how_much_of_the_table_it_read():
-    # The check reads TABLE_SAMPLES entries back, not the whole table: an entry it does not read
-    # (here a wrong one between two it reads) passes, and the line must say a sample agreed,
-    # not that "the board's table agrees".
-    loopback = Loopback(jumper=None, line=LINE)
-    with model_board(loopback=loopback) as board, connect(board.path) as client:
-        calibrate(client, 0.3)
-        raw = client.client
-        raw.write_registers({"table_address": 100, "table_data": 4000},
-                            current=raw.read_registers())
-        assert read_table(raw, codes=[100])[0] == 4000
-        result = selftest(client, reference=delays)
-    check = line_of(result, "calibration")
-    codes = result.calibration.last_code - result.calibration.first_code + 1
-    assert check.outcome == "pass"
-    assert check.detail.endswith(f"; the board's table agrees at the 32 of its {codes} entries "
-                                 f"read back")
-
-
-class _KillAfter(_InterruptAfter):
-    """A progress display that sends this process SIGTERM (`kill`) at its n-th update."""
-
-    def update(self, done, extra=""):
-        self.calls -= 1
-        if self.calls == 0:
-            os.kill(os.getpid(), signal.SIGTERM)
-
-
 def test_a_killed_selftest_puts_the_settings_back_and_says_so(capsys, monkeypatch):
     # kill (SIGTERM) had ended the self-test at once: no table of the checks finished, no
     # verdict, and the board left on the loopback's settings (tdc_input 2, the fine TDC)
@@ -615,20 +432,3 @@ def test_a_killed_selftest_puts_the_settings_back_and_says_so(capsys, monkeypatc
     assert {name: value for name, value in after.items() if not name.startswith("iv")} == \
         {name: value for name, value in before.items() if not name.startswith("iv")}
     assert after["tdc_input"] == 0 and after["acquisition"] == 0
-
-
-def test_a_killed_calibration_leaves_the_table_and_says_so(capsys, monkeypatch):
-    import fliss.host.commands.calibrate as command
-    monkeypatch.setattr(command, "Progress", lambda *args, **kwargs: _KillAfter(2))
-    with model_board(loopback=Loopback(line=LINE)) as board:
-        with connect(board.path) as client:
-            before = read_table(client.client)
-        status, _, err = fliss(capsys, "calibrate", "--port", board.path, "--duration", "0.3s")
-        with connect(board.path) as client:
-            after = read_table(client.client)
-            settings = client.registers
-    assert status == 130
-    assert err.splitlines()[-1] == "fliss calibrate: interrupted before the table was written: " \
-                                   "the board's table is left as it was"
-    assert np.array_equal(before, after)
-    assert settings["tdc_input"] == 0 and settings["tdc_source"] != 3     # put back
