@@ -15,18 +15,23 @@ from fliss.sim.scene import Scene, line_pixels
 from format_captures import histogram_capture, two_echoes
 
 
-@pytest.fixture(scope="module")
-def line_capture(tmp_path_factory):
-    """A depth capture of the line scene, its geometry given: 20 µm pixels, a 4 mm lens."""
-    path = tmp_path_factory.mktemp("points") / "line.h5"
+def depth_capture(path, *flags, acquisitions=3):
+    """A depth capture of the line scene into ``path``, with the capture's ``flags``."""
     scene = Scene(distance_m=4.0, detections_per_pulse=0.05, background_hz=1e5,
                   pixels=line_pixels())
     with model_board(scene=scene) as model:
         port = ["--port", model.path, "--timeout", "2"]
         assert main(["-q", "config", *port, "--pixels", "64", "--bin-shift", "3"]) == 0
-        assert main(["-q", "capture", *port, "--readout", "depth", "--acquisitions", "3",
-                     "--pitch", "20um", "--focal-length", "4mm", "-o", str(path)]) == 0
+        assert main(["-q", "capture", *port, "--readout", "depth", "--acquisitions",
+                     str(acquisitions), *flags, "-o", str(path)]) == 0
     return path
+
+
+@pytest.fixture(scope="module")
+def line_capture(tmp_path_factory):
+    """A depth capture of the line scene, its geometry given: 20 µm pixels, a 4 mm lens."""
+    return depth_capture(tmp_path_factory.mktemp("points") / "line.h5",
+                         "--pitch", "20um", "--focal-length", "4mm")
 
 
 def test_the_points_lie_on_their_pixels_lines_of_sight(line_capture, tmp_path, capsys):
@@ -118,14 +123,7 @@ def test_the_view_shows_a_grids_depth_as_an_image(line_capture, tmp_path, monkey
     shown = []
     monkeypatch.setattr(view, "_replay", lambda capture, feed, args, limit: shown.append(
         feed.setup.shape) or 0)
-    grid = tmp_path / "grid.h5"
-    scene = Scene(distance_m=4.0, detections_per_pulse=0.05, background_hz=1e5,
-                  pixels=line_pixels())
-    with model_board(scene=scene) as model:
-        port = ["--port", model.path, "--timeout", "2"]
-        assert main(["-q", "config", *port, "--pixels", "64", "--bin-shift", "3"]) == 0
-        assert main(["-q", "capture", *port, "--readout", "depth", "--acquisitions", "1",
-                     "--pixel-layout", "grid:8", "-o", str(grid)]) == 0
+    grid = depth_capture(tmp_path / "grid.h5", "--pixel-layout", "grid:8", acquisitions=1)
     assert main(["view", str(grid)]) == 0
     assert main(["view", str(line_capture)]) == 0
     assert main(["view", str(grid), "--shape", "4x16"]) == 0
