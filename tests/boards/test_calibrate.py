@@ -111,9 +111,11 @@ def test_an_interrupted_calibration_says_the_table_is_partial():
         "FPGA again for the nominal table")
 
 
-def test_calibrate_interrupted_before_the_table_leaves_it(capsys, monkeypatch):
+@pytest.mark.parametrize("stop", [_InterruptAfter, _KillAfter], ids=["ctrl-c", "kill"])
+def test_calibrate_stopped_before_the_table_leaves_it(capsys, monkeypatch, stop):
+    # Ctrl-C, or a kill (SIGTERM) the command turns into the same stop
     import fliss.host.commands.calibrate as command
-    monkeypatch.setattr(command, "Progress", lambda *args, **kwargs: _InterruptAfter(2))
+    monkeypatch.setattr(command, "Progress", lambda *args, **kwargs: stop(2))
     with model_board(loopback=Loopback(line=LINE)) as board:
         with connect(board.path) as client:
             before = read_table(client.client)
@@ -145,20 +147,3 @@ def test_a_calibration_pass_says_how_much_of_the_table_it_read():
     assert check.outcome == "pass"
     assert check.detail.endswith(f"; the board's table agrees at the 32 of its {codes} entries "
                                  f"read back")
-
-
-def test_a_killed_calibration_leaves_the_table_and_says_so(capsys, monkeypatch):
-    import fliss.host.commands.calibrate as command
-    monkeypatch.setattr(command, "Progress", lambda *args, **kwargs: _KillAfter(2))
-    with model_board(loopback=Loopback(line=LINE)) as board:
-        with connect(board.path) as client:
-            before = read_table(client.client)
-        status, _, err = fliss(capsys, "calibrate", "--port", board.path, "--duration", "0.3s")
-        with connect(board.path) as client:
-            after = read_table(client.client)
-            settings = client.registers
-    assert status == 130
-    assert err.splitlines()[-1] == "fliss calibrate: interrupted before the table was written: " \
-                                   "the board's table is left as it was"
-    assert np.array_equal(before, after)
-    assert settings["tdc_input"] == 0 and settings["tdc_source"] != 3     # put back
