@@ -24,6 +24,17 @@ def keying(key, iv):
     return words
 
 
+async def write_keying(ctx, dut, restarts, key, iv):
+    """Write ``key`` and ``iv`` into the source ``dut`` (a cycle of ``rekey``) and into the
+    model's ``restarts``."""
+    for name, value in keying(key, iv).items():
+        ctx.set(dut.keying[name], value)
+    ctx.set(dut.rekey, 1)
+    await ctx.tick()
+    ctx.set(dut.rekey, 0)
+    restarts.write(key=key, iv=iv)
+
+
 async def load_trivium(ctx, dut, key, iv):
     ctx.set(dut.key, key)
     ctx.set(dut.iv, iv)
@@ -102,12 +113,7 @@ def test_keyed_source_against_model():
             width = case % 16 + 1
             if case % 3 == 0:
                 key, iv = (int.from_bytes(rng.bytes(10), "big") for _ in range(2))
-                for name, value in keying(key, iv).items():
-                    ctx.set(dut.keying[name], value)
-                ctx.set(dut.rekey, 1)
-                await ctx.tick()
-                ctx.set(dut.rekey, 0)
-                restarts.write(key=key, iv=iv)
+                await write_keying(ctx, dut, restarts, key, iv)
             ctx.set(dut.settings.mode, DelayMode.KEYED)
             ctx.set(dut.settings.mask_width, width)
             for _ in range(2 if case % 4 == 1 else 1):  # (a second load finds it fresh)
@@ -165,12 +171,7 @@ def test_keyed_source_never_wraps_the_iv():
     errors, compared = [], [0]
 
     async def write(ctx, key, iv):
-        for name, value in keying(key, iv).items():
-            ctx.set(dut.keying[name], value)
-        ctx.set(dut.rekey, 1)
-        await ctx.tick()
-        ctx.set(dut.rekey, 0)
-        restarts.write(key=key, iv=iv)
+        await write_keying(ctx, dut, restarts, key, iv)
 
     async def load(ctx, step, mode):
         ctx.set(dut.settings.mode, mode)
