@@ -27,9 +27,9 @@ import imager_frames as scene
 
 ROOT = Path(__file__).resolve().parents[2]
 
-#: Modules whose strings equal a kind's name for another reason: the self-test's checks
-#: (one of them is called "histogram").
-OTHER_MEANINGS = {"host/selftest.py"}
+#: Modules whose strings equal a kind's name for another reason: the self-test's checks and
+#: their advice (one of them is called "histogram").
+OTHER_MEANINGS = {"host/selftest.py", "host/checklist.py"}
 
 
 def _kind_names_compared(path):
