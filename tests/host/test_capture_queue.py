@@ -13,6 +13,7 @@ import numpy as np
 from fliss.host import acquisition
 from fliss.host.acquisition import capture
 from fliss.host.client import BoardClient
+from fliss.host.commands.capture import report
 from fliss.protocol.packets import HISTOGRAM_TYPES
 from fliss.host.fileformat import CaptureWriter, read_capture
 from fliss.sim.boards.model import BACKLOG_BYTES, model_board
@@ -123,7 +124,7 @@ def test_a_full_queue_drops_what_a_command_reads_past_it_and_counts_it():
         assert np.array_equal(item.counts, sent[item.frame])
 
 
-def test_a_capture_whose_queue_overflows_marks_the_rows_lost(tmp_path, monkeypatch):
+def test_a_capture_whose_queue_overflows_marks_the_rows_lost(tmp_path, monkeypatch, capsys):
     # A queue of two histograms behind a slow writer: a read of the port brings more, the
     # rest is dropped and counted, and each dropped frame within those asked for is a row
     # marked lost
@@ -152,3 +153,9 @@ def test_a_capture_whose_queue_overflows_marks_the_rows_lost(tmp_path, monkeypat
     for row in np.flatnonzero(~lost):
         assert np.array_equal(file.histograms[row], sent[int(file.frames[row])])
     assert not file.histograms[lost].any()
+    # fliss capture says it in one line
+    assert report(result, quiet=True) == 0
+    assert capsys.readouterr().err == (
+        f"fliss: warning: {dropped} frames and 0 events dropped on the host, whose queue of "
+        f"data not yet written was full (counted in the file; the frames' rows are marked "
+        f"lost)\n")
