@@ -67,7 +67,8 @@ NOISE_MB = 2.0
 MIN_SAMPLES = 4
 #: Host counters that count something lost or damaged (``stream`` and ``link`` groups).
 HOST_LOSSES = {"stream": ("lost_frames", "lost_rows", "lost_depth_frames", "incomplete_frames",
-                          "incomplete_rows", "missing_bins", "malformed", "unexpected"),
+                          "incomplete_rows", "missing_bins", "malformed", "unexpected",
+                          "queue_dropped_frames", "queue_dropped_events"),
                "link": ("bad_crc", "bad_length", "dropped_frames", "missing_packets", "oversize",
                         "sequence_gaps", "skipped_bytes", "truncated", "resyncs")}
 #: Board counters that count an event or frame dropped or damaged.
@@ -115,7 +116,7 @@ class ModelSoakBoard:
     def __init__(self, phase, seed):
         from fliss.sim.boards.model import ModelBoard
         self.board = ModelBoard(scene=scene_for(phase, MODEL_BAUD), baud=MODEL_BAUD,
-                                photon_seed=seed, line_limited=True)
+                                photon_seed=seed, line_limited=True, keep_sent=False)
         self.board.open()
         self.path = self.board.path
 
@@ -273,25 +274,28 @@ def loss_verdict(phase, capture):
                  if counters.get(group, {}).get(name, 0)}
     if phase == "raw":
         made, kept = board["events"], len(capture.events)
-        dropped = board.get("dropped_fifo", 0)
+        dropped = board.get("dropped_fifo", 0) + stream.get("queue_dropped_events", 0)
         balance = made == kept + dropped
         lines = [f"board accepted {made} events of {board['pulses']} pulses "
                  f"({made / max(board['pulses'], 1):.4f} a pulse); file {kept}, board FIFO "
-                 f"drops {dropped}: {kept} + {dropped} = {kept + dropped} "
+                 f"and host queue drops {dropped}: {kept} + {dropped} = {kept + dropped} "
                  f"{'==' if balance else '!='} {made}"]
     else:
         made = board["frames"]
-        kept = len(capture.frames)
+        # rows: the frames that arrived, and blank rows (marked incomplete) for those that
+        # did not, counted in lost_rows
+        rows, blank = len(capture.frames), stream.get("lost_rows", 0)
         discarded = stream.get("discarded_frames", 0)
-        lost = stream.get("lost_frames", 0) + stream.get("lost_depth_frames", 0)
-        complete = bool(np.all(capture.complete)) if len(capture.frames) else True
+        incomplete = int(np.count_nonzero(~np.asarray(capture.complete, bool)))
         frames = capture.frames.astype(np.int64)
         gapless = bool(np.array_equal(frames, frames[0] + np.arange(len(frames)))) \
             if len(frames) else True
-        balance = made == kept + discarded + lost and complete and gapless
-        lines = [f"board made {made} frames; file {kept} (complete: {complete}, consecutive: "
-                 f"{gapless}), after the last requested {discarded}, lost {lost}: "
-                 f"{kept} + {discarded} + {lost} = {kept + discarded + lost} "
+        counted = incomplete == blank + stream.get("incomplete_rows", 0)
+        balance = made == rows + discarded and gapless and counted
+        lines = [f"board made {made} frames; file {rows} rows (consecutive: {gapless}; "
+                 f"{incomplete} marked incomplete, {blank} of them lost and "
+                 f"{stream.get('incomplete_rows', 0)} arrived incomplete), after the last "
+                 f"requested {discarded}: {rows} + {discarded} = {rows + discarded} "
                  f"{'==' if balance else '!='} {made}"]
     lines.append(f"board loss counters: {board_lost or 'all zero'}; host loss counters: "
                  f"{host_lost or 'all zero'}")

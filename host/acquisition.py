@@ -349,7 +349,9 @@ class _Capture:
                 if self.file_error is not None or self._progress():
                     break
                 now = time.monotonic()
-                if now - heartbeat >= HEARTBEAT_S:
+                # (once what was read is stored: its reply comes after the data the board
+                # sent meanwhile, which the link reads to find it)
+                if now - heartbeat >= HEARTBEAT_S and not board.queued:
                     heartbeat = now
                     status = board.status()    # data that arrive meanwhile are kept
                     check_reset(board, status_last, status)

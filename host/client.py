@@ -215,7 +215,7 @@ class BoardClient(BoardLink):
         self._last_rx = self._last_data = time.monotonic()
         while True:
             if self._data:
-                yield self._data.popleft()
+                yield self.next_data()
                 continue
             self.poll(poll_s)
             if self._data:
@@ -265,5 +265,4 @@ class BoardClient(BoardLink):
         self._last_rx = time.monotonic()
         while time.monotonic() < end and self.idle_s < quiet_s:
             self.poll(min(quiet_s, 0.05))
-        self._data.extend(self.assembler.flush())
-        return self.take_data()
+        return self.take_data() + self.assembler.flush()

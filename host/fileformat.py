@@ -24,6 +24,7 @@ from ..hdl.registers import BY_NAME
 from ..hdl.codes import code_s as timestamp_code_s
 from ..protocol.events import EVENT_DTYPE
 from .kinds import DEFAULT, KINDS, for_mode, kind_of
+from .kinds.kind import extend
 
 
 __all__ = ["FORMAT", "FORMAT_VERSION", "FLUSH_S", "RUNNING", "CaptureWriter", "Capture",
@@ -44,13 +45,19 @@ FLUSH_S = 0.5
 #: ``end_reason`` of a file that the writer never closed (still being written, or killed).
 RUNNING = "running"
 
+#: Most frame rows, and most events, kept by the writer before it writes them (in one write a
+#: dataset: HDF5 takes about as long for a row as for a batch of them).
+BATCH_ROWS = 256
+BATCH_EVENTS = 1 << 16
+
 
 class CaptureWriter:
     """Writes one capture file.
 
     Every attribute and dataset is made when the file is opened; then the file goes into HDF5's
     single-writer mode (SWMR), in which it is consistent on disk at every moment, and rows are
-    appended and flushed at least every :data:`FLUSH_S` seconds. :meth:`close` opens it again
+    appended in batches (of up to :data:`BATCH_ROWS` frames or :data:`BATCH_EVENTS` events)
+    and flushed at least every :data:`FLUSH_S` seconds. :meth:`close` opens it again
     normally to store the end: ``end_reason``, the counters of :meth:`set_counters`.
 
     Parameters
@@ -88,6 +95,8 @@ class CaptureWriter:
             self.file = None
             raise
         self._flushed = time.monotonic()
+        self._rows, self._batches = [], []    # (item, complete), EventBatch: not yet written
+        self._written = self._events_written = 0
         self._room = Room(self.file, self.path)     # FileFull before a write that fails
 
     def _create(self, mode, identity, configuration, port, attrs):
@@ -138,14 +147,17 @@ class CaptureWriter:
         a :class:`~fliss.host.stream.DepthFrame` (depth mode); returns False (and stores
         nothing) if it does not fit the capture (another split, another mode). ``complete``
         False marks a depth frame that never arrived (a histogram says it itself)."""
-        if self.kind.append is None:
+        kind = self.kind
+        if kind.append is None or (kind.fits and not kind.fits(self.file, frame, self._state)):
             return False
         self._room.check(sum(value.nbytes for value in vars(frame).values()
                              if isinstance(value, np.ndarray)))
-        done = self.kind.append(self.file, self.histograms, frame, self._state, complete)
-        self.histograms += done
+        self._rows.append((frame, complete))
+        self.histograms += 1
+        if len(self._rows) >= BATCH_ROWS:
+            self._write_rows()
         self._maybe_flush()
-        return done
+        return True
 
     #: Appends a :class:`~fliss.host.stream.HistogramFrame` (the name of former versions).
     add_histogram = add_frame
@@ -153,20 +165,38 @@ class CaptureWriter:
     def add_events(self, batch):
         """Append an :class:`~fliss.host.stream.EventBatch`."""
         self._room.check(batch.events.nbytes)
-        group = self.file["events"]
-        count = len(batch.events)
-        group["events"].resize(self.events + count, axis=0)
-        group["events"][self.events:] = batch.events
-        group["batch_offset"].resize(self.batches + 1, axis=0)
-        group["batch_offset"][self.batches] = self.events
-        group["batch_time_s"].resize(self.batches + 1, axis=0)
-        group["batch_time_s"][self.batches] = batch.time_s
-        self.events += count
+        self._batches.append(batch)
+        self.events += len(batch.events)
         self.batches += 1
+        if self.events - self._events_written >= BATCH_EVENTS:
+            self._write_events()
         self._maybe_flush()
+
+    def _write_rows(self):
+        if self._rows:
+            items, completes = zip(*self._rows)
+            self._rows = []
+            self.kind.append(self.file, self._written, list(items), self._state,
+                             list(completes))
+            self._written += len(items)
+
+    def _write_events(self):
+        if not self._batches:
+            return
+        batches, self._batches = self._batches, []
+        group = self.file["events"]
+        first = self.batches - len(batches)
+        offsets = self._events_written + np.cumsum([0] + [len(b.events) for b in batches[:-1]])
+        extend(group["events"], self._events_written,
+               np.concatenate([batch.events for batch in batches]))
+        extend(group["batch_offset"], first, offsets)
+        extend(group["batch_time_s"], first, [batch.time_s for batch in batches])
+        self._events_written = self.events
 
     def flush(self):
         """Write everything appended so far to the disk."""
+        self._write_rows()
+        self._write_events()
         self.file.flush()
         self._flushed = time.monotonic()
         self._room.flushed()
@@ -185,8 +215,12 @@ class CaptureWriter:
         ``end_reason``, ``complete``, ``closed_utc``, the counters and ``attrs``."""
         if self.file is None:
             return
-        self.file.close()
-        self.file = None
+        try:
+            self._write_rows()
+            self._write_events()
+        finally:
+            self.file.close()
+            self.file = None
         with h5py.File(self.path, "r+") as f:
             for name, counters in self._counters.items():
                 group = f["counters"].require_group(name)

@@ -16,6 +16,14 @@ time (``timeout_s``, ``retries``; by default :data:`~fliss.host.port.DEFAULT_TIM
 is matched by what it answers: an ACK or NAK by the sequence number in its payload, other replies
 by what the command expects (:meth:`BoardLink.command`). The commands themselves are
 :class:`fliss.host.client.BoardClient`'s.
+
+The data received and not yet taken wait in a queue of at most :attr:`BoardLink.queue_limit`
+bytes (of the items' arrays). The link reads only when asked to (a command waiting for its
+reply, or :meth:`~fliss.host.client.BoardClient.stream` with its queue empty), so a reader
+that takes its data slower than the board sends leaves them in the port's buffer, where a
+real UART's driver drops what does not fit and the decoder counts the gap; a command that
+must read through more data than the queue takes to find its reply drops the data items
+beyond it, counted in the stream's ``queue_dropped_frames`` and ``queue_dropped_events``.
 """
 
 import logging
@@ -45,6 +53,14 @@ _logger = logging.getLogger(__name__)
 
 _LINK_CODES = {code.value for code in LINK_ERRORS}
 
+#: Most bytes (of the items' arrays) the queue of data received and not yet taken holds.
+QUEUE_LIMIT = 16 << 20
+
+
+def _nbytes(item):
+    """Bytes of an item's arrays (a histogram's counts, a batch's events, a depth frame's)."""
+    return sum(value.nbytes for value in vars(item).values() if hasattr(value, "nbytes"))
+
 
 class BoardLink:
     """The link to a FLISS board on a serial port.
@@ -61,10 +77,13 @@ class BoardLink:
         How often to re-send a command that got no reply.
     serial_port : serial.SerialBase or None
         An open port to use instead of opening ``port``.
+    queue_limit : int
+        Most bytes of data items (their arrays) queued and not yet taken.
     """
 
     def __init__(self, port: str, *, baud: int = DEFAULT_BAUD, timeout_s: Optional[float] = None,
-                 retries: int = 3, serial_port: Optional[serial.SerialBase] = None) -> None:
+                 retries: int = 3, serial_port: Optional[serial.SerialBase] = None,
+                 queue_limit: int = QUEUE_LIMIT) -> None:
         self.port_name = port
         self.timeout_s = float(default_timeout(port) if timeout_s is None else timeout_s)
         self.retries = int(retries)
@@ -80,6 +99,8 @@ class BoardLink:
         self.last_reply = None
         self._replies = deque()
         self._data = deque()
+        self.queue_limit = int(queue_limit)
+        self._queued = 0            # bytes of the items in _data
         self._last_rx = self._last_data = time.monotonic()
         self._baseline = {}
         try:
@@ -166,13 +187,41 @@ class BoardLink:
                 if isinstance(item, Packet):
                     if item.type in DATA_TYPES:
                         self._last_data = self._last_rx
-                        self._data.extend(self.assembler.add(item, now))
+                        self._queue(self.assembler.add(item, now))
                     else:
                         self._replies.append(item)
             for events in decoded.batches():
                 self._last_data = self._last_rx
-                self._data.extend(self.assembler.add_events(events, now))
+                self._queue(self.assembler.add_events(events, now))
         return len(data)
+
+    def _queue(self, items):
+        # Data items into the queue, up to its limit; those beyond it dropped and counted
+        counters = self.assembler.counters
+        for item in items:
+            size = _nbytes(item)
+            if self._queued + size > self.queue_limit and self._data:
+                if isinstance(item, EventBatch):
+                    counters.queue_dropped_events += len(item.events)
+                else:
+                    counters.queue_dropped_frames += 1
+                continue
+            self._data.append(item)
+            self._queued += size
+            counters.queue_peak_bytes = max(counters.queue_peak_bytes, self._queued)
+
+    @property
+    def queued(self) -> int:
+        """Data items received and not yet taken."""
+        return len(self._data)
+
+    def next_data(self):
+        """The oldest data item received and not yet taken (None if none)."""
+        if not self._data:
+            return None
+        item = self._data.popleft()
+        self._queued -= _nbytes(item)
+        return item
 
     @property
     def idle_s(self) -> float:
@@ -206,6 +255,7 @@ class BoardLink:
         """Histograms and event batches received so far, in order."""
         items = list(self._data)
         self._data.clear()
+        self._queued = 0
         return items
 
     # Commands and replies

@@ -41,6 +41,11 @@ class StreamCounters:
     unexpected: int = 0
     depth_frames: int = 0
     lost_depth_frames: int = 0
+    #: Data items the link's queue had no room for (:mod:`fliss.host.link`), and the most
+    #: bytes it held.
+    queue_dropped_frames: int = 0
+    queue_dropped_events: int = 0
+    queue_peak_bytes: int = 0
 
     def __post_init__(self):
         for assembler in dict.fromkeys(kind.assembler for kind in KINDS.values()):

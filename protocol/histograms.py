@@ -107,16 +107,18 @@ def tokens(counts, run=0):
     A bin of count ``c > 0`` gives the token ``2 c``, after the token ``2 r + 1`` of the ``r > 0``
     empty bins before it; empty bins at the end take no token yet.
     """
+    counts = np.asarray(counts, dtype=np.int64)
     out = bytearray()
-    for count in np.asarray(counts, dtype=np.int64).tolist():
-        if count == 0:
-            run += 1
-            continue
+    last = -1       # the last bin with a count (only those are visited)
+    filled = np.flatnonzero(counts)
+    for index, count in zip(filled.tolist(), counts[filled].tolist()):
+        run += index - last - 1
         if run:
             _leb128((run << 1) | 1, out)
             run = 0
         _leb128(count << 1, out)
-    return bytes(out), run
+        last = index
+    return bytes(out), run + len(counts) - last - 1
 
 
 def window_is_compact(window_tokens, window_bins, full_readout=False):

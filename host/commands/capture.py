@@ -183,6 +183,12 @@ def report(result, *, quiet=False, out=None):
         print(f"fliss: warning: {link['dropped_frames']} corrupt frames and "
               f"{link['missing_packets']} missing packets on the link (counted in the file)",
               file=sys.stderr)
+    queue_frames = stream.get("queue_dropped_frames", 0)
+    queue_events = stream.get("queue_dropped_events", 0)
+    if queue_frames or queue_events:
+        print(f"fliss: warning: {queue_frames} frames and {queue_events} events dropped on the "
+              f"host, whose queue of data not yet written was full (counted in the file; the "
+              f"frames' rows are marked lost)", file=sys.stderr)
     if board_dropped:
         advice = ("the link is too slow for this event rate; use a higher baud rate or "
                   "histogram mode") if not KINDS[result.mode].framed else \

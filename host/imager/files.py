@@ -49,16 +49,17 @@ def attach(dataset, scales, labels):
     dataset.attrs["axes"] = ",".join(labels)
 
 
-def append_rows(group, index, item, complete, missing):
-    """Row ``index`` of the frames' rows of ``group``: ``item``'s frame number, shift and
-    time, ``missing`` bins, and ``complete`` last (False marks a row not on the disk)."""
-    for name, _ in ROW_DATASETS:
-        group[name].resize(index + 1, axis=0)
-    group["frame"][index] = item.frame
-    group["shift"][index] = item.shift
-    group["time_s"][index] = item.time_s
-    group["missing_bins"][index] = missing
-    group["complete"][index] = complete        # last: False marks a row not on the disk
+def append_rows(group, index, items, completes, missing):
+    """Rows ``index …`` of the frames' rows of ``group``, one an item of ``items``: its frame
+    number, shift and time, its ``missing`` bins, and its ``completes`` last (False marks a
+    row not on the disk)."""
+    columns = {"frame": [item.frame for item in items], "shift": [item.shift for item in items],
+               "time_s": [item.time_s for item in items], "missing_bins": missing,
+               "complete": completes}
+    for name in ("frame", "shift", "time_s", "missing_bins", "complete"):
+        dataset = group[name]
+        dataset.resize(index + len(items), axis=0)
+        dataset[index:] = np.asarray(columns[name], dtype=dataset.dtype)
 
 
 def read_imager(group, names, rows_of, problems):

@@ -12,7 +12,7 @@ from ...protocol.depth import unpack_depth
 from ..imager.distance import depth_m, tof_s
 from ..imager.files import append_rows, attach, read_imager, rows_and_axes, split_of
 from .histogram import frame_rows
-from .kind import DataKind, Seen
+from .kind import DataKind, Seen, extend
 
 
 __all__ = ["DepthFrame", "depth_frame_of", "DepthAssembler", "DEPTH_DATASETS", "KIND"]
@@ -109,23 +109,26 @@ def create(file, configuration, code_s):
     return pixels
 
 
-def append(file, index, frame, pixels, complete=True):
-    """Write :class:`DepthFrame` ``frame`` as row ``index`` of ``/depth`` (``depth_m`` from its
-    position); False when its pixels are not the capture's. ``complete`` False marks a frame
-    that never arrived."""
+def fits(file, frame, pixels):
+    """Whether :class:`DepthFrame` ``frame`` has the capture's pixels."""
+    return len(frame.position) == pixels and frame.first_pixel == int(file["depth/pixel"][0])
+
+
+def append(file, index, frames, pixels, completes):
+    """Rows ``index …`` of ``/depth``, one a :class:`DepthFrame` of ``frames`` (which
+    :func:`fits`; ``depth_m`` from its position); ``completes`` False marks a frame that never
+    arrived."""
     group = file["depth"]
-    if len(frame.position) != pixels or frame.first_pixel != int(group["pixel"][0]):
-        return False
-    detected = np.asarray(frame.detected, dtype=bool)
-    position = np.where(detected, np.asarray(frame.position, dtype=float), np.nan)
-    values = {"position": position, "height": frame.height, "background": frame.background,
-              "detected": detected,
-              "depth_m": depth_m(tof_s(position, group.attrs["code_s"] * (1 << frame.shift)))}
+    detected = np.stack([np.asarray(frame.detected, dtype=bool) for frame in frames])
+    position = np.where(detected, np.stack([np.asarray(frame.position, dtype=float)
+                                            for frame in frames]), np.nan)
+    bin_s = group.attrs["code_s"] * (1 << np.array([frame.shift for frame in frames]))
+    values = {"position": position, "height": np.stack([frame.height for frame in frames]),
+              "background": np.stack([frame.background for frame in frames]),
+              "detected": detected, "depth_m": depth_m(tof_s(position, bin_s[:, None]))}
     for name, _, _ in DEPTH_DATASETS:
-        group[name].resize(index + 1, axis=0)
-        group[name][index] = values[name]
-    append_rows(group, index, frame, complete, 0)
-    return True
+        extend(group[name], index, values[name])
+    append_rows(group, index, frames, completes, [0] * len(frames))
 
 
 def blank(number, configuration):
@@ -176,8 +179,8 @@ KIND = DataKind(
     name="depth", rank=2, readout=AcquisitionMode.DEPTH, packet="depth",
     assembler=DepthAssembler, item=DepthFrame, rows="depth frames", format_version=3,
     what="depth frames", counted=False, imager=True,
-    create=create, append=append, blank=blank, read=read, tally=tally, replay=replay, seen=seen,
-    exports=("ply", "pcd", "las", "mcap", "mcap-ros2"),
+    create=create, fits=fits, append=append, blank=blank, read=read, tally=tally,
+    replay=replay, seen=seen, exports=("ply", "pcd", "las", "mcap", "mcap-ros2"),
     refusal="PTU and Photon-HDF5 hold photons and TCSPC histograms, not depth frames: a depth "
             "capture goes to a point cloud (--to ply, pcd, las, mcap or mcap-ros2; "
             "docs/point-clouds.md)")

@@ -10,7 +10,7 @@ import numpy as np
 from ...hdl.event import TIMESTAMP_BITS
 from ...hdl.registers import AcquisitionMode
 from ...protocol.histograms import MalformedChunk, decode_chunk
-from .kind import DataKind, Seen
+from .kind import DataKind, Seen, extend
 
 
 __all__ = ["HistogramFrame", "HistogramAssembler", "ROW_DATASETS", "KIND"]
@@ -132,23 +132,25 @@ def create(file, configuration, code_s):
     return bins
 
 
-def append(file, index, frame, bins, complete=True):
-    """Row ``index`` of ``/histograms``: False (nothing written) if ``frame``'s bin count is
-    not the capture's (a histogram says itself whether it is complete)."""
-    if not hasattr(frame, "counts") or len(frame.counts) != bins:
-        return False
+def fits(file, frame, bins):
+    """Whether ``frame`` has the capture's bin count (rows of another are not stored)."""
+    return hasattr(frame, "counts") and len(frame.counts) == bins
+
+
+def append(file, index, frames, bins, completes):
+    """Rows ``index …`` of ``/histograms``, one a frame of ``frames`` (which :func:`fits`; a
+    histogram says itself whether it is complete)."""
     group = file["histograms"]
-    # The row's data first, then ``complete`` (its fill value False marks a row whose
+    columns = {"counts": np.stack([frame.counts for frame in frames]),
+               "frame": [frame.frame for frame in frames],
+               "shift": [frame.shift for frame in frames],
+               "time_s": [frame.time_s for frame in frames],
+               "missing_bins": [frame.missing_bins for frame in frames],
+               "complete": [frame.complete for frame in frames]}
+    # The rows' data first, then ``complete`` (its fill value False marks a row whose
     # data never reached the disk).
     for name in ("counts",) + tuple(name for name, _ in ROW_DATASETS):
-        group[name].resize(index + 1, axis=0)
-    group["counts"][index] = frame.counts
-    group["frame"][index] = frame.frame
-    group["shift"][index] = frame.shift
-    group["time_s"][index] = frame.time_s
-    group["missing_bins"][index] = frame.missing_bins
-    group["complete"][index] = frame.complete
-    return True
+        extend(group[name], index, columns[name])
 
 
 def blank(number, configuration):
@@ -222,5 +224,5 @@ KIND = DataKind(
     name="histogram", rank=0, readout=AcquisitionMode.HISTOGRAM, packet="histogram",
     assembler=HistogramAssembler, item=HistogramFrame, rows="histograms", format_version=2,
     what="histograms", counted=True, imager=False, per_pixel="image",
-    create=create, append=append, blank=blank, read=read, tally=tally, replay=replay,
+    create=create, fits=fits, append=append, blank=blank, read=read, tally=tally, replay=replay,
     seen=seen, exports=("ptu",))

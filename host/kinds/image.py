@@ -7,7 +7,7 @@ from ...hdl.event import TIMESTAMP_BITS
 from ...hdl.registers import AcquisitionMode
 from ..imager.files import append_rows, attach, read_imager, rows_and_axes, split_of
 from .histogram import HistogramAssembler, HistogramFrame, replay, seen
-from .kind import DataKind
+from .kind import DataKind, extend
 
 
 __all__ = ["KIND"]
@@ -33,19 +33,21 @@ def create(file, configuration, code_s):
     return pixels, bins
 
 
-def append(file, index, frame, split, complete=True):
-    """Write :class:`~fliss.host.stream.HistogramFrame` ``frame`` as row ``index`` of
-    ``/image``; False (nothing written) when its split is not the capture's (a histogram says
-    itself whether it is complete)."""
+def fits(file, frame, split):
+    """Whether :class:`~fliss.host.stream.HistogramFrame` ``frame`` has the capture's split
+    (pixels, first pixel, bins)."""
     pixels, bins = split
+    return len(frame.counts) == pixels * bins and (1 << frame.pixel_bits) == pixels and \
+        frame.first_pixel == int(file["image/pixel"][0])
+
+
+def append(file, index, frames, split, completes):
+    """Rows ``index …`` of ``/image``, one a frame of ``frames`` (which :func:`fits`; a
+    histogram says itself whether it is complete)."""
     group = file["image"]
-    if len(frame.counts) != pixels * bins or (1 << frame.pixel_bits) != pixels or \
-            frame.first_pixel != int(group["pixel"][0]):
-        return False
-    group["counts"].resize(index + 1, axis=0)
-    group["counts"][index] = frame.image
-    append_rows(group, index, frame, frame.complete, frame.missing_bins)
-    return True
+    extend(group["counts"], index, np.stack([frame.image for frame in frames]))
+    append_rows(group, index, frames, [frame.complete for frame in frames],
+                [frame.missing_bins for frame in frames])
 
 
 def blank(number, configuration):
@@ -74,5 +76,5 @@ KIND = DataKind(
     name="image", rank=1, readout=AcquisitionMode.HISTOGRAM, packet="histogram",
     assembler=HistogramAssembler, item=HistogramFrame, rows="images", format_version=3,
     what="per-pixel histograms", counted=True, imager=True,
-    create=create, append=append, blank=blank, read=read, tally=tally, replay=replay,
+    create=create, fits=fits, append=append, blank=blank, read=read, tally=tally, replay=replay,
     seen=seen, exports=("ptu",))

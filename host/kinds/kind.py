@@ -9,7 +9,15 @@ import numpy as np
 from ...hdl.registers import AcquisitionMode
 
 
-__all__ = ["Seen", "DataKind"]
+__all__ = ["Seen", "DataKind", "extend"]
+
+
+def extend(dataset, index, values):
+    """Rows ``index …`` of the HDF5 dataset ``dataset``: ``values``, one a row (grown to
+    hold them)."""
+    values = np.asarray(values, dtype=dataset.dtype)
+    dataset.resize(index + len(values), axis=0)
+    dataset[index:index + len(values)] = values
 
 
 class Seen(NamedTuple):
@@ -68,9 +76,13 @@ class DataKind:
     create : callable or None
         ``create(file, configuration, code_s)``: its datasets in a new capture file; returns
         the writer's state for :attr:`append`.
+    fits : callable or None
+        ``fits(file, item, state)``: whether the item fits the capture (its bins, pixels);
+        one that does not is not stored.
     append : callable or None
-        ``append(file, index, item, state, complete)``: row ``index``; False (nothing
-        written) when the item does not fit the capture.
+        ``append(file, index, items, state, completes)``: rows ``index …``, one an item of
+        ``items`` (each of which fits), in one write a dataset; ``completes`` False marks an
+        item that never arrived (a blank row).
     blank : callable or None
         ``blank(number, configuration)``: the row of a frame that never arrived.
     read : callable
@@ -113,6 +125,7 @@ class DataKind:
     seen: Callable
     per_pixel: Optional[str] = None
     create: Optional[Callable] = None
+    fits: Optional[Callable] = None
     append: Optional[Callable] = None
     blank: Optional[Callable] = None
     exports: Tuple[str, ...] = ()

@@ -112,6 +112,9 @@ class ModelBoard(PtyServer):
         Simulated seconds per wall-clock second.
     kill_after, hang_after, reset_after, corrupt_every, corrupt_seed, corrupt_types, corrupt_commands_every
         Faults of the line, as in :class:`~fliss.sim.boards.pty_server.PtyServer`.
+    keep_sent : bool
+        Keep the record of what was sent (:class:`~fliss.sim.boards.pty_server.PtyServer`);
+        False for long runs.
     protocol_version : int or None
         Report this protocol version instead of the real one.
     gateware_version : str or None
@@ -133,11 +136,11 @@ class ModelBoard(PtyServer):
                  kill_after=None, hang_after=None, reset_after=None, corrupt_every=None,
                  corrupt_seed=1, corrupt_types=None, corrupt_commands_every=None,
                  protocol_version=None, gateware_version=None, line_limited=False, maxima=None,
-                 loopback=None):
+                 loopback=None, keep_sent=True):
         super().__init__(kill_after=kill_after, hang_after=hang_after, reset_after=reset_after,
                          corrupt_every=corrupt_every, corrupt_seed=corrupt_seed,
                          corrupt_types=corrupt_types,
-                         corrupt_commands_every=corrupt_commands_every)
+                         corrupt_commands_every=corrupt_commands_every, keep_sent=keep_sent)
         self.clock_hz = int(clock_hz)
         self.baud = int(baud)
         self.template = Scene(clock_hz=self.clock_hz) if scene is None else scene
@@ -205,6 +208,15 @@ class ModelBoard(PtyServer):
     def _work(self, now):
         if self.model.running and len(self._out) < BACKLOG_BYTES:
             self._advance(now)
+
+    @property
+    def _due(self):
+        # A block due already (the model behind the clock) and room to send it
+        if not self.model.running or len(self._out) >= BACKLOG_BYTES:
+            return False
+        integration = self.settings["integration"]
+        block_end = (self._done_cycles // integration + 1) * integration
+        return block_end <= self._cycles_at(time.monotonic())
 
     def _killed(self):
         self.model.running = False

@@ -63,10 +63,14 @@ class PtyServer:
         Damage only frames of these types (all by default); ``corrupt_every`` counts them.
     corrupt_commands_every : int or None
         Damage one non-delimiter byte in every n-th read from the host (commands).
+    keep_sent : bool
+        Keep a record of every frame sent (:attr:`sent`, :attr:`frames_out`); False for long
+        runs, whose records would fill the memory.
     """
 
     def __init__(self, *, kill_after=None, hang_after=None, reset_after=None, corrupt_every=None,
-                 corrupt_seed=1, corrupt_types=None, corrupt_commands_every=None):
+                 corrupt_seed=1, corrupt_types=None, corrupt_commands_every=None,
+                 keep_sent=True):
         self.kill_after = kill_after
         self.reset_after = reset_after
         #: Resets so far (``reset_after``, :meth:`reset`).
@@ -76,6 +80,7 @@ class PtyServer:
         self._corrupt_rng = np.random.default_rng(corrupt_seed)
         self.corrupt_types = None if corrupt_types is None else frozenset(corrupt_types)
         self.corrupt_commands_every = corrupt_commands_every
+        self.keep_sent = keep_sent
         #: Reads from the host in which a byte was damaged.
         self.corrupted_commands = 0
         self._reads = 0
@@ -93,6 +98,7 @@ class PtyServer:
         self.failed = None
         self._reset_due = False
         self._frames_sent = 0
+        self._data_sent = 0         # data packets sent
         self._seq = 0
         self._out = bytearray()
         self._lock = threading.Lock()
@@ -106,6 +112,12 @@ class PtyServer:
     @property
     def _busy(self):
         """True while the board makes data: the thread then looks for work more often."""
+        return False
+
+    @property
+    def _due(self):
+        """True when data is due already (a board behind the clock): the thread then does not
+        wait for the host before it works."""
         return False
 
     def _receive(self, item):
@@ -174,7 +186,7 @@ class PtyServer:
     def _serve_frames(self):
         decoder = FrameDecoder(synced=False)
         while not self._stop.is_set():
-            timeout = 0.005 if self._busy or self._out else 0.05
+            timeout = 0.0 if self._due else 0.005 if self._busy or self._out else 0.05
             try:
                 readable, _, _ = select.select([self._master], [], [], timeout)
             except (OSError, ValueError):
@@ -237,24 +249,26 @@ class PtyServer:
                     break
             frame[position] = new
             self.corrupted.append((type, seq))
-        if data:
+        if data and self.keep_sent:
             self.sent.append((type, seq, bytes(payload)))
         self._out += frame
-        self.frames_out.append((type, seq, (self.frames_out[-1][2] if self.frames_out else 0) +
-                                len(frame)))
+        if self.keep_sent:
+            self.frames_out.append((type, seq, (self.frames_out[-1][2] if self.frames_out
+                                                else 0) + len(frame)))
+        self._data_sent += data
         if data:
-            if self.kill_after is not None and len(self.sent) >= self.kill_after:
+            if self.kill_after is not None and self._data_sent >= self.kill_after:
                 self._flush(block=True)
                 self._wait_drained()
                 self.killed = True
                 self._killed()
                 os.close(self._master)
                 self._master = None
-            elif self.hang_after is not None and len(self.sent) >= self.hang_after:
+            elif self.hang_after is not None and self._data_sent >= self.hang_after:
                 self._flush(block=True)
                 self.hung = True
             elif self.reset_after is not None and not self.resets and \
-                    len(self.sent) >= self.reset_after:
+                    self._data_sent >= self.reset_after:
                 self._reset_due = True
 
     def _wait_drained(self, limit_s=2.0):

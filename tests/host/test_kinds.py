@@ -93,13 +93,11 @@ def _create(file, configuration, code_s):
     return None
 
 
-def _append(file, index, item, state, complete=True):
+def _append(file, index, items, state, completes):
     group = file["tally"]
     for name in ("frame", "count"):
-        group[name].resize(index + 1, axis=0)
-    group["frame"][index] = item.frame
-    group["count"][index] = item.count
-    return True
+        group[name].resize(index + len(items), axis=0)
+        group[name][index:] = [getattr(item, name) for item in items]
 
 
 def _read(file, group_of, rows_of, problems):

@@ -41,7 +41,7 @@ def capture(tmp_path_factory):
                                generator.uniform(20, 900, PIXELS).round(),
                                generator.uniform(0, 30, PIXELS), detected,
                                1.7e9 + 0.01 * index)
-            append_depth(f, index, frame, pixels, complete=index != 5)
+            append_depth(f, index, [frame], pixels, [index != 5])
     return path
 
 
