@@ -197,3 +197,10 @@ def require_fast_harness():
         if os.environ.get("FLISS_REQUIRE_SIMULATORS"):
             pytest.fail(message + " (FLISS_REQUIRE_SIMULATORS is set)")
         pytest.skip(message)
+
+
+@pytest.fixture(scope="module")
+def up5k_maxima():
+    """The iCEBreaker build's register maxima (at 80 MHz)."""
+    from fliss.boards import fliss_top_up5k
+    return fliss_top_up5k(80_000_000).register_maxima()
