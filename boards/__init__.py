@@ -340,7 +340,9 @@ class FlissPlatform:
     * ``clocking_class``: its :class:`PllClocking`;
     * :attr:`synth_opts`: options of its ``synth_<family>`` yosys command, if any;
     * :attr:`script_after_synth`: yosys commands after it, if any (every build of the platform
-      runs them).
+      runs them);
+    * :attr:`nextpnr_opts`: options of its nextpnr command, if any, ahead of a caller's (every
+      build of the platform runs with them).
 
     Parameters
     ----------
@@ -359,6 +361,7 @@ class FlissPlatform:
     shared_pins = {}
     synth_opts = ()
     script_after_synth = ""
+    nextpnr_opts = ()
 
     def __init__(self, *, clock_hz=DEFAULT_CLOCK_HZ, **kwargs):
         super().__init__(**kwargs)
@@ -389,9 +392,14 @@ class FlissPlatform:
         return platform
 
     def toolchain_prepare(self, fragment, name, **kwargs):
-        # The board's own yosys commands after synthesis, unless the caller gives some
+        # The board's own yosys commands after synthesis, unless the caller gives some; its own
+        # nextpnr options ahead of the caller's
         if self.script_after_synth:
             kwargs.setdefault("script_after_synth", self.script_after_synth)
+        if self.nextpnr_opts:
+            given = kwargs.get("nextpnr_opts", ())
+            given = given.split() if isinstance(given, str) else list(given)
+            kwargs["nextpnr_opts"] = [*self.nextpnr_opts, *given]
         return super().toolchain_prepare(fragment, name, **kwargs)
 
     def fliss_resource(self, name):

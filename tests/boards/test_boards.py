@@ -240,6 +240,24 @@ def test_board_top_pads_read_back(tmp_path):
             platform_class("ulx3s")().prepare(BoardTop(_PadOnly), name="pad")
 
 
+def test_platform_nextpnr_options_come_first(tmp_path):
+    # A platform's own nextpnr options (`nextpnr_opts`) are in every build's nextpnr command,
+    # ahead of the caller's
+    _boards_extra()
+    base = platform_class("ulx3s")
+
+    class Routed(base):
+        nextpnr_opts = ("--router", "router2")
+
+    for platform, expected in ((base(), "--seed 3 --log"),
+                               (Routed(), "--router router2 --seed 3 --log")):
+        platform.prepare(BoardTop(_LaserPad), name="opts",
+                         nextpnr_opts=["--seed", "3"]).extract(str(tmp_path))
+        script = (tmp_path / "build_opts.sh").read_text()
+        line = next(line for line in script.splitlines() if line.startswith('"$NEXTPNR_ECP5"'))
+        assert " ".join(line.split()[2:]).startswith(expected), line
+
+
 def test_board_top_rejects_non_component():
     _boards_extra()
     platform = platform_class("ulx3s")()
