@@ -9,5 +9,6 @@
 * :mod:`.netlist_top`: the benches a board build's netlist runs, through the board's pins.
 
 The benches' clocks run in the simulator's interface (``Clock(..., impl="gpi")``), not as a
-cocotb task: a clock in Python took a fifth of a run's time on Icarus.
+cocotb task: a clock in Python took a fifth of a run's time on Icarus. The netlists' power-up
+bench keeps the clock in Python: the GPI's first edge comes at time 0, ahead of its reset.
 """
