@@ -21,9 +21,9 @@ from ..pointcloud.options import add_geometry_options, geometry_of, recorded_geo
 from .common import Progress
 from .port_options import add_port_arguments, connect
 from .setting_options import add_setting_arguments, settings_from_args
-from .view_options import (add_view_arguments, check_bokeh, check_view_flags, frame_addresses,
+from .view_options import (add_view_arguments, check_bokeh, check_view_flags,
                            setup_options, viewing)
-from ..settings import check_offline, convert, duration_s
+from ..settings import Settings, check_offline, convert, duration_s
 
 
 __all__ = ["register", "run", "report"]
@@ -98,7 +98,7 @@ def run(args):
         if args.view:       # the view's options against the frame the settings will make
             registers = convert(settings, board.clock_hz, board.client.read_registers(),
                                 style="flag", bank_bits=board.bank_bits).registers
-            setup_options(args, frame_addresses(registers))
+            setup_options(args, Settings(registers, board.clock_hz).addresses)
         board.configure(settings, style="flag")
         readout = board.settings["readout"]
         # (a kind that is the per-pixel form of another is asked for by its name)

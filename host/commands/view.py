@@ -12,12 +12,11 @@ import time
 
 from ..board import Board
 from ..errors import UserError
-from ..settings import check_offline, duration_s
+from ..settings import Settings, check_offline, duration_s
 from .common import read_capture_file, sigterm_interrupts
 from .port_options import add_port_arguments, connect
 from .setting_options import add_setting_arguments, settings_from_args
-from .view_options import (add_view_arguments, check_bokeh, frame_addresses, serving,
-                           setup_options)
+from .view_options import add_view_arguments, check_bokeh, serving, setup_options
 from ..pointcloud.options import geometry_of
 
 
@@ -91,8 +90,9 @@ def run(args):
     with connect(args) as board:
         board.configure(settings, style="flag")
         registers = board.client.read_registers()
+        addresses = Settings(registers, board.clock_hz).addresses
         setup = Setup.of_registers(board.port, registers, board.clock_hz,
-                                   **setup_options(args, frame_addresses(registers)))
+                                   **setup_options(args, addresses))
         if setup.readout not in READOUTS:
             raise UserError(f"fliss view shows {', '.join(READOUTS)} readouts, not "
                             f"{setup.readout}")

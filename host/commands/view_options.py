@@ -11,7 +11,7 @@ from .common import parse_times
 
 
 __all__ = ["VIEW_FLAGS", "add_view_arguments", "setup_options", "check_bokeh",
-           "check_view_flags", "frame_addresses", "serving", "viewing"]
+           "check_view_flags", "serving", "viewing"]
 
 
 #: The view's options, by ``dest``, as typed.
@@ -54,12 +54,6 @@ def setup_options(args, addresses, geometry=None) -> dict:
     else:
         shape = geometry.image_shape(addresses)
     return {"victim_s": victim, "shape": shape}
-
-
-def frame_addresses(registers) -> range:
-    """The pixel addresses of a frame at the board's ``registers``."""
-    first = registers["first_pixel"]
-    return range(first, first + (1 << registers["pixel_bits"]))
 
 
 def check_view_flags(given) -> None:
@@ -105,11 +99,13 @@ def viewing(board, args, geometry=None):
     if not args.view:
         yield None
         return
+    from ..settings import Settings
     from ..view.feed import Feed, Setup
 
     registers = board.client.read_registers()
+    addresses = Settings(registers, board.clock_hz).addresses
     feed = Feed(Setup.of_registers(board.port, registers, board.clock_hz,
-                                   **setup_options(args, frame_addresses(registers), geometry)))
+                                   **setup_options(args, addresses, geometry)))
     with serving(feed, args, quiet=getattr(args, "quiet", 0) > 0):
         yield feed
 
