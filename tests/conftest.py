@@ -201,6 +201,7 @@ def require_fast_harness():
 
 @pytest.fixture(scope="module")
 def up5k_maxima():
-    """The iCEBreaker build's register maxima (at 80 MHz)."""
+    """The iCEBreaker build's register maxima (at the default clock)."""
     from fliss.boards import fliss_top_up5k
-    return fliss_top_up5k(80_000_000).register_maxima()
+    from fliss.hdl.clock import DEFAULT_CLOCK_HZ
+    return fliss_top_up5k(DEFAULT_CLOCK_HZ).register_maxima()

@@ -39,7 +39,7 @@ def _next_bits(crc, byte):
 #: The step as a matrix over GF(2): bit ``j`` of the next CRC is the parity of the bits of
 #: ``Cat(crc, byte)`` that ``_MASKS[j]`` selects (the step is linear in the CRC and the byte).
 _MASKS = [sum(1 << i for i in range(CRC_WIDTH + 8)
-              if _next_bits((1 << i) & 0xffff, (1 << i) >> CRC_WIDTH) >> j & 1)
+              if _next_bits((1 << i) & ((1 << CRC_WIDTH) - 1), (1 << i) >> CRC_WIDTH) >> j & 1)
           for j in range(CRC_WIDTH)]
 
 

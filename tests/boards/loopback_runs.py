@@ -5,11 +5,12 @@ and progress displays that interrupt or kill."""
 import os
 import signal
 
+from fliss.hdl.clock import DEFAULT_CLOCK_HZ
 from fliss.host.cli import main
 from fliss.sim.models.finetdc import Line
 
 
-CLOCK_HZ = 80_000_000
+CLOCK_HZ = DEFAULT_CLOCK_HZ
 LINE = Line()
 #: The line's input delay: in every fine timestamp (the table leaves it out).
 INPUT_S = LINE.offset_s
