@@ -320,8 +320,9 @@ HEADER = f"{'wall s':>9} {'board s':>9} {'phase':>9} {'RSS MB':>7} {'file MB':>8
 def report(engine, result, log):
     """The summary of one phase: its figures, every counter in its file, its verdicts."""
     capture = read_capture(result.path)
-    # (RSS from the first sample with something in the file: the capture under way)
-    rss = [s.rss_mb for s in result.samples if s.rows]
+    # (RSS from the samples that found the file readable: the capture under way, its rows
+    # perhaps still in the writer's batch)
+    rss = [s.rss_mb for s in result.samples if s.rows is not None]
     kept = len(capture.events) if result.name == "raw" else len(capture.frames)
     log(f"phase {result.name} ({engine}): board {result.board_s:.3f} s of {result.target_s:g} "
         f"s in {result.wall_s:.1f} s wall; exit status {result.returncode}; end reason "
@@ -329,7 +330,7 @@ def report(engine, result, log):
     log(f"phase {result.name}: file {os.path.getsize(result.path) / 1e6:.3f} MB, "
         f"{kept} {'events' if result.name == 'raw' else 'frames'}; RSS first "
         f"{rss[0]:.1f} MB, last {rss[-1]:.1f} MB, max {max(rss):.1f} MB" if rss else
-        f"phase {result.name}: no sample (the capture ended at once)")
+        f"phase {result.name}: no sample while the file was open (the capture ended at once)")
     for group in sorted(capture.counters):
         values = " ".join(f"{k}={v}" for k, v in sorted(capture.counters[group].items()))
         log(f"phase {result.name}: counters {group}: {values}")

@@ -32,7 +32,7 @@ ROW = re.compile(r"^\s*([\d.]+)\s+([\d.]+)\s+(histogram|raw|depth)\s+([\d.]+)\s+
 def run(tmp_path_factory):
     folder = tmp_path_factory.mktemp("soak")
     done = subprocess.run([sys.executable, str(_PATH), "--minutes", str(MINUTES),
-                           "--sample-s", "0.5", "--folder", str(folder)],
+                           "--sample-s", "0.25", "--folder", str(folder)],
                           capture_output=True, text=True, timeout=900)
     assert done.returncode == 0, done.stderr
     assert "Traceback" not in done.stderr
