@@ -94,10 +94,17 @@ def _folder_name(sim, fine_tdc, small):
 
 def build_key(sim, *, baud=VIRTUAL_BAUD, fine_tdc=False, small=False):
     """The key of a cocotb build: a digest of the gateware's sources (and the Amaranth
-    version), the baud rate, the simulator and its options, the build's options."""
+    version), the baud rate, the simulator and its options, the build's options, and the
+    cocotb it links (its version and the folder of its libraries: a Verilator build names that
+    folder to load them from, so a build made in another or a removed environment is not
+    reused)."""
+    import cocotb
+    import cocotb_tools.config
     from ..sim.benches.runner import TIMESCALE
     from ..sim.boards.harness import gateware_sources
+    cocotb_build = [cocotb.__version__, str(Path(cocotb_tools.config.libs_dir).resolve())]
     return hashlib.sha256("\n".join([gateware_sources(), str(baud), sim, *build_args(sim),
+                                      *cocotb_build,
                                       *TIMESCALE, f"fine_tdc={fine_tdc}", f"small={small}"]
                                      ).encode()).hexdigest()
 

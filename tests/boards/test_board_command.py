@@ -44,6 +44,15 @@ def test_builds_of_other_options_never_share_a_folder(tmp_path):
         tmp_path / f"verilator-fine-{key[:16]}"
 
 
+def test_a_build_of_another_environment_is_not_reused(tmp_path, monkeypatch):
+    # A Verilator build loads cocotb's libraries from the folder it was linked against: after
+    # the environment is made again elsewhere (or removed), that build cannot start
+    import cocotb_tools.config
+    here = board_folder(tmp_path, "cocotb", "verilator")
+    monkeypatch.setattr(cocotb_tools.config, "libs_dir", tmp_path / "other-venv" / "libs")
+    assert board_folder(tmp_path, "cocotb", "verilator") != here
+
+
 def test_a_build_unused_for_long_is_removed(tmp_path):
     old, recent = tmp_path / "verilator-0123", tmp_path / "fast-4567"
     for folder in (old, recent):
