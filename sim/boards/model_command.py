@@ -89,14 +89,10 @@ def scene_from_args(args):
 
 def _build_from_args(args):
     # The model's build and loopback from --baud, --fine-tdc, --small and --jumper
-    import warnings
-    from amaranth.hdl import UnusedElaboratable
     from ...hdl.top import SMALL, FlissTop
     if args.small and args.fine_tdc:
         raise ValueError("the iCEBreaker's build has no fine TDC: --small or --fine-tdc, not both")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UnusedElaboratable)     # made for its maxima only
-        top = FlissTop(**SMALL) if args.small else FlissTop(fine_tdc=args.fine_tdc)
+    top = FlissTop(**SMALL) if args.small else FlissTop(fine_tdc=args.fine_tdc)
     return {"baud": baud_rate(args.baud), "maxima": top.register_maxima(),
             "loopback": Loopback(jumper=args.jumper)}
 
