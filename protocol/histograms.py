@@ -121,6 +121,59 @@ def tokens(counts, run=0):
     return bytes(out), run + len(counts) - last - 1
 
 
+class _WindowTokens:
+    """The tokens of every window of ``window`` bins of ``counts``, made at once: what
+    :func:`tokens` gives for each window alone, in a fraction of the time (a frame has up to
+    a thousand windows, most of them nearly empty)."""
+
+    def __init__(self, counts, window):
+        self.window = window
+        filled = np.flatnonzero(counts)
+        self.windows = filled // window
+        first = np.ones(len(filled), bool)
+        first[1:] = self.windows[1:] != self.windows[:-1]
+        gaps = np.diff(filled, prepend=0) - 1
+        # The tokens after each window's first run token: a run token before every other count
+        # that follows empty bins, then the count's token
+        values = np.empty(2 * len(filled), np.int64)
+        values[0::2] = (gaps << 1) | 1
+        values[1::2] = counts[filled].astype(np.int64) << 1
+        kept = np.ones(len(values), bool)
+        kept[0::2] = ~first & (gaps > 0)
+        values, owner = values[kept], np.repeat(self.windows, 2)[kept]
+        lengths = 1 + (values >= 1 << 7) + (values >= 1 << 14)    # (all below 2**21)
+        ends = np.cumsum(lengths)
+        data = np.empty(int(ends[-1]) if len(ends) else 0, np.uint8)
+        for place in range(3):
+            has = lengths > place
+            more = lengths > place + 1
+            data[(ends - lengths + place)[has]] = \
+                ((values[has] >> (7 * place)) & 0x7f) | np.where(more[has], 0x80, 0)
+        self.data = data.tobytes()
+        # Per window: its first count's offset, its last's, and its tokens' bytes
+        numbers = np.arange((len(counts) + window - 1) // window)
+        self.begin = np.searchsorted(self.windows, numbers)
+        self.end = np.searchsorted(self.windows, numbers, side="right")
+        self.filled = filled
+        token_windows = np.searchsorted(owner, numbers)
+        self.byte_begin = np.concatenate(([0], ends))[token_windows]
+        self.byte_end = np.concatenate(([0], ends))[np.searchsorted(owner, numbers,
+                                                                     side="right")]
+
+    def tokens(self, number, run=0):
+        """:func:`tokens` of window ``number`` after ``run`` empty bins."""
+        begin, end = self.begin[number], self.end[number]
+        if begin == end:
+            return b"", run + self.window
+        offset = int(self.filled[begin]) - number * self.window
+        last = int(self.filled[end - 1]) - number * self.window
+        head = bytearray()
+        if run + offset:
+            _leb128(((run + offset) << 1) | 1, head)
+        body = self.data[self.byte_begin[number]:self.byte_end[number]]
+        return bytes(head) + body, self.window - 1 - last
+
+
 def window_is_compact(window_tokens, window_bins, full_readout=False):
     """The board's choice for one window: ``True`` when ``full_readout`` is off and the window
     alone as a compact chunk (``window_tokens`` bytes of tokens) is a shorter payload than as
@@ -153,14 +206,15 @@ def encode_histogram(counts, *, frame, shift, pixel_bits=0, first_pixel=0, full_
                         pack(HistogramCompact, **split, first_bin=first_bin, last_bin=last_bin,
                              last=last) + data))
 
-    for start in range(0, bins, window):
+    pieces = _WindowTokens(counts, window)
+    for number, start in enumerate(range(0, bins, window)):
         part = counts[start:start + window]
         end = start + window - 1
         last = int(end == bins - 1)
-        fresh, fresh_run = tokens(part)
+        fresh, fresh_run = pieces.tokens(number)
         if window_is_compact(len(fresh), window, full_readout):
             if compact is not None:
-                carried, carried_run = tokens(part, compact[3])
+                carried, carried_run = pieces.tokens(number, compact[3])
                 if len(compact[2]) + len(carried) <= COMPACT_BYTES:
                     compact = [compact[0], end, compact[2] + carried, carried_run]
                 else:

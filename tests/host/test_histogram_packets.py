@@ -10,8 +10,8 @@ from fliss.hdl.protocol import PacketType, HistogramChunk, HistogramCompact
 from fliss.host.stream import HistogramFrame, StreamAssembler
 from fliss.protocol.frames import Packet
 from fliss.protocol.layout import pack
-from fliss.protocol.histograms import (MalformedChunk, assemble, decode_chunk, encode_histogram,
-                                       frame_bins, tokens)
+from fliss.protocol.histograms import (MalformedChunk, _WindowTokens, assemble, decode_chunk,
+                                       encode_histogram, frame_bins, tokens)
 
 
 COMPACT = PacketType.HISTOGRAM_COMPACT
@@ -26,6 +26,21 @@ def test_tokens_by_hand():
     assert tokens(counts) == (bytes([5, 6, 0x80, 0x01, 0x91, 0x03, 0xfe, 0xff, 0x07]), 2)
     # A run carried in from before joins the first run: 4 + 2 empty bins = 13.
     assert tokens(counts, 4)[0][:1] == bytes([13])
+
+
+@pytest.mark.parametrize("window", [8, 64, 1024])
+def test_a_frames_windows_tokenised_at_once_are_each_windows_tokens(window):
+    # The encoder's tokens of every window at once, against tokens() of each window alone
+    # (worked out by hand above), after runs carried in of each length class of a token
+    rng = np.random.default_rng(window)
+    for density in (0.0, 0.002, 0.05, 0.5, 1.0):
+        counts = np.where(rng.random(8 * window) < density,
+                          rng.choice([1, 63, 64, 8191, 8192, 65535], 8 * window), 0)
+        pieces = _WindowTokens(counts, window)
+        for number in range(8):
+            part = counts[number * window:(number + 1) * window]
+            for run in (0, 1, 63, 64, 8192):
+                assert pieces.tokens(number, run) == tokens(part, run)
 
 
 def test_empty_frame_is_one_short_chunk():
