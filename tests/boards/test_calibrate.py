@@ -73,14 +73,20 @@ def test_calibrate_refuses_a_board_without_the_fine_tdc(capsys, up5k_maxima):
                   f"the fine TDC's registers; only the ULX3S's has one)\n"
 
 
+def calibrate_command(capsys, board, *options):
+    """``fliss calibrate`` on ``board`` with ``options``: its status and stderr, the board's
+    table before and after, and its registers after."""
+    with connect(board.path) as client:
+        before = read_table(client.client)
+    status, _, err = fliss(capsys, "calibrate", "--port", board.path, *options)
+    with connect(board.path) as client:
+        return status, err, before, read_table(client.client), client.registers
+
+
 def test_calibrate_refuses_too_few_hits(capsys):
     # 5 µs of a 2.4 MHz oscillator: some 12 hits over 680 codes, not 25 a code
     with model_board(loopback=Loopback(line=LINE)) as board:
-        with connect(board.path) as client:
-            before = read_table(client.client)
-        status, _, err = fliss(capsys, "calibrate", "--port", board.path, "--duration", "5us")
-        with connect(board.path) as client:
-            after = read_table(client.client)
+        status, err, before, after, _ = calibrate_command(capsys, board, "--duration", "5us")
         assert status == 1
         assert err.startswith("fliss: error: 1")
         assert " hits are too few for a table: it needs 25 a code on average, " in err
@@ -117,12 +123,8 @@ def test_calibrate_stopped_before_the_table_leaves_it(capsys, monkeypatch, stop)
     import fliss.host.commands.calibrate as command
     monkeypatch.setattr(command, "Progress", lambda *args, **kwargs: stop(2))
     with model_board(loopback=Loopback(line=LINE)) as board:
-        with connect(board.path) as client:
-            before = read_table(client.client)
-        status, _, err = fliss(capsys, "calibrate", "--port", board.path, "--duration", "0.3s")
-        with connect(board.path) as client:
-            after = read_table(client.client)
-            settings = client.registers
+        status, err, before, after, settings = calibrate_command(capsys, board, "--duration",
+                                                                 "0.3s")
     assert status == 130
     assert err.splitlines()[-1] == "fliss calibrate: interrupted before the table was written: " \
                                    "the board's table is left as it was"

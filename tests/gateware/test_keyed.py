@@ -35,6 +35,14 @@ async def write_keying(ctx, dut, restarts, key, iv):
     restarts.write(key=key, iv=iv)
 
 
+async def take_delay(ctx, dut):
+    """Take the delay on offer: ``ready`` for one cycle, then one cycle without."""
+    ctx.set(dut.delays.ready, 1)
+    await ctx.tick()
+    ctx.set(dut.delays.ready, 0)
+    await ctx.tick()
+
+
 async def load_trivium(ctx, dut, key, iv):
     ctx.set(dut.key, key)
     ctx.set(dut.iv, iv)
@@ -141,10 +149,7 @@ def test_keyed_source_against_model():
                 if index and zero != (expected[index] == 0):
                     errors.append(("zero", case, index))
                 compared[0] += 1
-                ctx.set(dut.delays.ready, 1)
-                await ctx.tick()
-                ctx.set(dut.delays.ready, 0)
-                await ctx.tick()
+                await take_delay(ctx, dut)
                 if not dense:
                     for _ in range(int(rng.integers(0, 3))):
                         await ctx.tick()
@@ -196,10 +201,7 @@ def test_keyed_source_never_wraps_the_iv():
             if ctx.get(dut.delays.payload.value) != expected[index]:
                 errors.append(("delay", step, index))
             compared[0] += 1
-            ctx.set(dut.delays.ready, 1)
-            await ctx.tick()
-            ctx.set(dut.delays.ready, 0)
-            await ctx.tick()
+            await take_delay(ctx, dut)
         restarts.take(count)
 
     async def testbench(ctx):
