@@ -40,6 +40,12 @@ else:  # pragma: no cover - CI runs this with the checkout's Python 3.11
 ROOT = Path(__file__).resolve().parent.parent
 
 
+def _sigint_default():
+    # The board's SIGINT as a terminal's, whatever this script inherited (SIGINT is ignored in
+    # a background job, and a child inherits that): stop() interrupts it with SIGINT.
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 class Checks:
     def __init__(self):
         self.passed, self.failed = 0, 0
@@ -121,7 +127,8 @@ class Board:
         with open(self.log, "w") as output:
             self.process = subprocess.Popen([str(a) for a in argv], cwd=cwd, env=env,
                                             stdout=output, stderr=subprocess.STDOUT,
-                                            start_new_session=True)
+                                            start_new_session=True,
+                                            preexec_fn=_sigint_default)
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             found = re.search(r"(/dev/pts/\d+)", self.log.read_text())

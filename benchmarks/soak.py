@@ -198,9 +198,11 @@ def run_phase(engine, phase, target_s, folder, sample_s, seed, log):
     try:
         start = time.monotonic()
         board.board_s()
+        # (its SIGINT as a terminal's: this script may run where SIGINT is ignored, as in a
+        # background job, and a child inherits that, so the raw phase's stop would be lost)
         process = subprocess.Popen(capture_command(phase, board.path, result.path, target_s),
                                    stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                                   text=True)
+                                   text=True, preexec_fn=_sigint_default)
         stopped, due = False, 0.0
         while True:
             ended = process.poll() is not None
@@ -230,6 +232,10 @@ def run_phase(engine, phase, target_s, folder, sample_s, seed, log):
     finally:
         board.close()
     return result
+
+
+def _sigint_default():
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def _size_mb(path):
