@@ -1,5 +1,6 @@
 import gc
 import os
+import signal
 import warnings
 
 import pytest
@@ -10,10 +11,18 @@ from fliss.sim.benches.runner import SIMULATORS, prepare_path, simulator_availab
 
 _COCOTB_COUNTS = {}
 
+# Tests stop commands they run with SIGINT, as Ctrl-C does. Run as a background job (a CI
+# runner's shell without job control), this process inherits SIGINT ignored, and so would
+# those commands, which keep an ignored SIGINT ignored: a handler here is reset to the default
+# in each command it starts.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+
 #: Tests that run for a minute or more on a 2-core machine, longest first (node id prefixes):
 #: they start first, so that the parallel workers finish together. Each worker takes a few tests
-#: at a time (:func:`pytest_xdist_make_scheduler`), in this order, then the others. The first
-#: six are `make test-long`'s (marker long), the others `make test`'s.
+#: at a time (:func:`pytest_xdist_make_scheduler`), in this order, then the others. Those
+#: marked long are `make test-long`'s, the others `make test`'s (the fast board's harness, which
+#: the scene's Verilator column case builds first, is on the critical path of a fresh run).
 _LONG_FIRST = (
     "tests/boards/test_virtual_selftest.py::test_calibration_through_the_gateware",
     "tests/gateware/test_cocotb_link.py::test_link_fuzz[icarus-long]",
@@ -21,6 +30,8 @@ _LONG_FIRST = (
     "tests/boards/test_virtual_board.py::test_demo_runs_again",
     "tests/gateware/test_cocotb_delay_core.py::test_delay_core[icarus-full]",
     "tests/gateware/test_cocotb_link.py::test_link_fuzz[verilator-long]",
+    "tests/boards/test_cocotb_scene.py::test_line_scene_on_the_sensor_bus[icarus-column]",
+    "tests/boards/test_cocotb_scene.py::test_line_scene_on_the_sensor_bus[verilator-column]",
     "tests/boards/test_virtual_selftest.py::test_internal_loopback_on_the_gateware",
     "tests/boards/test_cocotb_scene.py::test_line_scene_on_the_sensor_bus[icarus-",
     "tests/gateware/test_cocotb_top.py::test_top[icarus-short]",
