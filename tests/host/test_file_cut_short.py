@@ -44,32 +44,36 @@ def test_a_file_removed_or_cut_short_while_shown_is_said_once(tmp_path, fault):
     size = path.stat().st_size
     process = subprocess.Popen([sys.executable, "-m", "fliss", "view", str(path), "--loop",
                                 "--view-port", "0"], stderr=subprocess.PIPE, text=True)
-    lines = []
-    reader = threading.Thread(target=lambda: lines.extend(
-        line.rstrip("\n") for line in process.stderr), daemon=True)
-    reader.start()
-    deadline = time.monotonic() + 60
-    while not any(line.startswith("fliss: view at ") for line in lines):
-        assert process.poll() is None and time.monotonic() < deadline, lines
-        time.sleep(0.05)
-    url = next(line for line in lines if line.startswith("fliss: view at ")).split()[3]
-    if fault == "removed":
-        path.unlink()
-        what = "was removed"
-    else:
-        os.truncate(path, size // 2)
-        what = f"was cut short (from {size} to {size // 2} bytes)"
-    warning = (f"fliss: warning: {path} {what} while shown; the view goes on with the capture "
-               f"as it was read when it started")
-    while warning not in lines:
-        assert process.poll() is None and time.monotonic() < deadline, lines
-        time.sleep(0.05)
-    time.sleep(0.5)
-    assert process.poll() is None, lines
-    with urllib.request.urlopen(url, timeout=30) as page:      # the page is still served
-        assert page.status == 200
-    process.send_signal(signal.SIGINT)
-    assert process.wait(timeout=60) == 0
+    try:
+        lines = []
+        reader = threading.Thread(target=lambda: lines.extend(
+            line.rstrip("\n") for line in process.stderr), daemon=True)
+        reader.start()
+        deadline = time.monotonic() + 60
+        while not any(line.startswith("fliss: view at ") for line in lines):
+            assert process.poll() is None and time.monotonic() < deadline, lines
+            time.sleep(0.05)
+        url = next(line for line in lines if line.startswith("fliss: view at ")).split()[3]
+        if fault == "removed":
+            path.unlink()
+            what = "was removed"
+        else:
+            os.truncate(path, size // 2)
+            what = f"was cut short (from {size} to {size // 2} bytes)"
+        warning = (f"fliss: warning: {path} {what} while shown; the view goes on with the capture "
+                   f"as it was read when it started")
+        while warning not in lines:
+            assert process.poll() is None and time.monotonic() < deadline, lines
+            time.sleep(0.05)
+        time.sleep(0.5)
+        assert process.poll() is None, lines
+        with urllib.request.urlopen(url, timeout=30) as page:      # the page is still served
+            assert page.status == 200
+        process.send_signal(signal.SIGINT)
+        assert process.wait(timeout=60) == 0
+    finally:
+        if process.poll() is None:       # (a failure above: no process left behind)
+            process.kill()
     reader.join(timeout=10)
     assert lines.count(warning) == 1
     assert lines[-1] == "fliss: view stopped"
