@@ -129,9 +129,9 @@ class _WindowTokens:
     def __init__(self, counts, window):
         self.window = window
         filled = np.flatnonzero(counts)
-        self.windows = filled // window
+        windows = filled // window
         first = np.ones(len(filled), bool)
-        first[1:] = self.windows[1:] != self.windows[:-1]
+        first[1:] = windows[1:] != windows[:-1]
         gaps = np.diff(filled, prepend=0) - 1
         # The tokens after each window's first run token: a run token before every other count
         # that follows empty bins, then the count's token
@@ -140,7 +140,7 @@ class _WindowTokens:
         values[1::2] = counts[filled].astype(np.int64) << 1
         kept = np.ones(len(values), bool)
         kept[0::2] = ~first & (gaps > 0)
-        values, owner = values[kept], np.repeat(self.windows, 2)[kept]
+        values, owner = values[kept], np.repeat(windows, 2)[kept]
         lengths = 1 + (values >= 1 << 7) + (values >= 1 << 14)    # (all below 2**21)
         ends = np.cumsum(lengths)
         data = np.empty(int(ends[-1]) if len(ends) else 0, np.uint8)
@@ -152,13 +152,12 @@ class _WindowTokens:
         self.data = data.tobytes()
         # Per window: its first count's offset, its last's, and its tokens' bytes
         numbers = np.arange((len(counts) + window - 1) // window)
-        self.begin = np.searchsorted(self.windows, numbers)
-        self.end = np.searchsorted(self.windows, numbers, side="right")
+        self.begin = np.searchsorted(windows, numbers)
+        self.end = np.searchsorted(windows, numbers, side="right")
         self.filled = filled
-        token_windows = np.searchsorted(owner, numbers)
-        self.byte_begin = np.concatenate(([0], ends))[token_windows]
-        self.byte_end = np.concatenate(([0], ends))[np.searchsorted(owner, numbers,
-                                                                     side="right")]
+        starts = np.concatenate(([0], ends))
+        self.byte_begin = starts[np.searchsorted(owner, numbers)]
+        self.byte_end = starts[np.searchsorted(owner, numbers, side="right")]
 
     def tokens(self, number, run=0):
         """:func:`tokens` of window ``number`` after ``run`` empty bins."""
